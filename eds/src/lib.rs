@@ -1,1 +1,88 @@
-//! placeholder
+//! `eds`: read, validate and write CANopen device descriptions (CiA 306 EDS and DCF files).
+//!
+//! Pipeline: bytes → [`source::SourceFile`] (UTF-8, Windows-1252 fallback) → [`lex`] →
+//! [`ast::Document`] (lossless: every byte, comment, key spelling and order kept) → [`lower`] →
+//! [`model::Model`] (typed) + [`diag::Diagnostic`]s → [`write`] (canonical EDS/DCF text).
+#![deny(missing_docs)]
+
+pub mod ast;
+pub mod codes;
+pub mod diag;
+pub mod encoding;
+pub mod lex;
+pub mod lower;
+pub mod model;
+pub mod source;
+pub mod value;
+pub mod write;
+
+pub use diag::{Code, Diagnostic, Severity};
+pub use model::*;
+
+/// How strictly a file is judged.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum Strictness {
+    /// Loads what real vendor files contain; CiA 306 deviations are warnings.
+    #[default]
+    Lenient,
+    /// Every CiA 306 deviation is an error.
+    Strict,
+}
+
+/// Options for [`parse`].
+#[derive(Clone, Debug, Default)]
+pub struct Options {
+    /// Lenient or strict.
+    pub strictness: Strictness,
+}
+
+impl Options {
+    /// Lenient options.
+    pub fn lenient() -> Self {
+        Options { strictness: Strictness::Lenient }
+    }
+
+    /// Strict options.
+    pub fn strict() -> Self {
+        Options { strictness: Strictness::Strict }
+    }
+}
+
+/// The result of reading one file: the lossless document, the typed model (always built, as far
+/// as the file allows), and every diagnostic found.
+#[derive(Clone, Debug)]
+pub struct Parsed {
+    /// The lossless syntax tree (write it back with [`ast::Document::write_lossless`]).
+    pub document: ast::Document,
+    /// The typed model.
+    pub model: Model,
+    /// Every diagnostic, in file order.
+    pub diagnostics: Vec<Diagnostic>,
+}
+
+impl Parsed {
+    /// Whether any diagnostic is an error.
+    pub fn has_errors(&self) -> bool {
+        self.diagnostics.iter().any(|d| d.severity == Severity::Error)
+    }
+
+    /// The diagnostics that are errors.
+    pub fn errors(&self) -> impl Iterator<Item = &Diagnostic> {
+        self.diagnostics.iter().filter(|d| d.severity == Severity::Error)
+    }
+}
+
+/// Reads an EDS or DCF from bytes. `name` is used in diagnostics. Never panics.
+pub fn parse(name: &str, bytes: &[u8], options: &Options) -> Parsed {
+    let source = source::SourceFile::decode(name, bytes);
+    let document = lex::lex(source);
+    let (model, diagnostics) = lower::lower(&document, options);
+    Parsed { document, model, diagnostics }
+}
+
+/// Reads an EDS or DCF file from disk.
+pub fn read_file(path: impl AsRef<std::path::Path>, options: &Options) -> std::io::Result<Parsed> {
+    let path = path.as_ref();
+    let bytes = std::fs::read(path)?;
+    Ok(parse(&path.display().to_string(), &bytes, options))
+}

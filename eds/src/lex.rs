@@ -1,0 +1,1 @@
+//! The nom lexer: decoded text → lossless [`crate::ast::Document`].

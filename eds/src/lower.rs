@@ -1,0 +1,1 @@
+//! Lowering and validation: [`crate::ast::Document`] → [`crate::model::Model`] + diagnostics.

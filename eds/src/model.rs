@@ -1,0 +1,830 @@
+//! The typed object-dictionary model that every other part of the project consumes.
+//!
+//! A [`Model`] is what an EDS or DCF *means*, independent of how it was spelled. It is plain
+//! serde data in one canonical form (sorted maps), so it can be dumped, compared and
+//! snapshot-tested. The code generator sees only this type.
+//!
+//! Uniform cells: every readable/writable cell of the dictionary is an [`Entry`] at an
+//! `(index, sub-index)`. A VAR (or DOMAIN/DEFTYPE) object holds exactly one entry at sub-index 0;
+//! ARRAY, RECORD and DEFSTRUCT objects hold one entry per sub-object.
+//!
+//! Source locations ([`SourceRef`]) are carried for diagnostics but do not take part in
+//! equality: a model read from a file equals the same model built in code.
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use serde::{Deserialize, Serialize};
+
+use crate::source::Span;
+
+/// An object index (0x0000..=0xFFFF).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct Index(pub u16);
+
+/// A sub-index (0x00..=0xFF).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct SubIndex(pub u8);
+
+impl fmt::Display for Index {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "0x{:04X}", self.0)
+    }
+}
+
+impl fmt::Display for SubIndex {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.0)
+    }
+}
+
+/// Where something was written in its source file. Ignored by `==` (see the module docs).
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize)]
+pub struct SourceRef {
+    /// 1-based line of the section header or key.
+    pub line: u32,
+    /// 1-based column.
+    pub col: u32,
+    /// Byte span in the decoded text.
+    pub span: Span,
+}
+
+impl PartialEq for SourceRef {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+/// CiA 301 object codes (`ObjectType=`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum ObjectType {
+    /// 0x0: no data fields.
+    Null,
+    /// 0x2: large variable amount of data.
+    Domain,
+    /// 0x5: a type definition (BOOLEAN, UNSIGNED8, ...).
+    DefType,
+    /// 0x6: a record type definition.
+    DefStruct,
+    /// 0x7: a single value.
+    Var,
+    /// 0x8: several values of one type, sub-index 0 holds the count.
+    Array,
+    /// 0x9: several values of possibly different types.
+    Record,
+}
+
+impl ObjectType {
+    /// The CiA 306 code.
+    pub const fn code(self) -> u8 {
+        match self {
+            ObjectType::Null => 0x0,
+            ObjectType::Domain => 0x2,
+            ObjectType::DefType => 0x5,
+            ObjectType::DefStruct => 0x6,
+            ObjectType::Var => 0x7,
+            ObjectType::Array => 0x8,
+            ObjectType::Record => 0x9,
+        }
+    }
+
+    /// The object type for a CiA 306 code.
+    pub const fn from_code(code: u8) -> Option<Self> {
+        Some(match code {
+            0x0 => ObjectType::Null,
+            0x2 => ObjectType::Domain,
+            0x5 => ObjectType::DefType,
+            0x6 => ObjectType::DefStruct,
+            0x7 => ObjectType::Var,
+            0x8 => ObjectType::Array,
+            0x9 => ObjectType::Record,
+            _ => return None,
+        })
+    }
+
+    /// Whether objects of this type have sub-objects (and sub-index 0 is the count).
+    pub const fn has_subs(self) -> bool {
+        matches!(self, ObjectType::Array | ObjectType::Record | ObjectType::DefStruct)
+    }
+}
+
+/// CiA 301 data types (the index of their DEFTYPE object, `DataType=`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub enum DataType {
+    /// 0x0001
+    Boolean,
+    /// 0x0002
+    Integer8,
+    /// 0x0003
+    Integer16,
+    /// 0x0004
+    Integer32,
+    /// 0x0005
+    Unsigned8,
+    /// 0x0006
+    Unsigned16,
+    /// 0x0007
+    Unsigned32,
+    /// 0x0008
+    Real32,
+    /// 0x0009
+    VisibleString,
+    /// 0x000A
+    OctetString,
+    /// 0x000B
+    UnicodeString,
+    /// 0x000C
+    TimeOfDay,
+    /// 0x000D
+    TimeDifference,
+    /// 0x000F
+    Domain,
+    /// 0x0010
+    Integer24,
+    /// 0x0011
+    Real64,
+    /// 0x0012
+    Integer40,
+    /// 0x0013
+    Integer48,
+    /// 0x0014
+    Integer56,
+    /// 0x0015
+    Integer64,
+    /// 0x0016
+    Unsigned24,
+    /// 0x0018
+    Unsigned40,
+    /// 0x0019
+    Unsigned48,
+    /// 0x001A
+    Unsigned56,
+    /// 0x001B
+    Unsigned64,
+    /// Any other type index: complex types (0x0020.. PDO_COMMUNICATION_PARAMETER, ...) and
+    /// manufacturer or profile-defined types.
+    Other(u16),
+}
+
+impl DataType {
+    /// Every basic (non-`Other`) type, in code order.
+    pub const BASIC: [DataType; 25] = [
+        DataType::Boolean,
+        DataType::Integer8,
+        DataType::Integer16,
+        DataType::Integer32,
+        DataType::Unsigned8,
+        DataType::Unsigned16,
+        DataType::Unsigned32,
+        DataType::Real32,
+        DataType::VisibleString,
+        DataType::OctetString,
+        DataType::UnicodeString,
+        DataType::TimeOfDay,
+        DataType::TimeDifference,
+        DataType::Domain,
+        DataType::Integer24,
+        DataType::Real64,
+        DataType::Integer40,
+        DataType::Integer48,
+        DataType::Integer56,
+        DataType::Integer64,
+        DataType::Unsigned24,
+        DataType::Unsigned40,
+        DataType::Unsigned48,
+        DataType::Unsigned56,
+        DataType::Unsigned64,
+    ];
+
+    /// The CiA 301 type index.
+    pub const fn code(self) -> u16 {
+        match self {
+            DataType::Boolean => 0x01,
+            DataType::Integer8 => 0x02,
+            DataType::Integer16 => 0x03,
+            DataType::Integer32 => 0x04,
+            DataType::Unsigned8 => 0x05,
+            DataType::Unsigned16 => 0x06,
+            DataType::Unsigned32 => 0x07,
+            DataType::Real32 => 0x08,
+            DataType::VisibleString => 0x09,
+            DataType::OctetString => 0x0A,
+            DataType::UnicodeString => 0x0B,
+            DataType::TimeOfDay => 0x0C,
+            DataType::TimeDifference => 0x0D,
+            DataType::Domain => 0x0F,
+            DataType::Integer24 => 0x10,
+            DataType::Real64 => 0x11,
+            DataType::Integer40 => 0x12,
+            DataType::Integer48 => 0x13,
+            DataType::Integer56 => 0x14,
+            DataType::Integer64 => 0x15,
+            DataType::Unsigned24 => 0x16,
+            DataType::Unsigned40 => 0x18,
+            DataType::Unsigned48 => 0x19,
+            DataType::Unsigned56 => 0x1A,
+            DataType::Unsigned64 => 0x1B,
+            DataType::Other(c) => c,
+        }
+    }
+
+    /// The data type for a type index.
+    pub fn from_code(code: u16) -> Self {
+        Self::BASIC.iter().copied().find(|t| t.code() == code).unwrap_or(DataType::Other(code))
+    }
+
+    /// The CiA 301 name (`UNSIGNED32`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            DataType::Boolean => "BOOLEAN",
+            DataType::Integer8 => "INTEGER8",
+            DataType::Integer16 => "INTEGER16",
+            DataType::Integer32 => "INTEGER32",
+            DataType::Unsigned8 => "UNSIGNED8",
+            DataType::Unsigned16 => "UNSIGNED16",
+            DataType::Unsigned32 => "UNSIGNED32",
+            DataType::Real32 => "REAL32",
+            DataType::VisibleString => "VISIBLE_STRING",
+            DataType::OctetString => "OCTET_STRING",
+            DataType::UnicodeString => "UNICODE_STRING",
+            DataType::TimeOfDay => "TIME_OF_DAY",
+            DataType::TimeDifference => "TIME_DIFFERENCE",
+            DataType::Domain => "DOMAIN",
+            DataType::Integer24 => "INTEGER24",
+            DataType::Real64 => "REAL64",
+            DataType::Integer40 => "INTEGER40",
+            DataType::Integer48 => "INTEGER48",
+            DataType::Integer56 => "INTEGER56",
+            DataType::Integer64 => "INTEGER64",
+            DataType::Unsigned24 => "UNSIGNED24",
+            DataType::Unsigned40 => "UNSIGNED40",
+            DataType::Unsigned48 => "UNSIGNED48",
+            DataType::Unsigned56 => "UNSIGNED56",
+            DataType::Unsigned64 => "UNSIGNED64",
+            DataType::Other(_) => "OTHER",
+        }
+    }
+
+    /// Size in bits of a fixed-size type (`None` for strings, DOMAIN and `Other`).
+    pub const fn bits(self) -> Option<u32> {
+        Some(match self {
+            DataType::Boolean => 1,
+            DataType::Integer8 | DataType::Unsigned8 => 8,
+            DataType::Integer16 | DataType::Unsigned16 => 16,
+            DataType::Integer24 | DataType::Unsigned24 => 24,
+            DataType::Integer32 | DataType::Unsigned32 | DataType::Real32 => 32,
+            DataType::Integer40 | DataType::Unsigned40 => 40,
+            DataType::Integer48 | DataType::Unsigned48 | DataType::TimeOfDay | DataType::TimeDifference => 48,
+            DataType::Integer56 | DataType::Unsigned56 => 56,
+            DataType::Integer64 | DataType::Unsigned64 | DataType::Real64 => 64,
+            _ => return None,
+        })
+    }
+
+    /// Whether this is a signed integer type.
+    pub const fn is_signed(self) -> bool {
+        matches!(
+            self,
+            DataType::Integer8
+                | DataType::Integer16
+                | DataType::Integer24
+                | DataType::Integer32
+                | DataType::Integer40
+                | DataType::Integer48
+                | DataType::Integer56
+                | DataType::Integer64
+        )
+    }
+
+    /// Whether this is an unsigned integer type (BOOLEAN excluded).
+    pub const fn is_unsigned(self) -> bool {
+        matches!(
+            self,
+            DataType::Unsigned8
+                | DataType::Unsigned16
+                | DataType::Unsigned24
+                | DataType::Unsigned32
+                | DataType::Unsigned40
+                | DataType::Unsigned48
+                | DataType::Unsigned56
+                | DataType::Unsigned64
+        )
+    }
+
+    /// Whether this is REAL32 or REAL64.
+    pub const fn is_real(self) -> bool {
+        matches!(self, DataType::Real32 | DataType::Real64)
+    }
+
+    /// The inclusive value range of an integer type (BOOLEAN is 0..=1).
+    pub fn int_range(self) -> Option<(i128, i128)> {
+        let bits = self.bits()? as i128;
+        if self == DataType::Boolean {
+            Some((0, 1))
+        } else if self.is_signed() {
+            Some((-(1i128 << (bits - 1)), (1i128 << (bits - 1)) - 1))
+        } else if self.is_unsigned() {
+            Some((0, (1i128 << bits) - 1))
+        } else {
+            None
+        }
+    }
+}
+
+/// Access type (`AccessType=`, any case in files).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Access {
+    /// Read only (value may change, e.g. statusword).
+    Ro,
+    /// Write only.
+    Wo,
+    /// Read and write.
+    Rw,
+    /// Read and write, mappable into a TPDO (read on process input).
+    Rwr,
+    /// Read and write, mappable into an RPDO (write on process output).
+    Rww,
+    /// Read only, value never changes.
+    Const,
+}
+
+impl Access {
+    /// The canonical (lower-case) spelling.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Access::Ro => "ro",
+            Access::Wo => "wo",
+            Access::Rw => "rw",
+            Access::Rwr => "rwr",
+            Access::Rww => "rww",
+            Access::Const => "const",
+        }
+    }
+
+    /// Parses a spelling, any case, surrounding spaces ignored.
+    pub fn parse(s: &str) -> Option<Self> {
+        Some(match s.trim().to_ascii_lowercase().as_str() {
+            "ro" => Access::Ro,
+            "wo" => Access::Wo,
+            "rw" => Access::Rw,
+            "rwr" => Access::Rwr,
+            "rww" => Access::Rww,
+            "const" => Access::Const,
+            _ => return None,
+        })
+    }
+
+    /// Whether an SDO client may read the entry.
+    pub const fn readable(self) -> bool {
+        !matches!(self, Access::Wo)
+    }
+
+    /// Whether an SDO client may write the entry.
+    pub const fn writable(self) -> bool {
+        matches!(self, Access::Wo | Access::Rw | Access::Rwr | Access::Rww)
+    }
+
+    /// Whether the entry may be mapped into an RPDO (the master writes it).
+    pub const fn rpdo_ok(self) -> bool {
+        matches!(self, Access::Wo | Access::Rw | Access::Rww)
+    }
+
+    /// Whether the entry may be mapped into a TPDO (the device sends it).
+    pub const fn tpdo_ok(self) -> bool {
+        matches!(self, Access::Ro | Access::Rw | Access::Rwr | Access::Const)
+    }
+}
+
+/// The radix a number was written in, kept so that a rewritten file reads the same.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Radix {
+    /// Decimal.
+    #[default]
+    Dec,
+    /// `0x` hexadecimal.
+    Hex,
+    /// CiA 306 octal (a leading `0`).
+    Oct,
+}
+
+/// A typed value (DefaultValue, ParameterValue, LowLimit, HighLimit).
+///
+/// `$NODEID` stays symbolic ([`Value::NodeIdPlus`]) until [`Value::resolve`] is given a node id.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Value {
+    /// An integer (all integer types, BOOLEAN as 0/1).
+    Int {
+        /// The value.
+        value: i128,
+        /// How it was written.
+        radix: Radix,
+    },
+    /// `$NODEID + offset` (written in either order, any case, with or without spaces).
+    NodeIdPlus {
+        /// The constant part (may be 0 or negative).
+        offset: i128,
+        /// How the constant part was written.
+        radix: Radix,
+    },
+    /// A REAL32/REAL64 value.
+    Real(f64),
+    /// A VISIBLE_STRING or UNICODE_STRING value.
+    Text(String),
+    /// An OCTET_STRING or DOMAIN value (written as hex digits).
+    Bytes(Vec<u8>),
+}
+
+impl Value {
+    /// A decimal integer.
+    pub const fn int(value: i128) -> Self {
+        Value::Int { value, radix: Radix::Dec }
+    }
+
+    /// A hexadecimal integer.
+    pub const fn hex(value: i128) -> Self {
+        Value::Int { value, radix: Radix::Hex }
+    }
+
+    /// Whether the value depends on the node id.
+    pub const fn is_node_relative(&self) -> bool {
+        matches!(self, Value::NodeIdPlus { .. })
+    }
+
+    /// The integer this value stands for on node `node_id` (`None` for non-integers).
+    pub fn resolve(&self, node_id: u8) -> Option<i128> {
+        match *self {
+            Value::Int { value, .. } => Some(value),
+            Value::NodeIdPlus { offset, .. } => Some(offset + node_id as i128),
+            _ => None,
+        }
+    }
+
+    /// The integer, if the value is a plain integer (no `$NODEID`).
+    pub fn as_int(&self) -> Option<i128> {
+        match *self {
+            Value::Int { value, .. } => Some(value),
+            _ => None,
+        }
+    }
+}
+
+/// Which object list names an object.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Category {
+    /// `[MandatoryObjects]`
+    Mandatory,
+    /// `[OptionalObjects]`
+    Optional,
+    /// `[ManufacturerObjects]`
+    Manufacturer,
+}
+
+/// One cell of the dictionary: an `(index, sub-index)` with a type and a value.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Entry {
+    /// Sub-index (0 for a VAR object).
+    pub sub: SubIndex,
+    /// `ParameterName`.
+    pub name: String,
+    /// `DataType`.
+    pub data_type: DataType,
+    /// `AccessType`.
+    pub access: Access,
+    /// `PDOMapping`.
+    pub pdo_mapping: bool,
+    /// `DefaultValue` (the EDS default).
+    pub default: Option<Value>,
+    /// `ParameterValue` (a DCF's configured value).
+    pub parameter_value: Option<Value>,
+    /// `LowLimit`.
+    pub low_limit: Option<Value>,
+    /// `HighLimit`.
+    pub high_limit: Option<Value>,
+    /// `ObjFlags` (bit 0: refuse write on download, bit 1: refuse read on scan).
+    pub obj_flags: Option<u32>,
+    /// `Denotation` (DCF; the project also uses it for vendor ASCII parameter names).
+    pub denotation: Option<String>,
+    /// `UploadFile` (DOMAIN).
+    pub upload_file: Option<String>,
+    /// `DownloadFile` (DOMAIN).
+    pub download_file: Option<String>,
+    /// Keys this crate does not interpret, as written, in file order.
+    pub extra: Vec<(String, String)>,
+    /// Where the section was written.
+    pub at: SourceRef,
+}
+
+/// An object: an index with one (VAR) or several (ARRAY, RECORD) entries.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Object {
+    /// The index.
+    pub index: Index,
+    /// `ParameterName` of the object.
+    pub name: String,
+    /// `ObjectType`.
+    pub object_type: ObjectType,
+    /// The object list that names it.
+    pub category: Category,
+    /// The entries by sub-index: one at sub 0 for VAR/DOMAIN/DEFTYPE objects.
+    pub subs: BTreeMap<SubIndex, Entry>,
+    /// `CompactSubObj=N` when the file used the compact form (the entries are expanded in
+    /// `subs` all the same; this only says how to write the object back).
+    pub compact_sub_obj: Option<u8>,
+    /// `[xxxxObjectLinks]`.
+    pub object_links: Vec<Index>,
+    /// `ObjFlags` on an ARRAY/RECORD object section.
+    pub obj_flags: Option<u32>,
+    /// Keys of the object section this crate does not interpret, as written, in file order.
+    pub extra: Vec<(String, String)>,
+    /// Where the section was written.
+    pub at: SourceRef,
+}
+
+impl Object {
+    /// The entry at `sub`.
+    pub fn sub(&self, sub: u8) -> Option<&Entry> {
+        self.subs.get(&SubIndex(sub))
+    }
+
+    /// The single entry of a VAR object (sub 0).
+    pub fn var(&self) -> Option<&Entry> {
+        if self.object_type.has_subs() { None } else { self.sub(0) }
+    }
+}
+
+/// `[FileInfo]`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FileInfo {
+    /// `FileName`
+    pub file_name: Option<String>,
+    /// `FileVersion`
+    pub file_version: Option<u32>,
+    /// `FileRevision`
+    pub file_revision: Option<u32>,
+    /// `EDSVersion` (as written, e.g. "4.0")
+    pub eds_version: Option<String>,
+    /// `Description`
+    pub description: Option<String>,
+    /// `CreationTime`
+    pub creation_time: Option<String>,
+    /// `CreationDate`
+    pub creation_date: Option<String>,
+    /// `CreatedBy`
+    pub created_by: Option<String>,
+    /// `ModificationTime`
+    pub modification_time: Option<String>,
+    /// `ModificationDate`
+    pub modification_date: Option<String>,
+    /// `ModifiedBy`
+    pub modified_by: Option<String>,
+    /// Other keys, as written.
+    pub extra: Vec<(String, String)>,
+}
+
+/// `[DeviceInfo]`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct DeviceInfo {
+    /// `VendorName`
+    pub vendor_name: Option<String>,
+    /// `VendorNumber`
+    pub vendor_number: Option<u32>,
+    /// `ProductName`
+    pub product_name: Option<String>,
+    /// `ProductNumber`
+    pub product_number: Option<u32>,
+    /// `RevisionNumber`
+    pub revision_number: Option<u32>,
+    /// `OrderCode`
+    pub order_code: Option<String>,
+    /// `BaudRate_10` .. `BaudRate_1000`: kbit/s -> supported, for the keys present.
+    pub baud_rates: BTreeMap<u16, bool>,
+    /// `SimpleBootUpMaster`
+    pub simple_boot_up_master: Option<bool>,
+    /// `SimpleBootUpSlave`
+    pub simple_boot_up_slave: Option<bool>,
+    /// `Granularity` (0..=64: the mapping granularity in bits; 0 = no mapping)
+    pub granularity: Option<u8>,
+    /// `DynamicChannelsSupported`
+    pub dynamic_channels_supported: Option<u8>,
+    /// `GroupMessaging`
+    pub group_messaging: Option<bool>,
+    /// `NrOfRXPDO`
+    pub nr_of_rx_pdo: Option<u16>,
+    /// `NrOfTXPDO`
+    pub nr_of_tx_pdo: Option<u16>,
+    /// `LSS_Supported`
+    pub lss_supported: Option<bool>,
+    /// `CompactPDO` (bit field, CiA 306 4.6.2)
+    pub compact_pdo: Option<u8>,
+    /// Other keys, as written.
+    pub extra: Vec<(String, String)>,
+}
+
+/// `[DeviceComissioning]` (DCF only; the spec's own spelling).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Commissioning {
+    /// `NodeID` (also accepted: `NodeId`, any case)
+    pub node_id: Option<u8>,
+    /// `NodeName`
+    pub node_name: Option<String>,
+    /// `Baudrate` in kbit/s
+    pub baudrate: Option<u16>,
+    /// `NetNumber`
+    pub net_number: Option<u32>,
+    /// `NetworkName`
+    pub network_name: Option<String>,
+    /// `CANopenManager`
+    pub canopen_manager: Option<bool>,
+    /// `LSS_SerialNumber`
+    pub lss_serial_number: Option<u32>,
+    /// Other keys, as written.
+    pub extra: Vec<(String, String)>,
+}
+
+/// A section this crate does not interpret, kept with its entries in file order.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ExtraSection {
+    /// Section name as written.
+    pub name: String,
+    /// Its entries.
+    pub entries: Vec<(String, String)>,
+}
+
+/// Whether a file is a device description or a device configuration.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum FileKind {
+    /// Electronic data sheet.
+    #[default]
+    Eds,
+    /// Device configuration file (has `[DeviceComissioning]`).
+    Dcf,
+}
+
+/// A whole device description.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Model {
+    /// EDS or DCF.
+    pub kind: FileKind,
+    /// `[FileInfo]`.
+    pub file_info: FileInfo,
+    /// `[DeviceInfo]`.
+    pub device_info: DeviceInfo,
+    /// `[DummyUsage]`: `Dummy0001`..`Dummy0007` -> supported.
+    pub dummy_usage: BTreeMap<u16, bool>,
+    /// `[Comments]` lines.
+    pub comments: Vec<String>,
+    /// `[DeviceComissioning]` (DCF).
+    pub commissioning: Option<Commissioning>,
+    /// Every object, sorted by index.
+    pub objects: BTreeMap<Index, Object>,
+    /// Sections this crate does not interpret, in file order.
+    pub extra_sections: Vec<ExtraSection>,
+}
+
+impl Model {
+    /// The object at `index`.
+    pub fn object(&self, index: u16) -> Option<&Object> {
+        self.objects.get(&Index(index))
+    }
+
+    /// The entry at `(index, sub)`.
+    pub fn entry(&self, index: u16, sub: u8) -> Option<&Entry> {
+        self.object(index)?.sub(sub)
+    }
+
+    /// Every entry, in (index, sub-index) order.
+    pub fn entries(&self) -> impl Iterator<Item = (&Object, &Entry)> {
+        self.objects.values().flat_map(|o| o.subs.values().map(move |e| (o, e)))
+    }
+
+    /// The node id a DCF was configured for.
+    pub fn node_id(&self) -> Option<u8> {
+        self.commissioning.as_ref()?.node_id
+    }
+}
+
+/// What CiA 301 (and CiA 402) make of an index: the meaning the code generator and the
+/// validator use, instead of range checks scattered through their code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Role {
+    /// 0x0001..=0x0007: basic data types (usable as dummy mapping entries).
+    DataTypeDefinition(DataType),
+    /// 0x0008..=0x0FFF: other type definitions.
+    OtherTypeDefinition,
+    /// 0x1000
+    DeviceType,
+    /// 0x1001
+    ErrorRegister,
+    /// 0x1003
+    PreDefinedErrorField,
+    /// 0x1005
+    SyncCobId,
+    /// 0x1006
+    CommunicationCyclePeriod,
+    /// 0x100C
+    GuardTime,
+    /// 0x100D
+    LifeTimeFactor,
+    /// 0x1010
+    StoreParameters,
+    /// 0x1011
+    RestoreDefaultParameters,
+    /// 0x1014
+    EmcyCobId,
+    /// 0x1015
+    InhibitTimeEmcy,
+    /// 0x1016
+    ConsumerHeartbeatTime,
+    /// 0x1017
+    ProducerHeartbeatTime,
+    /// 0x1018
+    Identity,
+    /// 0x1019
+    SyncCounterOverflow,
+    /// 0x1200..=0x127F: server SDO parameter n (0-based).
+    SdoServer(u8),
+    /// 0x1280..=0x12FF: client SDO parameter n (0-based).
+    SdoClient(u8),
+    /// 0x1400..=0x15FF: RPDO n communication parameter (0-based).
+    RpdoCommunication(u16),
+    /// 0x1600..=0x17FF: RPDO n mapping parameter (0-based).
+    RpdoMapping(u16),
+    /// 0x1800..=0x19FF: TPDO n communication parameter (0-based).
+    TpdoCommunication(u16),
+    /// 0x1A00..=0x1BFF: TPDO n mapping parameter (0-based).
+    TpdoMapping(u16),
+    /// Any other index in 0x1000..=0x1FFF.
+    OtherCommunication,
+    /// 0x2000..=0x5FFF.
+    ManufacturerSpecific,
+    /// 0x6000..=0x9FFF.
+    StandardizedProfile,
+    /// Anything else (0x0000, 0xA000..).
+    Reserved,
+}
+
+impl Index {
+    /// What this index is for.
+    pub fn role(self) -> Role {
+        let i = self.0;
+        match i {
+            0x0001..=0x0007 => Role::DataTypeDefinition(DataType::from_code(i)),
+            0x0008..=0x0FFF => Role::OtherTypeDefinition,
+            0x1000 => Role::DeviceType,
+            0x1001 => Role::ErrorRegister,
+            0x1003 => Role::PreDefinedErrorField,
+            0x1005 => Role::SyncCobId,
+            0x1006 => Role::CommunicationCyclePeriod,
+            0x100C => Role::GuardTime,
+            0x100D => Role::LifeTimeFactor,
+            0x1010 => Role::StoreParameters,
+            0x1011 => Role::RestoreDefaultParameters,
+            0x1014 => Role::EmcyCobId,
+            0x1015 => Role::InhibitTimeEmcy,
+            0x1016 => Role::ConsumerHeartbeatTime,
+            0x1017 => Role::ProducerHeartbeatTime,
+            0x1018 => Role::Identity,
+            0x1019 => Role::SyncCounterOverflow,
+            0x1200..=0x127F => Role::SdoServer((i - 0x1200) as u8),
+            0x1280..=0x12FF => Role::SdoClient((i - 0x1280) as u8),
+            0x1400..=0x15FF => Role::RpdoCommunication(i - 0x1400),
+            0x1600..=0x17FF => Role::RpdoMapping(i - 0x1600),
+            0x1800..=0x19FF => Role::TpdoCommunication(i - 0x1800),
+            0x1A00..=0x1BFF => Role::TpdoMapping(i - 0x1A00),
+            0x1000..=0x1FFF => Role::OtherCommunication,
+            0x2000..=0x5FFF => Role::ManufacturerSpecific,
+            0x6000..=0x9FFF => Role::StandardizedProfile,
+            _ => Role::Reserved,
+        }
+    }
+}
+
+/// One entry of a PDO mapping object: `0xIIIISSLL`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub struct PdoMappingEntry {
+    /// Mapped index (0x0001..=0x0007 are dummy entries).
+    pub index: Index,
+    /// Mapped sub-index.
+    pub sub: SubIndex,
+    /// Length in bits.
+    pub bits: u8,
+}
+
+impl PdoMappingEntry {
+    /// Decodes `0xIIIISSLL`.
+    pub const fn from_u32(raw: u32) -> Self {
+        PdoMappingEntry { index: Index((raw >> 16) as u16), sub: SubIndex((raw >> 8) as u8), bits: raw as u8 }
+    }
+
+    /// Encodes `0xIIIISSLL`.
+    pub const fn to_u32(self) -> u32 {
+        ((self.index.0 as u32) << 16) | ((self.sub.0 as u32) << 8) | self.bits as u32
+    }
+
+    /// Whether this is a dummy entry (a data type index).
+    pub const fn is_dummy(self) -> bool {
+        self.index.0 >= 0x0001 && self.index.0 <= 0x0007
+    }
+}

@@ -1,0 +1,122 @@
+//! Source text, byte spans and line/column lookup.
+
+use serde::{Deserialize, Serialize};
+
+/// A half-open byte range `start..end` into a [`SourceFile`]'s decoded text.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct Span {
+    /// First byte.
+    pub start: u32,
+    /// One past the last byte.
+    pub end: u32,
+}
+
+impl Span {
+    /// A span from `start` to `end`.
+    pub const fn new(start: u32, end: u32) -> Self {
+        Span { start, end }
+    }
+
+    /// Length in bytes.
+    pub const fn len(&self) -> u32 {
+        self.end - self.start
+    }
+
+    /// Whether the span covers no byte.
+    pub const fn is_empty(&self) -> bool {
+        self.end == self.start
+    }
+}
+
+/// Which text encoding the file was decoded from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Encoding {
+    /// Valid UTF-8 (with or without a byte-order mark).
+    Utf8,
+    /// Not UTF-8: decoded as Windows-1252 (reported as a warning).
+    Windows1252,
+}
+
+/// A 1-based line and column (column counted in characters).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub struct LineCol {
+    /// 1-based line number.
+    pub line: u32,
+    /// 1-based column, in characters.
+    pub col: u32,
+}
+
+/// A decoded source file with a line index.
+#[derive(Clone, Debug)]
+pub struct SourceFile {
+    /// The name used in diagnostics (usually the path as given by the user).
+    pub name: String,
+    /// The decoded text. Byte-identical to the input when `encoding` is UTF-8.
+    pub text: String,
+    /// The encoding the bytes were decoded from.
+    pub encoding: Encoding,
+    /// Whether the input started with a UTF-8 byte-order mark (kept for lossless writing; the
+    /// mark itself is not part of `text`).
+    pub bom: bool,
+    line_starts: Vec<u32>,
+}
+
+impl SourceFile {
+    /// Decodes `bytes` (UTF-8, falling back to Windows-1252) and indexes its lines.
+    pub fn decode(name: impl Into<String>, bytes: &[u8]) -> Self {
+        let (bom, body) = match bytes.strip_prefix(b"\xEF\xBB\xBF") {
+            Some(rest) => (true, rest),
+            None => (false, bytes),
+        };
+        let (text, encoding) = match std::str::from_utf8(body) {
+            Ok(s) => (s.to_owned(), Encoding::Utf8),
+            Err(_) => (crate::encoding::decode_windows_1252(body), Encoding::Windows1252),
+        };
+        Self::from_parts(name.into(), text, encoding, bom)
+    }
+
+    /// Wraps already decoded text.
+    pub fn from_str(name: impl Into<String>, text: impl Into<String>) -> Self {
+        Self::from_parts(name.into(), text.into(), Encoding::Utf8, false)
+    }
+
+    fn from_parts(name: String, text: String, encoding: Encoding, bom: bool) -> Self {
+        let mut line_starts = vec![0u32];
+        for (i, b) in text.bytes().enumerate() {
+            if b == b'\n' {
+                line_starts.push(i as u32 + 1);
+            }
+        }
+        SourceFile { name, text, encoding, bom, line_starts }
+    }
+
+    /// The text a span covers (empty if the span is out of range).
+    pub fn slice(&self, span: Span) -> &str {
+        self.text.get(span.start as usize..span.end as usize).unwrap_or("")
+    }
+
+    /// Line and column of a byte offset.
+    pub fn line_col(&self, offset: u32) -> LineCol {
+        let line_idx = match self.line_starts.binary_search(&offset) {
+            Ok(i) => i,
+            Err(i) => i - 1,
+        };
+        let start = self.line_starts[line_idx] as usize;
+        let end = (offset as usize).min(self.text.len());
+        let col = self.text.get(start..end).map(|s| s.chars().count()).unwrap_or(end - start);
+        LineCol { line: line_idx as u32 + 1, col: col as u32 + 1 }
+    }
+
+    /// The text of 1-based line `line`, without its line ending.
+    pub fn line_text(&self, line: u32) -> &str {
+        let i = line.saturating_sub(1) as usize;
+        let Some(&start) = self.line_starts.get(i) else { return "" };
+        let end = self.line_starts.get(i + 1).map(|&e| e as usize).unwrap_or(self.text.len());
+        self.text[start as usize..end].trim_end_matches(['\n', '\r'])
+    }
+
+    /// Number of lines.
+    pub fn line_count(&self) -> usize {
+        self.line_starts.len()
+    }
+}

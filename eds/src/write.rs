@@ -1,0 +1,1 @@
+//! Canonical EDS and DCF writers: [`crate::model::Model`] → text.

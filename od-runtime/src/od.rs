@@ -1,0 +1,250 @@
+//! The contract between a generated object dictionary and the runtime.
+//!
+//! Generated code (from `od-codegen`) implements [`ObjectDictionary`] for its storage struct and
+//! provides a static, sorted table of [`EntryInfo`]. The runtime's services (SDO server, PDOs,
+//! NMT resets, store/restore) reach the dictionary only through this trait, so any dictionary,
+//! generated or hand-written, plugs in.
+
+/// A CiA 301 SDO abort code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct AbortCode(pub u32);
+
+impl AbortCode {
+    /// Toggle bit not alternated.
+    pub const TOGGLE_BIT: Self = Self(0x0503_0000);
+    /// SDO protocol timed out.
+    pub const TIMEOUT: Self = Self(0x0504_0000);
+    /// Client/server command specifier not valid or unknown.
+    pub const INVALID_COMMAND: Self = Self(0x0504_0001);
+    /// Invalid block size (block mode only).
+    pub const INVALID_BLOCK_SIZE: Self = Self(0x0504_0002);
+    /// Invalid sequence number (block mode only).
+    pub const INVALID_SEQUENCE: Self = Self(0x0504_0003);
+    /// CRC error (block mode only).
+    pub const CRC_ERROR: Self = Self(0x0504_0004);
+    /// Out of memory.
+    pub const OUT_OF_MEMORY: Self = Self(0x0504_0005);
+    /// Unsupported access to an object.
+    pub const UNSUPPORTED_ACCESS: Self = Self(0x0601_0000);
+    /// Attempt to read a write only object.
+    pub const WRITE_ONLY: Self = Self(0x0601_0001);
+    /// Attempt to write a read only object.
+    pub const READ_ONLY: Self = Self(0x0601_0002);
+    /// Object does not exist in the object dictionary.
+    pub const NO_OBJECT: Self = Self(0x0602_0000);
+    /// Object cannot be mapped to the PDO.
+    pub const NOT_MAPPABLE: Self = Self(0x0604_0041);
+    /// The number and length of the objects to be mapped would exceed PDO length.
+    pub const PDO_LENGTH_EXCEEDED: Self = Self(0x0604_0042);
+    /// General parameter incompatibility reason.
+    pub const PARAMETER_INCOMPATIBLE: Self = Self(0x0604_0043);
+    /// General internal incompatibility in the device.
+    pub const INTERNAL_INCOMPATIBLE: Self = Self(0x0604_0047);
+    /// Access failed due to a hardware error.
+    pub const HARDWARE_ERROR: Self = Self(0x0606_0000);
+    /// Data type does not match, length of service parameter does not match.
+    pub const LENGTH_MISMATCH: Self = Self(0x0607_0010);
+    /// Data type does not match, length of service parameter too high.
+    pub const LENGTH_TOO_HIGH: Self = Self(0x0607_0012);
+    /// Data type does not match, length of service parameter too low.
+    pub const LENGTH_TOO_LOW: Self = Self(0x0607_0013);
+    /// Sub-index does not exist.
+    pub const NO_SUB_INDEX: Self = Self(0x0609_0011);
+    /// Invalid value for parameter (download only).
+    pub const INVALID_VALUE: Self = Self(0x0609_0030);
+    /// Value of parameter written too high (download only).
+    pub const VALUE_TOO_HIGH: Self = Self(0x0609_0031);
+    /// Value of parameter written too low (download only).
+    pub const VALUE_TOO_LOW: Self = Self(0x0609_0032);
+    /// Maximum value is less than minimum value.
+    pub const MAX_LESS_THAN_MIN: Self = Self(0x0609_0036);
+    /// General error.
+    pub const GENERAL_ERROR: Self = Self(0x0800_0000);
+    /// Data cannot be transferred or stored to the application.
+    pub const CANNOT_STORE: Self = Self(0x0800_0020);
+    /// ... because of local control.
+    pub const LOCAL_CONTROL: Self = Self(0x0800_0021);
+    /// ... because of the present device state.
+    pub const DEVICE_STATE: Self = Self(0x0800_0022);
+    /// No data available.
+    pub const NO_DATA: Self = Self(0x0800_0024);
+}
+
+/// CiA 301 data types, by their type index.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[repr(u16)]
+#[allow(missing_docs)]
+pub enum DataType {
+    Boolean = 0x01,
+    Integer8 = 0x02,
+    Integer16 = 0x03,
+    Integer32 = 0x04,
+    Unsigned8 = 0x05,
+    Unsigned16 = 0x06,
+    Unsigned32 = 0x07,
+    Real32 = 0x08,
+    VisibleString = 0x09,
+    OctetString = 0x0A,
+    UnicodeString = 0x0B,
+    TimeOfDay = 0x0C,
+    TimeDifference = 0x0D,
+    Domain = 0x0F,
+    Integer24 = 0x10,
+    Real64 = 0x11,
+    Integer40 = 0x12,
+    Integer48 = 0x13,
+    Integer56 = 0x14,
+    Integer64 = 0x15,
+    Unsigned24 = 0x16,
+    Unsigned40 = 0x18,
+    Unsigned48 = 0x19,
+    Unsigned56 = 0x1A,
+    Unsigned64 = 0x1B,
+}
+
+impl DataType {
+    /// Whether values of this type have a variable length (strings, DOMAIN).
+    pub const fn is_variable_length(self) -> bool {
+        matches!(self, DataType::VisibleString | DataType::OctetString | DataType::UnicodeString | DataType::Domain)
+    }
+}
+
+/// Access type of an entry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Access {
+    /// Read only.
+    Ro,
+    /// Write only.
+    Wo,
+    /// Read/write.
+    Rw,
+    /// Read/write, TPDO-mappable.
+    Rwr,
+    /// Read/write, RPDO-mappable.
+    Rww,
+    /// Constant.
+    Const,
+}
+
+impl Access {
+    /// Whether an SDO client may read the entry.
+    pub const fn readable(self) -> bool {
+        !matches!(self, Access::Wo)
+    }
+
+    /// Whether an SDO client may write the entry.
+    pub const fn writable(self) -> bool {
+        matches!(self, Access::Wo | Access::Rw | Access::Rwr | Access::Rww)
+    }
+
+    /// Whether the entry may be mapped into an RPDO.
+    pub const fn rpdo_ok(self) -> bool {
+        matches!(self, Access::Wo | Access::Rw | Access::Rww)
+    }
+
+    /// Whether the entry may be mapped into a TPDO.
+    pub const fn tpdo_ok(self) -> bool {
+        matches!(self, Access::Ro | Access::Rw | Access::Rwr | Access::Const)
+    }
+}
+
+/// The default value of an entry, as the device description gives it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DefaultValue {
+    /// No default given (zero / empty).
+    None,
+    /// An integer (BOOLEAN as 0/1).
+    Int(i128),
+    /// `$NODEID + offset`, resolved at start-up and on communication reset.
+    NodeIdPlus(i128),
+    /// A REAL32/REAL64 value.
+    Real(f64),
+    /// Bytes of a string, OCTET_STRING or DOMAIN.
+    Bytes(&'static [u8]),
+}
+
+/// Static metadata of one `(index, sub-index)` entry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EntryInfo {
+    /// Object index.
+    pub index: u16,
+    /// Sub-index.
+    pub sub: u8,
+    /// Data type.
+    pub data_type: DataType,
+    /// Access type.
+    pub access: Access,
+    /// `PDOMapping=1`.
+    pub pdo_mappable: bool,
+    /// Size in bits for fixed-size types (1 for BOOLEAN); the capacity in bits for
+    /// variable-length types.
+    pub bits: u32,
+    /// Lowest value accepted from the bus, if limited.
+    pub low: Option<i128>,
+    /// Highest value accepted from the bus, if limited.
+    pub high: Option<i128>,
+    /// Default value.
+    pub default: DefaultValue,
+    /// ParameterName (of the sub-object).
+    pub name: &'static str,
+}
+
+/// Which part of the dictionary a reset or store/restore covers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Area {
+    /// 0x1000..=0x1FFF.
+    Communication,
+    /// 0x6000..=0x9FFF (standardised device profile).
+    Application,
+    /// 0x2000..=0x5FFF.
+    Manufacturer,
+    /// Every entry.
+    All,
+}
+
+impl Area {
+    /// Whether `index` belongs to this area.
+    pub const fn contains(self, index: u16) -> bool {
+        match self {
+            Area::Communication => index >= 0x1000 && index <= 0x1FFF,
+            Area::Application => index >= 0x6000 && index <= 0x9FFF,
+            Area::Manufacturer => index >= 0x2000 && index <= 0x5FFF,
+            Area::All => true,
+        }
+    }
+}
+
+/// An object dictionary the runtime can serve.
+///
+/// Values travel as little-endian bytes, as on the bus. Implementations check lengths and
+/// limits; the caller (SDO server, PDO engine) checks access rights using [`EntryInfo`].
+/// No method may panic, whatever the arguments.
+pub trait ObjectDictionary {
+    /// Every entry's metadata, sorted by `(index, sub)`.
+    fn entries(&self) -> &'static [EntryInfo];
+
+    /// Metadata of one entry: `Err(NO_OBJECT)` if the index is absent, `Err(NO_SUB_INDEX)` if
+    /// only the sub-index is.
+    fn info(&self, index: u16, sub: u8) -> Result<&'static EntryInfo, AbortCode> {
+        let all = self.entries();
+        match all.binary_search_by(|e| (e.index, e.sub).cmp(&(index, sub))) {
+            Ok(i) => Ok(&all[i]),
+            Err(i) => {
+                let exists = all.get(i).is_some_and(|e| e.index == index)
+                    || (i > 0 && all[i - 1].index == index);
+                Err(if exists { AbortCode::NO_SUB_INDEX } else { AbortCode::NO_OBJECT })
+            }
+        }
+    }
+
+    /// Copies the current value into `buf` and returns its length in bytes.
+    /// `Err(OUT_OF_MEMORY)` if `buf` is too small.
+    fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, AbortCode>;
+
+    /// Stores a value given as bytes: checks the length (0x0607_0010/12/13) and the limits
+    /// (0x0609_0030/31/32); does not check access rights.
+    fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode>;
+
+    /// Sets every entry of `area` back to its default, resolving `$NODEID` with `node_id`.
+    fn restore_defaults(&mut self, area: Area, node_id: u8);
+}
