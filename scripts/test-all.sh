@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# Runs every test of the project: the Rust workspace (unit, snapshot, compile, property,
+# corpus and interop tests), the generated-code freshness check, the SocketCAN build, and the
+# Python end-to-end tests in which python-canopen drives the simulated devices.
+# Installs what it needs (the Python venv in .venv). This is what .ci/run calls.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+
+step() { printf '\n==> %s\n' "$*"; }
+
+# The public EDS corpus lives beside the repository (../shared/eds-corpus) on the project's
+# machines; the corpus tests say they are skipped when it is absent.
+if [ -z "${EDS_CORPUS_DIR:-}" ] && [ -d "$root/../shared/eds-corpus" ]; then
+  export EDS_CORPUS_DIR="$root/../shared/eds-corpus"
+fi
+
+step "Python venv (python-canopen, python-can, pytest)"
+PYTHON=$("$root/scripts/venv.sh")
+export ODGEN_PYTHON="$PYTHON"
+
+step "cargo fmt --check"
+cargo fmt --all -- --check
+
+step "build"
+cargo build --workspace --all-targets --locked
+
+step "cargo test (workspace)"
+cargo test --workspace --all-targets --locked
+
+step "SocketCAN transport compiles"
+cargo check -p drive --features socketcan --locked
+
+step "pytest (python-canopen against the simulated drives)"
+export DRIVE_SIM="$root/target/debug/drive-sim"
+export ODGEN="$root/target/debug/odgen"
+set +e
+"$PYTHON" -m pytest -q tests/python
+rc=$?
+set -e
+if [ "$rc" -eq 5 ]; then
+  echo "pytest collected no tests"
+  exit 1
+fi
+exit "$rc"
