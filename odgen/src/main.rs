@@ -1,1 +1,46 @@
-fn main() {}
+//! `odgen`: check, format, dump and configure CANopen device descriptions (EDS/DCF).
+//!
+//! Each subcommand lives in its own module under `cmd/` with an `Args` struct (its flags) and a
+//! `run` function returning the process exit code, so new subcommands are one file and one enum
+//! variant each.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod cmd;
+mod yaml;
+
+/// CANopen device descriptions (CiA 306 EDS and DCF files): check, format, dump, configure.
+#[derive(Parser, Debug)]
+#[command(name = "odgen", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Read and validate files; print every diagnostic and a summary (exit 1 on errors).
+    Check(cmd::check::Args),
+    /// Rewrite files in the canonical form (`--check`: only report files that are not).
+    Fmt(cmd::fmt::Args),
+    /// Print the typed model of a file as YAML or JSON.
+    Dump(cmd::dump::Args),
+    /// Configure an EDS for one node and write the DCF.
+    Dcf(cmd::dcf::Args),
+    /// Measure read+validate throughput (used by scripts/bench-read.sh).
+    #[command(hide = true)]
+    BenchRead(cmd::bench_read::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Check(args) => cmd::check::run(args),
+        Command::Fmt(args) => cmd::fmt::run(args),
+        Command::Dump(args) => cmd::dump::run(args),
+        Command::Dcf(args) => cmd::dcf::run(args),
+        Command::BenchRead(args) => cmd::bench_read::run(args),
+    }
+}
