@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Read+validate throughput: our reader (release build of `odgen bench-read`) against
+# python-canopen's import_od, over the same files, in one run. Prints both figures and the ratio.
+#
+#   scripts/bench-read.sh [DIR_OR_FILES...]      default: $EDS_CORPUS_DIR or ../shared/eds-corpus
+#   OURS_ITERATIONS=200 PY_ITERATIONS=5 scripts/bench-read.sh
+#
+# This is a benchmark, not a test: it asserts nothing; it reports. The target is >= 100x.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+if [ "$#" -gt 0 ]; then
+  inputs=("$@")
+else
+  corpus=${EDS_CORPUS_DIR:-../shared/eds-corpus}
+  case "$corpus" in /*) ;; *) corpus="$root/$corpus" ;; esac
+  [ -d "$corpus" ] || { echo "no corpus at $corpus (set EDS_CORPUS_DIR)" >&2; exit 2; }
+  inputs=("$corpus")
+fi
+target=${CARGO_TARGET_DIR:-$root/target}
+echo "building odgen (release)..." >&2
+cargo build --release -q -p odgen
+python=$(bash "$root/scripts/venv.sh")
+ours=$("$target/release/odgen" bench-read --iterations "${OURS_ITERATIONS:-200}" "${inputs[@]}")
+theirs=$("$python" "$root/scripts/bench_read_canopen.py" "${PY_ITERATIONS:-5}" "${inputs[@]}")
+"$python" - "$ours" "$theirs" <<'PY'
+import json, sys
+ours, theirs = json.loads(sys.argv[1]), json.loads(sys.argv[2])
+print(f"files: {ours['files']}  bytes: {ours['bytes']}")
+print(f"odgen (eds::parse, read+validate): {ours['ms_per_pass']:9.3f} ms per pass  {ours['mb_per_s']:8.2f} MB/s  "
+      f"({ours['iterations']} passes, {ours['seconds']:.3f} s)")
+print(f"python-canopen {theirs['canopen_version']} import_od:    {theirs['ms_per_pass']:9.3f} ms per pass  "
+      f"{theirs['mb_per_s']:8.2f} MB/s  ({theirs['iterations']} passes, {theirs['seconds']:.3f} s)")
+if theirs["failures"]:
+    print(f"  python-canopen could not import {len(theirs['failures'])} file(s): {', '.join(theirs['failures'])}")
+ratio = theirs["ms_per_pass"] / ours["ms_per_pass"] if ours["ms_per_pass"] else float("inf")
+print(f"ratio: odgen is {ratio:.1f}x faster than python-canopen (target >= 100x: {'met' if ratio >= 100 else 'NOT met'})")
+PY
