@@ -1,1 +1,4 @@
-//! placeholder
+//! Simulated CANopen drives and the buses they are reached through.
+#![deny(missing_docs)]
+
+pub mod transport;

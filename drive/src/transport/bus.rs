@@ -1,0 +1,275 @@
+//! Broadcast domains ("channels") and the in-process endpoints attached to them.
+//!
+//! A [`Channel`] is one CAN bus: a list of members, each with a sink that accepts frames. A frame
+//! relayed by one member reaches every other member, never the sender, in the order it was
+//! relayed. [`MemoryBus`] is a channel on its own, for tests and single-process simulations; the
+//! hub keeps one channel per name that TCP clients open, and its in-process endpoints are the
+//! same [`LocalEndpoint`] type.
+
+use std::fmt;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use super::queue::{BoundedQueue, PushError, lock};
+use super::socketcand::Timestamp;
+use super::{CanFrame, Endpoint, TransportError};
+
+/// Identifies one member of a channel (an endpoint or a TCP client), unique in the process.
+pub(crate) type MemberId = u64;
+
+pub(crate) fn next_member_id() -> MemberId {
+    static NEXT: AtomicU64 = AtomicU64::new(1);
+    NEXT.fetch_add(1, Ordering::Relaxed)
+}
+
+/// What happened to a frame handed to a [`Sink`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Delivery {
+    /// Queued for the member.
+    Accepted,
+    /// The member's queue was full; the frame was dropped and the member stays.
+    Dropped,
+    /// The member is gone (closed, or disconnected for overflowing); remove it.
+    Gone,
+}
+
+/// The receiving side of a channel member.
+pub(crate) trait Sink: Send + Sync {
+    /// Hands over a frame without blocking.
+    fn deliver(&self, frame: CanFrame, at: Timestamp) -> Delivery;
+    /// Closes the member for good (the hub is shutting down).
+    fn close(&self);
+}
+
+/// One CAN bus: every member receives what the others relay.
+pub(crate) struct Channel {
+    name: String,
+    members: Mutex<Vec<(MemberId, Arc<dyn Sink>)>>,
+}
+
+impl Channel {
+    pub(crate) fn new(name: &str) -> Self {
+        Self { name: name.to_owned(), members: Mutex::new(Vec::new()) }
+    }
+
+    pub(crate) fn name(&self) -> &str {
+        &self.name
+    }
+
+    pub(crate) fn join(&self, id: MemberId, sink: Arc<dyn Sink>) {
+        let mut members = lock(&self.members);
+        if !members.iter().any(|(member, _)| *member == id) {
+            members.push((id, sink));
+        }
+    }
+
+    pub(crate) fn leave(&self, id: MemberId) {
+        lock(&self.members).retain(|(member, _)| *member != id);
+    }
+
+    pub(crate) fn member_count(&self) -> usize {
+        lock(&self.members).len()
+    }
+
+    /// Delivers `frame` to every member but `from`; members whose sink reports
+    /// [`Delivery::Gone`] are removed. Never blocks on a member. Returns how many members
+    /// accepted the frame.
+    pub(crate) fn relay(&self, from: MemberId, frame: CanFrame, at: Timestamp) -> usize {
+        let mut members = lock(&self.members);
+        let mut accepted = 0;
+        members.retain(|(id, sink)| {
+            if *id == from {
+                return true;
+            }
+            match sink.deliver(frame, at) {
+                Delivery::Accepted => {
+                    accepted += 1;
+                    true
+                }
+                Delivery::Dropped => true,
+                Delivery::Gone => false,
+            }
+        });
+        accepted
+    }
+
+    /// Closes every member (hub shutdown).
+    pub(crate) fn close_all(&self) {
+        let members = std::mem::take(&mut *lock(&self.members));
+        for (_, sink) in members {
+            sink.close();
+        }
+    }
+}
+
+/// Called with the total count each time an in-process endpoint's queue overflows for the
+/// first time and then at every power of two, so a stuck endpoint cannot flood the log.
+pub(crate) type OverflowHook = Box<dyn Fn(u64) + Send + Sync>;
+
+/// Receive queue of a [`LocalEndpoint`].
+pub(crate) struct Inbox {
+    queue: BoundedQueue<CanFrame>,
+    dropped: AtomicU64,
+    on_overflow: Option<OverflowHook>,
+}
+
+impl Inbox {
+    pub(crate) fn new(capacity: usize, on_overflow: Option<OverflowHook>) -> Self {
+        Self { queue: BoundedQueue::new(capacity), dropped: AtomicU64::new(0), on_overflow }
+    }
+}
+
+impl Sink for Inbox {
+    fn deliver(&self, frame: CanFrame, _at: Timestamp) -> Delivery {
+        match self.queue.push(frame) {
+            Ok(()) => Delivery::Accepted,
+            Err(PushError::Full) => {
+                let total = self.dropped.fetch_add(1, Ordering::Relaxed) + 1;
+                if let Some(hook) = &self.on_overflow
+                    && total.is_power_of_two()
+                {
+                    hook(total);
+                }
+                Delivery::Dropped
+            }
+            Err(PushError::Closed) => Delivery::Gone,
+        }
+    }
+
+    fn close(&self) {
+        self.queue.close();
+    }
+}
+
+/// An endpoint living in this process, attached to a [`MemoryBus`] or to a channel of a
+/// [`Hub`](super::Hub). It leaves the bus when dropped.
+///
+/// Sending never blocks: the frame is copied into the receive queue of every other member. A
+/// member whose queue is full loses the frame (like a CAN controller's receive overrun) and the
+/// loss is counted in its [`dropped`](LocalEndpoint::dropped).
+pub struct LocalEndpoint {
+    id: MemberId,
+    channel: Arc<Channel>,
+    inbox: Arc<Inbox>,
+}
+
+impl LocalEndpoint {
+    pub(crate) fn attach(channel: Arc<Channel>, capacity: usize, on_overflow: Option<OverflowHook>) -> Self {
+        let id = next_member_id();
+        let inbox = Arc::new(Inbox::new(capacity, on_overflow));
+        channel.join(id, Arc::clone(&inbox) as Arc<dyn Sink>);
+        Self { id, channel, inbox }
+    }
+
+    /// Frames lost because this endpoint's receive queue was full.
+    pub fn dropped(&self) -> u64 {
+        self.inbox.dropped.load(Ordering::Relaxed)
+    }
+
+    /// Frames waiting to be received.
+    pub fn pending(&self) -> usize {
+        self.inbox.queue.len()
+    }
+
+    /// Name of the channel this endpoint is attached to.
+    pub fn channel(&self) -> &str {
+        self.channel.name()
+    }
+}
+
+impl Endpoint for LocalEndpoint {
+    fn send(&mut self, frame: CanFrame) -> Result<(), TransportError> {
+        if self.inbox.queue.is_closed() {
+            return Err(TransportError::Closed);
+        }
+        self.channel.relay(self.id, frame, Timestamp::now());
+        Ok(())
+    }
+
+    fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<CanFrame>, TransportError> {
+        self.inbox.queue.pop_timeout(timeout).map_err(|_| TransportError::Closed)
+    }
+}
+
+impl Drop for LocalEndpoint {
+    fn drop(&mut self) {
+        self.channel.leave(self.id);
+    }
+}
+
+impl fmt::Debug for LocalEndpoint {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("LocalEndpoint")
+            .field("channel", &self.channel.name())
+            .field("pending", &self.pending())
+            .field("dropped", &self.dropped())
+            .finish()
+    }
+}
+
+/// An in-memory CAN bus: any number of [`LocalEndpoint`]s, each frame sent by one delivered to
+/// all the others, in send order.
+///
+/// It is deterministic and needs no threads: `send` copies the frame into the other endpoints'
+/// queues before it returns, so a test can drive a master and several devices from one thread,
+/// step by step. It is also thread-safe: endpoints are `Send`, and
+/// [`recv_timeout`](Endpoint::recv_timeout) blocks until a frame arrives, so devices can run on
+/// their own threads.
+///
+/// ```
+/// use drive::transport::{CanFrame, Endpoint, MemoryBus};
+/// let bus = MemoryBus::new();
+/// let mut master = bus.endpoint();
+/// let mut node = bus.endpoint();
+/// master.send(CanFrame::standard(0x000, &[0x01, 0x00]).unwrap()).unwrap();
+/// assert_eq!(node.try_recv().unwrap().unwrap().data(), &[0x01, 0x00]);
+/// assert_eq!(master.try_recv().unwrap(), None); // a sender does not hear itself
+/// ```
+#[derive(Clone)]
+pub struct MemoryBus {
+    channel: Arc<Channel>,
+    capacity: usize,
+}
+
+impl MemoryBus {
+    /// Receive queue length of each endpoint unless [`with_capacity`](MemoryBus::with_capacity)
+    /// says otherwise.
+    pub const DEFAULT_CAPACITY: usize = 4096;
+
+    /// A bus whose endpoints queue up to [`DEFAULT_CAPACITY`](MemoryBus::DEFAULT_CAPACITY)
+    /// frames each.
+    pub fn new() -> Self {
+        Self::with_capacity(Self::DEFAULT_CAPACITY)
+    }
+
+    /// A bus whose endpoints queue up to `capacity` frames each (at least one).
+    pub fn with_capacity(capacity: usize) -> Self {
+        Self { channel: Arc::new(Channel::new("memory")), capacity: capacity.max(1) }
+    }
+
+    /// Attaches a new endpoint. It receives every frame sent by another endpoint from now on.
+    pub fn endpoint(&self) -> LocalEndpoint {
+        LocalEndpoint::attach(Arc::clone(&self.channel), self.capacity, None)
+    }
+
+    /// Number of endpoints attached.
+    pub fn endpoint_count(&self) -> usize {
+        self.channel.member_count()
+    }
+}
+
+impl Default for MemoryBus {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl fmt::Debug for MemoryBus {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("MemoryBus")
+            .field("endpoints", &self.endpoint_count())
+            .field("capacity", &self.capacity)
+            .finish()
+    }
+}

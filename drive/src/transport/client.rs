@@ -1,0 +1,227 @@
+//! The client side of the socketcand protocol: an [`Endpoint`] on a channel of a hub (ours or
+//! a real socketcand) reached over TCP.
+
+use std::collections::VecDeque;
+use std::fmt;
+use std::io::{self, Read, Write};
+use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
+use std::time::{Duration, Instant};
+
+use super::socketcand::{Decoder, Message, parse_channel};
+use super::{CanFrame, Endpoint, TransportError};
+
+/// A connection to a socketcand server in raw mode on one channel.
+///
+/// [`connect`](SocketcandClient::connect) performs the handshake (`< hi >`, `< open CHANNEL >`,
+/// `< rawmode >`, each answered `< ok >`); afterwards [`Endpoint::send`] writes `< send ... >`
+/// messages and [`Endpoint::recv_timeout`] returns the frames the server reports. `< error >`
+/// messages from the server are counted, not returned (see
+/// [`remote_errors`](SocketcandClient::remote_errors)); remote frames work with our hub, which
+/// speaks socketcand's `sendrtr`/`rtr` messages.
+pub struct SocketcandClient {
+    stream: TcpStream,
+    peer: SocketAddr,
+    channel: String,
+    decoder: Decoder,
+    frames: VecDeque<CanFrame>,
+    replies: VecDeque<Message>,
+    buf: Vec<u8>,
+    out: String,
+    remote_errors: u64,
+    last_remote_error: Option<String>,
+}
+
+/// Frames decoded but not yet received are kept up to this many; past it the oldest are dropped,
+/// as by an overrun CAN controller. (Only a caller that waits for echo replies for a long time
+/// while the bus is busy gets near it.)
+const MAX_BUFFERED_FRAMES: usize = 65_536;
+
+impl SocketcandClient {
+    /// Time allowed for connecting and for each handshake reply.
+    pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(5);
+
+    /// Connects to `addr`, opens `channel` and enters raw mode, allowing
+    /// [`DEFAULT_TIMEOUT`](SocketcandClient::DEFAULT_TIMEOUT) for each step.
+    pub fn connect(addr: impl ToSocketAddrs, channel: &str) -> Result<Self, TransportError> {
+        Self::connect_timeout(addr, channel, Self::DEFAULT_TIMEOUT)
+    }
+
+    /// Like [`connect`](SocketcandClient::connect) with a chosen timeout per step.
+    pub fn connect_timeout(addr: impl ToSocketAddrs, channel: &str, timeout: Duration) -> Result<Self, TransportError> {
+        parse_channel(channel).map_err(|e| TransportError::Protocol(e.to_string()))?;
+        let addrs = addr.to_socket_addrs().map_err(|e| TransportError::io("cannot resolve the server address", e))?;
+        let mut last_error = None;
+        let mut connected = None;
+        for candidate in addrs {
+            match TcpStream::connect_timeout(&candidate, timeout) {
+                Ok(stream) => {
+                    connected = Some((stream, candidate));
+                    break;
+                }
+                Err(error) => last_error = Some(TransportError::io(format!("cannot connect to {candidate}"), error)),
+            }
+        }
+        let (stream, peer) = connected.ok_or_else(|| {
+            last_error.unwrap_or_else(|| TransportError::Protocol("the address resolved to nothing".into()))
+        })?;
+        stream.set_nodelay(true).map_err(|e| TransportError::io("cannot configure the socket", e))?;
+        let mut client = Self {
+            stream,
+            peer,
+            channel: channel.to_owned(),
+            decoder: Decoder::new(),
+            frames: VecDeque::new(),
+            replies: VecDeque::new(),
+            buf: vec![0; 16 * 1024],
+            out: String::with_capacity(64),
+            remote_errors: 0,
+            last_remote_error: None,
+        };
+        client.expect(Message::Hi, timeout)?;
+        client.write(&Message::Open(channel.to_owned()))?;
+        client.expect(Message::Ok, timeout)?;
+        client.write(&Message::RawMode)?;
+        client.expect(Message::Ok, timeout)?;
+        Ok(client)
+    }
+
+    /// The server's address.
+    pub fn peer_addr(&self) -> SocketAddr {
+        self.peer
+    }
+
+    /// The channel opened.
+    pub fn channel(&self) -> &str {
+        &self.channel
+    }
+
+    /// `< error >` messages received since the handshake.
+    pub fn remote_errors(&self) -> u64 {
+        self.remote_errors
+    }
+
+    /// Text of the last `< error >` message received.
+    pub fn last_remote_error(&self) -> Option<&str> {
+        self.last_remote_error.as_deref()
+    }
+
+    /// Sends `< echo >` and waits for the server to echo it: a round trip through the server.
+    /// Frames arriving meanwhile stay queued for [`recv_timeout`](Endpoint::recv_timeout).
+    pub fn echo(&mut self, timeout: Duration) -> Result<(), TransportError> {
+        self.write(&Message::Echo)?;
+        self.expect(Message::Echo, timeout)
+    }
+
+    fn write(&mut self, message: &Message) -> Result<(), TransportError> {
+        self.out.clear();
+        message.write_to(&mut self.out);
+        self.stream.write_all(self.out.as_bytes()).map_err(|e| map_io("cannot write to the server", e))
+    }
+
+    /// Waits for a reply other than a frame; it must be `wanted`.
+    fn expect(&mut self, wanted: Message, timeout: Duration) -> Result<(), TransportError> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(reply) = self.replies.pop_front() {
+                return match reply {
+                    reply if reply == wanted => Ok(()),
+                    Message::Error(text) => Err(TransportError::Protocol(format!("server refused: {text}"))),
+                    other => Err(TransportError::Protocol(format!("expected {wanted}, got {other}"))),
+                };
+            }
+            if !self.read_some(deadline)? {
+                return Err(TransportError::Protocol(format!("no {wanted} from the server within {timeout:?}")));
+            }
+        }
+    }
+
+    /// Reads what the socket has (waiting until `deadline` at most) and decodes it. Returns
+    /// false when the deadline passed without data.
+    fn read_some(&mut self, deadline: Instant) -> Result<bool, TransportError> {
+        let remaining = deadline.saturating_duration_since(Instant::now());
+        let result = if remaining.is_zero() {
+            self.stream.set_nonblocking(true).map_err(|e| TransportError::io("cannot poll the socket", e))?;
+            let result = self.stream.read(&mut self.buf);
+            self.stream.set_nonblocking(false).map_err(|e| TransportError::io("cannot poll the socket", e))?;
+            result
+        } else {
+            self.stream.set_read_timeout(Some(remaining)).map_err(|e| TransportError::io("cannot wait", e))?;
+            self.stream.read(&mut self.buf)
+        };
+        let n = match result {
+            Ok(0) => return Err(TransportError::Closed),
+            Ok(n) => n,
+            Err(error) if matches!(error.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => {
+                return Ok(false);
+            }
+            Err(error) if error.kind() == io::ErrorKind::Interrupted => return Ok(true),
+            Err(error) => return Err(map_io("cannot read from the server", error)),
+        };
+        let (frames, replies) = (&mut self.frames, &mut self.replies);
+        let errors = &mut self.remote_errors;
+        self.decoder.feed(&self.buf[..n], |message| match message {
+            Ok(Message::Frame { frame, .. }) => {
+                if frames.len() >= MAX_BUFFERED_FRAMES {
+                    frames.pop_front();
+                }
+                frames.push_back(frame);
+            }
+            Ok(other) => replies.push_back(other),
+            // A server sending garbage: nothing to answer, the frames around it still count.
+            Err(_) => *errors += 1,
+        });
+        // Replies nobody waits for (after the handshake) are not kept.
+        if replies.len() > 16 {
+            replies.drain(..replies.len() - 16);
+        }
+        Ok(true)
+    }
+}
+
+fn map_io(context: &str, error: io::Error) -> TransportError {
+    match error.kind() {
+        io::ErrorKind::BrokenPipe
+        | io::ErrorKind::ConnectionReset
+        | io::ErrorKind::ConnectionAborted
+        | io::ErrorKind::NotConnected
+        | io::ErrorKind::UnexpectedEof => TransportError::Closed,
+        _ => TransportError::io(context, error),
+    }
+}
+
+impl Endpoint for SocketcandClient {
+    fn send(&mut self, frame: CanFrame) -> Result<(), TransportError> {
+        self.write(&Message::Send(frame))
+    }
+
+    fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<CanFrame>, TransportError> {
+        let deadline =
+            Instant::now().checked_add(timeout).unwrap_or_else(|| Instant::now() + Duration::from_secs(86_400));
+        loop {
+            if let Some(frame) = self.frames.pop_front() {
+                return Ok(Some(frame));
+            }
+            // Error replies that arrive outside a handshake are counted, not returned.
+            while let Some(reply) = self.replies.pop_front() {
+                if let Message::Error(text) = reply {
+                    self.remote_errors += 1;
+                    self.last_remote_error = Some(text);
+                }
+            }
+            if !self.read_some(deadline)? {
+                return Ok(None);
+            }
+        }
+    }
+}
+
+impl fmt::Debug for SocketcandClient {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("SocketcandClient")
+            .field("peer", &self.peer)
+            .field("channel", &self.channel)
+            .field("buffered", &self.frames.len())
+            .field("remote_errors", &self.remote_errors)
+            .finish()
+    }
+}

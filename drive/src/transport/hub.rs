@@ -1,0 +1,682 @@
+//! A socketcand-compatible TCP hub: a software CAN bus that masters and devices join over TCP.
+//!
+//! Every client is greeted with `< hi >`, opens a channel by any name (`< open can0 >`) and
+//! switches to raw mode (`< rawmode >`); from then on it receives every frame the other members
+//! of that channel send. A channel is one CAN bus; channels are created on first use and are
+//! independent of each other. In-process devices join a channel with [`Hub::attach`].
+//!
+//! Threads: one accepting connections, and per client one reading (parsing commands, relaying
+//! frames) and one writing (draining the client's send queue). Relaying never blocks: a frame
+//! is copied into each member's bounded queue. A TCP client whose queue overflows (it stopped
+//! reading, or reads slower than the bus runs) is disconnected with a log line, so it cannot
+//! hold up the others; an in-process endpoint whose queue overflows loses frames, counted.
+
+use std::collections::HashMap;
+use std::fmt;
+use std::io::{self, Read, Write};
+use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, Shutdown, SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, Weak};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use super::bus::{Channel, Delivery, LocalEndpoint, MemberId, Sink, next_member_id};
+use super::queue::{BoundedQueue, PushError, lock};
+use super::socketcand::{Decoder, Message, ParseError, Timestamp, parse_channel};
+use super::{CanFrame, TransportError};
+
+/// Receives every [`HubEvent`]; called from the hub's threads, so it must be quick.
+pub type HubObserver = Arc<dyn Fn(&HubEvent) + Send + Sync>;
+
+/// Settings of a [`Hub`].
+#[derive(Clone)]
+pub struct HubConfig {
+    /// Connections served at once; more are answered `< error ... >` and closed.
+    pub max_clients: usize,
+    /// Messages queued for one TCP client before it is disconnected as too slow.
+    pub client_queue: usize,
+    /// Frames queued for one in-process endpoint before further frames are dropped.
+    pub endpoint_queue: usize,
+    /// A write to a client that blocks this long disconnects it.
+    pub write_timeout: Duration,
+    /// Where events go; [`HubConfig::default`] prints them to stderr.
+    pub observer: HubObserver,
+}
+
+impl HubConfig {
+    /// Protocol errors reported per client before further ones are only counted.
+    pub const LOGGED_ERRORS_PER_CLIENT: u32 = 10;
+
+    /// The same settings with every event discarded.
+    pub fn quiet(self) -> Self {
+        self.with_observer(Arc::new(|_: &HubEvent| {}))
+    }
+
+    /// The same settings with events sent to `observer`.
+    pub fn with_observer(self, observer: HubObserver) -> Self {
+        Self { observer, ..self }
+    }
+}
+
+impl Default for HubConfig {
+    fn default() -> Self {
+        Self {
+            max_clients: 64,
+            client_queue: 4096,
+            endpoint_queue: 4096,
+            write_timeout: Duration::from_secs(5),
+            observer: Arc::new(|event: &HubEvent| eprintln!("hub: {event}")),
+        }
+    }
+}
+
+impl fmt::Debug for HubConfig {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("HubConfig")
+            .field("max_clients", &self.max_clients)
+            .field("client_queue", &self.client_queue)
+            .field("endpoint_queue", &self.endpoint_queue)
+            .field("write_timeout", &self.write_timeout)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Something that happened in a [`Hub`], for logging. `Display` gives the log line.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum HubEvent {
+    /// The hub accepts connections.
+    Listening {
+        /// Bound address (with the real port when 0 was asked for).
+        addr: SocketAddr,
+    },
+    /// A client connected.
+    Connected {
+        /// Client number, unique in the process.
+        client: u64,
+        /// Its address.
+        peer: SocketAddr,
+    },
+    /// A connection was refused.
+    Rejected {
+        /// Its address.
+        peer: SocketAddr,
+        /// Why.
+        reason: String,
+    },
+    /// A client opened a channel.
+    Opened {
+        /// Client number.
+        client: u64,
+        /// Its address.
+        peer: SocketAddr,
+        /// Channel name.
+        channel: String,
+    },
+    /// A client entered raw mode and now receives the channel's frames.
+    RawMode {
+        /// Client number.
+        client: u64,
+        /// Its address.
+        peer: SocketAddr,
+    },
+    /// A client sent something malformed or out of place.
+    ProtocolError {
+        /// Client number.
+        client: u64,
+        /// Its address.
+        peer: SocketAddr,
+        /// What was wrong.
+        error: String,
+    },
+    /// A client made more than [`HubConfig::LOGGED_ERRORS_PER_CLIENT`] errors; the rest are
+    /// not logged (each is still answered).
+    ErrorsSuppressed {
+        /// Client number.
+        client: u64,
+        /// Its address.
+        peer: SocketAddr,
+    },
+    /// A client's send queue overflowed; it is being disconnected.
+    Overflow {
+        /// Client number.
+        client: u64,
+        /// Its address.
+        peer: SocketAddr,
+        /// The queue length that was exceeded.
+        capacity: usize,
+    },
+    /// An in-process endpoint's queue is full and frames are being dropped (reported at 1, 2,
+    /// 4, 8 ... drops).
+    EndpointOverflow {
+        /// Its channel.
+        channel: String,
+        /// Frames dropped so far.
+        dropped: u64,
+    },
+    /// A client is gone.
+    Disconnected {
+        /// Client number.
+        client: u64,
+        /// Its address.
+        peer: SocketAddr,
+        /// Why.
+        reason: String,
+    },
+    /// `accept` failed (for instance the process ran out of file descriptors).
+    AcceptFailed {
+        /// The OS error.
+        error: String,
+    },
+    /// The hub stopped.
+    Stopped,
+}
+
+impl fmt::Display for HubEvent {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            HubEvent::Listening { addr } => write!(f, "listening on {addr}"),
+            HubEvent::Connected { client, peer } => write!(f, "client {client} ({peer}) connected"),
+            HubEvent::Rejected { peer, reason } => write!(f, "connection from {peer} refused: {reason}"),
+            HubEvent::Opened { client, peer, channel } => {
+                write!(f, "client {client} ({peer}) opened channel {channel}")
+            }
+            HubEvent::RawMode { client, peer } => write!(f, "client {client} ({peer}) entered raw mode"),
+            HubEvent::ProtocolError { client, peer, error } => write!(f, "client {client} ({peer}): {error}"),
+            HubEvent::ErrorsSuppressed { client, peer } => {
+                write!(f, "client {client} ({peer}): further protocol errors not logged")
+            }
+            HubEvent::Overflow { client, peer, capacity } => write!(
+                f,
+                "client {client} ({peer}) disconnected: it fell {capacity} messages behind (reading too slowly or not at all)"
+            ),
+            HubEvent::EndpointOverflow { channel, dropped } => {
+                write!(f, "in-process endpoint on channel {channel} is not reading: {dropped} frames dropped")
+            }
+            HubEvent::Disconnected { client, peer, reason } => {
+                write!(f, "client {client} ({peer}) disconnected: {reason}")
+            }
+            HubEvent::AcceptFailed { error } => write!(f, "accept failed: {error}"),
+            HubEvent::Stopped => write!(f, "stopped"),
+        }
+    }
+}
+
+/// A running socketcand hub. Dropping it stops it (as does [`Hub::stop`]): the listener
+/// closes, every client is disconnected and every attached endpoint reports
+/// [`TransportError::Closed`].
+///
+/// ```
+/// use std::time::Duration;
+/// use drive::transport::{CanFrame, Endpoint, Hub, HubConfig, SocketcandClient};
+///
+/// let hub = Hub::bind("127.0.0.1:0", HubConfig::default().quiet()).unwrap();
+/// let mut device = hub.attach("can0").unwrap();
+/// let mut master = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+/// master.send(CanFrame::standard(0x000, &[0x01, 0x00]).unwrap()).unwrap();
+/// let nmt = device.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
+/// assert_eq!(nmt.data(), &[0x01, 0x00]);
+/// ```
+pub struct Hub {
+    inner: Arc<HubInner>,
+    accept: Mutex<Option<JoinHandle<()>>>,
+}
+
+struct HubInner {
+    config: HubConfig,
+    local_addr: SocketAddr,
+    channels: Mutex<HashMap<String, Weak<Channel>>>,
+    connections: Mutex<HashMap<u64, ConnectionEntry>>,
+    stopping: AtomicBool,
+}
+
+struct ConnectionEntry {
+    connection: Arc<Connection>,
+    threads: Vec<JoinHandle<()>>,
+}
+
+impl Hub {
+    /// Binds `addr` (use port 0 for a free port, then [`local_addr`](Hub::local_addr)) and
+    /// starts accepting clients on a background thread.
+    pub fn bind(addr: impl ToSocketAddrs, config: HubConfig) -> Result<Self, TransportError> {
+        let listener = TcpListener::bind(addr).map_err(|e| TransportError::io("cannot listen", e))?;
+        let local_addr = listener.local_addr().map_err(|e| TransportError::io("cannot read the bound address", e))?;
+        let inner = Arc::new(HubInner {
+            config,
+            local_addr,
+            channels: Mutex::new(HashMap::new()),
+            connections: Mutex::new(HashMap::new()),
+            stopping: AtomicBool::new(false),
+        });
+        inner.emit(&HubEvent::Listening { addr: local_addr });
+        let accept = {
+            let inner = Arc::clone(&inner);
+            std::thread::Builder::new()
+                .name("hub-accept".into())
+                .spawn(move || inner.accept_loop(&listener))
+                .map_err(|e| TransportError::io("cannot start the accept thread", e))?
+        };
+        Ok(Self { inner, accept: Mutex::new(Some(accept)) })
+    }
+
+    /// The address clients connect to.
+    pub fn local_addr(&self) -> SocketAddr {
+        self.inner.local_addr
+    }
+
+    /// Attaches an in-process endpoint to `channel` (created if no client opened it yet). It
+    /// receives what TCP clients in raw mode and other endpoints of the channel send, and they
+    /// receive what it sends.
+    pub fn attach(&self, channel: &str) -> Result<LocalEndpoint, TransportError> {
+        if self.inner.stopping.load(Ordering::SeqCst) {
+            return Err(TransportError::Closed);
+        }
+        let name = parse_channel(channel).map_err(|e| TransportError::Protocol(e.to_string()))?.to_owned();
+        let channel = self.inner.channel(&name);
+        let observer = Arc::clone(&self.inner.config.observer);
+        let hook = Box::new(move |dropped| observer(&HubEvent::EndpointOverflow { channel: name.clone(), dropped }));
+        Ok(LocalEndpoint::attach(channel, self.inner.config.endpoint_queue, Some(hook)))
+    }
+
+    /// Clients currently connected.
+    pub fn client_count(&self) -> usize {
+        lock(&self.inner.connections).len()
+    }
+
+    /// Names of the channels that have members, sorted.
+    pub fn channels(&self) -> Vec<String> {
+        let mut names: Vec<String> = lock(&self.inner.channels)
+            .iter()
+            .filter(|(_, channel)| channel.strong_count() > 0)
+            .map(|(name, _)| name.clone())
+            .collect();
+        names.sort();
+        names
+    }
+
+    /// Stops the hub: closes the listener, disconnects every client, closes every attached
+    /// endpoint and waits for the hub's threads. Calling it again does nothing.
+    pub fn stop(&self) {
+        if self.inner.stopping.swap(true, Ordering::SeqCst) {
+            return;
+        }
+        // accept() has no timeout: wake it with a connection of our own, which it drops.
+        let woke = TcpStream::connect_timeout(&wake_address(self.inner.local_addr), Duration::from_secs(1)).is_ok();
+        if let Some(handle) = lock(&self.accept).take()
+            && woke
+        {
+            let _ = handle.join();
+        }
+        let entries = std::mem::take(&mut *lock(&self.inner.connections));
+        for entry in entries.values() {
+            entry.connection.kill("hub stopped");
+        }
+        for entry in entries.into_values() {
+            for thread in entry.threads {
+                let _ = thread.join();
+            }
+        }
+        let channels: Vec<Arc<Channel>> = lock(&self.inner.channels).drain().filter_map(|(_, c)| c.upgrade()).collect();
+        for channel in channels {
+            channel.close_all();
+        }
+        self.inner.emit(&HubEvent::Stopped);
+    }
+}
+
+impl Drop for Hub {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
+
+impl fmt::Debug for Hub {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Hub")
+            .field("local_addr", &self.inner.local_addr)
+            .field("clients", &self.client_count())
+            .finish()
+    }
+}
+
+/// Where to connect to reach a listener bound to `addr` (the loopback address when it listens
+/// on all interfaces).
+fn wake_address(addr: SocketAddr) -> SocketAddr {
+    match addr.ip() {
+        IpAddr::V4(ip) if ip.is_unspecified() => SocketAddr::new(Ipv4Addr::LOCALHOST.into(), addr.port()),
+        IpAddr::V6(ip) if ip.is_unspecified() => SocketAddr::new(Ipv6Addr::LOCALHOST.into(), addr.port()),
+        _ => addr,
+    }
+}
+
+impl HubInner {
+    fn emit(&self, event: &HubEvent) {
+        (self.config.observer)(event);
+    }
+
+    fn channel(&self, name: &str) -> Arc<Channel> {
+        let mut channels = lock(&self.channels);
+        if let Some(channel) = channels.get(name).and_then(Weak::upgrade) {
+            return channel;
+        }
+        channels.retain(|_, channel| channel.strong_count() > 0);
+        let channel = Arc::new(Channel::new(name));
+        channels.insert(name.to_owned(), Arc::downgrade(&channel));
+        channel
+    }
+
+    fn accept_loop(self: Arc<Self>, listener: &TcpListener) {
+        loop {
+            let accepted = listener.accept();
+            if self.stopping.load(Ordering::SeqCst) {
+                return;
+            }
+            match accepted {
+                Ok((stream, peer)) => Arc::clone(&self).serve(stream, peer),
+                Err(error) if error.kind() == io::ErrorKind::Interrupted => {}
+                Err(error) => {
+                    self.emit(&HubEvent::AcceptFailed { error: error.to_string() });
+                    // Out of descriptors and the like: give the OS a moment instead of spinning.
+                    std::thread::sleep(Duration::from_millis(50));
+                }
+            }
+        }
+    }
+
+    fn serve(self: Arc<Self>, stream: TcpStream, peer: SocketAddr) {
+        let mut connections = lock(&self.connections);
+        if connections.len() >= self.config.max_clients {
+            drop(connections);
+            let reason = format!("{} clients already connected", self.config.max_clients);
+            let mut stream = stream;
+            let _ = stream.set_write_timeout(Some(Duration::from_millis(100)));
+            let _ = stream.write_all(Message::Error(format!("too many clients, {reason}")).to_string().as_bytes());
+            self.emit(&HubEvent::Rejected { peer, reason });
+            return;
+        }
+        let setup = || -> io::Result<(TcpStream, TcpStream)> {
+            stream.set_nodelay(true)?;
+            stream.set_write_timeout(Some(self.config.write_timeout))?;
+            Ok((stream.try_clone()?, stream.try_clone()?))
+        };
+        let (reader, writer) = match setup() {
+            Ok(halves) => halves,
+            Err(error) => {
+                drop(connections);
+                self.emit(&HubEvent::Rejected { peer, reason: format!("socket setup failed: {error}") });
+                return;
+            }
+        };
+        let id = next_member_id();
+        let connection = Arc::new(Connection {
+            id,
+            peer,
+            stream,
+            queue: BoundedQueue::new(self.config.client_queue),
+            capacity: self.config.client_queue.max(1),
+            closing: AtomicBool::new(false),
+            reason: Mutex::new(None),
+            observer: Arc::clone(&self.config.observer),
+        });
+        connections.insert(id, ConnectionEntry { connection: Arc::clone(&connection), threads: Vec::new() });
+        drop(connections);
+        self.emit(&HubEvent::Connected { client: id, peer });
+        connection.reply(Message::Hi);
+
+        let write_thread = {
+            let connection = Arc::clone(&connection);
+            std::thread::Builder::new().name(format!("hub-write-{id}")).spawn(move || connection.write_loop(writer))
+        };
+        let read_thread = {
+            let connection = Arc::clone(&connection);
+            let hub = Arc::clone(&self);
+            std::thread::Builder::new().name(format!("hub-read-{id}")).spawn(move || hub.read_loop(&connection, reader))
+        };
+        let mut threads = Vec::new();
+        let mut reading = true;
+        for (spawned, is_reader) in [(write_thread, false), (read_thread, true)] {
+            match spawned {
+                Ok(handle) => threads.push(handle),
+                Err(error) => {
+                    connection.kill(&format!("cannot start a thread: {error}"));
+                    reading &= !is_reader;
+                }
+            }
+        }
+        if !reading {
+            // No reader thread, so nobody else will clean up this connection.
+            lock(&self.connections).remove(&id);
+            self.emit(&HubEvent::Disconnected { client: id, peer, reason: connection.reason() });
+            return;
+        }
+        if let Some(entry) = lock(&self.connections).get_mut(&id) {
+            entry.threads = threads;
+        }
+        // Otherwise the reader already finished and removed the entry; its threads end alone.
+    }
+
+    fn read_loop(&self, connection: &Arc<Connection>, mut reader: TcpStream) {
+        let mut session = Session { hub: self, connection, mode: Mode::NoBus, channel: None, errors: 0 };
+        let mut decoder = Decoder::new();
+        let mut buf = vec![0u8; 16 * 1024];
+        let ended = loop {
+            match reader.read(&mut buf) {
+                Ok(0) => break "client closed the connection".to_owned(),
+                Ok(n) => {
+                    decoder.feed(&buf[..n], |message| session.handle(message));
+                    if connection.closing.load(Ordering::SeqCst) {
+                        break connection.reason();
+                    }
+                }
+                Err(error) if error.kind() == io::ErrorKind::Interrupted => {}
+                Err(error) => break format!("read failed: {error}"),
+            }
+        };
+        if let Some(channel) = session.channel.take() {
+            channel.leave(connection.id);
+        }
+        connection.kill(&ended);
+        lock(&self.connections).remove(&connection.id);
+        self.emit(&HubEvent::Disconnected {
+            client: connection.id,
+            peer: connection.peer,
+            reason: connection.reason(),
+        });
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Mode {
+    NoBus,
+    Bcm,
+    Raw,
+}
+
+/// The protocol state of one client, driven by its reader thread.
+struct Session<'a> {
+    hub: &'a HubInner,
+    connection: &'a Arc<Connection>,
+    mode: Mode,
+    channel: Option<Arc<Channel>>,
+    errors: u32,
+}
+
+impl Session<'_> {
+    fn handle(&mut self, message: Result<Message, ParseError>) {
+        let message = match message {
+            Ok(message) => message,
+            Err(error @ ParseError::Junk(_)) => {
+                // socketcand ignores bytes between messages; only log them.
+                self.log_error(error.to_string());
+                return;
+            }
+            Err(error) => return self.refuse(error.to_string()),
+        };
+        match (message, self.mode) {
+            (Message::Echo, _) => self.connection.reply(Message::Echo),
+            (Message::Open(name), Mode::NoBus) => {
+                self.channel = Some(self.hub.channel(&name));
+                self.mode = Mode::Bcm;
+                self.connection.reply(Message::Ok);
+                self.hub.emit(&HubEvent::Opened {
+                    client: self.connection.id,
+                    peer: self.connection.peer,
+                    channel: name,
+                });
+            }
+            (Message::Open(_), _) => self.refuse("a channel is already open".into()),
+            (Message::RawMode | Message::BcmMode | Message::Send(_), Mode::NoBus) => {
+                self.refuse("open a channel first".into())
+            }
+            (Message::RawMode, Mode::Bcm) => {
+                // `< ok >` goes out before the first frame: python-can waits for it alone.
+                self.connection.reply(Message::Ok);
+                if let Some(channel) = &self.channel {
+                    channel.join(self.connection.id, Arc::clone(self.connection) as Arc<dyn Sink>);
+                }
+                self.mode = Mode::Raw;
+                self.hub.emit(&HubEvent::RawMode { client: self.connection.id, peer: self.connection.peer });
+            }
+            (Message::BcmMode, Mode::Raw) => {
+                if let Some(channel) = &self.channel {
+                    channel.leave(self.connection.id);
+                }
+                self.mode = Mode::Bcm;
+                self.connection.reply(Message::Ok);
+            }
+            (Message::RawMode, Mode::Raw) | (Message::BcmMode, Mode::Bcm) => self.connection.reply(Message::Ok),
+            (Message::Send(frame), _) => {
+                if let Some(channel) = &self.channel {
+                    channel.relay(self.connection.id, frame, Timestamp::now());
+                }
+            }
+            (server @ (Message::Hi | Message::Ok | Message::Frame { .. } | Message::Error(_)), _) => {
+                let name = server.to_string();
+                let command = name.split_whitespace().nth(1).unwrap_or_default();
+                self.refuse(format!("'{command}' is a server message"));
+            }
+        }
+    }
+
+    fn refuse(&mut self, error: String) {
+        self.connection.reply(Message::Error(error.clone()));
+        self.log_error(error);
+    }
+
+    fn log_error(&mut self, error: String) {
+        self.errors = self.errors.saturating_add(1);
+        let (client, peer) = (self.connection.id, self.connection.peer);
+        if self.errors <= HubConfig::LOGGED_ERRORS_PER_CLIENT {
+            self.hub.emit(&HubEvent::ProtocolError { client, peer, error });
+        } else if self.errors == HubConfig::LOGGED_ERRORS_PER_CLIENT + 1 {
+            self.hub.emit(&HubEvent::ErrorsSuppressed { client, peer });
+        }
+    }
+}
+
+/// What the writer thread sends to a client.
+enum Outgoing {
+    /// A frame from another member, stamped when the hub received it.
+    Frame(CanFrame, Timestamp),
+    /// A reply to the client's own command; written on its own.
+    Reply(Message),
+}
+
+/// One TCP client, shared by its reader thread, its writer thread and the channel it receives
+/// from.
+struct Connection {
+    id: MemberId,
+    peer: SocketAddr,
+    stream: TcpStream,
+    queue: BoundedQueue<Outgoing>,
+    capacity: usize,
+    closing: AtomicBool,
+    reason: Mutex<Option<String>>,
+    observer: HubObserver,
+}
+
+impl Connection {
+    /// Queues a reply; a client so far behind that even this does not fit is disconnected.
+    fn reply(&self, message: Message) {
+        if let Err(PushError::Full) = self.queue.push(Outgoing::Reply(message)) {
+            self.overflow();
+        }
+    }
+
+    fn overflow(&self) {
+        if !self.closing.load(Ordering::SeqCst) {
+            (self.observer)(&HubEvent::Overflow { client: self.id, peer: self.peer, capacity: self.capacity });
+        }
+        self.kill(&format!("fell {} messages behind", self.capacity));
+    }
+
+    /// Disconnects the client (the first reason given is kept): its queue closes, and the
+    /// socket shuts down, which wakes both of its threads.
+    fn kill(&self, reason: &str) {
+        if self.closing.swap(true, Ordering::SeqCst) {
+            return;
+        }
+        *lock(&self.reason) = Some(reason.to_owned());
+        self.queue.close();
+        let _ = self.stream.shutdown(Shutdown::Both);
+    }
+
+    fn reason(&self) -> String {
+        lock(&self.reason).clone().unwrap_or_else(|| "closed".to_owned())
+    }
+
+    fn write_loop(&self, mut writer: TcpStream) {
+        const BATCH: usize = 256;
+        let mut batch = Vec::with_capacity(BATCH);
+        let mut text = String::with_capacity(BATCH * 64);
+        while self.queue.drain_blocking(&mut batch, BATCH).is_ok() {
+            text.clear();
+            let mut result = Ok(());
+            for item in batch.drain(..) {
+                match item {
+                    Outgoing::Frame(frame, timestamp) => Message::Frame { frame, timestamp }.write_to(&mut text),
+                    Outgoing::Reply(message) => {
+                        // Written alone: python-can reads its handshake replies with a single
+                        // recv() and compares the whole text.
+                        result = result.and_then(|()| flush(&mut writer, &mut text));
+                        message.write_to(&mut text);
+                        result = result.and_then(|()| flush(&mut writer, &mut text));
+                    }
+                }
+            }
+            if let Err(error) = result.and_then(|()| flush(&mut writer, &mut text)) {
+                let reason = match error.kind() {
+                    io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut => "not reading (write timed out)".to_owned(),
+                    _ => format!("write failed: {error}"),
+                };
+                self.kill(&reason);
+                return;
+            }
+        }
+    }
+}
+
+fn flush(writer: &mut TcpStream, text: &mut String) -> io::Result<()> {
+    if !text.is_empty() {
+        writer.write_all(text.as_bytes())?;
+        text.clear();
+    }
+    Ok(())
+}
+
+impl Sink for Connection {
+    fn deliver(&self, frame: CanFrame, at: Timestamp) -> Delivery {
+        match self.queue.push(Outgoing::Frame(frame, at)) {
+            Ok(()) => Delivery::Accepted,
+            Err(PushError::Full) => {
+                self.overflow();
+                Delivery::Gone
+            }
+            Err(PushError::Closed) => Delivery::Gone,
+        }
+    }
+
+    fn close(&self) {
+        self.kill("hub stopped");
+    }
+}

@@ -1,0 +1,176 @@
+//! A bounded, closable FIFO shared between threads: the receive queue of every in-process
+//! endpoint and the send queue of every TCP client of the hub.
+//!
+//! Pushing never blocks: a full queue refuses the item and the caller decides what overflow means
+//! (an in-process endpoint drops the frame and counts it, the hub disconnects a TCP client). This
+//! is what keeps one slow reader from stalling the others.
+
+use std::collections::VecDeque;
+use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
+use std::time::{Duration, Instant};
+
+/// Locks a mutex, ignoring poisoning: the data behind our mutexes (queues, member lists) stays
+/// consistent even if a thread panicked while holding the lock, and the hub must keep serving.
+pub(crate) fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// Why [`BoundedQueue::push`] refused an item.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum PushError {
+    /// The queue holds `capacity` items already.
+    Full,
+    /// The queue was closed; nobody will take items out any more.
+    Closed,
+}
+
+/// The queue was closed and is empty.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Closed;
+
+struct State<T> {
+    items: VecDeque<T>,
+    closed: bool,
+}
+
+/// Bounded multi-producer FIFO with blocking, timed receive.
+pub(crate) struct BoundedQueue<T> {
+    state: Mutex<State<T>>,
+    ready: Condvar,
+    capacity: usize,
+}
+
+impl<T> BoundedQueue<T> {
+    /// A queue holding at most `capacity` items (at least one).
+    pub(crate) fn new(capacity: usize) -> Self {
+        let capacity = capacity.max(1);
+        Self {
+            state: Mutex::new(State { items: VecDeque::with_capacity(capacity.min(1024)), closed: false }),
+            ready: Condvar::new(),
+            capacity,
+        }
+    }
+
+    /// Appends an item without blocking.
+    pub(crate) fn push(&self, item: T) -> Result<(), PushError> {
+        let mut state = lock(&self.state);
+        if state.closed {
+            return Err(PushError::Closed);
+        }
+        if state.items.len() >= self.capacity {
+            return Err(PushError::Full);
+        }
+        state.items.push_back(item);
+        drop(state);
+        self.ready.notify_one();
+        Ok(())
+    }
+
+    /// Takes the oldest item, waiting up to `timeout` for one. Items pushed before [`close`]
+    /// are still handed out; `Err(Closed)` comes once the queue is closed and empty.
+    ///
+    /// [`close`]: BoundedQueue::close
+    pub(crate) fn pop_timeout(&self, timeout: Duration) -> Result<Option<T>, Closed> {
+        let deadline = Instant::now().checked_add(timeout);
+        let mut state = lock(&self.state);
+        loop {
+            if let Some(item) = state.items.pop_front() {
+                return Ok(Some(item));
+            }
+            if state.closed {
+                return Err(Closed);
+            }
+            let remaining = match deadline {
+                Some(deadline) => deadline.saturating_duration_since(Instant::now()),
+                None => Duration::MAX,
+            };
+            if remaining.is_zero() {
+                return Ok(None);
+            }
+            state = self.ready.wait_timeout(state, remaining).unwrap_or_else(PoisonError::into_inner).0;
+        }
+    }
+
+    /// Waits until at least one item is queued, then moves up to `max` items into `out`.
+    /// Returns `Err(Closed)` as soon as the queue is closed, dropping what is left: the consumer
+    /// (a TCP writer) is going away.
+    pub(crate) fn drain_blocking(&self, out: &mut Vec<T>, max: usize) -> Result<(), Closed> {
+        let mut state = lock(&self.state);
+        loop {
+            if state.closed {
+                state.items.clear();
+                return Err(Closed);
+            }
+            if !state.items.is_empty() {
+                let take = state.items.len().min(max.max(1));
+                out.extend(state.items.drain(..take));
+                return Ok(());
+            }
+            state = self.ready.wait(state).unwrap_or_else(PoisonError::into_inner);
+        }
+    }
+
+    /// Number of queued items.
+    pub(crate) fn len(&self) -> usize {
+        lock(&self.state).items.len()
+    }
+
+    /// Closes the queue: later pushes fail and waiting consumers wake up.
+    pub(crate) fn close(&self) {
+        lock(&self.state).closed = true;
+        self.ready.notify_all();
+    }
+
+    /// Whether [`close`](BoundedQueue::close) was called.
+    pub(crate) fn is_closed(&self) -> bool {
+        lock(&self.state).closed
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Arc;
+
+    #[test]
+    fn refuses_items_past_capacity_and_after_close() {
+        let queue = BoundedQueue::new(2);
+        assert_eq!(queue.push(1), Ok(()));
+        assert_eq!(queue.push(2), Ok(()));
+        assert_eq!(queue.push(3), Err(PushError::Full));
+        assert_eq!(queue.len(), 2);
+        assert_eq!(queue.pop_timeout(Duration::ZERO), Ok(Some(1)));
+        queue.close();
+        assert!(queue.is_closed());
+        assert_eq!(queue.push(4), Err(PushError::Closed));
+        assert_eq!(queue.pop_timeout(Duration::ZERO), Ok(Some(2)), "items queued before close are kept");
+        assert_eq!(queue.pop_timeout(Duration::ZERO), Err(Closed));
+    }
+
+    #[test]
+    fn pop_times_out_on_an_empty_queue() {
+        let queue = BoundedQueue::<u8>::new(1);
+        let start = Instant::now();
+        assert_eq!(queue.pop_timeout(Duration::from_millis(20)), Ok(None));
+        assert!(start.elapsed() >= Duration::from_millis(20));
+    }
+
+    #[test]
+    fn a_waiting_consumer_is_woken_by_push_and_close() {
+        let queue = Arc::new(BoundedQueue::new(8));
+        let consumer = {
+            let queue = Arc::clone(&queue);
+            std::thread::spawn(move || {
+                let mut got = Vec::new();
+                while queue.drain_blocking(&mut got, 8).is_ok() {}
+                got
+            })
+        };
+        queue.push(7).unwrap();
+        while queue.len() > 0 {
+            std::thread::yield_now();
+        }
+        queue.close();
+        assert_eq!(consumer.join().unwrap(), vec![7]);
+    }
+}
