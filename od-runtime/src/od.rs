@@ -248,3 +248,141 @@ pub trait ObjectDictionary {
     /// Sets every entry of `area` back to its default, resolving `$NODEID` with `node_id`.
     fn restore_defaults(&mut self, area: Area, node_id: u8);
 }
+
+impl DataType {
+    /// Whether values of this type are signed integers (read as two's complement for limits).
+    pub const fn is_signed(self) -> bool {
+        matches!(
+            self,
+            DataType::Integer8
+                | DataType::Integer16
+                | DataType::Integer24
+                | DataType::Integer32
+                | DataType::Integer40
+                | DataType::Integer48
+                | DataType::Integer56
+                | DataType::Integer64
+        )
+    }
+
+    /// Whether values of this type are integers (BOOLEAN included) whose limits are compared as
+    /// numbers.
+    pub const fn is_integer(self) -> bool {
+        !matches!(
+            self,
+            DataType::Real32
+                | DataType::Real64
+                | DataType::VisibleString
+                | DataType::OctetString
+                | DataType::UnicodeString
+                | DataType::Domain
+                | DataType::TimeOfDay
+                | DataType::TimeDifference
+        )
+    }
+}
+
+impl EntryInfo {
+    /// Size in bytes of a fixed-size value, or the capacity in bytes of a variable-length one.
+    pub const fn byte_len(&self) -> usize {
+        (self.bits as usize).div_ceil(8)
+    }
+
+    /// Checks a value given as little-endian bytes against this entry: its length (exact for
+    /// fixed-size types, at most the capacity for strings and DOMAIN) and its `low`/`high`
+    /// limits. This is the check [`ObjectDictionary::write`] implementations are expected to
+    /// make; generated dictionaries call it so every dictionary shares one rule set.
+    ///
+    /// Errors: `LENGTH_TOO_HIGH` (0x0607_0012), `LENGTH_TOO_LOW` (0x0607_0013),
+    /// `VALUE_TOO_HIGH` (0x0609_0031), `VALUE_TOO_LOW` (0x0609_0032), and `INVALID_VALUE`
+    /// (0x0609_0030) for a BOOLEAN that is neither 0 nor 1.
+    pub fn check_value(&self, data: &[u8]) -> Result<(), AbortCode> {
+        let len = self.byte_len();
+        if self.data_type.is_variable_length() {
+            return if data.len() > len { Err(AbortCode::LENGTH_TOO_HIGH) } else { Ok(()) };
+        }
+        if data.len() > len {
+            return Err(AbortCode::LENGTH_TOO_HIGH);
+        }
+        if data.len() < len {
+            return Err(AbortCode::LENGTH_TOO_LOW);
+        }
+        if !self.data_type.is_integer() || len > 16 {
+            return Ok(());
+        }
+        let value = decode_int(data, self.data_type.is_signed());
+        if self.data_type == DataType::Boolean && value > 1 {
+            return Err(AbortCode::INVALID_VALUE);
+        }
+        if let Some(high) = self.high
+            && value > high
+        {
+            return Err(AbortCode::VALUE_TOO_HIGH);
+        }
+        if let Some(low) = self.low
+            && value < low
+        {
+            return Err(AbortCode::VALUE_TOO_LOW);
+        }
+        Ok(())
+    }
+}
+
+/// Reads up to 16 little-endian bytes as an integer, sign-extending when `signed`.
+pub fn decode_int(data: &[u8], signed: bool) -> i128 {
+    let mut raw = [0u8; 16];
+    let n = data.len().min(16);
+    raw[..n].copy_from_slice(&data[..n]);
+    if signed && n > 0 && n < 16 && data[n - 1] & 0x80 != 0 {
+        for b in &mut raw[n..] {
+            *b = 0xFF;
+        }
+    }
+    i128::from_le_bytes(raw)
+}
+
+impl DefaultValue {
+    /// Writes this default for `info` into `buf` as little-endian bytes and returns the length:
+    /// the type's size for fixed-size types (integers truncated to it, `$NODEID` resolved with
+    /// `node_id`), the byte count for strings and DOMAIN (cut to the capacity and to `buf`).
+    /// Returns 0 if `buf` is too small for a fixed-size value.
+    pub fn encode(&self, info: &EntryInfo, node_id: u8, buf: &mut [u8]) -> usize {
+        let len = info.byte_len();
+        if info.data_type.is_variable_length() {
+            let bytes: &[u8] = match self {
+                DefaultValue::Bytes(b) => b,
+                _ => &[],
+            };
+            let n = bytes.len().min(len).min(buf.len());
+            buf[..n].copy_from_slice(&bytes[..n]);
+            return n;
+        }
+        if buf.len() < len {
+            return 0;
+        }
+        let out = &mut buf[..len];
+        match *self {
+            DefaultValue::None => out.fill(0),
+            DefaultValue::Int(v) => copy_int(v, out),
+            DefaultValue::NodeIdPlus(v) => copy_int(v.wrapping_add(i128::from(node_id)), out),
+            DefaultValue::Real(f) => match info.data_type {
+                DataType::Real32 if len == 4 => out.copy_from_slice(&(f as f32).to_le_bytes()),
+                DataType::Real64 if len == 8 => out.copy_from_slice(&f.to_le_bytes()),
+                _ => copy_int(f as i128, out),
+            },
+            DefaultValue::Bytes(b) => {
+                out.fill(0);
+                let n = b.len().min(len);
+                out[..n].copy_from_slice(&b[..n]);
+            }
+        }
+        len
+    }
+}
+
+fn copy_int(v: i128, out: &mut [u8]) {
+    let bytes = v.to_le_bytes();
+    for (o, b) in out.iter_mut().zip(bytes.iter().chain(core::iter::repeat(&0))) {
+        *o = *b;
+    }
+}

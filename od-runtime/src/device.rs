@@ -1,0 +1,1326 @@
+//! The device: NMT slave, SDO server, PDOs, SYNC, EMCY, error control, store/restore and the
+//! CiA 402 state machine around one [`ObjectDictionary`].
+
+use crate::cia402::{self, StateMachine, Transitions};
+use crate::emcy::{self, Queue};
+use crate::frame::{Frame, Micros, NodeId};
+use crate::nmt::{NmtCommand, NmtState};
+use crate::od::{AbortCode, Area, DataType, EntryInfo, ObjectDictionary};
+use crate::pdo::{self, Direction, MAX_MAPPED, MapEntry, Mappable};
+use crate::sdo::{ObjectAccess, SdoServer};
+use crate::storage::{self, LOAD_SIGNATURE, SAVE_SIGNATURE, Storage};
+
+/// Most heartbeat consumer entries (1016h sub-indices) the device monitors.
+pub const MAX_HEARTBEAT_CONSUMERS: usize = 16;
+
+/// Who wrote an object.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum WriteSource {
+    /// An SDO download from a master.
+    Sdo,
+    /// A receive PDO; the number is the offset of its communication object from 1400h
+    /// (0 = RPDO1).
+    Rpdo(u16),
+    /// The application, through [`Device::write`].
+    Local,
+}
+
+/// Which reset ran.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ResetKind {
+    /// Reset node: every area set to its default, then to its stored values.
+    Node,
+    /// Reset communication: 1000h..1FFFh only.
+    Communication,
+}
+
+/// Something the application may want to react to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Event {
+    /// The NMT state changed.
+    Nmt {
+        /// State before.
+        from: NmtState,
+        /// State after.
+        to: NmtState,
+    },
+    /// A reset restored the dictionary (defaults, then stored values); the boot-up message
+    /// follows at the next poll.
+    Reset(ResetKind),
+    /// An object was written by a master or locally (after the dictionary accepted the value).
+    Written {
+        /// Object index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// Who wrote it.
+        source: WriteSource,
+    },
+    /// A SYNC message was received (or produced by this device).
+    Sync {
+        /// Its counter, when it carried one.
+        counter: Option<u8>,
+    },
+    /// A monitored node's heartbeat (1016h) did not arrive in time.
+    HeartbeatTimeout {
+        /// The node.
+        node: u8,
+    },
+    /// A monitored node's heartbeat arrived for the first time or again after a timeout.
+    HeartbeatStarted {
+        /// The node.
+        node: u8,
+        /// The NMT state byte it sent (0 = boot-up).
+        state: u8,
+    },
+    /// The master stopped guarding: no guarding request within guard time × life time factor
+    /// (100Ch × 100Dh).
+    LifeGuardingLost,
+    /// Guarding requests arrived again after [`Event::LifeGuardingLost`].
+    LifeGuardingResumed,
+    /// The CiA 402 state machine made a transition.
+    Cia402(cia402::Transition),
+}
+
+/// The application side of a device: a veto on writes and a stream of events.
+///
+/// Both methods have empty defaults; `()` implements the trait for devices without behaviour.
+pub trait App<OD> {
+    /// Called before a master's (or a local) write reaches the dictionary. Returning an error
+    /// rejects the write: an SDO download aborts with that code, an RPDO entry is skipped.
+    /// The value has been checked for access rights but not yet for length and limits.
+    fn on_write(&mut self, od: &OD, index: u16, sub: u8, data: &[u8], source: WriteSource) -> Result<(), AbortCode> {
+        let _ = (od, index, sub, data, source);
+        Ok(())
+    }
+
+    /// Called for every [`Event`], synchronously, from `on_frame`, `poll` or an API call.
+    fn on_event(&mut self, od: &mut OD, event: Event) {
+        let _ = (od, event);
+    }
+}
+
+impl<OD> App<OD> for () {}
+
+#[derive(Clone, Copy)]
+struct Tpdo {
+    present: bool,
+    cob: u16,
+    valid: bool,
+    rtr_ok: bool,
+    ttype: u8,
+    inhibit: Micros,
+    event: Micros,
+    sync_start: u8,
+    ok: bool,
+    count: u8,
+    map: [MapEntry; MAX_MAPPED],
+    bytes: u8,
+    /// Data sampled at the last SYNC (types 0..=240, 252).
+    sample: [u8; 8],
+    has_sample: bool,
+    /// Data of the last transmission.
+    last: [u8; 8],
+    sent_once: bool,
+    last_tx: Micros,
+    next_event: Micros,
+    sync_cnt: u8,
+    started: bool,
+    due: bool,
+    rtr: bool,
+    requested: bool,
+}
+
+impl Tpdo {
+    const EMPTY: Self = Self {
+        present: false,
+        cob: 0,
+        valid: false,
+        rtr_ok: false,
+        ttype: 0,
+        inhibit: 0,
+        event: 0,
+        sync_start: 0,
+        ok: false,
+        count: 0,
+        map: [MapEntry { index: 0, sub: 0, bits: 0 }; MAX_MAPPED],
+        bytes: 0,
+        sample: [0; 8],
+        has_sample: false,
+        last: [0; 8],
+        sent_once: false,
+        last_tx: 0,
+        next_event: 0,
+        sync_cnt: 0,
+        started: false,
+        due: false,
+        rtr: false,
+        requested: false,
+    };
+
+    fn active(&self) -> bool {
+        self.present && self.valid && self.ok && self.count > 0
+    }
+
+    fn restart(&mut self, now: Micros) {
+        self.sent_once = false;
+        self.has_sample = false;
+        self.sync_cnt = 0;
+        self.started = false;
+        self.due = false;
+        self.rtr = false;
+        self.next_event = now.saturating_add(self.event);
+    }
+}
+
+#[derive(Clone, Copy)]
+struct Rpdo {
+    present: bool,
+    cob: u16,
+    valid: bool,
+    ttype: u8,
+    ok: bool,
+    count: u8,
+    map: [MapEntry; MAX_MAPPED],
+    bytes: u8,
+    pending: Option<[u8; 8]>,
+}
+
+impl Rpdo {
+    const EMPTY: Self = Self {
+        present: false,
+        cob: 0,
+        valid: false,
+        ttype: 0,
+        ok: false,
+        count: 0,
+        map: [MapEntry { index: 0, sub: 0, bits: 0 }; MAX_MAPPED],
+        bytes: 0,
+        pending: None,
+    };
+
+    fn active(&self) -> bool {
+        self.present && self.valid && self.ok && self.count > 0
+    }
+}
+
+#[derive(Clone, Copy, Default)]
+struct Consumer {
+    node: u8,
+    time: Micros,
+    last: Micros,
+    active: bool,
+}
+
+/// Everything but the SDO server, so the server can borrow it as its [`ObjectAccess`].
+struct Core<OD, A, S, const P: usize> {
+    od: OD,
+    app: A,
+    storage: S,
+    node: u8,
+    now: Micros,
+    nmt: NmtState,
+    bootup: bool,
+    sdo_reset: bool,
+    sdo_rx: u16,
+    sdo_tx: u16,
+    sdo_valid: bool,
+    sync_cob: u16,
+    sync_producer: bool,
+    sync_period: Micros,
+    sync_overflow: u8,
+    sync_counter: u8,
+    sync_next: Micros,
+    emcy_cob: u16,
+    emcy_valid: bool,
+    emcy_inhibit: Micros,
+    emcy_last: Option<Micros>,
+    emcy_queue: Queue,
+    history_len: u8,
+    hb_period: Micros,
+    hb_next: Micros,
+    guard_time: Micros,
+    life_factor: u8,
+    guard_toggle: bool,
+    guard_reply: bool,
+    guard_last: Option<Micros>,
+    guard_lost: bool,
+    consumers: [Consumer; MAX_HEARTBEAT_CONSUMERS],
+    rpdo: [Rpdo; P],
+    tpdo: [Tpdo; P],
+    drive: Option<StateMachine>,
+    remote: bool,
+}
+
+/// A CANopen device around the dictionary `OD`, with application `A`, parameter storage `S`,
+/// an SDO buffer of `BUF` bytes and room for `PDOS` receive and `PDOS` transmit PDOs.
+///
+/// Feed it every received frame with [`Device::on_frame`] and call [`Device::poll`] often
+/// (at least every millisecond for millisecond-accurate timers) to collect the frames to send.
+/// Nothing allocates; no bus input can make it panic or loop without bound.
+///
+/// ```
+/// use od_runtime::{Device, Frame, NodeId, NoStorage};
+/// # use od_runtime::od::*;
+/// # struct Od;
+/// # impl ObjectDictionary for Od {
+/// #     fn entries(&self) -> &'static [EntryInfo] { &[] }
+/// #     fn read(&self, _: u16, _: u8, _: &mut [u8]) -> Result<usize, AbortCode> { Err(AbortCode::NO_OBJECT) }
+/// #     fn write(&mut self, _: u16, _: u8, _: &[u8]) -> Result<(), AbortCode> { Err(AbortCode::NO_OBJECT) }
+/// #     fn restore_defaults(&mut self, _: Area, _: u8) {}
+/// # }
+/// let mut dev = Device::new(Od, (), NoStorage, NodeId::new(5).unwrap());
+/// let mut sent = Vec::new();
+/// dev.poll(0, |f| sent.push(f));
+/// assert_eq!(sent[0].to_string(), "705 00"); // boot-up
+/// dev.on_frame(&Frame::new(0x000, &[0x01, 5]).unwrap(), 10); // NMT start
+/// assert_eq!(dev.nmt_state(), od_runtime::NmtState::Operational);
+/// ```
+pub struct Device<OD, A, S = crate::NoStorage, const BUF: usize = 1024, const PDOS: usize = 8> {
+    sdo: SdoServer<BUF>,
+    core: Core<OD, A, S, PDOS>,
+    node_id: NodeId,
+    started: bool,
+}
+
+fn le_u32(data: &[u8]) -> u32 {
+    let mut b = [0u8; 4];
+    let n = data.len().min(4);
+    b[..n].copy_from_slice(&data[..n]);
+    u32::from_le_bytes(b)
+}
+
+/// Reads an unsigned value of up to 4 bytes.
+fn read_uint<OD: ObjectDictionary>(od: &OD, index: u16, sub: u8) -> Option<u32> {
+    let mut b = [0u8; 8];
+    match od.read(index, sub, &mut b) {
+        Ok(n) if (1..=4).contains(&n) => Some(le_u32(&b[..n])),
+        _ => None,
+    }
+}
+
+/// The restricted COB-IDs of CiA 301 §7.3.5, which a PDO may not use.
+const fn restricted(id: u16) -> bool {
+    matches!(id, 0x000..=0x07F | 0x101..=0x180 | 0x581..=0x5FF | 0x601..=0x67F | 0x6E0..=0x6FF | 0x701..=0x7FF)
+}
+
+fn pdo_lookup<OD: ObjectDictionary>(od: &OD) -> impl FnMut(u16, u8) -> Result<Mappable, AbortCode> + '_ {
+    move |i, s| od.info(i, s).map(Mappable::from)
+}
+
+/// Reads an entry, retrying with a larger buffer for strings longer than 8 bytes.
+fn read_value<OD: ObjectDictionary>(od: &OD, index: u16, sub: u8, out: &mut [u8; 8]) -> usize {
+    match od.read(index, sub, out) {
+        Ok(n) => n.min(8),
+        Err(_) => {
+            let mut big = [0u8; 256];
+            match od.read(index, sub, &mut big) {
+                Ok(n) => {
+                    let n = n.min(8);
+                    out[..n].copy_from_slice(&big[..n]);
+                    n
+                }
+                Err(_) => 0,
+            }
+        }
+    }
+}
+
+fn pack<OD: ObjectDictionary>(od: &OD, map: &[MapEntry]) -> [u8; 8] {
+    let mut data = [0u8; 8];
+    let mut offset = 0u32;
+    for e in map {
+        let bits = u32::from(e.bits);
+        let mut v = [0u8; 8];
+        let n = read_value(od, e.index, e.sub, &mut v);
+        pdo::put_bits(&mut data, offset, bits, &v[..n]);
+        offset += bits;
+    }
+    data
+}
+
+impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S, P> {
+    fn event(&mut self, e: Event) {
+        self.app.on_event(&mut self.od, e);
+    }
+
+    fn entries_with(&self, index: u16) -> u8 {
+        let all = self.od.entries();
+        let start = all.partition_point(|e| e.index < index);
+        all[start..].iter().take_while(|e| e.index == index).filter(|e| e.sub >= 1).count().min(254) as u8
+    }
+
+    // ---- configuration caches -------------------------------------------------------------
+
+    fn reload_all(&mut self) {
+        self.reload(0x1005);
+        self.reload(0x1014);
+        self.reload(0x1016);
+        self.reload(0x1017);
+        self.reload(0x100C);
+        self.reload(0x1200);
+        self.history_len = self.entries_with(0x1003);
+        for n in 0..P {
+            self.load_pdo(Direction::Receive, n);
+            self.load_pdo(Direction::Transmit, n);
+        }
+    }
+
+    /// Refreshes the cached parameters that depend on `index`.
+    fn reload(&mut self, index: u16) {
+        let node = u32::from(self.node);
+        match index {
+            0x1005 | 0x1006 | 0x1019 => {
+                let cob = read_uint(&self.od, 0x1005, 0).unwrap_or(0x80);
+                self.sync_cob = (cob & 0x7FF) as u16;
+                self.sync_producer = cob & 0x4000_0000 != 0;
+                self.sync_period = Micros::from(read_uint(&self.od, 0x1006, 0).unwrap_or(0));
+                self.sync_overflow = read_uint(&self.od, 0x1019, 0).unwrap_or(0) as u8;
+                self.sync_next = self.now.saturating_add(self.sync_period);
+                self.sync_counter = 1;
+            }
+            0x1014 | 0x1015 => {
+                let cob = read_uint(&self.od, 0x1014, 0).unwrap_or(0x80 + node);
+                self.emcy_cob = (cob & 0x7FF) as u16;
+                self.emcy_valid = cob & 0x8000_0000 == 0;
+                self.emcy_inhibit = Micros::from(read_uint(&self.od, 0x1015, 0).unwrap_or(0)) * 100;
+            }
+            0x1016 => {
+                let n = self.entries_with(0x1016);
+                let mut k = 0;
+                for sub in 1..=n {
+                    if k == MAX_HEARTBEAT_CONSUMERS {
+                        break;
+                    }
+                    let v = read_uint(&self.od, 0x1016, sub).unwrap_or(0);
+                    let (id, ms) = ((v >> 16) as u8, v & 0xFFFF);
+                    let old = self.consumers[k];
+                    let keep = old.node == id && old.active;
+                    self.consumers[k] = Consumer {
+                        node: if id == 0 || id > 127 || ms == 0 { 0 } else { id },
+                        time: Micros::from(ms) * 1000,
+                        last: if keep { old.last } else { 0 },
+                        active: keep,
+                    };
+                    k += 1;
+                }
+                for c in &mut self.consumers[k..] {
+                    *c = Consumer::default();
+                }
+            }
+            0x1017 => {
+                self.hb_period = Micros::from(read_uint(&self.od, 0x1017, 0).unwrap_or(0)) * 1000;
+                self.hb_next = self.now.saturating_add(self.hb_period);
+            }
+            0x100C | 0x100D => {
+                self.guard_time = Micros::from(read_uint(&self.od, 0x100C, 0).unwrap_or(0)) * 1000;
+                self.life_factor = read_uint(&self.od, 0x100D, 0).unwrap_or(0) as u8;
+            }
+            0x1200 => {
+                let rx = read_uint(&self.od, 0x1200, 1).unwrap_or(0x600 + node);
+                let tx = read_uint(&self.od, 0x1200, 2).unwrap_or(0x580 + node);
+                self.sdo_rx = (rx & 0x7FF) as u16;
+                self.sdo_tx = (tx & 0x7FF) as u16;
+                self.sdo_valid = (rx | tx) & 0x8000_0000 == 0;
+            }
+            0x1400..=0x15FF => self.load_pdo(Direction::Receive, usize::from(index - 0x1400)),
+            0x1600..=0x17FF => self.load_pdo(Direction::Receive, usize::from(index - 0x1600)),
+            0x1800..=0x19FF => self.load_pdo(Direction::Transmit, usize::from(index - 0x1800)),
+            0x1A00..=0x1BFF => self.load_pdo(Direction::Transmit, usize::from(index - 0x1A00)),
+            _ => {}
+        }
+    }
+
+    fn load_pdo(&mut self, dir: Direction, n: usize) {
+        if n >= P {
+            return;
+        }
+        let (comm, map) = match dir {
+            Direction::Receive => (0x1400 + n as u16, 0x1600 + n as u16),
+            Direction::Transmit => (0x1800 + n as u16, 0x1A00 + n as u16),
+        };
+        let od = &self.od;
+        let cob = read_uint(od, comm, 1);
+        let ttype = read_uint(od, comm, 2).unwrap_or(255) as u8;
+        let count = read_uint(od, map, 0).unwrap_or(0).min(MAX_MAPPED as u32) as u8;
+        let mut values = [0u32; MAX_MAPPED];
+        let mut ok = true;
+        for k in 0..count {
+            match read_uint(od, map, k + 1) {
+                Some(v) => values[usize::from(k)] = v,
+                None => ok = false,
+            }
+        }
+        let bits = pdo::check_mapping(dir, &values[..usize::from(count)], pdo_lookup(od));
+        let ok = ok && bits.is_ok();
+        let bytes = bits.unwrap_or(0).div_ceil(8) as u8;
+        let mut entries = [MapEntry::default(); MAX_MAPPED];
+        for (e, v) in entries.iter_mut().zip(&values[..usize::from(count)]) {
+            *e = MapEntry::decode(*v);
+        }
+        let c = cob.unwrap_or(0x8000_0000);
+        let valid = c & 0xA000_0000 == 0;
+        match dir {
+            Direction::Receive => {
+                self.rpdo[n] = Rpdo {
+                    present: cob.is_some(),
+                    cob: (c & 0x7FF) as u16,
+                    valid,
+                    ttype,
+                    ok,
+                    count,
+                    map: entries,
+                    bytes,
+                    pending: None,
+                };
+            }
+            Direction::Transmit => {
+                let inhibit = Micros::from(read_uint(od, comm, 3).unwrap_or(0)) * 100;
+                let event = Micros::from(read_uint(od, comm, 5).unwrap_or(0)) * 1000;
+                let sync_start = read_uint(od, comm, 6).unwrap_or(0) as u8;
+                let mut t = Tpdo {
+                    present: cob.is_some(),
+                    cob: (c & 0x7FF) as u16,
+                    valid,
+                    rtr_ok: c & 0x4000_0000 == 0,
+                    ttype,
+                    inhibit,
+                    event,
+                    sync_start,
+                    ok,
+                    count,
+                    map: entries,
+                    bytes,
+                    ..Tpdo::EMPTY
+                };
+                t.restart(self.now);
+                self.tpdo[n] = t;
+            }
+        }
+    }
+
+    // ---- writes ---------------------------------------------------------------------------
+
+    /// The CiA 301 rules for PDO communication and mapping objects, checked before a write.
+    fn check_pdo_write(&self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode> {
+        let (dir, n, mapping) = match index {
+            0x1400..=0x15FF => (Direction::Receive, index - 0x1400, false),
+            0x1600..=0x17FF => (Direction::Receive, index - 0x1600, true),
+            0x1800..=0x19FF => (Direction::Transmit, index - 0x1800, false),
+            _ => (Direction::Transmit, index - 0x1A00, true),
+        };
+        let comm = if dir == Direction::Receive { 0x1400 + n } else { 0x1800 + n };
+        let cur = read_uint(&self.od, comm, 1).unwrap_or(0x8000_0000);
+        let valid = cur & 0x8000_0000 == 0;
+        if !mapping {
+            match sub {
+                1 if data.len() == 4 => {
+                    let v = le_u32(data);
+                    if v & 0x2000_0000 != 0 {
+                        return Err(AbortCode::INVALID_VALUE);
+                    }
+                    if v & 0x8000_0000 == 0 {
+                        let id = (v & 0x7FF) as u16;
+                        if (valid && id != (cur & 0x7FF) as u16) || restricted(id) {
+                            return Err(AbortCode::INVALID_VALUE);
+                        }
+                    }
+                }
+                2 if data.len() == 1 => {
+                    let t = data[0];
+                    let ok = match dir {
+                        Direction::Receive => t <= 240 || t >= 254,
+                        Direction::Transmit => t <= 240 || t >= 252,
+                    };
+                    if !ok {
+                        return Err(AbortCode::INVALID_VALUE);
+                    }
+                }
+                3 | 6 if valid => return Err(AbortCode::INVALID_VALUE),
+                _ => {}
+            }
+            return Ok(());
+        }
+        if valid {
+            return Err(AbortCode::UNSUPPORTED_ACCESS);
+        }
+        if sub == 0 {
+            if data.len() != 1 {
+                return Ok(()); // the dictionary reports the length error
+            }
+            let count = data[0];
+            if usize::from(count) > MAX_MAPPED {
+                return Err(AbortCode::VALUE_TOO_HIGH);
+            }
+            let mut values = [0u32; MAX_MAPPED];
+            for k in 0..count {
+                values[usize::from(k)] = read_uint(&self.od, index, k + 1).ok_or(AbortCode::VALUE_TOO_HIGH)?;
+            }
+            pdo::check_mapping(dir, &values[..usize::from(count)], pdo_lookup(&self.od))?;
+        } else {
+            if read_uint(&self.od, index, 0).unwrap_or(0) != 0 {
+                return Err(AbortCode::UNSUPPORTED_ACCESS);
+            }
+            let v = le_u32(data);
+            if data.len() == 4 && v != 0 {
+                pdo::check_entry(dir, v, pdo_lookup(&self.od))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The write path shared by SDO, RPDOs and local writes (access rights are the caller's).
+    fn write_entry(&mut self, index: u16, sub: u8, data: &[u8], source: WriteSource) -> Result<(), AbortCode> {
+        match index {
+            0x1010 | 0x1011 if sub >= 1 => {
+                self.od.info(index, sub)?;
+                if data.len() != 4 {
+                    return Err(if data.len() < 4 { AbortCode::LENGTH_TOO_LOW } else { AbortCode::LENGTH_TOO_HIGH });
+                }
+                self.app.on_write(&self.od, index, sub, data, source)?;
+                if index == 0x1010 { self.store(sub, le_u32(data))? } else { self.restore(sub, le_u32(data))? }
+                self.event(Event::Written { index, sub, source });
+                return Ok(());
+            }
+            0x1003 if sub == 0 => {
+                self.od.info(index, sub)?;
+                if data.len() != 1 {
+                    return Err(if data.is_empty() { AbortCode::LENGTH_TOO_LOW } else { AbortCode::LENGTH_TOO_HIGH });
+                }
+                if data[0] != 0 {
+                    return Err(AbortCode::INVALID_VALUE);
+                }
+                self.app.on_write(&self.od, index, sub, data, source)?;
+                self.clear_history();
+                self.event(Event::Written { index, sub, source });
+                return Ok(());
+            }
+            0x1019 => {
+                if self.sync_period != 0 {
+                    return Err(AbortCode::DEVICE_STATE);
+                }
+                if data.len() == 1 && (data[0] == 1 || data[0] > 240) {
+                    return Err(AbortCode::INVALID_VALUE);
+                }
+            }
+            0x1400..=0x1BFF => self.check_pdo_write(index, sub, data)?,
+            0x6040 if self.drive.is_some() && !self.remote => return Err(AbortCode::LOCAL_CONTROL),
+            _ => {}
+        }
+        self.app.on_write(&self.od, index, sub, data, source)?;
+        self.od.write(index, sub, data)?;
+        self.event(Event::Written { index, sub, source });
+        self.after_write(index, sub, data);
+        Ok(())
+    }
+
+    fn after_write(&mut self, index: u16, sub: u8, data: &[u8]) {
+        match index {
+            0x1000..=0x1FFF => self.reload(index),
+            0x6040 if sub == 0 && self.drive.is_some() => {
+                let cw = le_u32(data) as u16;
+                let opt = self.quick_stop_option();
+                if let Some(sm) = &mut self.drive {
+                    let ts = sm.controlword(cw, opt);
+                    self.drive_transitions(ts);
+                }
+            }
+            0x6060 if sub == 0 => {
+                let _ = self.od.write(0x6061, 0, data);
+            }
+            _ => {}
+        }
+    }
+
+    fn store(&mut self, sub: u8, signature: u32) -> Result<(), AbortCode> {
+        if signature != SAVE_SIGNATURE {
+            return Err(AbortCode::CANNOT_STORE);
+        }
+        for &area in storage::areas_of(sub) {
+            self.storage.begin_save(area)?;
+            let mut buf = [0u8; 256];
+            for e in self.od.entries() {
+                if !area.contains(e.index) || !Self::storable(e) {
+                    continue;
+                }
+                if let Ok(n) = self.od.read(e.index, e.sub, &mut buf) {
+                    self.storage.save_entry(e.index, e.sub, &buf[..n.min(buf.len())])?;
+                }
+            }
+            self.storage.end_save(area)?;
+        }
+        Ok(())
+    }
+
+    /// Whether an entry belongs in a stored image: writable parameters, except DOMAINs and
+    /// the store/restore/error-history objects.
+    fn storable(e: &EntryInfo) -> bool {
+        e.access.writable() && e.data_type != DataType::Domain && !matches!(e.index, 0x1003 | 0x1010 | 0x1011)
+    }
+
+    fn restore(&mut self, sub: u8, signature: u32) -> Result<(), AbortCode> {
+        if signature != LOAD_SIGNATURE {
+            return Err(AbortCode::CANNOT_STORE);
+        }
+        for &area in storage::areas_of(sub) {
+            self.storage.erase(area)?;
+        }
+        Ok(())
+    }
+
+    fn load_stored(&mut self, area: Area) {
+        let Core { od, storage, .. } = self;
+        storage.load(area, &mut |index, sub, data| {
+            if area.contains(index) {
+                let _ = od.write(index, sub, data);
+            }
+        });
+    }
+
+    // ---- NMT ------------------------------------------------------------------------------
+
+    fn set_state(&mut self, to: NmtState) {
+        let from = self.nmt;
+        if from == to {
+            return;
+        }
+        self.nmt = to;
+        if to == NmtState::Operational {
+            let now = self.now;
+            for t in &mut self.tpdo {
+                t.restart(now);
+            }
+        } else {
+            for r in &mut self.rpdo {
+                r.pending = None;
+            }
+        }
+        if !to.sdo_allowed() {
+            self.sdo_reset = true;
+        }
+        self.event(Event::Nmt { from, to });
+    }
+
+    fn nmt_command(&mut self, cmd: NmtCommand) {
+        match cmd {
+            NmtCommand::Start => self.set_state(NmtState::Operational),
+            NmtCommand::Stop => self.set_state(NmtState::Stopped),
+            NmtCommand::EnterPreOperational => self.set_state(NmtState::PreOperational),
+            NmtCommand::ResetNode => self.reset(ResetKind::Node),
+            NmtCommand::ResetCommunication => self.reset(ResetKind::Communication),
+        }
+    }
+
+    fn reset(&mut self, kind: ResetKind) {
+        let from = self.nmt;
+        self.nmt = NmtState::Initialising;
+        if from != NmtState::Initialising {
+            self.event(Event::Nmt { from, to: NmtState::Initialising });
+        }
+        if kind == ResetKind::Node {
+            self.od.restore_defaults(Area::All, self.node);
+            self.load_stored(Area::Application);
+            self.load_stored(Area::Manufacturer);
+        }
+        self.od.restore_defaults(Area::Communication, self.node);
+        self.load_stored(Area::Communication);
+        self.emcy_queue.clear();
+        self.emcy_last = None;
+        self.guard_toggle = false;
+        self.guard_reply = false;
+        self.guard_last = None;
+        self.guard_lost = false;
+        self.consumers = [Consumer::default(); MAX_HEARTBEAT_CONSUMERS];
+        self.reload_all();
+        self.sdo_reset = true;
+        self.bootup = true;
+        if kind == ResetKind::Node {
+            let has = self.od.info(0x6040, 0).is_ok() && self.od.info(0x6041, 0).is_ok();
+            self.drive = has.then(StateMachine::new);
+        }
+        self.event(Event::Reset(kind));
+        if kind == ResetKind::Node
+            && let Some(sm) = &mut self.drive
+        {
+            let ts = sm.initialised();
+            self.drive_transitions(ts);
+        }
+        self.update_statusword();
+        self.set_state(NmtState::PreOperational);
+    }
+
+    // ---- EMCY -----------------------------------------------------------------------------
+
+    fn error_register(&self) -> u8 {
+        read_uint(&self.od, 0x1001, 0).unwrap_or(0) as u8
+    }
+
+    fn emcy(&mut self, code: u16, register: u8, info: [u8; 5]) {
+        let reg = self.error_register() | register | emcy::REG_GENERIC;
+        let _ = self.od.write(0x1001, 0, &[reg]);
+        self.push_history(code, info);
+        let c = code.to_le_bytes();
+        self.emcy_queue.push([c[0], c[1], reg, info[0], info[1], info[2], info[3], info[4]]);
+    }
+
+    fn emcy_reset(&mut self, register: u8) {
+        let mut reg = self.error_register() & !register;
+        if reg & !emcy::REG_GENERIC == 0 {
+            reg = 0;
+        }
+        let _ = self.od.write(0x1001, 0, &[reg]);
+        self.emcy_queue.push([0, 0, reg, 0, 0, 0, 0, 0]);
+    }
+
+    fn push_history(&mut self, code: u16, info: [u8; 5]) {
+        let max = self.history_len;
+        if max == 0 {
+            return;
+        }
+        for k in (1..max).rev() {
+            if let Some(v) = read_uint(&self.od, 0x1003, k) {
+                let _ = self.od.write(0x1003, k + 1, &v.to_le_bytes());
+            }
+        }
+        let v = u32::from(code) | u32::from(info[0]) << 16 | u32::from(info[1]) << 24;
+        let _ = self.od.write(0x1003, 1, &v.to_le_bytes());
+        let count = (read_uint(&self.od, 0x1003, 0).unwrap_or(0) as u8).saturating_add(1).min(max);
+        let _ = self.od.write(0x1003, 0, &[count]);
+    }
+
+    fn clear_history(&mut self) {
+        for k in 1..=self.history_len {
+            let _ = self.od.write(0x1003, k, &[0; 4]);
+        }
+        let _ = self.od.write(0x1003, 0, &[0]);
+    }
+
+    // ---- CiA 402 --------------------------------------------------------------------------
+
+    fn quick_stop_option(&self) -> i16 {
+        let mut b = [0u8; 8];
+        match self.od.read(0x605A, 0, &mut b) {
+            Ok(2) => i16::from_le_bytes([b[0], b[1]]),
+            _ => 2,
+        }
+    }
+
+    fn drive_transitions(&mut self, ts: Transitions) {
+        for t in ts.iter() {
+            if t.number == 15 {
+                if self.od.info(0x603F, 0).is_ok() {
+                    let _ = self.od.write(0x603F, 0, &[0, 0]);
+                }
+                self.emcy_reset(0xFF);
+            }
+            self.event(Event::Cia402(t));
+        }
+        if !ts.is_empty() {
+            self.update_statusword();
+        }
+    }
+
+    fn update_statusword(&mut self) {
+        let Some(sm) = self.drive else { return };
+        let mut b = [0u8; 8];
+        let cur = match self.od.read(0x6041, 0, &mut b) {
+            Ok(2) => u16::from_le_bytes([b[0], b[1]]),
+            _ => 0,
+        };
+        let new = (cur & !0x027F) | sm.state().statusword_bits() | if self.remote { 0x0200 } else { 0 };
+        if new != cur {
+            let _ = self.od.write(0x6041, 0, &new.to_le_bytes());
+        }
+    }
+
+    // ---- SYNC and PDOs --------------------------------------------------------------------
+
+    fn on_sync(&mut self, counter: Option<u8>) {
+        self.event(Event::Sync { counter });
+        if !self.nmt.pdo_allowed() {
+            return;
+        }
+        for n in 0..P {
+            if let Some(data) = self.rpdo[n].pending.take() {
+                self.apply_rpdo(n, data);
+            }
+        }
+        for n in 0..P {
+            let t = &self.tpdo[n];
+            if !t.active() {
+                continue;
+            }
+            let t = &mut self.tpdo[n];
+            match t.ttype {
+                0 => {
+                    let data = pack(&self.od, &t.map[..usize::from(t.count)]);
+                    if !t.sent_once || data != t.last || t.requested {
+                        t.sample = data;
+                        t.due = true;
+                        t.requested = false;
+                    }
+                }
+                1..=240 => {
+                    if !t.started {
+                        if t.sync_start != 0 && counter.is_some() && counter != Some(t.sync_start) {
+                            continue;
+                        }
+                        t.started = true;
+                        t.sync_cnt = 0;
+                    }
+                    t.sync_cnt += 1;
+                    if t.sync_cnt >= t.ttype {
+                        t.sync_cnt = 0;
+                        t.sample = pack(&self.od, &t.map[..usize::from(t.count)]);
+                        t.due = true;
+                    }
+                }
+                252 => {
+                    t.sample = pack(&self.od, &t.map[..usize::from(t.count)]);
+                    t.has_sample = true;
+                }
+                _ => {}
+            }
+        }
+    }
+
+    fn on_rpdo(&mut self, n: usize, data: &[u8]) {
+        if data.len() < usize::from(self.rpdo[n].bytes) {
+            self.emcy(emcy::PDO_LENGTH_ERROR, emcy::REG_COMMUNICATION, [0; 5]);
+            return;
+        }
+        let mut buf = [0u8; 8];
+        let len = data.len().min(8);
+        buf[..len].copy_from_slice(&data[..len]);
+        if self.rpdo[n].ttype <= 240 {
+            self.rpdo[n].pending = Some(buf);
+        } else {
+            self.apply_rpdo(n, buf);
+        }
+    }
+
+    fn apply_rpdo(&mut self, n: usize, data: [u8; 8]) {
+        let mut offset = 0u32;
+        for k in 0..usize::from(self.rpdo[n].count) {
+            let e = self.rpdo[n].map[k];
+            let bits = u32::from(e.bits);
+            if !e.is_dummy() {
+                let mut v = [0u8; 8];
+                let len = pdo::get_bits(&data, offset, bits, &mut v);
+                let _ = self.write_entry(e.index, e.sub, &v[..len], WriteSource::Rpdo(n as u16));
+            }
+            offset += bits;
+        }
+    }
+
+    fn poll_tpdos(&mut self, now: Micros, emit: &mut impl FnMut(Frame)) {
+        for t in &mut self.tpdo {
+            if !t.active() {
+                continue;
+            }
+            let map = &t.map[..usize::from(t.count)];
+            let inhibited = t.sent_once && t.inhibit != 0 && now < t.last_tx.saturating_add(t.inhibit);
+            let mut out = None;
+            if t.rtr {
+                t.rtr = false;
+                out = Some(if t.ttype == 252 && t.has_sample { t.sample } else { pack(&self.od, map) });
+            } else if t.due {
+                if !inhibited {
+                    t.due = false;
+                    out = Some(t.sample);
+                }
+            } else if t.ttype >= 254 && !inhibited {
+                let data = pack(&self.od, map);
+                let timer = t.event != 0 && now >= t.next_event;
+                if !t.sent_once || data != t.last || timer || t.requested {
+                    out = Some(data);
+                }
+            }
+            if let Some(data) = out {
+                emit(Frame::short(t.cob, data, usize::from(t.bytes)));
+                t.last = data;
+                t.sent_once = true;
+                t.requested = false;
+                t.last_tx = now;
+                t.next_event = now.saturating_add(t.event);
+            }
+        }
+    }
+
+    // ---- time-driven services -------------------------------------------------------------
+
+    fn poll(&mut self, now: Micros, emit: &mut impl FnMut(Frame)) {
+        let node = u16::from(self.node);
+        if self.nmt.emcy_sync_allowed() && self.emcy_valid {
+            while !self.emcy_queue.is_empty() {
+                if self.emcy_inhibit != 0
+                    && self.emcy_last.is_some_and(|last| now < last.saturating_add(self.emcy_inhibit))
+                {
+                    break;
+                }
+                if let Some(d) = self.emcy_queue.pop() {
+                    emit(Frame::full(self.emcy_cob, d));
+                    self.emcy_last = Some(now);
+                }
+                if self.emcy_inhibit != 0 {
+                    break;
+                }
+            }
+        }
+        if self.sync_producer && self.sync_period != 0 && self.nmt.emcy_sync_allowed() && now >= self.sync_next {
+            self.sync_next = now.saturating_add(self.sync_period);
+            let counter = (self.sync_overflow > 1).then_some(self.sync_counter);
+            if let Some(c) = counter {
+                emit(Frame::short(self.sync_cob, [c, 0, 0, 0, 0, 0, 0, 0], 1));
+                self.sync_counter = if c >= self.sync_overflow { 1 } else { c + 1 };
+            } else {
+                emit(Frame::short(self.sync_cob, [0; 8], 0));
+            }
+            self.on_sync(counter);
+        }
+        if self.nmt.pdo_allowed() {
+            self.poll_tpdos(now, emit);
+        }
+        if self.guard_reply {
+            self.guard_reply = false;
+            let b = self.nmt.code() | if self.guard_toggle { 0x80 } else { 0 };
+            self.guard_toggle = !self.guard_toggle;
+            emit(Frame::short(0x700 + node, [b, 0, 0, 0, 0, 0, 0, 0], 1));
+        }
+        if self.hb_period != 0 && now >= self.hb_next {
+            self.hb_next = now.saturating_add(self.hb_period);
+            emit(Frame::short(0x700 + node, [self.nmt.code(), 0, 0, 0, 0, 0, 0, 0], 1));
+        }
+        for k in 0..MAX_HEARTBEAT_CONSUMERS {
+            let c = self.consumers[k];
+            if c.node != 0 && c.active && now >= c.last.saturating_add(c.time) {
+                self.consumers[k].active = false;
+                self.event(Event::HeartbeatTimeout { node: c.node });
+            }
+        }
+        let life = self.guard_time.saturating_mul(Micros::from(self.life_factor));
+        if life != 0
+            && !self.guard_lost
+            && let Some(last) = self.guard_last
+            && now >= last.saturating_add(life)
+        {
+            self.guard_lost = true;
+            self.event(Event::LifeGuardingLost);
+        }
+    }
+
+    fn on_frame(&mut self, frame: &Frame) -> bool {
+        let id = frame.id();
+        let node = u16::from(self.node);
+        if frame.is_rtr() {
+            if id == 0x700 + node {
+                if self.hb_period == 0 {
+                    self.guard_reply = true;
+                    self.guard_last = Some(self.now);
+                    if self.guard_lost {
+                        self.guard_lost = false;
+                        self.event(Event::LifeGuardingResumed);
+                    }
+                }
+            } else if self.nmt.pdo_allowed() {
+                for t in &mut self.tpdo {
+                    if t.active() && t.rtr_ok && t.cob == id {
+                        t.rtr = true;
+                    }
+                }
+            }
+            return false;
+        }
+        let data = frame.data();
+        if id == 0 {
+            if let [cs, target, ..] = *data
+                && (target == 0 || target == self.node)
+                && let Some(cmd) = NmtCommand::from_byte(cs)
+            {
+                self.nmt_command(cmd);
+            }
+            return false;
+        }
+        if id == self.sync_cob && self.nmt.emcy_sync_allowed() {
+            self.on_sync(data.first().copied());
+            return false;
+        }
+        if self.sdo_valid && id == self.sdo_rx {
+            return self.nmt.sdo_allowed() && data.len() == 8;
+        }
+        if self.nmt.pdo_allowed() {
+            for n in 0..P {
+                if self.rpdo[n].active() && self.rpdo[n].cob == id {
+                    self.on_rpdo(n, data);
+                    return false;
+                }
+            }
+        }
+        if (0x701..=0x77F).contains(&id) && !data.is_empty() {
+            let from = (id - 0x700) as u8;
+            let now = self.now;
+            for k in 0..MAX_HEARTBEAT_CONSUMERS {
+                let c = self.consumers[k];
+                if c.node == from {
+                    self.consumers[k].last = now;
+                    self.consumers[k].active = true;
+                    if !c.active {
+                        self.event(Event::HeartbeatStarted { node: from, state: data[0] });
+                    }
+                }
+            }
+        }
+        false
+    }
+}
+
+impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> ObjectAccess for Core<OD, A, S, P> {
+    fn info(&self, index: u16, sub: u8) -> Result<&'static EntryInfo, AbortCode> {
+        self.od.info(index, sub)
+    }
+
+    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, AbortCode> {
+        self.od.read(index, sub, buf)
+    }
+
+    fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode> {
+        self.write_entry(index, sub, data, WriteSource::Sdo)
+    }
+}
+
+impl<OD: ObjectDictionary, A: App<OD>, S: Storage> Device<OD, A, S> {
+    /// A device with a 1 KiB SDO buffer and room for 8 RPDOs and 8 TPDOs. Nothing happens
+    /// until the first [`Device::poll`] or [`Device::on_frame`], which runs the reset node
+    /// sequence (defaults, stored values) and queues the boot-up message.
+    pub fn new(od: OD, app: A, storage: S, node_id: NodeId) -> Self {
+        Self::with_capacity(od, app, storage, node_id)
+    }
+}
+
+impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS: usize> Device<OD, A, S, BUF, PDOS> {
+    /// Like [`Device::new`], for any buffer size and PDO capacity given as type parameters:
+    /// `Device::<_, _, _, 4096, 16>::with_capacity(..)`. PDOs the dictionary defines past
+    /// `PDOS` are not served.
+    pub fn with_capacity(od: OD, app: A, storage: S, node_id: NodeId) -> Self {
+        let node = node_id.get();
+        Self {
+            sdo: SdoServer::new(),
+            node_id,
+            started: false,
+            core: Core {
+                od,
+                app,
+                storage,
+                node,
+                now: 0,
+                nmt: NmtState::Initialising,
+                bootup: false,
+                sdo_reset: false,
+                sdo_rx: 0x600 + u16::from(node),
+                sdo_tx: 0x580 + u16::from(node),
+                sdo_valid: true,
+                sync_cob: 0x80,
+                sync_producer: false,
+                sync_period: 0,
+                sync_overflow: 0,
+                sync_counter: 1,
+                sync_next: 0,
+                emcy_cob: 0x80 + u16::from(node),
+                emcy_valid: true,
+                emcy_inhibit: 0,
+                emcy_last: None,
+                emcy_queue: Queue::new(),
+                history_len: 0,
+                hb_period: 0,
+                hb_next: 0,
+                guard_time: 0,
+                life_factor: 0,
+                guard_toggle: false,
+                guard_reply: false,
+                guard_last: None,
+                guard_lost: false,
+                consumers: [Consumer::default(); MAX_HEARTBEAT_CONSUMERS],
+                rpdo: [Rpdo::EMPTY; PDOS],
+                tpdo: [Tpdo::EMPTY; PDOS],
+                drive: None,
+                remote: true,
+            },
+        }
+    }
+
+    fn start(&mut self, now: Micros) {
+        self.core.now = now;
+        if !self.started {
+            self.started = true;
+            self.core.reset(ResetKind::Node);
+        }
+        self.apply_sdo_reset();
+    }
+
+    fn apply_sdo_reset(&mut self) {
+        if self.core.sdo_reset {
+            self.core.sdo_reset = false;
+            self.sdo.reset();
+        }
+    }
+
+    /// Handles one received frame. Responses are produced by the next [`Device::poll`].
+    pub fn on_frame(&mut self, frame: &Frame, now: Micros) {
+        self.start(now);
+        if self.core.on_frame(frame) {
+            self.sdo.request(frame.raw(), now, &mut self.core);
+        }
+        self.apply_sdo_reset();
+    }
+
+    /// Runs the time-driven services and hands every frame to send to `emit`: the boot-up
+    /// message, the SDO response, EMCY, SYNC (when producing), TPDOs, the node guarding reply
+    /// and the heartbeat, in that order.
+    pub fn poll(&mut self, now: Micros, mut emit: impl FnMut(Frame)) {
+        self.start(now);
+        if self.core.bootup {
+            self.core.bootup = false;
+            emit(Frame::short(0x700 + u16::from(self.core.node), [0; 8], 1));
+        }
+        if self.core.nmt.sdo_allowed() {
+            let tx = self.core.sdo_tx;
+            self.sdo.poll(now, &mut |d| emit(Frame::full(tx, d)));
+        }
+        self.core.poll(now, &mut emit);
+        self.apply_sdo_reset();
+    }
+
+    /// The node id.
+    pub fn node_id(&self) -> NodeId {
+        self.node_id
+    }
+
+    /// The NMT state.
+    pub fn nmt_state(&self) -> NmtState {
+        self.core.nmt
+    }
+
+    /// Executes an NMT command locally (as if the master had sent it to this node), e.g.
+    /// `Start` for a device that enters Operational by itself.
+    pub fn nmt_command(&mut self, cmd: NmtCommand, now: Micros) {
+        self.start(now);
+        self.core.nmt_command(cmd);
+        self.apply_sdo_reset();
+    }
+
+    /// The dictionary.
+    pub fn od(&self) -> &OD {
+        &self.core.od
+    }
+
+    /// The dictionary, for the application's own values (actual position, statusword bits
+    /// 7..15, ...). Writing communication objects (1000h..1FFFh) here bypasses the runtime;
+    /// call [`Device::reload`] afterwards, or use [`Device::write`].
+    pub fn od_mut(&mut self) -> &mut OD {
+        &mut self.core.od
+    }
+
+    /// The application.
+    pub fn app(&self) -> &A {
+        &self.core.app
+    }
+
+    /// The application, mutably.
+    pub fn app_mut(&mut self) -> &mut A {
+        &mut self.core.app
+    }
+
+    /// The storage backend.
+    pub fn storage_mut(&mut self) -> &mut S {
+        &mut self.core.storage
+    }
+
+    /// Re-reads every communication parameter from the dictionary.
+    pub fn reload(&mut self) {
+        self.core.reload_all();
+    }
+
+    /// Writes an object as the application, with the same checks and side effects as an SDO
+    /// download (PDO rules, store/restore, CiA 402), but without access-right checks. The
+    /// application's own [`App::on_write`] sees it with [`WriteSource::Local`].
+    pub fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode> {
+        self.core.info(index, sub)?;
+        self.core.write_entry(index, sub, data, WriteSource::Local)
+    }
+
+    /// Sets the SDO timeout (default 1 s; 0 disables it).
+    pub fn set_sdo_timeout(&mut self, timeout: Micros) {
+        self.sdo.set_timeout(timeout);
+    }
+
+    /// Asks for a transmission of TPDO `n` (0 = 1800h) of type 0 (at the next SYNC) or
+    /// 254/255 (at the next poll, subject to the inhibit time).
+    pub fn request_tpdo(&mut self, n: usize) {
+        if let Some(t) = self.core.tpdo.get_mut(n) {
+            t.requested = true;
+        }
+    }
+
+    /// Signals an error: sets `register` (and the generic bit) in 1001h, records `code` in
+    /// the 1003h history and queues an EMCY message `code, 1001h, info`.
+    /// [`emcy::register_bits`] gives the usual bits for a code.
+    pub fn signal_error(&mut self, code: u16, register: u8, info: [u8; 5]) {
+        self.core.emcy(code, register, info);
+    }
+
+    /// Clears `register` bits in 1001h (the generic bit too when no other bit remains) and
+    /// queues the "error reset" EMCY message (code 0000h).
+    pub fn reset_error(&mut self, register: u8) {
+        self.core.emcy_reset(register);
+    }
+
+    /// The error register (1001h).
+    pub fn error_register(&self) -> u8 {
+        self.core.error_register()
+    }
+
+    /// The CiA 402 state, if the dictionary has 6040h and 6041h.
+    pub fn cia402_state(&self) -> Option<cia402::State> {
+        self.core.drive.map(|sm| sm.state())
+    }
+
+    /// Reports a drive fault: stores `error_code` in 603Fh (when present), signals it as an
+    /// EMCY and enters Fault reaction active (transition 13). The application runs its fault
+    /// reaction and then calls [`Device::fault_reaction_done`].
+    pub fn set_fault(&mut self, error_code: u16) {
+        if self.core.od.info(0x603F, 0).is_ok() {
+            let _ = self.core.od.write(0x603F, 0, &error_code.to_le_bytes());
+        }
+        self.core.emcy(error_code, emcy::register_bits(error_code), [0; 5]);
+        if let Some(sm) = &mut self.core.drive {
+            let ts = sm.fault();
+            self.core.drive_transitions(ts);
+        }
+    }
+
+    /// The fault reaction is complete: Fault reaction active → Fault (transition 14).
+    pub fn fault_reaction_done(&mut self) {
+        if let Some(sm) = &mut self.core.drive {
+            let ts = sm.fault_reaction_done();
+            self.core.drive_transitions(ts);
+        }
+    }
+
+    /// The quick stop ramp is complete: Quick stop active → Switch on disabled (transition
+    /// 12) when 605Ah is 0..=4; the drive stays in Quick stop active for 5..=8.
+    pub fn quick_stop_done(&mut self) {
+        let opt = self.core.quick_stop_option();
+        if let Some(sm) = &mut self.core.drive {
+            let ts = sm.quick_stop_done(opt);
+            self.core.drive_transitions(ts);
+        }
+    }
+
+    /// Sets statusword bit 9 (remote). While it is clear, controlword writes from the bus
+    /// abort with 0x0800_0021 (local control).
+    pub fn set_remote(&mut self, remote: bool) {
+        self.core.remote = remote;
+        self.core.update_statusword();
+    }
+}

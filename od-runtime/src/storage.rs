@@ -1,0 +1,64 @@
+//! Non-volatile storage of parameters (1010h store, 1011h restore defaults).
+//!
+//! The runtime decides *what* is stored (every writable entry of an area except DOMAINs and
+//! the store/restore objects themselves, as `(index, sub, bytes)` records) and *when* (on a
+//! "save" written to 1010h; stored values are loaded at every reset node / reset
+//! communication). A [`Storage`] implementation only persists records: a file on a host, a
+//! flash sector on a microcontroller.
+
+use crate::od::{AbortCode, Area};
+
+/// The "save" signature written to 1010h sub-indices (ASCII `save`, little-endian).
+pub const SAVE_SIGNATURE: u32 = 0x6576_6173;
+/// The "load" signature written to 1011h sub-indices (ASCII `load`, little-endian).
+pub const LOAD_SIGNATURE: u32 = 0x6461_6F6C;
+
+/// Persists parameter records per area.
+///
+/// The runtime calls it with [`Area::Communication`], [`Area::Application`] or
+/// [`Area::Manufacturer`], never [`Area::All`]. A failing call makes the SDO transfer that
+/// caused it abort with the returned code (use `CANNOT_STORE`, 0x0800_0020, when in doubt).
+pub trait Storage {
+    /// Starts a new image of `area`; the old one stays valid until [`Storage::end_save`].
+    fn begin_save(&mut self, area: Area) -> Result<(), AbortCode>;
+    /// Adds one record to the image being saved.
+    fn save_entry(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode>;
+    /// Commits the image of `area`.
+    fn end_save(&mut self, area: Area) -> Result<(), AbortCode>;
+    /// Calls `apply` for every record of the stored image of `area`, if there is one.
+    fn load(&mut self, area: Area, apply: &mut dyn FnMut(u16, u8, &[u8]));
+    /// Deletes the stored image of `area` (1011h: defaults apply from the next reset).
+    fn erase(&mut self, area: Area) -> Result<(), AbortCode>;
+}
+
+/// No persistent storage: saving aborts with `CANNOT_STORE`, nothing is ever loaded.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NoStorage;
+
+impl Storage for NoStorage {
+    fn begin_save(&mut self, _: Area) -> Result<(), AbortCode> {
+        Err(AbortCode::CANNOT_STORE)
+    }
+    fn save_entry(&mut self, _: u16, _: u8, _: &[u8]) -> Result<(), AbortCode> {
+        Err(AbortCode::CANNOT_STORE)
+    }
+    fn end_save(&mut self, _: Area) -> Result<(), AbortCode> {
+        Err(AbortCode::CANNOT_STORE)
+    }
+    fn load(&mut self, _: Area, _: &mut dyn FnMut(u16, u8, &[u8])) {}
+    fn erase(&mut self, _: Area) -> Result<(), AbortCode> {
+        Ok(())
+    }
+}
+
+/// The areas a 1010h/1011h sub-index covers (CiA 301: 1 all, 2 communication, 3 application,
+/// 4 and above manufacturer-specific).
+pub(crate) fn areas_of(sub: u8) -> &'static [Area] {
+    match sub {
+        0 => &[],
+        1 => &[Area::Communication, Area::Application, Area::Manufacturer],
+        2 => &[Area::Communication],
+        3 => &[Area::Application],
+        _ => &[Area::Manufacturer],
+    }
+}
