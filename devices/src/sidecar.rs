@@ -40,6 +40,17 @@
 //! torque = { unit = "mA" }
 //! torque_slope = { unit = "mA/s" }
 //!
+//! # A system chosen outside the bus is selected by name only.
+//! [[unit_system]]
+//! name = "only-motor-qset"
+//! external = "chosen in the QSet configurator"
+//! [unit_system.units]
+//! position = { unit = "deg" }
+//!
+//! # Units of single entries outside the unit systems.
+//! [object_units]
+//! "0x2100" = { unit = "s" }
+//!
 //! # Objects that rescale values, and the formula each enters.
 //! [[scaling]]
 //! object = "0x2001"
@@ -108,6 +119,10 @@ pub struct Sidecar {
     /// Objects that rescale values.
     #[serde(default)]
     pub scaling: Vec<ScalingObject>,
+    /// Units of single entries that are not motion quantities of a unit system (counters in
+    /// seconds, inhibit times in 100 us, ...).
+    #[serde(default)]
+    pub object_units: BTreeMap<ObjRef, UnitSpec>,
     /// Per-object bus scaling factor (AKD).
     #[serde(default)]
     pub bus_scaling: BTreeMap<ObjRef, BusScaling>,
@@ -331,6 +346,9 @@ pub enum Unit {
     /// `us`
     #[serde(rename = "us")]
     Microsecond,
+    /// `100us`: multiples of 100 microseconds (CiA 301 inhibit times).
+    #[serde(rename = "100us")]
+    HundredMicroseconds,
 }
 
 /// An exact positive ratio `num/den`, written `"1/100"`, `"1000"` or `"1"`.
@@ -431,9 +449,14 @@ pub struct UnitSystem {
     /// What it is, with the manual's reference.
     #[serde(default)]
     pub description: Option<String>,
-    /// When it is active: every condition holds. Empty: the default system.
+    /// When it is active: every condition holds. Empty (and no `external`): the default system.
     #[serde(default)]
     pub when: Vec<Condition>,
+    /// Set when the system is chosen outside the bus (e.g. in a vendor configurator), saying
+    /// where; such a system is active only when selected by name
+    /// ([`Sidecar::unit_system_named`]).
+    #[serde(default)]
+    pub external: Option<String>,
     /// The unit of each dimension.
     pub units: BTreeMap<Dimension, UnitSpec>,
 }
@@ -672,8 +695,13 @@ impl Sidecar {
 
     /// Rules serde cannot express.
     fn check_self(&self) -> Result<(), String> {
-        if self.unit_systems.iter().filter(|u| u.when.is_empty()).count() > 1 {
-            return Err("more than one [[unit_system]] without `when`: only one can be the default".into());
+        if self.unit_systems.iter().filter(|u| u.when.is_empty() && u.external.is_none()).count() > 1 {
+            return Err("more than one [[unit_system]] without `when` or `external`: only one can be the default".into());
+        }
+        for u in &self.unit_systems {
+            if !u.when.is_empty() && u.external.is_some() {
+                return Err(format!("unit_system `{}` has both `when` and `external`", u.name));
+            }
         }
         for (i, m) in self.modes.iter().enumerate() {
             if self.modes[..i].iter().any(|o| o.code == m.code) {
@@ -701,7 +729,12 @@ impl Sidecar {
         self.unit_systems
             .iter()
             .find(|u| !u.when.is_empty() && u.when.iter().all(|c| value_of(c.object) == Some(c.equals.0)))
-            .or_else(|| self.unit_systems.iter().find(|u| u.when.is_empty()))
+            .or_else(|| self.unit_systems.iter().find(|u| u.when.is_empty() && u.external.is_none()))
+    }
+
+    /// The unit system with this name (how an `external` system is selected).
+    pub fn unit_system_named(&self, name: &str) -> Option<&UnitSystem> {
+        self.unit_systems.iter().find(|u| u.name == name)
     }
 
     /// The scaling object of a kind.
@@ -731,6 +764,7 @@ impl Sidecar {
                 (ObjRef { index: s.object.index, sub: Some(*sub) }, format!("scaling {:?} sub `{role}`", s.kind))
             }));
         }
+        out.extend(self.object_units.keys().map(|r| (*r, "[object_units]".to_owned())));
         out.extend(self.bus_scaling.keys().map(|r| (*r, "[bus_scaling]".to_owned())));
         out.extend(self.warnings.iter().map(|w| (w.object, format!("warning bit {}", w.bit))));
         out.extend(self.store.objects.iter().map(|r| (*r, "[store]".to_owned())));
