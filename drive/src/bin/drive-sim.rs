@@ -119,6 +119,7 @@ fn run_hub(args: &HubArgs) -> Result<(), String> {
 
 fn run_dump(args: &DumpArgs) -> Result<(), String> {
     let mut bus = args.bus.open().map_err(|e| format!("{}: {e}", args.bus))?;
+    eprintln!("dump: on {}", args.bus);
     let deadline = match args.timeout {
         Some(seconds) if seconds.is_finite() && seconds >= 0.0 => {
             Some(Instant::now() + Duration::from_secs_f64(seconds))

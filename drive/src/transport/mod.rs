@@ -65,7 +65,7 @@ pub use bus::{LocalEndpoint, MemoryBus};
 pub use client::SocketcandClient;
 pub use frame::{CanFrame, FrameError};
 pub use hub::{Hub, HubConfig, HubEvent, HubObserver};
-pub use spec::{BusSpec, BusSpecError};
+pub use spec::{BusSpec, BusSpecError, DEFAULT_CHANNEL};
 
 /// What can go wrong on a bus.
 #[derive(Debug, thiserror::Error)]

@@ -1,0 +1,115 @@
+//! `drive-sim hub` as a process: it reports its port, relays between clients, and stops
+//! cleanly on SIGTERM and SIGINT; `dump` and `send` reach it as clients.
+
+use std::io::{BufRead, BufReader};
+use std::net::SocketAddr;
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
+
+use drive::transport::{CanFrame, Endpoint, SocketcandClient};
+
+const WAIT: Duration = Duration::from_secs(10);
+
+struct HubProcess {
+    child: Child,
+    addr: SocketAddr,
+}
+
+impl HubProcess {
+    fn start() -> Self {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
+            .args(["hub", "--listen", "127.0.0.1:0"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start drive-sim");
+        let stdout = child.stdout.take().unwrap();
+        let mut line = String::new();
+        BufReader::new(stdout).read_line(&mut line).expect("read the listening line");
+        let addr =
+            line.trim().strip_prefix("listening on ").unwrap_or_else(|| panic!("unexpected first line {line:?}"));
+        Self { addr: addr.parse().unwrap(), child }
+    }
+
+    fn signal(&mut self, signal: libc::c_int) -> ExitStatus {
+        let pid = libc::pid_t::try_from(self.child.id()).unwrap();
+        // SAFETY: sending a signal to our own child process.
+        assert_eq!(unsafe { libc::kill(pid, signal) }, 0);
+        let deadline = Instant::now() + WAIT;
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return status;
+            }
+            assert!(Instant::now() < deadline, "drive-sim did not stop on signal {signal}");
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+}
+
+impl Drop for HubProcess {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+#[test]
+fn the_hub_process_relays_and_stops_on_sigterm() {
+    let mut hub = HubProcess::start();
+    let mut a = SocketcandClient::connect(hub.addr, "can0").unwrap();
+    let mut b = SocketcandClient::connect(hub.addr, "can0").unwrap();
+    let frame = CanFrame::standard(0x601, &[0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]).unwrap();
+    a.send(frame).unwrap();
+    assert_eq!(b.recv_timeout(WAIT).unwrap(), Some(frame));
+    let ext = CanFrame::extended(0x18DA_F110, &[0x02, 0x10, 0x03]).unwrap();
+    b.send(ext).unwrap();
+    assert_eq!(a.recv_timeout(WAIT).unwrap(), Some(ext));
+
+    let status = hub.signal(libc::SIGTERM);
+    assert!(status.success(), "{status}");
+    assert!(a.recv_timeout(WAIT).is_err(), "clients see the hub go away");
+}
+
+#[test]
+fn the_hub_process_stops_on_sigint() {
+    let mut hub = HubProcess::start();
+    let _client = SocketcandClient::connect(hub.addr, "can0").unwrap();
+    let status = hub.signal(libc::SIGINT);
+    assert!(status.success(), "{status}");
+}
+
+#[test]
+fn dump_and_send_are_clients_of_the_hub() {
+    let hub = HubProcess::start();
+    let bus = format!("tcp://{}/vcan3", hub.addr);
+    let mut dump = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
+        .args(["dump", "--bus", &bus, "--count", "3", "--timeout", "10"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // dump says on stderr when it is on the bus; frames sent before that would be missed.
+    let mut line = String::new();
+    BufReader::new(dump.stderr.take().unwrap()).read_line(&mut line).unwrap();
+    assert_eq!(line.trim(), format!("dump: on {bus}"));
+    let mut probe = SocketcandClient::connect(hub.addr, "vcan3").unwrap();
+    let sent = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
+        .args(["send", "--bus", &bus, "000#0100", "080#", "1ABCDEF0#R2"])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let output = dump.wait_with_output().unwrap();
+    assert!(output.status.success());
+    assert_eq!(String::from_utf8(output.stdout).unwrap(), "000#0100\n080#\n1ABCDEF0#R2\n");
+    // The probe saw them too.
+    let got: Vec<String> = (0..3).map(|_| probe.recv_timeout(WAIT).unwrap().unwrap().to_string()).collect();
+    assert_eq!(got, ["000#0100", "080#", "1ABCDEF0#R2"]);
+
+    let bad = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
+        .args(["send", "--bus", &bus, "601#0"])
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("odd number of data hex digits"));
+}

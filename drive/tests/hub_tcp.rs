@@ -1,0 +1,470 @@
+//! The socketcand hub over real TCP connections on 127.0.0.1: relaying between clients as
+//! python-can writes and reads the protocol, in-process endpoints, hostile clients, slow
+//! clients, and shutdown.
+
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use drive::transport::{CanFrame, Endpoint, Hub, HubConfig, HubEvent, SocketcandClient, TransportError};
+
+const WAIT: Duration = Duration::from_secs(5);
+
+/// A client speaking the protocol as text, the way python-can does.
+struct TextClient {
+    stream: TcpStream,
+    pending: Vec<u8>,
+}
+
+impl TextClient {
+    fn connect(addr: SocketAddr) -> Self {
+        let stream = TcpStream::connect(addr).unwrap();
+        stream.set_read_timeout(Some(WAIT)).unwrap();
+        Self { stream, pending: Vec::new() }
+    }
+
+    /// Connects, expects `< hi >`, opens `channel` and enters raw mode.
+    fn raw(addr: SocketAddr, channel: &str) -> Self {
+        let mut client = Self::connect(addr);
+        assert_eq!(client.next(), "< hi >");
+        client.say(&format!("< open {channel} >"));
+        assert_eq!(client.next(), "< ok >");
+        client.say("< rawmode >");
+        assert_eq!(client.next(), "< ok >");
+        client
+    }
+
+    fn say(&mut self, text: &str) {
+        self.stream.write_all(text.as_bytes()).unwrap();
+    }
+
+    /// The next complete `< ... >` message (panics after WAIT).
+    fn next(&mut self) -> String {
+        let deadline = Instant::now() + WAIT;
+        loop {
+            if let Some(end) = self.pending.iter().position(|&b| b == b'>') {
+                let message: Vec<u8> = self.pending.drain(..=end).collect();
+                let text = String::from_utf8(message).unwrap();
+                return text.trim_start().to_owned();
+            }
+            assert!(Instant::now() < deadline, "no message within {WAIT:?}");
+            let mut buf = [0u8; 4096];
+            let n = self.stream.read(&mut buf).expect("read");
+            assert!(n > 0, "hub closed the connection; had {:?}", String::from_utf8_lossy(&self.pending));
+            self.pending.extend_from_slice(&buf[..n]);
+        }
+    }
+
+    /// Sends `< echo >` and returns every message received before the echo came back. The hub
+    /// handles one client's messages in order, so this proves nothing else is on its way.
+    fn drain_until_echo(&mut self) -> Vec<String> {
+        self.say("< echo >");
+        let mut before = Vec::new();
+        loop {
+            let message = self.next();
+            if message == "< echo >" {
+                return before;
+            }
+            before.push(message);
+        }
+    }
+
+    /// Waits for the hub to close the connection; true if it did within WAIT.
+    fn closed_by_hub(&mut self) -> bool {
+        let deadline = Instant::now() + WAIT;
+        let mut buf = [0u8; 4096];
+        while Instant::now() < deadline {
+            match self.stream.read(&mut buf) {
+                Ok(0) => return true,
+                Ok(_) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::ConnectionReset => return true,
+                Err(_) => return false,
+            }
+        }
+        false
+    }
+}
+
+/// Splits `< frame ID TIME DATA >` the way python-can does (split on single spaces, at most 3
+/// parts), checking the timestamp is `seconds.microseconds` with six digits.
+fn frame_fields(message: &str) -> (String, String) {
+    let inner =
+        message.strip_prefix("< frame ").and_then(|m| m.strip_suffix(" >")).unwrap_or_else(|| panic!("{message}"));
+    let parts: Vec<&str> = inner.splitn(3, ' ').collect();
+    assert_eq!(parts.len(), 3, "python-can needs three fields in {message:?}");
+    let (secs, micros) = parts[1].split_once('.').unwrap();
+    assert!(secs.parse::<u64>().unwrap() > 1_600_000_000, "wall-clock seconds in {message}");
+    assert_eq!(micros.len(), 6);
+    (parts[0].to_owned(), parts[2].to_owned())
+}
+
+fn quiet_hub() -> Hub {
+    Hub::bind("127.0.0.1:0", HubConfig::default().quiet()).unwrap()
+}
+
+fn recording_hub(config: HubConfig) -> (Hub, Arc<Mutex<Vec<HubEvent>>>) {
+    let events = Arc::new(Mutex::new(Vec::new()));
+    let sink = Arc::clone(&events);
+    let config = config.with_observer(Arc::new(move |event: &HubEvent| sink.lock().unwrap().push(event.clone())));
+    (Hub::bind("127.0.0.1:0", config).unwrap(), events)
+}
+
+fn wait_until(what: &str, mut condition: impl FnMut() -> bool) {
+    let deadline = Instant::now() + WAIT;
+    while !condition() {
+        assert!(Instant::now() < deadline, "timed out waiting until {what}");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+#[test]
+fn two_text_clients_relay_standard_and_extended_frames_both_ways() {
+    let hub = quiet_hub();
+    let mut master = TextClient::raw(hub.local_addr(), "can0");
+    let mut device = TextClient::raw(hub.local_addr(), "can0");
+
+    // Exactly what python-can writes for an SDO download request.
+    master.say("< send 601 8 2b 40 60 0 6 0 0 0 >");
+    let got = device.next();
+    assert_eq!(frame_fields(&got), ("601".into(), "2B40600006000000".into()), "{got}");
+
+    device.say("< send 581 8 60 40 60 0 0 0 0 0 >");
+    assert_eq!(frame_fields(&master.next()), ("581".into(), "6040600000000000".into()));
+
+    master.say("< send 1ABCDEF0 3 1 2 ff >");
+    assert_eq!(frame_fields(&device.next()), ("1ABCDEF0".into(), "0102FF".into()));
+    device.say("< send 00000123 0  >");
+    assert_eq!(frame_fields(&master.next()), ("00000123".into(), String::new()), "extended keeps 8 digits");
+
+    // SYNC: no data, the message ends in two spaces so python-can sees an empty third field.
+    master.say("< send 080 0  >");
+    let sync = device.next();
+    assert!(sync.ends_with("  >"), "{sync:?}");
+    assert_eq!(frame_fields(&sync), ("080".into(), String::new()));
+
+    // Nothing echoes back to the senders.
+    assert_eq!(master.drain_until_echo(), Vec::<String>::new());
+    assert_eq!(device.drain_until_echo(), Vec::<String>::new());
+}
+
+#[test]
+fn rust_clients_relay_through_the_hub_and_channels_are_separate_buses() {
+    let hub = quiet_hub();
+    let mut a = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+    let mut b = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+    let mut c = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+    let mut other = SocketcandClient::connect(hub.local_addr(), "can1").unwrap();
+    assert_eq!(hub.channels(), ["can0", "can1"]);
+
+    let frames = [
+        CanFrame::standard(0x000, &[0x82, 0x00]).unwrap(),
+        CanFrame::extended(0x1FFF_FFFF, &[0xAA; 8]).unwrap(),
+        CanFrame::remote(0x705, false, 1).unwrap(),
+        CanFrame::remote(0x0012_3456, true, 0).unwrap(),
+    ];
+    for frame in frames {
+        a.send(frame).unwrap();
+    }
+    for receiver in [&mut b, &mut c] {
+        for frame in frames {
+            assert_eq!(receiver.recv_timeout(WAIT).unwrap(), Some(frame));
+        }
+    }
+    b.send(frames[0]).unwrap();
+    assert_eq!(a.recv_timeout(WAIT).unwrap(), Some(frames[0]));
+    assert_eq!(c.recv_timeout(WAIT).unwrap(), Some(frames[0]));
+
+    a.echo(WAIT).unwrap();
+    b.echo(WAIT).unwrap();
+    other.echo(WAIT).unwrap();
+    assert_eq!(a.try_recv().unwrap(), None, "the sender does not hear itself");
+    assert_eq!(b.try_recv().unwrap(), None);
+    assert_eq!(other.try_recv().unwrap(), None, "can1 hears nothing from can0");
+    assert_eq!(a.remote_errors() + b.remote_errors() + c.remote_errors(), 0);
+}
+
+#[test]
+fn in_process_endpoints_and_tcp_clients_share_a_channel() {
+    let hub = quiet_hub();
+    let mut device = hub.attach("can0").unwrap();
+    let mut second_device = hub.attach("can0").unwrap();
+    let mut master = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+    let mut text = TextClient::raw(hub.local_addr(), "can0");
+
+    let request = CanFrame::standard(0x605, &[0x40, 0x41, 0x60, 0, 0, 0, 0, 0]).unwrap();
+    master.send(request).unwrap();
+    assert_eq!(device.recv_timeout(WAIT).unwrap(), Some(request));
+    assert_eq!(second_device.recv_timeout(WAIT).unwrap(), Some(request));
+    assert_eq!(frame_fields(&text.next()).0, "605");
+
+    let response = CanFrame::standard(0x585, &[0x4B, 0x41, 0x60, 0, 0x37, 0x02, 0, 0]).unwrap();
+    device.send(response).unwrap();
+    assert_eq!(master.recv_timeout(WAIT).unwrap(), Some(response));
+    assert_eq!(second_device.recv_timeout(WAIT).unwrap(), Some(response));
+    assert_eq!(frame_fields(&text.next()), ("585".into(), "4B41600037020000".into()));
+    assert_eq!(device.try_recv().unwrap(), None);
+
+    // Node guarding: a remote frame from the master reaches the device as a remote frame.
+    master.send(CanFrame::remote(0x705, false, 1).unwrap()).unwrap();
+    let rtr = device.recv_timeout(WAIT).unwrap().unwrap();
+    assert!(rtr.is_remote() && rtr.dlc() == 1 && rtr.id() == 0x705);
+    let rtr_text = text.next();
+    let fields: Vec<&str> = rtr_text.split(' ').collect();
+    assert_eq!((fields[1], fields[2], fields[4], fields[5]), ("rtr", "705", "1", ">"), "{rtr_text}");
+}
+
+#[test]
+fn malformed_input_gets_error_replies_and_the_hub_keeps_serving() {
+    let (hub, events) = recording_hub(HubConfig::default());
+    let mut peer = TextClient::raw(hub.local_addr(), "can0");
+    let mut hostile = TextClient::connect(hub.local_addr());
+    assert_eq!(hostile.next(), "< hi >");
+
+    // Before `open` nothing but open and echo is allowed.
+    hostile.say("< send 601 0 >");
+    assert_eq!(hostile.next(), "< error open a channel first >");
+    hostile.say("< rawmode >");
+    assert_eq!(hostile.next(), "< error open a channel first >");
+    hostile.say("< open can0 >");
+    assert_eq!(hostile.next(), "< ok >");
+    hostile.say("< open can1 >");
+    assert_eq!(hostile.next(), "< error a channel is already open >");
+
+    let cases = [
+        ("< launch missiles >", "< error unknown command 'launch' >"),
+        ("< add 1 0 123 0 >", "< error command 'add' is not supported (raw mode only) >"),
+        ("< send 601 9 0 0 0 0 0 0 0 0 0 >", "< error bad length '9', expected 0 to 8 >"),
+        ("< send 601 2 1 >", "< error length says 2 bytes but 1 follow >"),
+        ("< send 8000 0 0 >", "< error length says 0 bytes but 1 follow >"),
+        ("< send 800 0 >", "< error standard CAN id 0x800 is above 0x7FF >"),
+        ("< send zz 0 >", "< error bad CAN id 'zz', expected 1 to 8 hex digits >"),
+        ("< send 601 1 1ff >", "< error bad data byte '1ff', expected 1 or 2 hex digits >"),
+        ("<>", "< error empty message >"),
+        ("< frame 123 1.0 00 >", "< error 'frame' is a server message >"),
+        ("< hi >", "< error 'hi' is a server message >"),
+        ("< send 601\u{e9} 0 >", "< error message is not ASCII text >"),
+        ("< send 601 0 < echo >", "< error message without closing bracket skipped >"),
+    ];
+    for (input, reply) in cases {
+        hostile.say(input);
+        assert_eq!(hostile.next(), reply, "for {input:?}");
+    }
+    // The unterminated case above was followed by an echo, answered after the error.
+    assert_eq!(hostile.next(), "< echo >");
+
+    // An endless message is cut off at the limit, then the stream resynchronises.
+    hostile.say(&format!("< {}", "x".repeat(100_000)));
+    assert_eq!(hostile.next(), "< error message longer than 256 bytes skipped >");
+    hostile.say(" >< rawmode >");
+    assert_eq!(hostile.next(), "< ok >");
+
+    // Stray bytes between messages are ignored (and logged), binary junk too.
+    hostile.say("hello\x00\x01\u{ff}");
+    let junk: Vec<u8> =
+        (0..4096u32).map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8).filter(|&b| b != b'<').collect();
+    hostile.stream.write_all(&junk).unwrap();
+    hostile.say("< send 1 1 a >");
+    assert_eq!(frame_fields(&peer.next()), ("001".into(), "0A".into()), "a 1-digit id is standard");
+    assert_eq!(hostile.drain_until_echo(), Vec::<String>::new());
+
+    // Everyone else was served throughout.
+    peer.say("< send 181 2 1 2 >");
+    assert_eq!(frame_fields(&hostile.next()), ("181".into(), "0102".into()));
+    assert_eq!(hub.client_count(), 2);
+
+    let events = events.lock().unwrap();
+    let errors = events.iter().filter(|e| matches!(e, HubEvent::ProtocolError { .. })).count();
+    assert_eq!(errors, HubConfig::LOGGED_ERRORS_PER_CLIENT as usize, "errors are logged up to the limit");
+    assert_eq!(events.iter().filter(|e| matches!(e, HubEvent::ErrorsSuppressed { .. })).count(), 1);
+}
+
+#[test]
+fn random_bytes_from_many_clients_do_not_bring_the_hub_down() {
+    let hub = quiet_hub();
+    let mut witness_a = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+    let mut witness_b = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+    let mut seed = 0x2545_F491_4F6C_DD1Du64;
+    for round in 0..8 {
+        let mut stream = TcpStream::connect(hub.local_addr()).unwrap();
+        let mut bytes = Vec::new();
+        for _ in 0..20_000 {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            // Mostly protocol-looking characters, so that parsing gets exercised deeply.
+            let alphabet = b"<> sendframeopenrawmode0123456789abcdefABCDEF.\n\x00\xff";
+            bytes.push(if round % 2 == 0 { alphabet[(seed % alphabet.len() as u64) as usize] } else { seed as u8 });
+        }
+        if round == 3 {
+            bytes.splice(0..0, b"< open can0 >< rawmode >".iter().copied());
+        }
+        // The hub may close on us or answer; either way it must go on serving the witnesses.
+        let _ = stream.write_all(&bytes);
+        drop(stream);
+        let frame = CanFrame::standard(0x700 + round, &[round as u8]).unwrap();
+        witness_a.send(frame).unwrap();
+        // Frames sent by a fuzzing client in raw mode may reach the witness first.
+        let deadline = Instant::now() + WAIT;
+        loop {
+            let got = witness_b.recv_timeout(WAIT).unwrap().expect("witness still served");
+            if got == frame {
+                break;
+            }
+            assert!(Instant::now() < deadline);
+        }
+    }
+    witness_a.echo(WAIT).unwrap();
+}
+
+#[test]
+fn a_client_that_stops_reading_is_disconnected_without_slowing_the_others() {
+    let config = HubConfig { client_queue: 64, write_timeout: Duration::from_secs(30), ..HubConfig::default() };
+    let (hub, events) = recording_hub(config);
+    let mut stuck = TextClient::raw(hub.local_addr(), "can0");
+    let mut sender = hub.attach("can0").unwrap();
+    let mut listener = hub.attach("can0").unwrap();
+    let healthy_seen = Arc::new(std::sync::atomic::AtomicU64::new(0));
+    let healthy = {
+        let mut client = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+        let seen = Arc::clone(&healthy_seen);
+        std::thread::spawn(move || {
+            while let Some(frame) = client.recv_timeout(WAIT).unwrap() {
+                seen.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+                if frame.id() == 0x7FF {
+                    return true;
+                }
+            }
+            false
+        })
+    };
+
+    // Stream to everyone, in bursts the healthy clients keep up with, until the stuck client's
+    // socket buffers and then its queue are full. Sending must never block.
+    let frame = CanFrame::standard(0x181, &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
+    let mut slowest = Duration::ZERO;
+    let mut sent = 0u64;
+    let start = Instant::now();
+    while hub.client_count() > 1 {
+        assert!(start.elapsed() < Duration::from_secs(60), "stuck client never dropped ({sent} frames sent)");
+        for _ in 0..32 {
+            let t = Instant::now();
+            sender.send(frame).unwrap();
+            slowest = slowest.max(t.elapsed());
+            sent += 1;
+        }
+        while listener.try_recv().unwrap().is_some() {}
+        let deadline = Instant::now() + WAIT;
+        while healthy_seen.load(std::sync::atomic::Ordering::SeqCst) < sent {
+            assert!(Instant::now() < deadline, "the healthy client fell behind");
+            std::thread::yield_now();
+        }
+    }
+    eprintln!("stuck client dropped after {sent} frames in {:?}", start.elapsed());
+    assert!(slowest < Duration::from_millis(500), "a send blocked for {slowest:?}");
+    assert!(sent > 64, "only the socket buffers' worth of frames can be queued before the limit bites");
+    assert_eq!(listener.dropped(), 0);
+    sender.send(CanFrame::standard(0x7FF, &[]).unwrap()).unwrap();
+    assert!(healthy.join().unwrap(), "the healthy client stayed connected to the end");
+    assert!(stuck.closed_by_hub(), "reading the backlog ends at the hub's close");
+    wait_until("the overflow is logged", || {
+        events.lock().unwrap().iter().any(|e| matches!(e, HubEvent::Overflow { capacity: 64, .. }))
+    });
+    let disconnected = events.lock().unwrap().iter().any(|e| match e {
+        HubEvent::Disconnected { reason, .. } => reason.contains("fell 64 messages behind"),
+        _ => false,
+    });
+    assert!(disconnected, "{:?}", events.lock().unwrap());
+
+    // New clients are served normally.
+    let mut fresh = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+    sender.send(frame).unwrap();
+    assert_eq!(fresh.recv_timeout(WAIT).unwrap(), Some(frame));
+}
+
+#[test]
+fn connections_beyond_the_limit_are_refused_with_an_error() {
+    let config = HubConfig { max_clients: 2, ..HubConfig::default() };
+    let (hub, events) = recording_hub(config);
+    let _a = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+    let _b = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+    let mut third = TextClient::connect(hub.local_addr());
+    assert_eq!(third.next(), "< error too many clients, 2 clients already connected >");
+    assert!(third.closed_by_hub());
+    let err = SocketcandClient::connect(hub.local_addr(), "can0").unwrap_err();
+    assert!(err.to_string().contains("too many clients"), "{err}");
+    assert!(events.lock().unwrap().iter().any(|e| matches!(e, HubEvent::Rejected { .. })));
+}
+
+#[test]
+fn mode_switches_follow_socketcand() {
+    let hub = quiet_hub();
+    let mut sender = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+    let mut client = TextClient::connect(hub.local_addr());
+    assert_eq!(client.next(), "< hi >");
+    client.say("< echo >");
+    assert_eq!(client.next(), "< echo >");
+    client.say("< open can0 >");
+    assert_eq!(client.next(), "< ok >");
+    // In BCM mode (after open) a client may send but receives no raw frames.
+    client.say("< send 123 1 55 >");
+    assert_eq!(sender.recv_timeout(WAIT).unwrap(), Some(CanFrame::standard(0x123, &[0x55]).unwrap()));
+    sender.send(CanFrame::standard(0x1, &[]).unwrap()).unwrap();
+    sender.echo(WAIT).unwrap();
+    assert_eq!(client.drain_until_echo(), Vec::<String>::new());
+    client.say("< rawmode >");
+    assert_eq!(client.next(), "< ok >");
+    sender.send(CanFrame::standard(0x2, &[]).unwrap()).unwrap();
+    assert_eq!(frame_fields(&client.next()).0, "002");
+    client.say("< bcmmode >");
+    assert_eq!(client.next(), "< ok >");
+    sender.send(CanFrame::standard(0x3, &[]).unwrap()).unwrap();
+    sender.echo(WAIT).unwrap();
+    assert_eq!(client.drain_until_echo(), Vec::<String>::new());
+}
+
+#[test]
+fn stopping_the_hub_closes_clients_and_endpoints() {
+    let hub = quiet_hub();
+    let addr = hub.local_addr();
+    let mut client = SocketcandClient::connect(addr, "can0").unwrap();
+    let mut device = hub.attach("can0").unwrap();
+    let mut idle = TextClient::connect(addr);
+    assert_eq!(idle.next(), "< hi >");
+    let start = Instant::now();
+    hub.stop();
+    assert!(start.elapsed() < Duration::from_secs(3), "stop took {:?}", start.elapsed());
+    assert!(matches!(client.recv_timeout(WAIT), Err(TransportError::Closed)));
+    assert!(matches!(device.recv_timeout(WAIT), Err(TransportError::Closed)));
+    assert!(matches!(device.send(CanFrame::standard(1, &[]).unwrap()), Err(TransportError::Closed)));
+    assert!(idle.closed_by_hub());
+    assert!(matches!(hub.attach("can0"), Err(TransportError::Closed)));
+    assert!(TcpStream::connect_timeout(&addr, Duration::from_secs(1)).is_err(), "listener closed");
+    hub.stop(); // idempotent
+}
+
+#[test]
+fn client_handshake_failures_are_reported() {
+    // A server that is not socketcand.
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap();
+    let server = std::thread::spawn(move || {
+        let (mut stream, _) = listener.accept().unwrap();
+        stream.write_all(b"HTTP/1.1 400 Bad Request\r\n\r\n").unwrap();
+        let (mut stream2, _) = listener.accept().unwrap();
+        stream2.write_all(b"< hi >").unwrap();
+        let mut buf = [0u8; 64];
+        let _ = stream2.read(&mut buf);
+        stream2.write_all(b"< error no such bus >").unwrap();
+        std::thread::sleep(Duration::from_millis(200));
+    });
+    let err = SocketcandClient::connect_timeout(addr, "can0", Duration::from_millis(500)).unwrap_err();
+    assert!(matches!(err, TransportError::Protocol(_)), "{err}");
+    let err = SocketcandClient::connect_timeout(addr, "can0", Duration::from_secs(2)).unwrap_err();
+    assert_eq!(err.to_string(), "protocol error: server refused: no such bus");
+    server.join().unwrap();
+    let err = SocketcandClient::connect("127.0.0.1:1", "can0").unwrap_err();
+    assert!(err.to_string().contains("cannot connect"), "{err}");
+    let err = SocketcandClient::connect("127.0.0.1:1", "bad name").unwrap_err();
+    assert!(err.to_string().contains("bad channel name"), "{err}");
+}
