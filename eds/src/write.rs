@@ -124,9 +124,11 @@ impl std::fmt::Display for Unrepresentable {
 
 /// Lists what in `model` would not survive being written and read back: text with a line
 /// break, text with white space at either end (readers trim values), keys that are empty or
-/// contain `=` or start with `[` or `;`, and section names with `]`.
+/// contain `=` or start with `[` or `;`, section names with `]`, and a `compact_sub_obj` on an
+/// object whose entries are not the compact shape (see [`compact_info`]).
 pub fn unrepresentable(model: &Model) -> Vec<Unrepresentable> {
     let mut out = Vec::new();
+    let mut compact_problems = Vec::new();
     let mut text = |context: &dyn Fn() -> String, what: &str, s: &str| {
         if s.contains(['\n', '\r']) {
             out.push(Unrepresentable { context: context(), message: format!("{what} contains a line break") });
@@ -150,6 +152,14 @@ pub fn unrepresentable(model: &Model) -> Vec<Unrepresentable> {
     }
     for obj in model.objects.values() {
         let ctx = || format!("object {} \"{}\"", obj.index, obj.name);
+        if obj.compact_sub_obj.is_some() && compact_form(obj).is_none() {
+            compact_problems.push(Unrepresentable {
+                context: ctx(),
+                message: "CompactSubObj is set but the sub-objects differ from what it expands to; \
+                          the object is written expanded and reads back without CompactSubObj"
+                    .to_owned(),
+            });
+        }
         text(&ctx, "the name", &obj.name);
         for (k, v) in &obj.extra {
             text(&ctx, &format!("the value of `{k}`"), v);
@@ -184,6 +194,7 @@ pub fn unrepresentable(model: &Model) -> Vec<Unrepresentable> {
             text(&|| format!("[{}]", sec.name), &format!("the value of `{k}`"), v);
         }
     }
+    out.append(&mut compact_problems);
     // Keys and section names.
     let mut keys: Vec<(String, &str)> = Vec::new();
     keys.extend(model.file_info.extra.iter().map(|(k, _)| ("[FileInfo]".to_owned(), k.as_str())));
@@ -489,6 +500,9 @@ impl<'m> Writer<'m> {
         self.key("PDOMapping", format_args!("{}", proto.pdo_mapping as u8));
         self.key("CompactSubObj", format_args!("{}", c.n));
         self.opt_obj_flags(o.obj_flags);
+        self.opt_str("Denotation", &proto.denotation);
+        self.opt_str("UploadFile", &proto.upload_file);
+        self.opt_str("DownloadFile", &proto.download_file);
         self.extra(&o.extra);
         if !c.names.is_empty() {
             self.section(format_args!("{idx:04X}Name"));
@@ -510,20 +524,92 @@ impl<'m> Writer<'m> {
 /// How a compact ARRAY is written.
 struct Compact<'o> {
     n: u8,
-    /// The entry whose type, access, limits and mapping every sub-object 1..=n shares.
+    /// The entry whose type, access, default, limits, mapping and flags every sub-object
+    /// 1..=n shares (sub 0 itself when n is 0).
     proto: &'o Entry,
     /// The object's `DefaultValue`.
     default: Option<Value>,
-    /// `[xxxxName]` lines.
+    /// `[xxxxName]` lines: every sub-object's name (python-canopen only creates the sub-objects
+    /// it finds names for, so all of them are written even where the name is the implied one).
     names: Vec<(u8, &'o str)>,
-    /// `[xxxxValue]` lines.
+    /// `[xxxxValue]` lines: the configured values (`ParameterValue`) of the sub-objects.
     values: Vec<(u8, &'o Value)>,
 }
 
+/// The name the reader gives sub-index 0 of a compact ARRAY.
+const COMPACT_SUB0_NAME: &str = "NrOfObjects";
+
 /// Whether `o` can be written in compact form so that reading it back gives `o` again.
+///
+/// The reader expands `CompactSubObj=N` into sub-index 0 (`NrOfObjects`, UNSIGNED8, `ro`,
+/// default N) and sub-indices 1..=N that all take the object section's keys, with names from
+/// `[xxxxName]` and configured values from `[xxxxValue]`. An object qualifies when its entries
+/// are exactly that shape.
 fn compact_form(o: &Object) -> Option<Compact<'_>> {
-    let _ = o;
-    None
+    let n = o.compact_sub_obj?;
+    if !o.object_type.has_subs() || o.subs.len() != n as usize + 1 {
+        return None;
+    }
+    let sub0 = o.subs.get(&SubIndex(0))?;
+    let sub0_ok = sub0.name == COMPACT_SUB0_NAME
+        && sub0.data_type == DataType::Unsigned8
+        && sub0.access == Access::Ro
+        && !sub0.pdo_mapping
+        && sub0.default == Some(Value::int(n as i128))
+        && sub0.parameter_value.is_none()
+        && sub0.low_limit.is_none()
+        && sub0.high_limit.is_none()
+        && sub0.obj_flags.is_none()
+        && sub0.denotation.is_none()
+        && sub0.upload_file.is_none()
+        && sub0.download_file.is_none()
+        && sub0.extra.is_empty();
+    if !sub0_ok {
+        return None;
+    }
+    let proto = o.subs.get(&SubIndex(1)).unwrap_or(sub0);
+    let mut names = Vec::with_capacity(n as usize);
+    let mut values = Vec::new();
+    for s in 1..=n {
+        let e = o.subs.get(&SubIndex(s))?;
+        let shared = e.data_type == proto.data_type
+            && e.access == proto.access
+            && e.pdo_mapping == proto.pdo_mapping
+            && e.default == proto.default
+            && e.low_limit == proto.low_limit
+            && e.high_limit == proto.high_limit
+            && e.obj_flags == o.obj_flags
+            && e.denotation == proto.denotation
+            && e.upload_file == proto.upload_file
+            && e.download_file == proto.download_file
+            && e.extra.is_empty();
+        if !shared {
+            return None;
+        }
+        names.push((s, e.name.as_str()));
+        if let Some(v) = &e.parameter_value {
+            values.push((s, v));
+        }
+    }
+    Some(Compact { n, proto, default: proto.default.clone(), names, values })
+}
+
+/// What a compact ARRAY looks like to a reader that does not expand `[xxxxValue]`
+/// (python-canopen): its shared type and `DefaultValue`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CompactInfo {
+    /// `CompactSubObj=N`.
+    pub n: u8,
+    /// The shared data type of sub-indices 1..=N.
+    pub data_type: DataType,
+    /// The shared `DefaultValue` written in the object section.
+    pub default: Option<Value>,
+}
+
+/// Whether the writers write `o` in compact form (`CompactSubObj=N`), and with what shared
+/// type and default; `None` when it is written with one section per sub-object.
+pub fn compact_info(o: &Object) -> Option<CompactInfo> {
+    compact_form(o).map(|c| CompactInfo { n: c.n, data_type: c.proto.data_type, default: c.default })
 }
 
 /// Standard CiA 301 bit rates in kbit/s.
