@@ -494,7 +494,22 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                     bytes,
                     ..Tpdo::EMPTY
                 };
-                t.restart(self.now);
+                let old = &self.tpdo[n];
+                if old.active() && t.active() && old.cob == t.cob && old.count == t.count && old.map == t.map {
+                    // Same PDO, new timing parameters: keep its transmission state.
+                    t.sample = old.sample;
+                    t.has_sample = old.has_sample;
+                    t.last = old.last;
+                    t.sent_once = old.sent_once;
+                    t.last_tx = old.last_tx;
+                    t.next_event = old.last_tx.saturating_add(event);
+                    t.sync_cnt = old.sync_cnt;
+                    t.started = old.started;
+                    t.due = old.due;
+                    t.requested = old.requested;
+                } else {
+                    t.restart(self.now);
+                }
                 self.tpdo[n] = t;
             }
         }

@@ -392,6 +392,8 @@ pub fn frame(s: &str) -> Frame {
 pub struct Harness {
     pub dev: TestDevice,
     pub now: Micros,
+    /// Frames other than the SDO response collected by [`Harness::sdo_write`].
+    pub extra: Vec<String>,
 }
 
 impl Harness {
@@ -402,7 +404,7 @@ impl Harness {
 
     pub fn with_storage(storage: MemStorage) -> Self {
         let dev = Device::new(TestOd::new(), Recorder::default(), storage, NodeId::new(NODE).unwrap());
-        let mut h = Self { dev, now: 0 };
+        let mut h = Self { dev, now: 0, extra: Vec::new() };
         assert_eq!(h.poll(), ["701 00"]);
         h
     }
@@ -447,8 +449,10 @@ impl Harness {
         b.resize(8, 0);
         let s = format!("{:03X} {}", 0x600 + NODE as u16, hex(&b));
         let out = self.send(&s);
-        assert_eq!(out.len(), 1, "{out:?}");
-        out[0].clone()
+        let (sdo, other): (Vec<String>, Vec<String>) = out.into_iter().partition(|f| f.starts_with("581 "));
+        self.extra.extend(other);
+        assert_eq!(sdo.len(), 1, "{sdo:?}");
+        sdo[0].clone()
     }
 
     /// Asserts an SDO write succeeds.
