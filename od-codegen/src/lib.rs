@@ -1,1 +1,227 @@
-//! placeholder
+//! `od-codegen`: typed Rust from CANopen device descriptions.
+//!
+//! The generator takes a validated [`eds::Model`] (what an EDS or DCF means) and writes one Rust
+//! module per device: a storage struct with a typed getter and setter per entry, a sorted
+//! metadata table, an implementation of [`od_runtime::od::ObjectDictionary`] for the bus side,
+//! typed PDO layouts, the device description itself as a string, and (given the device's sidecar)
+//! exact unit conversions.
+//!
+//! # Three ways in
+//!
+//! * **build.rs**, in the style of `prost-build`:
+//!
+//!   ```no_run
+//!   // build.rs
+//!   fn main() {
+//!       od_codegen::Builder::new()
+//!           .device("drvi", "../devices/camozzi-drvi.eds")
+//!           .compile()
+//!           .unwrap_or_else(|e| panic!("{e}"));
+//!   }
+//!   ```
+//!
+//!   and in the crate, `include!(concat!(env!("OUT_DIR"), "/drvi.rs"));` brings in
+//!   `pub mod drvi` (the file defines the module itself, so it can sit at the crate root). See [`Builder`] for what the build
+//!   script reads, writes and tells Cargo.
+//! * **`cargo xtask gen`** regenerates the checked-in crate `generated/` (one feature per device)
+//!   through the same [`Builder`] with [`Builder::out_dir`]; `cargo xtask gen --check` fails when
+//!   it is stale.
+//! * **The library**: [`generate`] (pure: model in, tokens out) and [`render`] (tokens to text).
+//!
+//! # What the generated module looks like
+//!
+//! For a device whose EDS has a VAR `[6040]` "Controlword" (UNSIGNED16, rww, PDO-mappable) and
+//! an RPDO 1 mapping `0x60400010`, the module contains, among others:
+//!
+//! ```text
+//! pub mod drvi {
+//!     pub const EDS: &str = r#"[FileInfo] ..."#;
+//!     pub mod index { pub const CONTROLWORD: u16 = 0x6040; /* ... */ }
+//!     pub static ENTRIES: [::od_runtime::od::EntryInfo; N] = [/* sorted by (index, sub) */];
+//!     pub struct Dictionary { /* one typed field per entry */ }
+//!     impl Dictionary {
+//!         pub const fn new(node_id: u8) -> Self;                  // defaults, $NODEID resolved
+//!         pub const fn controlword(&self) -> u16;
+//!         pub fn set_controlword(&mut self, v: u16) -> Result<(), AbortCode>;  // limits checked
+//!         pub fn bus_write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode>;
+//!         pub fn check_rpdo_mapping(mapping: &[u32]) -> Result<u32, AbortCode>;
+//!     }
+//!     impl ::od_runtime::od::ObjectDictionary for Dictionary { /* table-driven */ }
+//!     pub mod pdo {
+//!         pub struct Rpdo1 { pub controlword: u16 }
+//!         impl Rpdo1 { pub fn pack(&self) -> [u8; 2]; pub fn unpack(data: &[u8]) -> Result<Self, LengthError>; }
+//!     }
+//!     pub mod units { /* with a sidecar: Units::from_dictionary, typed quantities */ }
+//! }
+//! ```
+//!
+//! The OD, PDO and unit code uses only `core` and `::od_runtime` (by absolute paths), so it
+//! compiles in `#![no_std]` crates and never allocates. The code is data-driven: the per-entry
+//! parts are a table, field declarations, inline accessors and two `match`es handing out field
+//! references; everything else is generic code in a hidden, versioned `__rt` module.
+//!
+//! # Storage types
+//!
+//! | CiA 301 type | Rust type |
+//! |---|---|
+//! | BOOLEAN | `bool` |
+//! | UNSIGNED8/16/32/64, INTEGER8/16/32/64 | `u8`..`u64`, `i8`..`i64` |
+//! | UNSIGNED24, INTEGER24 | `u32`, `i32`; setters check the 24-bit range |
+//! | UNSIGNED40/48/56, INTEGER40/48/56, TIME_OF_DAY, TIME_DIFFERENCE | `u64`, `i64`; range checked |
+//! | REAL32, REAL64 | `f32`, `f64` |
+//! | VISIBLE_STRING, UNICODE_STRING (UTF-16LE), OCTET_STRING, DOMAIN | a fixed-capacity buffer |
+//!
+//! A buffer's capacity is the length of its default, but at least [`Options::min_capacity`]
+//! bytes (default [`DEFAULT_MIN_CAPACITY`]). Entries of other (complex) types are left out with
+//! a warning.
+//!
+//! # Names
+//!
+//! Names come from `ParameterName` through one policy (see the `ident` module docs): a VAR's
+//! accessor is its name in `snake_case` (`Controlword` → `controlword`), a sub-entry's is the
+//! object's name and the sub-entry's joined (`Identity object` / `Vendor-ID` →
+//! `identity_object_vendor_id`). Collisions are resolved with an index suffix and a warning.
+//!
+//! # Values
+//!
+//! A dictionary starts from each entry's DCF `ParameterValue` if present, else its EDS
+//! `DefaultValue` (`$NODEID` resolved by `Dictionary::new(node_id)`), and
+//! `restore_defaults` returns to the same values: for a DCF, the configured values are the
+//! device's power-on values.
+#![deny(missing_docs)]
+
+mod builder;
+pub mod diag;
+mod emit;
+pub mod ident;
+mod lit;
+pub mod pdo;
+mod plan;
+mod support;
+pub mod units;
+
+use eds::diag::{Diagnostic, Severity};
+use eds::model::Model;
+use proc_macro2::TokenStream;
+use quote::{format_ident, quote};
+
+pub use builder::{Builder, Error, Output, write_if_changed};
+pub use support::SUPPORT_VERSION;
+
+/// The smallest capacity, in bytes, of a generated string or byte buffer.
+pub const DEFAULT_MIN_CAPACITY: usize = 32;
+
+/// What to generate.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Name of the generated module (`drvi` → `pub mod drvi`); must be a Rust identifier.
+    pub module: String,
+    /// The file the model came from, as shown in the header and in diagnostics.
+    pub source_name: String,
+    /// The device description's text, emitted as `pub const EDS: &str` (empty if `None`).
+    pub eds_text: Option<String>,
+    /// The device sidecar, for unit conversions (no `units` module without it).
+    pub sidecar: Option<devices::sidecar::Sidecar>,
+    /// Smallest capacity of a string or byte buffer, in bytes.
+    pub min_capacity: usize,
+}
+
+impl Options {
+    /// Options for module `module` generated from `source_name`.
+    pub fn new(module: impl Into<String>, source_name: impl Into<String>) -> Self {
+        Options {
+            module: module.into(),
+            source_name: source_name.into(),
+            eds_text: None,
+            sidecar: None,
+            min_capacity: DEFAULT_MIN_CAPACITY,
+        }
+    }
+}
+
+/// Generated tokens and everything found while generating them.
+#[derive(Clone, Debug)]
+pub struct Generated {
+    /// `pub mod <module> { … }`.
+    pub tokens: TokenStream,
+    /// Diagnostics located in the device description, in generation order.
+    pub diagnostics: Vec<Diagnostic>,
+}
+
+impl Generated {
+    /// Whether any diagnostic is an error (the [`Builder`] then fails).
+    pub fn has_errors(&self) -> bool {
+        self.diagnostics.iter().any(|d| d.severity == Severity::Error)
+    }
+}
+
+/// Generates the module for one device. Pure: no IO, deterministic. Diagnostics are dropped;
+/// use [`expand`] to get them.
+pub fn generate(model: &Model, options: &Options) -> TokenStream {
+    expand(model, options).tokens
+}
+
+/// Generates the module for one device and reports what it found.
+///
+/// Entries or PDO layouts with errors are left out (so the tokens always compile); the
+/// diagnostics say what and why.
+pub fn expand(model: &Model, options: &Options) -> Generated {
+    let mut sink = diag::Sink::new(&options.source_name);
+    let module = match syn::parse_str::<syn::Ident>(&options.module) {
+        Ok(_) => format_ident!("{}", options.module),
+        Err(_) => {
+            sink.general(
+                Severity::Error,
+                diag::NAME_COLLISION,
+                format!("module name `{}` is not a Rust identifier; using `device`", options.module),
+            );
+            format_ident!("device")
+        }
+    };
+    let plan = plan::build(model, options, &mut sink);
+    let eds_text = lit::text_block(options.eds_text.as_deref().unwrap_or(""));
+    let index = emit::index_consts(&plan);
+    let tables = emit::tables(&plan);
+    let dictionary = emit::dictionary(model, &plan);
+    let pdo = pdo::module(model, &plan, &mut sink);
+    let units = match &options.sidecar {
+        Some(sc) => units::module(model, &plan, sc, &mut sink),
+        None => TokenStream::new(),
+    };
+    let support = support::module();
+    let product = model.device_info.product_name.as_deref().unwrap_or(&options.source_name);
+    let mod_doc = lit::doc(&[
+        format!("Object dictionary, PDO layouts and units of the {}.", lit::doc_escape(product)),
+        String::new(),
+        format!("Generated by od-codegen from `{}`.", lit::doc_escape(&options.source_name)),
+    ]);
+    let tokens = quote! {
+        #mod_doc
+        #[allow(dead_code, clippy::approx_constant, clippy::excessive_precision, clippy::unreadable_literal)]
+        pub mod #module {
+            /// The device description this module was generated from.
+            pub const EDS: &str = #eds_text;
+
+            #index
+            #tables
+            #dictionary
+            #pdo
+            #units
+            #support
+        }
+    };
+    let mut diagnostics = sink.out;
+    diagnostics.sort_by_key(|d| d.at.map(|a| (a.line, a.col)));
+    Generated { tokens, diagnostics }
+}
+
+/// Renders generated tokens as a formatted Rust file with the `@generated` header naming
+/// `source_name`.
+///
+/// Returns an error (never panics) if the tokens are not a valid file, which would be a bug in
+/// the generator.
+pub fn render(tokens: &TokenStream, source_name: &str) -> Result<String, syn::Error> {
+    let file: syn::File = syn::parse2(tokens.clone())?;
+    let body = prettyplease::unparse(&file);
+    Ok(format!("// @generated by od-codegen from {source_name} — do not edit; run cargo xtask gen\n\n{body}"))
+}

@@ -1,0 +1,144 @@
+//! Diagnostics the generator reports, with their stable codes.
+//!
+//! They are [`eds::Diagnostic`]s, located at the entry of the device description they are about,
+//! so they render exactly like the reader's own diagnostics.
+//!
+//! | code  | severity | meaning |
+//! |-------|----------|---------|
+//! | G0001 | warning  | two entries derive the same Rust name; the later one gets a suffix |
+//! | G0002 | warning  | an entry has a data type the generator cannot store; it is left out |
+//! | G0003 | error    | a default value does not fit the entry's type |
+//! | G0004 | warning  | a limit the runtime cannot enforce (`$NODEID` limit) is ignored |
+//! | G0005 | warning  | an object of a kind that holds no value (DEFTYPE, DEFSTRUCT, NULL) is left out |
+//! | G0101 | error    | a default PDO mapping carries more than 64 bits |
+//! | G0102 | error    | a mapped entry does not have `PDOMapping=1` |
+//! | G0103 | error    | a mapped entry's access type does not allow this PDO direction |
+//! | G0104 | error    | a mapped object does not exist (or a dummy type the device does not support) |
+//! | G0105 | error    | a mapping length does not match the mapped entry |
+//! | G0106 | error    | a mapping object is malformed (count or entry missing, not a number) |
+//! | G0107 | warning  | a mapping has a variable-length entry; no typed layout is generated |
+//! | G0201 | error    | the sidecar's unit description is inconsistent with the device description |
+
+use eds::diag::{Code, Diagnostic, Severity};
+use eds::model::{Entry, Object, SourceRef};
+use eds::source::LineCol;
+
+/// Name collision.
+pub const NAME_COLLISION: Code = Code("G0001");
+/// Unsupported data type.
+pub const UNSUPPORTED_TYPE: Code = Code("G0002");
+/// Default out of range.
+pub const BAD_DEFAULT: Code = Code("G0003");
+/// Limit ignored.
+pub const LIMIT_IGNORED: Code = Code("G0004");
+/// Object without value left out.
+pub const NO_VALUE_OBJECT: Code = Code("G0005");
+/// PDO longer than 64 bits.
+pub const PDO_TOO_LONG: Code = Code("G0101");
+/// Mapped entry lacks `PDOMapping=1`.
+pub const PDO_NOT_MAPPABLE: Code = Code("G0102");
+/// Mapped entry has the wrong access direction.
+pub const PDO_ACCESS: Code = Code("G0103");
+/// Mapped object missing.
+pub const PDO_NO_OBJECT: Code = Code("G0104");
+/// Mapping length mismatch.
+pub const PDO_LENGTH: Code = Code("G0105");
+/// Malformed mapping object.
+pub const PDO_MALFORMED: Code = Code("G0106");
+/// Variable-length entry in a mapping.
+pub const PDO_VARIABLE: Code = Code("G0107");
+/// Unit description inconsistent.
+pub const UNITS: Code = Code("G0201");
+
+/// Builds diagnostics for one source file.
+#[derive(Debug)]
+pub(crate) struct Sink {
+    file: String,
+    pub(crate) out: Vec<Diagnostic>,
+}
+
+impl Sink {
+    pub(crate) fn new(file: &str) -> Self {
+        Sink { file: file.to_owned(), out: Vec::new() }
+    }
+
+    /// Reports at an entry (context: object, then sub-object).
+    pub(crate) fn at_entry(&mut self, severity: Severity, code: Code, obj: &Object, entry: &Entry, message: String) {
+        let mut context = vec![object_context(obj)];
+        if obj.object_type.has_subs() {
+            context.push(format!("sub {} \"{}\"", entry.sub.0, entry.name));
+        }
+        self.push(severity, code, entry.at, context, message);
+    }
+
+    /// Reports at an object.
+    pub(crate) fn at_object(&mut self, severity: Severity, code: Code, obj: &Object, message: String) {
+        self.push(severity, code, obj.at, vec![object_context(obj)], message);
+    }
+
+    /// Reports without a location in the device description.
+    pub(crate) fn general(&mut self, severity: Severity, code: Code, message: String) {
+        self.out.push(Diagnostic {
+            severity,
+            code,
+            message,
+            file: self.file.clone(),
+            span: None,
+            at: None,
+            context: Vec::new(),
+            hint: None,
+        });
+    }
+
+    fn push(&mut self, severity: Severity, code: Code, at: SourceRef, context: Vec<String>, message: String) {
+        let located = at.line > 0;
+        self.out.push(Diagnostic {
+            severity,
+            code,
+            message,
+            file: self.file.clone(),
+            span: located.then_some(at.span),
+            at: located.then_some(LineCol { line: at.line, col: at.col.max(1) }),
+            context,
+            hint: None,
+        });
+    }
+
+    /// Adds a hint to the last diagnostic.
+    pub(crate) fn hint(&mut self, hint: impl Into<String>) {
+        if let Some(d) = self.out.last_mut() {
+            d.hint = Some(hint.into());
+        }
+    }
+}
+
+fn object_context(obj: &Object) -> String {
+    format!("object 0x{:04X} \"{}\"", obj.index.0, obj.name)
+}
+
+/// Renders diagnostics one per line, `file:line:col: severity[code]: message (context)`, for
+/// places without the source text at hand.
+pub fn render_plain(diags: &[Diagnostic]) -> String {
+    let mut s = String::new();
+    for d in diags {
+        let sev = match d.severity {
+            Severity::Note => "note",
+            Severity::Warning => "warning",
+            Severity::Error => "error",
+        };
+        let loc = match d.at {
+            Some(lc) => format!("{}:{}:{}", d.file, lc.line, lc.col),
+            None => d.file.clone(),
+        };
+        s.push_str(&format!("{loc}: {sev}[{}]: ", d.code.0));
+        if !d.context.is_empty() {
+            s.push_str(&format!("in {}: ", d.context.join(", ")));
+        }
+        s.push_str(&d.message);
+        if let Some(h) = &d.hint {
+            s.push_str(&format!(" (hint: {h})"));
+        }
+        s.push('\n');
+    }
+    s
+}

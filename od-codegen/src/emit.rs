@@ -1,0 +1,531 @@
+//! The object-dictionary half of the emitter: index constants, the entry table, the storage
+//! struct with typed accessors, and the `ObjectDictionary` implementation.
+
+use eds::model::{Access, DataType, Model};
+use proc_macro2::TokenStream;
+use quote::{format_ident, quote};
+
+use crate::lit;
+use crate::plan::{Def, PEntry, Plan, Ty};
+
+pub(crate) fn rust_type(ty: Ty) -> TokenStream {
+    match ty {
+        Ty::Bool => quote!(bool),
+        Ty::U8 => quote!(u8),
+        Ty::U16 => quote!(u16),
+        Ty::U32 => quote!(u32),
+        Ty::U64 => quote!(u64),
+        Ty::I8 => quote!(i8),
+        Ty::I16 => quote!(i16),
+        Ty::I32 => quote!(i32),
+        Ty::I64 => quote!(i64),
+        Ty::F32 => quote!(f32),
+        Ty::F64 => quote!(f64),
+        Ty::Bytes(n) => {
+            let n = proc_macro2::Literal::usize_unsuffixed(n);
+            quote!(__rt::Bytes<#n>)
+        }
+    }
+}
+
+fn slot_variant(ty: Ty) -> proc_macro2::Ident {
+    format_ident!(
+        "{}",
+        match ty {
+            Ty::Bool => "Bool",
+            Ty::U8 => "U8",
+            Ty::U16 => "U16",
+            Ty::U32 => "U32",
+            Ty::U64 => "U64",
+            Ty::I8 => "I8",
+            Ty::I16 => "I16",
+            Ty::I32 => "I32",
+            Ty::I64 => "I64",
+            Ty::F32 => "F32",
+            Ty::F64 => "F64",
+            Ty::Bytes(_) => "Bytes",
+        }
+    )
+}
+
+fn data_type_variant(dt: DataType) -> proc_macro2::Ident {
+    use DataType as D;
+    format_ident!(
+        "{}",
+        match dt {
+            D::Boolean => "Boolean",
+            D::Integer8 => "Integer8",
+            D::Integer16 => "Integer16",
+            D::Integer32 => "Integer32",
+            D::Unsigned8 => "Unsigned8",
+            D::Unsigned16 => "Unsigned16",
+            D::Unsigned32 => "Unsigned32",
+            D::Real32 => "Real32",
+            D::VisibleString => "VisibleString",
+            D::OctetString => "OctetString",
+            D::UnicodeString => "UnicodeString",
+            D::TimeOfDay => "TimeOfDay",
+            D::TimeDifference => "TimeDifference",
+            D::Domain => "Domain",
+            D::Integer24 => "Integer24",
+            D::Real64 => "Real64",
+            D::Integer40 => "Integer40",
+            D::Integer48 => "Integer48",
+            D::Integer56 => "Integer56",
+            D::Integer64 => "Integer64",
+            D::Unsigned24 => "Unsigned24",
+            D::Unsigned40 => "Unsigned40",
+            D::Unsigned48 => "Unsigned48",
+            D::Unsigned56 => "Unsigned56",
+            D::Unsigned64 => "Unsigned64",
+            // The planner drops `Other` types; this arm keeps the function total.
+            D::Other(_) => "Domain",
+        }
+    )
+}
+
+fn access_variant(a: Access) -> proc_macro2::Ident {
+    format_ident!(
+        "{}",
+        match a {
+            Access::Ro => "Ro",
+            Access::Wo => "Wo",
+            Access::Rw => "Rw",
+            Access::Rwr => "Rwr",
+            Access::Rww => "Rww",
+            Access::Const => "Const",
+        }
+    )
+}
+
+/// `0x6040` or `0x1018 sub 2`.
+pub(crate) fn location(e: &PEntry<'_>) -> String {
+    if e.obj.object_type.has_subs() {
+        format!("`0x{:04X}` sub {}", e.index, e.sub)
+    } else {
+        format!("`0x{:04X}`", e.index)
+    }
+}
+
+/// The display name: `Identity object: Vendor-ID` or `Controlword`.
+pub(crate) fn display_name(e: &PEntry<'_>) -> String {
+    if e.obj.object_type.has_subs() {
+        format!("{}: {}", e.obj.name.trim(), e.entry.name.trim())
+    } else {
+        e.obj.name.trim().to_owned()
+    }
+}
+
+fn default_text(e: &PEntry<'_>) -> String {
+    match &e.default {
+        Def::None => "none (zero)".to_owned(),
+        Def::Int(v, _) => match e.ty {
+            Ty::Bool => (*v != 0).to_string(),
+            _ if *v >= 0x100 && !e.dt.is_signed() => format!("{v} (0x{v:X})"),
+            _ => v.to_string(),
+        },
+        Def::NodeId(o, _) => format!("$NODEID + 0x{o:X}"),
+        Def::Real(f) => f.to_string(),
+        Def::Bytes(b) => match std::str::from_utf8(b) {
+            Ok(s) if e.dt == DataType::VisibleString => format!("\"{s}\""),
+            _ => format!("{} bytes", b.len()),
+        },
+    }
+}
+
+fn entry_doc(e: &PEntry<'_>, what: &str) -> Vec<String> {
+    let mut lines = vec![format!("{what} {} {}.", location(e), lit::doc_escape(&display_name(e)))];
+    if let Some(d) = &e.description {
+        lines.push(String::new());
+        lines.push(lit::doc_escape(d));
+    }
+    lines.push(String::new());
+    let mut facts = format!(
+        "{}, access `{}`{}. Default: {}.",
+        e.dt.name(),
+        e.entry.access.as_str(),
+        if e.entry.pdo_mapping { ", PDO-mappable" } else { "" },
+        lit::doc_escape(&default_text(e))
+    );
+    match (e.low, e.high) {
+        (Some(l), Some(h)) => facts.push_str(&format!(" Range {l}..={h}.")),
+        (Some(l), None) => facts.push_str(&format!(" At least {l}.")),
+        (None, Some(h)) => facts.push_str(&format!(" At most {h}.")),
+        _ => {}
+    }
+    if let Ty::Bytes(n) = e.ty {
+        facts.push_str(&format!(" Capacity {n} bytes."));
+    }
+    lines.push(facts);
+    lines
+}
+
+/// `pub mod index { pub const CONTROLWORD: u16 = 0x6040; … }`.
+pub(crate) fn index_consts(plan: &Plan<'_>) -> TokenStream {
+    let consts = plan.objects.iter().map(|o| {
+        let name = format_ident!("{}", o.konst);
+        let v = lit::hex(o.obj.index.0 as u64, 4);
+        let doc = lit::doc(&[format!("`0x{:04X}` {}.", o.obj.index.0, lit::doc_escape(o.obj.name.trim()))]);
+        quote! {
+            #doc
+            pub const #name: u16 = #v;
+        }
+    });
+    quote! {
+        /// The index of every object, named after its `ParameterName`.
+        pub mod index {
+            #(#consts)*
+        }
+    }
+}
+
+fn default_value_tokens(e: &PEntry<'_>) -> TokenStream {
+    match &e.default {
+        Def::None => quote!(::od_runtime::od::DefaultValue::None),
+        Def::Int(v, hex) => {
+            let v = lit::int_radix(*v, *hex);
+            quote!(::od_runtime::od::DefaultValue::Int(#v))
+        }
+        Def::NodeId(o, hex) => {
+            let o = lit::int_radix(*o, *hex);
+            quote!(::od_runtime::od::DefaultValue::NodeIdPlus(#o))
+        }
+        Def::Real(f) => {
+            let f = lit::real(*f, false);
+            quote!(::od_runtime::od::DefaultValue::Real(#f))
+        }
+        Def::Bytes(b) => {
+            let b = lit::bytes(b);
+            quote!(::od_runtime::od::DefaultValue::Bytes(#b))
+        }
+    }
+}
+
+/// `KEYS` and `ENTRIES`.
+pub(crate) fn tables(plan: &Plan<'_>) -> TokenStream {
+    let n = proc_macro2::Literal::usize_unsuffixed(plan.entries.len());
+    let keys = plan.entries.iter().map(|e| lit::hex(((e.index as u64) << 8) | e.sub as u64, 6));
+    let infos = plan.entries.iter().map(|e| {
+        let index = lit::hex(e.index as u64, 4);
+        let sub = proc_macro2::Literal::u8_unsuffixed(e.sub);
+        let dt = data_type_variant(e.dt);
+        let access = access_variant(e.entry.access);
+        let pdo = e.entry.pdo_mapping;
+        let bits = proc_macro2::Literal::u32_unsuffixed(e.bits);
+        let opt = |v: Option<i128>| match v {
+            Some(v) => {
+                let v = lit::int(v);
+                quote!(Some(#v))
+            }
+            None => quote!(None),
+        };
+        let low = opt(e.low);
+        let high = opt(e.high);
+        let default = default_value_tokens(e);
+        let name = display_name(e);
+        quote! {
+            ::od_runtime::od::EntryInfo {
+                index: #index,
+                sub: #sub,
+                data_type: ::od_runtime::od::DataType::#dt,
+                access: ::od_runtime::od::Access::#access,
+                pdo_mappable: #pdo,
+                bits: #bits,
+                low: #low,
+                high: #high,
+                default: #default,
+                name: #name,
+            }
+        }
+    });
+    quote! {
+        /// `index << 8 | sub` of every entry, sorted: the lookup table (parallel to [`ENTRIES`]).
+        static KEYS: [u32; #n] = [#(#keys),*];
+
+        /// Metadata of every entry, sorted by `(index, sub)`.
+        pub static ENTRIES: [::od_runtime::od::EntryInfo; #n] = [#(#infos),*];
+    }
+}
+
+fn init_expr(e: &PEntry<'_>) -> TokenStream {
+    match (&e.default, e.ty) {
+        (Def::Bytes(b), Ty::Bytes(_)) => {
+            let b = lit::bytes(b);
+            quote!(__rt::Bytes::from_slice(#b))
+        }
+        (_, Ty::Bytes(_)) => quote!(__rt::Bytes::from_slice(&[])),
+        (Def::Int(v, hex), t) if t.is_int() => lit::int_radix(*v, *hex),
+        (Def::Int(v, _), t) => lit::int_of(*v, t),
+        (Def::Real(f), Ty::F32) => lit::real(*f, true),
+        (Def::Real(f), Ty::F64) => lit::real(*f, false),
+        (Def::NodeId(o, hex), Ty::Bool) => {
+            let o = lit::int_radix(*o, *hex);
+            quote!((#o + node_id as i128) != 0)
+        }
+        (Def::NodeId(o, hex), t) => {
+            let o = lit::int_radix(*o, *hex);
+            let rt = rust_type(t);
+            quote!((#o + node_id as i128) as #rt)
+        }
+        (_, t) => lit::int_of(0, t),
+    }
+}
+
+fn setter(e: &PEntry<'_>) -> TokenStream {
+    let field = format_ident!("{}", e.field);
+    let set = format_ident!("set_{}", e.field);
+    let doc = lit::doc(&{
+        let mut d = entry_doc(e, "Sets");
+        d.push(String::new());
+        d.push(
+            "For the application side: the access type is not checked (use `bus_write` for that); \
+             limits are."
+                .to_owned(),
+        );
+        d
+    });
+    let ty = rust_type(e.ty);
+    if let Ty::Bytes(_) = e.ty {
+        return quote! {
+            #doc
+            pub fn #set(&mut self, v: &[u8]) -> Result<(), ::od_runtime::od::AbortCode> {
+                self.#field.set(v)
+            }
+        };
+    }
+    let mut checks = TokenStream::new();
+    if e.ty.is_real() {
+        let is32 = e.ty == Ty::F32;
+        if let Some(l) = e.real_low {
+            let l = lit::real(l, is32);
+            checks.extend(quote!(if v < #l { return Err(::od_runtime::od::AbortCode::VALUE_TOO_LOW); }));
+        }
+        if let Some(h) = e.real_high {
+            let h = lit::real(h, is32);
+            checks.extend(quote!(if v > #h { return Err(::od_runtime::od::AbortCode::VALUE_TOO_HIGH); }));
+        }
+    } else if e.ty.is_int() {
+        if let Some(l) = e.set_low {
+            let l = lit::int(l);
+            checks.extend(quote!(if v < #l { return Err(::od_runtime::od::AbortCode::VALUE_TOO_LOW); }));
+        }
+        if let Some(h) = e.set_high {
+            let h = lit::int(h);
+            checks.extend(quote!(if v > #h { return Err(::od_runtime::od::AbortCode::VALUE_TOO_HIGH); }));
+        }
+    }
+    quote! {
+        #doc
+        #[inline]
+        pub fn #set(&mut self, v: #ty) -> Result<(), ::od_runtime::od::AbortCode> {
+            #checks
+            self.#field = v;
+            Ok(())
+        }
+    }
+}
+
+fn getter(e: &PEntry<'_>) -> TokenStream {
+    let field = format_ident!("{}", e.field);
+    let doc = lit::doc(&entry_doc(e, "Reads"));
+    match e.ty {
+        Ty::Bytes(_) => quote! {
+            #doc
+            #[inline]
+            pub fn #field(&self) -> &[u8] {
+                self.#field.as_slice()
+            }
+        },
+        t => {
+            let ty = rust_type(t);
+            quote! {
+                #doc
+                #[inline]
+                pub const fn #field(&self) -> #ty {
+                    self.#field
+                }
+            }
+        }
+    }
+}
+
+/// The storage struct, its inherent methods and the trait implementation.
+pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>) -> TokenStream {
+    let product = model.device_info.product_name.as_deref().unwrap_or("device");
+    let vendor = model.device_info.vendor_name.as_deref().unwrap_or("unknown vendor");
+    let struct_doc = lit::doc(&[
+        format!(
+            "The object dictionary of the {} ({}): the current value of every entry.",
+            lit::doc_escape(product),
+            lit::doc_escape(vendor)
+        ),
+        String::new(),
+        "Build it with [`Dictionary::new`]; read and write entries with the typed accessors (the \
+         application side) or through [`ObjectDictionary`](::od_runtime::od::ObjectDictionary) \
+         (the bus side, as little-endian bytes)."
+            .to_owned(),
+    ]);
+
+    let fields = plan.entries.iter().map(|e| {
+        let f = format_ident!("{}", e.field);
+        let ty = rust_type(e.ty);
+        quote!(#f: #ty)
+    });
+    let uses_node_id = plan.entries.iter().any(|e| matches!(e.default, Def::NodeId(..)));
+    let node_id = if uses_node_id { format_ident!("node_id") } else { format_ident!("_node_id") };
+    let inits = plan.entries.iter().map(|e| {
+        let f = format_ident!("{}", e.field);
+        let v = init_expr(e);
+        quote!(#f: #v)
+    });
+    let slot_arms = plan.entries.iter().enumerate().map(|(i, e)| {
+        let i = proc_macro2::Literal::usize_unsuffixed(i);
+        let f = format_ident!("{}", e.field);
+        let v = slot_variant(e.ty);
+        match e.ty {
+            Ty::Bytes(_) => quote!(#i => __rt::Slot::Bytes(self.#f.as_slice())),
+            _ => quote!(#i => __rt::Slot::#v(&self.#f)),
+        }
+    });
+    let slot_mut_arms = plan.entries.iter().enumerate().map(|(i, e)| {
+        let i = proc_macro2::Literal::usize_unsuffixed(i);
+        let f = format_ident!("{}", e.field);
+        let v = slot_variant(e.ty);
+        match e.ty {
+            Ty::Bytes(_) => quote!(#i => self.#f.slot_mut()),
+            _ => quote!(#i => __rt::SlotMut::#v(&mut self.#f)),
+        }
+    });
+    let (slot_body, slot_mut_body) = if plan.entries.is_empty() {
+        (quote!(let _ = pos; None), quote!(let _ = pos; None))
+    } else {
+        (
+            quote!(Some(match pos { #(#slot_arms,)* _ => return None })),
+            quote!(Some(match pos { #(#slot_mut_arms,)* _ => return None })),
+        )
+    };
+    let real_limited: Vec<&PEntry<'_>> =
+        plan.entries.iter().filter(|e| e.real_low.is_some() || e.real_high.is_some()).collect();
+    let real_limits = if real_limited.is_empty() {
+        quote!(let (real_low, real_high) = (None, None);)
+    } else {
+        let arms = plan.entries.iter().enumerate().filter(|(_, e)| e.real_low.is_some() || e.real_high.is_some()).map(
+            |(i, e)| {
+                let i = proc_macro2::Literal::usize_unsuffixed(i);
+                let o = |v: Option<f64>| match v {
+                    Some(f) => {
+                        let f = lit::real(f, false);
+                        quote!(Some(#f))
+                    }
+                    None => quote!(None),
+                };
+                let (l, h) = (o(e.real_low), o(e.real_high));
+                quote!(#i => (#l, #h))
+            },
+        );
+        quote!(let (real_low, real_high) = match pos { #(#arms,)* _ => (None, None) };)
+    };
+    let accessors = plan.entries.iter().map(|e| {
+        let g = getter(e);
+        let s = setter(e);
+        quote!(#g #s)
+    });
+
+    quote! {
+        #struct_doc
+        #[derive(Clone, Debug, PartialEq)]
+        pub struct Dictionary {
+            #(#fields,)*
+        }
+
+        impl Dictionary {
+            /// A dictionary holding every entry's default, with `$NODEID` resolved for `node_id`.
+            pub const fn new(#node_id: u8) -> Self {
+                let () = __rt::VERSION_1;
+                Dictionary { #(#inits,)* }
+            }
+
+            /// Position of `(index, sub)` in [`ENTRIES`]: `Err(NO_OBJECT)` if the index is absent,
+            /// `Err(NO_SUB_INDEX)` if only the sub-index is.
+            #[inline]
+            pub fn position(index: u16, sub: u8) -> Result<usize, ::od_runtime::od::AbortCode> {
+                __rt::position(&KEYS, index, sub)
+            }
+
+            fn slot(&self, pos: usize) -> Option<__rt::Slot<'_>> {
+                #slot_body
+            }
+
+            fn slot_mut(&mut self, pos: usize) -> Option<__rt::SlotMut<'_>> {
+                #slot_mut_body
+            }
+
+            /// Reads like an SDO upload: as [`read`](::od_runtime::od::ObjectDictionary::read), but
+            /// refuses write-only entries with `WRITE_ONLY`.
+            pub fn bus_read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, ::od_runtime::od::AbortCode> {
+                __rt::bus_read(self, index, sub, buf)
+            }
+
+            /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
+            /// but refuses read-only and constant entries with `READ_ONLY`.
+            pub fn bus_write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), ::od_runtime::od::AbortCode> {
+                __rt::bus_write(self, index, sub, data)
+            }
+
+            /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
+            /// runtime's rules ([`od_runtime::pdo::check_mapping`](::od_runtime::pdo::check_mapping));
+            /// returns its length in bits. Abort codes: `NOT_MAPPABLE` (0x0604_0041),
+            /// `PDO_LENGTH_EXCEEDED` (0x0604_0042), `PARAMETER_INCOMPATIBLE` (0x0604_0043), and
+            /// `NO_OBJECT`/`NO_SUB_INDEX` for an object the dictionary does not have.
+            pub fn check_rpdo_mapping(mapping: &[u32]) -> Result<u32, ::od_runtime::od::AbortCode> {
+                __rt::check_mapping(&ENTRIES, &KEYS, ::od_runtime::pdo::Direction::Receive, mapping)
+            }
+
+            /// Checks a TPDO mapping, like [`Dictionary::check_rpdo_mapping`].
+            pub fn check_tpdo_mapping(mapping: &[u32]) -> Result<u32, ::od_runtime::od::AbortCode> {
+                __rt::check_mapping(&ENTRIES, &KEYS, ::od_runtime::pdo::Direction::Transmit, mapping)
+            }
+
+            #(#accessors)*
+        }
+
+        impl ::od_runtime::od::ObjectDictionary for Dictionary {
+            fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
+                &ENTRIES
+            }
+
+            #[inline]
+            fn info(&self, index: u16, sub: u8) -> Result<&'static ::od_runtime::od::EntryInfo, ::od_runtime::od::AbortCode> {
+                let pos = Self::position(index, sub)?;
+                ENTRIES.get(pos).ok_or(::od_runtime::od::AbortCode::NO_OBJECT)
+            }
+
+            fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, ::od_runtime::od::AbortCode> {
+                let pos = Self::position(index, sub)?;
+                match (ENTRIES.get(pos), self.slot(pos)) {
+                    (Some(info), Some(slot)) => __rt::read(info, slot, buf),
+                    _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
+                }
+            }
+
+            fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), ::od_runtime::od::AbortCode> {
+                let pos = Self::position(index, sub)?;
+                #real_limits
+                match (ENTRIES.get(pos), self.slot_mut(pos)) {
+                    (Some(info), Some(slot)) => __rt::write(info, slot, data, real_low, real_high),
+                    _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
+                }
+            }
+
+            fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
+                for (pos, info) in ENTRIES.iter().enumerate() {
+                    if area.contains(info.index)
+                        && let Some(slot) = self.slot_mut(pos)
+                    {
+                        __rt::set_default(info, slot, node_id);
+                    }
+                }
+            }
+        }
+    }
+}
