@@ -119,9 +119,9 @@ codes! {
 
     // ---- E03xx: values ----
     /// A value that cannot be read as the entry's data type.
-    E0301 = Error, true, "value cannot be read";
+    E0301 = Warning, true, "value cannot be read";
     /// A value outside the range of the entry's data type.
-    E0302 = Error, true, "value out of range for its data type";
+    E0302 = Warning, true, "value out of range for its data type";
     /// A number with a leading zero whose octal (CiA 306) and decimal readings differ.
     E0303 = Warning, false, "ambiguous leading-zero number (octal by CiA 306)";
     /// A number with a leading zero that contains 8 or 9: read as decimal.
@@ -133,7 +133,7 @@ codes! {
     /// LowLimit is greater than HighLimit.
     E0307 = Warning, true, "LowLimit greater than HighLimit";
     /// An empty value for a numeric data type.
-    E0308 = Warning, true, "empty numeric value";
+    E0308 = Note, true, "empty numeric value";
     /// A hexadecimal value of a signed type read as a two's complement bit pattern.
     E0309 = Note, false, "hex value of a signed type read as two's complement";
     /// A hexadecimal value of a REAL type read as an IEEE 754 bit pattern.
@@ -148,6 +148,10 @@ codes! {
     E0314 = Warning, true, "white space inside a number";
     /// A ParameterValue in a file that is not a DCF.
     E0315 = Note, false, "ParameterValue in an EDS";
+    /// A TIME_OF_DAY or TIME_DIFFERENCE value written as `days ms` (lely-core's form).
+    E0316 = Note, false, "time value written as `days ms`";
+    /// A number with a C literal suffix (`0x1234LL`, `0.5f`), removed to read it.
+    E0317 = Warning, true, "number with a C literal suffix";
 
     // ---- E04xx: object lists ----
     /// An object named in an object list has no section.

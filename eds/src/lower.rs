@@ -1,31 +1,85 @@
 //! Lowering and validation: [`crate::ast::Document`] → [`crate::model::Model`] + diagnostics.
+//!
+//! Lowering runs in four passes, each in its own module:
+//!
+//! 1. `sections`: group the lines into sections (merging duplicates), classify each section
+//!    name (`[FileInfo]`, `[1018]`, `[1018sub2]`, `[1016Name]`, ...) and report syntax-level
+//!    problems (garbage lines, `#` comments, spelling of section names).
+//! 2. `info`: `[FileInfo]`, `[DeviceInfo]`, `[DummyUsage]`, `[Comments]`,
+//!    `[DeviceComissioning]` and the three object lists.
+//! 3. `objects`: every object section with its sub-objects, typed values and limits,
+//!    `CompactSubObj` expansion with `[xxxxName]`/`[xxxxValue]`, `[xxxxObjectLinks]`.
+//! 4. `validate`: whole-model checks (object lists against sections, mandatory objects,
+//!    PDO communication and mapping objects, PDO counts).
+//!
+//! Every problem becomes a [`Diagnostic`] with a code from [`crate::codes`]; its severity comes
+//! from the code and the [`crate::Strictness`]. Nothing here panics, and nothing a file says is
+//! dropped silently: keys and sections this crate does not interpret are kept in the model's
+//! `extra` fields and reported as notes.
 
-use crate::ast::{Document, LineKind};
-use crate::diag::Diagnostic;
-use crate::model::Model;
-use crate::source::Encoding;
-use crate::{Options, codes};
+mod info;
+mod objects;
+pub mod pdo;
+mod sections;
+mod validate;
 
-/// Lowers a lexed document into the typed model and validates it.
+pub use pdo::expand_compact_pdo;
+
+use crate::ast::Document;
+use crate::diag::{Code, Diagnostic};
+use crate::model::{FileKind, Model};
+use crate::source::{SourceFile, Span};
+use crate::{Options, Strictness};
+
+/// Lowers a lexed document into the typed model and validates it. The model is always built as
+/// far as the file allows; the diagnostics say what was wrong, in file order (problems that
+/// concern the whole file come last).
 pub fn lower(doc: &Document, options: &Options) -> (Model, Vec<Diagnostic>) {
-    let mut diags = Vec::new();
-    let file = &doc.source.name;
-    if doc.source.encoding == Encoding::Windows1252 {
-        diags.push(Diagnostic::new(
-            codes::E0001,
-            options.strictness,
-            file,
-            "file is not valid UTF-8; decoded as Windows-1252",
-        ));
-    }
-    for line in &doc.lines {
-        if line.kind == LineKind::Garbage {
-            let mut d =
-                Diagnostic::new(codes::E0002, options.strictness, file, "line is not a section, an entry or a comment");
-            d.span = Some(line.content);
-            d.at = Some(doc.source.line_col(line.content.start));
-            diags.push(d);
+    let mut cx = Ctx { src: &doc.source, strictness: options.strictness, diags: Vec::new() };
+    let secs = sections::collect(doc, &mut cx);
+    let mut model = Model::default();
+    info::lower_info(&secs, &mut model, &mut cx);
+    let is_dcf = model.commissioning.is_some()
+        || doc.source.name.rsplit('.').next().is_some_and(|ext| ext.eq_ignore_ascii_case("dcf"));
+    model.kind = if is_dcf { FileKind::Dcf } else { FileKind::Eds };
+    let lists = info::lower_object_lists(&secs, &mut cx);
+    objects::lower_objects(&secs, &lists, &mut model, &mut cx);
+    validate::validate(&secs, &lists, &model, &mut cx);
+    let mut diags = cx.diags;
+    // File order: by position, whole-file diagnostics last. The sort is stable, so diagnostics
+    // at the same place keep the order in which they were found.
+    diags.sort_by_key(|d| d.span.map(|s| s.start).unwrap_or(u32::MAX));
+    (model, diags)
+}
+
+/// Lowering state shared by the passes: the source and the diagnostics found so far.
+pub(crate) struct Ctx<'a> {
+    pub src: &'a SourceFile,
+    pub strictness: Strictness,
+    pub diags: Vec<Diagnostic>,
+}
+
+impl Ctx<'_> {
+    /// Records a diagnostic at `span` (or for the whole file) and returns it for adding context
+    /// and a hint.
+    pub fn emit(&mut self, code: Code, span: Option<Span>, message: impl Into<String>) -> &mut Diagnostic {
+        let mut d = Diagnostic::new(code, self.strictness, &self.src.name, message);
+        if let Some(s) = span {
+            d.span = Some(s);
+            d.at = Some(self.src.line_col(s.start));
         }
+        self.diags.push(d);
+        let last = self.diags.len() - 1;
+        &mut self.diags[last]
     }
-    (Model::default(), diags)
+}
+
+/// `object 0x1018 "Identity Object"`
+pub(crate) fn object_context(index: u16, name: &str) -> String {
+    format!("object 0x{index:04X} \"{name}\"")
+}
+
+/// `sub 2 "Product Code"`
+pub(crate) fn sub_context(sub: u8, name: &str) -> String {
+    format!("sub {sub} \"{name}\"")
 }

@@ -17,6 +17,8 @@
 //! * `0` followed by digits that include `8` or `9` (`09`, `0080`) is not octal at all; the
 //!   digits are read as decimal and [`Quirk::DecimalWithLeadingZero`] is reported.
 //! * Anything else made of digits is decimal.
+//! * A C literal suffix (`U`, `L`, `UL`, `LL`, `ULL` in any case), as code generators leave
+//!   behind, is removed ([`Quirk::CSuffix`], a deviation).
 //! * For a *signed* type, an unsigned hexadecimal value that does not fit the positive range but
 //!   fits the type's width is a two's complement bit pattern: `0xFFFF` as INTEGER16 is `-1`
 //!   ([`Quirk::HexBitPattern`], a note). `-0x10` (a signed hex literal) is `-16`.
@@ -33,7 +35,8 @@
 //! A decimal or floating-point literal (`1`, `-2.5`, `1e-3`, `.5`, `inf` and `nan` are accepted by
 //! Rust's float syntax) is the value. A `0x` hexadecimal literal is the IEEE 754 **bit pattern**
 //! of the type (`0x3F800000` as REAL32 is `1.0`; [`Quirk::RealBitPattern`], a note), because a
-//! hexadecimal real value has no other sensible meaning.
+//! hexadecimal real value has no other sensible meaning. A C `f` suffix (`0.5f`) is removed
+//! ([`Quirk::CSuffix`]).
 //!
 //! # Strings and bytes
 //!
@@ -42,6 +45,12 @@
 //! optionally prefixed by `0x`. DOMAIN values are hex digits too; a DOMAIN value that is not hex
 //! (some tools write a file name or a decimal `0`) is kept as [`Value::Text`] with
 //! [`Quirk::DomainNotHex`].
+//!
+//! # TIME_OF_DAY and TIME_DIFFERENCE
+//!
+//! Either one integer (the 48-bit value as sent on the bus: milliseconds in bits 0..28, days in
+//! bits 32..48) or two integers `days ms` separated by white space, as lely-core writes them
+//! ([`Quirk::TimePair`], a note). Both become the 48-bit integer.
 //!
 //! # Empty values
 //!
@@ -79,6 +88,10 @@ pub enum Quirk {
     EmptyNumeric,
     /// White space inside a number or between a sign and digits (`- 5`, `0x 10`).
     SpacedNumber,
+    /// A TIME_OF_DAY or TIME_DIFFERENCE written as `days ms`.
+    TimePair,
+    /// A C literal suffix (`10U`, `0x1234LL`, `0.5f`), removed to read the number.
+    CSuffix,
 }
 
 /// Why a value could not be read.
@@ -154,6 +167,18 @@ pub fn parse_value(text: &str, ty: DataType) -> Result<ParsedValue, ValueError> 
                     }
                 }
             }
+        }
+        DataType::TimeOfDay | DataType::TimeDifference if t.split_ascii_whitespace().count() == 2 => {
+            // `days ms`, as lely writes it: days since 1984-01-01 (or a difference in days) and
+            // milliseconds after midnight. Stored as the 48-bit wire value `ms | days << 32`.
+            let mut parts = t.split_ascii_whitespace();
+            let days = parse_int(parts.next().unwrap_or(""), &mut quirks)?;
+            let ms = parse_int(parts.next().unwrap_or(""), &mut quirks)?;
+            if !(0..=0xFFFF).contains(&days.value) || !(0..(1 << 28)).contains(&ms.value) {
+                return Err(ValueError::TooLarge(t.to_owned()));
+            }
+            quirks.push(Quirk::TimePair);
+            Some(Value::Int { value: ms.value | days.value << 32, radix: Radix::Dec })
         }
         DataType::Real32 | DataType::Real64 => {
             if t.is_empty() {
@@ -255,9 +280,14 @@ pub fn parse_int(text: &str, quirks: &mut Vec<Quirk>) -> Result<ParsedInt, Value
         Some(b'+') => (false, &t[1..]),
         _ => (false, t),
     };
-    let body = rest.trim_start();
+    let mut body = rest.trim_start();
     if body.len() != rest.len() {
         quirks.push(Quirk::SpacedNumber);
+    }
+    let unsuffixed = body.trim_end_matches(['u', 'U', 'l', 'L']);
+    if unsuffixed.len() != body.len() && unsuffixed.len() + 3 >= body.len() && !unsuffixed.is_empty() {
+        quirks.push(Quirk::CSuffix);
+        body = unsuffixed;
     }
     let (radix, digits) = if let Some(h) = body.strip_prefix("0x").or_else(|| body.strip_prefix("0X")) {
         (Radix::Hex, h)
@@ -347,6 +377,13 @@ fn parse_real(t: &str, is32: bool, quirks: &mut Vec<Quirk>) -> Result<f64, Value
     }
     // Rust's float syntax also accepts "inf", "infinity" and "nan"; keep them, they are valid
     // IEEE values a device may well use as a default.
+    let mut t = t;
+    if let Some(head) = t.strip_suffix(['f', 'F'])
+        && head.ends_with(|c: char| c.is_ascii_digit() || c == '.')
+    {
+        quirks.push(Quirk::CSuffix);
+        t = head;
+    }
     if is32 {
         t.parse::<f32>().map(|f| f as f64).map_err(|_| ValueError::NotAReal(t.to_owned()))
     } else {
@@ -501,6 +538,17 @@ mod tests {
     }
 
     #[test]
+    fn c_suffixes() {
+        assert_eq!(int("0x1234LL", DataType::Unsigned64), (Some(0x1234), vec![Quirk::CSuffix]));
+        assert_eq!(int("10U", DataType::Unsigned8), (Some(10), vec![Quirk::CSuffix]));
+        assert!(parse_value("L", DataType::Unsigned8).is_err());
+        assert!(parse_value("10ULLL", DataType::Unsigned8).is_err());
+        let r = parse_value("0.5f", DataType::Real32).unwrap();
+        assert_eq!((r.value, r.quirks), (Some(Value::Real(0.5)), vec![Quirk::CSuffix]));
+        assert!(parse_value("f", DataType::Real32).is_err());
+    }
+
+    #[test]
     fn signed() {
         assert_eq!(int("-5", DataType::Integer8), (Some(-5), vec![]));
         assert_eq!(int("-0x10", DataType::Integer16), (Some(-16), vec![]));
@@ -554,6 +602,14 @@ mod tests {
         assert_eq!(parse_value("", DataType::VisibleString).unwrap().value, Some(Value::Text(String::new())));
         assert_eq!(parse_value("", DataType::Unsigned8).unwrap().quirks, vec![Quirk::EmptyNumeric]);
         assert_eq!(format_value(&Value::Bytes(vec![1, 0xAB]), DataType::OctetString), "01AB");
+    }
+
+    #[test]
+    fn times() {
+        assert_eq!(int("365 43200000", DataType::TimeOfDay), (Some(43200000 | 365 << 32), vec![Quirk::TimePair]));
+        assert_eq!(int("12", DataType::TimeDifference), (Some(12), vec![]));
+        assert!(parse_value("1 2 3", DataType::TimeOfDay).is_err());
+        assert!(parse_value("70000 1", DataType::TimeOfDay).is_err());
     }
 
     #[test]

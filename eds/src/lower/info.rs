@@ -1,0 +1,699 @@
+//! Pass 2: the information sections and the object lists.
+
+use std::collections::HashMap;
+
+use super::Ctx;
+use super::sections::{Kind, Kv, Section, Sections, match_keys};
+use crate::codes;
+use crate::model::{Category, Commissioning, DeviceInfo, ExtraSection, FileInfo, Index, Model, Role};
+use crate::source::Span;
+use crate::value::parse_int;
+
+/// The CiA 306 baud rates in kbit/s (`BaudRate_10` ... `BaudRate_1000`).
+pub(crate) const BAUD_RATES: [u16; 8] = [10, 20, 50, 125, 250, 500, 800, 1000];
+
+fn owned(kv: &Kv<'_>) -> (String, String) {
+    (kv.key.to_owned(), kv.value.to_owned())
+}
+
+/// Reads an unsigned number for an information key; reports E0503 and returns `None` when it
+/// cannot be read or does not fit `max`.
+fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u64> {
+    let mut quirks = Vec::new();
+    let v = kv.value.split(';').next().unwrap_or("").trim();
+    if v.is_empty() {
+        let d = cx.emit(codes::E0503, Some(kv.value_span), format!("[{section}] {} is empty", kv.key));
+        d.hint = Some(format!("write a number or remove the `{}=` line", kv.key));
+        return None;
+    }
+    match parse_int(v, &mut quirks) {
+        Ok(p) if p.value >= 0 && p.value as u128 <= max as u128 => Some(p.value as u64),
+        Ok(p) => {
+            cx.emit(
+                codes::E0503,
+                Some(kv.value_span),
+                format!("[{section}] {}={} is out of range 0..={max}", kv.key, p.value),
+            );
+            None
+        }
+        Err(_) => {
+            let d = cx.emit(
+                codes::E0503,
+                Some(kv.value_span),
+                format!("[{section}] {}: `{}` is not a number (kept as text)", kv.key, kv.value),
+            );
+            d.hint = Some("write a decimal number or a 0x-prefixed hexadecimal number".to_owned());
+            None
+        }
+    }
+}
+
+fn info_bool(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
+    let v = kv.value.split(';').next().unwrap_or("").trim();
+    match v {
+        "0" => Some(false),
+        "1" => Some(true),
+        _ if v.eq_ignore_ascii_case("true") || v.eq_ignore_ascii_case("false") => {
+            let b = v.eq_ignore_ascii_case("true");
+            let d = cx.emit(codes::E0503, Some(kv.value_span), format!("[{section}] {} is `{v}`", kv.key));
+            d.hint = Some(format!("CiA 306 writes booleans as 0 or 1: write `{}`", b as u8));
+            Some(b)
+        }
+        _ => {
+            let d = cx.emit(
+                codes::E0503,
+                Some(kv.value_span),
+                format!("[{section}] {}: `{}` is not 0 or 1 (kept as text)", kv.key, kv.value),
+            );
+            d.hint = Some("write 0 (not supported) or 1 (supported)".to_owned());
+            None
+        }
+    }
+}
+
+fn missing_keys(cx: &mut Ctx<'_>, sec: &Section<'_>, known: &[&str], found: &[Option<&Kv<'_>>], required: &[&str]) {
+    let missing: Vec<&str> = required
+        .iter()
+        .copied()
+        .filter(|r| known.iter().position(|k| k == r).is_none_or(|i| found[i].is_none()))
+        .collect();
+    if !missing.is_empty() {
+        let d = cx.emit(
+            codes::E0505,
+            Some(sec.name_span),
+            format!("[{}] lacks {}", sec.name, missing.iter().map(|m| format!("`{m}`")).collect::<Vec<_>>().join(", ")),
+        );
+        d.hint = Some("CiA 306 requires these keys".to_owned());
+    }
+}
+
+/// Checks `mm-dd-yyyy`.
+fn is_date(s: &str) -> bool {
+    let b = s.as_bytes();
+    b.len() == 10
+        && b[2] == b'-'
+        && b[5] == b'-'
+        && b.iter().enumerate().all(|(i, c)| i == 2 || i == 5 || c.is_ascii_digit())
+}
+
+/// Checks `hh:mm(AM|PM)`.
+fn is_time(s: &str) -> bool {
+    let Some(t) = s
+        .strip_suffix("AM")
+        .or_else(|| s.strip_suffix("PM"))
+        .or_else(|| s.strip_suffix("am").or_else(|| s.strip_suffix("pm")))
+    else {
+        return false;
+    };
+    let Some((h, m)) = t.split_once(':') else { return false };
+    (1..=2).contains(&h.len())
+        && m.len() == 2
+        && h.bytes().all(|c| c.is_ascii_digit())
+        && m.bytes().all(|c| c.is_ascii_digit())
+        && h.parse::<u8>().is_ok_and(|h| h <= 12)
+        && m.parse::<u8>().is_ok_and(|m| m < 60)
+}
+
+const FILE_INFO_KEYS: &[&str] = &[
+    "FileName",
+    "FileVersion",
+    "FileRevision",
+    "EDSVersion",
+    "Description",
+    "CreationTime",
+    "CreationDate",
+    "CreatedBy",
+    "ModificationTime",
+    "ModificationDate",
+    "ModifiedBy",
+    "LastEDS",
+];
+
+fn lower_file_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> FileInfo {
+    let keys = match_keys(cx, sec, FILE_INFO_KEYS, &[], true);
+    let mut fi = FileInfo::default();
+    let s = |i: usize| keys.get(i).map(|kv| kv.value.to_owned());
+    fi.file_name = s(0);
+    fi.eds_version = s(3);
+    fi.description = s(4);
+    fi.creation_time = s(5);
+    fi.creation_date = s(6);
+    fi.created_by = s(7);
+    fi.modification_time = s(8);
+    fi.modification_date = s(9);
+    fi.modified_by = s(10);
+    for (i, slot) in [(1, &mut fi.file_version), (2, &mut fi.file_revision)] {
+        if let Some(kv) = keys.get(i) {
+            // CiA 306 makes both Unsigned8.
+            *slot = info_uint(cx, kv, 0xFF, "FileInfo").map(|v| v as u32);
+            if slot.is_none() {
+                fi.extra.push(owned(kv));
+            }
+        }
+    }
+    for (i, check, form) in [
+        (5, is_time as fn(&str) -> bool, "hh:mmAM"),
+        (6, is_date, "mm-dd-yyyy"),
+        (8, is_time, "hh:mmAM"),
+        (9, is_date, "mm-dd-yyyy"),
+    ] {
+        if let Some(kv) = keys.get(i)
+            && !kv.value.is_empty()
+            && !check(kv.value)
+        {
+            let d = cx.emit(
+                codes::E0503,
+                Some(kv.value_span),
+                format!("[FileInfo] {}=`{}` is not in the CiA 306 form {form}", kv.key, kv.value),
+            );
+            d.hint = Some(format!("write it as {form}"));
+        }
+    }
+    if let Some(kv) = keys.get(3) {
+        let ok = kv.value.split_once('.').is_some_and(|(a, b)| {
+            !a.is_empty()
+                && !b.is_empty()
+                && a.bytes().all(|c| c.is_ascii_digit())
+                && b.bytes().all(|c| c.is_ascii_digit())
+        });
+        if !ok {
+            let d = cx.emit(
+                codes::E0503,
+                Some(kv.value_span),
+                format!("[FileInfo] EDSVersion=`{}` is not `major.minor`", kv.value),
+            );
+            d.hint = Some("CiA 306 files are EDSVersion=4.0".to_owned());
+        }
+    }
+    if let Some(kv) = keys.get(11) {
+        fi.extra.push(owned(kv));
+    }
+    fi.extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
+    missing_keys(cx, sec, FILE_INFO_KEYS, &keys.found, &["FileName", "FileVersion", "FileRevision", "EDSVersion"]);
+    fi
+}
+
+const DEVICE_INFO_KEYS: &[&str] = &[
+    "VendorName",
+    "VendorNumber",
+    "ProductName",
+    "ProductNumber",
+    "RevisionNumber",
+    "OrderCode",
+    "SimpleBootUpMaster",
+    "SimpleBootUpSlave",
+    "Granularity",
+    "DynamicChannelsSupported",
+    "GroupMessaging",
+    "NrOfRXPDO",
+    "NrOfTXPDO",
+    "LSS_Supported",
+    "CompactPDO",
+    // Reserved by CiA 306 for compatibility: kept as written, not interpreted.
+    "ProductVersion",
+    "ProductRevision",
+    "LMT_ManufacturerName",
+    "LMT_ProductName",
+    "ExtendedBootUpMaster",
+    "ExtendedBootUpSlave",
+];
+
+fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
+    const S: &str = "DeviceInfo";
+    let keys = match_keys(cx, sec, DEVICE_INFO_KEYS, &[], false);
+    let mut di = DeviceInfo {
+        vendor_name: keys.get(0).map(|kv| kv.value.to_owned()),
+        product_name: keys.get(2).map(|kv| kv.value.to_owned()),
+        order_code: keys.get(5).map(|kv| kv.value.to_owned()),
+        ..Default::default()
+    };
+    let mut keep = Vec::new();
+    macro_rules! uint {
+        ($i:expr, $field:ident, $max:expr, $t:ty) => {
+            if let Some(kv) = keys.get($i) {
+                di.$field = info_uint(cx, kv, $max, S).map(|v| v as $t);
+                if di.$field.is_none() {
+                    keep.push(owned(kv));
+                }
+            }
+        };
+    }
+    macro_rules! boolean {
+        ($i:expr, $field:ident) => {
+            if let Some(kv) = keys.get($i) {
+                di.$field = info_bool(cx, kv, S);
+                if di.$field.is_none() {
+                    keep.push(owned(kv));
+                }
+            }
+        };
+    }
+    uint!(1, vendor_number, u32::MAX as u64, u32);
+    uint!(3, product_number, u32::MAX as u64, u32);
+    uint!(4, revision_number, u32::MAX as u64, u32);
+    boolean!(6, simple_boot_up_master);
+    boolean!(7, simple_boot_up_slave);
+    uint!(8, granularity, 64, u8);
+    uint!(9, dynamic_channels_supported, 0xFF, u8);
+    boolean!(10, group_messaging);
+    uint!(11, nr_of_rx_pdo, 512, u16);
+    uint!(12, nr_of_tx_pdo, 512, u16);
+    boolean!(13, lss_supported);
+    uint!(14, compact_pdo, 0xFF, u8);
+    for i in 15..DEVICE_INFO_KEYS.len() {
+        if let Some(kv) = keys.get(i) {
+            keep.push(owned(kv));
+        }
+    }
+    for kv in &keys.unknown {
+        // BaudRate_<kbit/s>: any rate is read; the CiA 306 ones are not reported.
+        let rate = kv
+            .key
+            .get(..9)
+            .filter(|p| p.eq_ignore_ascii_case("BaudRate_"))
+            .and_then(|_| kv.key[9..].parse::<u16>().ok());
+        match rate {
+            Some(r) => {
+                let canon = format!("BaudRate_{r}");
+                if kv.key != canon {
+                    let d = cx.emit(
+                        codes::E0104,
+                        Some(kv.key_span),
+                        format!("key `{}` is written `{canon}` in CiA 306", kv.key),
+                    );
+                    d.hint = Some(format!("write `{canon}`"));
+                }
+                if !BAUD_RATES.contains(&r) {
+                    let d = cx.emit(codes::E0503, Some(kv.key_span), format!("{r} kbit/s is not a CiA 301 bit rate"));
+                    d.hint = Some("CiA 306 knows BaudRate_10, _20, _50, _125, _250, _500, _800 and _1000".to_owned());
+                }
+                if let Some(b) = info_bool(cx, kv, S) {
+                    di.baud_rates.insert(r, b);
+                } else {
+                    keep.push(owned(kv));
+                }
+            }
+            None => {
+                cx.emit(
+                    codes::E0102,
+                    Some(kv.key_span),
+                    format!("key `{}` is not a CiA 306 key of [DeviceInfo]; it is kept as written", kv.key),
+                );
+                keep.push(owned(kv));
+            }
+        }
+    }
+    di.extra = keep;
+    missing_keys(
+        cx,
+        sec,
+        DEVICE_INFO_KEYS,
+        &keys.found,
+        &[
+            "VendorName",
+            "ProductName",
+            "Granularity",
+            "NrOfRXPDO",
+            "NrOfTXPDO",
+            "SimpleBootUpMaster",
+            "SimpleBootUpSlave",
+        ],
+    );
+    if !di.baud_rates.values().any(|&b| b) {
+        let d = cx.emit(codes::E0505, Some(sec.name_span), "[DeviceInfo] names no supported bit rate");
+        d.hint = Some("add `BaudRate_<kbit/s>=1` for each bit rate the device supports".to_owned());
+    }
+    di
+}
+
+const COMMISSIONING_KEYS: &[&str] =
+    &["NodeID", "NodeName", "Baudrate", "NetNumber", "NetworkName", "CANopenManager", "LSS_SerialNumber"];
+
+fn lower_commissioning(cx: &mut Ctx<'_>, sec: &Section<'_>) -> Commissioning {
+    const S: &str = "DeviceComissioning";
+    let keys = match_keys(cx, sec, COMMISSIONING_KEYS, &[], true);
+    let mut c = Commissioning { node_name: keys.get(1).map(|kv| kv.value.to_owned()), ..Default::default() };
+    c.network_name = keys.get(4).map(|kv| kv.value.to_owned());
+    let mut keep = Vec::new();
+    if let Some(kv) = keys.get(0) {
+        match info_uint(cx, kv, 0xFF, S) {
+            Some(n) => {
+                if !(1..=127).contains(&n) {
+                    let d = cx.emit(codes::E0506, Some(kv.value_span), format!("node id {n} is outside 1..=127"));
+                    d.hint = Some("CANopen node ids are 1..=127".to_owned());
+                }
+                c.node_id = Some(n as u8);
+            }
+            None => keep.push(owned(kv)),
+        }
+    }
+    if let Some(kv) = keys.get(2) {
+        c.baudrate = info_uint(cx, kv, 0xFFFF, S).map(|v| v as u16);
+        if let Some(b) = c.baudrate
+            && !BAUD_RATES.contains(&b)
+        {
+            cx.emit(codes::E0503, Some(kv.value_span), format!("{b} kbit/s is not a CiA 301 bit rate"));
+        }
+        if c.baudrate.is_none() {
+            keep.push(owned(kv));
+        }
+    }
+    if let Some(kv) = keys.get(3) {
+        c.net_number = info_uint(cx, kv, u32::MAX as u64, S).map(|v| v as u32);
+        if c.net_number.is_none() {
+            keep.push(owned(kv));
+        }
+    }
+    if let Some(kv) = keys.get(5) {
+        c.canopen_manager = info_bool(cx, kv, S);
+        if c.canopen_manager.is_none() {
+            keep.push(owned(kv));
+        }
+    }
+    if let Some(kv) = keys.get(6) {
+        c.lss_serial_number = info_uint(cx, kv, u32::MAX as u64, S).map(|v| v as u32);
+        if c.lss_serial_number.is_none() {
+            keep.push(owned(kv));
+        }
+    }
+    keep.extend(keys.unknown.iter().map(|kv| owned(kv)));
+    c.extra = keep;
+    c
+}
+
+fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
+    let keys = match_keys(cx, sec, &[], &[], false);
+    for kv in &keys.unknown {
+        let ty = kv.key.get(..5).filter(|p| p.eq_ignore_ascii_case("Dummy")).and_then(|_| {
+            let digits = &kv.key[5..];
+            (digits.len() == 4 && digits.bytes().all(|b| b.is_ascii_hexdigit()))
+                .then(|| u16::from_str_radix(digits, 16).ok())
+                .flatten()
+        });
+        match ty {
+            Some(t) => {
+                if !(1..=7).contains(&t) {
+                    let d = cx.emit(
+                        codes::E0503,
+                        Some(kv.key_span),
+                        format!("`{}` names no basic data type (0001..0007)", kv.key),
+                    );
+                    d.hint = Some("dummy mapping exists for the data types 0x0001..=0x0007".to_owned());
+                }
+                if !kv.key.starts_with("Dummy") {
+                    cx.emit(
+                        codes::E0104,
+                        Some(kv.key_span),
+                        format!("key `{}` is written `Dummy{t:04X}` in CiA 306", kv.key),
+                    );
+                }
+                if let Some(b) = info_bool(cx, kv, "DummyUsage") {
+                    model.dummy_usage.insert(t, b);
+                }
+            }
+            None => {
+                let d = cx.emit(
+                    codes::E0503,
+                    Some(kv.key_span),
+                    format!("`{}` is not a `DummyNNNN` key (ignored)", kv.key),
+                );
+                d.hint = Some("[DummyUsage] entries are `Dummy0001=1` ... `Dummy0007=1`".to_owned());
+            }
+        }
+    }
+}
+
+fn lower_comments(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
+    let keys = match_keys(cx, sec, &["Lines"], &[], false);
+    let mut lines: Vec<(u32, &str)> = Vec::new();
+    for kv in &keys.unknown {
+        let n =
+            kv.key.get(..4).filter(|p| p.eq_ignore_ascii_case("Line")).and_then(|_| kv.key[4..].parse::<u32>().ok());
+        match n {
+            Some(n) => lines.push((n, kv.value)),
+            None => {
+                cx.emit(
+                    codes::E0102,
+                    Some(kv.key_span),
+                    format!("key `{}` is not a CiA 306 key of [Comments] (ignored)", kv.key),
+                )
+                .hint = Some("comment lines are `Line1=...`, `Line2=...`".to_owned());
+            }
+        }
+    }
+    lines.sort_by_key(|&(n, _)| n);
+    model.comments = lines.iter().map(|(_, s)| (*s).to_owned()).collect();
+    match keys.get(0) {
+        Some(kv) => {
+            if let Some(n) = info_uint(cx, kv, u16::MAX as u64, "Comments") {
+                let numbered_ok = lines.iter().enumerate().all(|(i, &(k, _))| k == i as u32 + 1);
+                if n as usize != lines.len() || !numbered_ok {
+                    let d = cx.emit(
+                        codes::E0503,
+                        Some(kv.value_span),
+                        format!(
+                            "[Comments] says Lines={n} but has {} lines numbered {}",
+                            lines.len(),
+                            describe_numbers(&lines)
+                        ),
+                    );
+                    d.hint = Some(format!("number the lines Line1..Line{} and set Lines={}", lines.len(), lines.len()));
+                }
+            }
+        }
+        None if !lines.is_empty() => {
+            cx.emit(codes::E0505, Some(sec.name_span), "[Comments] lacks `Lines`").hint =
+                Some(format!("add `Lines={}`", lines.len()));
+        }
+        None => {}
+    }
+}
+
+fn describe_numbers(lines: &[(u32, &str)]) -> String {
+    match (lines.first(), lines.last()) {
+        (Some(a), Some(b)) => format!("{}..{}", a.0, b.0),
+        _ => "none".to_owned(),
+    }
+}
+
+/// Lowers the information sections and keeps unknown sections.
+pub(crate) fn lower_info(secs: &Sections<'_>, model: &mut Model, cx: &mut Ctx<'_>) {
+    let mut have_file_info = false;
+    let mut have_device_info = false;
+    for sec in &secs.list {
+        match sec.kind {
+            Kind::FileInfo => {
+                have_file_info = true;
+                model.file_info = lower_file_info(cx, sec);
+            }
+            Kind::DeviceInfo => {
+                have_device_info = true;
+                model.device_info = lower_device_info(cx, sec);
+            }
+            Kind::Commissioning => model.commissioning = Some(lower_commissioning(cx, sec)),
+            Kind::DummyUsage => lower_dummy_usage(cx, sec, model),
+            Kind::Comments => lower_comments(cx, sec, model),
+            Kind::Unknown => {
+                cx.emit(
+                    codes::E0101,
+                    Some(sec.name_span),
+                    format!("section [{}] is not a CiA 306 section; it is kept as written", sec.name),
+                );
+                model
+                    .extra_sections
+                    .push(ExtraSection { name: sec.name.to_owned(), entries: sec.entries.iter().map(owned).collect() });
+            }
+            _ => {}
+        }
+    }
+    if !have_file_info {
+        cx.emit(codes::E0502, None, "the file has no [FileInfo] section").hint =
+            Some("add [FileInfo] with FileName, FileVersion, FileRevision and EDSVersion=4.0".to_owned());
+    }
+    if !have_device_info {
+        cx.emit(codes::E0502, None, "the file has no [DeviceInfo] section").hint =
+            Some("add [DeviceInfo] with VendorName, ProductName, the BaudRate_ keys and the PDO counts".to_owned());
+    }
+}
+
+/// What the object lists say.
+#[derive(Default)]
+pub(crate) struct Lists {
+    /// Which of the three lists exist (Mandatory, Optional, Manufacturer).
+    pub present: [bool; 3],
+    /// Each listed index with the list that names it first and the span of that entry.
+    pub listed: HashMap<u16, (Category, Span)>,
+}
+
+pub(crate) fn category_slot(c: Category) -> usize {
+    match c {
+        Category::Mandatory => 0,
+        Category::Optional => 1,
+        Category::Manufacturer => 2,
+    }
+}
+
+pub(crate) fn list_name(c: Category) -> &'static str {
+    match c {
+        Category::Mandatory => "MandatoryObjects",
+        Category::Optional => "OptionalObjects",
+        Category::Manufacturer => "ManufacturerObjects",
+    }
+}
+
+/// The list an index belongs in by CiA 306.
+pub(crate) fn expected_category(index: u16) -> Category {
+    match Index(index).role() {
+        Role::DeviceType | Role::ErrorRegister | Role::Identity => Category::Mandatory,
+        Role::ManufacturerSpecific => Category::Manufacturer,
+        _ => Category::Optional,
+    }
+}
+
+/// Reads the three object lists.
+pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists {
+    let mut lists = Lists::default();
+    for cat in [Category::Mandatory, Category::Optional, Category::Manufacturer] {
+        let Some(sec) = secs.get(Kind::List(cat)) else { continue };
+        lists.present[category_slot(cat)] = true;
+        let name = list_name(cat);
+        let keys = match_keys(cx, sec, &["SupportedObjects"], &[], false);
+        let mut numbers: Vec<u32> = Vec::new();
+        for kv in &keys.unknown {
+            let Ok(n) = kv.key.parse::<u32>() else {
+                let d = cx.emit(
+                    codes::E0404,
+                    Some(kv.key_span),
+                    format!("[{name}] entry `{}` is not numbered (ignored)", kv.key),
+                );
+                d.hint = Some("list entries are `1=0x1000`, `2=0x1001`, ...".to_owned());
+                continue;
+            };
+            let mut quirks = Vec::new();
+            let index = match parse_int(kv.value, &mut quirks) {
+                Ok(p) if (0..=0xFFFF).contains(&p.value) => {
+                    if p.radix != crate::model::Radix::Hex {
+                        let d = cx.emit(
+                            codes::E0404,
+                            Some(kv.value_span),
+                            format!(
+                                "[{name}] entry {n}=`{}` is not a 0x-prefixed index; read as 0x{:04X}",
+                                kv.value, p.value
+                            ),
+                        );
+                        d.hint = Some(format!("write `{n}=0x{:04X}`", p.value));
+                    }
+                    p.value as u16
+                }
+                _ => {
+                    let d = cx.emit(
+                        codes::E0404,
+                        Some(kv.value_span),
+                        format!("[{name}] entry {n}=`{}` is not an object index (ignored)", kv.value),
+                    );
+                    d.hint = Some("write the index as 0x1234".to_owned());
+                    continue;
+                }
+            };
+            numbers.push(n);
+            if let Some(&(prev_cat, prev_span)) = lists.listed.get(&index) {
+                let first = cx.src.line_col(prev_span.start);
+                let d = cx.emit(
+                    codes::E0405,
+                    Some(kv.value_span),
+                    format!(
+                        "object 0x{index:04X} is listed again (first in [{}] at line {})",
+                        list_name(prev_cat),
+                        first.line
+                    ),
+                );
+                d.hint = Some("list every object once".to_owned());
+                continue;
+            }
+            let want = expected_category(index);
+            if want != cat {
+                let d = cx.emit(
+                    codes::E0406,
+                    Some(kv.value_span),
+                    format!("object 0x{index:04X} is listed in [{name}] but belongs in [{}]", list_name(want)),
+                );
+                d.hint = Some(format!("move it to [{}]", list_name(want)));
+            }
+            lists.listed.insert(index, (cat, kv.value_span));
+        }
+        numbers.sort_unstable();
+        let consecutive = numbers.iter().enumerate().all(|(i, &n)| n == i as u32 + 1);
+        match keys.get(0) {
+            Some(kv) => {
+                let mut q = Vec::new();
+                match parse_int(kv.value, &mut q) {
+                    Ok(p) if p.value == numbers.len() as i128 && consecutive => {}
+                    Ok(p) => {
+                        let d = cx.emit(
+                            codes::E0403,
+                            Some(kv.value_span),
+                            format!(
+                                "[{name}] says SupportedObjects={} but lists {} objects{}",
+                                p.value,
+                                numbers.len(),
+                                if consecutive {
+                                    String::new()
+                                } else {
+                                    format!(" numbered {}", number_ranges(&numbers))
+                                }
+                            ),
+                        );
+                        d.hint =
+                            Some(format!("number the entries 1..{n} and set SupportedObjects={n}", n = numbers.len()));
+                    }
+                    Err(_) => {
+                        cx.emit(
+                            codes::E0403,
+                            Some(kv.value_span),
+                            format!("[{name}] SupportedObjects=`{}` is not a number", kv.value),
+                        );
+                    }
+                }
+            }
+            None => {
+                let d = cx.emit(codes::E0403, Some(sec.name_span), format!("[{name}] lacks `SupportedObjects`"));
+                d.hint = Some(format!("add `SupportedObjects={}`", numbers.len()));
+            }
+        }
+    }
+    lists
+}
+
+fn number_ranges(ns: &[u32]) -> String {
+    let mut parts: Vec<String> = Vec::new();
+    let mut i = 0;
+    while i < ns.len() {
+        let mut j = i;
+        while j + 1 < ns.len() && ns[j + 1] == ns[j] + 1 {
+            j += 1;
+        }
+        parts.push(if i == j { ns[i].to_string() } else { format!("{}..{}", ns[i], ns[j]) });
+        i = j + 1;
+    }
+    parts.join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dates_and_times() {
+        assert!(is_date("01-31-2024"));
+        assert!(!is_date("2024-01-31"));
+        assert!(is_time("9:05AM"));
+        assert!(is_time("12:59pm"));
+        assert!(!is_time("20:31PM"));
+        assert!(!is_time("10:3AM"));
+    }
+
+    #[test]
+    fn ranges() {
+        assert_eq!(number_ranges(&[1, 2, 3, 5, 7, 8]), "1..3, 5, 7..8");
+    }
+}

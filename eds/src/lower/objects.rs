@@ -1,0 +1,1045 @@
+//! Pass 3: object sections → [`Object`]s with typed [`Entry`]s.
+
+use std::collections::{BTreeMap, HashMap, HashSet};
+
+use super::info::{Lists, expected_category};
+use super::sections::{Keys, Kind, Kv, Section, Sections, match_keys};
+use super::{Ctx, object_context, sub_context};
+use crate::codes;
+use crate::model::{Access, DataType, Entry, FileKind, Index, Model, Object, ObjectType, SourceRef, SubIndex, Value};
+use crate::value::{self, Quirk, ValueError};
+
+const OBJ_KEYS: &[&str] = &[
+    "ParameterName",
+    "ObjectType",
+    "DataType",
+    "AccessType",
+    "DefaultValue",
+    "PDOMapping",
+    "LowLimit",
+    "HighLimit",
+    "ParameterValue",
+    "ObjFlags",
+    "SubNumber",
+    "CompactSubObj",
+    "Denotation",
+    "UploadFile",
+    "DownloadFile",
+];
+const K_NAME: usize = 0;
+const K_OTYPE: usize = 1;
+const K_DTYPE: usize = 2;
+const K_ACCESS: usize = 3;
+const K_DEFAULT: usize = 4;
+const K_PDO: usize = 5;
+const K_LOW: usize = 6;
+const K_HIGH: usize = 7;
+const K_PVALUE: usize = 8;
+const K_FLAGS: usize = 9;
+const K_SUBNUM: usize = 10;
+const K_COMPACT: usize = 11;
+const K_DENOT: usize = 12;
+const K_UPLOAD: usize = 13;
+const K_DOWNLOAD: usize = 14;
+
+/// Keys that describe a value; on an ARRAY/RECORD section they only mean something with
+/// CompactSubObj.
+const VALUE_KEYS: [usize; 8] = [K_DTYPE, K_ACCESS, K_DEFAULT, K_PDO, K_LOW, K_HIGH, K_PVALUE, K_DENOT];
+
+fn owned(kv: &Kv<'_>) -> (String, String) {
+    (kv.key.to_owned(), kv.value.to_owned())
+}
+
+fn source_ref(cx: &Ctx<'_>, sec: &Section<'_>) -> SourceRef {
+    let lc = cx.src.line_col(sec.name_span.start);
+    SourceRef { line: lc.line, col: lc.col, span: sec.name_span }
+}
+
+/// The text before an inline `;` comment, if there is one.
+fn before_comment(v: &str) -> Option<&str> {
+    v.find([';', '#']).map(|i| v[..i].trim_end())
+}
+
+/// Reads a plain unsigned integer key (ObjectType, DataType, SubNumber, ...). An inline comment
+/// is removed with a warning. Returns `Err(text)` when unreadable.
+fn uint_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u32, context: &[String]) -> Result<u32, ()> {
+    let mut quirks = Vec::new();
+    let mut parsed = value::parse_int(kv.value, &mut quirks);
+    if parsed.is_err()
+        && let Some(head) = before_comment(kv.value)
+        && let Ok(p) = value::parse_int(head, &mut quirks)
+    {
+        inline_comment(cx, kv, head, context);
+        parsed = Ok(p);
+    }
+    match parsed {
+        Ok(p) if p.value >= 0 && p.value <= max as i128 => {
+            report_quirks(cx, kv, &quirks, context);
+            Ok(p.value as u32)
+        }
+        _ => Err(()),
+    }
+}
+
+fn inline_comment(cx: &mut Ctx<'_>, kv: &Kv<'_>, head: &str, context: &[String]) {
+    let d = cx.emit(
+        codes::E0008,
+        Some(kv.value_span),
+        format!("{} `{}` carries an inline comment; read as `{head}`", kv.key, kv.value),
+    );
+    d.hint = Some("CiA 306 has no inline comments: put the comment on its own line, starting with `;`".to_owned());
+    d.context = context.to_vec();
+}
+
+fn report_quirks(cx: &mut Ctx<'_>, kv: &Kv<'_>, quirks: &[Quirk], context: &[String]) {
+    for q in quirks {
+        let span = Some(kv.value_span);
+        let text = kv.value;
+        let (code, msg, hint) = match *q {
+            Quirk::AmbiguousOctal { octal, decimal } => (
+                codes::E0303,
+                format!(
+                    "{} `{text}` has a leading zero: CiA 306 reads it as octal ({octal}), not decimal ({decimal})",
+                    kv.key
+                ),
+                Some(format!(
+                    "write `{decimal}` if decimal was meant, or `0x{octal:X}` if octal was meant; python-canopen cannot read `{text}` at all"
+                )),
+            ),
+            Quirk::LeadingZeros => (
+                codes::E0305,
+                format!("{} `{text}` has leading zeros (octal by CiA 306; the same value in decimal)", kv.key),
+                Some("drop the leading zeros; python-canopen cannot read numbers written with them".to_owned()),
+            ),
+            Quirk::DecimalWithLeadingZero => (
+                codes::E0304,
+                format!(
+                    "{} `{text}` has a leading zero but digits 8 or 9, so it is not octal; read as decimal",
+                    kv.key
+                ),
+                Some("drop the leading zero".to_owned()),
+            ),
+            Quirk::HexBitPattern => {
+                (codes::E0309, format!("{} `{text}` is read as a two's complement bit pattern", kv.key), None)
+            }
+            Quirk::RealBitPattern => {
+                (codes::E0310, format!("{} `{text}` is read as an IEEE 754 bit pattern", kv.key), None)
+            }
+            Quirk::BooleanWord => (
+                codes::E0311,
+                format!("{} `{text}` is a word; CiA 306 writes BOOLEAN values as 0 or 1", kv.key),
+                Some("write 0 or 1".to_owned()),
+            ),
+            Quirk::DomainNotHex => {
+                (codes::E0312, format!("{} `{text}` of a DOMAIN is not hex bytes; kept as text", kv.key), None)
+            }
+            Quirk::EmptyNumeric => continue,
+            Quirk::SpacedNumber => (
+                codes::E0314,
+                format!("{} `{text}` has white space inside the number", kv.key),
+                Some("remove the space".to_owned()),
+            ),
+            Quirk::TimePair => (codes::E0316, format!("{} `{text}` is written as `days ms`", kv.key), None),
+            Quirk::CSuffix => (
+                codes::E0317,
+                format!("{} `{text}` carries a C literal suffix", kv.key),
+                Some("remove the suffix (U, L, LL, f): CiA 306 numbers have none".to_owned()),
+            ),
+        };
+        let d = cx.emit(code, span, msg);
+        d.hint = hint;
+        d.context = context.to_vec();
+    }
+}
+
+fn value_error_hint(e: &ValueError, ty: DataType) -> String {
+    match e {
+        ValueError::NotANumber(_) | ValueError::TooLarge(_) => {
+            format!("a {} value is a decimal number, a 0x-prefixed hexadecimal number or `$NODEID+number`", ty.name())
+        }
+        ValueError::BadNodeIdExpr(_) => "write `$NODEID+0x180` or `0x180+$NODEID`".to_owned(),
+        ValueError::NodeIdNotAllowed(_) => "$NODEID may only be used with integer types".to_owned(),
+        ValueError::NotHexBytes(_) => "write the bytes as pairs of hex digits, e.g. `0A1B2C`".to_owned(),
+        ValueError::NotAReal(_) => "write a decimal number such as `1.5` or `-2e3`".to_owned(),
+        ValueError::RealPatternTooWide(..) => {
+            format!("a {} bit pattern has at most {} hex digits", ty.name(), ty.bits().unwrap_or(0) / 4)
+        }
+    }
+}
+
+/// Reads a value key. `Ok(None)` means no value (empty); `Err(())` means the text could not be
+/// read (already reported; the caller keeps it as written).
+fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: &[String]) -> Result<Option<Value>, ()> {
+    let mut parsed = value::parse_value(kv.value, ty);
+    if let DataType::Other(_) = ty {
+        // The type is not known here: keep what cannot be read as a number as text.
+        return Ok(match parsed {
+            Ok(p) => p.value,
+            Err(_) => Some(Value::Text(kv.value.to_owned())),
+        });
+    }
+    let string_type = matches!(ty, DataType::VisibleString | DataType::UnicodeString | DataType::OctetString);
+    if parsed.is_err()
+        && !string_type
+        && let Some(head) = before_comment(kv.value)
+        && let Ok(p) = value::parse_value(head, ty)
+    {
+        inline_comment(cx, kv, head, context);
+        parsed = Ok(p);
+    }
+    match parsed {
+        Ok(p) => {
+            report_quirks(cx, kv, &p.quirks, context);
+            if let Some(v) = &p.value
+                && let Err(why) = value::check_range(v, ty)
+            {
+                let d = cx.emit(codes::E0302, Some(kv.value_span), format!("{} `{}`: {why}", kv.key, kv.value));
+                d.context = context.to_vec();
+                if let (Some(bits), Some(x)) = (ty.bits(), v.as_int())
+                    && ty.is_unsigned()
+                    && x < 0
+                    && x >= -(1i128 << (bits - 1))
+                {
+                    d.hint =
+                        Some(format!("for a negative value use a signed type, or write 0x{:X}", x + (1i128 << bits)));
+                }
+            }
+            Ok(p.value)
+        }
+        Err(e) => {
+            let d = cx.emit(
+                codes::E0301,
+                Some(kv.value_span),
+                format!("{} `{}` cannot be read as {}: {e}", kv.key, kv.value, ty.name()),
+            );
+            d.hint = Some(value_error_hint(&e, ty));
+            d.context = context.to_vec();
+            Err(())
+        }
+    }
+}
+
+/// Parses `AccessType`, accepting common non-standard spellings with a warning.
+fn access_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, context: &[String]) -> Access {
+    let mut text = kv.value;
+    let mut acc = Access::parse(text);
+    if acc.is_none()
+        && let Some(head) = before_comment(text).or_else(|| text.find('#').map(|i| text[..i].trim_end()))
+        && let Some(a) = Access::parse(head)
+    {
+        inline_comment(cx, kv, head, context);
+        acc = Some(a);
+        text = head;
+    }
+    if let Some(a) = acc {
+        if text != a.as_str() && text.trim() != a.as_str() && text.to_ascii_lowercase() == a.as_str() {
+            // Upper or mixed case is common and harmless; CiA 306 is silent on case here.
+        }
+        return a;
+    }
+    let lower = text.trim().to_ascii_lowercase();
+    let guess = match lower.as_str() {
+        "r" | "read" | "readonly" | "read-only" | "read_only" => Some(Access::Ro),
+        "w" | "write" | "writeonly" | "write-only" | "write_only" => Some(Access::Wo),
+        "readwrite" | "read-write" | "read_write" | "r/w" | "wr" => Some(Access::Rw),
+        "c" => Some(Access::Const),
+        _ => None,
+    };
+    let d = cx.emit(
+        codes::E0207,
+        Some(kv.value_span),
+        match guess {
+            Some(a) => format!("AccessType `{}` is not a CiA 306 access type; read as `{}`", kv.value, a.as_str()),
+            None => format!("AccessType `{}` is not a CiA 306 access type; `ro` assumed", kv.value),
+        },
+    );
+    d.hint = Some(match guess {
+        Some(a) => format!("write `{}` (one of ro, wo, rw, rwr, rww, const)", a.as_str()),
+        None => "write one of ro, wo, rw, rwr, rww, const".to_owned(),
+    });
+    d.context = context.to_vec();
+    guess.unwrap_or(Access::Ro)
+}
+
+/// Defaults an entry takes when its section does not say (CiA 306 table of keywords).
+#[derive(Clone, Copy, Default)]
+struct EntryDefaults {
+    data_type: Option<DataType>,
+    access: Option<Access>,
+}
+
+/// Reads the entry keys of one section.
+#[derive(Clone, Copy)]
+struct EntryBuilder<'c> {
+    is_dcf: bool,
+    defined_types: &'c HashSet<u16>,
+    /// Building the template of CompactSubObj entries from an ARRAY section, where SubNumber
+    /// and CompactSubObj are expected.
+    compact_template: bool,
+}
+
+impl EntryBuilder<'_> {
+    #[allow(clippy::too_many_arguments)]
+    fn build(
+        &self,
+        cx: &mut Ctx<'_>,
+        sec: &Section<'_>,
+        keys: &Keys<'_, '_>,
+        sub: u8,
+        name: Option<String>,
+        defaults: EntryDefaults,
+        context: &[String],
+    ) -> Option<Entry> {
+        let mut extra: Vec<(String, String)> = Vec::new();
+        let name = match name.or_else(|| keys.get(K_NAME).map(|kv| kv.value.to_owned())) {
+            Some(n) => n,
+            None => {
+                let d = cx.emit(codes::E0201, Some(sec.name_span), format!("[{}] lacks ParameterName", sec.name));
+                d.hint = Some("add `ParameterName=...`".to_owned());
+                d.context = context.to_vec();
+                sec.name.to_owned()
+            }
+        };
+        let data_type = match keys.get(K_DTYPE) {
+            Some(kv) => match uint_key(cx, kv, 0xFFFF, context) {
+                Ok(code) => DataType::from_code(code as u16),
+                Err(()) => {
+                    let d = cx.emit(
+                        codes::E0205,
+                        Some(kv.value_span),
+                        format!("DataType `{}` is not a type index; the entry is skipped", kv.value),
+                    );
+                    d.hint = Some("write the index of the type, e.g. `0x0007` for UNSIGNED32".to_owned());
+                    d.context = context.to_vec();
+                    return None;
+                }
+            },
+            None => match defaults.data_type {
+                Some(t) => t,
+                None => {
+                    let d = cx.emit(
+                        codes::E0204,
+                        Some(sec.name_span),
+                        format!("[{}] lacks DataType; the entry is skipped", sec.name),
+                    );
+                    d.hint = Some("add `DataType=0x0007` (or the index of the right type)".to_owned());
+                    d.context = context.to_vec();
+                    return None;
+                }
+            },
+        };
+        if let DataType::Other(code) = data_type
+            && !self.defined_types.contains(&code)
+            && !(0x20..=0x25).contains(&code)
+            && let Some(kv) = keys.get(K_DTYPE)
+        {
+            let d = cx.emit(
+                codes::E0215,
+                Some(kv.value_span),
+                format!("DataType 0x{code:04X} is not a basic CiA 301 type and the file does not define it"),
+            );
+            d.hint = Some("values of this entry are kept as written".to_owned());
+            d.context = context.to_vec();
+        }
+        let access = match keys.get(K_ACCESS) {
+            Some(kv) => access_key(cx, kv, context),
+            None => match defaults.access {
+                Some(a) => a,
+                None => {
+                    let d = cx.emit(
+                        codes::E0206,
+                        Some(sec.name_span),
+                        format!("[{}] lacks AccessType; `ro` assumed", sec.name),
+                    );
+                    d.hint = Some("add `AccessType=ro` (or rw, wo, rwr, rww, const)".to_owned());
+                    d.context = context.to_vec();
+                    Access::Ro
+                }
+            },
+        };
+        let pdo_mapping = match keys.get(K_PDO) {
+            None => false,
+            Some(kv) => match uint_key(cx, kv, u32::MAX, context) {
+                Ok(0) => false,
+                Ok(1) => true,
+                other => {
+                    let v = kv.value.trim();
+                    let guess = if v.eq_ignore_ascii_case("true") {
+                        true
+                    } else if v.eq_ignore_ascii_case("false") {
+                        false
+                    } else {
+                        other.is_ok_and(|n| n != 0)
+                    };
+                    let d = cx.emit(
+                        codes::E0208,
+                        Some(kv.value_span),
+                        format!("PDOMapping `{v}` is not 0 or 1; read as {}", guess as u8),
+                    );
+                    d.hint = Some("write 0 (not mappable) or 1 (mappable)".to_owned());
+                    d.context = context.to_vec();
+                    guess
+                }
+            },
+        };
+        let val = |cx: &mut Ctx<'_>, i: usize, extra: &mut Vec<(String, String)>| -> Option<Value> {
+            let kv = keys.get(i)?;
+            match value_key(cx, kv, data_type, context) {
+                Ok(v) => v,
+                Err(()) => {
+                    extra.push(owned(kv));
+                    None
+                }
+            }
+        };
+        let default = val(cx, K_DEFAULT, &mut extra);
+        let parameter_value = val(cx, K_PVALUE, &mut extra);
+        let low_limit = val(cx, K_LOW, &mut extra);
+        let high_limit = val(cx, K_HIGH, &mut extra);
+        let empty_numeric = |kv: Option<&Kv<'_>>| kv.is_some_and(|kv| kv.value.is_empty()) && is_numeric(data_type);
+        for i in [K_DEFAULT, K_PVALUE] {
+            if empty_numeric(keys.get(i))
+                && let Some(kv) = keys.get(i)
+            {
+                let d = cx.emit(
+                    codes::E0308,
+                    Some(kv.value_span),
+                    format!("{} of a {} is empty", kv.key, data_type.name()),
+                );
+                d.hint = Some(format!("write a value or remove the `{}=` line", kv.key));
+                d.context = context.to_vec();
+            }
+        }
+        if !self.is_dcf
+            && let Some(kv) = keys.get(K_PVALUE)
+        {
+            let d = cx.emit(codes::E0315, Some(kv.key_span), "ParameterValue in an EDS (it belongs in a DCF)");
+            d.hint = Some("a device's defaults go in DefaultValue".to_owned());
+            d.context = context.to_vec();
+        }
+        let obj_flags = keys.get(K_FLAGS).and_then(|kv| match uint_key(cx, kv, u32::MAX, context) {
+            Ok(v) => Some(v),
+            Err(()) => {
+                let d = cx.emit(
+                    codes::E0216,
+                    Some(kv.value_span),
+                    format!("ObjFlags `{}` is not a number (kept as text)", kv.value),
+                );
+                d.context = context.to_vec();
+                extra.push(owned(kv));
+                None
+            }
+        });
+        for i in [K_SUBNUM, K_COMPACT] {
+            if let Some(kv) = keys.get(i).filter(|_| !self.compact_template) {
+                let d = cx.emit(
+                    codes::E0217,
+                    Some(kv.key_span),
+                    format!("{} has no meaning on a single value (kept)", kv.key),
+                );
+                d.context = context.to_vec();
+                extra.push(owned(kv));
+            }
+        }
+        extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
+        let entry = Entry {
+            sub: SubIndex(sub),
+            name,
+            data_type,
+            access,
+            pdo_mapping,
+            default,
+            parameter_value,
+            low_limit,
+            high_limit,
+            obj_flags,
+            denotation: keys.get(K_DENOT).map(|kv| kv.value.to_owned()),
+            upload_file: keys.get(K_UPLOAD).map(|kv| kv.value.to_owned()),
+            download_file: keys.get(K_DOWNLOAD).map(|kv| kv.value.to_owned()),
+            extra,
+            at: source_ref(cx, sec),
+        };
+        check_entry(cx, &entry, keys, context);
+        Some(entry)
+    }
+}
+
+fn is_numeric(t: DataType) -> bool {
+    t.int_range().is_some() || t.is_real() || matches!(t, DataType::TimeOfDay | DataType::TimeDifference)
+}
+
+/// A number to compare limits with (`None` for `$NODEID` values, text and bytes).
+fn as_f64(v: &Value) -> Option<f64> {
+    match *v {
+        Value::Int { value, .. } => Some(value as f64),
+        Value::Real(f) => Some(f),
+        _ => None,
+    }
+}
+
+fn cmp_values(a: &Value, b: &Value) -> Option<std::cmp::Ordering> {
+    match (a, b) {
+        (Value::Int { value: x, .. }, Value::Int { value: y, .. }) => Some(x.cmp(y)),
+        (Value::NodeIdPlus { offset: x, .. }, Value::NodeIdPlus { offset: y, .. }) => Some(x.cmp(y)),
+        _ => as_f64(a)?.partial_cmp(&as_f64(b)?),
+    }
+}
+
+/// Checks within one entry: limits against each other and the values, PDOMapping against the
+/// access type and the data type.
+fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &Keys<'_, '_>, context: &[String]) {
+    let span_of = |i: usize| keys.get(i).map(|kv| kv.value_span);
+    if (e.low_limit.is_some() || e.high_limit.is_some()) && !is_numeric(e.data_type) {
+        if let DataType::Other(_) = e.data_type {
+        } else {
+            let span = span_of(K_LOW).or(span_of(K_HIGH));
+            let d = cx.emit(codes::E0313, span, format!("limits on a {} entry have no meaning", e.data_type.name()));
+            d.context = context.to_vec();
+        }
+    }
+    if let (Some(lo), Some(hi)) = (&e.low_limit, &e.high_limit)
+        && cmp_values(lo, hi) == Some(std::cmp::Ordering::Greater)
+    {
+        let d = cx.emit(
+            codes::E0307,
+            span_of(K_LOW),
+            format!(
+                "LowLimit {} is greater than HighLimit {}",
+                value::format_value(lo, e.data_type),
+                value::format_value(hi, e.data_type)
+            ),
+        );
+        d.hint = Some("swap the limits".to_owned());
+        d.context = context.to_vec();
+        return;
+    }
+    for (i, v) in [(K_DEFAULT, &e.default), (K_PVALUE, &e.parameter_value)] {
+        let Some(v) = v else { continue };
+        let low = e.low_limit.as_ref().filter(|lo| cmp_values(v, lo) == Some(std::cmp::Ordering::Less));
+        let high = e.high_limit.as_ref().filter(|hi| cmp_values(v, hi) == Some(std::cmp::Ordering::Greater));
+        if let Some(bound) = low.or(high) {
+            let key = OBJ_KEYS[i];
+            let d = cx.emit(
+                codes::E0306,
+                span_of(i),
+                format!(
+                    "{key} {} is {} the {} {}",
+                    value::format_value(v, e.data_type),
+                    if low.is_some() { "below" } else { "above" },
+                    if low.is_some() { "LowLimit" } else { "HighLimit" },
+                    value::format_value(bound, e.data_type)
+                ),
+            );
+            d.context = context.to_vec();
+        }
+    }
+    let span = span_of(K_PDO).or(span_of(K_ACCESS));
+    if matches!(e.access, Access::Rwr | Access::Rww) && !e.pdo_mapping {
+        let d = cx.emit(
+            codes::E0610,
+            span,
+            format!(
+                "AccessType {} says which PDO direction the entry is mapped in, but PDOMapping is 0",
+                e.access.as_str()
+            ),
+        );
+        d.hint = Some("set PDOMapping=1, or use AccessType=rw".to_owned());
+        d.context = context.to_vec();
+    }
+    if e.pdo_mapping && matches!(e.data_type, DataType::Domain) {
+        let d = cx.emit(codes::E0610, span, "PDOMapping=1 on a DOMAIN, which cannot be mapped into a PDO");
+        d.hint = Some("set PDOMapping=0".to_owned());
+        d.context = context.to_vec();
+    }
+}
+
+/// Reads a `[xxxxName]`/`[xxxxValue]`/`[xxxxObjectLinks]` section: the count key and the
+/// numbered entries (1-based, decimal).
+fn numbered<'s, 'a>(
+    cx: &mut Ctx<'_>,
+    sec: &'s Section<'a>,
+    count_key: &str,
+    context: &[String],
+) -> Vec<(u32, &'s Kv<'a>)> {
+    let keys = match_keys(cx, sec, &[count_key], context, false);
+    let mut out = Vec::new();
+    for kv in &keys.unknown {
+        match kv.key.parse::<u32>() {
+            Ok(n) => out.push((n, *kv)),
+            Err(_) => {
+                let d = cx.emit(
+                    codes::E0214,
+                    Some(kv.key_span),
+                    format!("[{}] entry `{}` is not numbered (ignored)", sec.name, kv.key),
+                );
+                d.context = context.to_vec();
+            }
+        }
+    }
+    match keys.get(0) {
+        Some(kv) => {
+            if let Ok(n) = uint_key(cx, kv, u32::MAX, context) {
+                if n as usize != out.len() {
+                    let d = cx.emit(
+                        codes::E0214,
+                        Some(kv.value_span),
+                        format!("[{}] says {count_key}={n} but has {} entries", sec.name, out.len()),
+                    );
+                    d.hint = Some(format!("set {count_key}={}", out.len()));
+                    d.context = context.to_vec();
+                }
+            } else {
+                let d =
+                    cx.emit(codes::E0214, Some(kv.value_span), format!("{count_key} `{}` is not a number", kv.value));
+                d.context = context.to_vec();
+            }
+        }
+        None => {
+            let d = cx.emit(codes::E0214, Some(sec.name_span), format!("[{}] lacks `{count_key}`", sec.name));
+            d.hint = Some(format!("add `{count_key}={}`", out.len()));
+            d.context = context.to_vec();
+        }
+    }
+    out
+}
+
+/// Lowers every object section into `model.objects`.
+pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Model, cx: &mut Ctx<'_>) {
+    let mut objects: Vec<(u16, &Section<'_>)> = Vec::new();
+    let mut subs: HashMap<u16, Vec<(u8, &Section<'_>)>> = HashMap::new();
+    let mut side: HashMap<Kind, &Section<'_>> = HashMap::new();
+    for sec in &secs.list {
+        match sec.kind {
+            Kind::Object(i) => objects.push((i, sec)),
+            Kind::Sub(i, s) => subs.entry(i).or_default().push((s, sec)),
+            Kind::Names(_) | Kind::Values(_) | Kind::Links(_) => {
+                side.insert(sec.kind, sec);
+            }
+            _ => {}
+        }
+    }
+    let object_set: HashSet<u16> = objects.iter().map(|&(i, _)| i).collect();
+    let builder =
+        EntryBuilder { is_dcf: model.kind == FileKind::Dcf, defined_types: &object_set, compact_template: false };
+    for &(index, sec) in &objects {
+        let my_subs = subs.remove(&index).unwrap_or_default();
+        let names = side.remove(&Kind::Names(index));
+        let values = side.remove(&Kind::Values(index));
+        let links = side.remove(&Kind::Links(index));
+        let mut obj = build_object(cx, &builder, index, sec, &my_subs, names, values);
+        if let Some(l) = links {
+            let ctx = [object_context(index, &obj.name)];
+            for (_, kv) in numbered(cx, l, "ObjectLinks", &ctx) {
+                let mut q = Vec::new();
+                match value::parse_int(kv.value, &mut q) {
+                    Ok(p) if (0..=0xFFFF).contains(&p.value) => obj.object_links.push(Index(p.value as u16)),
+                    _ => {
+                        let d = cx.emit(
+                            codes::E0214,
+                            Some(kv.value_span),
+                            format!("object link `{}` is not an index (ignored)", kv.value),
+                        );
+                        d.context = ctx.to_vec();
+                    }
+                }
+            }
+        }
+        obj.category = lists.listed.get(&index).map(|&(c, _)| c).unwrap_or_else(|| expected_category(index));
+        model.objects.insert(Index(index), obj);
+    }
+    // Sub-objects and side sections without an object section.
+    let mut orphans: Vec<&Section<'_>> =
+        subs.values().flatten().map(|&(_, s)| s).chain(side.values().copied()).collect();
+    orphans.sort_by_key(|s| s.name_span.start);
+    for sec in orphans {
+        let index = match sec.kind {
+            Kind::Sub(i, _) | Kind::Names(i) | Kind::Values(i) | Kind::Links(i) => i,
+            _ => continue,
+        };
+        let code = if matches!(sec.kind, Kind::Sub(..)) { codes::E0211 } else { codes::E0214 };
+        let d =
+            cx.emit(code, Some(sec.name_span), format!("[{}] has no object section [{index:04X}]; ignored", sec.name));
+        d.hint = Some(format!("add the object section [{index:04X}] with ParameterName, ObjectType and SubNumber"));
+    }
+}
+
+fn build_object(
+    cx: &mut Ctx<'_>,
+    builder: &EntryBuilder<'_>,
+    index: u16,
+    sec: &Section<'_>,
+    subs: &[(u8, &Section<'_>)],
+    names: Option<&Section<'_>>,
+    values: Option<&Section<'_>>,
+) -> Object {
+    let name = sec.entries.iter().rev().find(|kv| kv.key.eq_ignore_ascii_case("ParameterName")).map(|kv| kv.value);
+    let ctx = vec![object_context(index, name.unwrap_or(sec.name))];
+    let keys = match_keys(cx, sec, OBJ_KEYS, &ctx, true);
+    let name = match keys.get(K_NAME) {
+        Some(kv) => kv.value.to_owned(),
+        None => {
+            let d = cx.emit(codes::E0201, Some(sec.name_span), format!("[{}] lacks ParameterName", sec.name));
+            d.hint = Some("add `ParameterName=...`".to_owned());
+            d.context = ctx.clone();
+            String::new()
+        }
+    };
+    let has_compact = keys.get(K_COMPACT).is_some();
+    let looks_structured = !subs.is_empty() || keys.get(K_SUBNUM).is_some() || has_compact;
+    let object_type = match keys.get(K_OTYPE) {
+        Some(kv) => {
+            match uint_key(cx, kv, 0xFF, &ctx).ok().and_then(|c| ObjectType::from_code(c as u8)) {
+                Some(t) => t,
+                None => {
+                    let assumed = if looks_structured { ObjectType::Record } else { ObjectType::Var };
+                    let d = cx.emit(
+                        codes::E0203,
+                        Some(kv.value_span),
+                        format!("ObjectType `{}` is not an object code; {assumed:?} assumed", kv.value),
+                    );
+                    d.hint = Some("object codes are 0x0 NULL, 0x2 DOMAIN, 0x5 DEFTYPE, 0x6 DEFSTRUCT, 0x7 VAR, 0x8 ARRAY, 0x9 RECORD".to_owned());
+                    d.context = ctx.clone();
+                    assumed
+                }
+            }
+        }
+        None if looks_structured => {
+            let assumed = if has_compact { ObjectType::Array } else { ObjectType::Record };
+            let d = cx.emit(
+                codes::E0203,
+                Some(sec.name_span),
+                format!("[{}] lacks ObjectType but has sub-objects; {assumed:?} assumed", sec.name),
+            );
+            d.hint = Some(format!("add `ObjectType=0x{:X}`", assumed.code()));
+            d.context = ctx.clone();
+            assumed
+        }
+        None => {
+            cx.emit(codes::E0202, Some(sec.name_span), format!("[{}] lacks ObjectType; VAR assumed", sec.name))
+                .context = ctx.clone();
+            ObjectType::Var
+        }
+    };
+    let mut obj = Object {
+        index: Index(index),
+        name: name.clone(),
+        object_type,
+        category: crate::model::Category::Optional,
+        subs: BTreeMap::new(),
+        compact_sub_obj: None,
+        object_links: Vec::new(),
+        obj_flags: None,
+        extra: Vec::new(),
+        at: source_ref(cx, sec),
+    };
+    if !object_type.has_subs() {
+        if object_type != ObjectType::Null {
+            let defaults = if object_type == ObjectType::Domain {
+                EntryDefaults { data_type: Some(DataType::Domain), access: Some(Access::Rw) }
+            } else {
+                EntryDefaults::default()
+            };
+            if let Some(e) = builder.build(cx, sec, &keys, 0, Some(name.clone()), defaults, &ctx) {
+                obj.subs.insert(SubIndex(0), e);
+            }
+        } else {
+            obj.extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
+        }
+        if let Some(&(_, first)) = subs.first() {
+            let d = cx.emit(
+                codes::E0220,
+                Some(first.name_span),
+                format!(
+                    "{object_type:?} object 0x{index:04X} has no sub-objects, but [{}] defines one (ignored)",
+                    first.name
+                ),
+            );
+            d.hint =
+                Some("make the object an ARRAY (0x8) or RECORD (0x9), or remove the sub-object sections".to_owned());
+            d.context = ctx.clone();
+        }
+        for side in [names, values].into_iter().flatten() {
+            let d = cx.emit(
+                codes::E0214,
+                Some(side.name_span),
+                format!("[{}] belongs to an object without CompactSubObj (ignored)", side.name),
+            );
+            d.context = ctx.clone();
+        }
+        return obj;
+    }
+
+    // ARRAY, RECORD, DEFSTRUCT.
+    obj.obj_flags = keys.get(K_FLAGS).and_then(|kv| match uint_key(cx, kv, u32::MAX, &ctx) {
+        Ok(v) => Some(v),
+        Err(()) => {
+            let d = cx.emit(
+                codes::E0216,
+                Some(kv.value_span),
+                format!("ObjFlags `{}` is not a number (kept as text)", kv.value),
+            );
+            d.context = ctx.clone();
+            obj.extra.push(owned(kv));
+            None
+        }
+    });
+    let sub_number = keys.get(K_SUBNUM).and_then(|kv| match uint_key(cx, kv, 0x100, &ctx) {
+        Ok(n) => Some(n),
+        Err(()) => {
+            let d =
+                cx.emit(codes::E0209, Some(kv.value_span), format!("SubNumber `{}` is not a number 0..=256", kv.value));
+            d.context = ctx.clone();
+            obj.extra.push(owned(kv));
+            None
+        }
+    });
+    let compact = keys.get(K_COMPACT).and_then(|kv| match uint_key(cx, kv, 0xFF, &ctx) {
+        Ok(n) => {
+            if n == 0xFF {
+                let d = cx.emit(codes::E0213, Some(kv.value_span), "CompactSubObj=255 defines sub-index 0xFF");
+                d.hint =
+                    Some("CiA 301 reserves sub-index 0xFF for the structure of the object; 254 is the most".to_owned());
+                d.context = ctx.clone();
+            }
+            Some(n as u8)
+        }
+        Err(()) => {
+            let d = cx.emit(
+                codes::E0213,
+                Some(kv.value_span),
+                format!("CompactSubObj `{}` is not a number 0..=255", kv.value),
+            );
+            d.context = ctx.clone();
+            obj.extra.push(owned(kv));
+            None
+        }
+    });
+    if let Some(n) = compact {
+        if object_type != ObjectType::Array
+            && let Some(kv) = keys.get(K_COMPACT)
+        {
+            let d = cx.emit(
+                codes::E0213,
+                Some(kv.key_span),
+                format!("CompactSubObj on a {object_type:?} object (CiA 306 allows it on ARRAY only)"),
+            );
+            d.context = ctx.clone();
+        }
+        if let (Some(_), Some(kv)) = (sub_number, keys.get(K_SUBNUM)) {
+            let d = cx.emit(codes::E0213, Some(kv.key_span), "both SubNumber and CompactSubObj are given");
+            d.hint =
+                Some("use CompactSubObj alone for the compact form, or SubNumber with sub-object sections".to_owned());
+            d.context = ctx.clone();
+        }
+        obj.compact_sub_obj = Some(n);
+        expand_compact(cx, builder, &mut obj, sec, &keys, n, names, values, &ctx);
+    } else {
+        for (i, kv) in VALUE_KEYS.iter().filter_map(|&i| keys.get(i).map(|kv| (i, kv))) {
+            let _ = i;
+            let d = cx.emit(
+                codes::E0217,
+                Some(kv.key_span),
+                format!("{} on an {object_type:?} object has no meaning without CompactSubObj (kept)", kv.key),
+            );
+            d.context = ctx.clone();
+            obj.extra.push(owned(kv));
+        }
+        for side in [names, values].into_iter().flatten() {
+            let d = cx.emit(
+                codes::E0214,
+                Some(side.name_span),
+                format!("[{}] belongs to an object without CompactSubObj (ignored)", side.name),
+            );
+            d.context = ctx.clone();
+        }
+    }
+    obj.extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
+    for &(sub, ssec) in subs {
+        let sub_name =
+            ssec.entries.iter().rev().find(|kv| kv.key.eq_ignore_ascii_case("ParameterName")).map(|kv| kv.value);
+        let mut sctx = ctx.clone();
+        sctx.push(sub_context(sub, sub_name.unwrap_or("")));
+        let skeys = match_keys(cx, ssec, OBJ_KEYS, &sctx, true);
+        if let Some(kv) = skeys.get(K_OTYPE)
+            && uint_key(cx, kv, 0xFF, &sctx) != Ok(0x7)
+        {
+            let d = cx.emit(
+                codes::E0218,
+                Some(kv.value_span),
+                format!("sub-object ObjectType `{}` is not 0x7 (VAR)", kv.value),
+            );
+            d.context = sctx.clone();
+        }
+        if compact.is_some() && obj.subs.contains_key(&SubIndex(sub)) {
+            let d = cx.emit(
+                codes::E0213,
+                Some(ssec.name_span),
+                format!("[{}] overrides a sub-object that CompactSubObj defines", ssec.name),
+            );
+            d.context = sctx.clone();
+        }
+        if let Some(e) = builder.build(cx, ssec, &skeys, sub, None, EntryDefaults::default(), &sctx) {
+            obj.subs.insert(SubIndex(sub), e);
+        }
+    }
+    check_structure(cx, &obj, sec, &keys, sub_number, compact, subs, &ctx);
+    obj
+}
+
+#[allow(clippy::too_many_arguments)]
+fn expand_compact(
+    cx: &mut Ctx<'_>,
+    builder: &EntryBuilder<'_>,
+    obj: &mut Object,
+    sec: &Section<'_>,
+    keys: &Keys<'_, '_>,
+    n: u8,
+    names: Option<&Section<'_>>,
+    values: Option<&Section<'_>>,
+    ctx: &[String],
+) {
+    // Sub-index 0 holds the number of entries (named as lely-core and CiA 306 examples do).
+    obj.subs.insert(
+        SubIndex(0),
+        Entry {
+            sub: SubIndex(0),
+            name: "NrOfObjects".to_owned(),
+            data_type: DataType::Unsigned8,
+            access: Access::Ro,
+            pdo_mapping: false,
+            default: Some(Value::int(n as i128)),
+            parameter_value: None,
+            low_limit: None,
+            high_limit: None,
+            obj_flags: None,
+            denotation: None,
+            upload_file: None,
+            download_file: None,
+            extra: Vec::new(),
+            at: obj.at,
+        },
+    );
+    let template_builder = EntryBuilder { compact_template: true, ..*builder };
+    let Some(template) =
+        template_builder.build(cx, sec, keys, 1, Some(obj.name.clone()), EntryDefaults::default(), ctx)
+    else {
+        return;
+    };
+    for s in 1..=n {
+        let mut e = template.clone();
+        e.sub = SubIndex(s);
+        e.name = format!("{}{s}", obj.name);
+        e.extra.clear();
+        obj.subs.insert(SubIndex(s), e);
+    }
+    if let Some(ns) = names {
+        for (k, kv) in numbered(cx, ns, "NrOfEntries", ctx) {
+            match obj.subs.get_mut(&SubIndex(k.min(256) as u8)).filter(|_| (1..=n as u32).contains(&k)) {
+                Some(e) => e.name = kv.value.to_owned(),
+                None => {
+                    let d = cx.emit(
+                        codes::E0214,
+                        Some(kv.key_span),
+                        format!("[{}] names sub-index {k}, but CompactSubObj={n}", ns.name),
+                    );
+                    d.context = ctx.to_vec();
+                }
+            }
+        }
+    }
+    if let Some(vs) = values {
+        for (k, kv) in numbered(cx, vs, "NrOfEntries", ctx) {
+            let Some(e) = obj.subs.get_mut(&SubIndex(k.min(256) as u8)).filter(|_| (1..=n as u32).contains(&k)) else {
+                let d = cx.emit(
+                    codes::E0214,
+                    Some(kv.key_span),
+                    format!("[{}] sets sub-index {k}, but CompactSubObj={n}", vs.name),
+                );
+                d.context = ctx.to_vec();
+                continue;
+            };
+            let mut sctx = ctx.to_vec();
+            sctx.push(sub_context(k as u8, &e.name));
+            let ty = e.data_type;
+            // [xxxxValue] holds the configured value of each sub-object (lely-core's reading).
+            let v = value_key(cx, kv, ty, &sctx);
+            if let Some(e) = obj.subs.get_mut(&SubIndex(k as u8)) {
+                match v {
+                    Ok(v) => e.parameter_value = v,
+                    Err(()) => e.extra.push(("ParameterValue".to_owned(), kv.value.to_owned())),
+                }
+            }
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn check_structure(
+    cx: &mut Ctx<'_>,
+    obj: &Object,
+    sec: &Section<'_>,
+    keys: &Keys<'_, '_>,
+    sub_number: Option<u32>,
+    compact: Option<u8>,
+    subs: &[(u8, &Section<'_>)],
+    ctx: &[String],
+) {
+    if compact.is_none() {
+        match (sub_number, keys.get(K_SUBNUM)) {
+            (Some(n), Some(kv)) if n as usize != subs.len() => {
+                let d = cx.emit(
+                    codes::E0209,
+                    Some(kv.value_span),
+                    format!("SubNumber={n} but the file has {} sub-object sections", subs.len()),
+                );
+                d.hint = Some(format!("set SubNumber={}", subs.len()));
+                d.context = ctx.to_vec();
+            }
+            (None, None) => {
+                let d = cx.emit(codes::E0209, Some(sec.name_span), format!("[{}] lacks SubNumber", sec.name));
+                d.hint = Some(format!("add `SubNumber={}`", subs.len()));
+                d.context = ctx.to_vec();
+            }
+            _ => {}
+        }
+    }
+    match obj.subs.get(&SubIndex(0)) {
+        None => {
+            let d = cx.emit(
+                codes::E0212,
+                Some(sec.name_span),
+                format!(
+                    "{:?} object 0x{:04X} has no sub-index 0 (the number of entries)",
+                    obj.object_type, obj.index.0
+                ),
+            );
+            d.hint = Some(format!("add [{:04X}sub0] with DataType=0x0005 (UNSIGNED8) and AccessType=ro", obj.index.0));
+            d.context = ctx.to_vec();
+        }
+        Some(e) if e.data_type != DataType::Unsigned8 => {
+            let span = subs.iter().find(|(s, _)| *s == 0).map(|(_, s)| s.name_span);
+            let mut c = ctx.to_vec();
+            c.push(sub_context(0, &e.name));
+            let d = cx.emit(codes::E0210, span, format!("sub-index 0 is {} but must be UNSIGNED8", e.data_type.name()));
+            d.hint = Some("write DataType=0x0005".to_owned());
+            d.context = c;
+        }
+        Some(_) => {}
+    }
+    if obj.object_type == ObjectType::Array {
+        let mut types = obj.subs.values().filter(|e| e.sub.0 != 0).map(|e| (e.sub.0, e.data_type));
+        if let Some((_, first)) = types.next()
+            && let Some((s, other)) = types.find(|&(_, t)| t != first)
+        {
+            let span = subs.iter().find(|(x, _)| *x == s).map(|(_, sec)| sec.name_span);
+            let d = cx.emit(
+                codes::E0219,
+                span,
+                format!("ARRAY element {s} is {} while the first element is {}", other.name(), first.name()),
+            );
+            d.hint =
+                Some("an ARRAY holds elements of one type; use a RECORD (ObjectType=0x9) for mixed types".to_owned());
+            d.context = ctx.to_vec();
+        }
+    }
+}
