@@ -18,7 +18,8 @@
 //!   they were read.
 //! - Numbers keep the radix they were read in ([`Radix`]); hexadecimal digits are upper case
 //!   after a lower-case `0x` and integers of a fixed-size type are padded to the type's width
-//!   (`0x00000180`). `$NODEID` expressions are written `$NODEID+0x180`. REAL values use the
+//!   (`0x00000180`). `$NODEID` expressions are written `$NODEID+0x180` (and `$NODEID+0x0`, never a
+//!   bare `$NODEID`, which python-canopen cannot read). REAL values use the
 //!   shortest decimal text that reads back as the same `f64`. OCTET_STRING and DOMAIN values are
 //!   upper-case hex digits without separators.
 //! - Type codes are `0x0007`, object codes `0x7`, booleans `0`/`1`, line ends `\n`, one blank line
@@ -91,12 +92,12 @@ fn push_value(out: &mut String, value: &Value, data_type: DataType) {
     match value {
         Value::Int { value, radix } => push_int(out, *value, *radix, hex_width(data_type)),
         Value::NodeIdPlus { offset, radix } => {
+            // Always with the constant, even when it is 0: python-canopen (2.4.1) cannot read a
+            // bare `$NODEID` (it strips the symbol and fails on the empty rest), while every
+            // reader understands `$NODEID+0x0`, which reads back as the same value.
             out.push_str("$NODEID");
-            // A bare `$NODEID` reads back as offset 0 in hex; any other radix needs its `+0`.
-            if *offset != 0 || *radix != Radix::Hex {
-                out.push(if *offset < 0 { '-' } else { '+' });
-                push_int(out, offset.abs(), *radix, 0);
-            }
+            out.push(if *offset < 0 { '-' } else { '+' });
+            push_int(out, offset.abs(), *radix, 0);
         }
         // Reals (shortest text per type), strings and bytes are written as the reader's
         // formatter writes them.
@@ -504,7 +505,12 @@ impl<'m> Writer<'m> {
         self.opt_str("UploadFile", &proto.upload_file);
         self.opt_str("DownloadFile", &proto.download_file);
         self.extra(&o.extra);
-        if !c.names.is_empty() {
+        // python-canopen creates the sub-objects of a compact ARRAY from `[xxxxName]` only, so
+        // an ARRAY gets the section even when every name is the implied one; on a RECORD
+        // (which CiA 306 does not allow compact, but files do it) the section makes
+        // python-canopen fail, so it is written only when a name differs.
+        let implied = |(s, name): &(u8, &str)| *name == format!("{}{s}", o.name);
+        if !c.names.is_empty() && (o.object_type == ObjectType::Array || !c.names.iter().all(implied)) {
             self.section(format_args!("{idx:04X}Name"));
             self.key("NrOfEntries", format_args!("{}", c.names.len()));
             for (sub, name) in &c.names {

@@ -208,7 +208,7 @@ fn values_are_written_in_their_radix() {
         (Value::Int { value: -8, radix: Radix::Oct }, DataType::Integer8, "-010"),
         (Value::NodeIdPlus { offset: 0x180, radix: Radix::Hex }, DataType::Unsigned32, "$NODEID+0x180"),
         (Value::NodeIdPlus { offset: -2, radix: Radix::Dec }, DataType::Unsigned32, "$NODEID-2"),
-        (Value::NodeIdPlus { offset: 0, radix: Radix::Hex }, DataType::Unsigned8, "$NODEID"),
+        (Value::NodeIdPlus { offset: 0, radix: Radix::Hex }, DataType::Unsigned8, "$NODEID+0x0"),
         (Value::NodeIdPlus { offset: 0, radix: Radix::Dec }, DataType::Unsigned8, "$NODEID+0"),
         (Value::Real(0.1f32 as f64), DataType::Real32, "0.1"),
         (Value::Real(0.1), DataType::Real64, "0.1"),
