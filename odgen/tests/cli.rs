@@ -1,0 +1,358 @@
+//! The `odgen` binary, run as a real process on files in a temporary directory.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const GOOD: &str = "\
+[FileInfo]
+FileName=drive.eds
+FileVersion=1
+FileRevision=0
+EDSVersion=4.0
+Description=CLI test drive
+CreationTime=10:00AM
+CreationDate=01-02-2025
+CreatedBy=odgen tests
+ModificationTime=10:00AM
+ModificationDate=01-02-2025
+ModifiedBy=odgen tests
+
+[DeviceInfo]
+VendorName=Example
+VendorNumber=0x00000151
+ProductName=Drive
+ProductNumber=0x00000001
+RevisionNumber=0x00000001
+OrderCode=D-1
+BaudRate_10=0
+BaudRate_20=0
+BaudRate_50=0
+BaudRate_125=1
+BaudRate_250=1
+BaudRate_500=1
+BaudRate_800=0
+BaudRate_1000=1
+SimpleBootUpMaster=0
+SimpleBootUpSlave=1
+Granularity=8
+DynamicChannelsSupported=0
+GroupMessaging=0
+NrOfRXPDO=0
+NrOfTXPDO=0
+LSS_Supported=0
+
+[DummyUsage]
+Dummy0001=0
+Dummy0002=0
+Dummy0003=0
+Dummy0004=0
+Dummy0005=1
+Dummy0006=1
+Dummy0007=1
+
+[MandatoryObjects]
+SupportedObjects=3
+1=0x1000
+2=0x1001
+3=0x1018
+
+[1000]
+ParameterName=Device type
+ObjectType=0x7
+DataType=0x0007
+AccessType=ro
+DefaultValue=0x00020192
+PDOMapping=0
+
+[1001]
+ParameterName=Error register
+ObjectType=0x7
+DataType=0x0005
+AccessType=ro
+DefaultValue=0
+PDOMapping=1
+
+[1018]
+ParameterName=Identity object
+ObjectType=0x9
+SubNumber=0x2
+
+[1018sub0]
+ParameterName=Highest sub-index supported
+ObjectType=0x7
+DataType=0x0005
+AccessType=ro
+DefaultValue=1
+PDOMapping=0
+
+[1018sub1]
+ParameterName=Vendor-ID
+ObjectType=0x7
+DataType=0x0007
+AccessType=ro
+DefaultValue=0x00000151
+PDOMapping=0
+
+[OptionalObjects]
+SupportedObjects=2
+1=0x1014
+2=0x6060
+
+[1014]
+ParameterName=COB-ID EMCY
+ObjectType=0x7
+DataType=0x0007
+AccessType=rw
+DefaultValue=$NODEID+0x80
+PDOMapping=0
+
+[6060]
+ParameterName=Modes of operation
+ObjectType=0x7
+DataType=0x0002
+AccessType=rw
+DefaultValue=0
+LowLimit=-10
+HighLimit=10
+PDOMapping=1
+
+[ManufacturerObjects]
+SupportedObjects=0
+";
+
+fn odgen(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_odgen")).args(args).output().expect("run odgen")
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(name: &str) -> Self {
+        let p = std::env::temp_dir().join(format!("odgen-cli-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&p);
+        std::fs::create_dir_all(&p).unwrap();
+        TempDir(p)
+    }
+
+    fn file(&self, name: &str, text: &str) -> PathBuf {
+        let p = self.0.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn check_passes_a_good_file_and_fails_a_bad_one() {
+    let dir = TempDir::new("check");
+    let good = dir.file("good.eds", GOOD);
+    let o = odgen(&["check", "--strict", s(&good)]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("checked 1 file: "), "{}", stdout(&o));
+
+    let bad = dir.file("bad.eds", &GOOD.replace("DataType=0x0002\n", ""));
+    let o = odgen(&["check", s(&good), s(&bad)]);
+    assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
+    let out = stdout(&o);
+    // rustc style: code, location arrow, the quoted line, a caret, and the summary.
+    assert!(out.contains("error[E"), "{out}");
+    assert!(out.contains(&format!("--> {}:", bad.display())), "{out}");
+    assert!(out.contains("| [6060]"), "{out}");
+    assert!(out.contains("lacks DataType"), "{out}");
+    assert!(out.contains('^'), "{out}");
+    assert!(out.contains("checked 2 files: 1 error"), "{out}");
+}
+
+#[test]
+fn strict_turns_deviations_into_errors() {
+    let dir = TempDir::new("strict");
+    // A value that cannot be read is kept as text: a warning, an error under --strict.
+    let f = dir.file("value.eds", &GOOD.replace("DefaultValue=0\nLowLimit", "DefaultValue=0x1G\nLowLimit"));
+    let lenient = odgen(&["check", s(&f)]);
+    assert!(lenient.status.success(), "{}", stdout(&lenient));
+    assert!(stdout(&lenient).contains("warning"), "{}", stdout(&lenient));
+    let strict = odgen(&["check", "--strict", s(&f)]);
+    assert_eq!(strict.status.code(), Some(1), "{}", stdout(&strict));
+}
+
+#[test]
+fn check_json_is_machine_readable() {
+    let dir = TempDir::new("json");
+    let bad = dir.file("bad.eds", &GOOD.replace("DataType=0x0002\n", ""));
+    let o = odgen(&["check", "--format", "json", s(&bad)]);
+    assert_eq!(o.status.code(), Some(1));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON output");
+    assert_eq!(v["errors"], 1, "{v:#}");
+    let d = &v["files"][0]["diagnostics"][0];
+    assert_eq!(d["severity"], "error");
+    assert!(d["code"].as_str().unwrap().starts_with('E'));
+    assert!(d["at"]["line"].as_u64().unwrap() > 100);
+}
+
+#[test]
+fn check_reports_unreadable_files() {
+    let o = odgen(&["check", "/nonexistent/x.eds"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("cannot read /nonexistent/x.eds"), "{}", stderr(&o));
+}
+
+#[test]
+fn fmt_rewrites_and_check_detects() {
+    let dir = TempDir::new("fmt");
+    // Same meaning, other spelling: padding, key order, a comment, CRLF.
+    let messy = GOOD
+        .replace("DefaultValue=0x00020192", "DefaultValue=0x20192")
+        .replace("[1001]\n", "; the error register\n[1001]\n")
+        .replace('\n', "\r\n");
+    let f = dir.file("messy.eds", &messy);
+    let o = odgen(&["fmt", "--check", s(&f)]);
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("not in canonical form"), "{}", stdout(&o));
+    assert_eq!(std::fs::read_to_string(&f).unwrap(), messy, "--check must not change the file");
+
+    let before = eds::read_file(&f, &eds::Options::lenient()).unwrap().model;
+    let o = odgen(&["fmt", s(&f)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("1 comment line dropped"), "{}", stderr(&o));
+    let after = std::fs::read_to_string(&f).unwrap();
+    assert!(!after.contains('\r') && after.contains("DefaultValue=0x00020192"));
+    assert_eq!(eds::read_file(&f, &eds::Options::lenient()).unwrap().model, before, "fmt changed the meaning");
+    let o = odgen(&["fmt", "--check", s(&f)]);
+    assert!(o.status.success(), "formatted file is not canonical: {}", stdout(&o));
+    // The canonical form of GOOD is GOOD itself.
+    let g = dir.file("good.eds", GOOD);
+    assert!(odgen(&["fmt", "--check", s(&g)]).status.success());
+}
+
+#[test]
+fn fmt_leaves_files_with_errors_alone() {
+    let dir = TempDir::new("fmt-errors");
+    let text = GOOD.replace("DataType=0x0002\n", "");
+    let f = dir.file("bad.eds", &text);
+    let o = odgen(&["fmt", s(&f)]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("fix its errors first"), "{}", stderr(&o));
+    assert_eq!(std::fs::read_to_string(&f).unwrap(), text);
+}
+
+#[test]
+fn dump_prints_the_model() {
+    let dir = TempDir::new("dump");
+    let f = dir.file("good.eds", GOOD);
+    let o = odgen(&["dump", "--format", "json", s(&f)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let model: eds::Model = serde_json::from_value(v).expect("the JSON is the model");
+    assert_eq!(model, eds::read_file(&f, &eds::Options::lenient()).unwrap().model);
+
+    let o = odgen(&["dump", s(&f)]);
+    assert!(o.status.success());
+    let y = stdout(&o);
+    assert!(y.starts_with("kind: Eds\nfile_info:\n  file_name: drive.eds\n"), "{y}");
+    assert!(y.contains("      name: Modes of operation\n"), "{y}");
+    assert!(y.contains("DefaultValue") || y.contains("default:"), "{y}");
+}
+
+#[test]
+fn dcf_configures_a_node() {
+    let dir = TempDir::new("dcf");
+    let f = dir.file("good.eds", GOOD);
+    let out = dir.0.join("node5.dcf");
+    let o = odgen(&[
+        "dcf",
+        "--node-id",
+        "5",
+        "--baud",
+        "500",
+        "--set",
+        "0x6060sub0=3",
+        "--set",
+        "1014sub0=$NODEID+0x81",
+        s(&f),
+        "-o",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let dcf = eds::read_file(&out, &eds::Options::strict()).unwrap();
+    assert!(!dcf.has_errors(), "{:#?}", dcf.errors().collect::<Vec<_>>());
+    let m = dcf.model;
+    assert_eq!(m.kind, eds::FileKind::Dcf);
+    assert_eq!(m.node_id(), Some(5));
+    assert_eq!(m.commissioning.as_ref().unwrap().baudrate, Some(500));
+    let e = m.entry(0x6060, 0).unwrap();
+    assert_eq!((e.default.clone(), e.parameter_value.clone()), (Some(eds::Value::int(0)), Some(eds::Value::int(3))));
+    assert_eq!(
+        m.entry(0x1014, 0).unwrap().parameter_value,
+        Some(eds::Value::NodeIdPlus { offset: 0x81, radix: eds::Radix::Hex })
+    );
+}
+
+#[test]
+fn dcf_refuses_bad_values_with_locations() {
+    let dir = TempDir::new("dcf-bad");
+    let f = dir.file("good.eds", GOOD);
+    let out = dir.0.join("bad.dcf");
+    let o = odgen(&[
+        "dcf",
+        "--node-id",
+        "5",
+        "--baud",
+        "800",
+        "--set",
+        "0x6060sub0=11",
+        "--set",
+        "0x1000sub0=1",
+        "--set",
+        "0x6060sub0x=1",
+        "--set",
+        "0x6061sub0=1",
+        s(&f),
+        "-o",
+        s(&out),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = stderr(&o);
+    assert!(err.contains("error: 11 is above the entry's HighLimit 10"), "{err}");
+    assert!(err.contains(&format!("--> {}:", f.display())), "{err}");
+    assert!(err.contains("| [6060]"), "{err}");
+    assert!(err.contains("the entry is `ro`"), "{err}");
+    assert!(err.contains("does not support 800 kbit/s"), "{err}");
+    assert!(err.contains("is not a hex sub-index"), "{err}");
+    assert!(err.contains("no object 0x6061"), "{err}");
+    assert!(err.contains("no DCF written (5 problems)"), "{err}");
+    assert!(!out.exists());
+    let o = odgen(&["dcf", "--node-id", "200", s(&f)]);
+    assert_eq!(o.status.code(), Some(2), "clap rejects it");
+    assert!(stderr(&o).contains("outside 1..=127"));
+}
+
+#[test]
+fn bench_read_reports_throughput() {
+    let dir = TempDir::new("bench");
+    dir.file("a.eds", GOOD);
+    dir.file("b.dcf", GOOD);
+    let o = odgen(&["bench-read", "--iterations", "3", s(&dir.0)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["files"], 2);
+    assert_eq!(v["bytes"], 2 * GOOD.len());
+    assert_eq!(v["objects_per_pass"], 10);
+    assert!(v["mb_per_s"].as_f64().unwrap() > 0.0);
+}
