@@ -68,8 +68,7 @@ fn u8_count(n: u8) -> Entry {
 
 /// Header sections filled in.
 pub fn header() -> Model {
-    let mut m = Model::default();
-    m.file_info = FileInfo {
+    let file_info = FileInfo {
         file_name: Some("fixture.eds".into()),
         file_version: Some(1),
         file_revision: Some(2),
@@ -89,7 +88,7 @@ pub fn header() -> Model {
     {
         baud_rates.insert(rate, on);
     }
-    m.device_info = DeviceInfo {
+    let device_info = DeviceInfo {
         vendor_name: Some("Example Vendor".into()),
         vendor_number: Some(0x0000_0151),
         product_name: Some("Example Drive".into()),
@@ -108,9 +107,13 @@ pub fn header() -> Model {
         compact_pdo: None,
         extra: Vec::new(),
     };
-    m.dummy_usage = (1..=7).map(|i| (i, i == 5 || i == 6 || i == 7)).collect();
-    m.comments = vec!["Written by the eds writer tests.".into(), "Second line: a = b".into()];
-    m
+    Model {
+        file_info,
+        device_info,
+        dummy_usage: (1..=7).map(|i| (i, i == 5 || i == 6 || i == 7)).collect(),
+        comments: vec!["Written by the eds writer tests.".into(), "Second line: a = b".into()],
+        ..Model::default()
+    }
 }
 
 /// The communication objects every device has.
