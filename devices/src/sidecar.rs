@@ -346,6 +346,9 @@ pub enum Unit {
     /// `us`
     #[serde(rename = "us")]
     Microsecond,
+    /// `ns`
+    #[serde(rename = "ns")]
+    Nanosecond,
     /// `100us`: multiples of 100 microseconds (CiA 301 inhibit times).
     #[serde(rename = "100us")]
     HundredMicroseconds,
@@ -461,14 +464,27 @@ pub struct UnitSystem {
     pub units: BTreeMap<Dimension, UnitSpec>,
 }
 
-/// `object == equals`.
+/// `object & mask == equals` (without `mask`: `object == equals`).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Condition {
     /// The configuration object.
     pub object: ObjRef,
-    /// The value it must hold.
+    /// Bits to compare (all bits when absent), for flags such as AKD FBUS.PARAM05 bit 4.
+    #[serde(default)]
+    pub mask: Option<Num>,
+    /// The value the (masked) object must hold.
     pub equals: Num,
+}
+
+impl Condition {
+    /// Whether an object value satisfies the condition.
+    pub fn holds(&self, value: i64) -> bool {
+        match self.mask {
+            Some(Num(m)) => value & m == self.equals.0,
+            None => value == self.equals.0,
+        }
+    }
 }
 
 /// How a raw bus value of one dimension becomes a physical quantity:
@@ -552,7 +568,9 @@ impl<'de> Deserialize<'de> for BusScaling {
             return Ok(BusScaling::Variable);
         }
         let factor = t.strip_suffix(":1").and_then(|f| f.trim().parse::<u32>().ok()).filter(|&f| f > 0);
-        factor.map(BusScaling::Factor).ok_or_else(|| de::Error::custom(format!("`{s}`: write \"1:1\", \"1000:1\" or \"var\"")))
+        factor
+            .map(BusScaling::Factor)
+            .ok_or_else(|| de::Error::custom(format!("`{s}`: write \"1:1\", \"1000:1\" or \"var\"")))
     }
 }
 
@@ -602,6 +620,9 @@ pub struct ErrorCode {
     /// Manufacturer-specific byte(s) in the EMCY.
     #[serde(default)]
     pub manufacturer: Option<Num>,
+    /// The vendor's own fault or warning number (AKD `F523`, `n414`).
+    #[serde(default)]
+    pub vendor_code: Option<String>,
     /// Bits set in 1001h.
     #[serde(default)]
     pub register: Option<Num>,
@@ -688,19 +709,34 @@ impl Sidecar {
     /// Reads a sidecar file.
     pub fn read(path: &Path) -> Result<Sidecar, SidecarError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| SidecarError { file: file.clone(), line: 1, col: 1, message: e.to_string() })?;
+        let text = std::fs::read_to_string(path).map_err(|e| SidecarError {
+            file: file.clone(),
+            line: 1,
+            col: 1,
+            message: e.to_string(),
+        })?;
         Sidecar::parse(&file, &text)
     }
 
     /// Rules serde cannot express.
     fn check_self(&self) -> Result<(), String> {
         if self.unit_systems.iter().filter(|u| u.when.is_empty() && u.external.is_none()).count() > 1 {
-            return Err("more than one [[unit_system]] without `when` or `external`: only one can be the default".into());
+            return Err(
+                "more than one [[unit_system]] without `when` or `external`: only one can be the default".into()
+            );
         }
         for u in &self.unit_systems {
             if !u.when.is_empty() && u.external.is_some() {
                 return Err(format!("unit_system `{}` has both `when` and `external`", u.name));
+            }
+        }
+        for u in &self.unit_systems {
+            for c in &u.when {
+                if let Some(Num(m)) = c.mask
+                    && c.equals.0 & !m != 0
+                {
+                    return Err(format!("unit_system `{}`: `equals` has bits outside `mask` for {}", u.name, c.object));
+                }
             }
         }
         for (i, m) in self.modes.iter().enumerate() {
@@ -728,7 +764,7 @@ impl Sidecar {
     pub fn active_unit_system(&self, mut value_of: impl FnMut(ObjRef) -> Option<i64>) -> Option<&UnitSystem> {
         self.unit_systems
             .iter()
-            .find(|u| !u.when.is_empty() && u.when.iter().all(|c| value_of(c.object) == Some(c.equals.0)))
+            .find(|u| !u.when.is_empty() && u.when.iter().all(|c| value_of(c.object).is_some_and(|v| c.holds(v))))
             .or_else(|| self.unit_systems.iter().find(|u| u.when.is_empty() && u.external.is_none()))
     }
 
@@ -834,6 +870,8 @@ reaction = "quick_stop"
         assert_eq!(s.errors[0].code, Num(0x8611));
         assert_eq!(s.active_unit_system(|_| Some(0)).unwrap().name, "only-motor");
         assert_eq!(s.active_unit_system(|_| Some(1)).unwrap().name, "actuator");
+        let masked = Condition { object: "0x36E9".parse().unwrap(), mask: Some(Num(0x10)), equals: Num(0x10) };
+        assert!(masked.holds(0x13) && !masked.holds(0x03));
         let again: Sidecar = toml::from_str(&toml::to_string(&s).unwrap()).unwrap();
         assert_eq!(again, s);
     }

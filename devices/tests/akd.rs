@@ -842,6 +842,9 @@ fn units_and_scaling_chapter_6_5() {
     // 6.5: FBUS.PARAM05 bit 4 = 1 selects the DS402 factors
     let ds402 = s.active_unit_system(|o| (o.index == 0x36E9).then_some(0x10)).unwrap();
     assert_eq!(ds402.name, "ds402-factors");
+    // other bits of FBUS.PARAM05 do not matter, only bit 4 does
+    assert_eq!(s.active_unit_system(|o| (o.index == 0x36E9).then_some(0x13)).unwrap().name, "ds402-factors");
+    assert_eq!(s.active_unit_system(|o| (o.index == 0x36E9).then_some(0x0F)).unwrap().name, "workbench-units");
     assert_eq!(
         ds402.units[&Dimension::Position].scaled_by,
         vec![ScalingKind::EncoderResolution, ScalingKind::GearRatio, ScalingKind::FeedConstant]
@@ -935,14 +938,26 @@ fn emergency_codes_chapter_6_1() {
     let find = |code: i64| s.errors.iter().find(|e| e.code.0 == code).unwrap_or_else(|| panic!("0x{code:04X}"));
     // 6.1 rows
     assert_eq!(find(0x0000).reaction, Reaction::None);
-    assert_eq!(find(0x3110).text, "F523: Bus over voltage");
+    assert_eq!((find(0x3110).vendor_code.as_deref(), find(0x3110).text.as_str()), (Some("F523"), "Bus over voltage"));
     assert_eq!(find(0x3110).reaction, Reaction::QuickStop);
-    assert_eq!(find(0x3180).text, "n503: Warning: Supply missing phase");
+    assert_eq!(
+        (find(0x3180).vendor_code.as_deref(), find(0x3180).text.as_str()),
+        (Some("n503"), "Warning: Supply missing phase")
+    );
     assert_eq!(find(0x3180).reaction, Reaction::Warning);
-    assert_eq!(find(0x4310).text, "F235: Excess temperature, drive (heat sink)");
-    assert_eq!(find(0x8130).text, "F129: Life Guard Error or Heartbeat Error");
-    assert_eq!(find(0x8611).text, "F439: Following error");
-    assert_eq!(find(0xFF01).text, "F702: Fieldbus communication lost");
+    assert_eq!(
+        (find(0x4310).vendor_code.as_deref(), find(0x4310).text.as_str()),
+        (Some("F235"), "Excess temperature, drive (heat sink)")
+    );
+    assert_eq!(
+        (find(0x8130).vendor_code.as_deref(), find(0x8130).text.as_str()),
+        (Some("F129"), "Life Guard Error or Heartbeat Error")
+    );
+    assert_eq!((find(0x8611).vendor_code.as_deref(), find(0x8611).text.as_str()), (Some("F439"), "Following error"));
+    assert_eq!(
+        (find(0xFF01).vendor_code.as_deref(), find(0xFF01).text.as_str()),
+        (Some("F702"), "Fieldbus communication lost")
+    );
     // 4.3: BUSOFF disables the power stage
     assert_eq!(find(0xFF01).reaction, Reaction::PowerOff);
     assert_eq!(find(0xFF0B).reaction, Reaction::PowerOff);
@@ -950,10 +965,11 @@ fn emergency_codes_chapter_6_1() {
     assert_eq!(find(0x1081).text, "General error");
     // every warning (nnnn) is a warning, every fault (Fnnn) is not
     for e in &s.errors {
-        if e.text.starts_with('n') {
+        let vendor = e.vendor_code.as_deref().unwrap_or("");
+        if vendor.starts_with('n') {
             assert_eq!(e.reaction, Reaction::Warning, "{}", e.text);
         }
-        if e.text.starts_with('F') {
+        if vendor.starts_with('F') {
             assert!(matches!(e.reaction, Reaction::QuickStop | Reaction::PowerOff), "{}", e.text);
         }
     }
