@@ -236,6 +236,31 @@ def test_canopen_sdo_upload_through_the_hub(hub):
     assert not errors, errors
 
 
+def test_python_can_connects_to_a_busy_bus(hub):
+    """python-can's handshake reads each `< ok >` with one recv() and fails on anything more;
+    frames from a busy bus (simulated drives send heartbeats and PDOs) must not arrive in the
+    same read. Without the hub's pause after `< ok >` this fails most runs."""
+    stop = threading.Event()
+
+    def chatter():
+        with socketcand_bus(hub) as bus:
+            heartbeat = can.Message(arbitration_id=0x705, data=[0x05], is_extended_id=False)
+            while not stop.is_set():
+                bus.send(heartbeat)
+                time.sleep(0)
+
+    thread = threading.Thread(target=chatter, daemon=True)
+    thread.start()
+    try:
+        for _ in range(10):
+            with socketcand_bus(hub) as late:
+                got = receive(late)
+                assert (got.arbitration_id, bytes(got.data)) == (0x705, b"\x05")
+    finally:
+        stop.set()
+        thread.join(WAIT)
+
+
 def test_python_can_reports_throughput(hub, capsys):
     """Not a benchmark, a sanity figure: frames per second python-can gets through the hub."""
     count = 2000

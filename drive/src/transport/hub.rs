@@ -18,7 +18,7 @@ use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, Shutdown, SocketAddr, TcpListener, Tc
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, Weak};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use super::bus::{Channel, Delivery, LocalEndpoint, MemberId, Sink, next_member_id};
 use super::queue::{BoundedQueue, PushError, lock};
@@ -39,6 +39,15 @@ pub struct HubConfig {
     pub endpoint_queue: usize,
     /// A write to a client that blocks this long disconnects it.
     pub write_timeout: Duration,
+    /// A client that has not opened a channel this long after connecting is disconnected, so
+    /// idle connections cannot use up `max_clients`. (After `open`, silence is normal: a
+    /// client may only listen.)
+    pub open_timeout: Duration,
+    /// Pause after each `< ok >` before the next frame goes to that client. python-can reads
+    /// each handshake reply with one `recv` and compares the whole text with `< ok >`, so a
+    /// frame arriving right behind the reply (likely on a bus busy with heartbeats) would make
+    /// its connect fail; frames meanwhile are queued, not lost.
+    pub reply_pause: Duration,
     /// Where events go; [`HubConfig::default`] prints them to stderr.
     pub observer: HubObserver,
 }
@@ -65,6 +74,8 @@ impl Default for HubConfig {
             client_queue: 4096,
             endpoint_queue: 4096,
             write_timeout: Duration::from_secs(5),
+            open_timeout: Duration::from_secs(30),
+            reply_pause: Duration::from_millis(50),
             observer: Arc::new(|event: &HubEvent| eprintln!("hub: {event}")),
         }
     }
@@ -77,6 +88,8 @@ impl fmt::Debug for HubConfig {
             .field("client_queue", &self.client_queue)
             .field("endpoint_queue", &self.endpoint_queue)
             .field("write_timeout", &self.write_timeout)
+            .field("open_timeout", &self.open_timeout)
+            .field("reply_pause", &self.reply_pause)
             .finish_non_exhaustive()
     }
 }
@@ -414,6 +427,7 @@ impl HubInner {
             stream,
             queue: BoundedQueue::new(self.config.client_queue),
             capacity: self.config.client_queue.max(1),
+            reply_pause: self.config.reply_pause,
             closing: AtomicBool::new(false),
             reason: Mutex::new(None),
             observer: Arc::clone(&self.config.observer),
@@ -459,16 +473,33 @@ impl HubInner {
         let mut session = Session { hub: self, connection, mode: Mode::NoBus, channel: None, errors: 0 };
         let mut decoder = Decoder::new();
         let mut buf = vec![0u8; 16 * 1024];
+        let open_deadline = Instant::now() + self.config.open_timeout;
         let ended = loop {
+            if session.mode == Mode::NoBus {
+                let left = open_deadline.saturating_duration_since(Instant::now());
+                if left.is_zero() || reader.set_read_timeout(Some(left)).is_err() {
+                    break format!("no channel opened within {:?}", self.config.open_timeout);
+                }
+            }
             match reader.read(&mut buf) {
                 Ok(0) => break "client closed the connection".to_owned(),
                 Ok(n) => {
+                    let was_open = session.mode != Mode::NoBus;
                     decoder.feed(&buf[..n], |message| session.handle(message));
                     if connection.closing.load(Ordering::SeqCst) {
                         break connection.reason();
                     }
+                    if !was_open && session.mode != Mode::NoBus && reader.set_read_timeout(None).is_err() {
+                        break "cannot configure the socket".to_owned();
+                    }
                 }
                 Err(error) if error.kind() == io::ErrorKind::Interrupted => {}
+                Err(error) if matches!(error.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => {
+                    if session.mode == Mode::NoBus {
+                        continue; // the deadline check above decides
+                    }
+                    break format!("read failed: {error}");
+                }
                 Err(error) => break format!("read failed: {error}"),
             }
         };
@@ -590,6 +621,7 @@ struct Connection {
     stream: TcpStream,
     queue: BoundedQueue<Outgoing>,
     capacity: usize,
+    reply_pause: Duration,
     closing: AtomicBool,
     reason: Mutex<Option<String>>,
     observer: HubObserver,
@@ -641,6 +673,9 @@ impl Connection {
                         result = result.and_then(|()| flush(&mut writer, &mut text));
                         message.write_to(&mut text);
                         result = result.and_then(|()| flush(&mut writer, &mut text));
+                        if message == Message::Ok && result.is_ok() {
+                            std::thread::sleep(self.reply_pause);
+                        }
                     }
                 }
             }
