@@ -517,7 +517,7 @@ fn handshake_replies_arrive_alone_while_the_bus_is_busy() {
     for attempt in 0..20 {
         let mut stream = TcpStream::connect(hub.local_addr()).unwrap();
         stream.set_read_timeout(Some(WAIT)).unwrap();
-        let mut recv = |stream: &mut TcpStream| {
+        let recv = |stream: &mut TcpStream| {
             let mut buf = [0u8; 256];
             let n = stream.read(&mut buf).unwrap();
             String::from_utf8_lossy(&buf[..n]).into_owned()
