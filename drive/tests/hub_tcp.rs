@@ -532,3 +532,31 @@ fn handshake_replies_arrive_alone_while_the_bus_is_busy() {
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
     chatter.join().unwrap();
 }
+
+#[test]
+fn an_attached_endpoint_that_does_not_read_loses_frames_counted_and_logged_sparsely() {
+    let config = HubConfig { endpoint_queue: 4, ..HubConfig::default() };
+    let (hub, events) = recording_hub(config);
+    let mut lazy = hub.attach("can0").unwrap();
+    let mut busy = hub.attach("can0").unwrap();
+    let mut master = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+    for i in 0..20u8 {
+        master.send(CanFrame::standard(0x200, &[i]).unwrap()).unwrap();
+        assert_eq!(busy.recv_timeout(WAIT).unwrap().unwrap().data(), &[i]);
+    }
+    assert_eq!(lazy.pending(), 4);
+    assert_eq!(lazy.dropped(), 16);
+    let first: Vec<u8> = (0..4).map(|_| lazy.try_recv().unwrap().unwrap().data()[0]).collect();
+    assert_eq!(first, [0, 1, 2, 3]);
+    let logged: Vec<u64> = events
+        .lock()
+        .unwrap()
+        .iter()
+        .filter_map(|e| match e {
+            HubEvent::EndpointOverflow { channel, dropped } if channel == "can0" => Some(*dropped),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(logged, [1, 2, 4, 8, 16]);
+    assert_eq!(hub.client_count(), 1, "the TCP client is unaffected");
+}

@@ -26,6 +26,9 @@
 //! * `< error TEXT >` reports a problem with the client's last message. python-can reads any
 //!   `error` message as an error frame and fails on text it cannot parse, so the hub sends one
 //!   only to a client that sent something malformed.
+//! * python-can reads each handshake reply with a single `recv` and compares the whole text,
+//!   so the hub writes every reply on its own and pauses briefly after `< ok >` before writing
+//!   frames (see `HubConfig::reply_pause`).
 //! * BCM-mode commands (`add`, `filter`, `subscribe`, ...), CAN FD, ISO-TP and control mode are
 //!   recognised and answered as unsupported.
 
