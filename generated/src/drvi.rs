@@ -26,10 +26,10 @@ ModifiedBy=odgen project
 
 [DeviceInfo]
 VendorName=Camozzi Automation S.p.A.
-VendorNumber=0x97
+VendorNumber=0x00000097
 ProductName=DRVI
-ProductNumber=0x5A
-RevisionNumber=0x1
+ProductNumber=0x0000005A
+RevisionNumber=0x00000001
 BaudRate_10=0
 BaudRate_20=0
 BaudRate_50=0
@@ -130,7 +130,7 @@ PDOMapping=1
 [1018]
 ParameterName=Identity object
 ObjectType=0x9
-SubNumber=5
+SubNumber=0x5
 
 [1018sub0]
 ParameterName=Number of entries
@@ -265,7 +265,7 @@ PDOMapping=1
 [1003]
 ParameterName=Pre-defined error field
 ObjectType=0x8
-SubNumber=9
+SubNumber=0x9
 
 [1003sub0]
 ParameterName=Number of errors
@@ -406,7 +406,7 @@ PDOMapping=0
 [1010]
 ParameterName=Store parameters
 ObjectType=0x8
-SubNumber=2
+SubNumber=0x2
 
 [1010sub0]
 ParameterName=Highest sub-index supported
@@ -427,7 +427,7 @@ PDOMapping=0
 [1011]
 ParameterName=Restore default parameters
 ObjectType=0x8
-SubNumber=2
+SubNumber=0x2
 
 [1011sub0]
 ParameterName=Highest sub-index supported
@@ -472,7 +472,7 @@ PDOMapping=0
 [1400]
 ParameterName=Receive PDO communication parameter 1
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1400sub0]
 ParameterName=Highest sub-index supported
@@ -501,7 +501,7 @@ PDOMapping=0
 [1401]
 ParameterName=Receive PDO communication parameter 2
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1401sub0]
 ParameterName=Highest sub-index supported
@@ -530,7 +530,7 @@ PDOMapping=0
 [1402]
 ParameterName=Receive PDO communication parameter 3
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1402sub0]
 ParameterName=Highest sub-index supported
@@ -559,7 +559,7 @@ PDOMapping=0
 [1403]
 ParameterName=Receive PDO communication parameter 4
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1403sub0]
 ParameterName=Highest sub-index supported
@@ -588,7 +588,7 @@ PDOMapping=0
 [1404]
 ParameterName=Receive PDO communication parameter 5
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1404sub0]
 ParameterName=Highest sub-index supported
@@ -617,7 +617,7 @@ PDOMapping=0
 [1405]
 ParameterName=Receive PDO communication parameter 6
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1405sub0]
 ParameterName=Highest sub-index supported
@@ -646,7 +646,7 @@ PDOMapping=0
 [1406]
 ParameterName=Receive PDO communication parameter 7
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1406sub0]
 ParameterName=Highest sub-index supported
@@ -675,7 +675,7 @@ PDOMapping=0
 [1407]
 ParameterName=Receive PDO communication parameter 8
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1407sub0]
 ParameterName=Highest sub-index supported
@@ -704,7 +704,7 @@ PDOMapping=0
 [1600]
 ParameterName=Receive PDO mapping parameter 1
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1600sub0]
 ParameterName=Number of mapped objects
@@ -781,7 +781,7 @@ PDOMapping=0
 [1601]
 ParameterName=Receive PDO mapping parameter 2
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1601sub0]
 ParameterName=Number of mapped objects
@@ -858,7 +858,7 @@ PDOMapping=0
 [1602]
 ParameterName=Receive PDO mapping parameter 3
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1602sub0]
 ParameterName=Number of mapped objects
@@ -935,7 +935,7 @@ PDOMapping=0
 [1603]
 ParameterName=Receive PDO mapping parameter 4
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1603sub0]
 ParameterName=Number of mapped objects
@@ -1012,7 +1012,7 @@ PDOMapping=0
 [1604]
 ParameterName=Receive PDO mapping parameter 5
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1604sub0]
 ParameterName=Number of mapped objects
@@ -1089,7 +1089,7 @@ PDOMapping=0
 [1605]
 ParameterName=Receive PDO mapping parameter 6
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1605sub0]
 ParameterName=Number of mapped objects
@@ -1166,7 +1166,7 @@ PDOMapping=0
 [1606]
 ParameterName=Receive PDO mapping parameter 7
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1606sub0]
 ParameterName=Number of mapped objects
@@ -1243,7 +1243,7 @@ PDOMapping=0
 [1607]
 ParameterName=Receive PDO mapping parameter 8
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1607sub0]
 ParameterName=Number of mapped objects
@@ -1320,7 +1320,7 @@ PDOMapping=0
 [1800]
 ParameterName=Transmit PDO communication parameter 1
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1800sub0]
 ParameterName=Highest sub-index supported
@@ -1373,7 +1373,7 @@ PDOMapping=0
 [1801]
 ParameterName=Transmit PDO communication parameter 2
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1801sub0]
 ParameterName=Highest sub-index supported
@@ -1426,7 +1426,7 @@ PDOMapping=0
 [1802]
 ParameterName=Transmit PDO communication parameter 3
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1802sub0]
 ParameterName=Highest sub-index supported
@@ -1479,7 +1479,7 @@ PDOMapping=0
 [1803]
 ParameterName=Transmit PDO communication parameter 4
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1803sub0]
 ParameterName=Highest sub-index supported
@@ -1532,7 +1532,7 @@ PDOMapping=0
 [1804]
 ParameterName=Transmit PDO communication parameter 5
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1804sub0]
 ParameterName=Highest sub-index supported
@@ -1585,7 +1585,7 @@ PDOMapping=0
 [1805]
 ParameterName=Transmit PDO communication parameter 6
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1805sub0]
 ParameterName=Highest sub-index supported
@@ -1638,7 +1638,7 @@ PDOMapping=0
 [1806]
 ParameterName=Transmit PDO communication parameter 7
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1806sub0]
 ParameterName=Highest sub-index supported
@@ -1691,7 +1691,7 @@ PDOMapping=0
 [1807]
 ParameterName=Transmit PDO communication parameter 8
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1807sub0]
 ParameterName=Highest sub-index supported
@@ -1744,7 +1744,7 @@ PDOMapping=0
 [1A00]
 ParameterName=Transmit PDO mapping parameter 1
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A00sub0]
 ParameterName=Number of mapped objects
@@ -1821,7 +1821,7 @@ PDOMapping=0
 [1A01]
 ParameterName=Transmit PDO mapping parameter 2
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A01sub0]
 ParameterName=Number of mapped objects
@@ -1898,7 +1898,7 @@ PDOMapping=0
 [1A02]
 ParameterName=Transmit PDO mapping parameter 3
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A02sub0]
 ParameterName=Number of mapped objects
@@ -1975,7 +1975,7 @@ PDOMapping=0
 [1A03]
 ParameterName=Transmit PDO mapping parameter 4
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A03sub0]
 ParameterName=Number of mapped objects
@@ -2052,7 +2052,7 @@ PDOMapping=0
 [1A04]
 ParameterName=Transmit PDO mapping parameter 5
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A04sub0]
 ParameterName=Number of mapped objects
@@ -2129,7 +2129,7 @@ PDOMapping=0
 [1A05]
 ParameterName=Transmit PDO mapping parameter 6
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A05sub0]
 ParameterName=Number of mapped objects
@@ -2206,7 +2206,7 @@ PDOMapping=0
 [1A06]
 ParameterName=Transmit PDO mapping parameter 7
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A06sub0]
 ParameterName=Number of mapped objects
@@ -2283,7 +2283,7 @@ PDOMapping=0
 [1A07]
 ParameterName=Transmit PDO mapping parameter 8
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A07sub0]
 ParameterName=Number of mapped objects
@@ -2514,7 +2514,7 @@ PDOMapping=1
 [607D]
 ParameterName=Software position limit
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [607Dsub0]
 ParameterName=Highest sub-index supported
@@ -2591,7 +2591,7 @@ PDOMapping=0
 [6091]
 ParameterName=Gear ratio
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [6091sub0]
 ParameterName=Highest sub-index supported
@@ -2620,7 +2620,7 @@ PDOMapping=0
 [6092]
 ParameterName=Feed constant
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [6092sub0]
 ParameterName=Highest sub-index supported
@@ -2657,7 +2657,7 @@ PDOMapping=1
 [6099]
 ParameterName=Homing speeds
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [6099sub0]
 ParameterName=Highest sub-index supported
@@ -2718,7 +2718,7 @@ SupportedObjects=11
 [2001]
 ParameterName=Feed converter
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [2001sub0]
 ParameterName=Highest sub-index supported
@@ -2789,7 +2789,7 @@ PDOMapping=0
 [2011]
 ParameterName=PID parameters
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [2011sub0]
 ParameterName=Highest sub-index supported
@@ -2844,7 +2844,7 @@ PDOMapping=0
 [2012]
 ParameterName=Profile parameters
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [2012sub0]
 ParameterName=Highest sub-index supported

@@ -153,10 +153,29 @@ fn explain(plan: &Plan<'_>, dir: Direction, raw: u32, code: AbortCode) -> Mappin
 /// Checks a whole mapping (`0xIIIISSLL` values) with the run-time rules
 /// (`od_runtime::pdo::check_mapping`) against the dictionary generated from `model`; returns
 /// its length in bits, or why the first refused entry is refused.
+///
+/// To check many mappings against one model, build a [`MappingChecker`] once instead.
 pub fn check_mapping(model: &Model, options: &Options, dir: Direction, mapping: &[u32]) -> Result<u32, MappingError> {
-    let mut sink = Sink::new(&options.source_name);
-    let plan = crate::plan::build(model, options, &mut sink);
-    check_with_plan(&plan, dir, mapping)
+    MappingChecker::new(model, options).check(dir, mapping)
+}
+
+/// The dictionary generated from a model, as the mapping check sees it.
+#[derive(Debug)]
+pub struct MappingChecker<'m> {
+    plan: Plan<'m>,
+}
+
+impl<'m> MappingChecker<'m> {
+    /// Plans the dictionary of `model` (as [`crate::generate`] would, diagnostics dropped).
+    pub fn new(model: &'m Model, options: &Options) -> Self {
+        let mut sink = Sink::new(&options.source_name);
+        MappingChecker { plan: crate::plan::build(model, options, &mut sink) }
+    }
+
+    /// Checks a whole mapping like [`check_mapping`].
+    pub fn check(&self, dir: Direction, mapping: &[u32]) -> Result<u32, MappingError> {
+        check_with_plan(&self.plan, dir, mapping)
+    }
 }
 
 fn lookup<'p>(plan: &'p Plan<'p>) -> impl FnMut(u16, u8) -> Result<od_runtime::pdo::Mappable, AbortCode> + 'p {
