@@ -433,7 +433,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
     }
 
     fn load_pdo(&mut self, dir: Direction, n: usize) {
-        if n >= P {
+        // CiA 301 numbers at most 512 PDOs per direction.
+        if n >= P || n >= 512 {
             return;
         }
         let (comm, map) = match dir {
@@ -594,7 +595,11 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                     return Err(if data.len() < 4 { AbortCode::LENGTH_TOO_LOW } else { AbortCode::LENGTH_TOO_HIGH });
                 }
                 self.app.on_write(&self.od, index, sub, data, source)?;
-                if index == 0x1010 { self.store(sub, le_u32(data))? } else { self.restore(sub, le_u32(data))? }
+                if index == 0x1010 {
+                    self.store(sub, le_u32(data))?
+                } else {
+                    self.restore(sub, le_u32(data))?
+                }
                 self.event(Event::Written { index, sub, source });
                 return Ok(());
             }
@@ -616,6 +621,15 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                     return Err(AbortCode::DEVICE_STATE);
                 }
                 if data.len() == 1 && (data[0] == 1 || data[0] > 240) {
+                    return Err(AbortCode::INVALID_VALUE);
+                }
+            }
+            0x1005 | 0x1014 if sub == 0 && data.len() == 4 => {
+                // CiA 301 §7.3.5: restricted CAN-IDs are not configurable, and 29-bit ids are
+                // not supported. An EMCY COB-ID marked not valid may hold anything.
+                let v = le_u32(data);
+                let valid = index == 0x1005 || v & 0x8000_0000 == 0;
+                if v & 0x2000_0000 != 0 || (valid && restricted((v & 0x7FF) as u16)) {
                     return Err(AbortCode::INVALID_VALUE);
                 }
             }

@@ -230,8 +230,7 @@ pub trait ObjectDictionary {
         match all.binary_search_by(|e| (e.index, e.sub).cmp(&(index, sub))) {
             Ok(i) => Ok(&all[i]),
             Err(i) => {
-                let exists = all.get(i).is_some_and(|e| e.index == index)
-                    || (i > 0 && all[i - 1].index == index);
+                let exists = all.get(i).is_some_and(|e| e.index == index) || (i > 0 && all[i - 1].index == index);
                 Err(if exists { AbortCode::NO_SUB_INDEX } else { AbortCode::NO_OBJECT })
             }
         }

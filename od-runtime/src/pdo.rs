@@ -125,7 +125,7 @@ pub fn check_entry(
         return Err(AbortCode::PDO_LENGTH_EXCEEDED);
     }
     let fits = if m.data_type.is_variable_length() {
-        e.bits % 8 == 0 && u32::from(e.bits) <= m.bits
+        e.bits.is_multiple_of(8) && u32::from(e.bits) <= m.bits
     } else {
         u32::from(e.bits) == m.bits
     };
@@ -161,7 +161,7 @@ pub fn check_mapping(
 /// Copies the low `bits` bits of `src` (little-endian) into `dst` starting at bit `offset`
 /// (bit 0 = least significant bit of byte 0). Bits beyond `dst` are dropped.
 pub fn put_bits(dst: &mut [u8; 8], offset: u32, bits: u32, src: &[u8]) {
-    if offset % 8 == 0 && bits % 8 == 0 {
+    if offset.is_multiple_of(8) && bits.is_multiple_of(8) {
         let start = ((offset / 8) as usize).min(8);
         let n = ((bits / 8) as usize).min(src.len()).min(8 - start);
         dst[start..start + n].copy_from_slice(&src[..n]);
@@ -187,7 +187,7 @@ pub fn put_bits(dst: &mut [u8; 8], offset: u32, bits: u32, src: &[u8]) {
 pub fn get_bits(src: &[u8; 8], offset: u32, bits: u32, dst: &mut [u8; 8]) -> usize {
     let n = (bits.min(64) as usize).div_ceil(8);
     *dst = [0; 8];
-    if offset % 8 == 0 && bits % 8 == 0 {
+    if offset.is_multiple_of(8) && bits.is_multiple_of(8) {
         let start = ((offset / 8) as usize).min(8);
         let m = n.min(8 - start);
         dst[..m].copy_from_slice(&src[start..start + m]);
@@ -222,7 +222,8 @@ mod tests {
         let ro = |_, _| obj(DataType::Unsigned16, Access::Ro, 16);
         assert_eq!(check_entry(Direction::Receive, 0x6041_0010, ro), Err(AbortCode::NOT_MAPPABLE));
         assert!(check_entry(Direction::Transmit, 0x6041_0010, ro).is_ok());
-        let not = |_, _| Ok(Mappable { data_type: DataType::Unsigned8, access: Access::Rw, pdo_mappable: false, bits: 8 });
+        let not =
+            |_, _| Ok(Mappable { data_type: DataType::Unsigned8, access: Access::Rw, pdo_mappable: false, bits: 8 });
         assert_eq!(check_entry(Direction::Transmit, 0x2000_0008, not), Err(AbortCode::NOT_MAPPABLE));
         let missing = |_, _| Err(AbortCode::NO_OBJECT);
         assert_eq!(check_entry(Direction::Transmit, 0x2000_0008, missing), Err(AbortCode::NO_OBJECT));

@@ -43,9 +43,21 @@ enum UpPhase {
 enum State {
     Idle,
     /// Segmented download: `pos` bytes received so far.
-    Download { index: u16, sub: u8, toggle: bool, size: Option<usize>, pos: usize },
+    Download {
+        index: u16,
+        sub: u8,
+        toggle: bool,
+        size: Option<usize>,
+        pos: usize,
+    },
     /// Segmented upload of `len` bytes held in the buffer, `pos` sent so far.
-    Upload { index: u16, sub: u8, toggle: bool, len: usize, pos: usize },
+    Upload {
+        index: u16,
+        sub: u8,
+        toggle: bool,
+        len: usize,
+        pos: usize,
+    },
     /// Block download. `seq` is the last in-order sequence number of the current block, `lost`
     /// is set once a segment went missing, `last` once the segment with `c` was accepted.
     BlockDownload {
@@ -60,7 +72,15 @@ enum State {
         last: bool,
     },
     /// Block upload of `len` bytes; `acked` bytes confirmed by the client.
-    BlockUpload { index: u16, sub: u8, crc: bool, len: usize, acked: usize, blksize: u8, phase: UpPhase },
+    BlockUpload {
+        index: u16,
+        sub: u8,
+        crc: bool,
+        len: usize,
+        acked: usize,
+        blksize: u8,
+        phase: UpPhase,
+    },
 }
 
 /// An SDO server with a transfer buffer of `N` bytes (the largest value it can move).
@@ -512,7 +532,8 @@ impl<const N: usize> SdoServer<N> {
                 emit(seg);
                 pos += n;
             }
-            self.state = State::BlockUpload { index, sub, crc, len, acked, blksize, phase: UpPhase::WaitAck { sent, last } };
+            self.state =
+                State::BlockUpload { index, sub, crc, len, acked, blksize, phase: UpPhase::WaitAck { sent, last } };
             self.last = now;
             return;
         }

@@ -230,10 +230,7 @@ fn block_download_errors() {
     h.exchange("601 C6 01 20 00 05 00 00 00", &["581 A4 01 20 00 7F 00 00 00"]);
     h.exchange("601 81 61 62 63 00 00 00 00", &["581 A2 01 7F 00 00 00 00 00"]);
     let c = crc16_ccitt(0, b"abc");
-    h.exchange(
-        &format!("601 D1 {:02X} {:02X} 00 00 00 00 00", c as u8, c >> 8),
-        &["581 80 01 20 00 10 00 07 06"],
-    );
+    h.exchange(&format!("601 D1 {:02X} {:02X} 00 00 00 00 00", c as u8, c >> 8), &["581 80 01 20 00 10 00 07 06"]);
     // Only an end request may follow the last segment.
     h.exchange("601 C6 01 20 00 03 00 00 00", &["581 A4 01 20 00 7F 00 00 00"]);
     h.exchange("601 81 61 62 63 00 00 00 00", &["581 A2 01 7F 00 00 00 00 00"]);
@@ -317,7 +314,10 @@ fn block_upload_frames_and_retransmission() {
     // The client only got the first segment: the second is sent again.
     assert_eq!(h.send("601 A2 01 02 00 00 00 00 00"), ["581 01 69 6D 65 20 74 65 73", "581 82 74 20 64 72 69 76 65"]);
     let c = crc16_ccitt(0, b"od-runtime test drive");
-    assert_eq!(h.send("601 A2 02 02 00 00 00 00 00"), [format!("581 C1 {:02X} {:02X} 00 00 00 00 00", c as u8, c >> 8)]);
+    assert_eq!(
+        h.send("601 A2 02 02 00 00 00 00 00"),
+        [format!("581 C1 {:02X} {:02X} 00 00 00 00 00", c as u8, c >> 8)]
+    );
     assert!(h.send("601 A1 00 00 00 00 00 00 00").is_empty());
     // Protocol switch threshold: small values come back as a normal upload.
     h.exchange("601 A4 00 10 00 10 08 00 00", &["581 43 00 10 00 92 01 02 00"]);
@@ -344,4 +344,14 @@ fn sdo_only_in_pre_operational_and_operational() {
     // Frames that are not 8 bytes long are ignored.
     assert!(h.send("601 40 00 10 00").is_empty());
     let _ = h.od().entries();
+}
+
+#[test]
+fn upload_larger_than_the_buffer_is_out_of_memory() {
+    let mut h = Harness::new();
+    h.dev.write(0x2003, 0, &[7u8; 1500]).unwrap();
+    h.exchange("601 40 03 20 00 00 00 00 00", &["581 80 03 20 00 05 00 04 05"]);
+    h.exchange("601 A4 03 20 00 10 00 00 00", &["581 80 03 20 00 05 00 04 05"]);
+    // A local write checks the dictionary's limits too.
+    assert_eq!(h.dev.write(0x2003, 0, &[7u8; 3000]), Err(od_runtime::od::AbortCode::LENGTH_TOO_HIGH));
 }

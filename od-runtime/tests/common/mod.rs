@@ -129,7 +129,13 @@ const fn table() -> [EntryInfo; N] {
     p = 0;
     while p < 4 {
         let idx = 0x1600 + p as u16;
-        let count = if p == 3 { 0 } else if p == 2 { 1 } else { 2 };
+        let count = if p == 3 {
+            0
+        } else if p == 2 {
+            1
+        } else {
+            2
+        };
         push!(limits(e(idx, 0, Unsigned8, Rw, false, int(count)), 0, 8));
         k = 1;
         while k <= 8 {
@@ -155,7 +161,8 @@ const fn table() -> [EntryInfo; N] {
     }
     // TPDO mapping: 1: statusword + mode display; 2: statusword + position;
     // 3: statusword + velocity; 4: error register.
-    let tmaps: [[u32; 2]; 4] = [[0x6041_0010, 0x6061_0008], [0x6041_0010, 0x6064_0020], [0x6041_0010, 0x606C_0020], [0x1001_0008, 0]];
+    let tmaps: [[u32; 2]; 4] =
+        [[0x6041_0010, 0x6061_0008], [0x6041_0010, 0x6064_0020], [0x6041_0010, 0x606C_0020], [0x1001_0008, 0]];
     p = 0;
     while p < 4 {
         let idx = 0x1A00 + p as u16;
@@ -213,6 +220,20 @@ const fn offsets() -> ([usize; N], usize) {
 }
 
 const LAYOUT: ([usize; N], usize) = offsets();
+
+const fn keys() -> [u32; N] {
+    let t = table();
+    let mut k = [0; N];
+    let mut i = 0;
+    while i < N {
+        k[i] = (t[i].index as u32) << 8 | t[i].sub as u32;
+        i += 1;
+    }
+    k
+}
+
+/// `index << 8 | sub` of every entry, for a fast lookup.
+static KEYS: [u32; N] = keys();
 const TOTAL: usize = LAYOUT.1;
 
 /// The test dictionary: every value as bytes in one arena.
@@ -235,8 +256,8 @@ impl TestOd {
     }
 
     fn slot(&self, index: u16, sub: u8) -> Result<usize, AbortCode> {
-        self.info(index, sub)?;
-        ENTRIES.binary_search_by(|e| (e.index, e.sub).cmp(&(index, sub))).map_err(|_| AbortCode::NO_OBJECT)
+        let key = u32::from(index) << 8 | u32::from(sub);
+        KEYS.binary_search(&key).map_err(|_| self.info(index, sub).err().unwrap_or(AbortCode::NO_OBJECT))
     }
 
     /// Reads an integer entry (tests only).
