@@ -79,6 +79,12 @@ pub enum Event {
     LifeGuardingLost,
     /// Guarding requests arrived again after [`Event::LifeGuardingLost`].
     LifeGuardingResumed,
+    /// An RPDO with an event timer (deadline monitoring, 1400h.. sub-index 5) was not received
+    /// in time after its previous reception. CiA 301 suggests EMCY 8250h for it.
+    RpdoTimeout {
+        /// Offset of its communication object from 1400h (0 = RPDO1).
+        pdo: u16,
+    },
     /// The CiA 402 state machine made a transition.
     Cia402(cia402::Transition),
 }
@@ -185,6 +191,10 @@ struct Rpdo {
     map: [MapEntry; MAX_MAPPED],
     bytes: u8,
     pending: Option<[u8; 8]>,
+    /// Deadline monitoring: 0 = off.
+    timeout: Micros,
+    last_rx: Option<Micros>,
+    expired: bool,
 }
 
 impl Rpdo {
@@ -198,6 +208,9 @@ impl Rpdo {
         map: [MapEntry { index: 0, sub: 0, bits: 0 }; MAX_MAPPED],
         bytes: 0,
         pending: None,
+        timeout: 0,
+        last_rx: None,
+        expired: false,
     };
 
     fn active(&self) -> bool {
@@ -474,6 +487,9 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                     map: entries,
                     bytes,
                     pending: None,
+                    timeout: Micros::from(read_uint(od, comm, 5).unwrap_or(0)) * 1000,
+                    last_rx: None,
+                    expired: false,
                 };
             }
             Direction::Transmit => {
@@ -723,6 +739,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         } else {
             for r in &mut self.rpdo {
                 r.pending = None;
+                r.last_rx = None;
             }
         }
         if !to.sdo_allowed() {
@@ -915,6 +932,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
     }
 
     fn on_rpdo(&mut self, n: usize, data: &[u8]) {
+        self.rpdo[n].last_rx = Some(self.now);
+        self.rpdo[n].expired = false;
         if data.len() < usize::from(self.rpdo[n].bytes) {
             self.emcy(emcy::PDO_LENGTH_ERROR, emcy::REG_COMMUNICATION, [0; 5]);
             return;
@@ -1010,6 +1029,17 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         }
         if self.nmt.pdo_allowed() {
             self.poll_tpdos(now, emit);
+            for n in 0..P {
+                let r = &mut self.rpdo[n];
+                if r.timeout != 0
+                    && !r.expired
+                    && let Some(last) = r.last_rx
+                    && now >= last.saturating_add(r.timeout)
+                {
+                    r.expired = true;
+                    self.event(Event::RpdoTimeout { pdo: n as u16 });
+                }
+            }
         }
         if self.guard_reply {
             self.guard_reply = false;

@@ -240,3 +240,25 @@ fn pdo_count_follows_the_dictionary() {
     h.dev.signal_error(0x3210, od_runtime::emcy::REG_VOLTAGE, [0; 5]);
     assert_eq!(h.poll(), ["081 10 32 05 00 00 00 00 00", "481 05"]);
 }
+
+#[test]
+fn rpdo_deadline_monitoring() {
+    let mut h = operational();
+    h.sdo_write_ok(0x1400, 5, &[50, 0]); // 50 ms
+    h.events();
+    // Not monitored before the first reception.
+    h.advance(200_000);
+    assert!(h.events().is_empty());
+    h.send("201 06 00 01");
+    h.events();
+    h.advance(49_999);
+    assert!(h.events().is_empty());
+    h.advance(1);
+    assert_eq!(h.events(), [Event::RpdoTimeout { pdo: 0 }]);
+    h.advance(100_000);
+    assert!(h.events().is_empty());
+    h.send("201 06 00 01");
+    h.events();
+    h.advance(50_000);
+    assert_eq!(h.events(), [Event::RpdoTimeout { pdo: 0 }]);
+}
