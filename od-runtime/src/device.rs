@@ -92,6 +92,32 @@ pub enum Event {
 /// The application side of a device: a veto on writes and a stream of events.
 ///
 /// Both methods have empty defaults; `()` implements the trait for devices without behaviour.
+///
+/// ```
+/// use od_runtime::cia402::State;
+/// use od_runtime::od::AbortCode;
+/// use od_runtime::{App, Event, WriteSource};
+///
+/// struct Drive {
+///     enabled: bool,
+/// }
+///
+/// impl<OD> App<OD> for Drive {
+///     fn on_write(&mut self, _: &OD, index: u16, _: u8, data: &[u8], _: WriteSource) -> Result<(), AbortCode> {
+///         // This drive only knows profile position (1) and profile velocity (3).
+///         if index == 0x6060 && !matches!(data, [1] | [3]) {
+///             return Err(AbortCode::INVALID_VALUE);
+///         }
+///         Ok(())
+///     }
+///
+///     fn on_event(&mut self, _: &mut OD, event: Event) {
+///         if let Event::Cia402(t) = event {
+///             self.enabled = t.to == State::OperationEnabled;
+///         }
+///     }
+/// }
+/// ```
 pub trait App<OD> {
     /// Called before a master's (or a local) write reaches the dictionary. Returning an error
     /// rejects the write: an SDO download aborts with that code, an RPDO entry is skipped.

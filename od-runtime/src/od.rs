@@ -4,6 +4,12 @@
 //! provides a static, sorted table of [`EntryInfo`]. The runtime's services (SDO server, PDOs,
 //! NMT resets, store/restore) reach the dictionary only through this trait, so any dictionary,
 //! generated or hand-written, plugs in.
+//!
+//! Implementations share two helpers so every dictionary applies the same rules:
+//! [`EntryInfo::check_value`] (length and limit checks with the CiA 301 abort codes, to call
+//! from [`ObjectDictionary::write`]) and [`DefaultValue::encode`] (a default as bus bytes with
+//! `$NODEID` resolved, for [`ObjectDictionary::restore_defaults`]). The PDO mapping rules live in
+//! [`crate::pdo`] as pure functions for the same reason.
 
 /// A CiA 301 SDO abort code.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
