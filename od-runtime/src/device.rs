@@ -1402,6 +1402,22 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
         }
     }
 
+    /// Sets the application's statusword (6041h) bits: those of `mask` take their value from
+    /// `value` (warning bit 7, target reached bit 10, internal limit bit 11, the mode-specific
+    /// bits 12..13, the manufacturer bits 8, 14, 15). Bits 0..=6 and 9 belong to the state
+    /// machine and are left alone. Returns `false` if the dictionary has no 6041h.
+    pub fn set_statusword_flags(&mut self, mask: u16, value: u16) -> bool {
+        let od = &mut self.core.od;
+        let mut b = [0u8; 8];
+        let cur = match od.read(0x6041, 0, &mut b) {
+            Ok(2) => u16::from_le_bytes([b[0], b[1]]),
+            _ => return false,
+        };
+        let mask = mask & !0x027F;
+        let new = (cur & !mask) | (value & mask);
+        new == cur || od.write(0x6041, 0, &new.to_le_bytes()).is_ok()
+    }
+
     /// Sets statusword bit 9 (remote). While it is clear, controlword writes from the bus
     /// abort with 0x0800_0021 (local control).
     pub fn set_remote(&mut self, remote: bool) {

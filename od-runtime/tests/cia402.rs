@@ -198,3 +198,14 @@ fn pure_state_machine() {
     assert_eq!(State::from_statusword(0x0000), Some(State::NotReadyToSwitchOn));
     assert_eq!(State::from_statusword(0x0001), None);
 }
+
+#[test]
+fn application_statusword_flags() {
+    let mut h = Harness::new();
+    cw(&mut h, 0x06);
+    assert!(h.dev.set_statusword_flags(0x0400 | 0x0001, 0x0400));
+    // Target reached set, the state bit 0 untouched.
+    assert_eq!(sw(&h), 0x0631);
+    assert!(h.dev.set_statusword_flags(0x0400, 0));
+    assert_eq!(sw(&h), 0x0231);
+}
