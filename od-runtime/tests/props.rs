@@ -102,6 +102,28 @@ proptest! {
     }
 
     #[test]
+    fn transfers_round_trip(
+        data in prop::collection::vec(any::<u8>(), 0..1024),
+        blk in 1u8..=127,
+        crc in any::<bool>(),
+        lose in prop::option::of(1u8..=127),
+        segmented in any::<bool>(),
+    ) {
+        let mut h = Harness::new();
+        if segmented {
+            // The last segment's answer carries that segment's toggle bit.
+            let segments = data.len().div_ceil(7).max(1);
+            let last = if segments % 2 == 0 { "581 30 00 00 00 00 00 00 00" } else { "581 20 00 00 00 00 00 00 00" };
+            prop_assert_eq!(segmented_download(&mut h, 0x2003, &data), last);
+            prop_assert_eq!(upload(&mut h, 0x2003, 0), data.clone());
+        } else {
+            prop_assert_eq!(block_download(&mut h, 0x2003, &data, crc, lose), "581 A1 00 00 00 00 00 00 00");
+        }
+        prop_assert_eq!(h.od().bytes(0x2003, 0), data.clone());
+        prop_assert_eq!(block_upload(&mut h, 0x2003, 0, blk, crc), data);
+    }
+
+    #[test]
     fn frame_from_parts_is_total(id in any::<u16>(), rtr in any::<bool>(), len in any::<u8>(), data in any::<[u8; 8]>()) {
         let f = Frame::from_parts(id, rtr, len, data);
         prop_assert!(f.id() <= 0x7FF);

@@ -142,55 +142,6 @@ fn application_veto() {
     assert_eq!(w.last().unwrap(), &(0x60FF, 0, vec![0x10, 0, 0, 0], od_runtime::WriteSource::Sdo));
 }
 
-/// Drives a block download of `data` to `index`/`sub`, losing segment `lose` (1-based within
-/// the first block) once, and returns the server's last answer.
-fn block_download(h: &mut Harness, index: u16, data: &[u8], crc: bool, lose: Option<u8>) -> String {
-    let cmd = 0xC2 | if crc { 0x04 } else { 0 };
-    let len = (data.len() as u32).to_le_bytes();
-    let init = format!("601 {:02X} {:02X} {:02X} 00 {}", cmd, index as u8, index >> 8, hex(&len));
-    let r = h.send(&init);
-    assert_eq!(r.len(), 1);
-    assert!(r[0].starts_with(&format!("581 A4 {:02X} {:02X} 00", index as u8, index >> 8)), "{r:?}");
-    let mut blksize: u8 = u8::from_str_radix(r[0].split(' ').nth(5).unwrap(), 16).unwrap();
-    let chunks: Vec<&[u8]> = if data.is_empty() { vec![&[][..]] } else { data.chunks(7).collect() };
-    let mut next = 0usize;
-    let mut lose = lose;
-    while next < chunks.len() {
-        let mut seq = 0u8;
-        let mut resp = Vec::new();
-        while seq < blksize && next + (seq as usize) < chunks.len() {
-            seq += 1;
-            let i = next + seq as usize - 1;
-            let last = i + 1 == chunks.len();
-            let mut seg = vec![seq | if last { 0x80 } else { 0 }];
-            seg.extend_from_slice(chunks[i]);
-            seg.resize(8, 0);
-            if lose == Some(seq) {
-                lose = None;
-                continue;
-            }
-            resp = h.send(&format!("601 {}", hex(&seg)));
-            if !resp.is_empty() {
-                break;
-            }
-        }
-        assert_eq!(resp.len(), 1, "no block acknowledgement");
-        let b: Vec<u8> = resp[0].split(' ').skip(1).map(|x| u8::from_str_radix(x, 16).unwrap()).collect();
-        if b[0] == 0x80 {
-            return resp[0].clone();
-        }
-        assert_eq!(b[0], 0xA2);
-        next += b[1] as usize;
-        blksize = b[2];
-    }
-    let unused = if data.is_empty() { 7 } else { (7 - data.len() % 7) % 7 } as u8;
-    let c = if crc { crc16_ccitt(0, data) } else { 0 };
-    let end = format!("601 {:02X} {:02X} {:02X} 00 00 00 00 00", 0xC1 | (unused << 2), c as u8, c >> 8);
-    let r = h.send(&end);
-    assert_eq!(r.len(), 1);
-    r[0].clone()
-}
-
 #[test]
 fn block_download_with_crc() {
     let mut h = Harness::new();
@@ -251,45 +202,6 @@ fn block_download_errors() {
     }
     assert_eq!(last, ["581 A2 14 01 00 00 00 00 00"]);
     h.exchange("601 01 01 01 01 01 01 01 01", &["581 80 03 20 00 05 00 04 05"]);
-}
-
-/// Runs a block upload of `index`/`sub` with block size `blk`, and returns the data and the
-/// server's `n` and CRC from the end message.
-fn block_upload(h: &mut Harness, index: u16, sub: u8, blk: u8, crc: bool) -> Vec<u8> {
-    let cmd = 0xA0 | if crc { 0x04 } else { 0 };
-    let r = h.send(&format!("601 {cmd:02X} {:02X} {:02X} {sub:02X} {blk:02X} 00 00 00", index as u8, index >> 8));
-    assert_eq!(r.len(), 1);
-    let b: Vec<u8> = r[0].split(' ').skip(1).map(|x| u8::from_str_radix(x, 16).unwrap()).collect();
-    assert_eq!(b[0], 0xC6, "{r:?}");
-    let size = u32::from_le_bytes([b[4], b[5], b[6], b[7]]) as usize;
-    let mut data = Vec::new();
-    let mut frames = h.send("601 A3 00 00 00 00 00 00 00");
-    loop {
-        assert!(!frames.is_empty() && frames.len() <= blk as usize);
-        let mut done = false;
-        for (i, f) in frames.iter().enumerate() {
-            let b: Vec<u8> = f.split(' ').skip(1).map(|x| u8::from_str_radix(x, 16).unwrap()).collect();
-            assert_eq!(b[0] & 0x7F, i as u8 + 1);
-            data.extend_from_slice(&b[1..]);
-            done = b[0] & 0x80 != 0;
-        }
-        let ack = format!("601 A2 {:02X} {blk:02X} 00 00 00 00 00", frames.len());
-        frames = h.send(&ack);
-        if done {
-            break;
-        }
-    }
-    assert_eq!(frames.len(), 1);
-    let b: Vec<u8> = frames[0].split(' ').skip(1).map(|x| u8::from_str_radix(x, 16).unwrap()).collect();
-    assert_eq!(b[0] & 0xE3, 0xC1);
-    let unused = ((b[0] >> 2) & 7) as usize;
-    data.truncate(data.len() - unused);
-    assert_eq!(data.len(), size);
-    if crc {
-        assert_eq!(u16::from_le_bytes([b[1], b[2]]), crc16_ccitt(0, &data));
-    }
-    assert!(h.send("601 A1 00 00 00 00 00 00 00").is_empty());
-    data
 }
 
 #[test]
