@@ -267,3 +267,17 @@ fn upload_larger_than_the_buffer_is_out_of_memory() {
     // A local write checks the dictionary's limits too.
     assert_eq!(h.dev.write(0x2003, 0, &[7u8; 3000]), Err(od_runtime::od::AbortCode::LENGTH_TOO_HIGH));
 }
+
+#[test]
+fn block_download_whose_last_segment_is_lost_times_out() {
+    let mut h = Harness::new();
+    h.exchange("601 C6 01 20 00 0A 00 00 00", &["581 A4 01 20 00 7F 00 00 00"]);
+    assert!(h.send("601 01 61 62 63 64 65 66 67").is_empty());
+    // Segment 2 (with c) never arrives: nothing can be acknowledged until the timeout.
+    assert!(h.advance(999_999).is_empty());
+    assert_eq!(h.advance(1), ["581 80 01 20 00 00 00 04 05"]);
+    // A lost segment inside a block is acknowledged from the gap on.
+    h.exchange("601 C6 01 20 00 0A 00 00 00", &["581 A4 01 20 00 7F 00 00 00"]);
+    assert!(h.send("601 02 61 62 63 64 65 66 67").is_empty());
+    h.exchange("601 83 68 69 6A 00 00 00 00", &["581 A2 00 7F 00 00 00 00 00"]);
+}

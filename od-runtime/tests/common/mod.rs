@@ -518,7 +518,7 @@ pub fn hex(b: &[u8]) -> String {
 }
 
 /// Drives a block download of `data` to `index`/`sub`, losing segment `lose` (1-based within
-/// the first block) once, and returns the server's last answer.
+/// the first block, unless it ends the block) once, and returns the server's last answer.
 pub fn block_download(h: &mut Harness, index: u16, data: &[u8], crc: bool, lose: Option<u8>) -> String {
     let cmd = 0xC2 | if crc { 0x04 } else { 0 };
     let len = (data.len() as u32).to_le_bytes();
@@ -540,7 +540,10 @@ pub fn block_download(h: &mut Harness, index: u16, data: &[u8], crc: bool, lose:
             let mut seg = vec![seq | if last { 0x80 } else { 0 }];
             seg.extend_from_slice(chunks[i]);
             seg.resize(8, 0);
-            if lose == Some(seq) {
+            // A lost segment is only noticed when a later one of the block arrives; losing the
+            // block's last segment would leave both sides waiting for the SDO timeout.
+            let block_end = seq == blksize || last;
+            if lose == Some(seq) && !block_end {
                 lose = None;
                 continue;
             }
