@@ -31325,6 +31325,1895 @@ Denotation=MOTOR.BRAKEIMM
             }
         }
     }
+    /// Physical units of the device's values, from its sidecar (see the od-codegen `units`
+    /// module docs for the arithmetic).
+    pub mod units {
+        pub use super::__rt::Ratio;
+        /// A physical unit.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum Unit {
+            /// `user`
+            UserUnit,
+            /// `user/s`
+            UserUnitPerSecond,
+            /// `user/s^2`
+            UserUnitPerSecond2,
+            /// `mA`
+            MilliAmpere,
+            /// `permille_rated_torque`
+            PermilleRatedTorque,
+            /// `ms`
+            Millisecond,
+        }
+        impl Unit {
+            /// The unit's symbol.
+            pub const fn symbol(self) -> &'static str {
+                match self {
+                    Unit::UserUnit => "user",
+                    Unit::UserUnitPerSecond => "user/s",
+                    Unit::UserUnitPerSecond2 => "user/s^2",
+                    Unit::MilliAmpere => "mA",
+                    Unit::PermilleRatedTorque => "permille_rated_torque",
+                    Unit::Millisecond => "ms",
+                }
+            }
+        }
+        /// A physical dimension.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum Dimension {
+            /// Position.
+            Position,
+            /// Velocity.
+            Velocity,
+            /// Acceleration.
+            Acceleration,
+            /// Torque.
+            Torque,
+            /// Current.
+            Current,
+            /// Time.
+            Time,
+        }
+        impl Dimension {
+            const fn slot(self) -> usize {
+                match self {
+                    Dimension::Position => 0,
+                    Dimension::Velocity => 1,
+                    Dimension::Acceleration => 2,
+                    Dimension::Torque => 3,
+                    Dimension::Current => 4,
+                    Dimension::Time => 5,
+                }
+            }
+        }
+        /// A unit configuration of the device.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum System {
+            /// `workbench-units`
+            ///
+            /// FBUS.PARAM05 bit 4 = 0 (6.5, 4.4): WorkBench UNIT parameters with UNIT.PROTARY/VROTARY/ACCROTARY = 3; user unit = UNIT.PIN/UNIT.POUT (6092h) per motor revolution
+            WorkbenchUnits,
+            /// `ds402-factors`
+            ///
+            /// FBUS.PARAM05 bit 4 = 1 (6.5, 4.4): scaling by the DS402 objects 608Fh, 6091h, 6092h (position) and 204Ch (velocity), independent of the WorkBench units
+            Ds402Factors,
+        }
+        impl System {
+            /// The sidecar's name of the system.
+            pub const fn name(self) -> &'static str {
+                match self {
+                    System::WorkbenchUnits => "workbench-units",
+                    System::Ds402Factors => "ds402-factors",
+                }
+            }
+            /// The system the dictionary's current values select (the first whose conditions
+            /// hold, else the default one; external systems only by explicit choice).
+            pub fn active(od: &super::Dictionary) -> System {
+                let _ = od;
+                if ((od.fieldbus_configuration_bits() as i128) & 16) == 16 {
+                    return System::Ds402Factors;
+                }
+                System::WorkbenchUnits
+            }
+        }
+        /// Why a conversion failed.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub enum UnitError {
+            /// A scaling object holds 0 where it divides.
+            ZeroFactor {
+                /// The scaling object.
+                index: u16,
+            },
+            /// An intermediate or final value does not fit.
+            Overflow,
+            /// The dimension has no unit in the active system.
+            NoUnit,
+            /// The quantity's unit is not the system's unit for the dimension.
+            WrongUnit {
+                /// The system's unit.
+                expected: Unit,
+                /// The quantity's unit.
+                got: Unit,
+            },
+            /// The raw value does not fit the entry's type.
+            OutOfRange,
+            /// The dictionary refused the value (limits).
+            Rejected(::od_runtime::od::AbortCode),
+        }
+        /// An exact physical value.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub struct Quantity {
+            /// The value.
+            pub value: Ratio,
+            /// Its unit.
+            pub unit: Unit,
+        }
+        impl Quantity {
+            /// `value` in `unit`.
+            pub const fn new(value: Ratio, unit: Unit) -> Self {
+                Quantity { value, unit }
+            }
+            /// An integer value in `unit`.
+            pub const fn int(value: i64, unit: Unit) -> Self {
+                Quantity {
+                    value: Ratio::int(value),
+                    unit,
+                }
+            }
+            /// The nearest `f64` (for display; conversions stay exact).
+            pub fn to_f64(self) -> f64 {
+                self.value.to_f64()
+            }
+        }
+        /// The conversions of one configured device.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub struct Units {
+            system: System,
+            /// Physical value per raw unit, and the physical unit, per dimension.
+            factor: [Option<(Ratio, Unit)>; 6],
+            /// Internal value (increments or motor revolutions) per raw unit, per dimension.
+            internal: [Option<Ratio>; 6],
+        }
+        impl Units {
+            /// The conversions for the system the dictionary selects.
+            pub fn from_dictionary(od: &super::Dictionary) -> Result<Units, UnitError> {
+                Self::with_system(System::active(od), od)
+            }
+            /// The conversions for `system`, with the scaling objects' current values.
+            pub fn with_system(
+                system: System,
+                od: &super::Dictionary,
+            ) -> Result<Units, UnitError> {
+                let _ = od;
+                let mut factor = [None; 6];
+                let mut internal = [None; 6];
+                match system {
+                    System::WorkbenchUnits => {
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            let g = Ratio::ONE;
+                            let g = g
+                                .checked_mul(
+                                    Self::feed_constant(od)?.recip().ok_or(UnitError::Overflow)?,
+                                )
+                                .ok_or(UnitError::Overflow)?;
+                            factor[0] = Some((f.reduced(), Unit::UserUnit));
+                            internal[0] = Some(g.reduced());
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            let g = Ratio::ONE;
+                            let g = g
+                                .checked_mul(
+                                    Self::feed_constant(od)?.recip().ok_or(UnitError::Overflow)?,
+                                )
+                                .ok_or(UnitError::Overflow)?;
+                            factor[1] = Some((f.reduced(), Unit::UserUnitPerSecond));
+                            internal[1] = Some(g.reduced());
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            let g = Ratio::ONE;
+                            let g = g
+                                .checked_mul(
+                                    Self::feed_constant(od)?.recip().ok_or(UnitError::Overflow)?,
+                                )
+                                .ok_or(UnitError::Overflow)?;
+                            factor[2] = Some((f.reduced(), Unit::UserUnitPerSecond2));
+                            internal[2] = Some(g.reduced());
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            factor[3] = Some((f.reduced(), Unit::PermilleRatedTorque));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            factor[4] = Some((f.reduced(), Unit::MilliAmpere));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            factor[5] = Some((f.reduced(), Unit::Millisecond));
+                        }
+                    }
+                    System::Ds402Factors => {
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            let g = Ratio::ONE;
+                            let g = g
+                                .checked_mul(Self::encoder_resolution(od)?)
+                                .ok_or(UnitError::Overflow)?;
+                            let g = g
+                                .checked_mul(Self::gear_ratio(od)?)
+                                .ok_or(UnitError::Overflow)?;
+                            let g = g
+                                .checked_mul(
+                                    Self::feed_constant(od)?.recip().ok_or(UnitError::Overflow)?,
+                                )
+                                .ok_or(UnitError::Overflow)?;
+                            factor[0] = Some((f.reduced(), Unit::UserUnit));
+                            internal[0] = Some(g.reduced());
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            let g = Ratio::ONE;
+                            let g = g
+                                .checked_mul(Self::encoder_resolution(od)?)
+                                .ok_or(UnitError::Overflow)?;
+                            let g = g
+                                .checked_mul(Self::gear_ratio(od)?)
+                                .ok_or(UnitError::Overflow)?;
+                            let g = g
+                                .checked_mul(
+                                    Self::feed_constant(od)?.recip().ok_or(UnitError::Overflow)?,
+                                )
+                                .ok_or(UnitError::Overflow)?;
+                            let g = g
+                                .checked_mul(Self::velocity_factor(od)?)
+                                .ok_or(UnitError::Overflow)?;
+                            factor[1] = Some((f.reduced(), Unit::UserUnitPerSecond));
+                            internal[1] = Some(g.reduced());
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            let g = Ratio::ONE;
+                            let g = g
+                                .checked_mul(Self::encoder_resolution(od)?)
+                                .ok_or(UnitError::Overflow)?;
+                            let g = g
+                                .checked_mul(Self::gear_ratio(od)?)
+                                .ok_or(UnitError::Overflow)?;
+                            let g = g
+                                .checked_mul(
+                                    Self::feed_constant(od)?.recip().ok_or(UnitError::Overflow)?,
+                                )
+                                .ok_or(UnitError::Overflow)?;
+                            factor[2] = Some((f.reduced(), Unit::UserUnitPerSecond2));
+                            internal[2] = Some(g.reduced());
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            factor[3] = Some((f.reduced(), Unit::PermilleRatedTorque));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            factor[4] = Some((f.reduced(), Unit::MilliAmpere));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            factor[5] = Some((f.reduced(), Unit::Millisecond));
+                        }
+                    }
+                }
+                let _ = &mut internal;
+                Ok(Units { system, factor, internal })
+            }
+            /// The unit system.
+            pub const fn system(&self) -> System {
+                self.system
+            }
+            /// The unit of a dimension in this configuration.
+            pub fn unit(&self, d: Dimension) -> Option<Unit> {
+                self.factor.get(d.slot()).copied().flatten().map(|(_, u)| u)
+            }
+            /// Physical value per raw unit (exact, reduced).
+            pub fn factor(&self, d: Dimension) -> Option<Ratio> {
+                self.factor.get(d.slot()).copied().flatten().map(|(f, _)| f)
+            }
+            /// Internal value (encoder increments, or motor revolutions) per raw unit, where
+            /// the system's scaling objects define one.
+            pub fn internal_factor(&self, d: Dimension) -> Option<Ratio> {
+                self.internal.get(d.slot()).copied().flatten()
+            }
+            /// `raw × factor`, exact.
+            #[inline]
+            pub fn to_physical(
+                &self,
+                d: Dimension,
+                raw: i64,
+            ) -> Result<Quantity, UnitError> {
+                let (f, unit) = self
+                    .factor
+                    .get(d.slot())
+                    .copied()
+                    .flatten()
+                    .ok_or(UnitError::NoUnit)?;
+                Ok(Quantity {
+                    value: f.checked_mul_int(raw).ok_or(UnitError::Overflow)?,
+                    unit,
+                })
+            }
+            /// `q / factor`, exact (may be fractional).
+            pub fn to_raw_exact(
+                &self,
+                d: Dimension,
+                q: Quantity,
+            ) -> Result<Ratio, UnitError> {
+                let (f, unit) = self
+                    .factor
+                    .get(d.slot())
+                    .copied()
+                    .flatten()
+                    .ok_or(UnitError::NoUnit)?;
+                if q.unit != unit {
+                    return Err(UnitError::WrongUnit {
+                        expected: unit,
+                        got: q.unit,
+                    });
+                }
+                q.value.checked_div(f).ok_or(UnitError::Overflow)
+            }
+            /// `q / factor` rounded to the nearest integer, halves away from zero.
+            #[inline]
+            pub fn to_raw(&self, d: Dimension, q: Quantity) -> Result<i64, UnitError> {
+                let exact = self.to_raw_exact(d, q)?;
+                i64::try_from(exact.round()).map_err(|_| UnitError::Overflow)
+            }
+            /// `raw × internal factor`, exact: encoder increments (or motor revolutions).
+            pub fn to_internal(
+                &self,
+                d: Dimension,
+                raw: i64,
+            ) -> Result<Ratio, UnitError> {
+                let g = self
+                    .internal
+                    .get(d.slot())
+                    .copied()
+                    .flatten()
+                    .ok_or(UnitError::NoUnit)?;
+                g.checked_mul_int(raw).ok_or(UnitError::Overflow)
+            }
+            /// `0x608F` EncoderResolution: `encoder_increments / motor_revolutions` (subs 1 and 2), reduced; a zero term is an error.
+            ///
+            /// encoder\_resolution = encoder\_increments / motor\_revolutions \[inc per motor revolution\]; position\_inc = position\_user \* encoder\_resolution \* gear\_ratio / feed\_constant
+            pub fn encoder_resolution(
+                od: &super::Dictionary,
+            ) -> Result<Ratio, UnitError> {
+                let (t, b) = (
+                    (od.position_encoder_resolution_encoder_increments() as i128),
+                    (od.position_encoder_resolution_motor_revolutions() as i128),
+                );
+                if t == 0 || b == 0 {
+                    return Err(UnitError::ZeroFactor {
+                        index: 0x608F,
+                    });
+                }
+                Ratio::new(t, b).ok_or(UnitError::Overflow)
+            }
+            /// `0x6091` GearRatio: `motor_revolutions / shaft_revolutions` (subs 1 and 2), reduced; a zero term counts as 1.
+            ///
+            /// gear\_ratio = motor\_revolutions / shaft\_revolutions; position\_inc = position\_user \* encoder\_resolution \* gear\_ratio / feed\_constant
+            pub fn gear_ratio(od: &super::Dictionary) -> Result<Ratio, UnitError> {
+                let (t, b) = (
+                    (od.gear_ratio_motor_shaft_revolutions() as i128),
+                    (od.gear_ratio_driving_shaft_revolutions() as i128),
+                );
+                Ratio::new(if t == 0 { 1 } else { t }, if b == 0 { 1 } else { b })
+                    .ok_or(UnitError::Overflow)
+            }
+            /// `0x6092` FeedConstant: `feed / shaft_revolutions` (subs 1 and 2), reduced; a zero term is an error.
+            ///
+            /// feed\_constant = feed / shaft\_revolutions \[user units per driving shaft revolution\]; position\_inc = position\_user \* encoder\_resolution \* gear\_ratio / feed\_constant
+            pub fn feed_constant(od: &super::Dictionary) -> Result<Ratio, UnitError> {
+                let (t, b) = (
+                    (od.feed_constant_feed() as i128),
+                    (od.feed_constant_shaft_revolutions() as i128),
+                );
+                if t == 0 || b == 0 {
+                    return Err(UnitError::ZeroFactor {
+                        index: 0x6092,
+                    });
+                }
+                Ratio::new(t, b).ok_or(UnitError::Overflow)
+            }
+            /// `0x204C` VelocityFactor: `numerator / denominator` (subs 1 and 2), reduced; a zero term is an error.
+            ///
+            /// velocity\_internal = velocity\_bus \* numerator / denominator (after the position factors: velocity\_inc\_per\_s = velocity\_user\_per\_s \* encoder\_resolution \* gear\_ratio / feed\_constant)
+            pub fn velocity_factor(od: &super::Dictionary) -> Result<Ratio, UnitError> {
+                let (t, b) = (
+                    (od.pv_scaling_factor_pv_scaling_factor_numerator() as i128),
+                    (od.pv_scaling_factor_pv_scaling_factor_denominator() as i128),
+                );
+                if t == 0 || b == 0 {
+                    return Err(UnitError::ZeroFactor {
+                        index: 0x204C,
+                    });
+                }
+                Ratio::new(t, b).ok_or(UnitError::Overflow)
+            }
+            /// `0x2050` Secondary feedback position as a Position quantity.
+            pub fn secondary_feedback_position(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.secondary_feedback_position() as i64,
+                )
+            }
+            /// Sets `0x2050` Secondary feedback position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_secondary_feedback_position(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_secondary_feedback_position(v).map_err(UnitError::Rejected)
+            }
+            /// `0x2071` Target current as a Current quantity.
+            pub fn target_current(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Current, od.target_current() as i64)
+            }
+            /// Sets `0x2071` Target current from a Current quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_target_current(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Current, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_target_current(v).map_err(UnitError::Rejected)
+            }
+            /// `0x2077` Current actual value as a Current quantity.
+            pub fn current_actual_value(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Current, od.current_actual_value() as i64)
+            }
+            /// Sets `0x2077` Current actual value from a Current quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_current_actual_value(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Current, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_current_actual_value(v).map_err(UnitError::Rejected)
+            }
+            /// `0x3407` sub 1 Velocity loop filter and feedforward: Velocity feedback filtered at 10 Hz as a Velocity quantity.
+            pub fn velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Velocity,
+                    od
+                        .velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz()
+                        as i64,
+                )
+            }
+            /// Sets `0x3407` sub 1 Velocity loop filter and feedforward: Velocity feedback filtered at 10 Hz from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz(
+                        v,
+                    )
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x3407` sub 4 Velocity loop filter and feedforward: Velocity error as a Velocity quantity.
+            pub fn velocity_loop_filter_and_feedforward_velocity_error(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Velocity,
+                    od.velocity_loop_filter_and_feedforward_velocity_error() as i64,
+                )
+            }
+            /// Sets `0x3407` sub 4 Velocity loop filter and feedforward: Velocity error from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_velocity_loop_filter_and_feedforward_velocity_error(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_velocity_loop_filter_and_feedforward_velocity_error(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x3440` sub 1 Controlled stop parameters: Controlled stop deceleration as a Acceleration quantity.
+            pub fn controlled_stop_parameters_controlled_stop_deceleration(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Acceleration,
+                    od.controlled_stop_parameters_controlled_stop_deceleration() as i64,
+                )
+            }
+            /// Sets `0x3440` sub 1 Controlled stop parameters: Controlled stop deceleration from a Acceleration quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_controlled_stop_parameters_controlled_stop_deceleration(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Acceleration, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_controlled_stop_parameters_controlled_stop_deceleration(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x3440` sub 2 Controlled stop parameters: Controlled stop velocity threshold as a Velocity quantity.
+            pub fn controlled_stop_parameters_controlled_stop_velocity_threshold(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Velocity,
+                    od.controlled_stop_parameters_controlled_stop_velocity_threshold()
+                        as i64,
+                )
+            }
+            /// Sets `0x3440` sub 2 Controlled stop parameters: Controlled stop velocity threshold from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_controlled_stop_parameters_controlled_stop_velocity_threshold(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_controlled_stop_parameters_controlled_stop_velocity_threshold(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x3482` Homing maximum following error as a Position quantity.
+            pub fn homing_maximum_following_error(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.homing_maximum_following_error() as i64,
+                )
+            }
+            /// Sets `0x3482` Homing maximum following error from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_homing_maximum_following_error(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_homing_maximum_following_error(v).map_err(UnitError::Rejected)
+            }
+            /// `0x3483` Position error warning level as a Position quantity.
+            pub fn position_error_warning_level(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.position_error_warning_level() as i64,
+                )
+            }
+            /// Sets `0x3483` Position error warning level from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_position_error_warning_level(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_position_error_warning_level(v).map_err(UnitError::Rejected)
+            }
+            /// `0x3484` Homing additional move distance as a Position quantity.
+            pub fn homing_additional_move_distance(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.homing_additional_move_distance() as i64,
+                )
+            }
+            /// Sets `0x3484` Homing additional move distance from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_homing_additional_move_distance(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_homing_additional_move_distance(v).map_err(UnitError::Rejected)
+            }
+            /// `0x3490` Feedback position offset as a Position quantity.
+            pub fn feedback_position_offset(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.feedback_position_offset() as i64,
+                )
+            }
+            /// Sets `0x3490` Feedback position offset from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_feedback_position_offset(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_feedback_position_offset(v).map_err(UnitError::Rejected)
+            }
+            /// `0x3494` sub 2 Wake and shake parameters: Wake and shake maximum movement as a Position quantity.
+            pub fn wake_and_shake_parameters_wake_and_shake_maximum_movement(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.wake_and_shake_parameters_wake_and_shake_maximum_movement() as i64,
+                )
+            }
+            /// Sets `0x3494` sub 2 Wake and shake parameters: Wake and shake maximum movement from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_wake_and_shake_parameters_wake_and_shake_maximum_movement(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_wake_and_shake_parameters_wake_and_shake_maximum_movement(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x3494` sub 4 Wake and shake parameters: Wake and shake maximum velocity as a Velocity quantity.
+            pub fn wake_and_shake_parameters_wake_and_shake_maximum_velocity(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Velocity,
+                    od.wake_and_shake_parameters_wake_and_shake_maximum_velocity() as i64,
+                )
+            }
+            /// Sets `0x3494` sub 4 Wake and shake parameters: Wake and shake maximum velocity from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_wake_and_shake_parameters_wake_and_shake_maximum_velocity(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_wake_and_shake_parameters_wake_and_shake_maximum_velocity(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A0` sub 1 Programmable limit switch positions: Limit switch 1 compare position as a Position quantity.
+            pub fn programmable_limit_switch_positions_limit_switch_1_compare_position(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od
+                        .programmable_limit_switch_positions_limit_switch_1_compare_position()
+                        as i64,
+                )
+            }
+            /// Sets `0x34A0` sub 1 Programmable limit switch positions: Limit switch 1 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_positions_limit_switch_1_compare_position(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_positions_limit_switch_1_compare_position(
+                        v,
+                    )
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A0` sub 2 Programmable limit switch positions: Limit switch 2 compare position as a Position quantity.
+            pub fn programmable_limit_switch_positions_limit_switch_2_compare_position(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od
+                        .programmable_limit_switch_positions_limit_switch_2_compare_position()
+                        as i64,
+                )
+            }
+            /// Sets `0x34A0` sub 2 Programmable limit switch positions: Limit switch 2 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_positions_limit_switch_2_compare_position(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_positions_limit_switch_2_compare_position(
+                        v,
+                    )
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A0` sub 3 Programmable limit switch positions: Limit switch 3 compare position as a Position quantity.
+            pub fn programmable_limit_switch_positions_limit_switch_3_compare_position(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od
+                        .programmable_limit_switch_positions_limit_switch_3_compare_position()
+                        as i64,
+                )
+            }
+            /// Sets `0x34A0` sub 3 Programmable limit switch positions: Limit switch 3 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_positions_limit_switch_3_compare_position(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_positions_limit_switch_3_compare_position(
+                        v,
+                    )
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A0` sub 4 Programmable limit switch positions: Limit switch 4 compare position as a Position quantity.
+            pub fn programmable_limit_switch_positions_limit_switch_4_compare_position(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od
+                        .programmable_limit_switch_positions_limit_switch_4_compare_position()
+                        as i64,
+                )
+            }
+            /// Sets `0x34A0` sub 4 Programmable limit switch positions: Limit switch 4 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_positions_limit_switch_4_compare_position(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_positions_limit_switch_4_compare_position(
+                        v,
+                    )
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A0` sub 5 Programmable limit switch positions: Limit switch 5 compare position as a Position quantity.
+            pub fn programmable_limit_switch_positions_limit_switch_5_compare_position(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od
+                        .programmable_limit_switch_positions_limit_switch_5_compare_position()
+                        as i64,
+                )
+            }
+            /// Sets `0x34A0` sub 5 Programmable limit switch positions: Limit switch 5 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_positions_limit_switch_5_compare_position(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_positions_limit_switch_5_compare_position(
+                        v,
+                    )
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A0` sub 6 Programmable limit switch positions: Limit switch 6 compare position as a Position quantity.
+            pub fn programmable_limit_switch_positions_limit_switch_6_compare_position(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od
+                        .programmable_limit_switch_positions_limit_switch_6_compare_position()
+                        as i64,
+                )
+            }
+            /// Sets `0x34A0` sub 6 Programmable limit switch positions: Limit switch 6 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_positions_limit_switch_6_compare_position(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_positions_limit_switch_6_compare_position(
+                        v,
+                    )
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A0` sub 7 Programmable limit switch positions: Limit switch 7 compare position as a Position quantity.
+            pub fn programmable_limit_switch_positions_limit_switch_7_compare_position(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od
+                        .programmable_limit_switch_positions_limit_switch_7_compare_position()
+                        as i64,
+                )
+            }
+            /// Sets `0x34A0` sub 7 Programmable limit switch positions: Limit switch 7 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_positions_limit_switch_7_compare_position(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_positions_limit_switch_7_compare_position(
+                        v,
+                    )
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A0` sub 8 Programmable limit switch positions: Limit switch 8 compare position as a Position quantity.
+            pub fn programmable_limit_switch_positions_limit_switch_8_compare_position(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od
+                        .programmable_limit_switch_positions_limit_switch_8_compare_position()
+                        as i64,
+                )
+            }
+            /// Sets `0x34A0` sub 8 Programmable limit switch positions: Limit switch 8 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_positions_limit_switch_8_compare_position(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_positions_limit_switch_8_compare_position(
+                        v,
+                    )
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A1` sub 1 Programmable limit switch widths: Limit switch 1 width as a Position quantity.
+            pub fn programmable_limit_switch_widths_limit_switch_1_width(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.programmable_limit_switch_widths_limit_switch_1_width() as i64,
+                )
+            }
+            /// Sets `0x34A1` sub 1 Programmable limit switch widths: Limit switch 1 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_widths_limit_switch_1_width(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_widths_limit_switch_1_width(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A1` sub 2 Programmable limit switch widths: Limit switch 2 width as a Position quantity.
+            pub fn programmable_limit_switch_widths_limit_switch_2_width(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.programmable_limit_switch_widths_limit_switch_2_width() as i64,
+                )
+            }
+            /// Sets `0x34A1` sub 2 Programmable limit switch widths: Limit switch 2 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_widths_limit_switch_2_width(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_widths_limit_switch_2_width(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A1` sub 3 Programmable limit switch widths: Limit switch 3 width as a Position quantity.
+            pub fn programmable_limit_switch_widths_limit_switch_3_width(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.programmable_limit_switch_widths_limit_switch_3_width() as i64,
+                )
+            }
+            /// Sets `0x34A1` sub 3 Programmable limit switch widths: Limit switch 3 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_widths_limit_switch_3_width(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_widths_limit_switch_3_width(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A1` sub 4 Programmable limit switch widths: Limit switch 4 width as a Position quantity.
+            pub fn programmable_limit_switch_widths_limit_switch_4_width(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.programmable_limit_switch_widths_limit_switch_4_width() as i64,
+                )
+            }
+            /// Sets `0x34A1` sub 4 Programmable limit switch widths: Limit switch 4 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_widths_limit_switch_4_width(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_widths_limit_switch_4_width(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A1` sub 5 Programmable limit switch widths: Limit switch 5 width as a Position quantity.
+            pub fn programmable_limit_switch_widths_limit_switch_5_width(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.programmable_limit_switch_widths_limit_switch_5_width() as i64,
+                )
+            }
+            /// Sets `0x34A1` sub 5 Programmable limit switch widths: Limit switch 5 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_widths_limit_switch_5_width(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_widths_limit_switch_5_width(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A1` sub 6 Programmable limit switch widths: Limit switch 6 width as a Position quantity.
+            pub fn programmable_limit_switch_widths_limit_switch_6_width(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.programmable_limit_switch_widths_limit_switch_6_width() as i64,
+                )
+            }
+            /// Sets `0x34A1` sub 6 Programmable limit switch widths: Limit switch 6 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_widths_limit_switch_6_width(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_widths_limit_switch_6_width(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A1` sub 7 Programmable limit switch widths: Limit switch 7 width as a Position quantity.
+            pub fn programmable_limit_switch_widths_limit_switch_7_width(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.programmable_limit_switch_widths_limit_switch_7_width() as i64,
+                )
+            }
+            /// Sets `0x34A1` sub 7 Programmable limit switch widths: Limit switch 7 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_widths_limit_switch_7_width(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_widths_limit_switch_7_width(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x34A1` sub 8 Programmable limit switch widths: Limit switch 8 width as a Position quantity.
+            pub fn programmable_limit_switch_widths_limit_switch_8_width(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.programmable_limit_switch_widths_limit_switch_8_width() as i64,
+                )
+            }
+            /// Sets `0x34A1` sub 8 Programmable limit switch widths: Limit switch 8 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_programmable_limit_switch_widths_limit_switch_8_width(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_programmable_limit_switch_widths_limit_switch_8_width(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x3501` Acceleration ramp as a Acceleration quantity.
+            pub fn acceleration_ramp(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Acceleration, od.acceleration_ramp() as i64)
+            }
+            /// Sets `0x3501` Acceleration ramp from a Acceleration quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_acceleration_ramp(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Acceleration, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_acceleration_ramp(v).map_err(UnitError::Rejected)
+            }
+            /// `0x3502` Homing and jog acceleration ramp as a Acceleration quantity.
+            pub fn homing_and_jog_acceleration_ramp(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Acceleration,
+                    od.homing_and_jog_acceleration_ramp() as i64,
+                )
+            }
+            /// Sets `0x3502` Homing and jog acceleration ramp from a Acceleration quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_homing_and_jog_acceleration_ramp(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Acceleration, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_homing_and_jog_acceleration_ramp(v).map_err(UnitError::Rejected)
+            }
+            /// `0x3522` Deceleration ramp as a Acceleration quantity.
+            pub fn deceleration_ramp(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Acceleration, od.deceleration_ramp() as i64)
+            }
+            /// Sets `0x3522` Deceleration ramp from a Acceleration quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_deceleration_ramp(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Acceleration, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_deceleration_ramp(v).map_err(UnitError::Rejected)
+            }
+            /// `0x3524` Homing and jog deceleration ramp as a Acceleration quantity.
+            pub fn homing_and_jog_deceleration_ramp(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Acceleration,
+                    od.homing_and_jog_deceleration_ramp() as i64,
+                )
+            }
+            /// Sets `0x3524` Homing and jog deceleration ramp from a Acceleration quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_homing_and_jog_deceleration_ramp(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Acceleration, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_homing_and_jog_deceleration_ramp(v).map_err(UnitError::Rejected)
+            }
+            /// `0x35C5` Position following error as a Position quantity.
+            pub fn position_following_error(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.position_following_error() as i64,
+                )
+            }
+            /// Sets `0x35C5` Position following error from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_position_following_error(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_position_following_error(v).map_err(UnitError::Rejected)
+            }
+            /// `0x35C6` In-position window as a Position quantity.
+            pub fn in_position_window(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Position, od.in_position_window() as i64)
+            }
+            /// Sets `0x35C6` In-position window from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_in_position_window(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_in_position_window(v).map_err(UnitError::Rejected)
+            }
+            /// `0x35C7` Maximum following error as a Position quantity.
+            pub fn maximum_following_error(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.maximum_following_error() as i64,
+                )
+            }
+            /// Sets `0x35C7` Maximum following error from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_maximum_following_error(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_maximum_following_error(v).map_err(UnitError::Rejected)
+            }
+            /// `0x3618` Velocity feedback as a Velocity quantity.
+            pub fn velocity_feedback(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Velocity, od.velocity_feedback() as i64)
+            }
+            /// Sets `0x3618` Velocity feedback from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_velocity_feedback(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_velocity_feedback(v).map_err(UnitError::Rejected)
+            }
+            /// `0x3622` Positive velocity limit as a Velocity quantity.
+            pub fn positive_velocity_limit(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Velocity,
+                    od.positive_velocity_limit() as i64,
+                )
+            }
+            /// Sets `0x3622` Positive velocity limit from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_positive_velocity_limit(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_positive_velocity_limit(v).map_err(UnitError::Rejected)
+            }
+            /// `0x3623` Negative velocity limit as a Velocity quantity.
+            pub fn negative_velocity_limit(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Velocity,
+                    od.negative_velocity_limit() as i64,
+                )
+            }
+            /// Sets `0x3623` Negative velocity limit from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_negative_velocity_limit(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_negative_velocity_limit(v).map_err(UnitError::Rejected)
+            }
+            /// `0x3627` Overspeed threshold as a Velocity quantity.
+            pub fn overspeed_threshold(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Velocity, od.overspeed_threshold() as i64)
+            }
+            /// Sets `0x3627` Overspeed threshold from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_overspeed_threshold(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_overspeed_threshold(v).map_err(UnitError::Rejected)
+            }
+            /// `0x3656` Initial feedback position as a Position quantity.
+            pub fn initial_feedback_position(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.initial_feedback_position() as i64,
+                )
+            }
+            /// Sets `0x3656` Initial feedback position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_initial_feedback_position(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = u64::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_initial_feedback_position(v).map_err(UnitError::Rejected)
+            }
+            /// `0x36D1` Wake and shake minimum movement as a Position quantity.
+            pub fn wake_and_shake_minimum_movement(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.wake_and_shake_minimum_movement() as i64,
+                )
+            }
+            /// Sets `0x36D1` Wake and shake minimum movement from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_wake_and_shake_minimum_movement(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_wake_and_shake_minimum_movement(v).map_err(UnitError::Rejected)
+            }
+            /// `0x3856` Profile position velocity window as a Velocity quantity.
+            pub fn profile_position_velocity_window(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Velocity,
+                    od.profile_position_velocity_window() as i64,
+                )
+            }
+            /// Sets `0x3856` Profile position velocity window from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_profile_position_velocity_window(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_profile_position_velocity_window(v).map_err(UnitError::Rejected)
+            }
+            /// `0x6064` Position actual value as a Position quantity.
+            pub fn position_actual_value(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Position, od.position_actual_value() as i64)
+            }
+            /// Sets `0x6064` Position actual value from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_position_actual_value(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_position_actual_value(v).map_err(UnitError::Rejected)
+            }
+            /// `0x6065` Following error window as a Position quantity.
+            pub fn following_error_window(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Position, od.following_error_window() as i64)
+            }
+            /// Sets `0x6065` Following error window from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_following_error_window(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_following_error_window(v).map_err(UnitError::Rejected)
+            }
+            /// `0x606B` Velocity demand value as a Velocity quantity.
+            pub fn velocity_demand_value(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Velocity, od.velocity_demand_value() as i64)
+            }
+            /// Sets `0x606B` Velocity demand value from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_velocity_demand_value(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_velocity_demand_value(v).map_err(UnitError::Rejected)
+            }
+            /// `0x606C` Velocity actual value as a Velocity quantity.
+            pub fn velocity_actual_value(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Velocity, od.velocity_actual_value() as i64)
+            }
+            /// Sets `0x606C` Velocity actual value from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_velocity_actual_value(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_velocity_actual_value(v).map_err(UnitError::Rejected)
+            }
+            /// `0x606D` Velocity window as a Velocity quantity.
+            pub fn velocity_window(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Velocity, od.velocity_window() as i64)
+            }
+            /// Sets `0x606D` Velocity window from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_velocity_window(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = u16::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_velocity_window(v).map_err(UnitError::Rejected)
+            }
+            /// `0x606E` Velocity window time as a Time quantity.
+            pub fn velocity_window_time(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Time, od.velocity_window_time() as i64)
+            }
+            /// Sets `0x606E` Velocity window time from a Time quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_velocity_window_time(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Time, q)?;
+                let v = u16::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_velocity_window_time(v).map_err(UnitError::Rejected)
+            }
+            /// `0x6071` Target torque as a Torque quantity.
+            pub fn target_torque(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Torque, od.target_torque() as i64)
+            }
+            /// Sets `0x6071` Target torque from a Torque quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_target_torque(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Torque, q)?;
+                let v = i16::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_target_torque(v).map_err(UnitError::Rejected)
+            }
+            /// `0x6072` Max torque as a Torque quantity.
+            pub fn max_torque(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Torque, od.max_torque() as i64)
+            }
+            /// Sets `0x6072` Max torque from a Torque quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_max_torque(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Torque, q)?;
+                let v = u16::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_max_torque(v).map_err(UnitError::Rejected)
+            }
+            /// `0x6077` Torque actual value as a Torque quantity.
+            pub fn torque_actual_value(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Torque, od.torque_actual_value() as i64)
+            }
+            /// Sets `0x6077` Torque actual value from a Torque quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_torque_actual_value(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Torque, q)?;
+                let v = i16::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_torque_actual_value(v).map_err(UnitError::Rejected)
+            }
+            /// `0x607A` Target position as a Position quantity.
+            pub fn target_position(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Position, od.target_position() as i64)
+            }
+            /// Sets `0x607A` Target position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_target_position(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_target_position(v).map_err(UnitError::Rejected)
+            }
+            /// `0x607C` Home offset as a Position quantity.
+            pub fn home_offset(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Position, od.home_offset() as i64)
+            }
+            /// Sets `0x607C` Home offset from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_home_offset(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_home_offset(v).map_err(UnitError::Rejected)
+            }
+            /// `0x607D` sub 1 Software position limit: Min position limit as a Position quantity.
+            pub fn software_position_limit_min_position_limit(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.software_position_limit_min_position_limit() as i64,
+                )
+            }
+            /// Sets `0x607D` sub 1 Software position limit: Min position limit from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_software_position_limit_min_position_limit(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_software_position_limit_min_position_limit(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x607D` sub 2 Software position limit: Max position limit as a Position quantity.
+            pub fn software_position_limit_max_position_limit(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.software_position_limit_max_position_limit() as i64,
+                )
+            }
+            /// Sets `0x607D` sub 2 Software position limit: Max position limit from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_software_position_limit_max_position_limit(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_software_position_limit_max_position_limit(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x6081` Profile velocity as a Velocity quantity.
+            pub fn profile_velocity(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Velocity, od.profile_velocity() as i64)
+            }
+            /// Sets `0x6081` Profile velocity from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_profile_velocity(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_profile_velocity(v).map_err(UnitError::Rejected)
+            }
+            /// `0x6083` Profile acceleration as a Acceleration quantity.
+            pub fn profile_acceleration(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Acceleration,
+                    od.profile_acceleration() as i64,
+                )
+            }
+            /// Sets `0x6083` Profile acceleration from a Acceleration quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_profile_acceleration(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Acceleration, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_profile_acceleration(v).map_err(UnitError::Rejected)
+            }
+            /// `0x6084` Profile deceleration as a Acceleration quantity.
+            pub fn profile_deceleration(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Acceleration,
+                    od.profile_deceleration() as i64,
+                )
+            }
+            /// Sets `0x6084` Profile deceleration from a Acceleration quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_profile_deceleration(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Acceleration, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_profile_deceleration(v).map_err(UnitError::Rejected)
+            }
+            /// `0x6099` sub 1 Homing speeds: Speed during search for switch as a Velocity quantity.
+            pub fn homing_speeds_speed_during_search_for_switch(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Velocity,
+                    od.homing_speeds_speed_during_search_for_switch() as i64,
+                )
+            }
+            /// Sets `0x6099` sub 1 Homing speeds: Speed during search for switch from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_homing_speeds_speed_during_search_for_switch(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_homing_speeds_speed_during_search_for_switch(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x6099` sub 2 Homing speeds: Speed during search for zero as a Velocity quantity.
+            pub fn homing_speeds_speed_during_search_for_zero(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Velocity,
+                    od.homing_speeds_speed_during_search_for_zero() as i64,
+                )
+            }
+            /// Sets `0x6099` sub 2 Homing speeds: Speed during search for zero from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_homing_speeds_speed_during_search_for_zero(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_homing_speeds_speed_during_search_for_zero(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x609A` Homing acceleration as a Acceleration quantity.
+            pub fn homing_acceleration(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Acceleration,
+                    od.homing_acceleration() as i64,
+                )
+            }
+            /// Sets `0x609A` Homing acceleration from a Acceleration quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_homing_acceleration(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Acceleration, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_homing_acceleration(v).map_err(UnitError::Rejected)
+            }
+            /// `0x60B1` Velocity offset as a Velocity quantity.
+            pub fn velocity_offset(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Velocity, od.velocity_offset() as i64)
+            }
+            /// Sets `0x60B1` Velocity offset from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_velocity_offset(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_velocity_offset(v).map_err(UnitError::Rejected)
+            }
+            /// `0x60B2` Torque offset as a Torque quantity.
+            pub fn torque_offset(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Torque, od.torque_offset() as i64)
+            }
+            /// Sets `0x60B2` Torque offset from a Torque quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_torque_offset(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Torque, q)?;
+                let v = i16::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_torque_offset(v).map_err(UnitError::Rejected)
+            }
+            /// `0x60BA` Touch probe 1 positive edge as a Position quantity.
+            pub fn touch_probe_1_positive_edge(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.touch_probe_1_positive_edge() as i64,
+                )
+            }
+            /// Sets `0x60BA` Touch probe 1 positive edge from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_touch_probe_1_positive_edge(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_touch_probe_1_positive_edge(v).map_err(UnitError::Rejected)
+            }
+            /// `0x60BB` Touch probe 1 negative edge as a Position quantity.
+            pub fn touch_probe_1_negative_edge(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.touch_probe_1_negative_edge() as i64,
+                )
+            }
+            /// Sets `0x60BB` Touch probe 1 negative edge from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_touch_probe_1_negative_edge(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_touch_probe_1_negative_edge(v).map_err(UnitError::Rejected)
+            }
+            /// `0x60BC` Touch probe 2 positive edge as a Position quantity.
+            pub fn touch_probe_2_positive_edge(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.touch_probe_2_positive_edge() as i64,
+                )
+            }
+            /// Sets `0x60BC` Touch probe 2 positive edge from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_touch_probe_2_positive_edge(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_touch_probe_2_positive_edge(v).map_err(UnitError::Rejected)
+            }
+            /// `0x60BD` Touch probe 2 negative edge as a Position quantity.
+            pub fn touch_probe_2_negative_edge(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.touch_probe_2_negative_edge() as i64,
+                )
+            }
+            /// Sets `0x60BD` Touch probe 2 negative edge from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_touch_probe_2_negative_edge(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_touch_probe_2_negative_edge(v).map_err(UnitError::Rejected)
+            }
+            /// `0x60C1` sub 2 Interpolation data record: Interpolation time as a Time quantity.
+            pub fn interpolation_data_record_interpolation_time(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Time,
+                    od.interpolation_data_record_interpolation_time() as i64,
+                )
+            }
+            /// Sets `0x60C1` sub 2 Interpolation data record: Interpolation time from a Time quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_interpolation_data_record_interpolation_time(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Time, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_interpolation_data_record_interpolation_time(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x60F4` Following error actual value as a Position quantity.
+            pub fn following_error_actual_value(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.following_error_actual_value() as i64,
+                )
+            }
+            /// Sets `0x60F4` Following error actual value from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_following_error_actual_value(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_following_error_actual_value(v).map_err(UnitError::Rejected)
+            }
+            /// `0x60FF` Target velocity as a Velocity quantity.
+            pub fn target_velocity(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Velocity, od.target_velocity() as i64)
+            }
+            /// Sets `0x60FF` Target velocity from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_target_velocity(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_target_velocity(v).map_err(UnitError::Rejected)
+            }
+        }
+        /// How a bus value relates to the vendor tool's value (`[bus_scaling]`).
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub enum BusScaling {
+            /// Bus value = tool value × factor.
+            Factor(u32),
+            /// Depends on other settings.
+            Variable,
+        }
+        static BUS_KEYS: [u32; 121] = [
+            0x205000, 0x20A000, 0x20A100, 0x20A200, 0x20A300, 0x20A600, 0x340601,
+            0x340602, 0x340603, 0x340604, 0x340605, 0x340606, 0x340607, 0x340608,
+            0x340609, 0x34060A, 0x34060B, 0x34060C, 0x34060D, 0x34060E, 0x34060F,
+            0x340610, 0x340701, 0x340702, 0x340704, 0x341500, 0x342000, 0x342100,
+            0x342200, 0x342300, 0x342500, 0x342600, 0x344001, 0x344002, 0x344400,
+            0x345400, 0x345500, 0x345600, 0x345701, 0x347002, 0x347003, 0x347004,
+            0x347005, 0x347100, 0x347200, 0x348000, 0x348101, 0x348102, 0x348200,
+            0x348300, 0x348400, 0x349000, 0x349401, 0x349402, 0x349404, 0x34A001,
+            0x34A002, 0x34A003, 0x34A004, 0x34A005, 0x34A006, 0x34A007, 0x34A008,
+            0x34A101, 0x34A102, 0x34A103, 0x34A104, 0x34A105, 0x34A106, 0x34A107,
+            0x34A108, 0x350100, 0x350200, 0x350900, 0x352200, 0x352400, 0x354200,
+            0x354800, 0x354B00, 0x354D00, 0x355800, 0x355900, 0x355A00, 0x356E00,
+            0x356F00, 0x358E00, 0x358F00, 0x359300, 0x359600, 0x359800, 0x35A400,
+            0x35AB00, 0x35C500, 0x35C600, 0x35C700, 0x35E200, 0x361700, 0x361800,
+            0x361D00, 0x362200, 0x362300, 0x362700, 0x362900, 0x365600, 0x36D100,
+            0x36D700, 0x385600, 0x606400, 0x606500, 0x606B00, 0x606C00, 0x607A00,
+            0x607C00, 0x607D01, 0x607D02, 0x608100, 0x608300, 0x608400, 0x609901,
+            0x609A00, 0x60B100,
+        ];
+        static BUS_FACTORS: [u32; 121] = [
+            1, 0, 0, 0, 0, 0, 1000, 1000, 1000, 1000, 1000, 1000, 1000, 1000, 1000, 1000,
+            1000, 1000, 1000, 1000, 1000, 1000, 1000, 1000, 1, 1000, 1000, 1000, 1000,
+            1000, 1000, 1000, 1, 1, 1000, 1000, 1000, 1000, 1000, 1000, 1000, 1000, 1000,
+            1, 1, 1000, 1, 1, 1, 1, 1, 1, 1000, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1,
+            1, 1, 1, 1, 1, 1, 1000, 1, 1, 1000, 1000, 1000, 1000, 1000, 1000, 1000, 1000,
+            1000, 1000, 1000, 1000, 1000, 1000, 1000, 1000, 1, 1, 1, 1, 1, 1, 1000, 1, 1,
+            1, 1000, 1, 1, 1000, 1, 1, 1, 1, 1000, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1,
+        ];
+        /// The bus scaling of an entry, if the sidecar lists it.
+        pub fn bus_scaling(index: u16, sub: u8) -> Option<BusScaling> {
+            let key = ((index as u32) << 8) | sub as u32;
+            let pos = BUS_KEYS.binary_search(&key).ok()?;
+            match BUS_FACTORS.get(pos)? {
+                0 => Some(BusScaling::Variable),
+                f => Some(BusScaling::Factor(*f)),
+            }
+        }
+        /// The vendor tool's value of a bus value (`raw / factor`, exact); `None` for
+        /// entries without a fixed factor.
+        pub fn to_workbench(index: u16, sub: u8, raw: i64) -> Option<Ratio> {
+            match bus_scaling(index, sub)? {
+                BusScaling::Factor(f) => Ratio::new(raw as i128, f as i128),
+                BusScaling::Variable => None,
+            }
+        }
+    }
     /// Generic machinery of the generated dictionary (not part of its API; may change
     /// between generator versions).
     #[doc(hidden)]
@@ -31608,6 +33497,130 @@ Denotation=MOTOR.BRAKEIMM
                         .ok_or(AbortCode::NO_OBJECT)
                 },
             )
+        }
+        fn gcd(a: i128, b: i128) -> i128 {
+            let (mut a, mut b) = (a.unsigned_abs(), b.unsigned_abs());
+            while b != 0 {
+                let t = a % b;
+                a = b;
+                b = t;
+            }
+            if a > i128::MAX as u128 { 1 } else { a as i128 }
+        }
+        /// An exact rational number (denominator positive). Arithmetic is checked: `None`
+        /// means an overflow (or a zero denominator), never a wrapped value.
+        #[derive(Clone, Copy, Debug)]
+        pub struct Ratio {
+            num: i128,
+            den: i128,
+        }
+        impl Ratio {
+            /// 1.
+            pub const ONE: Ratio = Ratio { num: 1, den: 1 };
+            /// An integer.
+            pub const fn int(v: i64) -> Ratio {
+                Ratio { num: v as i128, den: 1 }
+            }
+            /// `num / den` in lowest terms; `None` if `den` is 0.
+            pub fn new(num: i128, den: i128) -> Option<Ratio> {
+                if den == 0 || num == i128::MIN || den == i128::MIN {
+                    return None;
+                }
+                let (num, den) = if den < 0 { (-num, -den) } else { (num, den) };
+                let g = gcd(num, den).max(1);
+                Some(Ratio {
+                    num: num / g,
+                    den: den / g,
+                })
+            }
+            /// The numerator (of the stored form, not necessarily reduced).
+            pub const fn num(self) -> i128 {
+                self.num
+            }
+            /// The denominator (positive).
+            pub const fn den(self) -> i128 {
+                self.den
+            }
+            /// This ratio in lowest terms.
+            pub fn reduced(self) -> Ratio {
+                Ratio::new(self.num, self.den).unwrap_or(self)
+            }
+            /// `self × v`, not reduced (fast path of conversions).
+            #[inline]
+            pub fn checked_mul_int(self, v: i64) -> Option<Ratio> {
+                Some(Ratio {
+                    num: self.num.checked_mul(v as i128)?,
+                    den: self.den,
+                })
+            }
+            /// `self × o`; reduces only when the plain product would overflow.
+            #[inline]
+            pub fn checked_mul(self, o: Ratio) -> Option<Ratio> {
+                match (self.num.checked_mul(o.num), self.den.checked_mul(o.den)) {
+                    (Some(num), Some(den)) => Some(Ratio { num, den }),
+                    _ => {
+                        let (a, b) = (self.reduced(), o.reduced());
+                        let g1 = gcd(a.num, b.den).max(1);
+                        let g2 = gcd(b.num, a.den).max(1);
+                        let num = (a.num / g1).checked_mul(b.num / g2)?;
+                        let den = (a.den / g2).checked_mul(b.den / g1)?;
+                        Some(Ratio { num, den })
+                    }
+                }
+            }
+            /// `1 / self`; `None` for 0.
+            pub fn recip(self) -> Option<Ratio> {
+                Ratio::new(self.den, self.num)
+            }
+            /// `self / o`; `None` for a zero divisor or an overflow.
+            #[inline]
+            pub fn checked_div(self, o: Ratio) -> Option<Ratio> {
+                if o.num == 0 || o.num == i128::MIN {
+                    return None;
+                }
+                let (n, d) = if o.num < 0 { (-o.den, -o.num) } else { (o.den, o.num) };
+                self.checked_mul(Ratio { num: n, den: d })
+            }
+            /// The nearest integer, halves rounded away from zero.
+            #[inline]
+            pub fn round(self) -> i128 {
+                let (q, r) = if let (Ok(n), Ok(d)) = (
+                    i64::try_from(self.num),
+                    i64::try_from(self.den),
+                ) {
+                    ((n / d) as i128, (n % d) as i128)
+                } else {
+                    (self.num / self.den, self.num % self.den)
+                };
+                let r = r.unsigned_abs();
+                if r >= self.den.unsigned_abs() - r {
+                    if self.num < 0 { q - 1 } else { q + 1 }
+                } else {
+                    q
+                }
+            }
+            /// The nearest `f64`.
+            pub fn to_f64(self) -> f64 {
+                let r = self.reduced();
+                r.num as f64 / r.den as f64
+            }
+        }
+        impl PartialEq for Ratio {
+            fn eq(&self, o: &Ratio) -> bool {
+                let (a, b) = (self.reduced(), o.reduced());
+                a.num == b.num && a.den == b.den
+            }
+        }
+        impl Eq for Ratio {}
+        impl ::core::fmt::Display for Ratio {
+            fn fmt(&self, f: &mut ::core::fmt::Formatter<'_>) -> ::core::fmt::Result {
+                let r = self.reduced();
+                if r.den == 1 {
+                    write!(f, "{}", r.num)
+                } else {
+                    write!(f, "{}/{}", r.num, r.den)
+                }
+            }
         }
         /// A received PDO was shorter than its mapping.
         #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -16150,6 +16150,711 @@ PDOMapping=0
             }
         }
     }
+    /// Physical units of the device's values, from its sidecar (see the od-codegen `units`
+    /// module docs for the arithmetic).
+    pub mod units {
+        pub use super::__rt::Ratio;
+        /// A physical unit.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum Unit {
+            /// `deg`
+            Degree,
+            /// `mm`
+            Millimeter,
+            /// `deg/s`
+            DegreePerSecond,
+            /// `mm/s`
+            MillimeterPerSecond,
+            /// `deg/s^2`
+            DegreePerSecond2,
+            /// `mm/s^2`
+            MillimeterPerSecond2,
+            /// `ms`
+            Millisecond,
+        }
+        impl Unit {
+            /// The unit's symbol.
+            pub const fn symbol(self) -> &'static str {
+                match self {
+                    Unit::Degree => "deg",
+                    Unit::Millimeter => "mm",
+                    Unit::DegreePerSecond => "deg/s",
+                    Unit::MillimeterPerSecond => "mm/s",
+                    Unit::DegreePerSecond2 => "deg/s^2",
+                    Unit::MillimeterPerSecond2 => "mm/s^2",
+                    Unit::Millisecond => "ms",
+                }
+            }
+        }
+        /// A physical dimension.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum Dimension {
+            /// Position.
+            Position,
+            /// Velocity.
+            Velocity,
+            /// Acceleration.
+            Acceleration,
+            /// Time.
+            Time,
+        }
+        impl Dimension {
+            const fn slot(self) -> usize {
+                match self {
+                    Dimension::Position => 0,
+                    Dimension::Velocity => 1,
+                    Dimension::Acceleration => 2,
+                    Dimension::Time => 3,
+                }
+            }
+        }
+        /// A unit configuration of the device.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum System {
+            /// `actuator`
+            ///
+            /// Camozzi axis / cylinder configured by QSet (chapter 4, 3.6.1): mm, mm/s, mm/s^2; 2001h rescales
+            Actuator,
+            /// `only-motor`
+            ///
+            /// Motor without a Camozzi actuator (chapter 4): deg, deg/s, deg/s^2 (not x100); 2001h rescales
+            ///
+            /// Chosen outside the bus: chosen in the QSet configurator when no axis or cylinder is configured.
+            OnlyMotor,
+        }
+        impl System {
+            /// The sidecar's name of the system.
+            pub const fn name(self) -> &'static str {
+                match self {
+                    System::Actuator => "actuator",
+                    System::OnlyMotor => "only-motor",
+                }
+            }
+            /// The system the dictionary's current values select (the first whose conditions
+            /// hold, else the default one; external systems only by explicit choice).
+            pub fn active(od: &super::Dictionary) -> System {
+                let _ = od;
+                System::Actuator
+            }
+        }
+        /// Why a conversion failed.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub enum UnitError {
+            /// A scaling object holds 0 where it divides.
+            ZeroFactor {
+                /// The scaling object.
+                index: u16,
+            },
+            /// An intermediate or final value does not fit.
+            Overflow,
+            /// The dimension has no unit in the active system.
+            NoUnit,
+            /// The quantity's unit is not the system's unit for the dimension.
+            WrongUnit {
+                /// The system's unit.
+                expected: Unit,
+                /// The quantity's unit.
+                got: Unit,
+            },
+            /// The raw value does not fit the entry's type.
+            OutOfRange,
+            /// The dictionary refused the value (limits).
+            Rejected(::od_runtime::od::AbortCode),
+        }
+        /// An exact physical value.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub struct Quantity {
+            /// The value.
+            pub value: Ratio,
+            /// Its unit.
+            pub unit: Unit,
+        }
+        impl Quantity {
+            /// `value` in `unit`.
+            pub const fn new(value: Ratio, unit: Unit) -> Self {
+                Quantity { value, unit }
+            }
+            /// An integer value in `unit`.
+            pub const fn int(value: i64, unit: Unit) -> Self {
+                Quantity {
+                    value: Ratio::int(value),
+                    unit,
+                }
+            }
+            /// The nearest `f64` (for display; conversions stay exact).
+            pub fn to_f64(self) -> f64 {
+                self.value.to_f64()
+            }
+        }
+        /// The conversions of one configured device.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub struct Units {
+            system: System,
+            /// Physical value per raw unit, and the physical unit, per dimension.
+            factor: [Option<(Ratio, Unit)>; 4],
+            /// Internal value (increments or motor revolutions) per raw unit, per dimension.
+            internal: [Option<Ratio>; 4],
+        }
+        impl Units {
+            /// The conversions for the system the dictionary selects.
+            pub fn from_dictionary(od: &super::Dictionary) -> Result<Units, UnitError> {
+                Self::with_system(System::active(od), od)
+            }
+            /// The conversions for `system`, with the scaling objects' current values.
+            pub fn with_system(
+                system: System,
+                od: &super::Dictionary,
+            ) -> Result<Units, UnitError> {
+                let _ = od;
+                let mut factor = [None; 4];
+                let mut internal = [None; 4];
+                match system {
+                    System::Actuator => {
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            let f = f
+                                .checked_mul(
+                                    Self::feed_converter(od)?
+                                        .recip()
+                                        .ok_or(UnitError::Overflow)?,
+                                )
+                                .ok_or(UnitError::Overflow)?;
+                            factor[0] = Some((f.reduced(), Unit::Millimeter));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            let f = f
+                                .checked_mul(
+                                    Self::feed_converter(od)?
+                                        .recip()
+                                        .ok_or(UnitError::Overflow)?,
+                                )
+                                .ok_or(UnitError::Overflow)?;
+                            factor[1] = Some((f.reduced(), Unit::MillimeterPerSecond));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            let f = f
+                                .checked_mul(
+                                    Self::feed_converter(od)?
+                                        .recip()
+                                        .ok_or(UnitError::Overflow)?,
+                                )
+                                .ok_or(UnitError::Overflow)?;
+                            factor[2] = Some((f.reduced(), Unit::MillimeterPerSecond2));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            factor[3] = Some((f.reduced(), Unit::Millisecond));
+                        }
+                    }
+                    System::OnlyMotor => {
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            let f = f
+                                .checked_mul(
+                                    Self::feed_converter(od)?
+                                        .recip()
+                                        .ok_or(UnitError::Overflow)?,
+                                )
+                                .ok_or(UnitError::Overflow)?;
+                            factor[0] = Some((f.reduced(), Unit::Degree));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            let f = f
+                                .checked_mul(
+                                    Self::feed_converter(od)?
+                                        .recip()
+                                        .ok_or(UnitError::Overflow)?,
+                                )
+                                .ok_or(UnitError::Overflow)?;
+                            factor[1] = Some((f.reduced(), Unit::DegreePerSecond));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            let f = f
+                                .checked_mul(
+                                    Self::feed_converter(od)?
+                                        .recip()
+                                        .ok_or(UnitError::Overflow)?,
+                                )
+                                .ok_or(UnitError::Overflow)?;
+                            factor[2] = Some((f.reduced(), Unit::DegreePerSecond2));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            factor[3] = Some((f.reduced(), Unit::Millisecond));
+                        }
+                    }
+                }
+                let _ = &mut internal;
+                Ok(Units { system, factor, internal })
+            }
+            /// The unit system.
+            pub const fn system(&self) -> System {
+                self.system
+            }
+            /// The unit of a dimension in this configuration.
+            pub fn unit(&self, d: Dimension) -> Option<Unit> {
+                self.factor.get(d.slot()).copied().flatten().map(|(_, u)| u)
+            }
+            /// Physical value per raw unit (exact, reduced).
+            pub fn factor(&self, d: Dimension) -> Option<Ratio> {
+                self.factor.get(d.slot()).copied().flatten().map(|(f, _)| f)
+            }
+            /// Internal value (encoder increments, or motor revolutions) per raw unit, where
+            /// the system's scaling objects define one.
+            pub fn internal_factor(&self, d: Dimension) -> Option<Ratio> {
+                self.internal.get(d.slot()).copied().flatten()
+            }
+            /// `raw × factor`, exact.
+            #[inline]
+            pub fn to_physical(
+                &self,
+                d: Dimension,
+                raw: i64,
+            ) -> Result<Quantity, UnitError> {
+                let (f, unit) = self
+                    .factor
+                    .get(d.slot())
+                    .copied()
+                    .flatten()
+                    .ok_or(UnitError::NoUnit)?;
+                Ok(Quantity {
+                    value: f.checked_mul_int(raw).ok_or(UnitError::Overflow)?,
+                    unit,
+                })
+            }
+            /// `q / factor`, exact (may be fractional).
+            pub fn to_raw_exact(
+                &self,
+                d: Dimension,
+                q: Quantity,
+            ) -> Result<Ratio, UnitError> {
+                let (f, unit) = self
+                    .factor
+                    .get(d.slot())
+                    .copied()
+                    .flatten()
+                    .ok_or(UnitError::NoUnit)?;
+                if q.unit != unit {
+                    return Err(UnitError::WrongUnit {
+                        expected: unit,
+                        got: q.unit,
+                    });
+                }
+                q.value.checked_div(f).ok_or(UnitError::Overflow)
+            }
+            /// `q / factor` rounded to the nearest integer, halves away from zero.
+            #[inline]
+            pub fn to_raw(&self, d: Dimension, q: Quantity) -> Result<i64, UnitError> {
+                let exact = self.to_raw_exact(d, q)?;
+                i64::try_from(exact.round()).map_err(|_| UnitError::Overflow)
+            }
+            /// `raw × internal factor`, exact: encoder increments (or motor revolutions).
+            pub fn to_internal(
+                &self,
+                d: Dimension,
+                raw: i64,
+            ) -> Result<Ratio, UnitError> {
+                let g = self
+                    .internal
+                    .get(d.slot())
+                    .copied()
+                    .flatten()
+                    .ok_or(UnitError::NoUnit)?;
+                g.checked_mul_int(raw).ok_or(UnitError::Overflow)
+            }
+            /// `0x2001` FeedConverter: `numerator / denominator` (subs 1 and 2), reduced; a zero term is an error.
+            ///
+            /// unit\_new = unit\_default \* numerator / denominator; as values: value\_new = value\_default \* numerator / denominator
+            pub fn feed_converter(od: &super::Dictionary) -> Result<Ratio, UnitError> {
+                let (t, b) = (
+                    (od.feed_converter_numerator() as i128),
+                    (od.feed_converter_denominator() as i128),
+                );
+                if t == 0 || b == 0 {
+                    return Err(UnitError::ZeroFactor {
+                        index: 0x2001,
+                    });
+                }
+                Ratio::new(t, b).ok_or(UnitError::Overflow)
+            }
+            /// `0x6091` GearRatio: `motor_revolutions / shaft_revolutions` (subs 1 and 2), reduced; a zero term counts as 1.
+            ///
+            /// reduction ratio = motor\_revolutions / shaft\_revolutions
+            pub fn gear_ratio(od: &super::Dictionary) -> Result<Ratio, UnitError> {
+                let (t, b) = (
+                    (od.gear_ratio_motor_revolutions() as i128),
+                    (od.gear_ratio_shaft_revolutions() as i128),
+                );
+                Ratio::new(if t == 0 { 1 } else { t }, if b == 0 { 1 } else { b })
+                    .ok_or(UnitError::Overflow)
+            }
+            /// `0x6092` FeedConstant: `feed / shaft_revolutions` (subs 1 and 2), reduced; a zero term is an error.
+            ///
+            /// linear ratio \[mm per pulley revolution\] = feed / shaft\_revolutions
+            pub fn feed_constant(od: &super::Dictionary) -> Result<Ratio, UnitError> {
+                let (t, b) = (
+                    (od.feed_constant_feed() as i128),
+                    (od.feed_constant_shaft_revolutions() as i128),
+                );
+                if t == 0 || b == 0 {
+                    return Err(UnitError::ZeroFactor {
+                        index: 0x6092,
+                    });
+                }
+                Ratio::new(t, b).ok_or(UnitError::Overflow)
+            }
+            /// `0x608F` EncoderResolution: `encoder_increments / motor_revolutions` (subs 1 and 2), reduced; a zero term is an error.
+            ///
+            /// encoder resolution = encoder\_increments / motor\_revolutions (1000 / 1)
+            pub fn encoder_resolution(
+                od: &super::Dictionary,
+            ) -> Result<Ratio, UnitError> {
+                let (t, b) = (
+                    (od.position_encoder_resolution_encoder_increments() as i128),
+                    (od.position_encoder_resolution_motor_revolutions() as i128),
+                );
+                if t == 0 || b == 0 {
+                    return Err(UnitError::ZeroFactor {
+                        index: 0x608F,
+                    });
+                }
+                Ratio::new(t, b).ok_or(UnitError::Overflow)
+            }
+            /// `0x6062` Position demand value as a Position quantity.
+            pub fn position_demand_value(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Position, od.position_demand_value() as i64)
+            }
+            /// Sets `0x6062` Position demand value from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_position_demand_value(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_position_demand_value(v).map_err(UnitError::Rejected)
+            }
+            /// `0x6064` Position actual value as a Position quantity.
+            pub fn position_actual_value(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Position, od.position_actual_value() as i64)
+            }
+            /// Sets `0x6064` Position actual value from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_position_actual_value(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_position_actual_value(v).map_err(UnitError::Rejected)
+            }
+            /// `0x606B` Velocity demand value as a Velocity quantity.
+            pub fn velocity_demand_value(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Velocity, od.velocity_demand_value() as i64)
+            }
+            /// Sets `0x606B` Velocity demand value from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_velocity_demand_value(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_velocity_demand_value(v).map_err(UnitError::Rejected)
+            }
+            /// `0x606C` Velocity actual value as a Velocity quantity.
+            pub fn velocity_actual_value(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Velocity, od.velocity_actual_value() as i64)
+            }
+            /// Sets `0x606C` Velocity actual value from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_velocity_actual_value(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_velocity_actual_value(v).map_err(UnitError::Rejected)
+            }
+            /// `0x606D` Velocity window as a Velocity quantity.
+            pub fn velocity_window(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Velocity, od.velocity_window() as i64)
+            }
+            /// Sets `0x606D` Velocity window from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_velocity_window(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = u16::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_velocity_window(v).map_err(UnitError::Rejected)
+            }
+            /// `0x606E` Velocity window time as a Time quantity.
+            pub fn velocity_window_time(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Time, od.velocity_window_time() as i64)
+            }
+            /// Sets `0x606E` Velocity window time from a Time quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_velocity_window_time(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Time, q)?;
+                let v = u16::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_velocity_window_time(v).map_err(UnitError::Rejected)
+            }
+            /// `0x606F` Velocity threshold as a Velocity quantity.
+            pub fn velocity_threshold(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Velocity, od.velocity_threshold() as i64)
+            }
+            /// Sets `0x606F` Velocity threshold from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_velocity_threshold(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = u16::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_velocity_threshold(v).map_err(UnitError::Rejected)
+            }
+            /// `0x6070` Velocity threshold time as a Time quantity.
+            pub fn velocity_threshold_time(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Time, od.velocity_threshold_time() as i64)
+            }
+            /// Sets `0x6070` Velocity threshold time from a Time quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_velocity_threshold_time(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Time, q)?;
+                let v = u16::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_velocity_threshold_time(v).map_err(UnitError::Rejected)
+            }
+            /// `0x607A` Target position as a Position quantity.
+            pub fn target_position(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Position, od.target_position() as i64)
+            }
+            /// Sets `0x607A` Target position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_target_position(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_target_position(v).map_err(UnitError::Rejected)
+            }
+            /// `0x607C` Home offset as a Position quantity.
+            pub fn home_offset(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Position, od.home_offset() as i64)
+            }
+            /// Sets `0x607C` Home offset from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_home_offset(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_home_offset(v).map_err(UnitError::Rejected)
+            }
+            /// `0x607D` sub 1 Software position limit: Min software position limit as a Position quantity.
+            pub fn software_position_limit_min_software_position_limit(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.software_position_limit_min_software_position_limit() as i64,
+                )
+            }
+            /// Sets `0x607D` sub 1 Software position limit: Min software position limit from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_software_position_limit_min_software_position_limit(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_software_position_limit_min_software_position_limit(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x607D` sub 2 Software position limit: Max software position limit as a Position quantity.
+            pub fn software_position_limit_max_software_position_limit(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Position,
+                    od.software_position_limit_max_software_position_limit() as i64,
+                )
+            }
+            /// Sets `0x607D` sub 2 Software position limit: Max software position limit from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_software_position_limit_max_software_position_limit(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_software_position_limit_max_software_position_limit(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x6081` Profile velocity in pp-mode as a Velocity quantity.
+            pub fn profile_velocity_in_pp_mode(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Velocity,
+                    od.profile_velocity_in_pp_mode() as i64,
+                )
+            }
+            /// Sets `0x6081` Profile velocity in pp-mode from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_profile_velocity_in_pp_mode(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_profile_velocity_in_pp_mode(v).map_err(UnitError::Rejected)
+            }
+            /// `0x6083` Profile acceleration as a Acceleration quantity.
+            pub fn profile_acceleration(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Acceleration,
+                    od.profile_acceleration() as i64,
+                )
+            }
+            /// Sets `0x6083` Profile acceleration from a Acceleration quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_profile_acceleration(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Acceleration, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_profile_acceleration(v).map_err(UnitError::Rejected)
+            }
+            /// `0x6084` Profile deceleration as a Acceleration quantity.
+            pub fn profile_deceleration(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Acceleration,
+                    od.profile_deceleration() as i64,
+                )
+            }
+            /// Sets `0x6084` Profile deceleration from a Acceleration quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_profile_deceleration(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Acceleration, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_profile_deceleration(v).map_err(UnitError::Rejected)
+            }
+            /// `0x6099` sub 1 Homing speed: Fast homing speed as a Velocity quantity.
+            pub fn homing_speed_fast_homing_speed(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Velocity,
+                    od.homing_speed_fast_homing_speed() as i64,
+                )
+            }
+            /// Sets `0x6099` sub 1 Homing speed: Fast homing speed from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_homing_speed_fast_homing_speed(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_homing_speed_fast_homing_speed(v).map_err(UnitError::Rejected)
+            }
+            /// `0x6099` sub 2 Homing speed: Slow homing speed as a Velocity quantity.
+            pub fn homing_speed_slow_homing_speed(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Velocity,
+                    od.homing_speed_slow_homing_speed() as i64,
+                )
+            }
+            /// Sets `0x6099` sub 2 Homing speed: Slow homing speed from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_homing_speed_slow_homing_speed(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_homing_speed_slow_homing_speed(v).map_err(UnitError::Rejected)
+            }
+            /// `0x60FF` Target velocity as a Velocity quantity.
+            pub fn target_velocity(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Velocity, od.target_velocity() as i64)
+            }
+            /// Sets `0x60FF` Target velocity from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_target_velocity(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_target_velocity(v).map_err(UnitError::Rejected)
+            }
+        }
+    }
     /// Generic machinery of the generated dictionary (not part of its API; may change
     /// between generator versions).
     #[doc(hidden)]
@@ -16433,6 +17138,130 @@ PDOMapping=0
                         .ok_or(AbortCode::NO_OBJECT)
                 },
             )
+        }
+        fn gcd(a: i128, b: i128) -> i128 {
+            let (mut a, mut b) = (a.unsigned_abs(), b.unsigned_abs());
+            while b != 0 {
+                let t = a % b;
+                a = b;
+                b = t;
+            }
+            if a > i128::MAX as u128 { 1 } else { a as i128 }
+        }
+        /// An exact rational number (denominator positive). Arithmetic is checked: `None`
+        /// means an overflow (or a zero denominator), never a wrapped value.
+        #[derive(Clone, Copy, Debug)]
+        pub struct Ratio {
+            num: i128,
+            den: i128,
+        }
+        impl Ratio {
+            /// 1.
+            pub const ONE: Ratio = Ratio { num: 1, den: 1 };
+            /// An integer.
+            pub const fn int(v: i64) -> Ratio {
+                Ratio { num: v as i128, den: 1 }
+            }
+            /// `num / den` in lowest terms; `None` if `den` is 0.
+            pub fn new(num: i128, den: i128) -> Option<Ratio> {
+                if den == 0 || num == i128::MIN || den == i128::MIN {
+                    return None;
+                }
+                let (num, den) = if den < 0 { (-num, -den) } else { (num, den) };
+                let g = gcd(num, den).max(1);
+                Some(Ratio {
+                    num: num / g,
+                    den: den / g,
+                })
+            }
+            /// The numerator (of the stored form, not necessarily reduced).
+            pub const fn num(self) -> i128 {
+                self.num
+            }
+            /// The denominator (positive).
+            pub const fn den(self) -> i128 {
+                self.den
+            }
+            /// This ratio in lowest terms.
+            pub fn reduced(self) -> Ratio {
+                Ratio::new(self.num, self.den).unwrap_or(self)
+            }
+            /// `self × v`, not reduced (fast path of conversions).
+            #[inline]
+            pub fn checked_mul_int(self, v: i64) -> Option<Ratio> {
+                Some(Ratio {
+                    num: self.num.checked_mul(v as i128)?,
+                    den: self.den,
+                })
+            }
+            /// `self × o`; reduces only when the plain product would overflow.
+            #[inline]
+            pub fn checked_mul(self, o: Ratio) -> Option<Ratio> {
+                match (self.num.checked_mul(o.num), self.den.checked_mul(o.den)) {
+                    (Some(num), Some(den)) => Some(Ratio { num, den }),
+                    _ => {
+                        let (a, b) = (self.reduced(), o.reduced());
+                        let g1 = gcd(a.num, b.den).max(1);
+                        let g2 = gcd(b.num, a.den).max(1);
+                        let num = (a.num / g1).checked_mul(b.num / g2)?;
+                        let den = (a.den / g2).checked_mul(b.den / g1)?;
+                        Some(Ratio { num, den })
+                    }
+                }
+            }
+            /// `1 / self`; `None` for 0.
+            pub fn recip(self) -> Option<Ratio> {
+                Ratio::new(self.den, self.num)
+            }
+            /// `self / o`; `None` for a zero divisor or an overflow.
+            #[inline]
+            pub fn checked_div(self, o: Ratio) -> Option<Ratio> {
+                if o.num == 0 || o.num == i128::MIN {
+                    return None;
+                }
+                let (n, d) = if o.num < 0 { (-o.den, -o.num) } else { (o.den, o.num) };
+                self.checked_mul(Ratio { num: n, den: d })
+            }
+            /// The nearest integer, halves rounded away from zero.
+            #[inline]
+            pub fn round(self) -> i128 {
+                let (q, r) = if let (Ok(n), Ok(d)) = (
+                    i64::try_from(self.num),
+                    i64::try_from(self.den),
+                ) {
+                    ((n / d) as i128, (n % d) as i128)
+                } else {
+                    (self.num / self.den, self.num % self.den)
+                };
+                let r = r.unsigned_abs();
+                if r >= self.den.unsigned_abs() - r {
+                    if self.num < 0 { q - 1 } else { q + 1 }
+                } else {
+                    q
+                }
+            }
+            /// The nearest `f64`.
+            pub fn to_f64(self) -> f64 {
+                let r = self.reduced();
+                r.num as f64 / r.den as f64
+            }
+        }
+        impl PartialEq for Ratio {
+            fn eq(&self, o: &Ratio) -> bool {
+                let (a, b) = (self.reduced(), o.reduced());
+                a.num == b.num && a.den == b.den
+            }
+        }
+        impl Eq for Ratio {}
+        impl ::core::fmt::Display for Ratio {
+            fn fmt(&self, f: &mut ::core::fmt::Formatter<'_>) -> ::core::fmt::Result {
+                let r = self.reduced();
+                if r.den == 1 {
+                    write!(f, "{}", r.num)
+                } else {
+                    write!(f, "{}/{}", r.num, r.den)
+                }
+            }
         }
         /// A received PDO was shorter than its mapping.
         #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -28,13 +28,11 @@ struct DeviceSpec {
 /// Generates device modules from a build script (or from `xtask`), like `prost_build::Config`.
 ///
 /// ```no_run
-/// // build.rs
-/// fn main() {
-///     od_codegen::Builder::new()
-///         .device("drvi", "../devices/camozzi-drvi.eds") // sidecar: ../devices/camozzi-drvi.toml
-///         .compile()
-///         .unwrap_or_else(|e| panic!("{e}"));
-/// }
+/// // build.rs: fn main() { … }
+/// od_codegen::Builder::new()
+///     .device("drvi", "../devices/camozzi-drvi.eds") // sidecar: ../devices/camozzi-drvi.toml
+///     .compile()
+///     .unwrap_or_else(|e| panic!("{e}"));
 /// ```
 ///
 /// and in `src/lib.rs`:

@@ -11,13 +11,11 @@
 //! * **build.rs**, in the style of `prost-build`:
 //!
 //!   ```no_run
-//!   // build.rs
-//!   fn main() {
-//!       od_codegen::Builder::new()
-//!           .device("drvi", "../devices/camozzi-drvi.eds")
-//!           .compile()
-//!           .unwrap_or_else(|e| panic!("{e}"));
-//!   }
+//!   // build.rs: fn main() { … }
+//!   od_codegen::Builder::new()
+//!       .device("drvi", "../devices/camozzi-drvi.eds")
+//!       .compile()
+//!       .unwrap_or_else(|e| panic!("{e}"));
 //!   ```
 //!
 //!   and in the crate, `include!(concat!(env!("OUT_DIR"), "/drvi.rs"));` brings in

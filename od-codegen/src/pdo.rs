@@ -301,7 +301,7 @@ fn layouts<'p>(model: &Model, plan: &'p Plan<'p>, sink: &mut Sink) -> Vec<Layout
                 break;
             }
             let bits = m.bits as u32;
-            if g > 0 && bits % g != 0 {
+            if g > 0 && !bits.is_multiple_of(g) {
                 sink.at_entry(
                     Severity::Warning,
                     diag::PDO_LENGTH,

@@ -301,6 +301,134 @@ pub(crate) fn module() -> TokenStream {
                 })
             }
 
+            fn gcd(a: i128, b: i128) -> i128 {
+                let (mut a, mut b) = (a.unsigned_abs(), b.unsigned_abs());
+                while b != 0 {
+                    let t = a % b;
+                    a = b;
+                    b = t;
+                }
+                if a > i128::MAX as u128 { 1 } else { a as i128 }
+            }
+
+            /// An exact rational number (denominator positive). Arithmetic is checked: `None`
+            /// means an overflow (or a zero denominator), never a wrapped value.
+            #[derive(Clone, Copy, Debug)]
+            pub struct Ratio {
+                num: i128,
+                den: i128,
+            }
+
+            impl Ratio {
+                /// 1.
+                pub const ONE: Ratio = Ratio { num: 1, den: 1 };
+
+                /// An integer.
+                pub const fn int(v: i64) -> Ratio {
+                    Ratio { num: v as i128, den: 1 }
+                }
+
+                /// `num / den` in lowest terms; `None` if `den` is 0.
+                pub fn new(num: i128, den: i128) -> Option<Ratio> {
+                    if den == 0 || num == i128::MIN || den == i128::MIN {
+                        return None;
+                    }
+                    let (num, den) = if den < 0 { (-num, -den) } else { (num, den) };
+                    let g = gcd(num, den).max(1);
+                    Some(Ratio { num: num / g, den: den / g })
+                }
+
+                /// The numerator (of the stored form, not necessarily reduced).
+                pub const fn num(self) -> i128 {
+                    self.num
+                }
+
+                /// The denominator (positive).
+                pub const fn den(self) -> i128 {
+                    self.den
+                }
+
+                /// This ratio in lowest terms.
+                pub fn reduced(self) -> Ratio {
+                    Ratio::new(self.num, self.den).unwrap_or(self)
+                }
+
+                /// `self × v`, not reduced (fast path of conversions).
+                #[inline]
+                pub fn checked_mul_int(self, v: i64) -> Option<Ratio> {
+                    Some(Ratio { num: self.num.checked_mul(v as i128)?, den: self.den })
+                }
+
+                /// `self × o`; reduces only when the plain product would overflow.
+                #[inline]
+                pub fn checked_mul(self, o: Ratio) -> Option<Ratio> {
+                    match (self.num.checked_mul(o.num), self.den.checked_mul(o.den)) {
+                        (Some(num), Some(den)) => Some(Ratio { num, den }),
+                        _ => {
+                            let (a, b) = (self.reduced(), o.reduced());
+                            let g1 = gcd(a.num, b.den).max(1);
+                            let g2 = gcd(b.num, a.den).max(1);
+                            let num = (a.num / g1).checked_mul(b.num / g2)?;
+                            let den = (a.den / g2).checked_mul(b.den / g1)?;
+                            Some(Ratio { num, den })
+                        }
+                    }
+                }
+
+                /// `1 / self`; `None` for 0.
+                pub fn recip(self) -> Option<Ratio> {
+                    Ratio::new(self.den, self.num)
+                }
+
+                /// `self / o`; `None` for a zero divisor or an overflow.
+                #[inline]
+                pub fn checked_div(self, o: Ratio) -> Option<Ratio> {
+                    if o.num == 0 || o.num == i128::MIN {
+                        return None;
+                    }
+                    let (n, d) = if o.num < 0 { (-o.den, -o.num) } else { (o.den, o.num) };
+                    self.checked_mul(Ratio { num: n, den: d })
+                }
+
+                /// The nearest integer, halves rounded away from zero.
+                #[inline]
+                pub fn round(self) -> i128 {
+                    let (q, r) = if let (Ok(n), Ok(d)) = (i64::try_from(self.num), i64::try_from(self.den)) {
+                        ((n / d) as i128, (n % d) as i128)
+                    } else {
+                        (self.num / self.den, self.num % self.den)
+                    };
+                    let r = r.unsigned_abs();
+                    if r >= self.den.unsigned_abs() - r {
+                        if self.num < 0 { q - 1 } else { q + 1 }
+                    } else {
+                        q
+                    }
+                }
+
+                /// The nearest `f64`.
+                pub fn to_f64(self) -> f64 {
+                    let r = self.reduced();
+                    r.num as f64 / r.den as f64
+                }
+            }
+
+            impl PartialEq for Ratio {
+                fn eq(&self, o: &Ratio) -> bool {
+                    let (a, b) = (self.reduced(), o.reduced());
+                    a.num == b.num && a.den == b.den
+                }
+            }
+
+            impl Eq for Ratio {}
+
+            impl ::core::fmt::Display for Ratio {
+                fn fmt(&self, f: &mut ::core::fmt::Formatter<'_>) -> ::core::fmt::Result {
+                    let r = self.reduced();
+                    if r.den == 1 { write!(f, "{}", r.num) } else { write!(f, "{}/{}", r.num, r.den) }
+                }
+            }
+
             /// A received PDO was shorter than its mapping.
             #[derive(Clone, Copy, Debug, PartialEq, Eq)]
             pub struct PdoLengthError {
