@@ -8,6 +8,10 @@
 //! [`Device::quick_stop_done`](crate::Device::quick_stop_done) and
 //! [`Device::fault_reaction_done`](crate::Device::fault_reaction_done).
 //!
+//! Transition 0 (power on → Not ready to switch on) is the creation of the state machine at
+//! reset node and has no event; transition 1 follows at once, as the runtime has no
+//! initialisation of its own to wait for.
+//!
 //! ```text
 //!        (0) ──► Not ready to switch on ──(1)──► Switch on disabled ◄─────────(15)── Fault
 //!                                          (2)│ ▲(7)  ▲(10)  ▲(9)  ▲(12)           ▲ (14)

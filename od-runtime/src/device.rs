@@ -838,9 +838,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
 
     fn emcy_reset(&mut self, register: u8) {
         let mut reg = self.error_register() & !register;
-        if reg & !emcy::REG_GENERIC == 0 {
-            reg = 0;
-        }
+        // The generic bit stays set exactly while another error bit is.
+        reg = if reg & !emcy::REG_GENERIC == 0 { 0 } else { reg | emcy::REG_GENERIC };
         let _ = self.od.write(0x1001, 0, &[reg]);
         self.emcy_queue.push([0, 0, reg, 0, 0, 0, 0, 0]);
     }
@@ -881,10 +880,14 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
     fn drive_transitions(&mut self, ts: Transitions) {
         for t in ts.iter() {
             if t.number == 15 {
-                if self.od.info(0x603F, 0).is_ok() {
+                // Fault reset: clear 603Fh and the error register bits of that fault (all bits
+                // when the dictionary has no 603Fh), and send the error reset EMCY.
+                let mut bits = 0xFF;
+                if let Some(code) = read_uint(&self.od, 0x603F, 0) {
+                    bits = emcy::register_bits(code as u16);
                     let _ = self.od.write(0x603F, 0, &[0, 0]);
                 }
-                self.emcy_reset(0xFF);
+                self.emcy_reset(bits);
             }
             self.event(Event::Cia402(t));
         }

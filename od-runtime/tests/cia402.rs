@@ -144,6 +144,15 @@ fn fault_reaction_and_reset_edge() {
     assert_eq!(h.od().get(0x603F, 0), 0);
     // The fault reset sends the "error reset" EMCY.
     assert_eq!(h.extra, ["081 00 00 00 00 00 00 00 00"]);
+    // Only the fault's register bits are cleared.
+    h.extra.clear();
+    h.dev.signal_error(0x8130, od_runtime::emcy::REG_COMMUNICATION, [0; 5]);
+    h.dev.set_fault(0x2310);
+    h.dev.fault_reaction_done();
+    cw(&mut h, 0x00);
+    cw(&mut h, 0x80);
+    assert_eq!(h.dev.error_register(), 0x11);
+    assert_eq!(h.extra.last().unwrap(), "081 00 00 11 00 00 00 00 00");
     h.dev.set_fault(0x2310);
     h.dev.fault_reaction_done();
     h.events();
