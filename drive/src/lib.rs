@@ -1,4 +1,6 @@
 //! Simulated CANopen drives and the buses they are reached through.
 #![deny(missing_docs)]
 
+pub mod motion;
+pub mod trace;
 pub mod transport;
