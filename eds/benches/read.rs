@@ -29,7 +29,10 @@ fn corpus() -> (String, Vec<(String, Vec<u8>)>) {
             rd.flatten()
                 .map(|e| e.path())
                 .filter(|p| {
-                    matches!(p.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref(), Some("eds" | "dcf"))
+                    matches!(
+                        p.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref(),
+                        Some("eds" | "dcf")
+                    )
                 })
                 .filter_map(|p| Some((p.display().to_string(), std::fs::read(&p).ok()?)))
                 .collect()
