@@ -114,8 +114,6 @@ codes! {
     E0219 = Warning, true, "ARRAY elements of different data types";
     /// Sub-objects for an object whose type has none (VAR, DOMAIN).
     E0220 = Warning, true, "sub-objects for an object without sub-objects";
-    /// The object or sub-object section is empty or has no usable entry and was skipped.
-    E0221 = Error, true, "object could not be built";
 
     // ---- E03xx: values ----
     /// A value that cannot be read as the entry's data type.
@@ -209,8 +207,9 @@ codes! {
     E0610 = Note, true, "AccessType and PDOMapping disagree";
     /// A PDO mapping value that is not a number (e.g. `$NODEID` in a mapping).
     E0611 = Warning, true, "PDO mapping value cannot be read";
-    /// CompactPDO in [DeviceInfo] with explicit PDO objects that disagree, or an invalid value.
-    E0612 = Note, false, "CompactPDO";
+    /// `CompactPDO` in [DeviceInfo]: PDO objects are implied rather than written out (see
+    /// [`crate::lower::expand_compact_pdo`]).
+    E0612 = Note, false, "PDO objects implied by CompactPDO";
 }
 
 /// The information about `code` (`None` for a code not in [`ALL`]).

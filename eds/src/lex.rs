@@ -105,19 +105,29 @@ fn classify(content: &str, base: u32) -> LineKind {
         let off = s.as_ptr() as usize - content.as_ptr() as usize;
         Span::new(base + off as u32, base + (off + s.len()) as u32)
     };
-    if let Ok((_, text)) = comment(content) {
-        return LineKind::Comment { text: span_of(text) };
-    }
-    if let Ok((trailing, name)) = section(content) {
-        return LineKind::Section { name: span_of(name.trim()), trailing: span_of(trailing) };
-    }
-    if content.trim().is_empty() {
-        return LineKind::Blank;
-    }
-    if let Ok((value, key)) = entry(content) {
-        let key = key.trim();
-        if !key.is_empty() {
-            return LineKind::Entry { key: span_of(key), value: span_of(value.trim()) };
+    // Dispatch on the first non-blank byte, then let the matching nom parser do the work.
+    match content.bytes().find(|&b| !matches!(b, b' ' | b'\t' | 0x0B | 0x0C)) {
+        None => return LineKind::Blank,
+        Some(b';' | b'#') => {
+            if let Ok((_, text)) = comment(content) {
+                return LineKind::Comment { text: span_of(text) };
+            }
+        }
+        Some(b'[') => {
+            if let Ok((trailing, name)) = section(content) {
+                return LineKind::Section { name: span_of(name.trim()), trailing: span_of(trailing) };
+            }
+        }
+        Some(_) => {
+            if let Ok((value, key)) = entry(content) {
+                let key = key.trim();
+                if !key.is_empty() {
+                    return LineKind::Entry { key: span_of(key), value: span_of(value.trim()) };
+                }
+            } else if content.trim().is_empty() {
+                // Only Unicode white space (e.g. a no-break space).
+                return LineKind::Blank;
+            }
         }
     }
     LineKind::Garbage

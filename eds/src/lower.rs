@@ -74,6 +74,38 @@ impl Ctx<'_> {
     }
 }
 
+/// Where in the dictionary a diagnostic is, kept as borrowed parts and only formatted into
+/// [`Diagnostic::context`] when a diagnostic is emitted (most entries produce none).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Crumbs<'a> {
+    object: Option<(u16, &'a str)>,
+    sub: Option<(u8, &'a str)>,
+}
+
+impl<'a> Crumbs<'a> {
+    /// In object `index` named `name`.
+    pub fn object(index: u16, name: &'a str) -> Self {
+        Crumbs { object: Some((index, name)), sub: None }
+    }
+
+    /// The same object, sub-index `sub` named `name`.
+    pub fn sub(self, sub: u8, name: &'a str) -> Self {
+        Crumbs { sub: Some((sub, name)), ..self }
+    }
+
+    /// The breadcrumbs as [`Diagnostic::context`] wants them.
+    pub fn to_vec(self) -> Vec<String> {
+        let mut v = Vec::with_capacity(2);
+        if let Some((i, n)) = self.object {
+            v.push(object_context(i, n));
+        }
+        if let Some((s, n)) = self.sub {
+            v.push(sub_context(s, n));
+        }
+        v
+    }
+}
+
 /// `object 0x1018 "Identity Object"`
 pub(crate) fn object_context(index: u16, name: &str) -> String {
     format!("object 0x{index:04X} \"{name}\"")

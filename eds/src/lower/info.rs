@@ -2,8 +2,8 @@
 
 use std::collections::HashMap;
 
-use super::Ctx;
 use super::sections::{Kind, Kv, Section, Sections, match_keys};
+use super::{Crumbs, Ctx};
 use crate::codes;
 use crate::model::{Category, Commissioning, DeviceInfo, ExtraSection, FileInfo, Index, Model, Role};
 use crate::source::Span;
@@ -130,7 +130,7 @@ const FILE_INFO_KEYS: &[&str] = &[
 ];
 
 fn lower_file_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> FileInfo {
-    let keys = match_keys(cx, sec, FILE_INFO_KEYS, &[], true);
+    let keys = match_keys(cx, sec, FILE_INFO_KEYS, Crumbs::default(), true);
     let mut fi = FileInfo::default();
     let s = |i: usize| keys.get(i).map(|kv| kv.value.to_owned());
     fi.file_name = s(0);
@@ -220,7 +220,7 @@ const DEVICE_INFO_KEYS: &[&str] = &[
 
 fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
     const S: &str = "DeviceInfo";
-    let keys = match_keys(cx, sec, DEVICE_INFO_KEYS, &[], false);
+    let keys = match_keys(cx, sec, DEVICE_INFO_KEYS, Crumbs::default(), false);
     let mut di = DeviceInfo {
         vendor_name: keys.get(0).map(|kv| kv.value.to_owned()),
         product_name: keys.get(2).map(|kv| kv.value.to_owned()),
@@ -260,6 +260,16 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
     uint!(12, nr_of_tx_pdo, 512, u16);
     boolean!(13, lss_supported);
     uint!(14, compact_pdo, 0xFF, u8);
+    if let (Some(bits), Some(kv)) = (di.compact_pdo.filter(|&b| b != 0), keys.get(14)) {
+        let d = cx.emit(
+            codes::E0612,
+            Some(kv.value_span),
+            format!(
+                "CompactPDO=0x{bits:02X}: the file leaves PDO objects implied; the model holds only those written out"
+            ),
+        );
+        d.hint = Some("call eds::lower::expand_compact_pdo to add the implied PDO objects".to_owned());
+    }
     for i in 15..DEVICE_INFO_KEYS.len() {
         if let Some(kv) = keys.get(i) {
             keep.push(owned(kv));
@@ -331,7 +341,7 @@ const COMMISSIONING_KEYS: &[&str] =
 
 fn lower_commissioning(cx: &mut Ctx<'_>, sec: &Section<'_>) -> Commissioning {
     const S: &str = "DeviceComissioning";
-    let keys = match_keys(cx, sec, COMMISSIONING_KEYS, &[], true);
+    let keys = match_keys(cx, sec, COMMISSIONING_KEYS, Crumbs::default(), true);
     let mut c = Commissioning { node_name: keys.get(1).map(|kv| kv.value.to_owned()), ..Default::default() };
     c.network_name = keys.get(4).map(|kv| kv.value.to_owned());
     let mut keep = Vec::new();
@@ -382,7 +392,7 @@ fn lower_commissioning(cx: &mut Ctx<'_>, sec: &Section<'_>) -> Commissioning {
 }
 
 fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
-    let keys = match_keys(cx, sec, &[], &[], false);
+    let keys = match_keys(cx, sec, &[], Crumbs::default(), false);
     for kv in &keys.unknown {
         let ty = kv.key.get(..5).filter(|p| p.eq_ignore_ascii_case("Dummy")).and_then(|_| {
             let digits = &kv.key[5..];
@@ -424,7 +434,7 @@ fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
 }
 
 fn lower_comments(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
-    let keys = match_keys(cx, sec, &["Lines"], &[], false);
+    let keys = match_keys(cx, sec, &["Lines"], Crumbs::default(), false);
     let mut lines: Vec<(u32, &str)> = Vec::new();
     for kv in &keys.unknown {
         let n =
@@ -557,7 +567,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
         let Some(sec) = secs.get(Kind::List(cat)) else { continue };
         lists.present[category_slot(cat)] = true;
         let name = list_name(cat);
-        let keys = match_keys(cx, sec, &["SupportedObjects"], &[], false);
+        let keys = match_keys(cx, sec, &["SupportedObjects"], Crumbs::default(), false);
         let mut numbers: Vec<u32> = Vec::new();
         for kv in &keys.unknown {
             let Ok(n) = kv.key.parse::<u32>() else {

@@ -4,7 +4,7 @@ use std::collections::{BTreeMap, HashMap, HashSet};
 
 use super::info::{Lists, expected_category};
 use super::sections::{Keys, Kind, Kv, Section, Sections, match_keys};
-use super::{Ctx, object_context, sub_context};
+use super::{Crumbs, Ctx};
 use crate::codes;
 use crate::model::{Access, DataType, Entry, FileKind, Index, Model, Object, ObjectType, SourceRef, SubIndex, Value};
 use crate::value::{self, Quirk, ValueError};
@@ -62,7 +62,7 @@ fn before_comment(v: &str) -> Option<&str> {
 
 /// Reads a plain unsigned integer key (ObjectType, DataType, SubNumber, ...). An inline comment
 /// is removed with a warning. Returns `Err(text)` when unreadable.
-fn uint_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u32, context: &[String]) -> Result<u32, ()> {
+fn uint_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u32, context: Crumbs<'_>) -> Result<u32, ()> {
     let mut quirks = Vec::new();
     let mut parsed = value::parse_int(kv.value, &mut quirks);
     if parsed.is_err()
@@ -81,7 +81,7 @@ fn uint_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u32, context: &[String]) -> Resu
     }
 }
 
-fn inline_comment(cx: &mut Ctx<'_>, kv: &Kv<'_>, head: &str, context: &[String]) {
+fn inline_comment(cx: &mut Ctx<'_>, kv: &Kv<'_>, head: &str, context: Crumbs<'_>) {
     let d = cx.emit(
         codes::E0008,
         Some(kv.value_span),
@@ -91,7 +91,7 @@ fn inline_comment(cx: &mut Ctx<'_>, kv: &Kv<'_>, head: &str, context: &[String])
     d.context = context.to_vec();
 }
 
-fn report_quirks(cx: &mut Ctx<'_>, kv: &Kv<'_>, quirks: &[Quirk], context: &[String]) {
+fn report_quirks(cx: &mut Ctx<'_>, kv: &Kv<'_>, quirks: &[Quirk], context: Crumbs<'_>) {
     for q in quirks {
         let span = Some(kv.value_span);
         let text = kv.value;
@@ -169,7 +169,7 @@ fn value_error_hint(e: &ValueError, ty: DataType) -> String {
 
 /// Reads a value key. `Ok(None)` means no value (empty); `Err(())` means the text could not be
 /// read (already reported; the caller keeps it as written).
-fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: &[String]) -> Result<Option<Value>, ()> {
+fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -> Result<Option<Value>, ()> {
     let mut parsed = value::parse_value(kv.value, ty);
     if let DataType::Other(_) = ty {
         // The type is not known here: keep what cannot be read as a number as text.
@@ -220,7 +220,7 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: &[String]) ->
 }
 
 /// Parses `AccessType`, accepting common non-standard spellings with a warning.
-fn access_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, context: &[String]) -> Access {
+fn access_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, context: Crumbs<'_>) -> Access {
     let mut text = kv.value;
     let mut acc = Access::parse(text);
     if acc.is_none()
@@ -288,7 +288,7 @@ impl EntryBuilder<'_> {
         sub: u8,
         name: Option<String>,
         defaults: EntryDefaults,
-        context: &[String],
+        context: Crumbs<'_>,
     ) -> Option<Entry> {
         let mut extra: Vec<(String, String)> = Vec::new();
         let name = match name.or_else(|| keys.get(K_NAME).map(|kv| kv.value.to_owned())) {
@@ -487,7 +487,7 @@ fn cmp_values(a: &Value, b: &Value) -> Option<std::cmp::Ordering> {
 
 /// Checks within one entry: limits against each other and the values, PDOMapping against the
 /// access type and the data type.
-fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &Keys<'_, '_>, context: &[String]) {
+fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &Keys<'_, '_>, context: Crumbs<'_>) {
     let span_of = |i: usize| keys.get(i).map(|kv| kv.value_span);
     if (e.low_limit.is_some() || e.high_limit.is_some()) && !is_numeric(e.data_type) {
         if let DataType::Other(_) = e.data_type {
@@ -559,7 +559,7 @@ fn numbered<'s, 'a>(
     cx: &mut Ctx<'_>,
     sec: &'s Section<'a>,
     count_key: &str,
-    context: &[String],
+    context: Crumbs<'_>,
 ) -> Vec<(u32, &'s Kv<'a>)> {
     let keys = match_keys(cx, sec, &[count_key], context, false);
     let mut out = Vec::new();
@@ -628,8 +628,9 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
         let links = side.remove(&Kind::Links(index));
         let mut obj = build_object(cx, &builder, index, sec, &my_subs, names, values);
         if let Some(l) = links {
-            let ctx = [object_context(index, &obj.name)];
-            for (_, kv) in numbered(cx, l, "ObjectLinks", &ctx) {
+            let oname = obj.name.clone();
+            let ctx = Crumbs::object(index, &oname);
+            for (_, kv) in numbered(cx, l, "ObjectLinks", ctx) {
                 let mut q = Vec::new();
                 match value::parse_int(kv.value, &mut q) {
                     Ok(p) if (0..=0xFFFF).contains(&p.value) => obj.object_links.push(Index(p.value as u16)),
@@ -673,14 +674,14 @@ fn build_object(
     values: Option<&Section<'_>>,
 ) -> Object {
     let name = sec.entries.iter().rev().find(|kv| kv.key.eq_ignore_ascii_case("ParameterName")).map(|kv| kv.value);
-    let ctx = vec![object_context(index, name.unwrap_or(sec.name))];
-    let keys = match_keys(cx, sec, OBJ_KEYS, &ctx, true);
+    let ctx = Crumbs::object(index, name.unwrap_or(sec.name));
+    let keys = match_keys(cx, sec, OBJ_KEYS, ctx, true);
     let name = match keys.get(K_NAME) {
         Some(kv) => kv.value.to_owned(),
         None => {
             let d = cx.emit(codes::E0201, Some(sec.name_span), format!("[{}] lacks ParameterName", sec.name));
             d.hint = Some("add `ParameterName=...`".to_owned());
-            d.context = ctx.clone();
+            d.context = ctx.to_vec();
             String::new()
         }
     };
@@ -688,7 +689,7 @@ fn build_object(
     let looks_structured = !subs.is_empty() || keys.get(K_SUBNUM).is_some() || has_compact;
     let object_type = match keys.get(K_OTYPE) {
         Some(kv) => {
-            match uint_key(cx, kv, 0xFF, &ctx).ok().and_then(|c| ObjectType::from_code(c as u8)) {
+            match uint_key(cx, kv, 0xFF, ctx).ok().and_then(|c| ObjectType::from_code(c as u8)) {
                 Some(t) => t,
                 None => {
                     let assumed = if looks_structured { ObjectType::Record } else { ObjectType::Var };
@@ -698,7 +699,7 @@ fn build_object(
                         format!("ObjectType `{}` is not an object code; {assumed:?} assumed", kv.value),
                     );
                     d.hint = Some("object codes are 0x0 NULL, 0x2 DOMAIN, 0x5 DEFTYPE, 0x6 DEFSTRUCT, 0x7 VAR, 0x8 ARRAY, 0x9 RECORD".to_owned());
-                    d.context = ctx.clone();
+                    d.context = ctx.to_vec();
                     assumed
                 }
             }
@@ -711,12 +712,12 @@ fn build_object(
                 format!("[{}] lacks ObjectType but has sub-objects; {assumed:?} assumed", sec.name),
             );
             d.hint = Some(format!("add `ObjectType=0x{:X}`", assumed.code()));
-            d.context = ctx.clone();
+            d.context = ctx.to_vec();
             assumed
         }
         None => {
             cx.emit(codes::E0202, Some(sec.name_span), format!("[{}] lacks ObjectType; VAR assumed", sec.name))
-                .context = ctx.clone();
+                .context = ctx.to_vec();
             ObjectType::Var
         }
     };
@@ -739,7 +740,7 @@ fn build_object(
             } else {
                 EntryDefaults::default()
             };
-            if let Some(e) = builder.build(cx, sec, &keys, 0, Some(name.clone()), defaults, &ctx) {
+            if let Some(e) = builder.build(cx, sec, &keys, 0, Some(name.clone()), defaults, ctx) {
                 obj.subs.insert(SubIndex(0), e);
             }
         } else {
@@ -756,7 +757,7 @@ fn build_object(
             );
             d.hint =
                 Some("make the object an ARRAY (0x8) or RECORD (0x9), or remove the sub-object sections".to_owned());
-            d.context = ctx.clone();
+            d.context = ctx.to_vec();
         }
         for side in [names, values].into_iter().flatten() {
             let d = cx.emit(
@@ -764,13 +765,13 @@ fn build_object(
                 Some(side.name_span),
                 format!("[{}] belongs to an object without CompactSubObj (ignored)", side.name),
             );
-            d.context = ctx.clone();
+            d.context = ctx.to_vec();
         }
         return obj;
     }
 
     // ARRAY, RECORD, DEFSTRUCT.
-    obj.obj_flags = keys.get(K_FLAGS).and_then(|kv| match uint_key(cx, kv, u32::MAX, &ctx) {
+    obj.obj_flags = keys.get(K_FLAGS).and_then(|kv| match uint_key(cx, kv, u32::MAX, ctx) {
         Ok(v) => Some(v),
         Err(()) => {
             let d = cx.emit(
@@ -778,28 +779,28 @@ fn build_object(
                 Some(kv.value_span),
                 format!("ObjFlags `{}` is not a number (kept as text)", kv.value),
             );
-            d.context = ctx.clone();
+            d.context = ctx.to_vec();
             obj.extra.push(owned(kv));
             None
         }
     });
-    let sub_number = keys.get(K_SUBNUM).and_then(|kv| match uint_key(cx, kv, 0x100, &ctx) {
+    let sub_number = keys.get(K_SUBNUM).and_then(|kv| match uint_key(cx, kv, 0x100, ctx) {
         Ok(n) => Some(n),
         Err(()) => {
             let d =
                 cx.emit(codes::E0209, Some(kv.value_span), format!("SubNumber `{}` is not a number 0..=256", kv.value));
-            d.context = ctx.clone();
+            d.context = ctx.to_vec();
             obj.extra.push(owned(kv));
             None
         }
     });
-    let compact = keys.get(K_COMPACT).and_then(|kv| match uint_key(cx, kv, 0xFF, &ctx) {
+    let compact = keys.get(K_COMPACT).and_then(|kv| match uint_key(cx, kv, 0xFF, ctx) {
         Ok(n) => {
             if n == 0xFF {
                 let d = cx.emit(codes::E0213, Some(kv.value_span), "CompactSubObj=255 defines sub-index 0xFF");
                 d.hint =
                     Some("CiA 301 reserves sub-index 0xFF for the structure of the object; 254 is the most".to_owned());
-                d.context = ctx.clone();
+                d.context = ctx.to_vec();
             }
             Some(n as u8)
         }
@@ -809,7 +810,7 @@ fn build_object(
                 Some(kv.value_span),
                 format!("CompactSubObj `{}` is not a number 0..=255", kv.value),
             );
-            d.context = ctx.clone();
+            d.context = ctx.to_vec();
             obj.extra.push(owned(kv));
             None
         }
@@ -823,16 +824,16 @@ fn build_object(
                 Some(kv.key_span),
                 format!("CompactSubObj on a {object_type:?} object (CiA 306 allows it on ARRAY only)"),
             );
-            d.context = ctx.clone();
+            d.context = ctx.to_vec();
         }
         if let (Some(_), Some(kv)) = (sub_number, keys.get(K_SUBNUM)) {
             let d = cx.emit(codes::E0213, Some(kv.key_span), "both SubNumber and CompactSubObj are given");
             d.hint =
                 Some("use CompactSubObj alone for the compact form, or SubNumber with sub-object sections".to_owned());
-            d.context = ctx.clone();
+            d.context = ctx.to_vec();
         }
         obj.compact_sub_obj = Some(n);
-        expand_compact(cx, builder, &mut obj, sec, &keys, n, names, values, &ctx);
+        expand_compact(cx, builder, &mut obj, sec, &keys, n, names, values, ctx);
     } else {
         for (i, kv) in VALUE_KEYS.iter().filter_map(|&i| keys.get(i).map(|kv| (i, kv))) {
             let _ = i;
@@ -841,7 +842,7 @@ fn build_object(
                 Some(kv.key_span),
                 format!("{} on an {object_type:?} object has no meaning without CompactSubObj (kept)", kv.key),
             );
-            d.context = ctx.clone();
+            d.context = ctx.to_vec();
             obj.extra.push(owned(kv));
         }
         for side in [names, values].into_iter().flatten() {
@@ -850,25 +851,24 @@ fn build_object(
                 Some(side.name_span),
                 format!("[{}] belongs to an object without CompactSubObj (ignored)", side.name),
             );
-            d.context = ctx.clone();
+            d.context = ctx.to_vec();
         }
     }
     obj.extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
     for &(sub, ssec) in subs {
         let sub_name =
             ssec.entries.iter().rev().find(|kv| kv.key.eq_ignore_ascii_case("ParameterName")).map(|kv| kv.value);
-        let mut sctx = ctx.clone();
-        sctx.push(sub_context(sub, sub_name.unwrap_or("")));
-        let skeys = match_keys(cx, ssec, OBJ_KEYS, &sctx, true);
+        let sctx = ctx.sub(sub, sub_name.unwrap_or(""));
+        let skeys = match_keys(cx, ssec, OBJ_KEYS, sctx, true);
         if let Some(kv) = skeys.get(K_OTYPE)
-            && uint_key(cx, kv, 0xFF, &sctx) != Ok(0x7)
+            && uint_key(cx, kv, 0xFF, sctx) != Ok(0x7)
         {
             let d = cx.emit(
                 codes::E0218,
                 Some(kv.value_span),
                 format!("sub-object ObjectType `{}` is not 0x7 (VAR)", kv.value),
             );
-            d.context = sctx.clone();
+            d.context = sctx.to_vec();
         }
         if compact.is_some() && obj.subs.contains_key(&SubIndex(sub)) {
             let d = cx.emit(
@@ -876,13 +876,13 @@ fn build_object(
                 Some(ssec.name_span),
                 format!("[{}] overrides a sub-object that CompactSubObj defines", ssec.name),
             );
-            d.context = sctx.clone();
+            d.context = sctx.to_vec();
         }
-        if let Some(e) = builder.build(cx, ssec, &skeys, sub, None, EntryDefaults::default(), &sctx) {
+        if let Some(e) = builder.build(cx, ssec, &skeys, sub, None, EntryDefaults::default(), sctx) {
             obj.subs.insert(SubIndex(sub), e);
         }
     }
-    check_structure(cx, &obj, sec, &keys, sub_number, compact, subs, &ctx);
+    check_structure(cx, &obj, sec, &keys, sub_number, compact, subs, ctx);
     obj
 }
 
@@ -896,7 +896,7 @@ fn expand_compact(
     n: u8,
     names: Option<&Section<'_>>,
     values: Option<&Section<'_>>,
-    ctx: &[String],
+    ctx: Crumbs<'_>,
 ) {
     // Sub-index 0 holds the number of entries (named as lely-core and CiA 306 examples do).
     obj.subs.insert(
@@ -958,11 +958,11 @@ fn expand_compact(
                 d.context = ctx.to_vec();
                 continue;
             };
-            let mut sctx = ctx.to_vec();
-            sctx.push(sub_context(k as u8, &e.name));
+            let ename = e.name.clone();
+            let sctx = ctx.sub(k as u8, &ename);
             let ty = e.data_type;
             // [xxxxValue] holds the configured value of each sub-object (lely-core's reading).
-            let v = value_key(cx, kv, ty, &sctx);
+            let v = value_key(cx, kv, ty, sctx);
             if let Some(e) = obj.subs.get_mut(&SubIndex(k as u8)) {
                 match v {
                     Ok(v) => e.parameter_value = v,
@@ -982,7 +982,7 @@ fn check_structure(
     sub_number: Option<u32>,
     compact: Option<u8>,
     subs: &[(u8, &Section<'_>)],
-    ctx: &[String],
+    ctx: Crumbs<'_>,
 ) {
     if compact.is_none() {
         match (sub_number, keys.get(K_SUBNUM)) {
@@ -1018,8 +1018,7 @@ fn check_structure(
         }
         Some(e) if e.data_type != DataType::Unsigned8 => {
             let span = subs.iter().find(|(s, _)| *s == 0).map(|(_, s)| s.name_span);
-            let mut c = ctx.to_vec();
-            c.push(sub_context(0, &e.name));
+            let c = ctx.sub(0, &e.name).to_vec();
             let d = cx.emit(codes::E0210, span, format!("sub-index 0 is {} but must be UNSIGNED8", e.data_type.name()));
             d.hint = Some("write DataType=0x0005".to_owned());
             d.context = c;

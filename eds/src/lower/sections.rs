@@ -2,7 +2,7 @@
 
 use std::collections::HashMap;
 
-use super::Ctx;
+use super::{Crumbs, Ctx};
 use crate::ast::{Document, LineKind};
 use crate::codes;
 use crate::model::Category;
@@ -84,13 +84,16 @@ pub(crate) enum Spelling {
 
 /// Whether `a` and `b` are equal ignoring ASCII case and the characters ` `, `_` and `-`.
 pub(crate) fn loose_eq(a: &str, b: &str) -> bool {
-    let strip = |s: &'_ str| {
-        s.bytes()
-            .filter(|c| !matches!(c, b' ' | b'_' | b'-' | b'\t'))
-            .map(|c| c.to_ascii_lowercase())
-            .collect::<Vec<u8>>()
-    };
-    strip(a) == strip(b)
+    let significant = |c: &u8| !matches!(c, b' ' | b'_' | b'-' | b'\t');
+    let mut x = a.bytes().filter(significant);
+    let mut y = b.bytes().filter(significant);
+    loop {
+        match (x.next(), y.next()) {
+            (None, None) => return true,
+            (Some(p), Some(q)) if p.eq_ignore_ascii_case(&q) => {}
+            _ => return false,
+        }
+    }
 }
 
 fn hex4(s: &str) -> Option<u16> {
@@ -99,6 +102,9 @@ fn hex4(s: &str) -> Option<u16> {
 
 /// Classifies a section name.
 pub(crate) fn classify(name: &str) -> (Kind, Spelling) {
+    if let Some(index) = name.get(..4).and_then(hex4) {
+        return classify_object(name, index);
+    }
     for &(canon, kind) in FIXED {
         if name == canon {
             return (kind, Spelling::Exact);
@@ -116,10 +122,11 @@ pub(crate) fn classify(name: &str) -> (Kind, Spelling) {
             return (kind, Spelling::Misspelled(canon.to_owned()));
         }
     }
-    if name.len() < 4 || !name.is_char_boundary(4) {
-        return (Kind::Unknown, Spelling::Exact);
-    }
-    let Some(index) = hex4(&name[..4]) else { return (Kind::Unknown, Spelling::Exact) };
+    (Kind::Unknown, Spelling::Exact)
+}
+
+/// Classifies a section name that starts with four hex digits (`index`).
+fn classify_object(name: &str, index: u16) -> (Kind, Spelling) {
     let rest = &name[4..];
     let canon_index = format!("{index:04X}");
     let spelled = |kind: Kind, canon: String| {
@@ -202,7 +209,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Sections<'a> {
                     }
                     None => {
                         let i = list.len();
-                        list.push(Section { name: name_str, name_span: name, kind, entries: Vec::new() });
+                        list.push(Section { name: name_str, name_span: name, kind, entries: Vec::with_capacity(8) });
                         occurrences.push(0);
                         match kind {
                             Kind::Unknown => {
@@ -308,7 +315,7 @@ pub(crate) fn match_keys<'s, 'a>(
     cx: &mut Ctx<'_>,
     sec: &'s Section<'a>,
     known: &[&str],
-    context: &[String],
+    context: Crumbs<'_>,
     report_unknown: bool,
 ) -> Keys<'s, 'a> {
     let mut found: Vec<Option<&'s Kv<'a>>> = vec![None; known.len()];
@@ -363,7 +370,7 @@ pub(crate) fn match_keys<'s, 'a>(
     Keys { found, unknown }
 }
 
-fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, context: &[String]) {
+fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, context: Crumbs<'_>) {
     // Repeats that come from a repeated section were already reported with the section.
     if prev.occurrence != kv.occurrence {
         return;
@@ -404,6 +411,9 @@ mod tests {
         assert_eq!(classify("1F80ObjectLinks"), (Kind::Links(0x1F80), Spelling::Exact));
         assert!(matches!(classify("1018sub100"), (Kind::Unknown, Spelling::Malformed(_))));
         assert!(matches!(classify("1018subx"), (Kind::Unknown, Spelling::Malformed(_))));
+        assert!(loose_eq("Device_Info", "deviceinfo"));
+        assert!(!loose_eq("DeviceInfo", "DeviceInfos"));
+        assert!(!loose_eq("", "x"));
         assert_eq!(classify("M1SubExt6000"), (Kind::Unknown, Spelling::Exact));
         assert_eq!(classify("Tools"), (Kind::Unknown, Spelling::Exact));
         assert_eq!(classify("äöü1"), (Kind::Unknown, Spelling::Exact));

@@ -252,11 +252,12 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
             continue;
         }
         let Some(target) = model.entry(m.index.0, m.sub.0) else {
-            let d = cx.emit(
-                codes::E0601,
-                Some(span),
-                format!("{pdo} maps {target_text} (0x{raw:08X}), which the file does not define"),
-            );
+            let what = if model.object(m.index.0).is_some() {
+                format!("object 0x{:04X} has no usable sub-index {}", m.index.0, m.sub.0)
+            } else {
+                "the file does not define it".to_owned()
+            };
+            let d = cx.emit(codes::E0601, Some(span), format!("{pdo} maps {target_text} (0x{raw:08X}), but {what}"));
             d.context = c;
             continue;
         };
