@@ -106,6 +106,20 @@ impl<'a> Crumbs<'a> {
     }
 }
 
+/// The CiA 306 name of an object type (`VAR`, `RECORD`, ...).
+pub(crate) fn otype(t: crate::model::ObjectType) -> &'static str {
+    use crate::model::ObjectType as T;
+    match t {
+        T::Null => "NULL",
+        T::Domain => "DOMAIN",
+        T::DefType => "DEFTYPE",
+        T::DefStruct => "DEFSTRUCT",
+        T::Var => "VAR",
+        T::Array => "ARRAY",
+        T::Record => "RECORD",
+    }
+}
+
 /// `object 0x1018 "Identity Object"`
 pub(crate) fn object_context(index: u16, name: &str) -> String {
     format!("object 0x{index:04X} \"{name}\"")

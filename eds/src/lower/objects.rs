@@ -4,7 +4,7 @@ use std::collections::{BTreeMap, HashMap, HashSet};
 
 use super::info::{Lists, expected_category};
 use super::sections::{Keys, Kind, Kv, Section, Sections, match_keys};
-use super::{Crumbs, Ctx};
+use super::{Crumbs, Ctx, otype};
 use crate::codes;
 use crate::model::{Access, DataType, Entry, FileKind, Index, Model, Object, ObjectType, SourceRef, SubIndex, Value};
 use crate::value::{self, Quirk, ValueError};
@@ -42,9 +42,32 @@ const K_DENOT: usize = 12;
 const K_UPLOAD: usize = 13;
 const K_DOWNLOAD: usize = 14;
 
-/// Keys that describe a value; on an ARRAY/RECORD section they only mean something with
-/// CompactSubObj.
-const VALUE_KEYS: [usize; 8] = [K_DTYPE, K_ACCESS, K_DEFAULT, K_PDO, K_LOW, K_HIGH, K_PVALUE, K_DENOT];
+/// Keys that describe a single value; on an ARRAY/RECORD section they only mean something with
+/// CompactSubObj, and on a NULL object never.
+const VALUE_KEYS: [usize; 9] = [K_DTYPE, K_ACCESS, K_DEFAULT, K_PDO, K_LOW, K_HIGH, K_PVALUE, K_UPLOAD, K_DOWNLOAD];
+
+/// Keeps the value keys of an object that has no single value (kept as written, with a note),
+/// and its Denotation (meaningful for any object, but the model has no field for it).
+fn keep_entry_keys(
+    cx: &mut Ctx<'_>,
+    keys: &Keys<'_, '_>,
+    t: ObjectType,
+    ctx: Crumbs<'_>,
+    extra: &mut Vec<(String, String)>,
+) {
+    for kv in VALUE_KEYS.iter().chain(&[K_DENOT]).filter_map(|&i| keys.get(i)) {
+        if !kv.key.eq_ignore_ascii_case("Denotation") {
+            let what = if t == ObjectType::Null { "" } else { " without CompactSubObj" };
+            let d = cx.emit(
+                codes::E0217,
+                Some(kv.key_span),
+                format!("{} has no meaning for object type {}{what} (kept)", kv.key, otype(t)),
+            );
+            d.context = ctx.to_vec();
+        }
+        extra.push(owned(kv));
+    }
+}
 
 fn owned(kv: &Kv<'_>) -> (String, String) {
     (kv.key.to_owned(), kv.value.to_owned())
@@ -696,7 +719,7 @@ fn build_object(
                     let d = cx.emit(
                         codes::E0203,
                         Some(kv.value_span),
-                        format!("ObjectType `{}` is not an object code; {assumed:?} assumed", kv.value),
+                        format!("ObjectType `{}` is not an object code; {} assumed", kv.value, otype(assumed)),
                     );
                     d.hint = Some("object codes are 0x0 NULL, 0x2 DOMAIN, 0x5 DEFTYPE, 0x6 DEFSTRUCT, 0x7 VAR, 0x8 ARRAY, 0x9 RECORD".to_owned());
                     d.context = ctx.to_vec();
@@ -709,7 +732,7 @@ fn build_object(
             let d = cx.emit(
                 codes::E0203,
                 Some(sec.name_span),
-                format!("[{}] lacks ObjectType but has sub-objects; {assumed:?} assumed", sec.name),
+                format!("[{}] lacks ObjectType but has sub-objects; {} assumed", sec.name, otype(assumed)),
             );
             d.hint = Some(format!("add `ObjectType=0x{:X}`", assumed.code()));
             d.context = ctx.to_vec();
@@ -744,6 +767,7 @@ fn build_object(
                 obj.subs.insert(SubIndex(0), e);
             }
         } else {
+            keep_entry_keys(cx, &keys, object_type, ctx, &mut obj.extra);
             obj.extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
         }
         if let Some(&(_, first)) = subs.first() {
@@ -751,7 +775,8 @@ fn build_object(
                 codes::E0220,
                 Some(first.name_span),
                 format!(
-                    "{object_type:?} object 0x{index:04X} has no sub-objects, but [{}] defines one (ignored)",
+                    "{} object 0x{index:04X} has no sub-objects, but [{}] defines one (ignored)",
+                    otype(object_type),
                     first.name
                 ),
             );
@@ -822,7 +847,7 @@ fn build_object(
             let d = cx.emit(
                 codes::E0213,
                 Some(kv.key_span),
-                format!("CompactSubObj on a {object_type:?} object (CiA 306 allows it on ARRAY only)"),
+                format!("CompactSubObj on object type {} (CiA 306 allows it on ARRAY only)", otype(object_type)),
             );
             d.context = ctx.to_vec();
         }
@@ -835,16 +860,7 @@ fn build_object(
         obj.compact_sub_obj = Some(n);
         expand_compact(cx, builder, &mut obj, sec, &keys, n, names, values, ctx);
     } else {
-        for (i, kv) in VALUE_KEYS.iter().filter_map(|&i| keys.get(i).map(|kv| (i, kv))) {
-            let _ = i;
-            let d = cx.emit(
-                codes::E0217,
-                Some(kv.key_span),
-                format!("{} on an {object_type:?} object has no meaning without CompactSubObj (kept)", kv.key),
-            );
-            d.context = ctx.to_vec();
-            obj.extra.push(owned(kv));
-        }
+        keep_entry_keys(cx, &keys, object_type, ctx, &mut obj.extra);
         for side in [names, values].into_iter().flatten() {
             let d = cx.emit(
                 codes::E0214,
@@ -1009,8 +1025,9 @@ fn check_structure(
                 codes::E0212,
                 Some(sec.name_span),
                 format!(
-                    "{:?} object 0x{:04X} has no sub-index 0 (the number of entries)",
-                    obj.object_type, obj.index.0
+                    "{} object 0x{:04X} has no sub-index 0 (the number of entries)",
+                    otype(obj.object_type),
+                    obj.index.0
                 ),
             );
             d.hint = Some(format!("add [{:04X}sub0] with DataType=0x0005 (UNSIGNED8) and AccessType=ro", obj.index.0));

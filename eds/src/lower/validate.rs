@@ -2,7 +2,7 @@
 
 use super::info::{Lists, category_slot, list_name};
 use super::sections::{Kind, Sections};
-use super::{Ctx, object_context, sub_context};
+use super::{Ctx, object_context, otype, sub_context};
 use crate::codes;
 use crate::model::{DataType, Entry, Index, Model, Object, ObjectType, PdoMappingEntry, Role, Value};
 use crate::source::Span;
@@ -78,7 +78,11 @@ fn mandatory(model: &Model, cx: &mut Ctx<'_>) {
             let d = cx.emit(
                 codes::E0507,
                 Some(obj.at.span),
-                format!("0x{index:04X} ({what}) is a {:?} but CiA 301 makes it a {:?}", obj.object_type, types[0]),
+                format!(
+                    "0x{index:04X} ({what}) is a {} but CiA 301 makes it a {}",
+                    otype(obj.object_type),
+                    otype(types[0])
+                ),
             );
             d.context = ctx.clone();
             continue;
