@@ -42,11 +42,11 @@ SimpleBootUpMaster=0
 SimpleBootUpSlave=1
 Granularity=8
 DynamicChannelsSupported=0
-CompactPDO=0
 GroupMessaging=0
 NrOfRXPDO=4
 NrOfTXPDO=4
 LSS_Supported=0
+CompactPDO=0
 
 [DummyUsage]
 Dummy0001=0
@@ -139,7 +139,7 @@ PDOMapping=0
 [1018]
 ParameterName=Identity object
 ObjectType=0x9
-SubNumber=5
+SubNumber=0x5
 
 [1018sub0]
 ParameterName=Number of entries
@@ -271,7 +271,7 @@ PDOMapping=1
 [1003]
 ParameterName=Pre-defined error field
 ObjectType=0x8
-SubNumber=11
+SubNumber=0xB
 
 [1003sub0]
 ParameterName=Number of errors
@@ -422,7 +422,7 @@ PDOMapping=0
 [1010]
 ParameterName=Store parameters
 ObjectType=0x8
-SubNumber=2
+SubNumber=0x2
 
 [1010sub0]
 ParameterName=Number of entries
@@ -444,7 +444,7 @@ Denotation=DRV.NVSAVE
 [1011]
 ParameterName=Restore default parameters
 ObjectType=0x8
-SubNumber=2
+SubNumber=0x2
 
 [1011sub0]
 ParameterName=Number of entries
@@ -474,7 +474,7 @@ PDOMapping=0
 [1016]
 ParameterName=Consumer heartbeat time
 ObjectType=0x8
-SubNumber=2
+SubNumber=0x2
 
 [1016sub0]
 ParameterName=Number of entries
@@ -503,7 +503,7 @@ PDOMapping=0
 [1026]
 ParameterName=OS prompt
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [1026sub0]
 ParameterName=Number of entries
@@ -532,7 +532,7 @@ PDOMapping=0
 [1400]
 ParameterName=Receive PDO 1 communication parameter
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1400sub0]
 ParameterName=Number of entries
@@ -561,7 +561,7 @@ PDOMapping=0
 [1401]
 ParameterName=Receive PDO 2 communication parameter
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1401sub0]
 ParameterName=Number of entries
@@ -590,7 +590,7 @@ PDOMapping=0
 [1402]
 ParameterName=Receive PDO 3 communication parameter
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1402sub0]
 ParameterName=Number of entries
@@ -619,7 +619,7 @@ PDOMapping=0
 [1403]
 ParameterName=Receive PDO 4 communication parameter
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1403sub0]
 ParameterName=Number of entries
@@ -648,7 +648,7 @@ PDOMapping=0
 [1600]
 ParameterName=Receive PDO 1 mapping parameter
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1600sub0]
 ParameterName=Number of mapped objects
@@ -727,7 +727,7 @@ PDOMapping=0
 [1601]
 ParameterName=Receive PDO 2 mapping parameter
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1601sub0]
 ParameterName=Number of mapped objects
@@ -806,7 +806,7 @@ PDOMapping=0
 [1602]
 ParameterName=Receive PDO 3 mapping parameter
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1602sub0]
 ParameterName=Number of mapped objects
@@ -885,7 +885,7 @@ PDOMapping=0
 [1603]
 ParameterName=Receive PDO 4 mapping parameter
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1603sub0]
 ParameterName=Number of mapped objects
@@ -964,7 +964,7 @@ PDOMapping=0
 [1800]
 ParameterName=Transmit PDO 1 communication parameter
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1800sub0]
 ParameterName=Number of entries
@@ -1017,7 +1017,7 @@ PDOMapping=0
 [1801]
 ParameterName=Transmit PDO 2 communication parameter
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1801sub0]
 ParameterName=Number of entries
@@ -1070,7 +1070,7 @@ PDOMapping=0
 [1802]
 ParameterName=Transmit PDO 3 communication parameter
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1802sub0]
 ParameterName=Number of entries
@@ -1123,7 +1123,7 @@ PDOMapping=0
 [1803]
 ParameterName=Transmit PDO 4 communication parameter
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1803sub0]
 ParameterName=Number of entries
@@ -1176,7 +1176,7 @@ PDOMapping=0
 [1A00]
 ParameterName=Transmit PDO 1 mapping parameter
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A00sub0]
 ParameterName=Number of mapped objects
@@ -1255,7 +1255,7 @@ PDOMapping=0
 [1A01]
 ParameterName=Transmit PDO 2 mapping parameter
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A01sub0]
 ParameterName=Number of mapped objects
@@ -1334,7 +1334,7 @@ PDOMapping=0
 [1A02]
 ParameterName=Transmit PDO 3 mapping parameter
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A02sub0]
 ParameterName=Number of mapped objects
@@ -1413,7 +1413,7 @@ PDOMapping=0
 [1A03]
 ParameterName=Transmit PDO 4 mapping parameter
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A03sub0]
 ParameterName=Number of mapped objects
@@ -1636,7 +1636,7 @@ Denotation=HOME.P
 [607D]
 ParameterName=Software position limit
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [607Dsub0]
 ParameterName=Number of entries
@@ -1694,7 +1694,7 @@ Denotation=MT.DEC
 [608F]
 ParameterName=Position encoder resolution
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [608Fsub0]
 ParameterName=Number of entries
@@ -1723,7 +1723,7 @@ PDOMapping=0
 [6091]
 ParameterName=Gear ratio
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [6091sub0]
 ParameterName=Number of entries
@@ -1752,7 +1752,7 @@ PDOMapping=0
 [6092]
 ParameterName=Feed constant
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [6092sub0]
 ParameterName=Number of entries
@@ -1792,7 +1792,7 @@ Denotation=HOME.MODE, HOME.DIR
 [6099]
 ParameterName=Homing speeds
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [6099sub0]
 ParameterName=Number of entries
@@ -1907,7 +1907,7 @@ PDOMapping=0
 [60C1]
 ParameterName=Interpolation data record
 ObjectType=0x9
-SubNumber=4
+SubNumber=0x4
 
 [60C1sub0]
 ParameterName=Number of entries
@@ -1944,7 +1944,7 @@ PDOMapping=1
 [60C2]
 ParameterName=Interpolation time period
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 Denotation=FBUS.SAMPLEPERIOD
 
 [60C2sub0]
@@ -1974,7 +1974,7 @@ PDOMapping=0
 [60C4]
 ParameterName=Interpolation data configuration
 ObjectType=0x9
-SubNumber=7
+SubNumber=0x7
 
 [60C4sub0]
 ParameterName=Number of entries
@@ -2039,7 +2039,7 @@ PDOMapping=0
 [60D0]
 ParameterName=Touch probe source
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [60D0sub0]
 ParameterName=Number of entries
@@ -2090,7 +2090,7 @@ Denotation=DIN1.MODE to DIN6.MODE
 [60FE]
 ParameterName=Digital outputs
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [60FEsub0]
 ParameterName=Number of entries
@@ -2393,7 +2393,7 @@ SupportedObjects=254
 [2014]
 ParameterName=Transmit PDO 1 mask
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [2014sub0]
 ParameterName=Number of entries
@@ -2422,7 +2422,7 @@ PDOMapping=0
 [2015]
 ParameterName=Transmit PDO 2 mask
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [2015sub0]
 ParameterName=Number of entries
@@ -2451,7 +2451,7 @@ PDOMapping=0
 [2016]
 ParameterName=Transmit PDO 3 mask
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [2016sub0]
 ParameterName=Number of entries
@@ -2480,7 +2480,7 @@ PDOMapping=0
 [2017]
 ParameterName=Transmit PDO 4 mask
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [2017sub0]
 ParameterName=Number of entries
@@ -2509,7 +2509,7 @@ PDOMapping=0
 [2018]
 ParameterName=Firmware version
 ObjectType=0x8
-SubNumber=5
+SubNumber=0x5
 
 [2018sub0]
 ParameterName=Number of entries
@@ -2554,7 +2554,7 @@ PDOMapping=0
 [2026]
 ParameterName=ASCII channel
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [2026sub0]
 ParameterName=Number of entries
@@ -2583,7 +2583,7 @@ PDOMapping=0
 [204C]
 ParameterName=pv scaling factor
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [204Csub0]
 ParameterName=Number of entries
@@ -2718,7 +2718,7 @@ PDOMapping=1
 [3405]
 ParameterName=Velocity loop BiQuad filter types
 ObjectType=0x8
-SubNumber=5
+SubNumber=0x5
 Denotation=VL.ARTYPE
 
 [3405sub0]
@@ -2768,7 +2768,7 @@ Denotation=VL.ARTYPE4
 [3406]
 ParameterName=Velocity loop BiQuad filters
 ObjectType=0x8
-SubNumber=17
+SubNumber=0x11
 
 [3406sub0]
 ParameterName=Number of entries
@@ -2925,7 +2925,7 @@ Denotation=VL.ARZQ4
 [3407]
 ParameterName=Velocity loop filter and feedforward
 ObjectType=0x9
-SubNumber=5
+SubNumber=0x5
 
 [3407sub0]
 ParameterName=Number of entries
@@ -3073,7 +3073,7 @@ Denotation=IL.KACCFF
 [3427]
 ParameterName=Motor protection parameters
 ObjectType=0x9
-SubNumber=4
+SubNumber=0x4
 
 [3427sub0]
 ParameterName=Number of entries
@@ -3131,7 +3131,7 @@ Denotation=MT.SET
 [3440]
 ParameterName=Controlled stop parameters
 ObjectType=0x8
-SubNumber=4
+SubNumber=0x4
 
 [3440sub0]
 ParameterName=Number of entries
@@ -3270,7 +3270,7 @@ Denotation=MOTOR.R
 [3457]
 ParameterName=Induction motor parameters
 ObjectType=0x9
-SubNumber=4
+SubNumber=0x4
 
 [3457sub0]
 ParameterName=Number of entries
@@ -3310,7 +3310,7 @@ Denotation=MOTOR.VOLTMIN
 [3460]
 ParameterName=Capture engine parameters
 ObjectType=0x9
-SubNumber=11
+SubNumber=0xB
 
 [3460sub0]
 ParameterName=Number of entries
@@ -3413,7 +3413,7 @@ Denotation=CAP1.PRESELECT
 [3470]
 ParameterName=Analog input and output parameters
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [3470sub0]
 ParameterName=Number of entries
@@ -3489,7 +3489,7 @@ Denotation=AIN.PSCALE
 [3474]
 ParameterName=Digital input parameters
 ObjectType=0x8
-SubNumber=15
+SubNumber=0xF
 Denotation=DINx.PARAM
 
 [3474sub0]
@@ -3629,7 +3629,7 @@ Denotation=DIN7.PARAM
 [3475]
 ParameterName=Digital output parameters
 ObjectType=0x8
-SubNumber=5
+SubNumber=0x5
 Denotation=DOUTx.PARAM
 
 [3475sub0]
@@ -3688,7 +3688,7 @@ Denotation=PL.KI
 [3481]
 ParameterName=Position loop integrator saturation
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 Denotation=PL.INTMAX
 
 [3481sub0]
@@ -3783,7 +3783,7 @@ Denotation=DRV.EMUEDIR
 [3494]
 ParameterName=Wake and shake parameters
 ObjectType=0x9
-SubNumber=7
+SubNumber=0x7
 
 [3494sub0]
 ParameterName=Number of entries
@@ -3850,7 +3850,7 @@ Denotation=WS.ARM
 [3496]
 ParameterName=Fieldbus synchronization parameters
 ObjectType=0x8
-SubNumber=5
+SubNumber=0x5
 
 [3496sub0]
 ParameterName=Number of entries
@@ -3899,7 +3899,7 @@ Denotation=FBUS.COMPTIME
 [34A0]
 ParameterName=Programmable limit switch positions
 ObjectType=0x8
-SubNumber=9
+SubNumber=0x9
 
 [34A0sub0]
 ParameterName=Number of entries
@@ -3984,7 +3984,7 @@ Denotation=PLS.P8
 [34A1]
 ParameterName=Programmable limit switch widths
 ObjectType=0x8
-SubNumber=9
+SubNumber=0x9
 
 [34A1sub0]
 ParameterName=Number of entries
@@ -4069,7 +4069,7 @@ Denotation=PLS.WIDTH8
 [34A2]
 ParameterName=Programmable limit switch times
 ObjectType=0x8
-SubNumber=9
+SubNumber=0x9
 
 [34A2sub0]
 ParameterName=Number of entries
@@ -4154,7 +4154,7 @@ Denotation=PLS.T8
 [34A3]
 ParameterName=Programmable limit switch configuration
 ObjectType=0x8
-SubNumber=5
+SubNumber=0x5
 
 [34A3sub0]
 ParameterName=Number of entries
@@ -33548,14 +33548,26 @@ Denotation=MOTOR.BRAKEIMM
             /// `self × v`, not reduced (fast path of conversions).
             #[inline]
             pub fn checked_mul_int(self, v: i64) -> Option<Ratio> {
-                Some(Ratio {
-                    num: self.num.checked_mul(v as i128)?,
-                    den: self.den,
-                })
+                let num = match i64::try_from(self.num) {
+                    Ok(n) => n as i128 * v as i128,
+                    Err(_) => self.num.checked_mul(v as i128)?,
+                };
+                Some(Ratio { num, den: self.den })
             }
             /// `self × o`; reduces only when the plain product would overflow.
             #[inline]
             pub fn checked_mul(self, o: Ratio) -> Option<Ratio> {
+                if let (Ok(a), Ok(b), Ok(c), Ok(d)) = (
+                    i64::try_from(self.num),
+                    i64::try_from(o.num),
+                    i64::try_from(self.den),
+                    i64::try_from(o.den),
+                ) {
+                    return Some(Ratio {
+                        num: a as i128 * b as i128,
+                        den: c as i128 * d as i128,
+                    });
+                }
                 match (self.num.checked_mul(o.num), self.den.checked_mul(o.den)) {
                     (Some(num), Some(den)) => Some(Ratio { num, den }),
                     _ => {

@@ -43,11 +43,11 @@ SimpleBootUpMaster=0
 SimpleBootUpSlave=1
 Granularity=8
 DynamicChannelsSupported=0
-CompactPDO=0
 GroupMessaging=0
 NrOfRXPDO=8
 NrOfTXPDO=8
 LSS_Supported=0
+CompactPDO=0
 
 [DummyUsage]
 Dummy0001=0
@@ -126,7 +126,7 @@ PDOMapping=1
 [1018]
 ParameterName=Identity object
 ObjectType=0x9
-SubNumber=5
+SubNumber=0x5
 
 [1018sub0]
 ParameterName=Number of entries
@@ -264,7 +264,7 @@ PDOMapping=1
 [1003]
 ParameterName=Pre-defined error field
 ObjectType=0x8
-SubNumber=9
+SubNumber=0x9
 
 [1003sub0]
 ParameterName=Number of errors
@@ -405,7 +405,7 @@ PDOMapping=0
 [1010]
 ParameterName=Store parameter field
 ObjectType=0x8
-SubNumber=2
+SubNumber=0x2
 
 [1010sub0]
 ParameterName=Highest sub-index supported
@@ -426,7 +426,7 @@ PDOMapping=0
 [1011]
 ParameterName=Restore default parameters
 ObjectType=0x8
-SubNumber=2
+SubNumber=0x2
 
 [1011sub0]
 ParameterName=Highest sub-index supported
@@ -489,7 +489,7 @@ PDOMapping=0
 [1020]
 ParameterName=Verify configuration
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [1020sub0]
 ParameterName=Highest sub-index supported
@@ -518,7 +518,7 @@ PDOMapping=0
 [1200]
 ParameterName=Server SDO parameter
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1200sub0]
 ParameterName=Highest sub-index supported
@@ -547,7 +547,7 @@ PDOMapping=0
 [1400]
 ParameterName=Rx PDO communication parameter 1
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1400sub0]
 ParameterName=Highest sub-index supported
@@ -576,7 +576,7 @@ PDOMapping=0
 [1401]
 ParameterName=Rx PDO communication parameter 2
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1401sub0]
 ParameterName=Highest sub-index supported
@@ -605,7 +605,7 @@ PDOMapping=0
 [1402]
 ParameterName=Rx PDO communication parameter 3
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1402sub0]
 ParameterName=Highest sub-index supported
@@ -634,7 +634,7 @@ PDOMapping=0
 [1403]
 ParameterName=Rx PDO communication parameter 4
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1403sub0]
 ParameterName=Highest sub-index supported
@@ -663,7 +663,7 @@ PDOMapping=0
 [1404]
 ParameterName=Rx PDO communication parameter 5
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1404sub0]
 ParameterName=Highest sub-index supported
@@ -692,7 +692,7 @@ PDOMapping=0
 [1405]
 ParameterName=Rx PDO communication parameter 6
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1405sub0]
 ParameterName=Highest sub-index supported
@@ -721,7 +721,7 @@ PDOMapping=0
 [1406]
 ParameterName=Rx PDO communication parameter 7
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1406sub0]
 ParameterName=Highest sub-index supported
@@ -750,7 +750,7 @@ PDOMapping=0
 [1407]
 ParameterName=Rx PDO communication parameter 8
 ObjectType=0x9
-SubNumber=3
+SubNumber=0x3
 
 [1407sub0]
 ParameterName=Highest sub-index supported
@@ -779,7 +779,7 @@ PDOMapping=0
 [1600]
 ParameterName=Rx PDO mapping parameter 1
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1600sub0]
 ParameterName=Number of mapped objects
@@ -856,7 +856,7 @@ PDOMapping=0
 [1601]
 ParameterName=Rx PDO mapping parameter 2
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1601sub0]
 ParameterName=Number of mapped objects
@@ -933,7 +933,7 @@ PDOMapping=0
 [1602]
 ParameterName=Rx PDO mapping parameter 3
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1602sub0]
 ParameterName=Number of mapped objects
@@ -1010,7 +1010,7 @@ PDOMapping=0
 [1603]
 ParameterName=Rx PDO mapping parameter 4
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1603sub0]
 ParameterName=Number of mapped objects
@@ -1087,7 +1087,7 @@ PDOMapping=0
 [1604]
 ParameterName=Rx PDO mapping parameter 5
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1604sub0]
 ParameterName=Number of mapped objects
@@ -1164,7 +1164,7 @@ PDOMapping=0
 [1605]
 ParameterName=Rx PDO mapping parameter 6
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1605sub0]
 ParameterName=Number of mapped objects
@@ -1241,7 +1241,7 @@ PDOMapping=0
 [1606]
 ParameterName=Rx PDO mapping parameter 7
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1606sub0]
 ParameterName=Number of mapped objects
@@ -1318,7 +1318,7 @@ PDOMapping=0
 [1607]
 ParameterName=Rx PDO mapping parameter 8
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1607sub0]
 ParameterName=Number of mapped objects
@@ -1395,7 +1395,7 @@ PDOMapping=0
 [1800]
 ParameterName=Tx PDO communication parameter 1
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1800sub0]
 ParameterName=Highest sub-index supported
@@ -1448,7 +1448,7 @@ PDOMapping=0
 [1801]
 ParameterName=Tx PDO communication parameter 2
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1801sub0]
 ParameterName=Highest sub-index supported
@@ -1501,7 +1501,7 @@ PDOMapping=0
 [1802]
 ParameterName=Tx PDO communication parameter 3
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1802sub0]
 ParameterName=Highest sub-index supported
@@ -1554,7 +1554,7 @@ PDOMapping=0
 [1803]
 ParameterName=Tx PDO communication parameter 4
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1803sub0]
 ParameterName=Highest sub-index supported
@@ -1607,7 +1607,7 @@ PDOMapping=0
 [1804]
 ParameterName=Tx PDO communication parameter 5
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1804sub0]
 ParameterName=Highest sub-index supported
@@ -1660,7 +1660,7 @@ PDOMapping=0
 [1805]
 ParameterName=Tx PDO communication parameter 6
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1805sub0]
 ParameterName=Highest sub-index supported
@@ -1713,7 +1713,7 @@ PDOMapping=0
 [1806]
 ParameterName=Tx PDO communication parameter 7
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1806sub0]
 ParameterName=Highest sub-index supported
@@ -1766,7 +1766,7 @@ PDOMapping=0
 [1807]
 ParameterName=Tx PDO communication parameter 8
 ObjectType=0x9
-SubNumber=6
+SubNumber=0x6
 
 [1807sub0]
 ParameterName=Highest sub-index supported
@@ -1819,7 +1819,7 @@ PDOMapping=0
 [1A00]
 ParameterName=Tx PDO mapping parameter 1
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A00sub0]
 ParameterName=Number of mapped objects
@@ -1896,7 +1896,7 @@ PDOMapping=0
 [1A01]
 ParameterName=Tx PDO mapping parameter 2
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A01sub0]
 ParameterName=Number of mapped objects
@@ -1973,7 +1973,7 @@ PDOMapping=0
 [1A02]
 ParameterName=Tx PDO mapping parameter 3
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A02sub0]
 ParameterName=Number of mapped objects
@@ -2050,7 +2050,7 @@ PDOMapping=0
 [1A03]
 ParameterName=Tx PDO mapping parameter 4
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A03sub0]
 ParameterName=Number of mapped objects
@@ -2127,7 +2127,7 @@ PDOMapping=0
 [1A04]
 ParameterName=Tx PDO mapping parameter 5
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A04sub0]
 ParameterName=Number of mapped objects
@@ -2204,7 +2204,7 @@ PDOMapping=0
 [1A05]
 ParameterName=Tx PDO mapping parameter 6
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A05sub0]
 ParameterName=Number of mapped objects
@@ -2281,7 +2281,7 @@ PDOMapping=0
 [1A06]
 ParameterName=Tx PDO mapping parameter 7
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A06sub0]
 ParameterName=Number of mapped objects
@@ -2358,7 +2358,7 @@ PDOMapping=0
 [1A07]
 ParameterName=Tx PDO mapping parameter 8
 ObjectType=0x9
-SubNumber=9
+SubNumber=0x9
 
 [1A07sub0]
 ParameterName=Number of mapped objects
@@ -2563,7 +2563,7 @@ PDOMapping=1
 [607D]
 ParameterName=Software position limit
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [607Dsub0]
 ParameterName=Highest sub-index supported
@@ -2624,7 +2624,7 @@ PDOMapping=1
 [608F]
 ParameterName=Position encoder resolution
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [608Fsub0]
 ParameterName=Highest sub-index supported
@@ -2653,7 +2653,7 @@ PDOMapping=0
 [6091]
 ParameterName=Gear ratio
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [6091sub0]
 ParameterName=Highest sub-index supported
@@ -2682,7 +2682,7 @@ PDOMapping=0
 [6092]
 ParameterName=Feed constant
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [6092sub0]
 ParameterName=Highest sub-index supported
@@ -2719,7 +2719,7 @@ PDOMapping=1
 [6099]
 ParameterName=Homing speed
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [6099sub0]
 ParameterName=Highest sub-index supported
@@ -2800,7 +2800,7 @@ SupportedObjects=9
 [2001]
 ParameterName=Feed converter
 ObjectType=0x8
-SubNumber=3
+SubNumber=0x3
 
 [2001sub0]
 ParameterName=Highest sub-index supported
@@ -17189,14 +17189,26 @@ PDOMapping=0
             /// `self × v`, not reduced (fast path of conversions).
             #[inline]
             pub fn checked_mul_int(self, v: i64) -> Option<Ratio> {
-                Some(Ratio {
-                    num: self.num.checked_mul(v as i128)?,
-                    den: self.den,
-                })
+                let num = match i64::try_from(self.num) {
+                    Ok(n) => n as i128 * v as i128,
+                    Err(_) => self.num.checked_mul(v as i128)?,
+                };
+                Some(Ratio { num, den: self.den })
             }
             /// `self × o`; reduces only when the plain product would overflow.
             #[inline]
             pub fn checked_mul(self, o: Ratio) -> Option<Ratio> {
+                if let (Ok(a), Ok(b), Ok(c), Ok(d)) = (
+                    i64::try_from(self.num),
+                    i64::try_from(o.num),
+                    i64::try_from(self.den),
+                    i64::try_from(o.den),
+                ) {
+                    return Some(Ratio {
+                        num: a as i128 * b as i128,
+                        den: c as i128 * d as i128,
+                    });
+                }
                 match (self.num.checked_mul(o.num), self.den.checked_mul(o.den)) {
                     (Some(num), Some(den)) => Some(Ratio { num, den }),
                     _ => {

@@ -3089,14 +3089,26 @@ PDOMapping=0
             /// `self × v`, not reduced (fast path of conversions).
             #[inline]
             pub fn checked_mul_int(self, v: i64) -> Option<Ratio> {
-                Some(Ratio {
-                    num: self.num.checked_mul(v as i128)?,
-                    den: self.den,
-                })
+                let num = match i64::try_from(self.num) {
+                    Ok(n) => n as i128 * v as i128,
+                    Err(_) => self.num.checked_mul(v as i128)?,
+                };
+                Some(Ratio { num, den: self.den })
             }
             /// `self × o`; reduces only when the plain product would overflow.
             #[inline]
             pub fn checked_mul(self, o: Ratio) -> Option<Ratio> {
+                if let (Ok(a), Ok(b), Ok(c), Ok(d)) = (
+                    i64::try_from(self.num),
+                    i64::try_from(o.num),
+                    i64::try_from(self.den),
+                    i64::try_from(o.den),
+                ) {
+                    return Some(Ratio {
+                        num: a as i128 * b as i128,
+                        den: c as i128 * d as i128,
+                    });
+                }
                 match (self.num.checked_mul(o.num), self.den.checked_mul(o.den)) {
                     (Some(num), Some(den)) => Some(Ratio { num, den }),
                     _ => {
