@@ -440,7 +440,18 @@ fn lower_comments(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
         let n =
             kv.key.get(..4).filter(|p| p.eq_ignore_ascii_case("Line")).and_then(|_| kv.key[4..].parse::<u32>().ok());
         match n {
-            Some(n) => lines.push((n, kv.value)),
+            Some(n) => {
+                if !kv.key.starts_with("Line") {
+                    let d = cx.emit(
+                        codes::E0104,
+                        Some(kv.key_span),
+                        format!("key `{}` is written `Line{n}` in CiA 306", kv.key),
+                    );
+                    d.hint =
+                        Some(format!("write `Line{n}`; tools that match keys exactly (python-canopen) miss this line"));
+                }
+                lines.push((n, kv.value))
+            }
             None => {
                 cx.emit(
                     codes::E0102,
