@@ -10161,7 +10161,7 @@ PDOMapping=0
             __rt::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
-        /// runtime's rules ([`od_runtime::pdo::check_mapping`](::od_runtime::pdo::check_mapping));
+        /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
         /// returns its length in bits. Abort codes: `NOT_MAPPABLE` (0x0604_0041),
         /// `PDO_LENGTH_EXCEEDED` (0x0604_0042), `PARAMETER_INCOMPATIBLE` (0x0604_0043), and
         /// `NO_OBJECT`/`NO_SUB_INDEX` for an object the dictionary does not have.
@@ -17732,7 +17732,7 @@ PDOMapping=0
             Ok(())
         }
         /// Sets a value back to its default, resolving `$NODEID` with `node_id`
-        /// ([`DefaultValue::encode`], the runtime's rule).
+        /// ([`DefaultValue::encode`](::od_runtime::od::DefaultValue::encode), the runtime's rule).
         pub fn set_default(info: &EntryInfo, slot: SlotMut<'_>, node_id: u8) {
             match slot {
                 SlotMut::Bytes(buf, len) => {

@@ -473,7 +473,7 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>) -> TokenStream {
             }
 
             /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
-            /// runtime's rules ([`od_runtime::pdo::check_mapping`](::od_runtime::pdo::check_mapping));
+            /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
             /// returns its length in bits. Abort codes: `NOT_MAPPABLE` (0x0604_0041),
             /// `PDO_LENGTH_EXCEEDED` (0x0604_0042), `PARAMETER_INCOMPATIBLE` (0x0604_0043), and
             /// `NO_OBJECT`/`NO_SUB_INDEX` for an object the dictionary does not have.

@@ -1,10 +1,12 @@
 //! PDO layouts: the default mappings of a device (0x1600.., 0x1A00..) checked and turned into
 //! typed structs with bit-exact `pack`/`unpack`.
 //!
-//! The checks applied here to the default mappings are the ones the generated
-//! `check_rpdo_mapping`/`check_tpdo_mapping` apply at run time when a master remaps over SDO;
-//! [`check_entry`] is the generation-time form, with each failure mapped to the abort code the
-//! run-time check returns for it (tests compare the two on random mappings).
+//! One rule set: the default mappings are checked at generation time with the very function the
+//! runtime applies when a master remaps over SDO (`od_runtime::pdo::check_entry` /
+//! `check_mapping`, looking objects up in the dictionary exactly as it will be generated), and
+//! the generated `check_rpdo_mapping`/`check_tpdo_mapping` call the same function at run time.
+//! [`check_mapping`] and [`MappingChecker`] expose the generation-time form, with each refusal
+//! explained in the description's terms next to the abort code the device would send.
 
 use std::collections::BTreeMap;
 

@@ -250,7 +250,7 @@ pub(crate) fn module() -> TokenStream {
             }
 
             /// Sets a value back to its default, resolving `$NODEID` with `node_id`
-            /// ([`DefaultValue::encode`], the runtime's rule).
+            /// ([`DefaultValue::encode`](::od_runtime::od::DefaultValue::encode), the runtime's rule).
             pub fn set_default(info: &EntryInfo, slot: SlotMut<'_>, node_id: u8) {
                 match slot {
                     SlotMut::Bytes(buf, len) => *len = info.default.encode(info, node_id, buf),
