@@ -2,5 +2,7 @@
 #![deny(missing_docs)]
 
 pub mod motion;
+pub mod node;
+pub mod storage;
 pub mod trace;
 pub mod transport;

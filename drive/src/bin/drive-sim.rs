@@ -1,26 +1,33 @@
 //! `drive-sim`: the command-line front end of the simulated drives.
 //!
 //! ```text
+//! drive-sim run --device drvi --node-id 2 [--dcf FILE] [--device akd --node-id 3 ...]
+//!               [--state-dir DIR] (--listen 127.0.0.1:0 | --bus tcp://127.0.0.1:29536/can0)
 //! drive-sim hub --listen 127.0.0.1:29536        socketcand-compatible hub (python-can connects to it)
 //! drive-sim dump --bus tcp://127.0.0.1:29536/can0 [--count N] [--timeout SECONDS]
 //! drive-sim send --bus tcp://127.0.0.1:29536/can0 601#4041600000000000 000#0100 ...
 //! ```
 //!
-//! `hub` prints `listening on ADDRESS` on stdout once it accepts connections (so a script can
-//! ask for port 0 and read the port chosen), logs to stderr, and stops cleanly on SIGINT or
-//! SIGTERM.
+//! `run` simulates devices: each `--device` starts a group that the following `--node-id` and
+//! `--dcf` belong to. With `--listen` it starts a hub there, puts the devices on its channel
+//! (`--channel`, default `can0`) and prints `listening on ADDRESS`; with `--bus` every device
+//! joins that bus (one connection each) and it prints `running on BUS`. Each device runs on its
+//! own thread (`drive::node::run`, 1 ms timer resolution).
 //!
-//! Structure for what comes next: simulated devices will be added as one more subcommand (a
-//! `run` with `--device` and `--bus`) and as `--device` options of `hub`, which attach them to
-//! the hub in-process with `Hub::attach(channel)`; both hand the device a
-//! `drive::transport::Endpoint` and share `wait_for_termination` below.
+//! `hub` prints `listening on ADDRESS` on stdout once it accepts connections (so a script can
+//! ask for port 0 and read the port chosen). Every subcommand logs to stderr, and `run` and
+//! `hub` stop cleanly on SIGINT or SIGTERM (exit status 0; 1 if a device failed first).
 
 use std::io::Write;
+use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use clap::{Args, Parser, Subcommand};
-use drive::transport::{BusSpec, CanFrame, Hub, HubConfig};
+use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Parser, Subcommand};
+use drive::node::{AnyNode, DefaultApps, DeviceKind, MonotonicClock, NodeConfig};
+use drive::transport::{BusSpec, CanFrame, DEFAULT_CHANNEL, Endpoint, Hub, HubConfig, TransportError};
 
 #[derive(Debug, Parser)]
 #[command(name = "drive-sim", version, about = "Simulated CANopen drives and the buses to reach them")]
@@ -31,6 +38,8 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Simulate devices on a hub of their own (--listen) or on a bus (--bus).
+    Run(RunArgs),
     /// Run a socketcand-compatible TCP hub: every channel a client opens is one CAN bus.
     Hub(HubArgs),
     /// Print the frames seen on a bus, one per line in cansend notation.
@@ -53,6 +62,44 @@ struct HubArgs {
     /// Log only problems (no connect/disconnect lines).
     #[arg(long, short)]
     quiet: bool,
+}
+
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("where").required(true).args(["listen", "bus"])))]
+struct RunArgs {
+    /// A device to simulate: drvi, drcs or akd. Repeat for several devices; the --node-id and
+    /// --dcf after a --device belong to it.
+    #[arg(long, required = true, value_parser = parse_kind)]
+    device: Vec<DeviceKind>,
+    /// Node id (1..=127) of the preceding --device; may be left out when its DCF names one.
+    #[arg(long)]
+    node_id: Vec<u8>,
+    /// DCF whose ParameterValues the preceding --device applies at start and at every reset.
+    #[arg(long)]
+    dcf: Vec<PathBuf>,
+    /// Directory where parameters saved with 1010h are kept across runs (one file per device,
+    /// node and area). Without it, saved parameters last until the process ends.
+    #[arg(long)]
+    state_dir: Option<PathBuf>,
+    /// Start a hub on this address (port 0 picks a free port) and put the devices on it.
+    #[arg(long)]
+    listen: Option<String>,
+    /// Join a running bus: tcp://HOST:PORT[/CHANNEL] or socketcan:IFACE.
+    #[arg(long)]
+    bus: Option<BusSpec>,
+    /// Hub channel the devices are put on with --listen.
+    #[arg(long, default_value = DEFAULT_CHANNEL)]
+    channel: String,
+    /// SDO server timeout in milliseconds (0 disables it).
+    #[arg(long, default_value_t = 1000)]
+    sdo_timeout_ms: u64,
+    /// With --listen: log only hub problems (no connect/disconnect lines).
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+fn parse_kind(s: &str) -> Result<DeviceKind, String> {
+    s.parse()
 }
 
 #[derive(Debug, Args)]
@@ -79,8 +126,16 @@ struct SendArgs {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let matches = Cli::command().get_matches();
+    let cli = match Cli::from_arg_matches(&matches) {
+        Ok(cli) => cli,
+        Err(e) => e.exit(),
+    };
     let result = match cli.command {
+        Command::Run(args) => match matches.subcommand_matches("run") {
+            Some(m) => run_devices(&args, m),
+            None => Err("internal error: no matches for run".into()),
+        },
         Command::Hub(args) => run_hub(&args),
         Command::Dump(args) => run_dump(&args),
         Command::Send(args) => run_send(&args),
@@ -99,12 +154,7 @@ fn run_hub(args: &HubArgs) -> Result<(), String> {
     let termination = Termination::block().map_err(|e| format!("cannot set up signal handling: {e}"))?;
     let mut config = HubConfig { max_clients: args.max_clients, client_queue: args.queue, ..HubConfig::default() };
     if args.quiet {
-        config = config.with_observer(std::sync::Arc::new(|event| {
-            use drive::transport::HubEvent::*;
-            if matches!(event, Overflow { .. } | AcceptFailed { .. } | Rejected { .. } | EndpointOverflow { .. }) {
-                eprintln!("hub: {event}");
-            }
-        }));
+        config = quiet_hub(config);
     }
     let hub = Hub::bind(args.listen.as_str(), config).map_err(|e| format!("hub on {}: {e}", args.listen))?;
     let mut stdout = std::io::stdout().lock();
@@ -115,6 +165,135 @@ fn run_hub(args: &HubArgs) -> Result<(), String> {
     eprintln!("hub: {signal}, stopping");
     hub.stop();
     Ok(())
+}
+
+/// One `--device` with the options that follow it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct DeviceGroup {
+    kind: DeviceKind,
+    config: NodeConfig,
+}
+
+/// Pairs every --node-id and --dcf with the --device before it on the command line.
+fn device_groups(args: &RunArgs, m: &ArgMatches) -> Result<Vec<DeviceGroup>, String> {
+    let positions = |id: &str| -> Vec<usize> { m.indices_of(id).map(Iterator::collect).unwrap_or_default() };
+    let devices = positions("device");
+    let mut groups: Vec<DeviceGroup> = args
+        .device
+        .iter()
+        .map(|&kind| DeviceGroup {
+            kind,
+            config: NodeConfig {
+                state_dir: args.state_dir.clone(),
+                sdo_timeout: Some(args.sdo_timeout_ms.saturating_mul(1000)),
+                ..NodeConfig::default()
+            },
+        })
+        .collect();
+    let owner = |at: usize, option: &str| -> Result<usize, String> {
+        devices
+            .iter()
+            .rposition(|&d| d < at)
+            .ok_or_else(|| format!("--{option} must follow the --device it belongs to"))
+    };
+    for (at, &id) in positions("node_id").iter().zip(&args.node_id) {
+        let g = owner(*at, "node-id")?;
+        if groups[g].config.node_id.replace(id).is_some() {
+            return Err(format!("device {} ({}) has two --node-id", g + 1, groups[g].kind));
+        }
+    }
+    for (at, dcf) in positions("dcf").iter().zip(&args.dcf) {
+        let g = owner(*at, "dcf")?;
+        if groups[g].config.dcf.replace(dcf.clone()).is_some() {
+            return Err(format!("device {} ({}) has two --dcf", g + 1, groups[g].kind));
+        }
+    }
+    Ok(groups)
+}
+
+fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
+    let groups = device_groups(args, m)?;
+    let mut nodes: Vec<(String, Box<dyn AnyNode>)> = Vec::new();
+    for g in &groups {
+        let node = g.kind.build(&g.config, &DefaultApps).map_err(|e| format!("{}: {e}", g.kind))?;
+        let name = format!("{} node {}", g.kind, node.node_id().get());
+        if nodes.iter().any(|(_, n)| n.node_id() == node.node_id()) {
+            return Err(format!("{name}: two devices with node id {}", node.node_id().get()));
+        }
+        nodes.push((name, node));
+    }
+    // Before any thread starts, so every thread inherits the blocked signal set.
+    let termination = Termination::block().map_err(|e| format!("cannot set up signal handling: {e}"))?;
+    let mut hub = None;
+    let mut endpoints: Vec<Box<dyn Endpoint>> = Vec::new();
+    let ready = if let Some(listen) = &args.listen {
+        let mut config = HubConfig::default();
+        if args.quiet {
+            config = quiet_hub(config);
+        }
+        let h = Hub::bind(listen.as_str(), config).map_err(|e| format!("hub on {listen}: {e}"))?;
+        for _ in &nodes {
+            endpoints.push(Box::new(h.attach(&args.channel).map_err(|e| format!("channel {}: {e}", args.channel))?));
+        }
+        let line = format!("listening on {}", h.local_addr());
+        hub = Some(h);
+        line
+    } else if let Some(bus) = &args.bus {
+        for (name, _) in &nodes {
+            endpoints.push(bus.open().map_err(|e| format!("{name}: {bus}: {e}"))?);
+        }
+        format!("running on {bus}")
+    } else {
+        return Err("give --listen ADDRESS or --bus BUS".into());
+    };
+
+    let stop = Arc::new(AtomicBool::new(false));
+    let failed = Arc::new(AtomicBool::new(false));
+    let clock = MonotonicClock::new();
+    let mut threads = Vec::new();
+    for ((name, mut node), mut endpoint) in nodes.into_iter().zip(endpoints) {
+        let (stop, failed) = (Arc::clone(&stop), Arc::clone(&failed));
+        eprintln!("drive-sim: {name} started");
+        let thread = std::thread::Builder::new()
+            .name(name.clone())
+            .spawn(move || match drive::node::run(&mut *node, &mut *endpoint, &clock, &stop) {
+                Ok(_) => {}
+                Err(TransportError::Closed) if stop.load(Ordering::SeqCst) => {}
+                Err(e) => {
+                    eprintln!("drive-sim: {name}: {e}");
+                    failed.store(true, Ordering::SeqCst);
+                    Termination::trigger();
+                }
+            })
+            .map_err(|e| format!("cannot start a device thread: {e}"))?;
+        threads.push(thread);
+    }
+    let mut stdout = std::io::stdout().lock();
+    // Ignored if nobody reads stdout: the line is a convenience for scripts.
+    let _ = writeln!(stdout, "{ready}").and_then(|()| stdout.flush());
+    drop(stdout);
+
+    let signal = termination.wait();
+    if !failed.load(Ordering::SeqCst) {
+        eprintln!("drive-sim: {signal}, stopping");
+    }
+    stop.store(true, Ordering::SeqCst);
+    for thread in threads {
+        let _ = thread.join();
+    }
+    if let Some(hub) = hub {
+        hub.stop();
+    }
+    if failed.load(Ordering::SeqCst) { Err("a device stopped on a bus error".into()) } else { Ok(()) }
+}
+
+fn quiet_hub(config: HubConfig) -> HubConfig {
+    config.with_observer(std::sync::Arc::new(|event| {
+        use drive::transport::HubEvent::*;
+        if matches!(event, Overflow { .. } | AcceptFailed { .. } | Rejected { .. } | EndpointOverflow { .. }) {
+            eprintln!("hub: {event}");
+        }
+    }))
 }
 
 fn run_dump(args: &DumpArgs) -> Result<(), String> {
@@ -184,6 +363,15 @@ impl Termination {
         }
     }
 
+    /// Makes [`Termination::wait`] return, from any thread (sends SIGTERM to this process;
+    /// it stays pending, as every thread blocks it, until `wait` collects it).
+    fn trigger() {
+        // SAFETY: kill with our own pid and a valid signal number has no memory effects.
+        unsafe {
+            libc::kill(libc::getpid(), libc::SIGTERM);
+        }
+    }
+
     /// Waits for SIGINT or SIGTERM and names it.
     fn wait(&self) -> &'static str {
         loop {
@@ -207,6 +395,10 @@ struct Termination;
 impl Termination {
     fn block() -> std::io::Result<Self> {
         Ok(Self)
+    }
+
+    fn trigger() {
+        std::process::exit(1);
     }
 
     fn wait(&self) -> &'static str {

@@ -1,0 +1,198 @@
+//! The project's devices, ready to run: [`DeviceKind`] picks the generated dictionary,
+//! [`NodeConfig`] the node id, DCF and state directory, [`Apps`] the application.
+
+use std::fmt;
+use std::path::PathBuf;
+use std::str::FromStr;
+use std::sync::Arc;
+
+use od_runtime::od::EntryInfo;
+use od_runtime::{Micros, NodeId};
+
+use super::{AnyNode, DcfError, DefaultApp, DriveApp, Node, NodeStorage, ParameterSet};
+use crate::storage::{FileStorage, MemoryStorage};
+
+/// One of the devices whose dictionaries the `generated` crate holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum DeviceKind {
+    /// Camozzi DRVI integrated drive (`devices/camozzi-drvi.eds`).
+    Drvi,
+    /// Camozzi DRCS stepper drive (`devices/camozzi-drcs.eds`).
+    Drcs,
+    /// Kollmorgen AKD servo drive (`devices/kollmorgen-akd.eds`).
+    Akd,
+}
+
+impl DeviceKind {
+    /// Every device, in command-line order.
+    pub const ALL: [DeviceKind; 3] = [DeviceKind::Drvi, DeviceKind::Drcs, DeviceKind::Akd];
+
+    /// The command-line name: `drvi`, `drcs`, `akd`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            DeviceKind::Drvi => "drvi",
+            DeviceKind::Drcs => "drcs",
+            DeviceKind::Akd => "akd",
+        }
+    }
+
+    /// The dictionary's entry table.
+    pub fn entries(self) -> &'static [EntryInfo] {
+        match self {
+            DeviceKind::Drvi => &generated::drvi::ENTRIES,
+            DeviceKind::Drcs => &generated::drcs::ENTRIES,
+            DeviceKind::Akd => &generated::akd::ENTRIES,
+        }
+    }
+
+    /// The EDS the dictionary was generated from (its text).
+    pub fn eds(self) -> &'static str {
+        match self {
+            DeviceKind::Drvi => generated::drvi::EDS,
+            DeviceKind::Drcs => generated::drcs::EDS,
+            DeviceKind::Akd => generated::akd::EDS,
+        }
+    }
+
+    /// Builds a node of this kind: the generated dictionary with `$NODEID` resolved, the
+    /// application `apps` gives for the kind, and a [`NodeStorage`] with the DCF's values over
+    /// a [`FileStorage`] in the state directory (files named `<kind>-node<id>.*.params`) or,
+    /// without one, a [`MemoryStorage`].
+    pub fn build(self, config: &NodeConfig, apps: &dyn Apps) -> Result<Box<dyn AnyNode>, NodeSetupError> {
+        let params = match &config.dcf {
+            Some(path) => ParameterSet::from_dcf(path, self.entries(), config.node_id)
+                .map_err(|error| NodeSetupError::Dcf { path: path.clone(), error })?,
+            None => ParameterSet::new(),
+        };
+        let raw = config.node_id.or(params.node_id()).ok_or(NodeSetupError::NoNodeId)?;
+        let id = NodeId::new(raw).ok_or(NodeSetupError::BadNodeId(raw))?;
+        let backend: Box<dyn od_runtime::Storage + Send> = match &config.state_dir {
+            Some(dir) => Box::new(
+                FileStorage::open(dir, &format!("{}-node{raw}", self.name()))
+                    .map_err(|error| NodeSetupError::Storage { dir: dir.clone(), error })?,
+            ),
+            None => Box::new(MemoryStorage::new()),
+        };
+        let storage = NodeStorage::new(Arc::new(params), backend);
+        let timeout = config.sdo_timeout;
+        Ok(match self {
+            DeviceKind::Drvi => {
+                boxed(Node::new(generated::drvi::Dictionary::new(raw), apps.drvi(), storage, id), timeout)
+            }
+            DeviceKind::Drcs => {
+                boxed(Node::new(generated::drcs::Dictionary::new(raw), apps.drcs(), storage, id), timeout)
+            }
+            DeviceKind::Akd => boxed(Node::new(generated::akd::Dictionary::new(raw), apps.akd(), storage, id), timeout),
+        })
+    }
+}
+
+fn boxed<OD, A>(mut node: Node<OD, A>, sdo_timeout: Option<Micros>) -> Box<dyn AnyNode>
+where
+    OD: od_runtime::od::ObjectDictionary + Send + 'static,
+    A: DriveApp<OD> + Send + 'static,
+{
+    if let Some(t) = sdo_timeout {
+        node.set_sdo_timeout(t);
+    }
+    Box::new(node)
+}
+
+impl fmt::Display for DeviceKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for DeviceKind {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|k| k.name().eq_ignore_ascii_case(s))
+            .ok_or_else(|| format!("unknown device '{s}' (expected one of: drvi, drcs, akd)"))
+    }
+}
+
+/// How to set up one node.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct NodeConfig {
+    /// The node id (1..=127); `None` takes the DCF's `NodeID`.
+    pub node_id: Option<u8>,
+    /// A DCF whose `ParameterValue`s are applied at start and at every reset.
+    pub dcf: Option<PathBuf>,
+    /// Where 1010h saves parameters; `None` keeps them in memory for the life of the process.
+    pub state_dir: Option<PathBuf>,
+    /// SDO server timeout; `None` keeps od-runtime's default (1 s).
+    pub sdo_timeout: Option<Micros>,
+}
+
+/// Why a node could not be set up.
+#[derive(Debug, thiserror::Error)]
+pub enum NodeSetupError {
+    /// Neither the configuration nor the DCF gives a node id.
+    #[error("no node id: give --node-id (or a DCF with [DeviceComissioning] NodeID)")]
+    NoNodeId,
+    /// A node id outside 1..=127.
+    #[error("node id {0} is outside 1..=127")]
+    BadNodeId(u8),
+    /// The DCF cannot be applied.
+    #[error("DCF {}:\n{error}", path.display())]
+    Dcf {
+        /// The file.
+        path: PathBuf,
+        /// Every problem.
+        error: DcfError,
+    },
+    /// The state directory cannot be used.
+    #[error("state directory {}: {error}", dir.display())]
+    Storage {
+        /// The directory.
+        dir: PathBuf,
+        /// The OS error.
+        error: std::io::Error,
+    },
+}
+
+/// Chooses the application each kind of device runs: the plug-in point for device behaviours.
+///
+/// Every method defaults to [`DefaultApp`]. A crate with vendor behaviour implements the
+/// methods of the devices it simulates and hands its `Apps` to [`DeviceKind::build`]; nothing
+/// else changes:
+///
+/// ```
+/// use drive::node::{Apps, DefaultApp, DeviceKind, DriveApp, NodeConfig};
+/// use generated::drvi;
+///
+/// struct MyApps;
+/// impl Apps for MyApps {
+///     fn drvi(&self) -> Box<dyn DriveApp<drvi::Dictionary> + Send> {
+///         Box::new(DefaultApp::new()) // a DRVI behaviour here
+///     }
+/// }
+/// let node = DeviceKind::Drvi.build(&NodeConfig { node_id: Some(4), ..Default::default() }, &MyApps).unwrap();
+/// assert_eq!(node.node_id().get(), 4);
+/// ```
+pub trait Apps {
+    /// The application of a DRVI.
+    fn drvi(&self) -> Box<dyn DriveApp<generated::drvi::Dictionary> + Send> {
+        Box::new(DefaultApp::new())
+    }
+
+    /// The application of a DRCS.
+    fn drcs(&self) -> Box<dyn DriveApp<generated::drcs::Dictionary> + Send> {
+        Box::new(DefaultApp::new())
+    }
+
+    /// The application of an AKD.
+    fn akd(&self) -> Box<dyn DriveApp<generated::akd::Dictionary> + Send> {
+        Box::new(DefaultApp::new())
+    }
+}
+
+/// [`DefaultApp`] for every device.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct DefaultApps;
+
+impl Apps for DefaultApps {}

@@ -1,0 +1,321 @@
+//! Running a device: an od-runtime `Device` over a generated dictionary, an application
+//! ([`DriveApp`]) and a clock, on any [`Endpoint`](crate::transport::Endpoint).
+//!
+//! ```text
+//!            frames ─────► Node::handle ──► od-runtime Device ──► events ──► DriveApp::on_event
+//!   Endpoint                                  ▲  (SDO, NMT, PDO,           (through a Ctx:
+//!            frames ◄───── Node::poll ◄───────┘   SYNC, EMCY, 402)          faults, EMCY, writes)
+//!                            │
+//!                            └─► every tick_period: DriveApp::tick (motion model)
+//! ```
+//!
+//! * [`Node`] is the device with its application. It never reads a clock: [`Node::handle`] and
+//!   [`Node::poll`] take the time, so tests run it on a virtual clock, frame for frame.
+//! * [`AnyNode`] is `Node` without its type parameters, for code that runs any device
+//!   (`drive-sim`, [`Sim`]).
+//! * [`run`] drives a node on an endpoint in real time with a [`Clock`] ([`MonotonicClock`]),
+//!   until a stop flag is set or the bus closes.
+//! * [`Sim`] runs nodes on a [`MemoryBus`](crate::transport::MemoryBus) in virtual time:
+//!   deterministic multi-device tests.
+//! * [`DeviceKind`] builds a node for one of the project's devices (DRVI, DRCS, AKD) from a
+//!   [`NodeConfig`]; [`Apps`] chooses the application each kind runs.
+//! * [`ParameterSet`] and [`NodeStorage`] apply a DCF's values at every reset.
+//!
+//! # Example: a DRVI on the in-memory bus
+//!
+//! ```
+//! use drive::node::{DefaultApp, Node, NodeStorage};
+//! use drive::transport::CanFrame;
+//! use od_runtime::NodeId;
+//!
+//! let id = NodeId::new(2).unwrap();
+//! let mut node = Node::new(generated::drvi::Dictionary::new(2), DefaultApp::new(), NodeStorage::memory(), id);
+//! let mut sent = Vec::new();
+//! node.poll(0, &mut |f| sent.push(f.to_string()));
+//! assert_eq!(sent, ["702#00"]); // boot-up
+//!
+//! // SDO upload of 1000h (device type).
+//! node.handle(&"602#4000100000000000".parse::<CanFrame>().unwrap(), 100);
+//! sent.clear();
+//! node.poll(100, &mut |f| sent.push(f.to_string()));
+//! assert_eq!(sent, ["582#4300100092017AFF"]);
+//! ```
+
+mod app;
+mod devices;
+mod params;
+mod run;
+mod sim;
+
+use std::any::Any;
+use std::collections::VecDeque;
+
+use od_runtime::od::{AbortCode, ObjectDictionary};
+use od_runtime::{Device, Event, Frame, Micros, NmtState, NodeId, Storage, WriteSource};
+
+use crate::transport::CanFrame;
+
+pub use app::{Ctx, DefaultApp, DriveApp, EMCY_HEARTBEAT_OR_GUARDING, EMCY_RPDO_TIMEOUT, LossRecord, WriteRequest};
+pub use devices::{Apps, DefaultApps, DeviceKind, NodeConfig, NodeSetupError};
+pub use params::{DcfError, NodeStorage, ParameterSet};
+pub use run::{Clock, MonotonicClock, RunStats, run};
+pub use sim::Sim;
+
+/// Events held between the device call that raised them and their delivery to the
+/// application. A single frame raises at most a few dozen (an RPDO of 64 one-bit entries);
+/// past this, events are dropped and counted ([`Node::dropped_events`]).
+const EVENT_QUEUE: usize = 4096;
+
+/// Poll interval of the device's own timers (heartbeat, event timers, SDO timeout, inhibit
+/// times): od-runtime wants a poll at least every millisecond.
+pub const POLL_INTERVAL: Micros = 1000;
+
+/// The od-runtime side of the application: vetoes go to the application synchronously,
+/// events are queued for delivery with a [`Ctx`].
+struct Hooks<A> {
+    /// `None` while the application runs (its own device calls are then not vetoed by itself).
+    app: Option<A>,
+    events: VecDeque<Event>,
+    dropped: u64,
+}
+
+impl<OD, A: DriveApp<OD>> od_runtime::App<OD> for Hooks<A> {
+    fn on_write(&mut self, od: &OD, index: u16, sub: u8, data: &[u8], source: WriteSource) -> Result<(), AbortCode> {
+        match (&mut self.app, source) {
+            (Some(app), WriteSource::Sdo | WriteSource::Rpdo(_)) => {
+                app.on_write(od, &WriteRequest { index, sub, data, source })
+            }
+            _ => Ok(()),
+        }
+    }
+
+    fn on_event(&mut self, _od: &mut OD, event: Event) {
+        if self.events.len() < EVENT_QUEUE {
+            self.events.push_back(event);
+        } else {
+            self.dropped += 1;
+        }
+    }
+}
+
+/// A device: the od-runtime `Device` around dictionary `OD`, the application `A`, and the
+/// parameter storage `S` (usually [`NodeStorage`]).
+///
+/// Feed it the frames from the bus with [`Node::handle`] and call [`Node::poll`] at least
+/// every [`POLL_INTERVAL`] (better: at [`Node::next_deadline`]) to run timers and collect the
+/// frames to send. Both take the current time in microseconds; the node starts (reset node,
+/// boot-up message) at the first call.
+pub struct Node<OD, A, S = NodeStorage> {
+    dev: Device<OD, Hooks<A>, S>,
+    tick_period: Micros,
+    next_tick: Option<Micros>,
+    last_poll: Option<Micros>,
+    /// Something outside the normal flow ([`Node::with_app`]) may have queued frames.
+    wake: bool,
+    ticks: u64,
+}
+
+impl<OD, A, S> Node<OD, A, S>
+where
+    OD: ObjectDictionary,
+    A: DriveApp<OD>,
+    S: Storage,
+{
+    /// A node with id `node_id`. Nothing happens until the first [`Node::handle`] or
+    /// [`Node::poll`].
+    pub fn new(od: OD, app: A, storage: S, node_id: NodeId) -> Self {
+        let tick_period = app.tick_period();
+        let hooks = Hooks { app: Some(app), events: VecDeque::new(), dropped: 0 };
+        Self {
+            dev: Device::new(od, hooks, storage, node_id),
+            tick_period,
+            next_tick: None,
+            last_poll: None,
+            wake: false,
+            ticks: 0,
+        }
+    }
+
+    /// Handles one frame from the bus received at `now`, then delivers the events it raised.
+    /// Responses go out at the next [`Node::poll`]. Extended-id frames are not CANopen's and
+    /// are ignored.
+    pub fn handle(&mut self, frame: &CanFrame, now: Micros) {
+        if frame.is_extended() {
+            return;
+        }
+        // A standard id is at most 0x7FF, so the cast is exact.
+        let f = Frame::from_parts(frame.id() as u16, frame.is_remote(), frame.dlc(), frame.raw_data());
+        self.dev.on_frame(&f, now);
+        self.dispatch(now);
+    }
+
+    /// Runs the application's tick when it is due, the device's timers, and hands every frame
+    /// to send to `emit`.
+    pub fn poll(&mut self, now: Micros, emit: &mut dyn FnMut(CanFrame)) {
+        let next_tick = *self.next_tick.get_or_insert(now);
+        if self.tick_period != 0 && now >= next_tick {
+            self.tick(now);
+            let next = next_tick.saturating_add(self.tick_period);
+            // Behind by more than a period: skip the missed ticks instead of bursting.
+            self.next_tick = Some(if next <= now { now.saturating_add(self.tick_period) } else { next });
+        }
+        // Reactions to events raised by a poll (a heartbeat timeout's EMCY) go out in the same
+        // call: poll again while the application had something to react to.
+        for _ in 0..3 {
+            self.dev.poll(now, |f| {
+                if let Some(frame) = to_can(&f) {
+                    emit(frame);
+                }
+            });
+            if self.dev.app().events.is_empty() {
+                break;
+            }
+            self.dispatch(now);
+        }
+        self.last_poll = Some(now);
+        self.wake = false;
+    }
+
+    /// When the node wants its next [`Node::poll`]: the next application tick or
+    /// [`POLL_INTERVAL`] after the last poll, whichever is first (0, meaning at once, before
+    /// the first poll and after [`Node::with_app`]).
+    pub fn next_deadline(&self) -> Micros {
+        let Some(last) = self.last_poll.filter(|_| !self.wake) else { return 0 };
+        let timers = last.saturating_add(POLL_INTERVAL);
+        match self.next_tick {
+            Some(t) if self.tick_period != 0 => t.min(timers),
+            _ => timers,
+        }
+    }
+
+    fn tick(&mut self, now: Micros) {
+        let Some(mut app) = self.dev.app_mut().app.take() else { return };
+        app.tick(&mut Ctx::new(&mut self.dev, now));
+        self.dev.app_mut().app = Some(app);
+        self.ticks += 1;
+        self.dispatch(now);
+    }
+
+    /// Delivers queued events to the application, including those its reactions raise.
+    fn dispatch(&mut self, now: Micros) {
+        if self.dev.app().events.is_empty() {
+            return;
+        }
+        let Some(mut app) = self.dev.app_mut().app.take() else { return };
+        // Bounded: an application that raises an event for every event it gets cannot hang
+        // the node; what is left is delivered at the next call.
+        for _ in 0..EVENT_QUEUE {
+            let Some(event) = self.dev.app_mut().events.pop_front() else { break };
+            app.on_event(&mut Ctx::new(&mut self.dev, now), event);
+        }
+        self.dev.app_mut().app = Some(app);
+    }
+
+    /// Runs `f` with the application and a [`Ctx`] at time `now`, as if from a tick (a test
+    /// injecting a fault, a command-line action); events it raises are delivered afterwards.
+    pub fn with_app<R>(&mut self, now: Micros, f: impl FnOnce(&mut A, &mut Ctx<'_, OD>) -> R) -> Option<R> {
+        let mut app = self.dev.app_mut().app.take()?;
+        let out = f(&mut app, &mut Ctx::new(&mut self.dev, now));
+        self.dev.app_mut().app = Some(app);
+        self.dispatch(now);
+        self.wake = true;
+        Some(out)
+    }
+
+    /// The od-runtime device (NMT state, CiA 402 state, error register, the dictionary).
+    pub fn device(&self) -> &Device<OD, impl od_runtime::App<OD>, S> {
+        &self.dev
+    }
+
+    /// The dictionary.
+    pub fn od(&self) -> &OD {
+        self.dev.od()
+    }
+
+    /// The dictionary, mutably (no side effects; see [`Ctx::od_mut`]).
+    pub fn od_mut(&mut self) -> &mut OD {
+        self.dev.od_mut()
+    }
+
+    /// The application (`None` only while it runs, which cannot be observed from outside).
+    pub fn app(&self) -> Option<&A> {
+        self.dev.app().app.as_ref()
+    }
+
+    /// The application, mutably.
+    pub fn app_mut(&mut self) -> Option<&mut A> {
+        self.dev.app_mut().app.as_mut()
+    }
+
+    /// The storage.
+    pub fn storage_mut(&mut self) -> &mut S {
+        self.dev.storage_mut()
+    }
+
+    /// Sets the SDO server timeout (default 1 s).
+    pub fn set_sdo_timeout(&mut self, timeout: Micros) {
+        self.dev.set_sdo_timeout(timeout);
+    }
+
+    /// Application ticks run so far.
+    pub fn ticks(&self) -> u64 {
+        self.ticks
+    }
+
+    /// Events dropped because the queue was full (0 unless an application floods it).
+    pub fn dropped_events(&self) -> u64 {
+        self.dev.app().dropped
+    }
+}
+
+/// od-runtime frames always have an 11-bit id and at most 8 bytes, so this never fails.
+fn to_can(f: &Frame) -> Option<CanFrame> {
+    CanFrame::from_parts(u32::from(f.id()), false, f.is_rtr(), f.len() as u8, *f.raw()).ok()
+}
+
+/// A [`Node`] without its type parameters: what code that runs any device needs.
+pub trait AnyNode: Send + 'static {
+    /// [`Node::handle`].
+    fn handle(&mut self, frame: &CanFrame, now: Micros);
+    /// [`Node::poll`].
+    fn poll(&mut self, now: Micros, emit: &mut dyn FnMut(CanFrame));
+    /// [`Node::next_deadline`].
+    fn next_deadline(&self) -> Micros;
+    /// The node id.
+    fn node_id(&self) -> NodeId;
+    /// The NMT state.
+    fn nmt_state(&self) -> NmtState;
+    /// The concrete node, for tests that look inside (`downcast_ref::<Node<..>>()`).
+    fn as_any(&self) -> &dyn Any;
+    /// The concrete node, mutably.
+    fn as_any_mut(&mut self) -> &mut dyn Any;
+}
+
+impl<OD, A, S> AnyNode for Node<OD, A, S>
+where
+    OD: ObjectDictionary + Send + 'static,
+    A: DriveApp<OD> + Send + 'static,
+    S: Storage + Send + 'static,
+{
+    fn handle(&mut self, frame: &CanFrame, now: Micros) {
+        Node::handle(self, frame, now)
+    }
+    fn poll(&mut self, now: Micros, emit: &mut dyn FnMut(CanFrame)) {
+        Node::poll(self, now, emit)
+    }
+    fn next_deadline(&self) -> Micros {
+        Node::next_deadline(self)
+    }
+    fn node_id(&self) -> NodeId {
+        self.dev.node_id()
+    }
+    fn nmt_state(&self) -> NmtState {
+        self.dev.nmt_state()
+    }
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+}

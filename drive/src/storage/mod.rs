@@ -1,0 +1,582 @@
+//! Where a simulated device keeps the parameters a master saves with 1010h ("store
+//! parameters"): [`FileStorage`] on disk, [`MemoryStorage`] in memory.
+//!
+//! Both implement od-runtime's [`Storage`] trait. The runtime decides what is stored (every
+//! writable entry of an area, as `(index, sub, bytes)` records) and when (a `save` written to
+//! 1010h; stored values are loaded at every reset); a backend only keeps the records.
+//!
+//! # The file format
+//!
+//! [`FileStorage`] keeps one file per area, `<dir>/<tag>.<area>.params` (`drvi-node2.comm.params`,
+//! `.app.params`, `.mfr.params`):
+//!
+//! ```text
+//! magic     4 bytes  "ODRS"
+//! version   1 byte   1
+//! area      1 byte   1 communication, 2 application, 3 manufacturer
+//! tag       1 byte length + that many bytes (the device tag, e.g. "drvi-node2")
+//! count     u32 LE   number of records
+//! records   count × (index u16 LE, sub u8, length u16 LE, data)
+//! checksum  u32 LE   CRC-32 (IEEE) of every byte before it
+//! ```
+//!
+//! A save is atomic: the image is written to `<file>.tmp`, flushed to disk (`fsync`), renamed
+//! over the old file, and the directory is flushed so the rename itself survives a power cut.
+//! A reader therefore sees either the old image or the new one. A file that is torn anyway
+//! (written by something else, a disk error) or altered fails the checksum or the structure
+//! check; it is then ignored with a warning, and the device starts from its defaults, as a
+//! real drive does after a checksum error in its parameter flash.
+
+use std::fmt;
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, Write};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+use od_runtime::Storage;
+use od_runtime::od::{AbortCode, Area};
+
+/// File magic of a stored parameter image.
+pub const MAGIC: [u8; 4] = *b"ODRS";
+/// Format version written and accepted.
+pub const VERSION: u8 = 1;
+
+/// Largest stored image accepted when loading (a device dictionary has a few thousand entries
+/// of a few bytes; anything this large is not ours).
+const MAX_FILE: u64 = 16 * 1024 * 1024;
+
+/// Where warnings go: by default standard error, prefixed with the tag.
+pub type WarningSink = Arc<dyn Fn(&str) + Send + Sync>;
+
+/// CRC-32 as used by zip, PNG and Ethernet (IEEE 802.3, reflected polynomial 0xEDB88320, initial
+/// value and final XOR 0xFFFFFFFF).
+///
+/// ```
+/// assert_eq!(drive::storage::crc32(b"123456789"), 0xCBF4_3926);
+/// ```
+pub fn crc32(data: &[u8]) -> u32 {
+    const TABLE: [u32; 256] = {
+        let mut table = [0u32; 256];
+        let mut i = 0;
+        while i < 256 {
+            let mut c = i as u32;
+            let mut k = 0;
+            while k < 8 {
+                c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+                k += 1;
+            }
+            table[i] = c;
+            i += 1;
+        }
+        table
+    };
+    let mut crc = 0xFFFF_FFFFu32;
+    for &b in data {
+        crc = TABLE[((crc ^ u32::from(b)) & 0xFF) as usize] ^ (crc >> 8);
+    }
+    !crc
+}
+
+/// One stored value.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Record {
+    /// Object index.
+    pub index: u16,
+    /// Sub-index.
+    pub sub: u8,
+    /// The value as little-endian bytes, as on the bus.
+    pub data: Vec<u8>,
+}
+
+fn area_code(area: Area) -> Option<u8> {
+    match area {
+        Area::Communication => Some(1),
+        Area::Application => Some(2),
+        Area::Manufacturer => Some(3),
+        Area::All => None,
+    }
+}
+
+fn area_file_suffix(area: Area) -> &'static str {
+    match area {
+        Area::Communication => "comm",
+        Area::Application => "app",
+        Area::Manufacturer => "mfr",
+        Area::All => "all",
+    }
+}
+
+/// Why a stored image was not accepted.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ImageError {
+    /// The file ends before its structure says it should.
+    #[error("truncated (file ends inside the {0})")]
+    Truncated(&'static str),
+    /// Not a parameter image.
+    #[error("not a parameter image (bad magic)")]
+    Magic,
+    /// Written by another version of the format.
+    #[error("format version {0} is not supported (expected {VERSION})")]
+    Version(u8),
+    /// The checksum does not match the contents: a torn or altered file.
+    #[error("checksum mismatch (stored {stored:#010x}, computed {computed:#010x}): torn or corrupt file")]
+    Checksum {
+        /// The checksum in the file.
+        stored: u32,
+        /// The checksum of the contents.
+        computed: u32,
+    },
+    /// The image belongs to another area.
+    #[error("image of area {found} where area {expected} was expected")]
+    Area {
+        /// Area code expected.
+        expected: u8,
+        /// Area code found.
+        found: u8,
+    },
+    /// The image belongs to another device.
+    #[error("image of device '{found}' where '{expected}' was expected")]
+    Tag {
+        /// Tag expected.
+        expected: String,
+        /// Tag found.
+        found: String,
+    },
+    /// Bytes after the last record.
+    #[error("{0} unexpected bytes after the last record")]
+    Trailing(usize),
+}
+
+/// Serialises an image (see the module docs for the layout).
+pub fn encode_image(area: Area, tag: &str, records: &[Record]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(16 + tag.len() + records.iter().map(|r| 5 + r.data.len()).sum::<usize>());
+    out.extend_from_slice(&MAGIC);
+    out.push(VERSION);
+    out.push(area_code(area).unwrap_or(0));
+    let tag = &tag.as_bytes()[..tag.len().min(255)];
+    out.push(tag.len() as u8);
+    out.extend_from_slice(tag);
+    out.extend_from_slice(&(records.len() as u32).to_le_bytes());
+    for r in records {
+        let data = &r.data[..r.data.len().min(usize::from(u16::MAX))];
+        out.extend_from_slice(&r.index.to_le_bytes());
+        out.push(r.sub);
+        out.extend_from_slice(&(data.len() as u16).to_le_bytes());
+        out.extend_from_slice(data);
+    }
+    let crc = crc32(&out);
+    out.extend_from_slice(&crc.to_le_bytes());
+    out
+}
+
+struct Reader<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize, what: &'static str) -> Result<&'a [u8], ImageError> {
+        let end = self.pos.checked_add(n).filter(|&e| e <= self.bytes.len()).ok_or(ImageError::Truncated(what))?;
+        let out = &self.bytes[self.pos..end];
+        self.pos = end;
+        Ok(out)
+    }
+
+    fn u8(&mut self, what: &'static str) -> Result<u8, ImageError> {
+        Ok(self.take(1, what)?[0])
+    }
+
+    fn u16(&mut self, what: &'static str) -> Result<u16, ImageError> {
+        let b = self.take(2, what)?;
+        Ok(u16::from_le_bytes([b[0], b[1]]))
+    }
+
+    fn u32(&mut self, what: &'static str) -> Result<u32, ImageError> {
+        let b = self.take(4, what)?;
+        Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    }
+}
+
+/// Parses and verifies an image written by [`encode_image`] for `area` and `tag`. Never
+/// panics, whatever the bytes.
+pub fn decode_image(bytes: &[u8], area: Area, tag: &str) -> Result<Vec<Record>, ImageError> {
+    if bytes.len() < 4 || bytes[..4] != MAGIC {
+        return Err(if bytes.len() < 4 && MAGIC.starts_with(bytes) {
+            ImageError::Truncated("header")
+        } else {
+            ImageError::Magic
+        });
+    }
+    if bytes.len() < 4 + 1 + 1 + 1 + 4 + 4 {
+        return Err(ImageError::Truncated("header"));
+    }
+    let (body, tail) = bytes.split_at(bytes.len() - 4);
+    let stored = u32::from_le_bytes([tail[0], tail[1], tail[2], tail[3]]);
+    let computed = crc32(body);
+    let mut r = Reader { bytes: body, pos: 4 };
+    let version = r.u8("header")?;
+    if version != VERSION {
+        return Err(ImageError::Version(version));
+    }
+    if stored != computed {
+        return Err(ImageError::Checksum { stored, computed });
+    }
+    let found_area = r.u8("header")?;
+    let expected = area_code(area).unwrap_or(0);
+    if found_area != expected {
+        return Err(ImageError::Area { expected, found: found_area });
+    }
+    let tag_len = r.u8("header")?;
+    let found_tag = r.take(usize::from(tag_len), "tag")?;
+    if found_tag != tag.as_bytes() {
+        return Err(ImageError::Tag {
+            expected: tag.to_owned(),
+            found: String::from_utf8_lossy(found_tag).into_owned(),
+        });
+    }
+    let count = r.u32("header")?;
+    // Each record takes at least 5 bytes: bound the allocation by what the file can hold.
+    let mut records = Vec::with_capacity((count as usize).min(body.len() / 5));
+    for _ in 0..count {
+        let index = r.u16("record")?;
+        let sub = r.u8("record")?;
+        let len = r.u16("record")?;
+        let data = r.take(usize::from(len), "record data")?.to_vec();
+        records.push(Record { index, sub, data });
+    }
+    if r.pos != body.len() {
+        return Err(ImageError::Trailing(body.len() - r.pos));
+    }
+    Ok(records)
+}
+
+/// Parameter images in memory: saving works, and stored values survive NMT resets, but not the
+/// process. What `drive-sim` uses without `--state-dir`.
+#[derive(Clone, Debug, Default)]
+pub struct MemoryStorage {
+    images: [Option<Vec<Record>>; 3],
+    pending: Option<(Area, Vec<Record>)>,
+}
+
+impl MemoryStorage {
+    /// Empty storage.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The committed image of `area`, if one was saved.
+    pub fn image(&self, area: Area) -> Option<&[Record]> {
+        let slot = usize::from(area_code(area)?.checked_sub(1)?);
+        self.images[slot].as_deref()
+    }
+}
+
+fn slot(area: Area) -> Result<usize, AbortCode> {
+    area_code(area).map(|c| usize::from(c) - 1).ok_or(AbortCode::CANNOT_STORE)
+}
+
+impl Storage for MemoryStorage {
+    fn begin_save(&mut self, area: Area) -> Result<(), AbortCode> {
+        slot(area)?;
+        self.pending = Some((area, Vec::new()));
+        Ok(())
+    }
+
+    fn save_entry(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode> {
+        let (_, records) = self.pending.as_mut().ok_or(AbortCode::CANNOT_STORE)?;
+        records.push(Record { index, sub, data: data.to_vec() });
+        Ok(())
+    }
+
+    fn end_save(&mut self, area: Area) -> Result<(), AbortCode> {
+        match self.pending.take() {
+            Some((a, records)) if a == area => {
+                self.images[slot(area)?] = Some(records);
+                Ok(())
+            }
+            _ => Err(AbortCode::CANNOT_STORE),
+        }
+    }
+
+    fn load(&mut self, area: Area, apply: &mut dyn FnMut(u16, u8, &[u8])) {
+        if let Some(records) = self.image(area) {
+            for r in records {
+                apply(r.index, r.sub, &r.data);
+            }
+        }
+    }
+
+    fn erase(&mut self, area: Area) -> Result<(), AbortCode> {
+        self.images[slot(area)?] = None;
+        Ok(())
+    }
+}
+
+/// Parameter images in files of a state directory, written atomically and checked on load (see
+/// the [module docs](self)).
+///
+/// ```
+/// use drive::storage::FileStorage;
+/// use od_runtime::{Storage, od::Area};
+///
+/// let dir = std::env::temp_dir().join(format!("drive-doc-storage-{}", std::process::id()));
+/// let mut storage = FileStorage::open(&dir, "demo-node1").unwrap();
+/// storage.begin_save(Area::Application).unwrap();
+/// storage.save_entry(0x607A, 0, &1000i32.to_le_bytes()).unwrap();
+/// storage.end_save(Area::Application).unwrap();
+///
+/// // Another process (here: another instance) finds the value.
+/// let mut again = FileStorage::open(&dir, "demo-node1").unwrap();
+/// let mut seen = Vec::new();
+/// again.load(Area::Application, &mut |i, s, d| seen.push((i, s, d.to_vec())));
+/// assert_eq!(seen, [(0x607A, 0, vec![0xE8, 0x03, 0, 0])]);
+/// # std::fs::remove_dir_all(&dir).unwrap();
+/// ```
+pub struct FileStorage {
+    dir: PathBuf,
+    tag: String,
+    pending: Option<(Area, Vec<Record>)>,
+    warn: WarningSink,
+    warnings: Arc<Mutex<Vec<String>>>,
+}
+
+impl fmt::Debug for FileStorage {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("FileStorage").field("dir", &self.dir).field("tag", &self.tag).finish_non_exhaustive()
+    }
+}
+
+impl FileStorage {
+    /// Uses `dir` (created if missing) for the images of the device named `tag` (letters,
+    /// digits, `-`, `_` and `.`, at most 64 bytes: it becomes part of the file names). Removes
+    /// temporary files an interrupted save left behind.
+    pub fn open(dir: impl AsRef<Path>, tag: &str) -> io::Result<Self> {
+        let valid = !tag.is_empty()
+            && tag.len() <= 64
+            && !tag.starts_with('.')
+            && tag.bytes().all(|b| b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_' | b'.'));
+        if !valid {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("bad storage tag {tag:?}: use letters, digits, '-', '_' and '.', at most 64"),
+            ));
+        }
+        let dir = dir.as_ref().to_path_buf();
+        fs::create_dir_all(&dir)?;
+        let warnings = Arc::new(Mutex::new(Vec::new()));
+        let prefix = tag.to_owned();
+        let storage = Self {
+            dir,
+            tag: tag.to_owned(),
+            pending: None,
+            warn: Arc::new(move |message| eprintln!("{prefix}: warning: {message}")),
+            warnings,
+        };
+        for area in [Area::Communication, Area::Application, Area::Manufacturer] {
+            let tmp = storage.temp_path(area);
+            if tmp.exists() {
+                let _ = fs::remove_file(&tmp);
+            }
+        }
+        Ok(storage)
+    }
+
+    /// Sends warnings (corrupt images, failed saves) to `sink` instead of standard error. They
+    /// are kept for [`FileStorage::warnings`] either way.
+    pub fn with_warning_sink(mut self, sink: WarningSink) -> Self {
+        self.warn = sink;
+        self
+    }
+
+    /// Every warning so far, oldest first.
+    pub fn warnings(&self) -> Vec<String> {
+        self.warnings.lock().map(|w| w.clone()).unwrap_or_default()
+    }
+
+    /// The file holding the image of `area`.
+    pub fn path(&self, area: Area) -> PathBuf {
+        self.dir.join(format!("{}.{}.params", self.tag, area_file_suffix(area)))
+    }
+
+    fn temp_path(&self, area: Area) -> PathBuf {
+        self.dir.join(format!("{}.{}.params.tmp", self.tag, area_file_suffix(area)))
+    }
+
+    fn warn(&self, message: String) {
+        (self.warn)(&message);
+        if let Ok(mut w) = self.warnings.lock() {
+            w.push(message);
+        }
+    }
+
+    /// Reads and checks the image of `area`: `Ok(None)` if there is none.
+    pub fn read_image(&self, area: Area) -> Result<Option<Vec<Record>>, String> {
+        let path = self.path(area);
+        let file = match File::open(&path) {
+            Ok(f) => f,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(format!("{}: {e}", path.display())),
+        };
+        let len = file.metadata().map(|m| m.len()).unwrap_or(0);
+        if len > MAX_FILE {
+            return Err(format!("{}: {len} bytes is too large for a parameter image", path.display()));
+        }
+        let mut bytes = Vec::with_capacity(len as usize);
+        io::Read::read_to_end(&mut io::Read::take(file, MAX_FILE), &mut bytes)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        decode_image(&bytes, area, &self.tag).map(Some).map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    /// Writes `bytes` to `path` atomically: temporary file, fsync, rename, fsync of the
+    /// directory.
+    fn write_atomically(&self, area: Area, bytes: &[u8]) -> io::Result<()> {
+        let tmp = self.temp_path(area);
+        let result = (|| {
+            let mut file = OpenOptions::new().write(true).create(true).truncate(true).open(&tmp)?;
+            file.write_all(bytes)?;
+            file.sync_all()?;
+            drop(file);
+            fs::rename(&tmp, self.path(area))?;
+            sync_dir(&self.dir)
+        })();
+        if result.is_err() {
+            let _ = fs::remove_file(&tmp);
+        }
+        result
+    }
+}
+
+#[cfg(unix)]
+fn sync_dir(dir: &Path) -> io::Result<()> {
+    File::open(dir)?.sync_all()
+}
+
+#[cfg(not(unix))]
+fn sync_dir(_dir: &Path) -> io::Result<()> {
+    // Directories cannot be opened for syncing everywhere; the rename is still atomic.
+    Ok(())
+}
+
+impl Storage for FileStorage {
+    fn begin_save(&mut self, area: Area) -> Result<(), AbortCode> {
+        slot(area)?;
+        self.pending = Some((area, Vec::new()));
+        Ok(())
+    }
+
+    fn save_entry(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode> {
+        let (_, records) = self.pending.as_mut().ok_or(AbortCode::CANNOT_STORE)?;
+        records.push(Record { index, sub, data: data.to_vec() });
+        Ok(())
+    }
+
+    fn end_save(&mut self, area: Area) -> Result<(), AbortCode> {
+        let Some((a, records)) = self.pending.take() else { return Err(AbortCode::CANNOT_STORE) };
+        if a != area {
+            return Err(AbortCode::CANNOT_STORE);
+        }
+        let bytes = encode_image(area, &self.tag, &records);
+        self.write_atomically(area, &bytes).map_err(|e| {
+            self.warn(format!("cannot save {}: {e}", self.path(area).display()));
+            AbortCode::CANNOT_STORE
+        })
+    }
+
+    fn load(&mut self, area: Area, apply: &mut dyn FnMut(u16, u8, &[u8])) {
+        match self.read_image(area) {
+            Ok(Some(records)) => {
+                for r in &records {
+                    apply(r.index, r.sub, &r.data);
+                }
+            }
+            Ok(None) => {}
+            Err(message) => self.warn(format!("ignoring stored parameters, defaults used: {message}")),
+        }
+    }
+
+    fn erase(&mut self, area: Area) -> Result<(), AbortCode> {
+        let path = self.path(area);
+        match fs::remove_file(&path) {
+            Ok(()) => sync_dir(&self.dir).map_err(|e| {
+                self.warn(format!("cannot sync {}: {e}", self.dir.display()));
+                AbortCode::CANNOT_STORE
+            }),
+            Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(()),
+            Err(e) => {
+                self.warn(format!("cannot delete {}: {e}", path.display()));
+                Err(AbortCode::CANNOT_STORE)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn records() -> Vec<Record> {
+        vec![
+            Record { index: 0x1017, sub: 0, data: vec![0xF4, 0x01] },
+            Record { index: 0x1008, sub: 0, data: b"a long device name".to_vec() },
+            Record { index: 0x1800, sub: 2, data: vec![] },
+        ]
+    }
+
+    #[test]
+    fn crc32_check_value() {
+        assert_eq!(crc32(b""), 0);
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+    }
+
+    #[test]
+    fn image_round_trips() {
+        let bytes = encode_image(Area::Communication, "drvi-node2", &records());
+        assert_eq!(decode_image(&bytes, Area::Communication, "drvi-node2"), Ok(records()));
+    }
+
+    #[test]
+    fn every_truncation_and_every_bit_flip_is_detected() {
+        let bytes = encode_image(Area::Application, "t", &records());
+        for n in 0..bytes.len() {
+            assert!(decode_image(&bytes[..n], Area::Application, "t").is_err(), "truncated to {n}");
+        }
+        for i in 0..bytes.len() {
+            for bit in 0..8 {
+                let mut b = bytes.clone();
+                b[i] ^= 1 << bit;
+                assert!(decode_image(&b, Area::Application, "t").is_err(), "byte {i} bit {bit}");
+            }
+        }
+    }
+
+    #[test]
+    fn wrong_area_or_tag_is_refused() {
+        let bytes = encode_image(Area::Application, "a", &records());
+        assert_eq!(decode_image(&bytes, Area::Manufacturer, "a"), Err(ImageError::Area { expected: 3, found: 2 }));
+        assert!(matches!(decode_image(&bytes, Area::Application, "b"), Err(ImageError::Tag { .. })));
+    }
+
+    #[test]
+    fn memory_storage_keeps_images_per_area() {
+        let mut m = MemoryStorage::new();
+        m.begin_save(Area::Manufacturer).unwrap();
+        m.save_entry(0x2001, 1, &[1, 0, 0, 0]).unwrap();
+        m.end_save(Area::Manufacturer).unwrap();
+        let mut seen = Vec::new();
+        m.load(Area::Manufacturer, &mut |i, s, d| seen.push((i, s, d.to_vec())));
+        assert_eq!(seen, [(0x2001, 1, vec![1, 0, 0, 0])]);
+        m.load(Area::Application, &mut |_, _, _| panic!("nothing stored"));
+        m.erase(Area::Manufacturer).unwrap();
+        assert!(m.image(Area::Manufacturer).is_none());
+        assert_eq!(m.begin_save(Area::All), Err(AbortCode::CANNOT_STORE));
+        assert_eq!(m.end_save(Area::Application), Err(AbortCode::CANNOT_STORE));
+    }
+
+    #[test]
+    fn bad_tags_are_refused() {
+        let dir = std::env::temp_dir();
+        for tag in ["", "../x", "a/b", ".hidden", "sp ace", &"x".repeat(65)] {
+            assert!(FileStorage::open(&dir, tag).is_err(), "{tag:?}");
+        }
+    }
+}
