@@ -177,3 +177,62 @@ pub fn to_json(diagnostics: &[Diagnostic]) -> String {
     let out: Vec<Out<'_>> = diagnostics.iter().map(|d| Out { d, deviation: d.is_deviation() }).collect();
     serde_json::to_string_pretty(&out).unwrap_or_else(|_| "[]".to_owned())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::source::SourceFile;
+
+    fn diag(src: &SourceFile, start: u32, end: u32) -> Diagnostic {
+        let mut d = Diagnostic::new(crate::codes::E0301, crate::Strictness::Strict, &src.name, "bad value");
+        d.span = Some(Span::new(start, end));
+        d.at = Some(src.line_col(start));
+        d
+    }
+
+    #[test]
+    fn caret_under_the_span() {
+        let src = SourceFile::from_str("a.eds", "[1000]\r\nDefaultValue=0x1G\r\n");
+        let text = render(&diag(&src, 21, 25), &src);
+        assert_eq!(
+            text,
+            "error[E0301]: bad value\n --> a.eds:2:14\n  |\n2 | DefaultValue=0x1G\n  |              ^^^^\n"
+        );
+    }
+
+    #[test]
+    fn tabs_non_ascii_and_empty_spans() {
+        let src = SourceFile::from_str("a.eds", "\tName=Grüße\nK=\n");
+        // `ß` starts at byte 9 (after `\tName=Grü`), column 10 in characters.
+        let text = render(&diag(&src, 9, 11), &src);
+        assert!(text.contains(" --> a.eds:1:10\n"), "{text}");
+        assert!(text.contains("1 |  Name=Grüße\n"), "{text}");
+        assert!(text.contains("  |          ^\n"), "{text}");
+        // An empty span at the end of a line still gets one caret.
+        let text = render(&diag(&src, 16, 16), &src);
+        assert!(text.contains("2 | K=\n  |   ^\n"), "{text}");
+    }
+
+    #[test]
+    fn whole_file_context_and_hint() {
+        let src = SourceFile::from_str("a.eds", "");
+        let mut d = Diagnostic::new(crate::codes::E0502, crate::Strictness::Lenient, "a.eds", "no [FileInfo]");
+        d.context = vec!["object 0x1018 \"Identity\"".into(), "sub 2 \"Product\"".into()];
+        d.hint = Some("add it".into());
+        assert_eq!(
+            render(&d, &src),
+            "warning[E0502]: no [FileInfo]\n --> a.eds\n  = note: in object 0x1018 \"Identity\", sub 2 \"Product\"\n  = help: add it\n"
+        );
+        assert_eq!(summary(&[]), "no problems");
+        assert_eq!(summary(&[d.clone(), d]), "2 warnings");
+    }
+
+    #[test]
+    fn wide_gutters_for_long_files() {
+        let text: String = (0..1200).map(|i| format!("K{i}=v\n")).collect();
+        let src = SourceFile::from_str("a.eds", text);
+        let start = src.text.find("K1100=").unwrap_or(0) as u32;
+        let out = render(&diag(&src, start, start + 5), &src);
+        assert!(out.contains("    --> a.eds:1101:1\n     |\n1101 | K1100=v\n     | ^^^^^\n"), "{out}");
+    }
+}

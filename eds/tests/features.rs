@@ -227,3 +227,25 @@ fn unknown_sections_and_keys_are_kept() {
     assert!(has(&p, codes::E0101));
     assert!(has(&p, codes::E0102));
 }
+
+#[test]
+fn duplicate_sections_merge_and_later_keys_win() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/diag/E0006.eds");
+    let p = eds::parse("E0006.eds", &std::fs::read(path).expect("read"), &Options::lenient());
+    let e = p.model.entry(0x2000, 0).expect("2000");
+    assert_eq!(e.high_limit.as_ref().and_then(Value::as_int), Some(2000), "the repeated section's HighLimit wins");
+    assert_eq!(e.name, "Target speed", "keys of the first occurrence are kept");
+    assert!(!has(&p, codes::E0007), "keys repeated by a repeated section are reported once, as E0006");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/diag/E0007.eds");
+    let p = eds::parse("E0007.eds", &std::fs::read(path).expect("read"), &Options::lenient());
+    assert_eq!(default(&p, 0x2000, 0).and_then(|v| v.as_int()), Some(200), "the later DefaultValue wins");
+}
+
+#[test]
+fn entries_carry_their_source_location() {
+    let p = read("object_types.eds", &Options::lenient());
+    let e = p.model.entry(0x2003, 2).expect("2003sub2");
+    assert_eq!(p.document.source.slice(e.at.span), "2003sub2");
+    assert_eq!(p.document.source.line_text(e.at.line), "[2003sub2]");
+    assert_eq!(e.at.col, 2);
+}
