@@ -29,7 +29,6 @@ macro_rules! codes {
     ($($(#[doc = $doc:literal])* $name:ident = $sev:ident, $dev:literal, $summary:literal;)*) => {
         $(
             $(#[doc = $doc])*
-            #[doc = concat!("\n\n", $summary)]
             pub const $name: Code = Code(stringify!($name));
         )*
         /// Every code, in numeric order.
@@ -172,11 +171,11 @@ codes! {
     E0501 = Warning, true, "mandatory object missing";
     /// `[FileInfo]` or `[DeviceInfo]` is missing.
     E0502 = Warning, true, "information section missing";
-    /// A [FileInfo]/[DeviceInfo]/[DeviceComissioning]/[DummyUsage] value cannot be read.
+    /// A \[FileInfo\]/\[DeviceInfo\]/\[DeviceComissioning\]/\[DummyUsage\] value cannot be read.
     E0503 = Warning, true, "invalid information value";
     /// NrOfRXPDO/NrOfTXPDO does not match the PDO objects present.
     E0504 = Warning, true, "PDO count does not match the objects";
-    /// A required [DeviceInfo] or [FileInfo] key is missing.
+    /// A required \[DeviceInfo\] or \[FileInfo\] key is missing.
     E0505 = Note, true, "required information key missing";
     /// A node id outside 1..=127.
     E0506 = Warning, true, "node id out of range";
@@ -190,7 +189,7 @@ codes! {
     E0602 = Warning, true, "mapped entry is not PDO-mappable";
     /// The length in a PDO mapping entry does not match the mapped data type.
     E0603 = Warning, true, "mapping length does not match the data type";
-    /// A dummy mapping entry for a type that [DummyUsage] does not enable.
+    /// A dummy mapping entry for a type that \[DummyUsage\] does not enable.
     E0604 = Warning, true, "dummy mapping not enabled in [DummyUsage]";
     /// A PDO mapping longer than 64 bits.
     E0605 = Warning, true, "PDO mapping longer than 64 bits";
@@ -207,7 +206,7 @@ codes! {
     E0610 = Note, true, "AccessType and PDOMapping disagree";
     /// A PDO mapping value that is not a number (e.g. `$NODEID` in a mapping).
     E0611 = Warning, true, "PDO mapping value cannot be read";
-    /// `CompactPDO` in [DeviceInfo]: PDO objects are implied rather than written out (see
+    /// `CompactPDO` in \[DeviceInfo\]: PDO objects are implied rather than written out (see
     /// [`crate::lower::expand_compact_pdo`]).
     E0612 = Note, false, "PDO objects implied by CompactPDO";
 }
