@@ -1,8 +1,9 @@
 //! The nom lexer: decoded text → lossless [`crate::ast::Document`].
 //!
 //! The lexer works one physical line at a time. A line ends at `\r\n`, `\n` or a lone `\r`;
-//! the last line may have no ending at all. Each line's content (without its ending) is then
-//! classified by a small nom grammar:
+//! the last line may have no ending at all. Finding line ends is most of the work, so it scans
+//! eight bytes at a time. Each line's content (without its ending) is then classified by its
+//! first non-blank byte and a small nom grammar:
 //!
 //! ```text
 //! line     = blank | comment | section | entry | garbage
@@ -13,9 +14,11 @@
 //! garbage  = anything else                 ; kept for round trips, reported by lowering
 //! ```
 //!
-//! The lexer never fails and never drops a byte: the `raw` spans of the lines tile the text
-//! exactly, so [`crate::ast::Document::write_lossless`] gives the input back. It allocates one
-//! `Line` per line and nothing else.
+//! Positions are byte [`Span`]s into the decoded text; [`crate::source::SourceFile::line_col`]
+//! turns them into lines and columns for diagnostics. The lexer never fails and never drops a
+//! byte: the `raw` spans of the lines tile the text exactly, so
+//! [`crate::ast::Document::write_lossless`] gives the input back. It allocates the `Vec` of
+//! lines and nothing else.
 
 use nom::{
     IResult, Parser,
