@@ -227,9 +227,8 @@ fn plain_object(index: u16, name: &str, object_type: ObjectType, subs: BTreeMap<
 /// The name of the count entry (sub-index 0) of generated ARRAY and RECORD objects.
 const SUB0_NAME: &str = "Highest sub-index supported";
 
-const DATA_TYPES: &str = "a CiA 301 type (BOOLEAN, INTEGER8..INTEGER64, UNSIGNED8..UNSIGNED64, REAL32, REAL64, \
-     VISIBLE_STRING, OCTET_STRING, UNICODE_STRING, TIME_OF_DAY, TIME_DIFFERENCE, DOMAIN) or a Rust primitive \
-     (bool, u8, u16, u32, u64, i8, i16, i32, i64, f32, f64)";
+const DATA_TYPES: &str = "a CiA 301 type name (UNSIGNED16, INTEGER32, REAL32, VISIBLE_STRING, TIME_OF_DAY, …) \
+     or a Rust primitive (bool, u8..u64, i8..i64, f32, f64)";
 
 /// The properties an entry can have.
 #[derive(Default)]
@@ -905,8 +904,6 @@ impl Lowerer<'_> {
         if !self.claim(comm, &comm_name, p.number.loc, uses) || !self.claim(map, &map_name, p.number.loc, uses) {
             return;
         }
-        let before = self.cx.count();
-        let mut poisoned = false;
         let mut seen = HashSet::new();
         let default_cob = if n <= 4 {
             Value::NodeIdPlus { offset: if p.rx { 0x200 } else { 0x180 } + 0x100 * (n as i128 - 1), radix: Radix::Hex }
@@ -954,8 +951,8 @@ impl Lowerer<'_> {
                     for item in items {
                         match self.mapped(kind, n, item) {
                             Mapped::Entry(m) => mapped.push((m, item.loc())),
-                            Mapped::Poisoned => poisoned = true,
-                            Mapped::Error => {}
+                            // About a broken object: reported there already.
+                            Mapped::Skipped => {}
                         }
                     }
                 }
@@ -978,10 +975,11 @@ impl Lowerer<'_> {
                 format!("{kind} {n} maps {} entries but has room for {}; raise `capacity`", mapped.len(), capacity.0),
             );
         }
-        if poisoned || self.cx.count() > before {
-            self.out.poisoned.extend([comm, map]);
-            return;
-        }
+        // A PDO with mistakes is still built from what is valid (defaults for bad properties,
+        // only the entries that resolved), so that the checks of the whole dictionary still see
+        // it and report the problems of its valid parts; nothing it lacks can cause a false
+        // report.
+        mapped.truncate(capacity.0 as usize);
 
         // Communication parameter.
         let spans = &mut self.out.spans;
@@ -1041,29 +1039,29 @@ impl Lowerer<'_> {
                     other.loc(),
                     format!("expected an entry such as `0x6040` or `0x6000:1`, found {}", other.describe()),
                 );
-                return Mapped::Error;
+                return Mapped::Skipped;
             }
         };
         let (Ok(index), Ok(sub)) = (u16::try_from(index), u8::try_from(sub)) else {
             self.cx.error(loc, "an entry is `index` (0..=0xFFFF) or `index:sub` (sub 0..=255)");
-            return Mapped::Error;
+            return Mapped::Skipped;
         };
         if self.out.poisoned.contains(&index) {
-            return Mapped::Poisoned;
+            return Mapped::Skipped;
         }
         let Some(obj) = self.out.model.objects.get(&Index(index)) else {
             self.cx.error(
                 loc,
                 format!("{kind} {n} maps 0x{index:04X} sub {sub}, but no object 0x{index:04X} is declared"),
             );
-            return Mapped::Error;
+            return Mapped::Skipped;
         };
         let Some(e) = obj.sub(sub) else {
             self.cx.error(
                 loc,
                 format!("{kind} {n} maps 0x{index:04X} sub {sub}, but \"{}\" has no sub-index {sub}", obj.name),
             );
-            return Mapped::Error;
+            return Mapped::Skipped;
         };
         let Some(bits) = e.data_type.bits() else {
             self.cx.error(
@@ -1074,14 +1072,15 @@ impl Lowerer<'_> {
                     e.data_type.name()
                 ),
             );
-            return Mapped::Error;
+            return Mapped::Skipped;
         };
         Mapped::Entry(PdoMappingEntry { index: Index(index), sub: SubIndex(sub), bits: bits as u8 })
     }
 }
 
 enum Mapped {
+    /// The entry to map.
     Entry(PdoMappingEntry),
-    Poisoned,
-    Error,
+    /// Left out: it had an error, or it names an object that had one.
+    Skipped,
 }
