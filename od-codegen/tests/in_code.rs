@@ -119,3 +119,48 @@ fn pdo_errors_are_located_diagnostics_and_skip_the_layout() {
     assert!(text.contains("pub struct Rpdo1"));
     assert!(!text.contains("pub struct Tpdo1"));
 }
+
+#[test]
+fn dcf_parameter_values_win_and_unicode_strings_are_utf16() {
+    let mut configured = var(0x1017, "Producer heartbeat time", D::Unsigned16, Access::Rw, Some(Value::int(0)), false);
+    if let Some(e) = configured.subs.values_mut().next() {
+        e.parameter_value = Some(Value::int(500));
+    }
+    let m = model(vec![
+        configured,
+        var(0x2000, "Name", D::UnicodeString, Access::Ro, Some(Value::Text("Ab".into())), false),
+    ]);
+    let text = render(&expand(&m, &Options::new("x", "x.dcf")).tokens, "x.dcf").unwrap();
+    assert!(text.contains("producer_heartbeat_time: 500,"), "{text}");
+    assert!(text.contains("DefaultValue::Int(500)"), "{text}");
+    assert!(text.contains(r#"DefaultValue::Bytes(b"A\0b\0")"#), "{text}");
+}
+
+#[test]
+fn unsupported_types_and_bad_defaults_are_reported_not_generated() {
+    let m = model(vec![
+        var(0x2000, "Complex", D::Other(0x20), Access::Rw, None, false),
+        var(0x2001, "Too big", D::Unsigned8, Access::Rw, Some(Value::int(300)), false),
+        var(
+            0x2002,
+            "Node relative",
+            D::Unsigned8,
+            Access::Rw,
+            Some(Value::NodeIdPlus { offset: 200, radix: eds::model::Radix::Dec }),
+            false,
+        ),
+    ]);
+    let g = expand(&m, &Options::new("x", "x.eds"));
+    let codes: Vec<&str> = g.diagnostics.iter().map(|d| d.code.0).collect();
+    assert_eq!(codes, ["G0002", "G0003", "G0003"]);
+    let text = render(&g.tokens, "x.eds").unwrap();
+    assert!(!text.contains("fn complex("));
+    assert!(text.contains("too_big: 0,"), "bad default replaced by zero so the code compiles");
+}
+
+#[test]
+fn invalid_module_names_are_an_error_not_a_panic() {
+    let g = expand(&sample(), &Options::new("not a name", "x.eds"));
+    assert!(g.has_errors());
+    assert!(render(&g.tokens, "x.eds").unwrap().contains("pub mod device {"));
+}
