@@ -8,10 +8,16 @@
   `.port` and `.log()`. Every process it started is stopped with SIGTERM at teardown (killed
   if it does not stop within 10 s); the test then fails if one exited with an error or
   panicked.
+* `start_shared_drive_sim` (module): the same factory for processes a module's tests share.
 * `canopen_network` (function): a factory connecting a python-canopen `Network` to a
   `DriveSim` (or to `(host, port)`) through python-can's `socketcand` interface;
   disconnected at teardown.
 * `can_bus` (function): the same for a raw python-can bus.
+* `frames` (function): `frames(network, 0x182, 0x702)` records every frame with those ids
+  that reaches a python-canopen `Network` (time received, id, data) and waits for them.
+* `wait_until(predicate, timeout)`: polls a predicate (bounded) and returns its first true
+  value, failing the test on timeout.
+* `device_eds`: the EDS path of each simulated device (`device_eds["drvi"]`).
 
 Outside CI, tests skip with the reason when python-can/python-canopen are missing (use the
 python printed by scripts/venv.sh) or the binary cannot be had; with CI=true those are
@@ -20,11 +26,13 @@ failures. Everything listens on 127.0.0.1, on ports the OS picks (port 0).
 
 import json
 import os
+import queue
 import select
 import shutil
 import signal
 import subprocess
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -152,27 +160,46 @@ class DriveSim:
         return self.exit_code
 
 
-@pytest.fixture
-def start_drive_sim(drive_sim_binary):
-    started = []
+class _Starter:
+    """Starts drive-sim processes and stops them all at the end, reporting failures."""
 
-    def start(*args, ready="listening on "):
-        sim = DriveSim(drive_sim_binary, args, ready)
-        started.append(sim)
+    def __init__(self, binary):
+        self.binary = binary
+        self.started = []
+
+    def __call__(self, *args, ready="listening on "):
+        sim = DriveSim(self.binary, args, ready)
+        self.started.append(sim)
         return sim
 
-    yield start
-    problems = []
-    # Clients first (processes joined with --bus), then the hubs they joined.
-    for sim in reversed(started):
-        code = sim.stop()
-        text = sim.log()
-        if code != 0:
-            problems.append(f"drive-sim {' '.join(sim.args)} exited with {code}; log:\n{text}")
-        elif "panicked" in text:
-            problems.append(f"drive-sim {' '.join(sim.args)} panicked; log:\n{text}")
-    if problems:
-        pytest.fail("\n\n".join(problems))
+    def finish(self):
+        problems = []
+        # Clients first (processes joined with --bus), then the hubs they joined.
+        for sim in reversed(self.started):
+            code = sim.stop()
+            text = sim.log()
+            if code != 0:
+                problems.append(f"drive-sim {' '.join(sim.args)} exited with {code}; log:\n{text}")
+            elif "panicked" in text:
+                problems.append(f"drive-sim {' '.join(sim.args)} panicked; log:\n{text}")
+        if problems:
+            pytest.fail("\n\n".join(problems))
+
+
+@pytest.fixture
+def start_drive_sim(drive_sim_binary):
+    starter = _Starter(drive_sim_binary)
+    yield starter
+    starter.finish()
+
+
+@pytest.fixture(scope="module")
+def start_shared_drive_sim(drive_sim_binary):
+    """Like `start_drive_sim`, for processes shared by the tests of a module (started by a
+    module-scoped fixture, stopped after the module's last test)."""
+    starter = _Starter(drive_sim_binary)
+    yield starter
+    starter.finish()
 
 
 def _python_packages():
@@ -224,3 +251,96 @@ def can_bus():
     yield connect
     for bus in buses:
         bus.shutdown()
+
+
+DEVICE_EDS = {
+    "drvi": ROOT / "devices" / "camozzi-drvi.eds",
+    "drcs": ROOT / "devices" / "camozzi-drcs.eds",
+    "akd": ROOT / "devices" / "kollmorgen-akd.eds",
+}
+
+
+@pytest.fixture(scope="session")
+def device_eds():
+    return dict(DEVICE_EDS)
+
+
+def _wait_until(predicate, timeout=5.0, interval=0.01, what=None):
+    deadline = time.monotonic() + timeout
+    while True:
+        value = predicate()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            pytest.fail(f"timed out after {timeout} s waiting for {what or predicate}")
+        time.sleep(interval)
+
+
+@pytest.fixture(scope="session")
+def wait_until():
+    return _wait_until
+
+
+class Frames:
+    """Frames with chosen ids seen by a python-canopen Network, in arrival order."""
+
+    def __init__(self, network, ids):
+        self._lock = threading.Lock()
+        self._frames = []
+        self._queue = queue.Queue()
+        for can_id in ids:
+            network.subscribe(can_id, self._on_frame)
+
+    def _on_frame(self, can_id, data, timestamp):
+        entry = (time.monotonic(), can_id, bytes(data))
+        with self._lock:
+            self._frames.append(entry)
+        self._queue.put(entry)
+
+    def all(self, can_id=None):
+        """Every frame so far as (time, id, data), optionally only those with `can_id`."""
+        with self._lock:
+            return [f for f in self._frames if can_id is None or f[1] == can_id]
+
+    def clear(self):
+        with self._lock:
+            self._frames.clear()
+        while True:
+            try:
+                self._queue.get_nowait()
+            except queue.Empty:
+                return
+
+    def next(self, can_id=None, timeout=5.0):
+        """The next frame (with `can_id`, skipping others) received from now on or already
+        queued, as (time, id, data); fails the test after `timeout` seconds."""
+        deadline = time.monotonic() + timeout
+        while True:
+            left = deadline - time.monotonic()
+            try:
+                entry = self._queue.get(timeout=max(left, 0))
+            except queue.Empty:
+                pytest.fail(f"no frame{'' if can_id is None else f' with id {can_id:#x}'} within {timeout} s")
+            if can_id is None or entry[1] == can_id:
+                return entry
+
+    def none(self, can_id=None, within=0.3):
+        """Asserts that no frame (with `can_id`) arrives within `within` seconds."""
+        deadline = time.monotonic() + within
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return
+            try:
+                entry = self._queue.get(timeout=left)
+            except queue.Empty:
+                return
+            assert can_id is not None and entry[1] != can_id, f"unexpected frame {entry[1]:#x} {entry[2].hex()}"
+
+
+@pytest.fixture
+def frames():
+    def record(network, *ids):
+        return Frames(network, ids)
+
+    return record

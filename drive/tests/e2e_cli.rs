@@ -1,0 +1,186 @@
+//! `drive-sim run` as a process: devices on their own hub or joining one, several devices per
+//! process, clean stops on signals, a failure when the bus goes away, and the errors a user
+//! can make on the command line.
+
+use std::io::{BufRead, BufReader, Read};
+use std::process::{Child, ChildStderr, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
+
+use drive::transport::{CanFrame, Endpoint, SocketcandClient};
+
+const WAIT: Duration = Duration::from_secs(10);
+
+struct Process {
+    child: Child,
+    /// The rest of the first stdout line after the expected prefix.
+    ready: String,
+    stderr: Option<ChildStderr>,
+}
+
+impl Process {
+    fn start(args: &[&str], prefix: &str) -> Self {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start drive-sim");
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).expect("read the first line");
+        let stderr = child.stderr.take();
+        let ready = line.trim().strip_prefix(prefix).unwrap_or_else(|| panic!("first line {line:?}")).to_owned();
+        Self { child, ready, stderr }
+    }
+
+    fn signal(&mut self, signal: libc::c_int) {
+        let pid = libc::pid_t::try_from(self.child.id()).unwrap();
+        // SAFETY: sending a signal to our own child process.
+        assert_eq!(unsafe { libc::kill(pid, signal) }, 0);
+    }
+
+    /// Waits (bounded) for the process to end; returns its status and standard error.
+    fn wait(&mut self) -> (ExitStatus, String) {
+        let deadline = Instant::now() + WAIT;
+        let status = loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                break status;
+            }
+            assert!(Instant::now() < deadline, "drive-sim did not stop");
+            std::thread::sleep(Duration::from_millis(10));
+        };
+        let mut text = String::new();
+        if let Some(mut e) = self.stderr.take() {
+            e.read_to_string(&mut text).unwrap();
+        }
+        (status, text)
+    }
+}
+
+impl Drop for Process {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn next_with_id(bus: &mut SocketcandClient, id: u32) -> CanFrame {
+    let deadline = Instant::now() + WAIT;
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        match bus.recv_timeout(left).unwrap() {
+            Some(f) if f.id() == id => return f,
+            Some(_) => continue,
+            None => panic!("no frame with id {id:#x}"),
+        }
+    }
+}
+
+fn upload_expedited(bus: &mut SocketcandClient, node: u32, index: u16) -> Vec<u8> {
+    bus.send(CanFrame::standard(0x600 + node, &[0x40, index as u8, (index >> 8) as u8, 0, 0, 0, 0, 0]).unwrap())
+        .unwrap();
+    let reply = next_with_id(bus, 0x580 + node);
+    let d = reply.data();
+    assert_eq!(d[0] & 0xF3, 0x43, "{reply}");
+    d[4..8 - usize::from((d[0] >> 2) & 3)].to_vec()
+}
+
+#[test]
+fn a_device_joins_a_hub_with_bus_and_stops_on_sigint() {
+    let hub = Process::start(&["hub", "--listen", "127.0.0.1:0", "--quiet"], "listening on ");
+    let mut master = SocketcandClient::connect(hub.ready.as_str(), "line1").unwrap();
+    let spec = format!("tcp://{}/line1", hub.ready);
+    let mut run = Process::start(&["run", "--device", "akd", "--node-id", "5", "--bus", &spec], "running on ");
+    assert_eq!(run.ready, spec);
+    // The first thing on the bus is its boot-up.
+    let first = master.recv_timeout(WAIT).unwrap().unwrap();
+    assert_eq!(first.to_string(), "705#00");
+    assert_eq!(upload_expedited(&mut master, 5, 0x1008), b"M006");
+    run.signal(libc::SIGINT);
+    let (status, log) = run.wait();
+    assert!(status.success(), "{status}: {log}");
+    assert!(log.contains("SIGINT, stopping"), "{log}");
+}
+
+#[test]
+fn a_device_whose_hub_goes_away_fails() {
+    let mut hub = Process::start(&["hub", "--listen", "127.0.0.1:0", "--quiet"], "listening on ");
+    let spec = format!("tcp://{}", hub.ready);
+    let mut run = Process::start(&["run", "--device", "drcs", "--node-id", "3", "--bus", &spec], "running on ");
+    hub.signal(libc::SIGTERM);
+    assert!(hub.wait().0.success());
+    let (status, log) = run.wait();
+    assert_eq!(status.code(), Some(1), "{log}");
+    assert!(log.contains("drcs node 3: the bus was closed"), "{log}");
+}
+
+#[test]
+fn several_devices_in_one_process_share_its_hub() {
+    let mut run = Process::start(
+        &[
+            "run",
+            "--device",
+            "drvi",
+            "--node-id",
+            "2",
+            "--device",
+            "drcs",
+            "--node-id",
+            "3",
+            "--device",
+            "akd",
+            "--node-id",
+            "4",
+            "--listen",
+            "127.0.0.1:0",
+            "--channel",
+            "axes",
+        ],
+        "listening on ",
+    );
+    let mut master = SocketcandClient::connect(run.ready.as_str(), "axes").unwrap();
+    assert_eq!(upload_expedited(&mut master, 2, 0x1008), b"DRVI");
+    assert_eq!(upload_expedited(&mut master, 3, 0x1008), b"DRCS");
+    assert_eq!(upload_expedited(&mut master, 4, 0x1008), b"M006");
+    // Reset communication, all nodes: three boot-ups.
+    master.send(CanFrame::standard(0, &[0x82, 0]).unwrap()).unwrap();
+    let mut ids: Vec<u32> = (0..3).map(|_| master.recv_timeout(WAIT).unwrap().unwrap().id()).collect();
+    ids.sort();
+    assert_eq!(ids, [0x702, 0x703, 0x704]);
+    run.signal(libc::SIGTERM);
+    let (status, log) = run.wait();
+    assert!(status.success(), "{log}");
+    for name in ["drvi node 2 started", "drcs node 3 started", "akd node 4 started", "SIGTERM, stopping"] {
+        assert!(log.contains(name), "{log}");
+    }
+}
+
+fn fails(args: &[&str]) -> (Option<i32>, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_drive-sim")).args(args).stdin(Stdio::null()).output().unwrap();
+    (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+#[test]
+fn command_line_mistakes_are_explained() {
+    let listen = ["--listen", "127.0.0.1:0"];
+    let cases: &[(&[&str], i32, &str)] = &[
+        (&["--node-id", "2", "--device", "drvi"], 1, "--node-id must follow the --device"),
+        (&["--device", "drvi", "--node-id", "2", "--node-id", "3"], 1, "device 1 (drvi) has two --node-id"),
+        (&["--device", "drvi", "--node-id", "2", "--device", "akd", "--node-id", "2"], 1, "two devices with node id 2"),
+        (&["--device", "drvi"], 1, "no node id"),
+        (&["--device", "drvi", "--node-id", "0"], 1, "node id 0 is outside 1..=127"),
+        (&["--device", "xyz", "--node-id", "2"], 2, "unknown device 'xyz'"),
+        (&["--device", "drvi", "--node-id", "2", "--dcf", "/nonexistent/x.dcf"], 1, "/nonexistent/x.dcf"),
+    ];
+    for (args, code, message) in cases {
+        let mut all = vec!["run"];
+        all.extend_from_slice(args);
+        all.extend_from_slice(&listen);
+        let (got, stderr) = fails(&all);
+        assert_eq!(got, Some(*code), "{all:?}: {stderr}");
+        assert!(stderr.contains(message), "{all:?}: {stderr}");
+    }
+    // Neither --listen nor --bus.
+    let (got, stderr) = fails(&["run", "--device", "drvi", "--node-id", "2"]);
+    assert_eq!(got, Some(2), "{stderr}");
+    assert!(stderr.contains("--listen") && stderr.contains("--bus"), "{stderr}");
+}

@@ -1,0 +1,124 @@
+//! Node guarding end to end: `drive-sim run` serving a DRVI on its hub, a master on the
+//! socketcand protocol sending remote frames (`sendrtr`, which python-can's socketcand
+//! interface cannot express) through the transport's own client.
+
+use std::io::{BufRead, BufReader};
+use std::net::SocketAddr;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use drive::transport::{CanFrame, Endpoint, SocketcandClient};
+
+const WAIT: Duration = Duration::from_secs(5);
+
+struct DriveSim {
+    child: Child,
+    addr: SocketAddr,
+}
+
+impl DriveSim {
+    fn start(args: &[&str]) -> Self {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start drive-sim");
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).expect("read the first line");
+        let addr = line.trim().strip_prefix("listening on ").unwrap_or_else(|| panic!("first line {line:?}"));
+        Self { addr: addr.parse().unwrap(), child }
+    }
+}
+
+impl Drop for DriveSim {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// The next frame with id `id`, skipping others; `None` if none arrives within `within`.
+fn next_with_id(bus: &mut SocketcandClient, id: u32, within: Duration) -> Option<CanFrame> {
+    let deadline = Instant::now() + within;
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return None;
+        }
+        match bus.recv_timeout(left).unwrap() {
+            Some(f) if f.id() == id => return Some(f),
+            Some(_) => continue,
+            None => return None,
+        }
+    }
+}
+
+fn guard(bus: &mut SocketcandClient) -> Option<Vec<u8>> {
+    bus.send(CanFrame::remote(0x702, false, 1).unwrap()).unwrap();
+    next_with_id(bus, 0x702, Duration::from_millis(500)).map(|f| f.data().to_vec())
+}
+
+fn sdo_write(bus: &mut SocketcandClient, data: [u8; 8]) {
+    bus.send(CanFrame::standard(0x602, &data).unwrap()).unwrap();
+    let reply = next_with_id(bus, 0x582, WAIT).expect("SDO response");
+    assert_eq!(reply.data()[0], 0x60, "{reply}");
+}
+
+fn master() -> (DriveSim, SocketcandClient) {
+    let sim = DriveSim::start(&["run", "--device", "drvi", "--node-id", "2", "--listen", "127.0.0.1:0"]);
+    let bus = SocketcandClient::connect(sim.addr, "can0").unwrap();
+    (sim, bus)
+}
+
+#[test]
+fn guarding_replies_carry_the_state_and_a_toggling_bit() {
+    let (_sim, mut bus) = master();
+    assert_eq!(guard(&mut bus), Some(vec![0x7F]));
+    assert_eq!(guard(&mut bus), Some(vec![0xFF]));
+    bus.send(CanFrame::standard(0x000, &[0x01, 0x02]).unwrap()).unwrap(); // start node 2
+    assert_eq!(guard(&mut bus), Some(vec![0x05]));
+    assert_eq!(guard(&mut bus), Some(vec![0x85]));
+    bus.send(CanFrame::standard(0x000, &[0x02, 0x02]).unwrap()).unwrap(); // stop
+    assert_eq!(guard(&mut bus), Some(vec![0x04]));
+    // Reset communication restarts the toggle bit at 0 (after the boot-up message).
+    bus.send(CanFrame::standard(0x000, &[0x82, 0x02]).unwrap()).unwrap();
+    assert_eq!(next_with_id(&mut bus, 0x702, WAIT).map(|f| f.data().to_vec()), Some(vec![0x00]));
+    assert_eq!(guard(&mut bus), Some(vec![0x7F]));
+}
+
+#[test]
+fn a_master_that_stops_guarding_is_reported_by_emcy() {
+    let (_sim, mut bus) = master();
+    // Guard time 100 ms, life time factor 2: the master is lost after 200 ms of silence.
+    sdo_write(&mut bus, [0x2B, 0x0C, 0x10, 0x00, 100, 0, 0, 0]);
+    sdo_write(&mut bus, [0x2F, 0x0D, 0x10, 0x00, 2, 0, 0, 0]);
+    let mut last = Instant::now();
+    for _ in 0..5 {
+        assert!(guard(&mut bus).is_some());
+        last = Instant::now();
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(next_with_id(&mut bus, 0x082, Duration::from_millis(100)).is_none(), "no EMCY while guarded");
+    let emcy = next_with_id(&mut bus, 0x082, WAIT).expect("EMCY for the lost master");
+    let after = last.elapsed();
+    assert_eq!(emcy.data(), [0x30, 0x81, 0x11, 0, 0, 0, 0, 0]);
+    assert!(after >= Duration::from_millis(150) && after < Duration::from_millis(1500), "{after:?}");
+    // Guarding resumes: the error reset EMCY and the reply.
+    bus.send(CanFrame::remote(0x702, false, 1).unwrap()).unwrap();
+    assert_eq!(next_with_id(&mut bus, 0x082, WAIT).unwrap().data(), [0; 8]);
+}
+
+#[test]
+fn with_a_heartbeat_configured_guarding_requests_are_not_answered() {
+    let (_sim, mut bus) = master();
+    sdo_write(&mut bus, [0x2B, 0x17, 0x10, 0x00, 0xE8, 0x03, 0, 0]); // heartbeat 1000 ms
+    bus.send(CanFrame::remote(0x702, false, 1).unwrap()).unwrap();
+    // Only the heartbeat's own messages (state 7F) may come, at its period; no reply now.
+    let reply = next_with_id(&mut bus, 0x702, Duration::from_millis(300));
+    assert!(reply.is_none(), "{reply:?}");
+    sdo_write(&mut bus, [0x2B, 0x17, 0x10, 0x00, 0, 0, 0, 0]);
+    std::thread::sleep(Duration::from_millis(20));
+    while bus.try_recv().unwrap().is_some() {}
+    assert!(guard(&mut bus).is_some());
+}
