@@ -886,6 +886,9 @@ impl Axis {
     fn fail_homing(&mut self, e: HomingError) {
         self.sequence = None;
         self.homing = HomingState::Error(e);
+        // Stop from where the axis really is: the demand may have run ahead of a blocked axis.
+        self.demand_p = self.actual_p();
+        self.demand_v = self.actual_v();
         let dec = self.acc(self.cfg.homing.deceleration);
         let plan = if dec > 0.0 { Plan::velocity(self.demand_p, self.demand_v, 0.0, dec, dec) } else { None };
         let plan = plan.unwrap_or_else(|| self.stop_plan(StopRamp::QuickStopDeceleration));

@@ -359,8 +359,14 @@ pub(crate) enum Cmd {
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum After {
-    Found,
-    Search { dir: f64, reversed: bool },
+    /// The signal was found while searching in direction `dir`.
+    Found {
+        dir: f64,
+    },
+    Search {
+        dir: f64,
+        reversed: bool,
+    },
     BackedOff,
 }
 
@@ -448,7 +454,7 @@ impl Sequence {
                 if index && env.index_period == 0 {
                     Cmd::Fail(HomingError::NoIndexPulse)
                 } else if env.active(signal.sensor(), m) {
-                    seq.found_at_standstill(true, approach.sign(), edge)
+                    seq.found_at_standstill(true, approach.sign(), edge, 0.0)
                 } else {
                     seq.phase = Phase::Search { dir: search.sign(), reversed: false };
                     Cmd::Velocity(search.sign() * fast)
@@ -467,11 +473,18 @@ impl Sequence {
         Cmd::MoveTo { m: home, speed: self.slow, resync }
     }
 
-    /// After the search stopped (or at the start): continue from standstill.
-    fn found_at_standstill(&mut self, active: bool, approach: f64, edge: Edge) -> Cmd {
+    /// After the search (in direction `searched`, 0 at the start) stopped: continue from
+    /// standstill.
+    fn found_at_standstill(&mut self, active: bool, approach: f64, edge: Edge, searched: f64) -> Cmd {
         match edge {
             Edge::Falling => {
                 self.phase = Phase::Approach { dir: approach, seen_active: active };
+                Cmd::Velocity(approach * self.slow)
+            }
+            // Stopped beyond the whole switch, having crossed it against the approach
+            // direction: already on the side the edge is approached from.
+            Edge::Rising if !active && searched == -approach => {
+                self.phase = Phase::Approach { dir: approach, seen_active: false };
                 Cmd::Velocity(approach * self.slow)
             }
             Edge::Rising => {
@@ -530,7 +543,7 @@ impl Sequence {
                         self.phase = Phase::Approach { dir: approach, seen_active: true };
                         cmd = Cmd::Velocity(approach * self.slow);
                     } else {
-                        self.phase = Phase::Stop(After::Found);
+                        self.phase = Phase::Stop(After::Found { dir });
                         cmd = Cmd::Stop;
                     }
                 }
@@ -587,13 +600,13 @@ impl Sequence {
                 Cmd::None
             }
             Phase::Stop(after) if obs.stopped => match after {
-                After::Found => {
+                After::Found { dir } => {
                     let active = obs.env.active(sensor, obs.to);
                     if !active && edge == Edge::Falling && overshoot_is_error {
                         self.phase = Phase::Done;
                         return Cmd::Fail(HomingError::SwitchOvershoot);
                     }
-                    self.found_at_standstill(active, approach, edge)
+                    self.found_at_standstill(active, approach, edge, dir)
                 }
                 After::Search { dir, reversed } => {
                     self.phase = Phase::Search { dir, reversed };

@@ -67,7 +67,7 @@ impl Plan {
     }
 
     fn push(&mut self, dur: f64, acc: f64) {
-        if !(dur > 0.0) || !dur.is_finite() || self.n == MAX_SEGMENTS {
+        if dur.is_nan() || dur <= 0.0 || !dur.is_finite() || self.n == MAX_SEGMENTS {
             return;
         }
         let v = self.end_v;

@@ -72,7 +72,7 @@ impl Default for PlotOptions {
 }
 
 const LEFT: f64 = 90.0;
-const RIGHT: f64 = 170.0;
+const RIGHT: f64 = 200.0;
 const TOP: f64 = 50.0;
 const GAP: f64 = 60.0;
 const BOTTOM: f64 = 50.0;
@@ -213,11 +213,16 @@ fn stepped(frame: &Frame, points: &[(f64, f64)]) -> String {
     out.trim_end().to_owned()
 }
 
+/// Time/value points of a line.
+type Points = Vec<(f64, f64)>;
+/// Picks the (demand, actual) pair of a quantity from a sample.
+type Pick = fn(&Sample) -> (i32, i32);
+
 struct Series<'a> {
     name: &'a str,
     colour: &'a str,
     dashed: bool,
-    points: Vec<(f64, f64)>,
+    points: Points,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -248,7 +253,19 @@ fn panel(
         (lo, hi) = (0.0, 1.0);
     }
     let (y_min, y_max, y_step, y_ticks) = match lanes {
-        Some(l) => (0.0, l.len().max(1) as f64, 1.0, Vec::new()),
+        // Lanes: a grid line between each, labels at their centres (drawn below).
+        Some(l) => {
+            let n = l.len().max(1);
+            (0.0, n as f64, 1.0, (0..=n).map(|k| k as f64).collect())
+        }
+        // Integer-valued step lines (the mode): integer ticks with a margin of one.
+        None if step_lines => {
+            let (lo, hi, step, _) = ticks(lo - 1.0, hi + 1.0, 5);
+            let step = step.max(1.0).round();
+            let (lo, hi) = ((lo / step).floor() * step, (hi / step).ceil() * step);
+            let n = ((hi - lo) / step).round().clamp(1.0, 1000.0) as usize;
+            (lo, hi, step, (0..=n).map(|k| lo + k as f64 * step).collect())
+        }
         None => ticks(lo, hi, 5),
     };
     let (t_min, t_max, t_step, t_ticks) = ticks(t_range.0, t_range.1, 10);
@@ -371,7 +388,7 @@ pub(crate) fn render(samples: &[Sample], options: &PlotOptions) -> String {
         (Some(&a), Some(&b)) => (a, b),
         _ => (0.0, 1.0),
     };
-    let pair = |q: &Quantity, f: fn(&Sample) -> (i32, i32)| -> (Vec<(f64, f64)>, Vec<(f64, f64)>) {
+    let pair = |q: &Quantity, f: Pick| -> (Points, Points) {
         let k = q.scale();
         samples
             .iter()
@@ -398,7 +415,7 @@ pub(crate) fn render(samples: &[Sample], options: &PlotOptions) -> String {
         esc(&options.title)
     );
     let mut top = TOP;
-    let quantities: [(&str, &Quantity, fn(&Sample) -> (i32, i32)); 3] = [
+    let quantities: [(&str, &Quantity, Pick); 3] = [
         ("position", &options.position, |s| (s.position_demand, s.position_actual)),
         ("velocity", &options.velocity, |s| (s.velocity_demand, s.velocity_actual)),
         ("torque", &options.torque, |s| (s.torque_demand, s.torque_actual)),
