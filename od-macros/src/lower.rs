@@ -640,7 +640,7 @@ impl Lowerer<'_> {
         if let Some((lo, hi)) = range {
             let (a, b) = match &value {
                 Value::Int { value, .. } => (*value, *value),
-                Value::NodeIdPlus { offset, .. } => (offset + 1, offset + 127),
+                Value::NodeIdPlus { offset, .. } => (offset.saturating_add(1), offset.saturating_add(127)),
                 _ => (lo, hi),
             };
             if a < lo || b > hi {

@@ -263,6 +263,9 @@ array 0x2009 "J": u8, ro { 0 "zero"; }
 var 0x200A "K": VISIBLE_STRING, ro, default = 5, min = 1;
 var 0x200B "L": u32, rw, min = NODEID + 1;
 var 0x200C " M": u8, rw;
+var 0x200D "N": u64, rw, default = NODEID + 170141183460469231731687303715884105727;
+var 0x200E "O": u64, rw, default = 340282366920938463463374607431768211456;
+var 0x200F "P": u64, rw, default = -170141183460469231731687303715884105727;
 "#,
     );
     insta::assert_snapshot!("declaration_errors", errors);
