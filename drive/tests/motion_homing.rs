@@ -299,7 +299,8 @@ fn halt_interrupts_homing() {
     assert_eq!(last.homing, HomingState::Interrupted);
     assert_eq!(last.homing.statusword_bits(last.standing), (true, false, false));
     assert!(!last.homed);
-    // Started again, it completes.
+    // Not while halted; started again after the halt, it completes.
+    assert_eq!(axis.start_homing(), Err(drive::motion::CommandError::Halted));
     axis.set_halt(false);
     axis.start_homing().unwrap();
     run_until(&mut axis, 1000, 10_000_000, |s| s.homing == HomingState::Completed);

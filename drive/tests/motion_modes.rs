@@ -182,7 +182,17 @@ fn torque_limit_and_speed_limit() {
     let s = run_until(&mut axis, 1000, 1_000_000, |s| s.standing);
     assert!((500..=502).contains(&s.len()), "{}", s.len());
     assert!(s.iter().all(|s| !s.torque_limit_active));
-    assert!(s.last().unwrap().target_reached);
+    assert!(s.last().unwrap().target_reached, "halted and standing");
+    assert_eq!(s.last().unwrap().torque_actual, 400, "the last braking step");
+    axis.step(1000);
+    assert_eq!(axis.status().torque_actual, 0);
+    // Released, the torque ramps again from the actual torque (0), not from where it was.
+    axis.config_mut().torque_slope = 1000;
+    axis.set_halt(false);
+    let s = run(&mut axis, 1000, 100);
+    assert_eq!(s[0].torque_actual, -1);
+    assert_eq!(s[99].torque_actual, -100);
+    assert!(!s.last().unwrap().target_reached, "still ramping to -800");
 }
 
 fn ip_axis() -> Axis {

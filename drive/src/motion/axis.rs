@@ -72,6 +72,9 @@ pub enum CommandError {
     /// A quick stop is active.
     #[error("a quick stop is active")]
     Stopping,
+    /// The halt bit is set.
+    #[error("the axis is halted")]
+    Halted,
     /// A set-point is already waiting in the buffer (set-point acknowledge still high).
     #[error("the set-point buffer is full")]
     Busy,
@@ -594,6 +597,9 @@ impl Axis {
         if self.stop.is_some() {
             return Err(CommandError::Stopping);
         }
+        if self.halt {
+            return Err(CommandError::Halted);
+        }
         let h = self.cfg.homing;
         let cap = |raw: u32| raw.min(self.cfg.max_profile_velocity);
         let (fast, slow) = (self.vel(cap(h.search_speed)), self.vel(cap(h.zero_speed)));
@@ -723,13 +729,19 @@ impl Axis {
     /// the mode's command could not be planned (zero profile parameters); the axis then stops.
     fn replan(&mut self) -> bool {
         let mut ok = true;
+        let previous = self.source;
         self.source = self.compute_source();
         match self.source {
             Source::Off => {
                 let p = self.demand_p;
                 self.set_plan(Plan::hold(p));
             }
-            Source::Torque => {}
+            Source::Torque => {
+                if previous != Source::Torque {
+                    // The torque ramp starts from the torque the motor produces now.
+                    self.torque_cmd = self.sign() * self.plant.torque;
+                }
+            }
             Source::Interp => {
                 let p = self.demand_p;
                 self.ip.hold(p);
