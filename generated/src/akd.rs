@@ -18697,11 +18697,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn device_type(&self) -> u32 {
             self.device_type
         }
-        /// Sets `0x1000` Device type.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 131474 (0x20192).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1000` Device type (see [`Self::device_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_device_type(
             &mut self,
@@ -18717,11 +18713,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn error_register(&self) -> u8 {
             self.error_register
         }
-        /// Sets `0x1001` Error register.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1001` Error register (see [`Self::error_register`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_error_register(
             &mut self,
@@ -18737,11 +18729,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn manufacturer_status_register(&self) -> u32 {
             self.manufacturer_status_register
         }
-        /// Sets `0x1002` Manufacturer status register.
-        ///
-        /// UNSIGNED32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1002` Manufacturer status register (see [`Self::manufacturer_status_register`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_manufacturer_status_register(
             &mut self,
@@ -18757,11 +18745,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn pre_defined_error_field_number_of_errors(&self) -> u8 {
             self.pre_defined_error_field_number_of_errors
         }
-        /// Sets `0x1003` sub 0 Pre-defined error field: Number of errors.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0. At most 10.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 0 Pre-defined error field: Number of errors (see [`Self::pre_defined_error_field_number_of_errors`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_number_of_errors(
             &mut self,
@@ -18780,11 +18764,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn pre_defined_error_field_standard_error_field_1(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_1
         }
-        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1 (see [`Self::pre_defined_error_field_standard_error_field_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_1(
             &mut self,
@@ -18800,11 +18780,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn pre_defined_error_field_standard_error_field_2(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_2
         }
-        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2 (see [`Self::pre_defined_error_field_standard_error_field_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_2(
             &mut self,
@@ -18820,11 +18796,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn pre_defined_error_field_standard_error_field_3(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_3
         }
-        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3 (see [`Self::pre_defined_error_field_standard_error_field_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_3(
             &mut self,
@@ -18840,11 +18812,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn pre_defined_error_field_standard_error_field_4(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_4
         }
-        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4 (see [`Self::pre_defined_error_field_standard_error_field_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_4(
             &mut self,
@@ -18860,11 +18828,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn pre_defined_error_field_standard_error_field_5(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_5
         }
-        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5 (see [`Self::pre_defined_error_field_standard_error_field_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_5(
             &mut self,
@@ -18880,11 +18844,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn pre_defined_error_field_standard_error_field_6(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_6
         }
-        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6 (see [`Self::pre_defined_error_field_standard_error_field_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_6(
             &mut self,
@@ -18900,11 +18860,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn pre_defined_error_field_standard_error_field_7(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_7
         }
-        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7 (see [`Self::pre_defined_error_field_standard_error_field_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_7(
             &mut self,
@@ -18920,11 +18876,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn pre_defined_error_field_standard_error_field_8(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_8
         }
-        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8 (see [`Self::pre_defined_error_field_standard_error_field_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_8(
             &mut self,
@@ -18940,11 +18892,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn pre_defined_error_field_standard_error_field_9(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_9
         }
-        /// Sets `0x1003` sub 9 Pre-defined error field: Standard error field 9.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 9 Pre-defined error field: Standard error field 9 (see [`Self::pre_defined_error_field_standard_error_field_9`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_9(
             &mut self,
@@ -18960,11 +18908,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn pre_defined_error_field_standard_error_field_10(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_10
         }
-        /// Sets `0x1003` sub 10 Pre-defined error field: Standard error field 10.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 10 Pre-defined error field: Standard error field 10 (see [`Self::pre_defined_error_field_standard_error_field_10`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_10(
             &mut self,
@@ -18980,11 +18924,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn cob_id_sync_message(&self) -> u32 {
             self.cob_id_sync_message
         }
-        /// Sets `0x1005` COB-ID SYNC message.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 128.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1005` COB-ID SYNC message (see [`Self::cob_id_sync_message`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_cob_id_sync_message(
             &mut self,
@@ -19000,11 +18940,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn communication_cycle_period(&self) -> u32 {
             self.communication_cycle_period
         }
-        /// Sets `0x1006` Communication cycle period.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1006` Communication cycle period (see [`Self::communication_cycle_period`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_communication_cycle_period(
             &mut self,
@@ -19020,11 +18956,7 @@ Denotation=MOTOR.BRAKEIMM
         pub fn manufacturer_device_name(&self) -> &[u8] {
             self.manufacturer_device_name.as_slice()
         }
-        /// Sets `0x1008` Manufacturer device name.
-        ///
-        /// VISIBLE_STRING, access `const`. Default: "M006". Capacity 32 bytes.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1008` Manufacturer device name (see [`Self::manufacturer_device_name`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         pub fn set_manufacturer_device_name(
             &mut self,
             v: &[u8],
@@ -19038,11 +18970,7 @@ Denotation=MOTOR.BRAKEIMM
         pub fn manufacturer_hardware_version(&self) -> &[u8] {
             self.manufacturer_hardware_version.as_slice()
         }
-        /// Sets `0x1009` Manufacturer hardware version.
-        ///
-        /// VISIBLE_STRING, access `const`. Default: "". Capacity 32 bytes.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1009` Manufacturer hardware version (see [`Self::manufacturer_hardware_version`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         pub fn set_manufacturer_hardware_version(
             &mut self,
             v: &[u8],
@@ -19056,11 +18984,7 @@ Denotation=MOTOR.BRAKEIMM
         pub fn manufacturer_software_version(&self) -> &[u8] {
             self.manufacturer_software_version.as_slice()
         }
-        /// Sets `0x100A` Manufacturer software version.
-        ///
-        /// VISIBLE_STRING, access `const`. Default: "0.20". Capacity 32 bytes.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x100A` Manufacturer software version (see [`Self::manufacturer_software_version`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         pub fn set_manufacturer_software_version(
             &mut self,
             v: &[u8],
@@ -19074,11 +18998,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn guard_time(&self) -> u16 {
             self.guard_time
         }
-        /// Sets `0x100C` Guard time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x100C` Guard time (see [`Self::guard_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_guard_time(
             &mut self,
@@ -19094,11 +19014,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn life_time_factor(&self) -> u8 {
             self.life_time_factor
         }
-        /// Sets `0x100D` Life time factor.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x100D` Life time factor (see [`Self::life_time_factor`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_life_time_factor(
             &mut self,
@@ -19114,11 +19030,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn store_parameters_number_of_entries(&self) -> u8 {
             self.store_parameters_number_of_entries
         }
-        /// Sets `0x1010` sub 0 Store parameters: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1010` sub 0 Store parameters: Number of entries (see [`Self::store_parameters_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_store_parameters_number_of_entries(
             &mut self,
@@ -19130,15 +19042,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x1010` sub 1 Store parameters: Save all parameters.
         ///
         /// UNSIGNED32, access `rw`. Default: 1.
+        ///
+        /// Vendor parameter: `DRV.NVSAVE`.
         #[inline]
         pub const fn store_parameters_save_all_parameters(&self) -> u32 {
             self.store_parameters_save_all_parameters
         }
-        /// Sets `0x1010` sub 1 Store parameters: Save all parameters.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1010` sub 1 Store parameters: Save all parameters (see [`Self::store_parameters_save_all_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_store_parameters_save_all_parameters(
             &mut self,
@@ -19154,11 +19064,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn restore_default_parameters_number_of_entries(&self) -> u8 {
             self.restore_default_parameters_number_of_entries
         }
-        /// Sets `0x1011` sub 0 Restore default parameters: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1011` sub 0 Restore default parameters: Number of entries (see [`Self::restore_default_parameters_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_restore_default_parameters_number_of_entries(
             &mut self,
@@ -19170,17 +19076,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x1011` sub 1 Restore default parameters: Restore all default parameters.
         ///
         /// UNSIGNED32, access `rw`. Default: 1.
+        ///
+        /// Vendor parameter: `DRV.NVLOAD`.
         #[inline]
         pub const fn restore_default_parameters_restore_all_default_parameters(
             &self,
         ) -> u32 {
             self.restore_default_parameters_restore_all_default_parameters
         }
-        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters (see [`Self::restore_default_parameters_restore_all_default_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_restore_default_parameters_restore_all_default_parameters(
             &mut self,
@@ -19196,11 +19100,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn cob_id_emcy(&self) -> u32 {
             self.cob_id_emcy
         }
-        /// Sets `0x1014` COB-ID EMCY.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x80.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1014` COB-ID EMCY (see [`Self::cob_id_emcy`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_cob_id_emcy(
             &mut self,
@@ -19216,11 +19116,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn consumer_heartbeat_time_number_of_entries(&self) -> u8 {
             self.consumer_heartbeat_time_number_of_entries
         }
-        /// Sets `0x1016` sub 0 Consumer heartbeat time: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1016` sub 0 Consumer heartbeat time: Number of entries (see [`Self::consumer_heartbeat_time_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_consumer_heartbeat_time_number_of_entries(
             &mut self,
@@ -19236,11 +19132,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn consumer_heartbeat_time_consumer_heartbeat_time_1(&self) -> u32 {
             self.consumer_heartbeat_time_consumer_heartbeat_time_1
         }
-        /// Sets `0x1016` sub 1 Consumer heartbeat time: Consumer heartbeat time 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1016` sub 1 Consumer heartbeat time: Consumer heartbeat time 1 (see [`Self::consumer_heartbeat_time_consumer_heartbeat_time_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_consumer_heartbeat_time_consumer_heartbeat_time_1(
             &mut self,
@@ -19256,11 +19148,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn producer_heartbeat_time(&self) -> u16 {
             self.producer_heartbeat_time
         }
-        /// Sets `0x1017` Producer heartbeat time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1017` Producer heartbeat time (see [`Self::producer_heartbeat_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_producer_heartbeat_time(
             &mut self,
@@ -19276,11 +19164,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn identity_object_number_of_entries(&self) -> u8 {
             self.identity_object_number_of_entries
         }
-        /// Sets `0x1018` sub 0 Identity object: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 4.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 0 Identity object: Number of entries (see [`Self::identity_object_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_number_of_entries(
             &mut self,
@@ -19296,11 +19180,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn identity_object_vendor_id(&self) -> u32 {
             self.identity_object_vendor_id
         }
-        /// Sets `0x1018` sub 1 Identity object: Vendor ID.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 106.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 1 Identity object: Vendor ID (see [`Self::identity_object_vendor_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_vendor_id(
             &mut self,
@@ -19316,11 +19196,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn identity_object_product_code(&self) -> u32 {
             self.identity_object_product_code
         }
-        /// Sets `0x1018` sub 2 Identity object: Product code.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 909127757 (0x3630304D).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 2 Identity object: Product code (see [`Self::identity_object_product_code`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_product_code(
             &mut self,
@@ -19336,11 +19212,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn identity_object_revision_number(&self) -> u32 {
             self.identity_object_revision_number
         }
-        /// Sets `0x1018` sub 3 Identity object: Revision number.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 1310720 (0x140000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 3 Identity object: Revision number (see [`Self::identity_object_revision_number`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_revision_number(
             &mut self,
@@ -19356,11 +19228,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn identity_object_serial_number(&self) -> u32 {
             self.identity_object_serial_number
         }
-        /// Sets `0x1018` sub 4 Identity object: Serial number.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 4 Identity object: Serial number (see [`Self::identity_object_serial_number`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_serial_number(
             &mut self,
@@ -19376,11 +19244,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn os_prompt_number_of_entries(&self) -> u8 {
             self.os_prompt_number_of_entries
         }
-        /// Sets `0x1026` sub 0 OS prompt: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1026` sub 0 OS prompt: Number of entries (see [`Self::os_prompt_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_os_prompt_number_of_entries(
             &mut self,
@@ -19396,11 +19260,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn os_prompt_std_in(&self) -> u8 {
             self.os_prompt_std_in
         }
-        /// Sets `0x1026` sub 1 OS prompt: StdIn.
-        ///
-        /// UNSIGNED8, access `wo`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1026` sub 1 OS prompt: StdIn (see [`Self::os_prompt_std_in`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_os_prompt_std_in(
             &mut self,
@@ -19416,11 +19276,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn os_prompt_std_out(&self) -> u8 {
             self.os_prompt_std_out
         }
-        /// Sets `0x1026` sub 2 OS prompt: StdOut.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1026` sub 2 OS prompt: StdOut (see [`Self::os_prompt_std_out`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_os_prompt_std_out(
             &mut self,
@@ -19438,11 +19294,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.receive_pdo_1_communication_parameter_number_of_entries
         }
-        /// Sets `0x1400` sub 0 Receive PDO 1 communication parameter: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1400` sub 0 Receive PDO 1 communication parameter: Number of entries (see [`Self::receive_pdo_1_communication_parameter_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_1_communication_parameter_number_of_entries(
             &mut self,
@@ -19460,11 +19312,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u32 {
             self.receive_pdo_1_communication_parameter_cob_id_used_by_pdo
         }
-        /// Sets `0x1400` sub 1 Receive PDO 1 communication parameter: COB-ID used by PDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x200.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1400` sub 1 Receive PDO 1 communication parameter: COB-ID used by PDO (see [`Self::receive_pdo_1_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_1_communication_parameter_cob_id_used_by_pdo(
             &mut self,
@@ -19482,11 +19330,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.receive_pdo_1_communication_parameter_transmission_type
         }
-        /// Sets `0x1400` sub 2 Receive PDO 1 communication parameter: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1400` sub 2 Receive PDO 1 communication parameter: Transmission type (see [`Self::receive_pdo_1_communication_parameter_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_1_communication_parameter_transmission_type(
             &mut self,
@@ -19504,11 +19348,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.receive_pdo_2_communication_parameter_number_of_entries
         }
-        /// Sets `0x1401` sub 0 Receive PDO 2 communication parameter: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1401` sub 0 Receive PDO 2 communication parameter: Number of entries (see [`Self::receive_pdo_2_communication_parameter_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_2_communication_parameter_number_of_entries(
             &mut self,
@@ -19526,11 +19366,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u32 {
             self.receive_pdo_2_communication_parameter_cob_id_used_by_pdo
         }
-        /// Sets `0x1401` sub 1 Receive PDO 2 communication parameter: COB-ID used by PDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x300.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1401` sub 1 Receive PDO 2 communication parameter: COB-ID used by PDO (see [`Self::receive_pdo_2_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_2_communication_parameter_cob_id_used_by_pdo(
             &mut self,
@@ -19548,11 +19384,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.receive_pdo_2_communication_parameter_transmission_type
         }
-        /// Sets `0x1401` sub 2 Receive PDO 2 communication parameter: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1401` sub 2 Receive PDO 2 communication parameter: Transmission type (see [`Self::receive_pdo_2_communication_parameter_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_2_communication_parameter_transmission_type(
             &mut self,
@@ -19570,11 +19402,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.receive_pdo_3_communication_parameter_number_of_entries
         }
-        /// Sets `0x1402` sub 0 Receive PDO 3 communication parameter: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1402` sub 0 Receive PDO 3 communication parameter: Number of entries (see [`Self::receive_pdo_3_communication_parameter_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_3_communication_parameter_number_of_entries(
             &mut self,
@@ -19592,11 +19420,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u32 {
             self.receive_pdo_3_communication_parameter_cob_id_used_by_pdo
         }
-        /// Sets `0x1402` sub 1 Receive PDO 3 communication parameter: COB-ID used by PDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x400.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1402` sub 1 Receive PDO 3 communication parameter: COB-ID used by PDO (see [`Self::receive_pdo_3_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_3_communication_parameter_cob_id_used_by_pdo(
             &mut self,
@@ -19614,11 +19438,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.receive_pdo_3_communication_parameter_transmission_type
         }
-        /// Sets `0x1402` sub 2 Receive PDO 3 communication parameter: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1402` sub 2 Receive PDO 3 communication parameter: Transmission type (see [`Self::receive_pdo_3_communication_parameter_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_3_communication_parameter_transmission_type(
             &mut self,
@@ -19636,11 +19456,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.receive_pdo_4_communication_parameter_number_of_entries
         }
-        /// Sets `0x1403` sub 0 Receive PDO 4 communication parameter: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1403` sub 0 Receive PDO 4 communication parameter: Number of entries (see [`Self::receive_pdo_4_communication_parameter_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_4_communication_parameter_number_of_entries(
             &mut self,
@@ -19658,11 +19474,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u32 {
             self.receive_pdo_4_communication_parameter_cob_id_used_by_pdo
         }
-        /// Sets `0x1403` sub 1 Receive PDO 4 communication parameter: COB-ID used by PDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x500.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1403` sub 1 Receive PDO 4 communication parameter: COB-ID used by PDO (see [`Self::receive_pdo_4_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_4_communication_parameter_cob_id_used_by_pdo(
             &mut self,
@@ -19680,11 +19492,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.receive_pdo_4_communication_parameter_transmission_type
         }
-        /// Sets `0x1403` sub 2 Receive PDO 4 communication parameter: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1403` sub 2 Receive PDO 4 communication parameter: Transmission type (see [`Self::receive_pdo_4_communication_parameter_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_4_communication_parameter_transmission_type(
             &mut self,
@@ -19702,11 +19510,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.receive_pdo_1_mapping_parameter_number_of_mapped_objects
         }
-        /// Sets `0x1600` sub 0 Receive PDO 1 mapping parameter: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 1. At most 8.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 0 Receive PDO 1 mapping parameter: Number of mapped objects (see [`Self::receive_pdo_1_mapping_parameter_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_1_mapping_parameter_number_of_mapped_objects(
             &mut self,
@@ -19725,11 +19529,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_1_mapping_parameter_mapped_object_1(&self) -> u32 {
             self.receive_pdo_1_mapping_parameter_mapped_object_1
         }
-        /// Sets `0x1600` sub 1 Receive PDO 1 mapping parameter: Mapped object 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1614807056 (0x60400010).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 1 Receive PDO 1 mapping parameter: Mapped object 1 (see [`Self::receive_pdo_1_mapping_parameter_mapped_object_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_1_mapping_parameter_mapped_object_1(
             &mut self,
@@ -19745,11 +19545,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_1_mapping_parameter_mapped_object_2(&self) -> u32 {
             self.receive_pdo_1_mapping_parameter_mapped_object_2
         }
-        /// Sets `0x1600` sub 2 Receive PDO 1 mapping parameter: Mapped object 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 2 Receive PDO 1 mapping parameter: Mapped object 2 (see [`Self::receive_pdo_1_mapping_parameter_mapped_object_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_1_mapping_parameter_mapped_object_2(
             &mut self,
@@ -19765,11 +19561,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_1_mapping_parameter_mapped_object_3(&self) -> u32 {
             self.receive_pdo_1_mapping_parameter_mapped_object_3
         }
-        /// Sets `0x1600` sub 3 Receive PDO 1 mapping parameter: Mapped object 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 3 Receive PDO 1 mapping parameter: Mapped object 3 (see [`Self::receive_pdo_1_mapping_parameter_mapped_object_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_1_mapping_parameter_mapped_object_3(
             &mut self,
@@ -19785,11 +19577,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_1_mapping_parameter_mapped_object_4(&self) -> u32 {
             self.receive_pdo_1_mapping_parameter_mapped_object_4
         }
-        /// Sets `0x1600` sub 4 Receive PDO 1 mapping parameter: Mapped object 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 4 Receive PDO 1 mapping parameter: Mapped object 4 (see [`Self::receive_pdo_1_mapping_parameter_mapped_object_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_1_mapping_parameter_mapped_object_4(
             &mut self,
@@ -19805,11 +19593,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_1_mapping_parameter_mapped_object_5(&self) -> u32 {
             self.receive_pdo_1_mapping_parameter_mapped_object_5
         }
-        /// Sets `0x1600` sub 5 Receive PDO 1 mapping parameter: Mapped object 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 5 Receive PDO 1 mapping parameter: Mapped object 5 (see [`Self::receive_pdo_1_mapping_parameter_mapped_object_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_1_mapping_parameter_mapped_object_5(
             &mut self,
@@ -19825,11 +19609,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_1_mapping_parameter_mapped_object_6(&self) -> u32 {
             self.receive_pdo_1_mapping_parameter_mapped_object_6
         }
-        /// Sets `0x1600` sub 6 Receive PDO 1 mapping parameter: Mapped object 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 6 Receive PDO 1 mapping parameter: Mapped object 6 (see [`Self::receive_pdo_1_mapping_parameter_mapped_object_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_1_mapping_parameter_mapped_object_6(
             &mut self,
@@ -19845,11 +19625,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_1_mapping_parameter_mapped_object_7(&self) -> u32 {
             self.receive_pdo_1_mapping_parameter_mapped_object_7
         }
-        /// Sets `0x1600` sub 7 Receive PDO 1 mapping parameter: Mapped object 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 7 Receive PDO 1 mapping parameter: Mapped object 7 (see [`Self::receive_pdo_1_mapping_parameter_mapped_object_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_1_mapping_parameter_mapped_object_7(
             &mut self,
@@ -19865,11 +19641,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_1_mapping_parameter_mapped_object_8(&self) -> u32 {
             self.receive_pdo_1_mapping_parameter_mapped_object_8
         }
-        /// Sets `0x1600` sub 8 Receive PDO 1 mapping parameter: Mapped object 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 8 Receive PDO 1 mapping parameter: Mapped object 8 (see [`Self::receive_pdo_1_mapping_parameter_mapped_object_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_1_mapping_parameter_mapped_object_8(
             &mut self,
@@ -19887,11 +19659,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.receive_pdo_2_mapping_parameter_number_of_mapped_objects
         }
-        /// Sets `0x1601` sub 0 Receive PDO 2 mapping parameter: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 2. At most 8.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 0 Receive PDO 2 mapping parameter: Number of mapped objects (see [`Self::receive_pdo_2_mapping_parameter_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_2_mapping_parameter_number_of_mapped_objects(
             &mut self,
@@ -19910,11 +19678,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_2_mapping_parameter_mapped_object_1(&self) -> u32 {
             self.receive_pdo_2_mapping_parameter_mapped_object_1
         }
-        /// Sets `0x1601` sub 1 Receive PDO 2 mapping parameter: Mapped object 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1614807056 (0x60400010).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 1 Receive PDO 2 mapping parameter: Mapped object 1 (see [`Self::receive_pdo_2_mapping_parameter_mapped_object_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_2_mapping_parameter_mapped_object_1(
             &mut self,
@@ -19930,11 +19694,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_2_mapping_parameter_mapped_object_2(&self) -> u32 {
             self.receive_pdo_2_mapping_parameter_mapped_object_2
         }
-        /// Sets `0x1601` sub 2 Receive PDO 2 mapping parameter: Mapped object 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1616904200 (0x60600008).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 2 Receive PDO 2 mapping parameter: Mapped object 2 (see [`Self::receive_pdo_2_mapping_parameter_mapped_object_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_2_mapping_parameter_mapped_object_2(
             &mut self,
@@ -19950,11 +19710,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_2_mapping_parameter_mapped_object_3(&self) -> u32 {
             self.receive_pdo_2_mapping_parameter_mapped_object_3
         }
-        /// Sets `0x1601` sub 3 Receive PDO 2 mapping parameter: Mapped object 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 3 Receive PDO 2 mapping parameter: Mapped object 3 (see [`Self::receive_pdo_2_mapping_parameter_mapped_object_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_2_mapping_parameter_mapped_object_3(
             &mut self,
@@ -19970,11 +19726,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_2_mapping_parameter_mapped_object_4(&self) -> u32 {
             self.receive_pdo_2_mapping_parameter_mapped_object_4
         }
-        /// Sets `0x1601` sub 4 Receive PDO 2 mapping parameter: Mapped object 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 4 Receive PDO 2 mapping parameter: Mapped object 4 (see [`Self::receive_pdo_2_mapping_parameter_mapped_object_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_2_mapping_parameter_mapped_object_4(
             &mut self,
@@ -19990,11 +19742,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_2_mapping_parameter_mapped_object_5(&self) -> u32 {
             self.receive_pdo_2_mapping_parameter_mapped_object_5
         }
-        /// Sets `0x1601` sub 5 Receive PDO 2 mapping parameter: Mapped object 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 5 Receive PDO 2 mapping parameter: Mapped object 5 (see [`Self::receive_pdo_2_mapping_parameter_mapped_object_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_2_mapping_parameter_mapped_object_5(
             &mut self,
@@ -20010,11 +19758,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_2_mapping_parameter_mapped_object_6(&self) -> u32 {
             self.receive_pdo_2_mapping_parameter_mapped_object_6
         }
-        /// Sets `0x1601` sub 6 Receive PDO 2 mapping parameter: Mapped object 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 6 Receive PDO 2 mapping parameter: Mapped object 6 (see [`Self::receive_pdo_2_mapping_parameter_mapped_object_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_2_mapping_parameter_mapped_object_6(
             &mut self,
@@ -20030,11 +19774,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_2_mapping_parameter_mapped_object_7(&self) -> u32 {
             self.receive_pdo_2_mapping_parameter_mapped_object_7
         }
-        /// Sets `0x1601` sub 7 Receive PDO 2 mapping parameter: Mapped object 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 7 Receive PDO 2 mapping parameter: Mapped object 7 (see [`Self::receive_pdo_2_mapping_parameter_mapped_object_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_2_mapping_parameter_mapped_object_7(
             &mut self,
@@ -20050,11 +19790,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_2_mapping_parameter_mapped_object_8(&self) -> u32 {
             self.receive_pdo_2_mapping_parameter_mapped_object_8
         }
-        /// Sets `0x1601` sub 8 Receive PDO 2 mapping parameter: Mapped object 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 8 Receive PDO 2 mapping parameter: Mapped object 8 (see [`Self::receive_pdo_2_mapping_parameter_mapped_object_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_2_mapping_parameter_mapped_object_8(
             &mut self,
@@ -20072,11 +19808,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.receive_pdo_3_mapping_parameter_number_of_mapped_objects
         }
-        /// Sets `0x1602` sub 0 Receive PDO 3 mapping parameter: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 2. At most 8.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 0 Receive PDO 3 mapping parameter: Number of mapped objects (see [`Self::receive_pdo_3_mapping_parameter_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_3_mapping_parameter_number_of_mapped_objects(
             &mut self,
@@ -20095,11 +19827,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_3_mapping_parameter_mapped_object_1(&self) -> u32 {
             self.receive_pdo_3_mapping_parameter_mapped_object_1
         }
-        /// Sets `0x1602` sub 1 Receive PDO 3 mapping parameter: Mapped object 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1614807056 (0x60400010).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 1 Receive PDO 3 mapping parameter: Mapped object 1 (see [`Self::receive_pdo_3_mapping_parameter_mapped_object_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_3_mapping_parameter_mapped_object_1(
             &mut self,
@@ -20115,11 +19843,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_3_mapping_parameter_mapped_object_2(&self) -> u32 {
             self.receive_pdo_3_mapping_parameter_mapped_object_2
         }
-        /// Sets `0x1602` sub 2 Receive PDO 3 mapping parameter: Mapped object 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1618608160 (0x607A0020).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 2 Receive PDO 3 mapping parameter: Mapped object 2 (see [`Self::receive_pdo_3_mapping_parameter_mapped_object_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_3_mapping_parameter_mapped_object_2(
             &mut self,
@@ -20135,11 +19859,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_3_mapping_parameter_mapped_object_3(&self) -> u32 {
             self.receive_pdo_3_mapping_parameter_mapped_object_3
         }
-        /// Sets `0x1602` sub 3 Receive PDO 3 mapping parameter: Mapped object 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 3 Receive PDO 3 mapping parameter: Mapped object 3 (see [`Self::receive_pdo_3_mapping_parameter_mapped_object_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_3_mapping_parameter_mapped_object_3(
             &mut self,
@@ -20155,11 +19875,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_3_mapping_parameter_mapped_object_4(&self) -> u32 {
             self.receive_pdo_3_mapping_parameter_mapped_object_4
         }
-        /// Sets `0x1602` sub 4 Receive PDO 3 mapping parameter: Mapped object 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 4 Receive PDO 3 mapping parameter: Mapped object 4 (see [`Self::receive_pdo_3_mapping_parameter_mapped_object_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_3_mapping_parameter_mapped_object_4(
             &mut self,
@@ -20175,11 +19891,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_3_mapping_parameter_mapped_object_5(&self) -> u32 {
             self.receive_pdo_3_mapping_parameter_mapped_object_5
         }
-        /// Sets `0x1602` sub 5 Receive PDO 3 mapping parameter: Mapped object 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 5 Receive PDO 3 mapping parameter: Mapped object 5 (see [`Self::receive_pdo_3_mapping_parameter_mapped_object_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_3_mapping_parameter_mapped_object_5(
             &mut self,
@@ -20195,11 +19907,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_3_mapping_parameter_mapped_object_6(&self) -> u32 {
             self.receive_pdo_3_mapping_parameter_mapped_object_6
         }
-        /// Sets `0x1602` sub 6 Receive PDO 3 mapping parameter: Mapped object 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 6 Receive PDO 3 mapping parameter: Mapped object 6 (see [`Self::receive_pdo_3_mapping_parameter_mapped_object_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_3_mapping_parameter_mapped_object_6(
             &mut self,
@@ -20215,11 +19923,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_3_mapping_parameter_mapped_object_7(&self) -> u32 {
             self.receive_pdo_3_mapping_parameter_mapped_object_7
         }
-        /// Sets `0x1602` sub 7 Receive PDO 3 mapping parameter: Mapped object 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 7 Receive PDO 3 mapping parameter: Mapped object 7 (see [`Self::receive_pdo_3_mapping_parameter_mapped_object_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_3_mapping_parameter_mapped_object_7(
             &mut self,
@@ -20235,11 +19939,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_3_mapping_parameter_mapped_object_8(&self) -> u32 {
             self.receive_pdo_3_mapping_parameter_mapped_object_8
         }
-        /// Sets `0x1602` sub 8 Receive PDO 3 mapping parameter: Mapped object 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 8 Receive PDO 3 mapping parameter: Mapped object 8 (see [`Self::receive_pdo_3_mapping_parameter_mapped_object_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_3_mapping_parameter_mapped_object_8(
             &mut self,
@@ -20257,11 +19957,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.receive_pdo_4_mapping_parameter_number_of_mapped_objects
         }
-        /// Sets `0x1603` sub 0 Receive PDO 4 mapping parameter: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 2. At most 8.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 0 Receive PDO 4 mapping parameter: Number of mapped objects (see [`Self::receive_pdo_4_mapping_parameter_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_4_mapping_parameter_number_of_mapped_objects(
             &mut self,
@@ -20280,11 +19976,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_4_mapping_parameter_mapped_object_1(&self) -> u32 {
             self.receive_pdo_4_mapping_parameter_mapped_object_1
         }
-        /// Sets `0x1603` sub 1 Receive PDO 4 mapping parameter: Mapped object 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1614807056 (0x60400010).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 1 Receive PDO 4 mapping parameter: Mapped object 1 (see [`Self::receive_pdo_4_mapping_parameter_mapped_object_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_4_mapping_parameter_mapped_object_1(
             &mut self,
@@ -20300,11 +19992,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_4_mapping_parameter_mapped_object_2(&self) -> u32 {
             self.receive_pdo_4_mapping_parameter_mapped_object_2
         }
-        /// Sets `0x1603` sub 2 Receive PDO 4 mapping parameter: Mapped object 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1627324448 (0x60FF0020).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 2 Receive PDO 4 mapping parameter: Mapped object 2 (see [`Self::receive_pdo_4_mapping_parameter_mapped_object_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_4_mapping_parameter_mapped_object_2(
             &mut self,
@@ -20320,11 +20008,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_4_mapping_parameter_mapped_object_3(&self) -> u32 {
             self.receive_pdo_4_mapping_parameter_mapped_object_3
         }
-        /// Sets `0x1603` sub 3 Receive PDO 4 mapping parameter: Mapped object 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 3 Receive PDO 4 mapping parameter: Mapped object 3 (see [`Self::receive_pdo_4_mapping_parameter_mapped_object_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_4_mapping_parameter_mapped_object_3(
             &mut self,
@@ -20340,11 +20024,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_4_mapping_parameter_mapped_object_4(&self) -> u32 {
             self.receive_pdo_4_mapping_parameter_mapped_object_4
         }
-        /// Sets `0x1603` sub 4 Receive PDO 4 mapping parameter: Mapped object 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 4 Receive PDO 4 mapping parameter: Mapped object 4 (see [`Self::receive_pdo_4_mapping_parameter_mapped_object_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_4_mapping_parameter_mapped_object_4(
             &mut self,
@@ -20360,11 +20040,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_4_mapping_parameter_mapped_object_5(&self) -> u32 {
             self.receive_pdo_4_mapping_parameter_mapped_object_5
         }
-        /// Sets `0x1603` sub 5 Receive PDO 4 mapping parameter: Mapped object 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 5 Receive PDO 4 mapping parameter: Mapped object 5 (see [`Self::receive_pdo_4_mapping_parameter_mapped_object_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_4_mapping_parameter_mapped_object_5(
             &mut self,
@@ -20380,11 +20056,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_4_mapping_parameter_mapped_object_6(&self) -> u32 {
             self.receive_pdo_4_mapping_parameter_mapped_object_6
         }
-        /// Sets `0x1603` sub 6 Receive PDO 4 mapping parameter: Mapped object 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 6 Receive PDO 4 mapping parameter: Mapped object 6 (see [`Self::receive_pdo_4_mapping_parameter_mapped_object_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_4_mapping_parameter_mapped_object_6(
             &mut self,
@@ -20400,11 +20072,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_4_mapping_parameter_mapped_object_7(&self) -> u32 {
             self.receive_pdo_4_mapping_parameter_mapped_object_7
         }
-        /// Sets `0x1603` sub 7 Receive PDO 4 mapping parameter: Mapped object 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 7 Receive PDO 4 mapping parameter: Mapped object 7 (see [`Self::receive_pdo_4_mapping_parameter_mapped_object_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_4_mapping_parameter_mapped_object_7(
             &mut self,
@@ -20420,11 +20088,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn receive_pdo_4_mapping_parameter_mapped_object_8(&self) -> u32 {
             self.receive_pdo_4_mapping_parameter_mapped_object_8
         }
-        /// Sets `0x1603` sub 8 Receive PDO 4 mapping parameter: Mapped object 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 8 Receive PDO 4 mapping parameter: Mapped object 8 (see [`Self::receive_pdo_4_mapping_parameter_mapped_object_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_4_mapping_parameter_mapped_object_8(
             &mut self,
@@ -20442,11 +20106,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.transmit_pdo_1_communication_parameter_number_of_entries
         }
-        /// Sets `0x1800` sub 0 Transmit PDO 1 communication parameter: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 0 Transmit PDO 1 communication parameter: Number of entries (see [`Self::transmit_pdo_1_communication_parameter_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_communication_parameter_number_of_entries(
             &mut self,
@@ -20464,11 +20124,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u32 {
             self.transmit_pdo_1_communication_parameter_cob_id_used_by_pdo
         }
-        /// Sets `0x1800` sub 1 Transmit PDO 1 communication parameter: COB-ID used by PDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x180.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 1 Transmit PDO 1 communication parameter: COB-ID used by PDO (see [`Self::transmit_pdo_1_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_communication_parameter_cob_id_used_by_pdo(
             &mut self,
@@ -20486,11 +20142,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.transmit_pdo_1_communication_parameter_transmission_type
         }
-        /// Sets `0x1800` sub 2 Transmit PDO 1 communication parameter: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 2 Transmit PDO 1 communication parameter: Transmission type (see [`Self::transmit_pdo_1_communication_parameter_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_communication_parameter_transmission_type(
             &mut self,
@@ -20506,11 +20158,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_1_communication_parameter_inhibit_time(&self) -> u16 {
             self.transmit_pdo_1_communication_parameter_inhibit_time
         }
-        /// Sets `0x1800` sub 3 Transmit PDO 1 communication parameter: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 3 Transmit PDO 1 communication parameter: Inhibit time (see [`Self::transmit_pdo_1_communication_parameter_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_communication_parameter_inhibit_time(
             &mut self,
@@ -20526,11 +20174,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_1_communication_parameter_reserved(&self) -> u8 {
             self.transmit_pdo_1_communication_parameter_reserved
         }
-        /// Sets `0x1800` sub 4 Transmit PDO 1 communication parameter: Reserved.
-        ///
-        /// UNSIGNED8, access `const`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 4 Transmit PDO 1 communication parameter: Reserved (see [`Self::transmit_pdo_1_communication_parameter_reserved`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_communication_parameter_reserved(
             &mut self,
@@ -20546,11 +20190,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_1_communication_parameter_event_timer(&self) -> u16 {
             self.transmit_pdo_1_communication_parameter_event_timer
         }
-        /// Sets `0x1800` sub 5 Transmit PDO 1 communication parameter: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 5 Transmit PDO 1 communication parameter: Event timer (see [`Self::transmit_pdo_1_communication_parameter_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_communication_parameter_event_timer(
             &mut self,
@@ -20568,11 +20208,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.transmit_pdo_2_communication_parameter_number_of_entries
         }
-        /// Sets `0x1801` sub 0 Transmit PDO 2 communication parameter: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 0 Transmit PDO 2 communication parameter: Number of entries (see [`Self::transmit_pdo_2_communication_parameter_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_communication_parameter_number_of_entries(
             &mut self,
@@ -20590,11 +20226,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u32 {
             self.transmit_pdo_2_communication_parameter_cob_id_used_by_pdo
         }
-        /// Sets `0x1801` sub 1 Transmit PDO 2 communication parameter: COB-ID used by PDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x280.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 1 Transmit PDO 2 communication parameter: COB-ID used by PDO (see [`Self::transmit_pdo_2_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_communication_parameter_cob_id_used_by_pdo(
             &mut self,
@@ -20612,11 +20244,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.transmit_pdo_2_communication_parameter_transmission_type
         }
-        /// Sets `0x1801` sub 2 Transmit PDO 2 communication parameter: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 2 Transmit PDO 2 communication parameter: Transmission type (see [`Self::transmit_pdo_2_communication_parameter_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_communication_parameter_transmission_type(
             &mut self,
@@ -20632,11 +20260,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_2_communication_parameter_inhibit_time(&self) -> u16 {
             self.transmit_pdo_2_communication_parameter_inhibit_time
         }
-        /// Sets `0x1801` sub 3 Transmit PDO 2 communication parameter: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 3 Transmit PDO 2 communication parameter: Inhibit time (see [`Self::transmit_pdo_2_communication_parameter_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_communication_parameter_inhibit_time(
             &mut self,
@@ -20652,11 +20276,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_2_communication_parameter_reserved(&self) -> u8 {
             self.transmit_pdo_2_communication_parameter_reserved
         }
-        /// Sets `0x1801` sub 4 Transmit PDO 2 communication parameter: Reserved.
-        ///
-        /// UNSIGNED8, access `const`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 4 Transmit PDO 2 communication parameter: Reserved (see [`Self::transmit_pdo_2_communication_parameter_reserved`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_communication_parameter_reserved(
             &mut self,
@@ -20672,11 +20292,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_2_communication_parameter_event_timer(&self) -> u16 {
             self.transmit_pdo_2_communication_parameter_event_timer
         }
-        /// Sets `0x1801` sub 5 Transmit PDO 2 communication parameter: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 5 Transmit PDO 2 communication parameter: Event timer (see [`Self::transmit_pdo_2_communication_parameter_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_communication_parameter_event_timer(
             &mut self,
@@ -20694,11 +20310,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.transmit_pdo_3_communication_parameter_number_of_entries
         }
-        /// Sets `0x1802` sub 0 Transmit PDO 3 communication parameter: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 0 Transmit PDO 3 communication parameter: Number of entries (see [`Self::transmit_pdo_3_communication_parameter_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_communication_parameter_number_of_entries(
             &mut self,
@@ -20716,11 +20328,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u32 {
             self.transmit_pdo_3_communication_parameter_cob_id_used_by_pdo
         }
-        /// Sets `0x1802` sub 1 Transmit PDO 3 communication parameter: COB-ID used by PDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x380.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 1 Transmit PDO 3 communication parameter: COB-ID used by PDO (see [`Self::transmit_pdo_3_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_communication_parameter_cob_id_used_by_pdo(
             &mut self,
@@ -20738,11 +20346,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.transmit_pdo_3_communication_parameter_transmission_type
         }
-        /// Sets `0x1802` sub 2 Transmit PDO 3 communication parameter: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 2 Transmit PDO 3 communication parameter: Transmission type (see [`Self::transmit_pdo_3_communication_parameter_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_communication_parameter_transmission_type(
             &mut self,
@@ -20758,11 +20362,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_3_communication_parameter_inhibit_time(&self) -> u16 {
             self.transmit_pdo_3_communication_parameter_inhibit_time
         }
-        /// Sets `0x1802` sub 3 Transmit PDO 3 communication parameter: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 3 Transmit PDO 3 communication parameter: Inhibit time (see [`Self::transmit_pdo_3_communication_parameter_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_communication_parameter_inhibit_time(
             &mut self,
@@ -20778,11 +20378,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_3_communication_parameter_reserved(&self) -> u8 {
             self.transmit_pdo_3_communication_parameter_reserved
         }
-        /// Sets `0x1802` sub 4 Transmit PDO 3 communication parameter: Reserved.
-        ///
-        /// UNSIGNED8, access `const`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 4 Transmit PDO 3 communication parameter: Reserved (see [`Self::transmit_pdo_3_communication_parameter_reserved`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_communication_parameter_reserved(
             &mut self,
@@ -20798,11 +20394,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_3_communication_parameter_event_timer(&self) -> u16 {
             self.transmit_pdo_3_communication_parameter_event_timer
         }
-        /// Sets `0x1802` sub 5 Transmit PDO 3 communication parameter: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 5 Transmit PDO 3 communication parameter: Event timer (see [`Self::transmit_pdo_3_communication_parameter_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_communication_parameter_event_timer(
             &mut self,
@@ -20820,11 +20412,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.transmit_pdo_4_communication_parameter_number_of_entries
         }
-        /// Sets `0x1803` sub 0 Transmit PDO 4 communication parameter: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 0 Transmit PDO 4 communication parameter: Number of entries (see [`Self::transmit_pdo_4_communication_parameter_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_communication_parameter_number_of_entries(
             &mut self,
@@ -20842,11 +20430,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u32 {
             self.transmit_pdo_4_communication_parameter_cob_id_used_by_pdo
         }
-        /// Sets `0x1803` sub 1 Transmit PDO 4 communication parameter: COB-ID used by PDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x480.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 1 Transmit PDO 4 communication parameter: COB-ID used by PDO (see [`Self::transmit_pdo_4_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_communication_parameter_cob_id_used_by_pdo(
             &mut self,
@@ -20864,11 +20448,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.transmit_pdo_4_communication_parameter_transmission_type
         }
-        /// Sets `0x1803` sub 2 Transmit PDO 4 communication parameter: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 2 Transmit PDO 4 communication parameter: Transmission type (see [`Self::transmit_pdo_4_communication_parameter_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_communication_parameter_transmission_type(
             &mut self,
@@ -20884,11 +20464,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_4_communication_parameter_inhibit_time(&self) -> u16 {
             self.transmit_pdo_4_communication_parameter_inhibit_time
         }
-        /// Sets `0x1803` sub 3 Transmit PDO 4 communication parameter: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 3 Transmit PDO 4 communication parameter: Inhibit time (see [`Self::transmit_pdo_4_communication_parameter_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_communication_parameter_inhibit_time(
             &mut self,
@@ -20904,11 +20480,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_4_communication_parameter_reserved(&self) -> u8 {
             self.transmit_pdo_4_communication_parameter_reserved
         }
-        /// Sets `0x1803` sub 4 Transmit PDO 4 communication parameter: Reserved.
-        ///
-        /// UNSIGNED8, access `const`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 4 Transmit PDO 4 communication parameter: Reserved (see [`Self::transmit_pdo_4_communication_parameter_reserved`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_communication_parameter_reserved(
             &mut self,
@@ -20924,11 +20496,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_4_communication_parameter_event_timer(&self) -> u16 {
             self.transmit_pdo_4_communication_parameter_event_timer
         }
-        /// Sets `0x1803` sub 5 Transmit PDO 4 communication parameter: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 5 Transmit PDO 4 communication parameter: Event timer (see [`Self::transmit_pdo_4_communication_parameter_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_communication_parameter_event_timer(
             &mut self,
@@ -20946,11 +20514,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.transmit_pdo_1_mapping_parameter_number_of_mapped_objects
         }
-        /// Sets `0x1A00` sub 0 Transmit PDO 1 mapping parameter: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 1. At most 8.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 0 Transmit PDO 1 mapping parameter: Number of mapped objects (see [`Self::transmit_pdo_1_mapping_parameter_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_mapping_parameter_number_of_mapped_objects(
             &mut self,
@@ -20969,11 +20533,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_1_mapping_parameter_mapped_object_1(&self) -> u32 {
             self.transmit_pdo_1_mapping_parameter_mapped_object_1
         }
-        /// Sets `0x1A00` sub 1 Transmit PDO 1 mapping parameter: Mapped object 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1614872592 (0x60410010).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 1 Transmit PDO 1 mapping parameter: Mapped object 1 (see [`Self::transmit_pdo_1_mapping_parameter_mapped_object_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_mapping_parameter_mapped_object_1(
             &mut self,
@@ -20989,11 +20549,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_1_mapping_parameter_mapped_object_2(&self) -> u32 {
             self.transmit_pdo_1_mapping_parameter_mapped_object_2
         }
-        /// Sets `0x1A00` sub 2 Transmit PDO 1 mapping parameter: Mapped object 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 2 Transmit PDO 1 mapping parameter: Mapped object 2 (see [`Self::transmit_pdo_1_mapping_parameter_mapped_object_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_mapping_parameter_mapped_object_2(
             &mut self,
@@ -21009,11 +20565,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_1_mapping_parameter_mapped_object_3(&self) -> u32 {
             self.transmit_pdo_1_mapping_parameter_mapped_object_3
         }
-        /// Sets `0x1A00` sub 3 Transmit PDO 1 mapping parameter: Mapped object 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 3 Transmit PDO 1 mapping parameter: Mapped object 3 (see [`Self::transmit_pdo_1_mapping_parameter_mapped_object_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_mapping_parameter_mapped_object_3(
             &mut self,
@@ -21029,11 +20581,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_1_mapping_parameter_mapped_object_4(&self) -> u32 {
             self.transmit_pdo_1_mapping_parameter_mapped_object_4
         }
-        /// Sets `0x1A00` sub 4 Transmit PDO 1 mapping parameter: Mapped object 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 4 Transmit PDO 1 mapping parameter: Mapped object 4 (see [`Self::transmit_pdo_1_mapping_parameter_mapped_object_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_mapping_parameter_mapped_object_4(
             &mut self,
@@ -21049,11 +20597,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_1_mapping_parameter_mapped_object_5(&self) -> u32 {
             self.transmit_pdo_1_mapping_parameter_mapped_object_5
         }
-        /// Sets `0x1A00` sub 5 Transmit PDO 1 mapping parameter: Mapped object 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 5 Transmit PDO 1 mapping parameter: Mapped object 5 (see [`Self::transmit_pdo_1_mapping_parameter_mapped_object_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_mapping_parameter_mapped_object_5(
             &mut self,
@@ -21069,11 +20613,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_1_mapping_parameter_mapped_object_6(&self) -> u32 {
             self.transmit_pdo_1_mapping_parameter_mapped_object_6
         }
-        /// Sets `0x1A00` sub 6 Transmit PDO 1 mapping parameter: Mapped object 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 6 Transmit PDO 1 mapping parameter: Mapped object 6 (see [`Self::transmit_pdo_1_mapping_parameter_mapped_object_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_mapping_parameter_mapped_object_6(
             &mut self,
@@ -21089,11 +20629,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_1_mapping_parameter_mapped_object_7(&self) -> u32 {
             self.transmit_pdo_1_mapping_parameter_mapped_object_7
         }
-        /// Sets `0x1A00` sub 7 Transmit PDO 1 mapping parameter: Mapped object 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 7 Transmit PDO 1 mapping parameter: Mapped object 7 (see [`Self::transmit_pdo_1_mapping_parameter_mapped_object_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_mapping_parameter_mapped_object_7(
             &mut self,
@@ -21109,11 +20645,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_1_mapping_parameter_mapped_object_8(&self) -> u32 {
             self.transmit_pdo_1_mapping_parameter_mapped_object_8
         }
-        /// Sets `0x1A00` sub 8 Transmit PDO 1 mapping parameter: Mapped object 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 8 Transmit PDO 1 mapping parameter: Mapped object 8 (see [`Self::transmit_pdo_1_mapping_parameter_mapped_object_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_mapping_parameter_mapped_object_8(
             &mut self,
@@ -21131,11 +20663,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.transmit_pdo_2_mapping_parameter_number_of_mapped_objects
         }
-        /// Sets `0x1A01` sub 0 Transmit PDO 2 mapping parameter: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 2. At most 8.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 0 Transmit PDO 2 mapping parameter: Number of mapped objects (see [`Self::transmit_pdo_2_mapping_parameter_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_mapping_parameter_number_of_mapped_objects(
             &mut self,
@@ -21154,11 +20682,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_2_mapping_parameter_mapped_object_1(&self) -> u32 {
             self.transmit_pdo_2_mapping_parameter_mapped_object_1
         }
-        /// Sets `0x1A01` sub 1 Transmit PDO 2 mapping parameter: Mapped object 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1614872592 (0x60410010).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 1 Transmit PDO 2 mapping parameter: Mapped object 1 (see [`Self::transmit_pdo_2_mapping_parameter_mapped_object_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_mapping_parameter_mapped_object_1(
             &mut self,
@@ -21174,11 +20698,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_2_mapping_parameter_mapped_object_2(&self) -> u32 {
             self.transmit_pdo_2_mapping_parameter_mapped_object_2
         }
-        /// Sets `0x1A01` sub 2 Transmit PDO 2 mapping parameter: Mapped object 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1616969736 (0x60610008).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 2 Transmit PDO 2 mapping parameter: Mapped object 2 (see [`Self::transmit_pdo_2_mapping_parameter_mapped_object_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_mapping_parameter_mapped_object_2(
             &mut self,
@@ -21194,11 +20714,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_2_mapping_parameter_mapped_object_3(&self) -> u32 {
             self.transmit_pdo_2_mapping_parameter_mapped_object_3
         }
-        /// Sets `0x1A01` sub 3 Transmit PDO 2 mapping parameter: Mapped object 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 3 Transmit PDO 2 mapping parameter: Mapped object 3 (see [`Self::transmit_pdo_2_mapping_parameter_mapped_object_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_mapping_parameter_mapped_object_3(
             &mut self,
@@ -21214,11 +20730,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_2_mapping_parameter_mapped_object_4(&self) -> u32 {
             self.transmit_pdo_2_mapping_parameter_mapped_object_4
         }
-        /// Sets `0x1A01` sub 4 Transmit PDO 2 mapping parameter: Mapped object 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 4 Transmit PDO 2 mapping parameter: Mapped object 4 (see [`Self::transmit_pdo_2_mapping_parameter_mapped_object_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_mapping_parameter_mapped_object_4(
             &mut self,
@@ -21234,11 +20746,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_2_mapping_parameter_mapped_object_5(&self) -> u32 {
             self.transmit_pdo_2_mapping_parameter_mapped_object_5
         }
-        /// Sets `0x1A01` sub 5 Transmit PDO 2 mapping parameter: Mapped object 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 5 Transmit PDO 2 mapping parameter: Mapped object 5 (see [`Self::transmit_pdo_2_mapping_parameter_mapped_object_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_mapping_parameter_mapped_object_5(
             &mut self,
@@ -21254,11 +20762,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_2_mapping_parameter_mapped_object_6(&self) -> u32 {
             self.transmit_pdo_2_mapping_parameter_mapped_object_6
         }
-        /// Sets `0x1A01` sub 6 Transmit PDO 2 mapping parameter: Mapped object 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 6 Transmit PDO 2 mapping parameter: Mapped object 6 (see [`Self::transmit_pdo_2_mapping_parameter_mapped_object_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_mapping_parameter_mapped_object_6(
             &mut self,
@@ -21274,11 +20778,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_2_mapping_parameter_mapped_object_7(&self) -> u32 {
             self.transmit_pdo_2_mapping_parameter_mapped_object_7
         }
-        /// Sets `0x1A01` sub 7 Transmit PDO 2 mapping parameter: Mapped object 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 7 Transmit PDO 2 mapping parameter: Mapped object 7 (see [`Self::transmit_pdo_2_mapping_parameter_mapped_object_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_mapping_parameter_mapped_object_7(
             &mut self,
@@ -21294,11 +20794,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_2_mapping_parameter_mapped_object_8(&self) -> u32 {
             self.transmit_pdo_2_mapping_parameter_mapped_object_8
         }
-        /// Sets `0x1A01` sub 8 Transmit PDO 2 mapping parameter: Mapped object 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 8 Transmit PDO 2 mapping parameter: Mapped object 8 (see [`Self::transmit_pdo_2_mapping_parameter_mapped_object_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_mapping_parameter_mapped_object_8(
             &mut self,
@@ -21316,11 +20812,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.transmit_pdo_3_mapping_parameter_number_of_mapped_objects
         }
-        /// Sets `0x1A02` sub 0 Transmit PDO 3 mapping parameter: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 2. At most 8.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 0 Transmit PDO 3 mapping parameter: Number of mapped objects (see [`Self::transmit_pdo_3_mapping_parameter_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_mapping_parameter_number_of_mapped_objects(
             &mut self,
@@ -21339,11 +20831,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_3_mapping_parameter_mapped_object_1(&self) -> u32 {
             self.transmit_pdo_3_mapping_parameter_mapped_object_1
         }
-        /// Sets `0x1A02` sub 1 Transmit PDO 3 mapping parameter: Mapped object 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1614872592 (0x60410010).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 1 Transmit PDO 3 mapping parameter: Mapped object 1 (see [`Self::transmit_pdo_3_mapping_parameter_mapped_object_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_mapping_parameter_mapped_object_1(
             &mut self,
@@ -21359,11 +20847,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_3_mapping_parameter_mapped_object_2(&self) -> u32 {
             self.transmit_pdo_3_mapping_parameter_mapped_object_2
         }
-        /// Sets `0x1A02` sub 2 Transmit PDO 3 mapping parameter: Mapped object 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1617166368 (0x60640020).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 2 Transmit PDO 3 mapping parameter: Mapped object 2 (see [`Self::transmit_pdo_3_mapping_parameter_mapped_object_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_mapping_parameter_mapped_object_2(
             &mut self,
@@ -21379,11 +20863,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_3_mapping_parameter_mapped_object_3(&self) -> u32 {
             self.transmit_pdo_3_mapping_parameter_mapped_object_3
         }
-        /// Sets `0x1A02` sub 3 Transmit PDO 3 mapping parameter: Mapped object 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 3 Transmit PDO 3 mapping parameter: Mapped object 3 (see [`Self::transmit_pdo_3_mapping_parameter_mapped_object_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_mapping_parameter_mapped_object_3(
             &mut self,
@@ -21399,11 +20879,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_3_mapping_parameter_mapped_object_4(&self) -> u32 {
             self.transmit_pdo_3_mapping_parameter_mapped_object_4
         }
-        /// Sets `0x1A02` sub 4 Transmit PDO 3 mapping parameter: Mapped object 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 4 Transmit PDO 3 mapping parameter: Mapped object 4 (see [`Self::transmit_pdo_3_mapping_parameter_mapped_object_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_mapping_parameter_mapped_object_4(
             &mut self,
@@ -21419,11 +20895,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_3_mapping_parameter_mapped_object_5(&self) -> u32 {
             self.transmit_pdo_3_mapping_parameter_mapped_object_5
         }
-        /// Sets `0x1A02` sub 5 Transmit PDO 3 mapping parameter: Mapped object 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 5 Transmit PDO 3 mapping parameter: Mapped object 5 (see [`Self::transmit_pdo_3_mapping_parameter_mapped_object_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_mapping_parameter_mapped_object_5(
             &mut self,
@@ -21439,11 +20911,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_3_mapping_parameter_mapped_object_6(&self) -> u32 {
             self.transmit_pdo_3_mapping_parameter_mapped_object_6
         }
-        /// Sets `0x1A02` sub 6 Transmit PDO 3 mapping parameter: Mapped object 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 6 Transmit PDO 3 mapping parameter: Mapped object 6 (see [`Self::transmit_pdo_3_mapping_parameter_mapped_object_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_mapping_parameter_mapped_object_6(
             &mut self,
@@ -21459,11 +20927,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_3_mapping_parameter_mapped_object_7(&self) -> u32 {
             self.transmit_pdo_3_mapping_parameter_mapped_object_7
         }
-        /// Sets `0x1A02` sub 7 Transmit PDO 3 mapping parameter: Mapped object 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 7 Transmit PDO 3 mapping parameter: Mapped object 7 (see [`Self::transmit_pdo_3_mapping_parameter_mapped_object_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_mapping_parameter_mapped_object_7(
             &mut self,
@@ -21479,11 +20943,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_3_mapping_parameter_mapped_object_8(&self) -> u32 {
             self.transmit_pdo_3_mapping_parameter_mapped_object_8
         }
-        /// Sets `0x1A02` sub 8 Transmit PDO 3 mapping parameter: Mapped object 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 8 Transmit PDO 3 mapping parameter: Mapped object 8 (see [`Self::transmit_pdo_3_mapping_parameter_mapped_object_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_mapping_parameter_mapped_object_8(
             &mut self,
@@ -21501,11 +20961,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.transmit_pdo_4_mapping_parameter_number_of_mapped_objects
         }
-        /// Sets `0x1A03` sub 0 Transmit PDO 4 mapping parameter: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 2. At most 8.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 0 Transmit PDO 4 mapping parameter: Number of mapped objects (see [`Self::transmit_pdo_4_mapping_parameter_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_mapping_parameter_number_of_mapped_objects(
             &mut self,
@@ -21524,11 +20980,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_4_mapping_parameter_mapped_object_1(&self) -> u32 {
             self.transmit_pdo_4_mapping_parameter_mapped_object_1
         }
-        /// Sets `0x1A03` sub 1 Transmit PDO 4 mapping parameter: Mapped object 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1614872592 (0x60410010).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 1 Transmit PDO 4 mapping parameter: Mapped object 1 (see [`Self::transmit_pdo_4_mapping_parameter_mapped_object_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_mapping_parameter_mapped_object_1(
             &mut self,
@@ -21544,11 +20996,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_4_mapping_parameter_mapped_object_2(&self) -> u32 {
             self.transmit_pdo_4_mapping_parameter_mapped_object_2
         }
-        /// Sets `0x1A03` sub 2 Transmit PDO 4 mapping parameter: Mapped object 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1617690656 (0x606C0020).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 2 Transmit PDO 4 mapping parameter: Mapped object 2 (see [`Self::transmit_pdo_4_mapping_parameter_mapped_object_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_mapping_parameter_mapped_object_2(
             &mut self,
@@ -21564,11 +21012,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_4_mapping_parameter_mapped_object_3(&self) -> u32 {
             self.transmit_pdo_4_mapping_parameter_mapped_object_3
         }
-        /// Sets `0x1A03` sub 3 Transmit PDO 4 mapping parameter: Mapped object 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 3 Transmit PDO 4 mapping parameter: Mapped object 3 (see [`Self::transmit_pdo_4_mapping_parameter_mapped_object_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_mapping_parameter_mapped_object_3(
             &mut self,
@@ -21584,11 +21028,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_4_mapping_parameter_mapped_object_4(&self) -> u32 {
             self.transmit_pdo_4_mapping_parameter_mapped_object_4
         }
-        /// Sets `0x1A03` sub 4 Transmit PDO 4 mapping parameter: Mapped object 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 4 Transmit PDO 4 mapping parameter: Mapped object 4 (see [`Self::transmit_pdo_4_mapping_parameter_mapped_object_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_mapping_parameter_mapped_object_4(
             &mut self,
@@ -21604,11 +21044,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_4_mapping_parameter_mapped_object_5(&self) -> u32 {
             self.transmit_pdo_4_mapping_parameter_mapped_object_5
         }
-        /// Sets `0x1A03` sub 5 Transmit PDO 4 mapping parameter: Mapped object 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 5 Transmit PDO 4 mapping parameter: Mapped object 5 (see [`Self::transmit_pdo_4_mapping_parameter_mapped_object_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_mapping_parameter_mapped_object_5(
             &mut self,
@@ -21624,11 +21060,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_4_mapping_parameter_mapped_object_6(&self) -> u32 {
             self.transmit_pdo_4_mapping_parameter_mapped_object_6
         }
-        /// Sets `0x1A03` sub 6 Transmit PDO 4 mapping parameter: Mapped object 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 6 Transmit PDO 4 mapping parameter: Mapped object 6 (see [`Self::transmit_pdo_4_mapping_parameter_mapped_object_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_mapping_parameter_mapped_object_6(
             &mut self,
@@ -21644,11 +21076,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_4_mapping_parameter_mapped_object_7(&self) -> u32 {
             self.transmit_pdo_4_mapping_parameter_mapped_object_7
         }
-        /// Sets `0x1A03` sub 7 Transmit PDO 4 mapping parameter: Mapped object 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 7 Transmit PDO 4 mapping parameter: Mapped object 7 (see [`Self::transmit_pdo_4_mapping_parameter_mapped_object_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_mapping_parameter_mapped_object_7(
             &mut self,
@@ -21664,11 +21092,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_4_mapping_parameter_mapped_object_8(&self) -> u32 {
             self.transmit_pdo_4_mapping_parameter_mapped_object_8
         }
-        /// Sets `0x1A03` sub 8 Transmit PDO 4 mapping parameter: Mapped object 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 8 Transmit PDO 4 mapping parameter: Mapped object 8 (see [`Self::transmit_pdo_4_mapping_parameter_mapped_object_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_mapping_parameter_mapped_object_8(
             &mut self,
@@ -21684,11 +21108,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_1_mask_number_of_entries(&self) -> u8 {
             self.transmit_pdo_1_mask_number_of_entries
         }
-        /// Sets `0x2014` sub 0 Transmit PDO 1 mask: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2014` sub 0 Transmit PDO 1 mask: Number of entries (see [`Self::transmit_pdo_1_mask_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_mask_number_of_entries(
             &mut self,
@@ -21704,11 +21124,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_1_mask_mask_bytes_0_to_3(&self) -> u32 {
             self.transmit_pdo_1_mask_mask_bytes_0_to_3
         }
-        /// Sets `0x2014` sub 1 Transmit PDO 1 mask: Mask (bytes 0 to 3).
-        ///
-        /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2014` sub 1 Transmit PDO 1 mask: Mask (bytes 0 to 3) (see [`Self::transmit_pdo_1_mask_mask_bytes_0_to_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_mask_mask_bytes_0_to_3(
             &mut self,
@@ -21724,11 +21140,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_1_mask_mask_bytes_4_to_7(&self) -> u32 {
             self.transmit_pdo_1_mask_mask_bytes_4_to_7
         }
-        /// Sets `0x2014` sub 2 Transmit PDO 1 mask: Mask (bytes 4 to 7).
-        ///
-        /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2014` sub 2 Transmit PDO 1 mask: Mask (bytes 4 to 7) (see [`Self::transmit_pdo_1_mask_mask_bytes_4_to_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_1_mask_mask_bytes_4_to_7(
             &mut self,
@@ -21744,11 +21156,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_2_mask_number_of_entries(&self) -> u8 {
             self.transmit_pdo_2_mask_number_of_entries
         }
-        /// Sets `0x2015` sub 0 Transmit PDO 2 mask: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2015` sub 0 Transmit PDO 2 mask: Number of entries (see [`Self::transmit_pdo_2_mask_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_mask_number_of_entries(
             &mut self,
@@ -21764,11 +21172,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_2_mask_mask_bytes_0_to_3(&self) -> u32 {
             self.transmit_pdo_2_mask_mask_bytes_0_to_3
         }
-        /// Sets `0x2015` sub 1 Transmit PDO 2 mask: Mask (bytes 0 to 3).
-        ///
-        /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2015` sub 1 Transmit PDO 2 mask: Mask (bytes 0 to 3) (see [`Self::transmit_pdo_2_mask_mask_bytes_0_to_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_mask_mask_bytes_0_to_3(
             &mut self,
@@ -21784,11 +21188,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_2_mask_mask_bytes_4_to_7(&self) -> u32 {
             self.transmit_pdo_2_mask_mask_bytes_4_to_7
         }
-        /// Sets `0x2015` sub 2 Transmit PDO 2 mask: Mask (bytes 4 to 7).
-        ///
-        /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2015` sub 2 Transmit PDO 2 mask: Mask (bytes 4 to 7) (see [`Self::transmit_pdo_2_mask_mask_bytes_4_to_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_2_mask_mask_bytes_4_to_7(
             &mut self,
@@ -21804,11 +21204,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_3_mask_number_of_entries(&self) -> u8 {
             self.transmit_pdo_3_mask_number_of_entries
         }
-        /// Sets `0x2016` sub 0 Transmit PDO 3 mask: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2016` sub 0 Transmit PDO 3 mask: Number of entries (see [`Self::transmit_pdo_3_mask_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_mask_number_of_entries(
             &mut self,
@@ -21824,11 +21220,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_3_mask_mask_bytes_0_to_3(&self) -> u32 {
             self.transmit_pdo_3_mask_mask_bytes_0_to_3
         }
-        /// Sets `0x2016` sub 1 Transmit PDO 3 mask: Mask (bytes 0 to 3).
-        ///
-        /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2016` sub 1 Transmit PDO 3 mask: Mask (bytes 0 to 3) (see [`Self::transmit_pdo_3_mask_mask_bytes_0_to_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_mask_mask_bytes_0_to_3(
             &mut self,
@@ -21844,11 +21236,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_3_mask_mask_bytes_4_to_7(&self) -> u32 {
             self.transmit_pdo_3_mask_mask_bytes_4_to_7
         }
-        /// Sets `0x2016` sub 2 Transmit PDO 3 mask: Mask (bytes 4 to 7).
-        ///
-        /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2016` sub 2 Transmit PDO 3 mask: Mask (bytes 4 to 7) (see [`Self::transmit_pdo_3_mask_mask_bytes_4_to_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_3_mask_mask_bytes_4_to_7(
             &mut self,
@@ -21864,11 +21252,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_4_mask_number_of_entries(&self) -> u8 {
             self.transmit_pdo_4_mask_number_of_entries
         }
-        /// Sets `0x2017` sub 0 Transmit PDO 4 mask: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2017` sub 0 Transmit PDO 4 mask: Number of entries (see [`Self::transmit_pdo_4_mask_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_mask_number_of_entries(
             &mut self,
@@ -21884,11 +21268,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_4_mask_mask_bytes_0_to_3(&self) -> u32 {
             self.transmit_pdo_4_mask_mask_bytes_0_to_3
         }
-        /// Sets `0x2017` sub 1 Transmit PDO 4 mask: Mask (bytes 0 to 3).
-        ///
-        /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2017` sub 1 Transmit PDO 4 mask: Mask (bytes 0 to 3) (see [`Self::transmit_pdo_4_mask_mask_bytes_0_to_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_mask_mask_bytes_0_to_3(
             &mut self,
@@ -21904,11 +21284,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn transmit_pdo_4_mask_mask_bytes_4_to_7(&self) -> u32 {
             self.transmit_pdo_4_mask_mask_bytes_4_to_7
         }
-        /// Sets `0x2017` sub 2 Transmit PDO 4 mask: Mask (bytes 4 to 7).
-        ///
-        /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2017` sub 2 Transmit PDO 4 mask: Mask (bytes 4 to 7) (see [`Self::transmit_pdo_4_mask_mask_bytes_4_to_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_4_mask_mask_bytes_4_to_7(
             &mut self,
@@ -21924,11 +21300,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn firmware_version_number_of_entries(&self) -> u8 {
             self.firmware_version_number_of_entries
         }
-        /// Sets `0x2018` sub 0 Firmware version: Number of entries.
-        ///
-        /// UNSIGNED8, access `const`. Default: 4.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2018` sub 0 Firmware version: Number of entries (see [`Self::firmware_version_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_firmware_version_number_of_entries(
             &mut self,
@@ -21944,11 +21316,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn firmware_version_major_version(&self) -> u16 {
             self.firmware_version_major_version
         }
-        /// Sets `0x2018` sub 1 Firmware version: Major version.
-        ///
-        /// UNSIGNED16, access `const`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2018` sub 1 Firmware version: Major version (see [`Self::firmware_version_major_version`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_firmware_version_major_version(
             &mut self,
@@ -21964,11 +21332,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn firmware_version_minor_version(&self) -> u16 {
             self.firmware_version_minor_version
         }
-        /// Sets `0x2018` sub 2 Firmware version: Minor version.
-        ///
-        /// UNSIGNED16, access `const`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2018` sub 2 Firmware version: Minor version (see [`Self::firmware_version_minor_version`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_firmware_version_minor_version(
             &mut self,
@@ -21984,11 +21348,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn firmware_version_revision(&self) -> u16 {
             self.firmware_version_revision
         }
-        /// Sets `0x2018` sub 3 Firmware version: Revision.
-        ///
-        /// UNSIGNED16, access `const`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2018` sub 3 Firmware version: Revision (see [`Self::firmware_version_revision`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_firmware_version_revision(
             &mut self,
@@ -22004,11 +21364,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn firmware_version_derived_version(&self) -> u16 {
             self.firmware_version_derived_version
         }
-        /// Sets `0x2018` sub 4 Firmware version: Derived version.
-        ///
-        /// UNSIGNED16, access `const`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2018` sub 4 Firmware version: Derived version (see [`Self::firmware_version_derived_version`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_firmware_version_derived_version(
             &mut self,
@@ -22024,11 +21380,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn ascii_channel_number_of_entries(&self) -> u8 {
             self.ascii_channel_number_of_entries
         }
-        /// Sets `0x2026` sub 0 ASCII channel: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2026` sub 0 ASCII channel: Number of entries (see [`Self::ascii_channel_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_ascii_channel_number_of_entries(
             &mut self,
@@ -22044,11 +21396,7 @@ Denotation=MOTOR.BRAKEIMM
         pub fn ascii_channel_command(&self) -> &[u8] {
             self.ascii_channel_command.as_slice()
         }
-        /// Sets `0x2026` sub 1 ASCII channel: Command.
-        ///
-        /// VISIBLE_STRING, access `wo`. Default: "". Capacity 32 bytes.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2026` sub 1 ASCII channel: Command (see [`Self::ascii_channel_command`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         pub fn set_ascii_channel_command(
             &mut self,
             v: &[u8],
@@ -22062,11 +21410,7 @@ Denotation=MOTOR.BRAKEIMM
         pub fn ascii_channel_response(&self) -> &[u8] {
             self.ascii_channel_response.as_slice()
         }
-        /// Sets `0x2026` sub 2 ASCII channel: Response.
-        ///
-        /// VISIBLE_STRING, access `ro`. Default: "". Capacity 32 bytes.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2026` sub 2 ASCII channel: Response (see [`Self::ascii_channel_response`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         pub fn set_ascii_channel_response(
             &mut self,
             v: &[u8],
@@ -22080,11 +21424,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn pv_scaling_factor_number_of_entries(&self) -> u8 {
             self.pv_scaling_factor_number_of_entries
         }
-        /// Sets `0x204C` sub 0 pv scaling factor: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x204C` sub 0 pv scaling factor: Number of entries (see [`Self::pv_scaling_factor_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pv_scaling_factor_number_of_entries(
             &mut self,
@@ -22100,11 +21440,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn pv_scaling_factor_pv_scaling_factor_numerator(&self) -> i32 {
             self.pv_scaling_factor_pv_scaling_factor_numerator
         }
-        /// Sets `0x204C` sub 1 pv scaling factor: pv scaling factor numerator.
-        ///
-        /// INTEGER32, access `rw`. Default: 1. Range -32768..=32767.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x204C` sub 1 pv scaling factor: pv scaling factor numerator (see [`Self::pv_scaling_factor_pv_scaling_factor_numerator`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pv_scaling_factor_pv_scaling_factor_numerator(
             &mut self,
@@ -22126,11 +21462,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn pv_scaling_factor_pv_scaling_factor_denominator(&self) -> i32 {
             self.pv_scaling_factor_pv_scaling_factor_denominator
         }
-        /// Sets `0x204C` sub 2 pv scaling factor: pv scaling factor denominator.
-        ///
-        /// INTEGER32, access `rw`. Default: 1. Range -32768..=32767.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x204C` sub 2 pv scaling factor: pv scaling factor denominator (see [`Self::pv_scaling_factor_pv_scaling_factor_denominator`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pv_scaling_factor_pv_scaling_factor_denominator(
             &mut self,
@@ -22148,15 +21480,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x2050` Secondary feedback position.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.HANDWHEEL`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::secondary_feedback_position`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn secondary_feedback_position(&self) -> i32 {
             self.secondary_feedback_position
         }
-        /// Sets `0x2050` Secondary feedback position.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2050` Secondary feedback position (see [`Self::secondary_feedback_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_secondary_feedback_position(
             &mut self,
@@ -22168,15 +21502,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x2071` Target current.
         ///
         /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Current (typed conversion: `units::Units::target_current`).
         #[inline]
         pub const fn target_current(&self) -> i32 {
             self.target_current
         }
-        /// Sets `0x2071` Target current.
-        ///
-        /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2071` Target current (see [`Self::target_current`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_target_current(
             &mut self,
@@ -22188,15 +21520,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x2077` Current actual value.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Current (typed conversion: `units::Units::current_actual_value`).
         #[inline]
         pub const fn current_actual_value(&self) -> i32 {
             self.current_actual_value
         }
-        /// Sets `0x2077` Current actual value.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2077` Current actual value (see [`Self::current_actual_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_current_actual_value(
             &mut self,
@@ -22208,15 +21538,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x20A0` Latch position 1, positive edge.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `CAP0.PLFB, CAP0.T`.
+        ///
+        /// Bus scaling: variable (depends on other settings).
         #[inline]
         pub const fn latch_position_1_positive_edge(&self) -> i32 {
             self.latch_position_1_positive_edge
         }
-        /// Sets `0x20A0` Latch position 1, positive edge.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x20A0` Latch position 1, positive edge (see [`Self::latch_position_1_positive_edge`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_latch_position_1_positive_edge(
             &mut self,
@@ -22228,15 +21558,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x20A1` Latch position 1, negative edge.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `CAP0.PLFB, CAP0.T`.
+        ///
+        /// Bus scaling: variable (depends on other settings).
         #[inline]
         pub const fn latch_position_1_negative_edge(&self) -> i32 {
             self.latch_position_1_negative_edge
         }
-        /// Sets `0x20A1` Latch position 1, negative edge.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x20A1` Latch position 1, negative edge (see [`Self::latch_position_1_negative_edge`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_latch_position_1_negative_edge(
             &mut self,
@@ -22248,15 +21578,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x20A2` Latch position 2, positive edge.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `CAP1.PLFB, CAP1.T`.
+        ///
+        /// Bus scaling: variable (depends on other settings).
         #[inline]
         pub const fn latch_position_2_positive_edge(&self) -> i32 {
             self.latch_position_2_positive_edge
         }
-        /// Sets `0x20A2` Latch position 2, positive edge.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x20A2` Latch position 2, positive edge (see [`Self::latch_position_2_positive_edge`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_latch_position_2_positive_edge(
             &mut self,
@@ -22268,15 +21598,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x20A3` Latch position 2, negative edge.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `CAP1.PLFB, CAP1.T`.
+        ///
+        /// Bus scaling: variable (depends on other settings).
         #[inline]
         pub const fn latch_position_2_negative_edge(&self) -> i32 {
             self.latch_position_2_negative_edge
         }
-        /// Sets `0x20A3` Latch position 2, negative edge.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x20A3` Latch position 2, negative edge (see [`Self::latch_position_2_negative_edge`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_latch_position_2_negative_edge(
             &mut self,
@@ -22292,11 +21622,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn latch_control_register(&self) -> u16 {
             self.latch_control_register
         }
-        /// Sets `0x20A4` Latch control register.
-        ///
-        /// UNSIGNED16, access `rww`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x20A4` Latch control register (see [`Self::latch_control_register`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_latch_control_register(
             &mut self,
@@ -22312,11 +21638,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn latch_status_register(&self) -> u16 {
             self.latch_status_register
         }
-        /// Sets `0x20A5` Latch status register.
-        ///
-        /// UNSIGNED16, access `rwr`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x20A5` Latch status register (see [`Self::latch_status_register`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_latch_status_register(
             &mut self,
@@ -22328,15 +21650,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x20A6` Latch position 1, positive or negative edge.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `CAP0.PLFB`.
+        ///
+        /// Bus scaling: variable (depends on other settings).
         #[inline]
         pub const fn latch_position_1_positive_or_negative_edge(&self) -> i32 {
             self.latch_position_1_positive_or_negative_edge
         }
-        /// Sets `0x20A6` Latch position 1, positive or negative edge.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x20A6` Latch position 1, positive or negative edge (see [`Self::latch_position_1_positive_or_negative_edge`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_latch_position_1_positive_or_negative_edge(
             &mut self,
@@ -22352,11 +21674,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn reset_of_changed_input_information(&self) -> u16 {
             self.reset_of_changed_input_information
         }
-        /// Sets `0x20B8` Reset of changed input information.
-        ///
-        /// UNSIGNED16, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x20B8` Reset of changed input information (see [`Self::reset_of_changed_input_information`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_reset_of_changed_input_information(
             &mut self,
@@ -22372,11 +21690,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn dummy_entry_4_bytes(&self) -> u32 {
             self.dummy_entry_4_bytes
         }
-        /// Sets `0x2100` Dummy entry (4 bytes).
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2100` Dummy entry (4 bytes) (see [`Self::dummy_entry_4_bytes`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_dummy_entry_4_bytes(
             &mut self,
@@ -22392,11 +21706,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn velocity_loop_bi_quad_filter_types_number_of_entries(&self) -> u8 {
             self.velocity_loop_bi_quad_filter_types_number_of_entries
         }
-        /// Sets `0x3405` sub 0 Velocity loop BiQuad filter types: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 4.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3405` sub 0 Velocity loop BiQuad filter types: Number of entries (see [`Self::velocity_loop_bi_quad_filter_types_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filter_types_number_of_entries(
             &mut self,
@@ -22408,17 +21718,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3405` sub 1 Velocity loop BiQuad filter types: BiQuad filter 1 calculation method.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARTYPE1`.
         #[inline]
         pub const fn velocity_loop_bi_quad_filter_types_bi_quad_filter_1_calculation_method(
             &self,
         ) -> u8 {
             self.velocity_loop_bi_quad_filter_types_bi_quad_filter_1_calculation_method
         }
-        /// Sets `0x3405` sub 1 Velocity loop BiQuad filter types: BiQuad filter 1 calculation method.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3405` sub 1 Velocity loop BiQuad filter types: BiQuad filter 1 calculation method (see [`Self::velocity_loop_bi_quad_filter_types_bi_quad_filter_1_calculation_method`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filter_types_bi_quad_filter_1_calculation_method(
             &mut self,
@@ -22431,17 +21739,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3405` sub 2 Velocity loop BiQuad filter types: BiQuad filter 2 calculation method.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARTYPE2`.
         #[inline]
         pub const fn velocity_loop_bi_quad_filter_types_bi_quad_filter_2_calculation_method(
             &self,
         ) -> u8 {
             self.velocity_loop_bi_quad_filter_types_bi_quad_filter_2_calculation_method
         }
-        /// Sets `0x3405` sub 2 Velocity loop BiQuad filter types: BiQuad filter 2 calculation method.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3405` sub 2 Velocity loop BiQuad filter types: BiQuad filter 2 calculation method (see [`Self::velocity_loop_bi_quad_filter_types_bi_quad_filter_2_calculation_method`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filter_types_bi_quad_filter_2_calculation_method(
             &mut self,
@@ -22454,17 +21760,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3405` sub 3 Velocity loop BiQuad filter types: BiQuad filter 3 calculation method.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARTYPE3`.
         #[inline]
         pub const fn velocity_loop_bi_quad_filter_types_bi_quad_filter_3_calculation_method(
             &self,
         ) -> u8 {
             self.velocity_loop_bi_quad_filter_types_bi_quad_filter_3_calculation_method
         }
-        /// Sets `0x3405` sub 3 Velocity loop BiQuad filter types: BiQuad filter 3 calculation method.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3405` sub 3 Velocity loop BiQuad filter types: BiQuad filter 3 calculation method (see [`Self::velocity_loop_bi_quad_filter_types_bi_quad_filter_3_calculation_method`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filter_types_bi_quad_filter_3_calculation_method(
             &mut self,
@@ -22477,17 +21781,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3405` sub 4 Velocity loop BiQuad filter types: BiQuad filter 4 calculation method.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARTYPE4`.
         #[inline]
         pub const fn velocity_loop_bi_quad_filter_types_bi_quad_filter_4_calculation_method(
             &self,
         ) -> u8 {
             self.velocity_loop_bi_quad_filter_types_bi_quad_filter_4_calculation_method
         }
-        /// Sets `0x3405` sub 4 Velocity loop BiQuad filter types: BiQuad filter 4 calculation method.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3405` sub 4 Velocity loop BiQuad filter types: BiQuad filter 4 calculation method (see [`Self::velocity_loop_bi_quad_filter_types_bi_quad_filter_4_calculation_method`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filter_types_bi_quad_filter_4_calculation_method(
             &mut self,
@@ -22504,11 +21806,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn velocity_loop_bi_quad_filters_number_of_entries(&self) -> u8 {
             self.velocity_loop_bi_quad_filters_number_of_entries
         }
-        /// Sets `0x3406` sub 0 Velocity loop BiQuad filters: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 16.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 0 Velocity loop BiQuad filters: Number of entries (see [`Self::velocity_loop_bi_quad_filters_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_number_of_entries(
             &mut self,
@@ -22520,17 +21818,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 1 Velocity loop BiQuad filters: Anti-resonance filter 1 pole natural frequency.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARPF1`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_natural_frequency(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_natural_frequency
         }
-        /// Sets `0x3406` sub 1 Velocity loop BiQuad filters: Anti-resonance filter 1 pole natural frequency.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 1 Velocity loop BiQuad filters: Anti-resonance filter 1 pole natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_natural_frequency(
             &mut self,
@@ -22543,17 +21841,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 2 Velocity loop BiQuad filters: Anti-resonance filter 2 pole natural frequency.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARPF2`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_natural_frequency(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_natural_frequency
         }
-        /// Sets `0x3406` sub 2 Velocity loop BiQuad filters: Anti-resonance filter 2 pole natural frequency.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 2 Velocity loop BiQuad filters: Anti-resonance filter 2 pole natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_natural_frequency(
             &mut self,
@@ -22566,17 +21864,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 3 Velocity loop BiQuad filters: Anti-resonance filter 3 pole natural frequency.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARPF3`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_natural_frequency(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_natural_frequency
         }
-        /// Sets `0x3406` sub 3 Velocity loop BiQuad filters: Anti-resonance filter 3 pole natural frequency.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 3 Velocity loop BiQuad filters: Anti-resonance filter 3 pole natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_natural_frequency(
             &mut self,
@@ -22589,17 +21887,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 4 Velocity loop BiQuad filters: Anti-resonance filter 4 pole natural frequency.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARPF4`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_natural_frequency(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_natural_frequency
         }
-        /// Sets `0x3406` sub 4 Velocity loop BiQuad filters: Anti-resonance filter 4 pole natural frequency.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 4 Velocity loop BiQuad filters: Anti-resonance filter 4 pole natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_natural_frequency(
             &mut self,
@@ -22612,17 +21910,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 5 Velocity loop BiQuad filters: Anti-resonance filter 1 pole Q.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARPQ1`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q
         }
-        /// Sets `0x3406` sub 5 Velocity loop BiQuad filters: Anti-resonance filter 1 pole Q.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 5 Velocity loop BiQuad filters: Anti-resonance filter 1 pole Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q(
             &mut self,
@@ -22634,17 +21932,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 6 Velocity loop BiQuad filters: Anti-resonance filter 2 pole Q.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARPQ2`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q
         }
-        /// Sets `0x3406` sub 6 Velocity loop BiQuad filters: Anti-resonance filter 2 pole Q.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 6 Velocity loop BiQuad filters: Anti-resonance filter 2 pole Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q(
             &mut self,
@@ -22656,17 +21954,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 7 Velocity loop BiQuad filters: Anti-resonance filter 3 pole Q.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARPQ3`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q
         }
-        /// Sets `0x3406` sub 7 Velocity loop BiQuad filters: Anti-resonance filter 3 pole Q.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 7 Velocity loop BiQuad filters: Anti-resonance filter 3 pole Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q(
             &mut self,
@@ -22678,17 +21976,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 8 Velocity loop BiQuad filters: Anti-resonance filter 4 pole Q.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARPQ4`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q
         }
-        /// Sets `0x3406` sub 8 Velocity loop BiQuad filters: Anti-resonance filter 4 pole Q.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 8 Velocity loop BiQuad filters: Anti-resonance filter 4 pole Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q(
             &mut self,
@@ -22700,17 +21998,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 9 Velocity loop BiQuad filters: Anti-resonance filter 1 zero natural frequency.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARZF1`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_natural_frequency(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_natural_frequency
         }
-        /// Sets `0x3406` sub 9 Velocity loop BiQuad filters: Anti-resonance filter 1 zero natural frequency.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 9 Velocity loop BiQuad filters: Anti-resonance filter 1 zero natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_natural_frequency(
             &mut self,
@@ -22723,17 +22021,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 10 Velocity loop BiQuad filters: Anti-resonance filter 2 zero natural frequency.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARZF2`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_natural_frequency(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_natural_frequency
         }
-        /// Sets `0x3406` sub 10 Velocity loop BiQuad filters: Anti-resonance filter 2 zero natural frequency.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 10 Velocity loop BiQuad filters: Anti-resonance filter 2 zero natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_natural_frequency(
             &mut self,
@@ -22746,17 +22044,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 11 Velocity loop BiQuad filters: Anti-resonance filter 3 zero natural frequency.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARZF3`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_natural_frequency(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_natural_frequency
         }
-        /// Sets `0x3406` sub 11 Velocity loop BiQuad filters: Anti-resonance filter 3 zero natural frequency.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 11 Velocity loop BiQuad filters: Anti-resonance filter 3 zero natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_natural_frequency(
             &mut self,
@@ -22769,17 +22067,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 12 Velocity loop BiQuad filters: Anti-resonance filter 4 zero natural frequency.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARZF4`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_natural_frequency(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_natural_frequency
         }
-        /// Sets `0x3406` sub 12 Velocity loop BiQuad filters: Anti-resonance filter 4 zero natural frequency.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 12 Velocity loop BiQuad filters: Anti-resonance filter 4 zero natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_natural_frequency(
             &mut self,
@@ -22792,17 +22090,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 13 Velocity loop BiQuad filters: Anti-resonance filter 1 zero Q.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARZQ1`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q
         }
-        /// Sets `0x3406` sub 13 Velocity loop BiQuad filters: Anti-resonance filter 1 zero Q.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 13 Velocity loop BiQuad filters: Anti-resonance filter 1 zero Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q(
             &mut self,
@@ -22814,17 +22112,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 14 Velocity loop BiQuad filters: Anti-resonance filter 2 zero Q.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARZQ2`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q
         }
-        /// Sets `0x3406` sub 14 Velocity loop BiQuad filters: Anti-resonance filter 2 zero Q.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 14 Velocity loop BiQuad filters: Anti-resonance filter 2 zero Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q(
             &mut self,
@@ -22836,17 +22134,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 15 Velocity loop BiQuad filters: Anti-resonance filter 3 zero Q.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARZQ3`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q
         }
-        /// Sets `0x3406` sub 15 Velocity loop BiQuad filters: Anti-resonance filter 3 zero Q.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 15 Velocity loop BiQuad filters: Anti-resonance filter 3 zero Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q(
             &mut self,
@@ -22858,17 +22156,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3406` sub 16 Velocity loop BiQuad filters: Anti-resonance filter 4 zero Q.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ARZQ4`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q(
             &self,
         ) -> u32 {
             self.velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q
         }
-        /// Sets `0x3406` sub 16 Velocity loop BiQuad filters: Anti-resonance filter 4 zero Q.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3406` sub 16 Velocity loop BiQuad filters: Anti-resonance filter 4 zero Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q(
             &mut self,
@@ -22886,11 +22184,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.velocity_loop_filter_and_feedforward_number_of_entries
         }
-        /// Sets `0x3407` sub 0 Velocity loop filter and feedforward: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 4.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3407` sub 0 Velocity loop filter and feedforward: Number of entries (see [`Self::velocity_loop_filter_and_feedforward_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_filter_and_feedforward_number_of_entries(
             &mut self,
@@ -22902,17 +22196,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3407` sub 1 Velocity loop filter and feedforward: Velocity feedback filtered at 10 Hz.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.FBFILTER`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz`).
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz(
             &self,
         ) -> i32 {
             self.velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz
         }
-        /// Sets `0x3407` sub 1 Velocity loop filter and feedforward: Velocity feedback filtered at 10 Hz.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3407` sub 1 Velocity loop filter and feedforward: Velocity feedback filtered at 10 Hz (see [`Self::velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz(
             &mut self,
@@ -22925,17 +22221,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3407` sub 2 Velocity loop filter and feedforward: Velocity feedforward gain.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.KVFF`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_filter_and_feedforward_velocity_feedforward_gain(
             &self,
         ) -> u32 {
             self.velocity_loop_filter_and_feedforward_velocity_feedforward_gain
         }
-        /// Sets `0x3407` sub 2 Velocity loop filter and feedforward: Velocity feedforward gain.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3407` sub 2 Velocity loop filter and feedforward: Velocity feedforward gain (see [`Self::velocity_loop_filter_and_feedforward_velocity_feedforward_gain`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_filter_and_feedforward_velocity_feedforward_gain(
             &mut self,
@@ -22947,17 +22243,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3407` sub 3 Velocity loop filter and feedforward: Acceleration feedforward gain.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.KBUSFF`.
         #[inline]
         pub const fn velocity_loop_filter_and_feedforward_acceleration_feedforward_gain(
             &self,
         ) -> u32 {
             self.velocity_loop_filter_and_feedforward_acceleration_feedforward_gain
         }
-        /// Sets `0x3407` sub 3 Velocity loop filter and feedforward: Acceleration feedforward gain.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3407` sub 3 Velocity loop filter and feedforward: Acceleration feedforward gain (see [`Self::velocity_loop_filter_and_feedforward_acceleration_feedforward_gain`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_filter_and_feedforward_acceleration_feedforward_gain(
             &mut self,
@@ -22969,15 +22263,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3407` sub 4 Velocity loop filter and feedforward: Velocity error.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.ERR`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_loop_filter_and_feedforward_velocity_error`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn velocity_loop_filter_and_feedforward_velocity_error(&self) -> u32 {
             self.velocity_loop_filter_and_feedforward_velocity_error
         }
-        /// Sets `0x3407` sub 4 Velocity loop filter and feedforward: Velocity error.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3407` sub 4 Velocity loop filter and feedforward: Velocity error (see [`Self::velocity_loop_filter_and_feedforward_velocity_error`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_filter_and_feedforward_velocity_error(
             &mut self,
@@ -22989,15 +22285,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3412` Regen resistor type.
         ///
         /// INTEGER8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `REGEN.TYPE`.
         #[inline]
         pub const fn regen_resistor_type(&self) -> i8 {
             self.regen_resistor_type
         }
-        /// Sets `0x3412` Regen resistor type.
-        ///
-        /// INTEGER8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3412` Regen resistor type (see [`Self::regen_resistor_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_regen_resistor_type(
             &mut self,
@@ -23009,15 +22303,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3414` Regen resistor fault level.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `REGEN.WATTEXT`.
         #[inline]
         pub const fn regen_resistor_fault_level(&self) -> u8 {
             self.regen_resistor_fault_level
         }
-        /// Sets `0x3414` Regen resistor fault level.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3414` Regen resistor fault level (see [`Self::regen_resistor_fault_level`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_regen_resistor_fault_level(
             &mut self,
@@ -23029,15 +22321,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3415` Regen resistor thermal time constant.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `REGEN.TEXT`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn regen_resistor_thermal_time_constant(&self) -> u32 {
             self.regen_resistor_thermal_time_constant
         }
-        /// Sets `0x3415` Regen resistor thermal time constant.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3415` Regen resistor thermal time constant (see [`Self::regen_resistor_thermal_time_constant`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_regen_resistor_thermal_time_constant(
             &mut self,
@@ -23049,15 +22341,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3416` Regen resistor calculated power.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `REGEN.POWER`.
         #[inline]
         pub const fn regen_resistor_calculated_power(&self) -> u32 {
             self.regen_resistor_calculated_power
         }
-        /// Sets `0x3416` Regen resistor calculated power.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3416` Regen resistor calculated power (see [`Self::regen_resistor_calculated_power`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_regen_resistor_calculated_power(
             &mut self,
@@ -23069,15 +22359,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3420` Foldback fault level.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.FOLDFTHRESH`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn foldback_fault_level(&self) -> u16 {
             self.foldback_fault_level
         }
-        /// Sets `0x3420` Foldback fault level.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3420` Foldback fault level (see [`Self::foldback_fault_level`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_foldback_fault_level(
             &mut self,
@@ -23089,15 +22379,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3421` Foldback fault level, user value.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.FOLDFTHRESHU`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn foldback_fault_level_user_value(&self) -> u32 {
             self.foldback_fault_level_user_value
         }
-        /// Sets `0x3421` Foldback fault level, user value.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3421` Foldback fault level, user value (see [`Self::foldback_fault_level_user_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_foldback_fault_level_user_value(
             &mut self,
@@ -23109,15 +22399,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3422` Friction compensation value.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.FRICTION`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn friction_compensation_value(&self) -> u32 {
             self.friction_compensation_value
         }
-        /// Sets `0x3422` Friction compensation value.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3422` Friction compensation value (see [`Self::friction_compensation_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_friction_compensation_value(
             &mut self,
@@ -23129,15 +22419,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3423` Current offset for gravity compensation.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.OFFSET`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn current_offset_for_gravity_compensation(&self) -> i32 {
             self.current_offset_for_gravity_compensation
         }
-        /// Sets `0x3423` Current offset for gravity compensation.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3423` Current offset for gravity compensation (see [`Self::current_offset_for_gravity_compensation`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_current_offset_for_gravity_compensation(
             &mut self,
@@ -23149,15 +22439,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3424` Current loop PI integrator enable.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.INTEN`.
         #[inline]
         pub const fn current_loop_pi_integrator_enable(&self) -> u16 {
             self.current_loop_pi_integrator_enable
         }
-        /// Sets `0x3424` Current loop PI integrator enable.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3424` Current loop PI integrator enable (see [`Self::current_loop_pi_integrator_enable`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_current_loop_pi_integrator_enable(
             &mut self,
@@ -23169,15 +22457,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3425` Overall foldback current limit.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.IFOLD`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn overall_foldback_current_limit(&self) -> u32 {
             self.overall_foldback_current_limit
         }
-        /// Sets `0x3425` Overall foldback current limit.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3425` Overall foldback current limit (see [`Self::overall_foldback_current_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_overall_foldback_current_limit(
             &mut self,
@@ -23189,15 +22477,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3426` Current loop acceleration feedforward gain.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.KACCFF`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn current_loop_acceleration_feedforward_gain(&self) -> u32 {
             self.current_loop_acceleration_feedforward_gain
         }
-        /// Sets `0x3426` Current loop acceleration feedforward gain.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3426` Current loop acceleration feedforward gain (see [`Self::current_loop_acceleration_feedforward_gain`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_current_loop_acceleration_feedforward_gain(
             &mut self,
@@ -23213,11 +22501,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn motor_protection_parameters_number_of_entries(&self) -> u8 {
             self.motor_protection_parameters_number_of_entries
         }
-        /// Sets `0x3427` sub 0 Motor protection parameters: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 3.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3427` sub 0 Motor protection parameters: Number of entries (see [`Self::motor_protection_parameters_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_protection_parameters_number_of_entries(
             &mut self,
@@ -23229,15 +22513,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3427` sub 1 Motor protection parameters: Motor protection mode.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.MIMODE`.
         #[inline]
         pub const fn motor_protection_parameters_motor_protection_mode(&self) -> u8 {
             self.motor_protection_parameters_motor_protection_mode
         }
-        /// Sets `0x3427` sub 1 Motor protection parameters: Motor protection mode.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3427` sub 1 Motor protection parameters: Motor protection mode (see [`Self::motor_protection_parameters_motor_protection_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_protection_parameters_motor_protection_mode(
             &mut self,
@@ -23249,17 +22531,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3427` sub 2 Motor protection parameters: Motor I2t warning threshold.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.MI2TWTHRESH`.
         #[inline]
         pub const fn motor_protection_parameters_motor_i2t_warning_threshold(
             &self,
         ) -> u8 {
             self.motor_protection_parameters_motor_i2t_warning_threshold
         }
-        /// Sets `0x3427` sub 2 Motor protection parameters: Motor I2t warning threshold.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3427` sub 2 Motor protection parameters: Motor I2t warning threshold (see [`Self::motor_protection_parameters_motor_i2t_warning_threshold`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_protection_parameters_motor_i2t_warning_threshold(
             &mut self,
@@ -23271,15 +22551,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3427` sub 3 Motor protection parameters: Motor I2t load.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `IL.MI2T`.
         #[inline]
         pub const fn motor_protection_parameters_motor_i2t_load(&self) -> u32 {
             self.motor_protection_parameters_motor_i2t_load
         }
-        /// Sets `0x3427` sub 3 Motor protection parameters: Motor I2t load.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3427` sub 3 Motor protection parameters: Motor I2t load (see [`Self::motor_protection_parameters_motor_i2t_load`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_protection_parameters_motor_i2t_load(
             &mut self,
@@ -23291,15 +22569,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3430` Direction for absolute motion tasks.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PL.MODPDIR`.
         #[inline]
         pub const fn direction_for_absolute_motion_tasks(&self) -> u8 {
             self.direction_for_absolute_motion_tasks
         }
-        /// Sets `0x3430` Direction for absolute motion tasks.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3430` Direction for absolute motion tasks (see [`Self::direction_for_absolute_motion_tasks`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_direction_for_absolute_motion_tasks(
             &mut self,
@@ -23311,15 +22587,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3431` Motion task setting.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MT.SET`.
         #[inline]
         pub const fn motion_task_setting(&self) -> u16 {
             self.motion_task_setting
         }
-        /// Sets `0x3431` Motion task setting.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3431` Motion task setting (see [`Self::motion_task_setting`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motion_task_setting(
             &mut self,
@@ -23335,11 +22609,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn controlled_stop_parameters_number_of_entries(&self) -> u8 {
             self.controlled_stop_parameters_number_of_entries
         }
-        /// Sets `0x3440` sub 0 Controlled stop parameters: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 3.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3440` sub 0 Controlled stop parameters: Number of entries (see [`Self::controlled_stop_parameters_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_controlled_stop_parameters_number_of_entries(
             &mut self,
@@ -23351,17 +22621,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3440` sub 1 Controlled stop parameters: Controlled stop deceleration.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `CS.DEC`.
+        ///
+        /// Dimension: Acceleration (typed conversion: `units::Units::controlled_stop_parameters_controlled_stop_deceleration`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn controlled_stop_parameters_controlled_stop_deceleration(
             &self,
         ) -> u32 {
             self.controlled_stop_parameters_controlled_stop_deceleration
         }
-        /// Sets `0x3440` sub 1 Controlled stop parameters: Controlled stop deceleration.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3440` sub 1 Controlled stop parameters: Controlled stop deceleration (see [`Self::controlled_stop_parameters_controlled_stop_deceleration`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_controlled_stop_parameters_controlled_stop_deceleration(
             &mut self,
@@ -23373,17 +22645,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3440` sub 2 Controlled stop parameters: Controlled stop velocity threshold.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `CS.VTHRESH`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::controlled_stop_parameters_controlled_stop_velocity_threshold`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn controlled_stop_parameters_controlled_stop_velocity_threshold(
             &self,
         ) -> u32 {
             self.controlled_stop_parameters_controlled_stop_velocity_threshold
         }
-        /// Sets `0x3440` sub 2 Controlled stop parameters: Controlled stop velocity threshold.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3440` sub 2 Controlled stop parameters: Controlled stop velocity threshold (see [`Self::controlled_stop_parameters_controlled_stop_velocity_threshold`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_controlled_stop_parameters_controlled_stop_velocity_threshold(
             &mut self,
@@ -23395,17 +22669,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3440` sub 3 Controlled stop parameters: Controlled stop velocity threshold time.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `CS.TO`.
         #[inline]
         pub const fn controlled_stop_parameters_controlled_stop_velocity_threshold_time(
             &self,
         ) -> u32 {
             self.controlled_stop_parameters_controlled_stop_velocity_threshold_time
         }
-        /// Sets `0x3440` sub 3 Controlled stop parameters: Controlled stop velocity threshold time.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3440` sub 3 Controlled stop parameters: Controlled stop velocity threshold time (see [`Self::controlled_stop_parameters_controlled_stop_velocity_threshold_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_controlled_stop_parameters_controlled_stop_velocity_threshold_time(
             &mut self,
@@ -23417,15 +22689,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3441` Controlled stop state.
         ///
         /// UNSIGNED8, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `CS.STATE`.
         #[inline]
         pub const fn controlled_stop_state(&self) -> u8 {
             self.controlled_stop_state
         }
-        /// Sets `0x3441` Controlled stop state.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3441` Controlled stop state (see [`Self::controlled_stop_state`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_controlled_stop_state(
             &mut self,
@@ -23437,15 +22707,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3443` Drive disable cause.
         ///
         /// UNSIGNED16, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.DIS`.
         #[inline]
         pub const fn drive_disable_cause(&self) -> u16 {
             self.drive_disable_cause
         }
-        /// Sets `0x3443` Drive disable cause.
-        ///
-        /// UNSIGNED16, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3443` Drive disable cause (see [`Self::drive_disable_cause`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_drive_disable_cause(
             &mut self,
@@ -23457,15 +22725,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3444` Dynamic braking maximum current.
         ///
         /// UNSIGNED16, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.DBILIMIT`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn dynamic_braking_maximum_current(&self) -> u16 {
             self.dynamic_braking_maximum_current
         }
-        /// Sets `0x3444` Dynamic braking maximum current.
-        ///
-        /// UNSIGNED16, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3444` Dynamic braking maximum current (see [`Self::dynamic_braking_maximum_current`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_dynamic_braking_maximum_current(
             &mut self,
@@ -23477,15 +22745,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3445` Emergency timeout for braking.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.DISTO`.
         #[inline]
         pub const fn emergency_timeout_for_braking(&self) -> u32 {
             self.emergency_timeout_for_braking
         }
-        /// Sets `0x3445` Emergency timeout for braking.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3445` Emergency timeout for braking (see [`Self::emergency_timeout_for_braking`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_emergency_timeout_for_braking(
             &mut self,
@@ -23497,15 +22763,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3450` Motor brake release.
         ///
         /// UNSIGNED8, access `wo`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.BRAKERLS`.
         #[inline]
         pub const fn motor_brake_release(&self) -> u8 {
             self.motor_brake_release
         }
-        /// Sets `0x3450` Motor brake release.
-        ///
-        /// UNSIGNED8, access `wo`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3450` Motor brake release (see [`Self::motor_brake_release`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_brake_release(
             &mut self,
@@ -23517,15 +22781,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3451` Motor parameters automatic calculation.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.AUTOSET`.
         #[inline]
         pub const fn motor_parameters_automatic_calculation(&self) -> u8 {
             self.motor_parameters_automatic_calculation
         }
-        /// Sets `0x3451` Motor parameters automatic calculation.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3451` Motor parameters automatic calculation (see [`Self::motor_parameters_automatic_calculation`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_parameters_automatic_calculation(
             &mut self,
@@ -23537,15 +22799,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3452` Motor maximum voltage.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.VOLTMAX`.
         #[inline]
         pub const fn motor_maximum_voltage(&self) -> u16 {
             self.motor_maximum_voltage
         }
-        /// Sets `0x3452` Motor maximum voltage.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3452` Motor maximum voltage (see [`Self::motor_maximum_voltage`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_maximum_voltage(
             &mut self,
@@ -23557,15 +22817,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3453` Motor temperature warning level.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.TEMPWARN`.
         #[inline]
         pub const fn motor_temperature_warning_level(&self) -> u32 {
             self.motor_temperature_warning_level
         }
-        /// Sets `0x3453` Motor temperature warning level.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3453` Motor temperature warning level (see [`Self::motor_temperature_warning_level`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_temperature_warning_level(
             &mut self,
@@ -23577,15 +22835,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3454` Motor winding thermal constant.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.CTF0`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn motor_winding_thermal_constant(&self) -> u32 {
             self.motor_winding_thermal_constant
         }
-        /// Sets `0x3454` Motor winding thermal constant.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3454` Motor winding thermal constant (see [`Self::motor_winding_thermal_constant`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_winding_thermal_constant(
             &mut self,
@@ -23597,15 +22855,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3455` Motor quadrature inductance (line to line).
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.LQLL`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn motor_quadrature_inductance_line_to_line(&self) -> u32 {
             self.motor_quadrature_inductance_line_to_line
         }
-        /// Sets `0x3455` Motor quadrature inductance (line to line).
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3455` Motor quadrature inductance (line to line) (see [`Self::motor_quadrature_inductance_line_to_line`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_quadrature_inductance_line_to_line(
             &mut self,
@@ -23617,15 +22875,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3456` Motor stator winding resistance (phase to phase).
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.R`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn motor_stator_winding_resistance_phase_to_phase(&self) -> u32 {
             self.motor_stator_winding_resistance_phase_to_phase
         }
-        /// Sets `0x3456` Motor stator winding resistance (phase to phase).
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3456` Motor stator winding resistance (phase to phase) (see [`Self::motor_stator_winding_resistance_phase_to_phase`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_stator_winding_resistance_phase_to_phase(
             &mut self,
@@ -23641,11 +22899,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn induction_motor_parameters_number_of_entries(&self) -> u8 {
             self.induction_motor_parameters_number_of_entries
         }
-        /// Sets `0x3457` sub 0 Induction motor parameters: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 3.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3457` sub 0 Induction motor parameters: Number of entries (see [`Self::induction_motor_parameters_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_induction_motor_parameters_number_of_entries(
             &mut self,
@@ -23657,17 +22911,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3457` sub 1 Induction motor parameters: Induction motor rated velocity.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.VRATED`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn induction_motor_parameters_induction_motor_rated_velocity(
             &self,
         ) -> i32 {
             self.induction_motor_parameters_induction_motor_rated_velocity
         }
-        /// Sets `0x3457` sub 1 Induction motor parameters: Induction motor rated velocity.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3457` sub 1 Induction motor parameters: Induction motor rated velocity (see [`Self::induction_motor_parameters_induction_motor_rated_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_induction_motor_parameters_induction_motor_rated_velocity(
             &mut self,
@@ -23679,17 +22933,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3457` sub 2 Induction motor parameters: Induction motor rated voltage.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.VOLTRATED`.
         #[inline]
         pub const fn induction_motor_parameters_induction_motor_rated_voltage(
             &self,
         ) -> u16 {
             self.induction_motor_parameters_induction_motor_rated_voltage
         }
-        /// Sets `0x3457` sub 2 Induction motor parameters: Induction motor rated voltage.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3457` sub 2 Induction motor parameters: Induction motor rated voltage (see [`Self::induction_motor_parameters_induction_motor_rated_voltage`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_induction_motor_parameters_induction_motor_rated_voltage(
             &mut self,
@@ -23701,17 +22953,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3457` sub 3 Induction motor parameters: Minimum voltage for V/f control.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.VOLTMIN`.
         #[inline]
         pub const fn induction_motor_parameters_minimum_voltage_for_v_f_control(
             &self,
         ) -> u16 {
             self.induction_motor_parameters_minimum_voltage_for_v_f_control
         }
-        /// Sets `0x3457` sub 3 Induction motor parameters: Minimum voltage for V/f control.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3457` sub 3 Induction motor parameters: Minimum voltage for V/f control (see [`Self::induction_motor_parameters_minimum_voltage_for_v_f_control`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_induction_motor_parameters_minimum_voltage_for_v_f_control(
             &mut self,
@@ -23727,11 +22977,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn capture_engine_parameters_number_of_entries(&self) -> u8 {
             self.capture_engine_parameters_number_of_entries
         }
-        /// Sets `0x3460` sub 0 Capture engine parameters: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 10.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3460` sub 0 Capture engine parameters: Number of entries (see [`Self::capture_engine_parameters_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_capture_engine_parameters_number_of_entries(
             &mut self,
@@ -23743,15 +22989,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3460` sub 1 Capture engine parameters: Capture 0 trigger source.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `CAP0.TRIGGER`.
         #[inline]
         pub const fn capture_engine_parameters_capture_0_trigger_source(&self) -> u8 {
             self.capture_engine_parameters_capture_0_trigger_source
         }
-        /// Sets `0x3460` sub 1 Capture engine parameters: Capture 0 trigger source.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3460` sub 1 Capture engine parameters: Capture 0 trigger source (see [`Self::capture_engine_parameters_capture_0_trigger_source`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_capture_engine_parameters_capture_0_trigger_source(
             &mut self,
@@ -23763,15 +23007,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3460` sub 2 Capture engine parameters: Capture 1 trigger source.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `CAP1.TRIGGER`.
         #[inline]
         pub const fn capture_engine_parameters_capture_1_trigger_source(&self) -> u8 {
             self.capture_engine_parameters_capture_1_trigger_source
         }
-        /// Sets `0x3460` sub 2 Capture engine parameters: Capture 1 trigger source.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3460` sub 2 Capture engine parameters: Capture 1 trigger source (see [`Self::capture_engine_parameters_capture_1_trigger_source`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_capture_engine_parameters_capture_1_trigger_source(
             &mut self,
@@ -23783,15 +23025,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3460` sub 3 Capture engine parameters: Capture 0 mode.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `CAP0.MODE`.
         #[inline]
         pub const fn capture_engine_parameters_capture_0_mode(&self) -> u8 {
             self.capture_engine_parameters_capture_0_mode
         }
-        /// Sets `0x3460` sub 3 Capture engine parameters: Capture 0 mode.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3460` sub 3 Capture engine parameters: Capture 0 mode (see [`Self::capture_engine_parameters_capture_0_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_capture_engine_parameters_capture_0_mode(
             &mut self,
@@ -23803,15 +23043,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3460` sub 4 Capture engine parameters: Capture 1 mode.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `CAP1.MODE`.
         #[inline]
         pub const fn capture_engine_parameters_capture_1_mode(&self) -> u8 {
             self.capture_engine_parameters_capture_1_mode
         }
-        /// Sets `0x3460` sub 4 Capture engine parameters: Capture 1 mode.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3460` sub 4 Capture engine parameters: Capture 1 mode (see [`Self::capture_engine_parameters_capture_1_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_capture_engine_parameters_capture_1_mode(
             &mut self,
@@ -23823,17 +23061,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3460` sub 5 Capture engine parameters: Capture 0 precondition logic.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `CAP0.EVENT`.
         #[inline]
         pub const fn capture_engine_parameters_capture_0_precondition_logic(
             &self,
         ) -> u8 {
             self.capture_engine_parameters_capture_0_precondition_logic
         }
-        /// Sets `0x3460` sub 5 Capture engine parameters: Capture 0 precondition logic.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3460` sub 5 Capture engine parameters: Capture 0 precondition logic (see [`Self::capture_engine_parameters_capture_0_precondition_logic`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_capture_engine_parameters_capture_0_precondition_logic(
             &mut self,
@@ -23845,17 +23081,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3460` sub 6 Capture engine parameters: Capture 1 precondition logic.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `CAP1.EVENT`.
         #[inline]
         pub const fn capture_engine_parameters_capture_1_precondition_logic(
             &self,
         ) -> u8 {
             self.capture_engine_parameters_capture_1_precondition_logic
         }
-        /// Sets `0x3460` sub 6 Capture engine parameters: Capture 1 precondition logic.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3460` sub 6 Capture engine parameters: Capture 1 precondition logic (see [`Self::capture_engine_parameters_capture_1_precondition_logic`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_capture_engine_parameters_capture_1_precondition_logic(
             &mut self,
@@ -23867,15 +23101,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3460` sub 7 Capture engine parameters: Capture 0 precondition edge.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `CAP0.PREEDGE`.
         #[inline]
         pub const fn capture_engine_parameters_capture_0_precondition_edge(&self) -> u8 {
             self.capture_engine_parameters_capture_0_precondition_edge
         }
-        /// Sets `0x3460` sub 7 Capture engine parameters: Capture 0 precondition edge.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3460` sub 7 Capture engine parameters: Capture 0 precondition edge (see [`Self::capture_engine_parameters_capture_0_precondition_edge`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_capture_engine_parameters_capture_0_precondition_edge(
             &mut self,
@@ -23887,15 +23119,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3460` sub 8 Capture engine parameters: Capture 1 precondition edge.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `CAP1.PREEDGE`.
         #[inline]
         pub const fn capture_engine_parameters_capture_1_precondition_edge(&self) -> u8 {
             self.capture_engine_parameters_capture_1_precondition_edge
         }
-        /// Sets `0x3460` sub 8 Capture engine parameters: Capture 1 precondition edge.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3460` sub 8 Capture engine parameters: Capture 1 precondition edge (see [`Self::capture_engine_parameters_capture_1_precondition_edge`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_capture_engine_parameters_capture_1_precondition_edge(
             &mut self,
@@ -23907,17 +23137,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3460` sub 9 Capture engine parameters: Capture 0 precondition trigger.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `CAP0.PRESELECT`.
         #[inline]
         pub const fn capture_engine_parameters_capture_0_precondition_trigger(
             &self,
         ) -> u8 {
             self.capture_engine_parameters_capture_0_precondition_trigger
         }
-        /// Sets `0x3460` sub 9 Capture engine parameters: Capture 0 precondition trigger.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3460` sub 9 Capture engine parameters: Capture 0 precondition trigger (see [`Self::capture_engine_parameters_capture_0_precondition_trigger`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_capture_engine_parameters_capture_0_precondition_trigger(
             &mut self,
@@ -23929,17 +23157,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3460` sub 10 Capture engine parameters: Capture 1 precondition trigger.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `CAP1.PRESELECT`.
         #[inline]
         pub const fn capture_engine_parameters_capture_1_precondition_trigger(
             &self,
         ) -> u8 {
             self.capture_engine_parameters_capture_1_precondition_trigger
         }
-        /// Sets `0x3460` sub 10 Capture engine parameters: Capture 1 precondition trigger.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3460` sub 10 Capture engine parameters: Capture 1 precondition trigger (see [`Self::capture_engine_parameters_capture_1_precondition_trigger`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_capture_engine_parameters_capture_1_precondition_trigger(
             &mut self,
@@ -23955,11 +23181,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn analog_input_and_output_parameters_number_of_entries(&self) -> u8 {
             self.analog_input_and_output_parameters_number_of_entries
         }
-        /// Sets `0x3470` sub 0 Analog input and output parameters: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3470` sub 0 Analog input and output parameters: Number of entries (see [`Self::analog_input_and_output_parameters_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_input_and_output_parameters_number_of_entries(
             &mut self,
@@ -23971,15 +23193,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3470` sub 1 Analog input and output parameters: Analog output mode.
         ///
         /// INTEGER8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `AOUT.MODE`.
         #[inline]
         pub const fn analog_input_and_output_parameters_analog_output_mode(&self) -> i8 {
             self.analog_input_and_output_parameters_analog_output_mode
         }
-        /// Sets `0x3470` sub 1 Analog input and output parameters: Analog output mode.
-        ///
-        /// INTEGER8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3470` sub 1 Analog input and output parameters: Analog output mode (see [`Self::analog_input_and_output_parameters_analog_output_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_input_and_output_parameters_analog_output_mode(
             &mut self,
@@ -23991,17 +23211,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3470` sub 2 Analog input and output parameters: Analog output value.
         ///
         /// INTEGER16, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `AOUT.VALUE`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn analog_input_and_output_parameters_analog_output_value(
             &self,
         ) -> i16 {
             self.analog_input_and_output_parameters_analog_output_value
         }
-        /// Sets `0x3470` sub 2 Analog input and output parameters: Analog output value.
-        ///
-        /// INTEGER16, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3470` sub 2 Analog input and output parameters: Analog output value (see [`Self::analog_input_and_output_parameters_analog_output_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_input_and_output_parameters_analog_output_value(
             &mut self,
@@ -24013,17 +23233,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3470` sub 3 Analog input and output parameters: Analog output value, user units.
         ///
         /// INTEGER16, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `AOUT.VALUEU`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn analog_input_and_output_parameters_analog_output_value_user_units(
             &self,
         ) -> i16 {
             self.analog_input_and_output_parameters_analog_output_value_user_units
         }
-        /// Sets `0x3470` sub 3 Analog input and output parameters: Analog output value, user units.
-        ///
-        /// INTEGER16, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3470` sub 3 Analog input and output parameters: Analog output value, user units (see [`Self::analog_input_and_output_parameters_analog_output_value_user_units`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_input_and_output_parameters_analog_output_value_user_units(
             &mut self,
@@ -24035,17 +23255,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3470` sub 4 Analog input and output parameters: Analog input value.
         ///
         /// INTEGER16, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `AIN.VALUE`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn analog_input_and_output_parameters_analog_input_value(
             &self,
         ) -> i16 {
             self.analog_input_and_output_parameters_analog_input_value
         }
-        /// Sets `0x3470` sub 4 Analog input and output parameters: Analog input value.
-        ///
-        /// INTEGER16, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3470` sub 4 Analog input and output parameters: Analog input value (see [`Self::analog_input_and_output_parameters_analog_input_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_input_and_output_parameters_analog_input_value(
             &mut self,
@@ -24057,17 +23277,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3470` sub 5 Analog input and output parameters: Analog output velocity scale factor.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `AOUT.VSCALE`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn analog_input_and_output_parameters_analog_output_velocity_scale_factor(
             &self,
         ) -> u32 {
             self.analog_input_and_output_parameters_analog_output_velocity_scale_factor
         }
-        /// Sets `0x3470` sub 5 Analog input and output parameters: Analog output velocity scale factor.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3470` sub 5 Analog input and output parameters: Analog output velocity scale factor (see [`Self::analog_input_and_output_parameters_analog_output_velocity_scale_factor`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_input_and_output_parameters_analog_output_velocity_scale_factor(
             &mut self,
@@ -24080,15 +23300,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3471` Analog output position scale factor.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `AOUT.PSCALE`.
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn analog_output_position_scale_factor(&self) -> u32 {
             self.analog_output_position_scale_factor
         }
-        /// Sets `0x3471` Analog output position scale factor.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3471` Analog output position scale factor (see [`Self::analog_output_position_scale_factor`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_output_position_scale_factor(
             &mut self,
@@ -24100,15 +23320,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3472` Analog input position scale factor.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `AIN.PSCALE`.
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn analog_input_position_scale_factor(&self) -> u32 {
             self.analog_input_position_scale_factor
         }
-        /// Sets `0x3472` Analog input position scale factor.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3472` Analog input position scale factor (see [`Self::analog_input_position_scale_factor`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_input_position_scale_factor(
             &mut self,
@@ -24124,11 +23344,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn digital_input_parameters_number_of_entries(&self) -> u8 {
             self.digital_input_parameters_number_of_entries
         }
-        /// Sets `0x3474` sub 0 Digital input parameters: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 14.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3474` sub 0 Digital input parameters: Number of entries (see [`Self::digital_input_parameters_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_parameters_number_of_entries(
             &mut self,
@@ -24140,17 +23356,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3474` sub 1 Digital input parameters: Digital input 1 parameter, low 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN1.PARAM`.
         #[inline]
         pub const fn digital_input_parameters_digital_input_1_parameter_low_32_bits(
             &self,
         ) -> u32 {
             self.digital_input_parameters_digital_input_1_parameter_low_32_bits
         }
-        /// Sets `0x3474` sub 1 Digital input parameters: Digital input 1 parameter, low 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3474` sub 1 Digital input parameters: Digital input 1 parameter, low 32 bits (see [`Self::digital_input_parameters_digital_input_1_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_parameters_digital_input_1_parameter_low_32_bits(
             &mut self,
@@ -24162,17 +23376,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3474` sub 2 Digital input parameters: Digital input 2 parameter, low 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN2.PARAM`.
         #[inline]
         pub const fn digital_input_parameters_digital_input_2_parameter_low_32_bits(
             &self,
         ) -> u32 {
             self.digital_input_parameters_digital_input_2_parameter_low_32_bits
         }
-        /// Sets `0x3474` sub 2 Digital input parameters: Digital input 2 parameter, low 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3474` sub 2 Digital input parameters: Digital input 2 parameter, low 32 bits (see [`Self::digital_input_parameters_digital_input_2_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_parameters_digital_input_2_parameter_low_32_bits(
             &mut self,
@@ -24184,17 +23396,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3474` sub 3 Digital input parameters: Digital input 3 parameter, low 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN3.PARAM`.
         #[inline]
         pub const fn digital_input_parameters_digital_input_3_parameter_low_32_bits(
             &self,
         ) -> u32 {
             self.digital_input_parameters_digital_input_3_parameter_low_32_bits
         }
-        /// Sets `0x3474` sub 3 Digital input parameters: Digital input 3 parameter, low 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3474` sub 3 Digital input parameters: Digital input 3 parameter, low 32 bits (see [`Self::digital_input_parameters_digital_input_3_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_parameters_digital_input_3_parameter_low_32_bits(
             &mut self,
@@ -24206,17 +23416,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3474` sub 4 Digital input parameters: Digital input 4 parameter, low 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN4.PARAM`.
         #[inline]
         pub const fn digital_input_parameters_digital_input_4_parameter_low_32_bits(
             &self,
         ) -> u32 {
             self.digital_input_parameters_digital_input_4_parameter_low_32_bits
         }
-        /// Sets `0x3474` sub 4 Digital input parameters: Digital input 4 parameter, low 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3474` sub 4 Digital input parameters: Digital input 4 parameter, low 32 bits (see [`Self::digital_input_parameters_digital_input_4_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_parameters_digital_input_4_parameter_low_32_bits(
             &mut self,
@@ -24228,17 +23436,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3474` sub 5 Digital input parameters: Digital input 5 parameter, low 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN5.PARAM`.
         #[inline]
         pub const fn digital_input_parameters_digital_input_5_parameter_low_32_bits(
             &self,
         ) -> u32 {
             self.digital_input_parameters_digital_input_5_parameter_low_32_bits
         }
-        /// Sets `0x3474` sub 5 Digital input parameters: Digital input 5 parameter, low 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3474` sub 5 Digital input parameters: Digital input 5 parameter, low 32 bits (see [`Self::digital_input_parameters_digital_input_5_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_parameters_digital_input_5_parameter_low_32_bits(
             &mut self,
@@ -24250,17 +23456,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3474` sub 6 Digital input parameters: Digital input 6 parameter, low 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN6.PARAM`.
         #[inline]
         pub const fn digital_input_parameters_digital_input_6_parameter_low_32_bits(
             &self,
         ) -> u32 {
             self.digital_input_parameters_digital_input_6_parameter_low_32_bits
         }
-        /// Sets `0x3474` sub 6 Digital input parameters: Digital input 6 parameter, low 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3474` sub 6 Digital input parameters: Digital input 6 parameter, low 32 bits (see [`Self::digital_input_parameters_digital_input_6_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_parameters_digital_input_6_parameter_low_32_bits(
             &mut self,
@@ -24272,17 +23476,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3474` sub 7 Digital input parameters: Digital input 7 parameter, low 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN7.PARAM`.
         #[inline]
         pub const fn digital_input_parameters_digital_input_7_parameter_low_32_bits(
             &self,
         ) -> u32 {
             self.digital_input_parameters_digital_input_7_parameter_low_32_bits
         }
-        /// Sets `0x3474` sub 7 Digital input parameters: Digital input 7 parameter, low 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3474` sub 7 Digital input parameters: Digital input 7 parameter, low 32 bits (see [`Self::digital_input_parameters_digital_input_7_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_parameters_digital_input_7_parameter_low_32_bits(
             &mut self,
@@ -24294,17 +23496,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3474` sub 8 Digital input parameters: Digital input 1 parameter, high 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN1.PARAM`.
         #[inline]
         pub const fn digital_input_parameters_digital_input_1_parameter_high_32_bits(
             &self,
         ) -> u32 {
             self.digital_input_parameters_digital_input_1_parameter_high_32_bits
         }
-        /// Sets `0x3474` sub 8 Digital input parameters: Digital input 1 parameter, high 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3474` sub 8 Digital input parameters: Digital input 1 parameter, high 32 bits (see [`Self::digital_input_parameters_digital_input_1_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_parameters_digital_input_1_parameter_high_32_bits(
             &mut self,
@@ -24316,17 +23516,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3474` sub 9 Digital input parameters: Digital input 2 parameter, high 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN2.PARAM`.
         #[inline]
         pub const fn digital_input_parameters_digital_input_2_parameter_high_32_bits(
             &self,
         ) -> u32 {
             self.digital_input_parameters_digital_input_2_parameter_high_32_bits
         }
-        /// Sets `0x3474` sub 9 Digital input parameters: Digital input 2 parameter, high 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3474` sub 9 Digital input parameters: Digital input 2 parameter, high 32 bits (see [`Self::digital_input_parameters_digital_input_2_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_parameters_digital_input_2_parameter_high_32_bits(
             &mut self,
@@ -24338,17 +23536,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3474` sub 10 Digital input parameters: Digital input 3 parameter, high 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN3.PARAM`.
         #[inline]
         pub const fn digital_input_parameters_digital_input_3_parameter_high_32_bits(
             &self,
         ) -> u32 {
             self.digital_input_parameters_digital_input_3_parameter_high_32_bits
         }
-        /// Sets `0x3474` sub 10 Digital input parameters: Digital input 3 parameter, high 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3474` sub 10 Digital input parameters: Digital input 3 parameter, high 32 bits (see [`Self::digital_input_parameters_digital_input_3_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_parameters_digital_input_3_parameter_high_32_bits(
             &mut self,
@@ -24360,17 +23556,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3474` sub 11 Digital input parameters: Digital input 4 parameter, high 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN4.PARAM`.
         #[inline]
         pub const fn digital_input_parameters_digital_input_4_parameter_high_32_bits(
             &self,
         ) -> u32 {
             self.digital_input_parameters_digital_input_4_parameter_high_32_bits
         }
-        /// Sets `0x3474` sub 11 Digital input parameters: Digital input 4 parameter, high 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3474` sub 11 Digital input parameters: Digital input 4 parameter, high 32 bits (see [`Self::digital_input_parameters_digital_input_4_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_parameters_digital_input_4_parameter_high_32_bits(
             &mut self,
@@ -24382,17 +23576,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3474` sub 12 Digital input parameters: Digital input 5 parameter, high 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN5.PARAM`.
         #[inline]
         pub const fn digital_input_parameters_digital_input_5_parameter_high_32_bits(
             &self,
         ) -> u32 {
             self.digital_input_parameters_digital_input_5_parameter_high_32_bits
         }
-        /// Sets `0x3474` sub 12 Digital input parameters: Digital input 5 parameter, high 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3474` sub 12 Digital input parameters: Digital input 5 parameter, high 32 bits (see [`Self::digital_input_parameters_digital_input_5_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_parameters_digital_input_5_parameter_high_32_bits(
             &mut self,
@@ -24404,17 +23596,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3474` sub 13 Digital input parameters: Digital input 6 parameter, high 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN6.PARAM`.
         #[inline]
         pub const fn digital_input_parameters_digital_input_6_parameter_high_32_bits(
             &self,
         ) -> u32 {
             self.digital_input_parameters_digital_input_6_parameter_high_32_bits
         }
-        /// Sets `0x3474` sub 13 Digital input parameters: Digital input 6 parameter, high 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3474` sub 13 Digital input parameters: Digital input 6 parameter, high 32 bits (see [`Self::digital_input_parameters_digital_input_6_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_parameters_digital_input_6_parameter_high_32_bits(
             &mut self,
@@ -24426,17 +23616,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3474` sub 14 Digital input parameters: Digital input 7 parameter, high 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN7.PARAM`.
         #[inline]
         pub const fn digital_input_parameters_digital_input_7_parameter_high_32_bits(
             &self,
         ) -> u32 {
             self.digital_input_parameters_digital_input_7_parameter_high_32_bits
         }
-        /// Sets `0x3474` sub 14 Digital input parameters: Digital input 7 parameter, high 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3474` sub 14 Digital input parameters: Digital input 7 parameter, high 32 bits (see [`Self::digital_input_parameters_digital_input_7_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_parameters_digital_input_7_parameter_high_32_bits(
             &mut self,
@@ -24452,11 +23640,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn digital_output_parameters_number_of_entries(&self) -> u8 {
             self.digital_output_parameters_number_of_entries
         }
-        /// Sets `0x3475` sub 0 Digital output parameters: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 4.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3475` sub 0 Digital output parameters: Number of entries (see [`Self::digital_output_parameters_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_output_parameters_number_of_entries(
             &mut self,
@@ -24468,17 +23652,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3475` sub 1 Digital output parameters: Digital output 1 parameter, low 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DOUT1.PARAM`.
         #[inline]
         pub const fn digital_output_parameters_digital_output_1_parameter_low_32_bits(
             &self,
         ) -> u32 {
             self.digital_output_parameters_digital_output_1_parameter_low_32_bits
         }
-        /// Sets `0x3475` sub 1 Digital output parameters: Digital output 1 parameter, low 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3475` sub 1 Digital output parameters: Digital output 1 parameter, low 32 bits (see [`Self::digital_output_parameters_digital_output_1_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_output_parameters_digital_output_1_parameter_low_32_bits(
             &mut self,
@@ -24490,17 +23672,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3475` sub 2 Digital output parameters: Digital output 2 parameter, low 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DOUT2.PARAM`.
         #[inline]
         pub const fn digital_output_parameters_digital_output_2_parameter_low_32_bits(
             &self,
         ) -> u32 {
             self.digital_output_parameters_digital_output_2_parameter_low_32_bits
         }
-        /// Sets `0x3475` sub 2 Digital output parameters: Digital output 2 parameter, low 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3475` sub 2 Digital output parameters: Digital output 2 parameter, low 32 bits (see [`Self::digital_output_parameters_digital_output_2_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_output_parameters_digital_output_2_parameter_low_32_bits(
             &mut self,
@@ -24512,17 +23692,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3475` sub 3 Digital output parameters: Digital output 1 parameter, high 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DOUT1.PARAM`.
         #[inline]
         pub const fn digital_output_parameters_digital_output_1_parameter_high_32_bits(
             &self,
         ) -> u32 {
             self.digital_output_parameters_digital_output_1_parameter_high_32_bits
         }
-        /// Sets `0x3475` sub 3 Digital output parameters: Digital output 1 parameter, high 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3475` sub 3 Digital output parameters: Digital output 1 parameter, high 32 bits (see [`Self::digital_output_parameters_digital_output_1_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_output_parameters_digital_output_1_parameter_high_32_bits(
             &mut self,
@@ -24534,17 +23712,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3475` sub 4 Digital output parameters: Digital output 2 parameter, high 32 bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DOUT2.PARAM`.
         #[inline]
         pub const fn digital_output_parameters_digital_output_2_parameter_high_32_bits(
             &self,
         ) -> u32 {
             self.digital_output_parameters_digital_output_2_parameter_high_32_bits
         }
-        /// Sets `0x3475` sub 4 Digital output parameters: Digital output 2 parameter, high 32 bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3475` sub 4 Digital output parameters: Digital output 2 parameter, high 32 bits (see [`Self::digital_output_parameters_digital_output_2_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_output_parameters_digital_output_2_parameter_high_32_bits(
             &mut self,
@@ -24556,15 +23732,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3480` Position loop integral gain.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PL.KI`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn position_loop_integral_gain(&self) -> u32 {
             self.position_loop_integral_gain
         }
-        /// Sets `0x3480` Position loop integral gain.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3480` Position loop integral gain (see [`Self::position_loop_integral_gain`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_loop_integral_gain(
             &mut self,
@@ -24580,11 +23756,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn position_loop_integrator_saturation_number_of_entries(&self) -> u8 {
             self.position_loop_integrator_saturation_number_of_entries
         }
-        /// Sets `0x3481` sub 0 Position loop integrator saturation: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3481` sub 0 Position loop integrator saturation: Number of entries (see [`Self::position_loop_integrator_saturation_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_loop_integrator_saturation_number_of_entries(
             &mut self,
@@ -24596,17 +23768,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3481` sub 1 Position loop integrator saturation: Integrator input saturation.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PL.INTINMAX`.
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn position_loop_integrator_saturation_integrator_input_saturation(
             &self,
         ) -> u32 {
             self.position_loop_integrator_saturation_integrator_input_saturation
         }
-        /// Sets `0x3481` sub 1 Position loop integrator saturation: Integrator input saturation.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3481` sub 1 Position loop integrator saturation: Integrator input saturation (see [`Self::position_loop_integrator_saturation_integrator_input_saturation`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_loop_integrator_saturation_integrator_input_saturation(
             &mut self,
@@ -24618,17 +23790,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3481` sub 2 Position loop integrator saturation: Integrator output saturation.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PL.INTOUTMAX`.
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn position_loop_integrator_saturation_integrator_output_saturation(
             &self,
         ) -> u32 {
             self.position_loop_integrator_saturation_integrator_output_saturation
         }
-        /// Sets `0x3481` sub 2 Position loop integrator saturation: Integrator output saturation.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3481` sub 2 Position loop integrator saturation: Integrator output saturation (see [`Self::position_loop_integrator_saturation_integrator_output_saturation`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_loop_integrator_saturation_integrator_output_saturation(
             &mut self,
@@ -24640,15 +23812,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3482` Homing maximum following error.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `HOME.PERRTHRESH`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::homing_maximum_following_error`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn homing_maximum_following_error(&self) -> i32 {
             self.homing_maximum_following_error
         }
-        /// Sets `0x3482` Homing maximum following error.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3482` Homing maximum following error (see [`Self::homing_maximum_following_error`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_maximum_following_error(
             &mut self,
@@ -24660,15 +23834,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3483` Position error warning level.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PL.ERRWTHRESH`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::position_error_warning_level`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn position_error_warning_level(&self) -> i32 {
             self.position_error_warning_level
         }
-        /// Sets `0x3483` Position error warning level.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3483` Position error warning level (see [`Self::position_error_warning_level`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_error_warning_level(
             &mut self,
@@ -24680,15 +23856,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3484` Homing additional move distance.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `HOME.DIST`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::homing_additional_move_distance`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn homing_additional_move_distance(&self) -> i32 {
             self.homing_additional_move_distance
         }
-        /// Sets `0x3484` Homing additional move distance.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3484` Homing additional move distance (see [`Self::homing_additional_move_distance`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_additional_move_distance(
             &mut self,
@@ -24700,15 +23878,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3490` Feedback position offset.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `FB1.OFFSET`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::feedback_position_offset`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn feedback_position_offset(&self) -> i32 {
             self.feedback_position_offset
         }
-        /// Sets `0x3490` Feedback position offset.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3490` Feedback position offset (see [`Self::feedback_position_offset`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feedback_position_offset(
             &mut self,
@@ -24720,15 +23900,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3491` Emulated encoder index pulse turn position.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.EMUEMTURN`.
         #[inline]
         pub const fn emulated_encoder_index_pulse_turn_position(&self) -> u32 {
             self.emulated_encoder_index_pulse_turn_position
         }
-        /// Sets `0x3491` Emulated encoder index pulse turn position.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3491` Emulated encoder index pulse turn position (see [`Self::emulated_encoder_index_pulse_turn_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_emulated_encoder_index_pulse_turn_position(
             &mut self,
@@ -24740,15 +23918,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3492` Drive motion status.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.MOTIONSTAT`.
         #[inline]
         pub const fn drive_motion_status(&self) -> u32 {
             self.drive_motion_status
         }
-        /// Sets `0x3492` Drive motion status.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3492` Drive motion status (see [`Self::drive_motion_status`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_drive_motion_status(
             &mut self,
@@ -24760,15 +23936,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3493` Emulated encoder output direction.
         ///
         /// UNSIGNED8, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.EMUEDIR`.
         #[inline]
         pub const fn emulated_encoder_output_direction(&self) -> u8 {
             self.emulated_encoder_output_direction
         }
-        /// Sets `0x3493` Emulated encoder output direction.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3493` Emulated encoder output direction (see [`Self::emulated_encoder_output_direction`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_emulated_encoder_output_direction(
             &mut self,
@@ -24784,11 +23958,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn wake_and_shake_parameters_number_of_entries(&self) -> u8 {
             self.wake_and_shake_parameters_number_of_entries
         }
-        /// Sets `0x3494` sub 0 Wake and shake parameters: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 6.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3494` sub 0 Wake and shake parameters: Number of entries (see [`Self::wake_and_shake_parameters_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_wake_and_shake_parameters_number_of_entries(
             &mut self,
@@ -24800,17 +23970,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3494` sub 1 Wake and shake parameters: Wake and shake maximum current.
         ///
         /// INTEGER16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `WS.IMAX`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn wake_and_shake_parameters_wake_and_shake_maximum_current(
             &self,
         ) -> i16 {
             self.wake_and_shake_parameters_wake_and_shake_maximum_current
         }
-        /// Sets `0x3494` sub 1 Wake and shake parameters: Wake and shake maximum current.
-        ///
-        /// INTEGER16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3494` sub 1 Wake and shake parameters: Wake and shake maximum current (see [`Self::wake_and_shake_parameters_wake_and_shake_maximum_current`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_wake_and_shake_parameters_wake_and_shake_maximum_current(
             &mut self,
@@ -24822,17 +23992,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3494` sub 2 Wake and shake parameters: Wake and shake maximum movement.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `WS.DISTMAX`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::wake_and_shake_parameters_wake_and_shake_maximum_movement`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn wake_and_shake_parameters_wake_and_shake_maximum_movement(
             &self,
         ) -> i32 {
             self.wake_and_shake_parameters_wake_and_shake_maximum_movement
         }
-        /// Sets `0x3494` sub 2 Wake and shake parameters: Wake and shake maximum movement.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3494` sub 2 Wake and shake parameters: Wake and shake maximum movement (see [`Self::wake_and_shake_parameters_wake_and_shake_maximum_movement`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_wake_and_shake_parameters_wake_and_shake_maximum_movement(
             &mut self,
@@ -24844,17 +24016,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3494` sub 3 Wake and shake parameters: Wake and shake delay between loops in mode 0.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `WS.TDELAY3`.
         #[inline]
         pub const fn wake_and_shake_parameters_wake_and_shake_delay_between_loops_in_mode_0(
             &self,
         ) -> u16 {
             self.wake_and_shake_parameters_wake_and_shake_delay_between_loops_in_mode_0
         }
-        /// Sets `0x3494` sub 3 Wake and shake parameters: Wake and shake delay between loops in mode 0.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3494` sub 3 Wake and shake parameters: Wake and shake delay between loops in mode 0 (see [`Self::wake_and_shake_parameters_wake_and_shake_delay_between_loops_in_mode_0`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_wake_and_shake_parameters_wake_and_shake_delay_between_loops_in_mode_0(
             &mut self,
@@ -24867,17 +24037,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3494` sub 4 Wake and shake parameters: Wake and shake maximum velocity.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `WS.VTHRESH`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::wake_and_shake_parameters_wake_and_shake_maximum_velocity`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn wake_and_shake_parameters_wake_and_shake_maximum_velocity(
             &self,
         ) -> i32 {
             self.wake_and_shake_parameters_wake_and_shake_maximum_velocity
         }
-        /// Sets `0x3494` sub 4 Wake and shake parameters: Wake and shake maximum velocity.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3494` sub 4 Wake and shake parameters: Wake and shake maximum velocity (see [`Self::wake_and_shake_parameters_wake_and_shake_maximum_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_wake_and_shake_parameters_wake_and_shake_maximum_velocity(
             &mut self,
@@ -24889,15 +24061,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3494` sub 5 Wake and shake parameters: Wake and shake state.
         ///
         /// UNSIGNED8, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `WS.STATE`.
         #[inline]
         pub const fn wake_and_shake_parameters_wake_and_shake_state(&self) -> u8 {
             self.wake_and_shake_parameters_wake_and_shake_state
         }
-        /// Sets `0x3494` sub 5 Wake and shake parameters: Wake and shake state.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3494` sub 5 Wake and shake parameters: Wake and shake state (see [`Self::wake_and_shake_parameters_wake_and_shake_state`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_wake_and_shake_parameters_wake_and_shake_state(
             &mut self,
@@ -24909,15 +24079,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3494` sub 6 Wake and shake parameters: Wake and shake arm.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `WS.ARM`.
         #[inline]
         pub const fn wake_and_shake_parameters_wake_and_shake_arm(&self) -> u8 {
             self.wake_and_shake_parameters_wake_and_shake_arm
         }
-        /// Sets `0x3494` sub 6 Wake and shake parameters: Wake and shake arm.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3494` sub 6 Wake and shake parameters: Wake and shake arm (see [`Self::wake_and_shake_parameters_wake_and_shake_arm`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_wake_and_shake_parameters_wake_and_shake_arm(
             &mut self,
@@ -24933,11 +24101,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn fieldbus_synchronization_parameters_number_of_entries(&self) -> u8 {
             self.fieldbus_synchronization_parameters_number_of_entries
         }
-        /// Sets `0x3496` sub 0 Fieldbus synchronization parameters: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 4.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3496` sub 0 Fieldbus synchronization parameters: Number of entries (see [`Self::fieldbus_synchronization_parameters_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fieldbus_synchronization_parameters_number_of_entries(
             &mut self,
@@ -24949,17 +24113,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3496` sub 1 Fieldbus synchronization parameters: Expected synchronization distance.
         ///
         /// UNSIGNED32, access `rw`. Default: 320000 (0x4E200).
+        ///
+        /// Vendor parameter: `FBUS.SYNCDIST`.
         #[inline]
         pub const fn fieldbus_synchronization_parameters_expected_synchronization_distance(
             &self,
         ) -> u32 {
             self.fieldbus_synchronization_parameters_expected_synchronization_distance
         }
-        /// Sets `0x3496` sub 1 Fieldbus synchronization parameters: Expected synchronization distance.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 320000 (0x4E200).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3496` sub 1 Fieldbus synchronization parameters: Expected synchronization distance (see [`Self::fieldbus_synchronization_parameters_expected_synchronization_distance`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fieldbus_synchronization_parameters_expected_synchronization_distance(
             &mut self,
@@ -24971,17 +24133,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3496` sub 2 Fieldbus synchronization parameters: Actual synchronization distance.
         ///
         /// UNSIGNED32, access `rw`. Default: 320000 (0x4E200).
+        ///
+        /// Vendor parameter: `FBUS.SYNCACT`.
         #[inline]
         pub const fn fieldbus_synchronization_parameters_actual_synchronization_distance(
             &self,
         ) -> u32 {
             self.fieldbus_synchronization_parameters_actual_synchronization_distance
         }
-        /// Sets `0x3496` sub 2 Fieldbus synchronization parameters: Actual synchronization distance.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 320000 (0x4E200).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3496` sub 2 Fieldbus synchronization parameters: Actual synchronization distance (see [`Self::fieldbus_synchronization_parameters_actual_synchronization_distance`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fieldbus_synchronization_parameters_actual_synchronization_distance(
             &mut self,
@@ -24993,17 +24153,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3496` sub 3 Fieldbus synchronization parameters: Synchronization window.
         ///
         /// UNSIGNED32, access `rw`. Default: 70000 (0x11170).
+        ///
+        /// Vendor parameter: `FBUS.SYNCWND`.
         #[inline]
         pub const fn fieldbus_synchronization_parameters_synchronization_window(
             &self,
         ) -> u32 {
             self.fieldbus_synchronization_parameters_synchronization_window
         }
-        /// Sets `0x3496` sub 3 Fieldbus synchronization parameters: Synchronization window.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 70000 (0x11170).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3496` sub 3 Fieldbus synchronization parameters: Synchronization window (see [`Self::fieldbus_synchronization_parameters_synchronization_window`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fieldbus_synchronization_parameters_synchronization_window(
             &mut self,
@@ -25015,17 +24173,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3496` sub 4 Fieldbus synchronization parameters: Compensation time.
         ///
         /// UNSIGNED32, access `rw`. Default: 150.
+        ///
+        /// Vendor parameter: `FBUS.COMPTIME`.
         #[inline]
         pub const fn fieldbus_synchronization_parameters_compensation_time(
             &self,
         ) -> u32 {
             self.fieldbus_synchronization_parameters_compensation_time
         }
-        /// Sets `0x3496` sub 4 Fieldbus synchronization parameters: Compensation time.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 150.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3496` sub 4 Fieldbus synchronization parameters: Compensation time (see [`Self::fieldbus_synchronization_parameters_compensation_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fieldbus_synchronization_parameters_compensation_time(
             &mut self,
@@ -25041,11 +24197,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn programmable_limit_switch_positions_number_of_entries(&self) -> u8 {
             self.programmable_limit_switch_positions_number_of_entries
         }
-        /// Sets `0x34A0` sub 0 Programmable limit switch positions: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 8.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A0` sub 0 Programmable limit switch positions: Number of entries (see [`Self::programmable_limit_switch_positions_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_positions_number_of_entries(
             &mut self,
@@ -25057,17 +24209,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A0` sub 1 Programmable limit switch positions: Limit switch 1 compare position.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.P1`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_1_compare_position`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_positions_limit_switch_1_compare_position(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_positions_limit_switch_1_compare_position
         }
-        /// Sets `0x34A0` sub 1 Programmable limit switch positions: Limit switch 1 compare position.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A0` sub 1 Programmable limit switch positions: Limit switch 1 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_1_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_positions_limit_switch_1_compare_position(
             &mut self,
@@ -25079,17 +24233,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A0` sub 2 Programmable limit switch positions: Limit switch 2 compare position.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.P2`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_2_compare_position`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_positions_limit_switch_2_compare_position(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_positions_limit_switch_2_compare_position
         }
-        /// Sets `0x34A0` sub 2 Programmable limit switch positions: Limit switch 2 compare position.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A0` sub 2 Programmable limit switch positions: Limit switch 2 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_2_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_positions_limit_switch_2_compare_position(
             &mut self,
@@ -25101,17 +24257,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A0` sub 3 Programmable limit switch positions: Limit switch 3 compare position.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.P3`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_3_compare_position`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_positions_limit_switch_3_compare_position(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_positions_limit_switch_3_compare_position
         }
-        /// Sets `0x34A0` sub 3 Programmable limit switch positions: Limit switch 3 compare position.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A0` sub 3 Programmable limit switch positions: Limit switch 3 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_3_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_positions_limit_switch_3_compare_position(
             &mut self,
@@ -25123,17 +24281,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A0` sub 4 Programmable limit switch positions: Limit switch 4 compare position.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.P4`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_4_compare_position`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_positions_limit_switch_4_compare_position(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_positions_limit_switch_4_compare_position
         }
-        /// Sets `0x34A0` sub 4 Programmable limit switch positions: Limit switch 4 compare position.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A0` sub 4 Programmable limit switch positions: Limit switch 4 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_4_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_positions_limit_switch_4_compare_position(
             &mut self,
@@ -25145,17 +24305,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A0` sub 5 Programmable limit switch positions: Limit switch 5 compare position.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.P5`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_5_compare_position`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_positions_limit_switch_5_compare_position(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_positions_limit_switch_5_compare_position
         }
-        /// Sets `0x34A0` sub 5 Programmable limit switch positions: Limit switch 5 compare position.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A0` sub 5 Programmable limit switch positions: Limit switch 5 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_5_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_positions_limit_switch_5_compare_position(
             &mut self,
@@ -25167,17 +24329,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A0` sub 6 Programmable limit switch positions: Limit switch 6 compare position.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.P6`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_6_compare_position`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_positions_limit_switch_6_compare_position(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_positions_limit_switch_6_compare_position
         }
-        /// Sets `0x34A0` sub 6 Programmable limit switch positions: Limit switch 6 compare position.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A0` sub 6 Programmable limit switch positions: Limit switch 6 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_6_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_positions_limit_switch_6_compare_position(
             &mut self,
@@ -25189,17 +24353,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A0` sub 7 Programmable limit switch positions: Limit switch 7 compare position.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.P7`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_7_compare_position`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_positions_limit_switch_7_compare_position(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_positions_limit_switch_7_compare_position
         }
-        /// Sets `0x34A0` sub 7 Programmable limit switch positions: Limit switch 7 compare position.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A0` sub 7 Programmable limit switch positions: Limit switch 7 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_7_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_positions_limit_switch_7_compare_position(
             &mut self,
@@ -25211,17 +24377,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A0` sub 8 Programmable limit switch positions: Limit switch 8 compare position.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.P8`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_8_compare_position`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_positions_limit_switch_8_compare_position(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_positions_limit_switch_8_compare_position
         }
-        /// Sets `0x34A0` sub 8 Programmable limit switch positions: Limit switch 8 compare position.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A0` sub 8 Programmable limit switch positions: Limit switch 8 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_8_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_positions_limit_switch_8_compare_position(
             &mut self,
@@ -25237,11 +24405,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn programmable_limit_switch_widths_number_of_entries(&self) -> u8 {
             self.programmable_limit_switch_widths_number_of_entries
         }
-        /// Sets `0x34A1` sub 0 Programmable limit switch widths: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 8.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A1` sub 0 Programmable limit switch widths: Number of entries (see [`Self::programmable_limit_switch_widths_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_widths_number_of_entries(
             &mut self,
@@ -25253,17 +24417,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A1` sub 1 Programmable limit switch widths: Limit switch 1 width.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.WIDTH1`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_1_width`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_widths_limit_switch_1_width(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_widths_limit_switch_1_width
         }
-        /// Sets `0x34A1` sub 1 Programmable limit switch widths: Limit switch 1 width.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A1` sub 1 Programmable limit switch widths: Limit switch 1 width (see [`Self::programmable_limit_switch_widths_limit_switch_1_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_widths_limit_switch_1_width(
             &mut self,
@@ -25275,17 +24441,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A1` sub 2 Programmable limit switch widths: Limit switch 2 width.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.WIDTH2`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_2_width`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_widths_limit_switch_2_width(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_widths_limit_switch_2_width
         }
-        /// Sets `0x34A1` sub 2 Programmable limit switch widths: Limit switch 2 width.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A1` sub 2 Programmable limit switch widths: Limit switch 2 width (see [`Self::programmable_limit_switch_widths_limit_switch_2_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_widths_limit_switch_2_width(
             &mut self,
@@ -25297,17 +24465,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A1` sub 3 Programmable limit switch widths: Limit switch 3 width.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.WIDTH3`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_3_width`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_widths_limit_switch_3_width(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_widths_limit_switch_3_width
         }
-        /// Sets `0x34A1` sub 3 Programmable limit switch widths: Limit switch 3 width.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A1` sub 3 Programmable limit switch widths: Limit switch 3 width (see [`Self::programmable_limit_switch_widths_limit_switch_3_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_widths_limit_switch_3_width(
             &mut self,
@@ -25319,17 +24489,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A1` sub 4 Programmable limit switch widths: Limit switch 4 width.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.WIDTH4`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_4_width`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_widths_limit_switch_4_width(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_widths_limit_switch_4_width
         }
-        /// Sets `0x34A1` sub 4 Programmable limit switch widths: Limit switch 4 width.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A1` sub 4 Programmable limit switch widths: Limit switch 4 width (see [`Self::programmable_limit_switch_widths_limit_switch_4_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_widths_limit_switch_4_width(
             &mut self,
@@ -25341,17 +24513,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A1` sub 5 Programmable limit switch widths: Limit switch 5 width.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.WIDTH5`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_5_width`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_widths_limit_switch_5_width(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_widths_limit_switch_5_width
         }
-        /// Sets `0x34A1` sub 5 Programmable limit switch widths: Limit switch 5 width.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A1` sub 5 Programmable limit switch widths: Limit switch 5 width (see [`Self::programmable_limit_switch_widths_limit_switch_5_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_widths_limit_switch_5_width(
             &mut self,
@@ -25363,17 +24537,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A1` sub 6 Programmable limit switch widths: Limit switch 6 width.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.WIDTH6`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_6_width`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_widths_limit_switch_6_width(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_widths_limit_switch_6_width
         }
-        /// Sets `0x34A1` sub 6 Programmable limit switch widths: Limit switch 6 width.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A1` sub 6 Programmable limit switch widths: Limit switch 6 width (see [`Self::programmable_limit_switch_widths_limit_switch_6_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_widths_limit_switch_6_width(
             &mut self,
@@ -25385,17 +24561,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A1` sub 7 Programmable limit switch widths: Limit switch 7 width.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.WIDTH7`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_7_width`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_widths_limit_switch_7_width(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_widths_limit_switch_7_width
         }
-        /// Sets `0x34A1` sub 7 Programmable limit switch widths: Limit switch 7 width.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A1` sub 7 Programmable limit switch widths: Limit switch 7 width (see [`Self::programmable_limit_switch_widths_limit_switch_7_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_widths_limit_switch_7_width(
             &mut self,
@@ -25407,17 +24585,19 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A1` sub 8 Programmable limit switch widths: Limit switch 8 width.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.WIDTH8`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_8_width`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn programmable_limit_switch_widths_limit_switch_8_width(
             &self,
         ) -> i32 {
             self.programmable_limit_switch_widths_limit_switch_8_width
         }
-        /// Sets `0x34A1` sub 8 Programmable limit switch widths: Limit switch 8 width.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A1` sub 8 Programmable limit switch widths: Limit switch 8 width (see [`Self::programmable_limit_switch_widths_limit_switch_8_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_widths_limit_switch_8_width(
             &mut self,
@@ -25433,11 +24613,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn programmable_limit_switch_times_number_of_entries(&self) -> u8 {
             self.programmable_limit_switch_times_number_of_entries
         }
-        /// Sets `0x34A2` sub 0 Programmable limit switch times: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 8.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A2` sub 0 Programmable limit switch times: Number of entries (see [`Self::programmable_limit_switch_times_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_times_number_of_entries(
             &mut self,
@@ -25449,15 +24625,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A2` sub 1 Programmable limit switch times: Limit switch 1 time.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.T1`.
         #[inline]
         pub const fn programmable_limit_switch_times_limit_switch_1_time(&self) -> u16 {
             self.programmable_limit_switch_times_limit_switch_1_time
         }
-        /// Sets `0x34A2` sub 1 Programmable limit switch times: Limit switch 1 time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A2` sub 1 Programmable limit switch times: Limit switch 1 time (see [`Self::programmable_limit_switch_times_limit_switch_1_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_times_limit_switch_1_time(
             &mut self,
@@ -25469,15 +24643,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A2` sub 2 Programmable limit switch times: Limit switch 2 time.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.T2`.
         #[inline]
         pub const fn programmable_limit_switch_times_limit_switch_2_time(&self) -> u16 {
             self.programmable_limit_switch_times_limit_switch_2_time
         }
-        /// Sets `0x34A2` sub 2 Programmable limit switch times: Limit switch 2 time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A2` sub 2 Programmable limit switch times: Limit switch 2 time (see [`Self::programmable_limit_switch_times_limit_switch_2_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_times_limit_switch_2_time(
             &mut self,
@@ -25489,15 +24661,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A2` sub 3 Programmable limit switch times: Limit switch 3 time.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.T3`.
         #[inline]
         pub const fn programmable_limit_switch_times_limit_switch_3_time(&self) -> u16 {
             self.programmable_limit_switch_times_limit_switch_3_time
         }
-        /// Sets `0x34A2` sub 3 Programmable limit switch times: Limit switch 3 time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A2` sub 3 Programmable limit switch times: Limit switch 3 time (see [`Self::programmable_limit_switch_times_limit_switch_3_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_times_limit_switch_3_time(
             &mut self,
@@ -25509,15 +24679,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A2` sub 4 Programmable limit switch times: Limit switch 4 time.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.T4`.
         #[inline]
         pub const fn programmable_limit_switch_times_limit_switch_4_time(&self) -> u16 {
             self.programmable_limit_switch_times_limit_switch_4_time
         }
-        /// Sets `0x34A2` sub 4 Programmable limit switch times: Limit switch 4 time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A2` sub 4 Programmable limit switch times: Limit switch 4 time (see [`Self::programmable_limit_switch_times_limit_switch_4_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_times_limit_switch_4_time(
             &mut self,
@@ -25529,15 +24697,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A2` sub 5 Programmable limit switch times: Limit switch 5 time.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.T5`.
         #[inline]
         pub const fn programmable_limit_switch_times_limit_switch_5_time(&self) -> u16 {
             self.programmable_limit_switch_times_limit_switch_5_time
         }
-        /// Sets `0x34A2` sub 5 Programmable limit switch times: Limit switch 5 time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A2` sub 5 Programmable limit switch times: Limit switch 5 time (see [`Self::programmable_limit_switch_times_limit_switch_5_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_times_limit_switch_5_time(
             &mut self,
@@ -25549,15 +24715,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A2` sub 6 Programmable limit switch times: Limit switch 6 time.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.T6`.
         #[inline]
         pub const fn programmable_limit_switch_times_limit_switch_6_time(&self) -> u16 {
             self.programmable_limit_switch_times_limit_switch_6_time
         }
-        /// Sets `0x34A2` sub 6 Programmable limit switch times: Limit switch 6 time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A2` sub 6 Programmable limit switch times: Limit switch 6 time (see [`Self::programmable_limit_switch_times_limit_switch_6_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_times_limit_switch_6_time(
             &mut self,
@@ -25569,15 +24733,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A2` sub 7 Programmable limit switch times: Limit switch 7 time.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.T7`.
         #[inline]
         pub const fn programmable_limit_switch_times_limit_switch_7_time(&self) -> u16 {
             self.programmable_limit_switch_times_limit_switch_7_time
         }
-        /// Sets `0x34A2` sub 7 Programmable limit switch times: Limit switch 7 time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A2` sub 7 Programmable limit switch times: Limit switch 7 time (see [`Self::programmable_limit_switch_times_limit_switch_7_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_times_limit_switch_7_time(
             &mut self,
@@ -25589,15 +24751,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A2` sub 8 Programmable limit switch times: Limit switch 8 time.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.T8`.
         #[inline]
         pub const fn programmable_limit_switch_times_limit_switch_8_time(&self) -> u16 {
             self.programmable_limit_switch_times_limit_switch_8_time
         }
-        /// Sets `0x34A2` sub 8 Programmable limit switch times: Limit switch 8 time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A2` sub 8 Programmable limit switch times: Limit switch 8 time (see [`Self::programmable_limit_switch_times_limit_switch_8_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_times_limit_switch_8_time(
             &mut self,
@@ -25615,11 +24775,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.programmable_limit_switch_configuration_number_of_entries
         }
-        /// Sets `0x34A3` sub 0 Programmable limit switch configuration: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 4.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A3` sub 0 Programmable limit switch configuration: Number of entries (see [`Self::programmable_limit_switch_configuration_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_configuration_number_of_entries(
             &mut self,
@@ -25631,17 +24787,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A3` sub 1 Programmable limit switch configuration: Limit switch enable.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.EN`.
         #[inline]
         pub const fn programmable_limit_switch_configuration_limit_switch_enable(
             &self,
         ) -> u16 {
             self.programmable_limit_switch_configuration_limit_switch_enable
         }
-        /// Sets `0x34A3` sub 1 Programmable limit switch configuration: Limit switch enable.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A3` sub 1 Programmable limit switch configuration: Limit switch enable (see [`Self::programmable_limit_switch_configuration_limit_switch_enable`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_configuration_limit_switch_enable(
             &mut self,
@@ -25653,17 +24807,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A3` sub 2 Programmable limit switch configuration: Limit switch reset.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.RESET`.
         #[inline]
         pub const fn programmable_limit_switch_configuration_limit_switch_reset(
             &self,
         ) -> u16 {
             self.programmable_limit_switch_configuration_limit_switch_reset
         }
-        /// Sets `0x34A3` sub 2 Programmable limit switch configuration: Limit switch reset.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A3` sub 2 Programmable limit switch configuration: Limit switch reset (see [`Self::programmable_limit_switch_configuration_limit_switch_reset`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_configuration_limit_switch_reset(
             &mut self,
@@ -25675,17 +24827,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A3` sub 3 Programmable limit switch configuration: Limit switch mode.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.MODE`.
         #[inline]
         pub const fn programmable_limit_switch_configuration_limit_switch_mode(
             &self,
         ) -> u16 {
             self.programmable_limit_switch_configuration_limit_switch_mode
         }
-        /// Sets `0x34A3` sub 3 Programmable limit switch configuration: Limit switch mode.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A3` sub 3 Programmable limit switch configuration: Limit switch mode (see [`Self::programmable_limit_switch_configuration_limit_switch_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_configuration_limit_switch_mode(
             &mut self,
@@ -25697,17 +24847,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A3` sub 4 Programmable limit switch configuration: Limit switch state.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.STATE`.
         #[inline]
         pub const fn programmable_limit_switch_configuration_limit_switch_state(
             &self,
         ) -> u16 {
             self.programmable_limit_switch_configuration_limit_switch_state
         }
-        /// Sets `0x34A3` sub 4 Programmable limit switch configuration: Limit switch state.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A3` sub 4 Programmable limit switch configuration: Limit switch state (see [`Self::programmable_limit_switch_configuration_limit_switch_state`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_configuration_limit_switch_state(
             &mut self,
@@ -25719,15 +24867,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x34A4` Programmable limit switch units.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PLS.UNITS`.
         #[inline]
         pub const fn programmable_limit_switch_units(&self) -> u8 {
             self.programmable_limit_switch_units
         }
-        /// Sets `0x34A4` Programmable limit switch units.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x34A4` Programmable limit switch units (see [`Self::programmable_limit_switch_units`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_programmable_limit_switch_units(
             &mut self,
@@ -25739,15 +24885,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3501` Acceleration ramp.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.ACC`.
+        ///
+        /// Dimension: Acceleration (typed conversion: `units::Units::acceleration_ramp`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn acceleration_ramp(&self) -> i32 {
             self.acceleration_ramp
         }
-        /// Sets `0x3501` Acceleration ramp.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3501` Acceleration ramp (see [`Self::acceleration_ramp`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_acceleration_ramp(
             &mut self,
@@ -25759,15 +24907,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3502` Homing and jog acceleration ramp.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `HOME.ACC`.
+        ///
+        /// Dimension: Acceleration (typed conversion: `units::Units::homing_and_jog_acceleration_ramp`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn homing_and_jog_acceleration_ramp(&self) -> i32 {
             self.homing_and_jog_acceleration_ramp
         }
-        /// Sets `0x3502` Homing and jog acceleration ramp.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3502` Homing and jog acceleration ramp (see [`Self::homing_and_jog_acceleration_ramp`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_and_jog_acceleration_ramp(
             &mut self,
@@ -25779,15 +24929,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3506` Hardware enable input mode.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.HWENMODE`.
         #[inline]
         pub const fn hardware_enable_input_mode(&self) -> i32 {
             self.hardware_enable_input_mode
         }
-        /// Sets `0x3506` Hardware enable input mode.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3506` Hardware enable input mode (see [`Self::hardware_enable_input_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_hardware_enable_input_mode(
             &mut self,
@@ -25799,15 +24947,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3509` Analog input voltage.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `AIN.VALUE`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn analog_input_voltage(&self) -> i32 {
             self.analog_input_voltage
         }
-        /// Sets `0x3509` Analog input voltage.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3509` Analog input voltage (see [`Self::analog_input_voltage`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_input_voltage(
             &mut self,
@@ -25819,15 +24967,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3522` Deceleration ramp.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.DEC`.
+        ///
+        /// Dimension: Acceleration (typed conversion: `units::Units::deceleration_ramp`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn deceleration_ramp(&self) -> i32 {
             self.deceleration_ramp
         }
-        /// Sets `0x3522` Deceleration ramp.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3522` Deceleration ramp (see [`Self::deceleration_ramp`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_deceleration_ramp(
             &mut self,
@@ -25839,15 +24989,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3524` Homing and jog deceleration ramp.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `HOME.DEC`.
+        ///
+        /// Dimension: Acceleration (typed conversion: `units::Units::homing_and_jog_deceleration_ramp`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn homing_and_jog_deceleration_ramp(&self) -> i32 {
             self.homing_and_jog_deceleration_ramp
         }
-        /// Sets `0x3524` Homing and jog deceleration ramp.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3524` Homing and jog deceleration ramp (see [`Self::homing_and_jog_deceleration_ramp`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_and_jog_deceleration_ramp(
             &mut self,
@@ -25859,15 +25011,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x352A` Motion direction.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.DIR`.
         #[inline]
         pub const fn motion_direction(&self) -> i32 {
             self.motion_direction
         }
-        /// Sets `0x352A` Motion direction.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x352A` Motion direction (see [`Self::motion_direction`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motion_direction(
             &mut self,
@@ -25879,15 +25029,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3533` Motor encoder resolution.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `FB1.ENCRES`.
         #[inline]
         pub const fn motor_encoder_resolution(&self) -> u32 {
             self.motor_encoder_resolution
         }
-        /// Sets `0x3533` Motor encoder resolution.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3533` Motor encoder resolution (see [`Self::motor_encoder_resolution`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_encoder_resolution(
             &mut self,
@@ -25899,15 +25047,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3534` Emulated encoder connector mode.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.EMUEMODE`.
         #[inline]
         pub const fn emulated_encoder_connector_mode(&self) -> u32 {
             self.emulated_encoder_connector_mode
         }
-        /// Sets `0x3534` Emulated encoder connector mode.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3534` Emulated encoder connector mode (see [`Self::emulated_encoder_connector_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_emulated_encoder_connector_mode(
             &mut self,
@@ -25919,15 +25065,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3535` Emulated encoder resolution.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.EMUERES`.
         #[inline]
         pub const fn emulated_encoder_resolution(&self) -> u32 {
             self.emulated_encoder_resolution
         }
-        /// Sets `0x3535` Emulated encoder resolution.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3535` Emulated encoder resolution (see [`Self::emulated_encoder_resolution`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_emulated_encoder_resolution(
             &mut self,
@@ -25939,15 +25083,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3537` Emulated encoder index pulse offset.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.EMUEZOFFSET`.
         #[inline]
         pub const fn emulated_encoder_index_pulse_offset(&self) -> u32 {
             self.emulated_encoder_index_pulse_offset
         }
-        /// Sets `0x3537` Emulated encoder index pulse offset.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3537` Emulated encoder index pulse offset (see [`Self::emulated_encoder_index_pulse_offset`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_emulated_encoder_index_pulse_offset(
             &mut self,
@@ -25959,15 +25101,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x353B` Feedback type selection.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `FB1.SELECT`.
         #[inline]
         pub const fn feedback_type_selection(&self) -> i32 {
             self.feedback_type_selection
         }
-        /// Sets `0x353B` Feedback type selection.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x353B` Feedback type selection (see [`Self::feedback_type_selection`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feedback_type_selection(
             &mut self,
@@ -25979,15 +25119,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3542` Position loop proportional gain.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PL.KP`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn position_loop_proportional_gain(&self) -> u32 {
             self.position_loop_proportional_gain
         }
-        /// Sets `0x3542` Position loop proportional gain.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3542` Position loop proportional gain (see [`Self::position_loop_proportional_gain`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_loop_proportional_gain(
             &mut self,
@@ -25999,15 +25139,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3548` Velocity loop proportional gain.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.KP`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_proportional_gain(&self) -> u32 {
             self.velocity_loop_proportional_gain
         }
-        /// Sets `0x3548` Velocity loop proportional gain.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3548` Velocity loop proportional gain (see [`Self::velocity_loop_proportional_gain`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_proportional_gain(
             &mut self,
@@ -26019,15 +25159,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x354B` Velocity loop velocity feedforward gain.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.KVFF`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_velocity_feedforward_gain(&self) -> i32 {
             self.velocity_loop_velocity_feedforward_gain
         }
-        /// Sets `0x354B` Velocity loop velocity feedforward gain.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x354B` Velocity loop velocity feedforward gain (see [`Self::velocity_loop_velocity_feedforward_gain`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_velocity_feedforward_gain(
             &mut self,
@@ -26039,15 +25179,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x354D` Velocity loop integral time.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.KI`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_loop_integral_time(&self) -> i32 {
             self.velocity_loop_integral_time
         }
-        /// Sets `0x354D` Velocity loop integral time.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x354D` Velocity loop integral time (see [`Self::velocity_loop_integral_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_integral_time(
             &mut self,
@@ -26059,15 +25199,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3558` Current feedback.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.FB`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn current_feedback(&self) -> i32 {
             self.current_feedback
         }
-        /// Sets `0x3558` Current feedback.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3558` Current feedback (see [`Self::current_feedback`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_current_feedback(
             &mut self,
@@ -26079,15 +25219,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3559` Drive foldback current.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.DIFOLD`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn drive_foldback_current(&self) -> i32 {
             self.drive_foldback_current
         }
-        /// Sets `0x3559` Drive foldback current.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3559` Drive foldback current (see [`Self::drive_foldback_current`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_drive_foldback_current(
             &mut self,
@@ -26099,15 +25239,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x355A` Foldback warning level.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.FOLDWTHRESH`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn foldback_warning_level(&self) -> i32 {
             self.foldback_warning_level
         }
-        /// Sets `0x355A` Foldback warning level.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x355A` Foldback warning level (see [`Self::foldback_warning_level`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_foldback_warning_level(
             &mut self,
@@ -26119,15 +25259,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3562` Digital input 1 mode.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN1.MODE`.
         #[inline]
         pub const fn digital_input_1_mode(&self) -> i32 {
             self.digital_input_1_mode
         }
-        /// Sets `0x3562` Digital input 1 mode.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3562` Digital input 1 mode (see [`Self::digital_input_1_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_1_mode(
             &mut self,
@@ -26139,15 +25277,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3565` Digital input 2 mode.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN2.MODE`.
         #[inline]
         pub const fn digital_input_2_mode(&self) -> i32 {
             self.digital_input_2_mode
         }
-        /// Sets `0x3565` Digital input 2 mode.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3565` Digital input 2 mode (see [`Self::digital_input_2_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_2_mode(
             &mut self,
@@ -26159,15 +25295,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3568` Digital input 3 mode.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN3.MODE`.
         #[inline]
         pub const fn digital_input_3_mode(&self) -> i32 {
             self.digital_input_3_mode
         }
-        /// Sets `0x3568` Digital input 3 mode.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3568` Digital input 3 mode (see [`Self::digital_input_3_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_3_mode(
             &mut self,
@@ -26179,15 +25313,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x356B` Digital input 4 mode.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN4.MODE`.
         #[inline]
         pub const fn digital_input_4_mode(&self) -> i32 {
             self.digital_input_4_mode
         }
-        /// Sets `0x356B` Digital input 4 mode.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x356B` Digital input 4 mode (see [`Self::digital_input_4_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_4_mode(
             &mut self,
@@ -26199,15 +25331,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x356E` Application peak current, positive direction.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.LIMITP`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn application_peak_current_positive_direction(&self) -> i32 {
             self.application_peak_current_positive_direction
         }
-        /// Sets `0x356E` Application peak current, positive direction.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x356E` Application peak current, positive direction (see [`Self::application_peak_current_positive_direction`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_application_peak_current_positive_direction(
             &mut self,
@@ -26219,15 +25351,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x356F` Application peak current, negative direction.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.LIMITN`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn application_peak_current_negative_direction(&self) -> i32 {
             self.application_peak_current_negative_direction
         }
-        /// Sets `0x356F` Application peak current, negative direction.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x356F` Application peak current, negative direction (see [`Self::application_peak_current_negative_direction`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_application_peak_current_negative_direction(
             &mut self,
@@ -26239,15 +25371,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3586` Motor temperature fault level.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.TEMPFAULT`.
         #[inline]
         pub const fn motor_temperature_fault_level(&self) -> u32 {
             self.motor_temperature_fault_level
         }
-        /// Sets `0x3586` Motor temperature fault level.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3586` Motor temperature fault level (see [`Self::motor_temperature_fault_level`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_temperature_fault_level(
             &mut self,
@@ -26259,15 +25389,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3587` Motor holding brake selection.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.BRAKE`.
         #[inline]
         pub const fn motor_holding_brake_selection(&self) -> i32 {
             self.motor_holding_brake_selection
         }
-        /// Sets `0x3587` Motor holding brake selection.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3587` Motor holding brake selection (see [`Self::motor_holding_brake_selection`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_holding_brake_selection(
             &mut self,
@@ -26279,15 +25407,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x358E` Motor continuous current.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.ICONT`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn motor_continuous_current(&self) -> u32 {
             self.motor_continuous_current
         }
-        /// Sets `0x358E` Motor continuous current.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x358E` Motor continuous current (see [`Self::motor_continuous_current`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_continuous_current(
             &mut self,
@@ -26299,15 +25427,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x358F` Motor peak current.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.IPEAK`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn motor_peak_current(&self) -> u32 {
             self.motor_peak_current
         }
-        /// Sets `0x358F` Motor peak current.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x358F` Motor peak current (see [`Self::motor_peak_current`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_peak_current(
             &mut self,
@@ -26319,15 +25447,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3593` Motor torque constant.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.KT`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn motor_torque_constant(&self) -> u32 {
             self.motor_torque_constant
         }
-        /// Sets `0x3593` Motor torque constant.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3593` Motor torque constant (see [`Self::motor_torque_constant`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_torque_constant(
             &mut self,
@@ -26339,15 +25467,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3596` Current loop d-component gain ratio.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.KPDRATIO`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn current_loop_d_component_gain_ratio(&self) -> u32 {
             self.current_loop_d_component_gain_ratio
         }
-        /// Sets `0x3596` Current loop d-component gain ratio.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3596` Current loop d-component gain ratio (see [`Self::current_loop_d_component_gain_ratio`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_current_loop_d_component_gain_ratio(
             &mut self,
@@ -26359,15 +25487,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3598` Current loop proportional gain.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.KP`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn current_loop_proportional_gain(&self) -> i32 {
             self.current_loop_proportional_gain
         }
-        /// Sets `0x3598` Current loop proportional gain.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3598` Current loop proportional gain (see [`Self::current_loop_proportional_gain`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_current_loop_proportional_gain(
             &mut self,
@@ -26379,15 +25507,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x359C` Motor phase.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.PHASE`.
         #[inline]
         pub const fn motor_phase(&self) -> u32 {
             self.motor_phase
         }
-        /// Sets `0x359C` Motor phase.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x359C` Motor phase (see [`Self::motor_phase`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_phase(
             &mut self,
@@ -26399,15 +25525,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x359D` Motor poles.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.POLES`.
         #[inline]
         pub const fn motor_poles(&self) -> u32 {
             self.motor_poles
         }
-        /// Sets `0x359D` Motor poles.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x359D` Motor poles (see [`Self::motor_poles`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_poles(
             &mut self,
@@ -26419,15 +25543,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35A3` Motor maximum velocity.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.VMAX`.
         #[inline]
         pub const fn motor_maximum_velocity(&self) -> u32 {
             self.motor_maximum_velocity
         }
-        /// Sets `0x35A3` Motor maximum velocity.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35A3` Motor maximum velocity (see [`Self::motor_maximum_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_maximum_velocity(
             &mut self,
@@ -26439,15 +25561,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35A4` Motor foldback current limit.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.MIFOLD`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn motor_foldback_current_limit(&self) -> i32 {
             self.motor_foldback_current_limit
         }
-        /// Sets `0x35A4` Motor foldback current limit.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35A4` Motor foldback current limit (see [`Self::motor_foldback_current_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_foldback_current_limit(
             &mut self,
@@ -26459,15 +25581,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35AB` Motor inertia.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.INERTIA`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn motor_inertia(&self) -> u32 {
             self.motor_inertia
         }
-        /// Sets `0x35AB` Motor inertia.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35AB` Motor inertia (see [`Self::motor_inertia`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_inertia(
             &mut self,
@@ -26479,15 +25601,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35AF` Digital output 1 mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DOUT1.MODE`.
         #[inline]
         pub const fn digital_output_1_mode(&self) -> u32 {
             self.digital_output_1_mode
         }
-        /// Sets `0x35AF` Digital output 1 mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35AF` Digital output 1 mode (see [`Self::digital_output_1_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_output_1_mode(
             &mut self,
@@ -26499,15 +25619,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35B2` Digital output 2 mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DOUT2.MODE`.
         #[inline]
         pub const fn digital_output_2_mode(&self) -> u32 {
             self.digital_output_2_mode
         }
-        /// Sets `0x35B2` Digital output 2 mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35B2` Digital output 2 mode (see [`Self::digital_output_2_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_output_2_mode(
             &mut self,
@@ -26519,15 +25637,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35B4` Drive operation mode.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.OPMODE`.
         #[inline]
         pub const fn drive_operation_mode(&self) -> i32 {
             self.drive_operation_mode
         }
-        /// Sets `0x35B4` Drive operation mode.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35B4` Drive operation mode (see [`Self::drive_operation_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_drive_operation_mode(
             &mut self,
@@ -26539,15 +25655,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35BC` Next motion task of motion task 0.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MT.MTNEXT`.
         #[inline]
         pub const fn next_motion_task_of_motion_task_0(&self) -> i32 {
             self.next_motion_task_of_motion_task_0
         }
-        /// Sets `0x35BC` Next motion task of motion task 0.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35BC` Next motion task of motion task 0 (see [`Self::next_motion_task_of_motion_task_0`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_next_motion_task_of_motion_task_0(
             &mut self,
@@ -26559,15 +25673,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35C2` Regen resistor selection.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `REGEN.REXT`.
         #[inline]
         pub const fn regen_resistor_selection(&self) -> i32 {
             self.regen_resistor_selection
         }
-        /// Sets `0x35C2` Regen resistor selection.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35C2` Regen resistor selection (see [`Self::regen_resistor_selection`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_regen_resistor_selection(
             &mut self,
@@ -26579,15 +25691,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35C5` Position following error.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `PL.ERR`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::position_following_error`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn position_following_error(&self) -> i32 {
             self.position_following_error
         }
-        /// Sets `0x35C5` Position following error.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35C5` Position following error (see [`Self::position_following_error`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_following_error(
             &mut self,
@@ -26599,15 +25713,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35C6` In-position window.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MT.TPOSWND`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::in_position_window`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn in_position_window(&self) -> i32 {
             self.in_position_window
         }
-        /// Sets `0x35C6` In-position window.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35C6` In-position window (see [`Self::in_position_window`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_in_position_window(
             &mut self,
@@ -26619,15 +25735,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35C7` Maximum following error.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PL.ERRFTHRESH`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::maximum_following_error`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn maximum_following_error(&self) -> i32 {
             self.maximum_following_error
         }
-        /// Sets `0x35C7` Maximum following error.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35C7` Maximum following error (see [`Self::maximum_following_error`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_maximum_following_error(
             &mut self,
@@ -26639,15 +25757,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35CA` Position resolution numerator.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `UNIT.PIN`.
         #[inline]
         pub const fn position_resolution_numerator(&self) -> i32 {
             self.position_resolution_numerator
         }
-        /// Sets `0x35CA` Position resolution numerator.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35CA` Position resolution numerator (see [`Self::position_resolution_numerator`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_resolution_numerator(
             &mut self,
@@ -26659,15 +25775,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35CB` Position resolution denominator.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `UNIT.POUT`.
         #[inline]
         pub const fn position_resolution_denominator(&self) -> i32 {
             self.position_resolution_denominator
         }
-        /// Sets `0x35CB` Position resolution denominator.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35CB` Position resolution denominator (see [`Self::position_resolution_denominator`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_resolution_denominator(
             &mut self,
@@ -26679,15 +25793,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35E2` Homing current limit for hard stop.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `HOME.IPEAK`.
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn homing_current_limit_for_hard_stop(&self) -> u32 {
             self.homing_current_limit_for_hard_stop
         }
-        /// Sets `0x35E2` Homing current limit for hard stop.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35E2` Homing current limit for hard stop (see [`Self::homing_current_limit_for_hard_stop`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_current_limit_for_hard_stop(
             &mut self,
@@ -26699,15 +25813,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35EB` Save data to non-volatile memory.
         ///
         /// INTEGER32, access `wo`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.NVSAVE`.
         #[inline]
         pub const fn save_data_to_non_volatile_memory(&self) -> i32 {
             self.save_data_to_non_volatile_memory
         }
-        /// Sets `0x35EB` Save data to non-volatile memory.
-        ///
-        /// INTEGER32, access `wo`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35EB` Save data to non-volatile memory (see [`Self::save_data_to_non_volatile_memory`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_save_data_to_non_volatile_memory(
             &mut self,
@@ -26719,15 +25831,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35F0` Set reference point.
         ///
         /// INTEGER32, access `wo`. Default: 0.
+        ///
+        /// Vendor parameter: `HOME.SET`.
         #[inline]
         pub const fn set_reference_point(&self) -> i32 {
             self.set_reference_point
         }
-        /// Sets `0x35F0` Set reference point.
-        ///
-        /// INTEGER32, access `wo`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35F0` Set reference point (see [`Self::set_reference_point`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_set_reference_point(
             &mut self,
@@ -26739,15 +25849,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35FE` Stop motion task.
         ///
         /// INTEGER32, access `wo`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.STOP`.
         #[inline]
         pub const fn stop_motion_task(&self) -> i32 {
             self.stop_motion_task
         }
-        /// Sets `0x35FE` Stop motion task.
-        ///
-        /// INTEGER32, access `wo`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35FE` Stop motion task (see [`Self::stop_motion_task`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_stop_motion_task(
             &mut self,
@@ -26759,15 +25867,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x35FF` Disable mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.DISMODE`.
         #[inline]
         pub const fn disable_mode(&self) -> u32 {
             self.disable_mode
         }
-        /// Sets `0x35FF` Disable mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x35FF` Disable mode (see [`Self::disable_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_disable_mode(
             &mut self,
@@ -26779,15 +25885,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3610` Ambient temperature.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.TEMPERATURES`.
         #[inline]
         pub const fn ambient_temperature(&self) -> i32 {
             self.ambient_temperature
         }
-        /// Sets `0x3610` Ambient temperature.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3610` Ambient temperature (see [`Self::ambient_temperature`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_ambient_temperature(
             &mut self,
@@ -26799,15 +25903,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3611` Heat sink temperature.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.TEMPERATURES`.
         #[inline]
         pub const fn heat_sink_temperature(&self) -> i32 {
             self.heat_sink_temperature
         }
-        /// Sets `0x3611` Heat sink temperature.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3611` Heat sink temperature (see [`Self::heat_sink_temperature`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_heat_sink_temperature(
             &mut self,
@@ -26819,15 +25921,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3612` Motor temperature.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.TEMP`.
         #[inline]
         pub const fn motor_temperature(&self) -> i32 {
             self.motor_temperature
         }
-        /// Sets `0x3612` Motor temperature.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3612` Motor temperature (see [`Self::motor_temperature`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_temperature(
             &mut self,
@@ -26839,15 +25939,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3617` Undervoltage mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VBUS.UVMODE`.
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn undervoltage_mode(&self) -> u32 {
             self.undervoltage_mode
         }
-        /// Sets `0x3617` Undervoltage mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3617` Undervoltage mode (see [`Self::undervoltage_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_undervoltage_mode(
             &mut self,
@@ -26859,15 +25959,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3618` Velocity feedback.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.FB`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_feedback`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn velocity_feedback(&self) -> i32 {
             self.velocity_feedback
         }
-        /// Sets `0x3618` Velocity feedback.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3618` Velocity feedback (see [`Self::velocity_feedback`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_feedback(
             &mut self,
@@ -26879,15 +25981,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x361A` DC bus voltage.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `VBUS.VALUE`.
         #[inline]
         pub const fn dc_bus_voltage(&self) -> i32 {
             self.dc_bus_voltage
         }
-        /// Sets `0x361A` DC bus voltage.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x361A` DC bus voltage (see [`Self::dc_bus_voltage`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_dc_bus_voltage(
             &mut self,
@@ -26899,15 +25999,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x361D` Undervoltage fault level.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VBUS.UVFTHRESH`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn undervoltage_fault_level(&self) -> u32 {
             self.undervoltage_fault_level
         }
-        /// Sets `0x361D` Undervoltage fault level.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x361D` Undervoltage fault level (see [`Self::undervoltage_fault_level`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_undervoltage_fault_level(
             &mut self,
@@ -26919,15 +26019,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3622` Positive velocity limit.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.LIMITP`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::positive_velocity_limit`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn positive_velocity_limit(&self) -> i32 {
             self.positive_velocity_limit
         }
-        /// Sets `0x3622` Positive velocity limit.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3622` Positive velocity limit (see [`Self::positive_velocity_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_positive_velocity_limit(
             &mut self,
@@ -26939,15 +26041,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3623` Negative velocity limit.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.LIMITN`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::negative_velocity_limit`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn negative_velocity_limit(&self) -> i32 {
             self.negative_velocity_limit
         }
-        /// Sets `0x3623` Negative velocity limit.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3623` Negative velocity limit (see [`Self::negative_velocity_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_negative_velocity_limit(
             &mut self,
@@ -26959,15 +26063,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3627` Overspeed threshold.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.THRESH`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::overspeed_threshold`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn overspeed_threshold(&self) -> i32 {
             self.overspeed_threshold
         }
-        /// Sets `0x3627` Overspeed threshold.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3627` Overspeed threshold (see [`Self::overspeed_threshold`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_overspeed_threshold(
             &mut self,
@@ -26979,15 +26085,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3629` Analog input velocity scale factor.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `AIN.VSCALE`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn analog_input_velocity_scale_factor(&self) -> i32 {
             self.analog_input_velocity_scale_factor
         }
-        /// Sets `0x3629` Analog input velocity scale factor.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3629` Analog input velocity scale factor (see [`Self::analog_input_velocity_scale_factor`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_input_velocity_scale_factor(
             &mut self,
@@ -26999,15 +26105,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3656` Initial feedback position.
         ///
         /// UNSIGNED64, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FB1.ORIGIN`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::initial_feedback_position`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn initial_feedback_position(&self) -> u64 {
             self.initial_feedback_position
         }
-        /// Sets `0x3656` Initial feedback position.
-        ///
-        /// UNSIGNED64, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3656` Initial feedback position (see [`Self::initial_feedback_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_initial_feedback_position(
             &mut self,
@@ -27019,15 +26127,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3659` Rotary acceleration units.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `UNIT.ACCROTARY`.
         #[inline]
         pub const fn rotary_acceleration_units(&self) -> i32 {
             self.rotary_acceleration_units
         }
-        /// Sets `0x3659` Rotary acceleration units.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3659` Rotary acceleration units (see [`Self::rotary_acceleration_units`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rotary_acceleration_units(
             &mut self,
@@ -27039,15 +26145,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x365B` Motion task number.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MT.NUM`.
         #[inline]
         pub const fn motion_task_number(&self) -> i32 {
             self.motion_task_number
         }
-        /// Sets `0x365B` Motion task number.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x365B` Motion task number (see [`Self::motion_task_number`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motion_task_number(
             &mut self,
@@ -27059,15 +26163,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x365F` Rotary velocity units.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `UNIT.VROTARY`.
         #[inline]
         pub const fn rotary_velocity_units(&self) -> i32 {
             self.rotary_velocity_units
         }
-        /// Sets `0x365F` Rotary velocity units.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x365F` Rotary velocity units (see [`Self::rotary_velocity_units`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rotary_velocity_units(
             &mut self,
@@ -27079,15 +26181,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3660` Rotary position units.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `UNIT.PROTARY`.
         #[inline]
         pub const fn rotary_position_units(&self) -> i32 {
             self.rotary_position_units
         }
-        /// Sets `0x3660` Rotary position units.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3660` Rotary position units (see [`Self::rotary_position_units`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rotary_position_units(
             &mut self,
@@ -27099,15 +26199,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x366E` Brake apply delay.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.TBRAKEAPP`.
         #[inline]
         pub const fn brake_apply_delay(&self) -> i32 {
             self.brake_apply_delay
         }
-        /// Sets `0x366E` Brake apply delay.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x366E` Brake apply delay (see [`Self::brake_apply_delay`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_brake_apply_delay(
             &mut self,
@@ -27119,15 +26217,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x366F` Brake release delay.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.TBRAKERLS`.
         #[inline]
         pub const fn brake_release_delay(&self) -> i32 {
             self.brake_release_delay
         }
-        /// Sets `0x366F` Brake release delay.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x366F` Brake release delay (see [`Self::brake_release_delay`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_brake_release_delay(
             &mut self,
@@ -27139,15 +26235,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3683` Wake and shake delay 1.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `WS.TDELAY1`.
         #[inline]
         pub const fn wake_and_shake_delay_1(&self) -> u16 {
             self.wake_and_shake_delay_1
         }
-        /// Sets `0x3683` Wake and shake delay 1.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3683` Wake and shake delay 1 (see [`Self::wake_and_shake_delay_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_wake_and_shake_delay_1(
             &mut self,
@@ -27159,15 +26253,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3685` Wake and shake delay 2.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `WS.TDELAY2`.
         #[inline]
         pub const fn wake_and_shake_delay_2(&self) -> u16 {
             self.wake_and_shake_delay_2
         }
-        /// Sets `0x3685` Wake and shake delay 2.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3685` Wake and shake delay 2 (see [`Self::wake_and_shake_delay_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_wake_and_shake_delay_2(
             &mut self,
@@ -27179,15 +26271,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36D0` Wake and shake current vector time.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `WS.T`.
         #[inline]
         pub const fn wake_and_shake_current_vector_time(&self) -> u16 {
             self.wake_and_shake_current_vector_time
         }
-        /// Sets `0x36D0` Wake and shake current vector time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36D0` Wake and shake current vector time (see [`Self::wake_and_shake_current_vector_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_wake_and_shake_current_vector_time(
             &mut self,
@@ -27199,15 +26289,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36D1` Wake and shake minimum movement.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `WS.DISTMIN`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::wake_and_shake_minimum_movement`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn wake_and_shake_minimum_movement(&self) -> u32 {
             self.wake_and_shake_minimum_movement
         }
-        /// Sets `0x36D1` Wake and shake minimum movement.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36D1` Wake and shake minimum movement (see [`Self::wake_and_shake_minimum_movement`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_wake_and_shake_minimum_movement(
             &mut self,
@@ -27219,15 +26311,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36D7` Homing automatic move flag.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `HOME.AUTOMOVE`.
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn homing_automatic_move_flag(&self) -> u32 {
             self.homing_automatic_move_flag
         }
-        /// Sets `0x36D7` Homing automatic move flag.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36D7` Homing automatic move flag (see [`Self::homing_automatic_move_flag`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_automatic_move_flag(
             &mut self,
@@ -27239,15 +26331,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36E2` Wake and shake number of loops.
         ///
         /// UNSIGNED8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `WS.NUMLOOPS`.
         #[inline]
         pub const fn wake_and_shake_number_of_loops(&self) -> u8 {
             self.wake_and_shake_number_of_loops
         }
-        /// Sets `0x36E2` Wake and shake number of loops.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36E2` Wake and shake number of loops (see [`Self::wake_and_shake_number_of_loops`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_wake_and_shake_number_of_loops(
             &mut self,
@@ -27259,15 +26349,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36E5` CAN baud rate selection.
         ///
         /// UNSIGNED32, access `rw`. Default: 125.
+        ///
+        /// Vendor parameter: `FBUS.PARAM01`.
         #[inline]
         pub const fn can_baud_rate_selection(&self) -> u32 {
             self.can_baud_rate_selection
         }
-        /// Sets `0x36E5` CAN baud rate selection.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 125.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36E5` CAN baud rate selection (see [`Self::can_baud_rate_selection`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_can_baud_rate_selection(
             &mut self,
@@ -27279,15 +26367,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36E6` PLL synchronization.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FBUS.PARAM02`.
         #[inline]
         pub const fn pll_synchronization(&self) -> u32 {
             self.pll_synchronization
         }
-        /// Sets `0x36E6` PLL synchronization.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36E6` PLL synchronization (see [`Self::pll_synchronization`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pll_synchronization(
             &mut self,
@@ -27299,15 +26385,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36E7` Fieldbus parameter 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FBUS.PARAM03`.
         #[inline]
         pub const fn fieldbus_parameter_3(&self) -> u32 {
             self.fieldbus_parameter_3
         }
-        /// Sets `0x36E7` Fieldbus parameter 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36E7` Fieldbus parameter 3 (see [`Self::fieldbus_parameter_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fieldbus_parameter_3(
             &mut self,
@@ -27319,15 +26403,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36E8` SYNC supervision.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FBUS.PARAM04`.
         #[inline]
         pub const fn sync_supervision(&self) -> u32 {
             self.sync_supervision
         }
-        /// Sets `0x36E8` SYNC supervision.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36E8` SYNC supervision (see [`Self::sync_supervision`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_sync_supervision(
             &mut self,
@@ -27339,15 +26421,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36E9` Fieldbus configuration bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FBUS.PARAM05`.
         #[inline]
         pub const fn fieldbus_configuration_bits(&self) -> u32 {
             self.fieldbus_configuration_bits
         }
-        /// Sets `0x36E9` Fieldbus configuration bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36E9` Fieldbus configuration bits (see [`Self::fieldbus_configuration_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fieldbus_configuration_bits(
             &mut self,
@@ -27359,15 +26439,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36EA` Fieldbus parameter 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FBUS.PARAM06`.
         #[inline]
         pub const fn fieldbus_parameter_6(&self) -> u32 {
             self.fieldbus_parameter_6
         }
-        /// Sets `0x36EA` Fieldbus parameter 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36EA` Fieldbus parameter 6 (see [`Self::fieldbus_parameter_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fieldbus_parameter_6(
             &mut self,
@@ -27379,15 +26457,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36EB` Fieldbus parameter 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FBUS.PARAM07`.
         #[inline]
         pub const fn fieldbus_parameter_7(&self) -> u32 {
             self.fieldbus_parameter_7
         }
-        /// Sets `0x36EB` Fieldbus parameter 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36EB` Fieldbus parameter 7 (see [`Self::fieldbus_parameter_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fieldbus_parameter_7(
             &mut self,
@@ -27399,15 +26475,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36EC` Fieldbus parameter 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FBUS.PARAM08`.
         #[inline]
         pub const fn fieldbus_parameter_8(&self) -> u32 {
             self.fieldbus_parameter_8
         }
-        /// Sets `0x36EC` Fieldbus parameter 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36EC` Fieldbus parameter 8 (see [`Self::fieldbus_parameter_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fieldbus_parameter_8(
             &mut self,
@@ -27419,15 +26493,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36ED` Fieldbus parameter 9.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FBUS.PARAM09`.
         #[inline]
         pub const fn fieldbus_parameter_9(&self) -> u32 {
             self.fieldbus_parameter_9
         }
-        /// Sets `0x36ED` Fieldbus parameter 9.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36ED` Fieldbus parameter 9 (see [`Self::fieldbus_parameter_9`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fieldbus_parameter_9(
             &mut self,
@@ -27439,15 +26511,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36EE` Fieldbus parameter 10.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FBUS.PARAM10`.
         #[inline]
         pub const fn fieldbus_parameter_10(&self) -> u32 {
             self.fieldbus_parameter_10
         }
-        /// Sets `0x36EE` Fieldbus parameter 10.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36EE` Fieldbus parameter 10 (see [`Self::fieldbus_parameter_10`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fieldbus_parameter_10(
             &mut self,
@@ -27459,15 +26529,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36F6` Digital input 5 mode.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN5.MODE`.
         #[inline]
         pub const fn digital_input_5_mode(&self) -> i32 {
             self.digital_input_5_mode
         }
-        /// Sets `0x36F6` Digital input 5 mode.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36F6` Digital input 5 mode (see [`Self::digital_input_5_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_5_mode(
             &mut self,
@@ -27479,15 +26547,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36F9` Digital input 6 mode.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN6.MODE`.
         #[inline]
         pub const fn digital_input_6_mode(&self) -> i32 {
             self.digital_input_6_mode
         }
-        /// Sets `0x36F9` Digital input 6 mode.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36F9` Digital input 6 mode (see [`Self::digital_input_6_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_6_mode(
             &mut self,
@@ -27499,15 +26565,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x36FC` Digital input 7 mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN7.MODE`.
         #[inline]
         pub const fn digital_input_7_mode(&self) -> u32 {
             self.digital_input_7_mode
         }
-        /// Sets `0x36FC` Digital input 7 mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x36FC` Digital input 7 mode (see [`Self::digital_input_7_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_7_mode(
             &mut self,
@@ -27519,15 +26583,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x3856` Profile position velocity window.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MT.TVELWND`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::profile_position_velocity_window`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn profile_position_velocity_window(&self) -> i32 {
             self.profile_position_velocity_window
         }
-        /// Sets `0x3856` Profile position velocity window.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x3856` Profile position velocity window (see [`Self::profile_position_velocity_window`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_profile_position_velocity_window(
             &mut self,
@@ -27539,15 +26605,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5000` Analog input low-pass cutoff frequency.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `AIN.CUTOFF`.
         #[inline]
         pub const fn analog_input_low_pass_cutoff_frequency(&self) -> u32 {
             self.analog_input_low_pass_cutoff_frequency
         }
-        /// Sets `0x5000` Analog input low-pass cutoff frequency.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5000` Analog input low-pass cutoff frequency (see [`Self::analog_input_low_pass_cutoff_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_input_low_pass_cutoff_frequency(
             &mut self,
@@ -27559,15 +26623,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5001` Analog input deadband.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `AIN.DEADBAND`.
         #[inline]
         pub const fn analog_input_deadband(&self) -> u32 {
             self.analog_input_deadband
         }
-        /// Sets `0x5001` Analog input deadband.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5001` Analog input deadband (see [`Self::analog_input_deadband`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_input_deadband(
             &mut self,
@@ -27579,15 +26641,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5002` Analog input current scale factor.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `AIN.ISCALE`.
         #[inline]
         pub const fn analog_input_current_scale_factor(&self) -> u32 {
             self.analog_input_current_scale_factor
         }
-        /// Sets `0x5002` Analog input current scale factor.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5002` Analog input current scale factor (see [`Self::analog_input_current_scale_factor`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_input_current_scale_factor(
             &mut self,
@@ -27599,15 +26659,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5003` Analog input offset.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `AIN.OFFSET`.
         #[inline]
         pub const fn analog_input_offset(&self) -> u32 {
             self.analog_input_offset
         }
-        /// Sets `0x5003` Analog input offset.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5003` Analog input offset (see [`Self::analog_input_offset`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_input_offset(
             &mut self,
@@ -27619,15 +26677,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5009` Analog output current scale factor.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `AOUT.ISCALE`.
         #[inline]
         pub const fn analog_output_current_scale_factor(&self) -> u32 {
             self.analog_output_current_scale_factor
         }
-        /// Sets `0x5009` Analog output current scale factor.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5009` Analog output current scale factor (see [`Self::analog_output_current_scale_factor`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_output_current_scale_factor(
             &mut self,
@@ -27639,15 +26695,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x500B` Analog output offset.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `AOUT.OFFSET`.
         #[inline]
         pub const fn analog_output_offset(&self) -> u32 {
             self.analog_output_offset
         }
-        /// Sets `0x500B` Analog output offset.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x500B` Analog output offset (see [`Self::analog_output_offset`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_output_offset(
             &mut self,
@@ -27659,15 +26713,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5013` Bode excitation update gap.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `BODE.EXCITEGAP`.
         #[inline]
         pub const fn bode_excitation_update_gap(&self) -> u32 {
             self.bode_excitation_update_gap
         }
-        /// Sets `0x5013` Bode excitation update gap.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5013` Bode excitation update gap (see [`Self::bode_excitation_update_gap`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_bode_excitation_update_gap(
             &mut self,
@@ -27679,15 +26731,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5015` Bode current command amplitude.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `BODE.IAMP`.
         #[inline]
         pub const fn bode_current_command_amplitude(&self) -> u32 {
             self.bode_current_command_amplitude
         }
-        /// Sets `0x5015` Bode current command amplitude.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5015` Bode current command amplitude (see [`Self::bode_current_command_amplitude`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_bode_current_command_amplitude(
             &mut self,
@@ -27699,15 +26749,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5016` Bode injection point.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `BODE.INJECTPOINT`.
         #[inline]
         pub const fn bode_injection_point(&self) -> u32 {
             self.bode_injection_point
         }
-        /// Sets `0x5016` Bode injection point.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5016` Bode injection point (see [`Self::bode_injection_point`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_bode_injection_point(
             &mut self,
@@ -27719,15 +26767,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5019` Bode PRB signal depth.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `BODE.PRBDEPTH`.
         #[inline]
         pub const fn bode_prb_signal_depth(&self) -> u32 {
             self.bode_prb_signal_depth
         }
-        /// Sets `0x5019` Bode PRB signal depth.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5019` Bode PRB signal depth (see [`Self::bode_prb_signal_depth`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_bode_prb_signal_depth(
             &mut self,
@@ -27739,15 +26785,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5060` Fault relay mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DOUT.RELAYMODE`.
         #[inline]
         pub const fn fault_relay_mode(&self) -> u32 {
             self.fault_relay_mode
         }
-        /// Sets `0x5060` Fault relay mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5060` Fault relay mode (see [`Self::fault_relay_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fault_relay_mode(
             &mut self,
@@ -27759,15 +26803,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5080` Software enable default state.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.ENDEFAULT`.
         #[inline]
         pub const fn software_enable_default_state(&self) -> u32 {
             self.software_enable_default_state
         }
-        /// Sets `0x5080` Software enable default state.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5080` Software enable default state (see [`Self::software_enable_default_state`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_software_enable_default_state(
             &mut self,
@@ -27779,15 +26821,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5083` Drive continuous rated current.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.ICONT`.
         #[inline]
         pub const fn drive_continuous_rated_current(&self) -> u32 {
             self.drive_continuous_rated_current
         }
-        /// Sets `0x5083` Drive continuous rated current.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5083` Drive continuous rated current (see [`Self::drive_continuous_rated_current`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_drive_continuous_rated_current(
             &mut self,
@@ -27799,15 +26839,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5084` Drive peak rated current.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.IPEAK`.
         #[inline]
         pub const fn drive_peak_rated_current(&self) -> u32 {
             self.drive_peak_rated_current
         }
-        /// Sets `0x5084` Drive peak rated current.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5084` Drive peak rated current (see [`Self::drive_peak_rated_current`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_drive_peak_rated_current(
             &mut self,
@@ -27819,15 +26857,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5085` Zero procedure current.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.IZERO`.
         #[inline]
         pub const fn zero_procedure_current(&self) -> u32 {
             self.zero_procedure_current
         }
-        /// Sets `0x5085` Zero procedure current.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5085` Zero procedure current (see [`Self::zero_procedure_current`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_zero_procedure_current(
             &mut self,
@@ -27839,15 +26875,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x508C` BiSS sensor position bits.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FB1.BISSBITS`.
         #[inline]
         pub const fn bi_ss_sensor_position_bits(&self) -> u32 {
             self.bi_ss_sensor_position_bits
         }
-        /// Sets `0x508C` BiSS sensor position bits.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x508C` BiSS sensor position bits (see [`Self::bi_ss_sensor_position_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_bi_ss_sensor_position_bits(
             &mut self,
@@ -27859,15 +26893,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x508F` Initial feedback value signed.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FB1.INITSIGNED`.
         #[inline]
         pub const fn initial_feedback_value_signed(&self) -> u32 {
             self.initial_feedback_value_signed
         }
-        /// Sets `0x508F` Initial feedback value signed.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x508F` Initial feedback value signed (see [`Self::initial_feedback_value_signed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_initial_feedback_value_signed(
             &mut self,
@@ -27879,15 +26911,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5096` Phase finding current.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FB1.PFINDCMDU`.
         #[inline]
         pub const fn phase_finding_current(&self) -> u32 {
             self.phase_finding_current
         }
-        /// Sets `0x5096` Phase finding current.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5096` Phase finding current (see [`Self::phase_finding_current`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_phase_finding_current(
             &mut self,
@@ -27899,15 +26929,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5097` Feedback poles.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FB1.POLES`.
         #[inline]
         pub const fn feedback_poles(&self) -> u32 {
             self.feedback_poles
         }
-        /// Sets `0x5097` Feedback poles.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5097` Feedback poles (see [`Self::feedback_poles`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feedback_poles(
             &mut self,
@@ -27919,15 +26947,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5099` Resolver transformation ratio.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FB1.RESKTR`.
         #[inline]
         pub const fn resolver_transformation_ratio(&self) -> u32 {
             self.resolver_transformation_ratio
         }
-        /// Sets `0x5099` Resolver transformation ratio.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5099` Resolver transformation ratio (see [`Self::resolver_transformation_ratio`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_resolver_transformation_ratio(
             &mut self,
@@ -27939,15 +26965,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x509A` Resolver reference phase lag.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FB1.RESREFPHASE`.
         #[inline]
         pub const fn resolver_reference_phase_lag(&self) -> u32 {
             self.resolver_reference_phase_lag
         }
-        /// Sets `0x509A` Resolver reference phase lag.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x509A` Resolver reference phase lag (see [`Self::resolver_reference_phase_lag`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_resolver_reference_phase_lag(
             &mut self,
@@ -27959,15 +26983,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x509C` Tracking calibration.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FB1.TRACKINGCAL`.
         #[inline]
         pub const fn tracking_calibration(&self) -> u32 {
             self.tracking_calibration
         }
-        /// Sets `0x509C` Tracking calibration.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x509C` Tracking calibration (see [`Self::tracking_calibration`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tracking_calibration(
             &mut self,
@@ -27979,15 +27001,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x50B1` PLL lock threshold.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FBUS.PLLTHRESH`.
         #[inline]
         pub const fn pll_lock_threshold(&self) -> u32 {
             self.pll_lock_threshold
         }
-        /// Sets `0x50B1` PLL lock threshold.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x50B1` PLL lock threshold (see [`Self::pll_lock_threshold`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pll_lock_threshold(
             &mut self,
@@ -27999,15 +27019,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x50B7` Gearing maximum acceleration.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `GEAR.ACCMAX`.
         #[inline]
         pub const fn gearing_maximum_acceleration(&self) -> u32 {
             self.gearing_maximum_acceleration
         }
-        /// Sets `0x50B7` Gearing maximum acceleration.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x50B7` Gearing maximum acceleration (see [`Self::gearing_maximum_acceleration`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gearing_maximum_acceleration(
             &mut self,
@@ -28019,15 +27037,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x50B9` Gearing maximum deceleration.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `GEAR.DECMAX`.
         #[inline]
         pub const fn gearing_maximum_deceleration(&self) -> u32 {
             self.gearing_maximum_deceleration
         }
-        /// Sets `0x50B9` Gearing maximum deceleration.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x50B9` Gearing maximum deceleration (see [`Self::gearing_maximum_deceleration`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gearing_maximum_deceleration(
             &mut self,
@@ -28039,15 +27055,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x50BB` Gearing ratio denominator.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `GEAR.IN`.
         #[inline]
         pub const fn gearing_ratio_denominator(&self) -> u32 {
             self.gearing_ratio_denominator
         }
-        /// Sets `0x50BB` Gearing ratio denominator.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x50BB` Gearing ratio denominator (see [`Self::gearing_ratio_denominator`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gearing_ratio_denominator(
             &mut self,
@@ -28059,15 +27073,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x50BC` Gearing mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `GEAR.MODE`.
         #[inline]
         pub const fn gearing_mode(&self) -> u32 {
             self.gearing_mode
         }
-        /// Sets `0x50BC` Gearing mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x50BC` Gearing mode (see [`Self::gearing_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gearing_mode(
             &mut self,
@@ -28079,15 +27091,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x50BE` Gearing ratio numerator.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `GEAR.OUT`.
         #[inline]
         pub const fn gearing_ratio_numerator(&self) -> u32 {
             self.gearing_ratio_numerator
         }
-        /// Sets `0x50BE` Gearing ratio numerator.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x50BE` Gearing ratio numerator (see [`Self::gearing_ratio_numerator`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gearing_ratio_numerator(
             &mut self,
@@ -28099,15 +27109,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x50E2` Current loop fieldbus feedforward gain.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.KBUSFF`.
         #[inline]
         pub const fn current_loop_fieldbus_feedforward_gain(&self) -> u32 {
             self.current_loop_fieldbus_feedforward_gain
         }
-        /// Sets `0x50E2` Current loop fieldbus feedforward gain.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x50E2` Current loop fieldbus feedforward gain (see [`Self::current_loop_fieldbus_feedforward_gain`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_current_loop_fieldbus_feedforward_gain(
             &mut self,
@@ -28119,15 +27127,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x50FB` Motor pitch.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.PITCH`.
         #[inline]
         pub const fn motor_pitch(&self) -> u32 {
             self.motor_pitch
         }
-        /// Sets `0x50FB` Motor pitch.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x50FB` Motor pitch (see [`Self::motor_pitch`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_pitch(
             &mut self,
@@ -28139,15 +27145,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x50FE` Motor thermal resistor type.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.RTYPE`.
         #[inline]
         pub const fn motor_thermal_resistor_type(&self) -> u32 {
             self.motor_thermal_resistor_type
         }
-        /// Sets `0x50FE` Motor thermal resistor type.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x50FE` Motor thermal resistor type (see [`Self::motor_thermal_resistor_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_thermal_resistor_type(
             &mut self,
@@ -28159,15 +27163,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5104` Motor type.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.TYPE`.
         #[inline]
         pub const fn motor_type(&self) -> u32 {
             self.motor_type
         }
-        /// Sets `0x5104` Motor type.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5104` Motor type (see [`Self::motor_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_type(
             &mut self,
@@ -28179,15 +27181,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x510E` Motion task after emergency stop.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MT.EMERGMT`.
         #[inline]
         pub const fn motion_task_after_emergency_stop(&self) -> u32 {
             self.motion_task_after_emergency_stop
         }
-        /// Sets `0x510E` Motion task after emergency stop.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x510E` Motion task after emergency stop (see [`Self::motion_task_after_emergency_stop`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motion_task_after_emergency_stop(
             &mut self,
@@ -28199,15 +27199,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5121` Following error mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PL.ERRMODE`.
         #[inline]
         pub const fn following_error_mode(&self) -> u32 {
             self.following_error_mode
         }
-        /// Sets `0x5121` Following error mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5121` Following error mode (see [`Self::following_error_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_following_error_mode(
             &mut self,
@@ -28219,15 +27217,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5128` Position loop feedback source.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PL.FBSOURCE`.
         #[inline]
         pub const fn position_loop_feedback_source(&self) -> u32 {
             self.position_loop_feedback_source
         }
-        /// Sets `0x5128` Position loop feedback source.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5128` Position loop feedback source (see [`Self::position_loop_feedback_source`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_loop_feedback_source(
             &mut self,
@@ -28239,15 +27235,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5175` Service motion current 1.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `SM.I1`.
         #[inline]
         pub const fn service_motion_current_1(&self) -> u32 {
             self.service_motion_current_1
         }
-        /// Sets `0x5175` Service motion current 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5175` Service motion current 1 (see [`Self::service_motion_current_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_service_motion_current_1(
             &mut self,
@@ -28259,15 +27253,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5176` Service motion current 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `SM.I2`.
         #[inline]
         pub const fn service_motion_current_2(&self) -> u32 {
             self.service_motion_current_2
         }
-        /// Sets `0x5176` Service motion current 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5176` Service motion current 2 (see [`Self::service_motion_current_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_service_motion_current_2(
             &mut self,
@@ -28279,15 +27271,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5177` Service motion mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `SM.MODE`.
         #[inline]
         pub const fn service_motion_mode(&self) -> u32 {
             self.service_motion_mode
         }
-        /// Sets `0x5177` Service motion mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5177` Service motion mode (see [`Self::service_motion_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_service_motion_mode(
             &mut self,
@@ -28299,15 +27289,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5179` Service motion time 1.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `SM.T1`.
         #[inline]
         pub const fn service_motion_time_1(&self) -> u32 {
             self.service_motion_time_1
         }
-        /// Sets `0x5179` Service motion time 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5179` Service motion time 1 (see [`Self::service_motion_time_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_service_motion_time_1(
             &mut self,
@@ -28319,15 +27307,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x517A` Service motion time 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `SM.T2`.
         #[inline]
         pub const fn service_motion_time_2(&self) -> u32 {
             self.service_motion_time_2
         }
-        /// Sets `0x517A` Service motion time 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x517A` Service motion time 2 (see [`Self::service_motion_time_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_service_motion_time_2(
             &mut self,
@@ -28339,15 +27325,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x517E` Software limit switch enable.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `SWLS.EN`.
         #[inline]
         pub const fn software_limit_switch_enable(&self) -> u32 {
             self.software_limit_switch_enable
         }
-        /// Sets `0x517E` Software limit switch enable.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x517E` Software limit switch enable (see [`Self::software_limit_switch_enable`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_software_limit_switch_enable(
             &mut self,
@@ -28359,15 +27343,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5184` Linear acceleration units.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `UNIT.ACCLINEAR`.
         #[inline]
         pub const fn linear_acceleration_units(&self) -> u32 {
             self.linear_acceleration_units
         }
-        /// Sets `0x5184` Linear acceleration units.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5184` Linear acceleration units (see [`Self::linear_acceleration_units`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_linear_acceleration_units(
             &mut self,
@@ -28379,15 +27361,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5187` Linear position units.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `UNIT.PLINEAR`.
         #[inline]
         pub const fn linear_position_units(&self) -> u32 {
             self.linear_position_units
         }
-        /// Sets `0x5187` Linear position units.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5187` Linear position units (see [`Self::linear_position_units`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_linear_position_units(
             &mut self,
@@ -28399,15 +27379,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x518A` Linear velocity units.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `UNIT.VLINEAR`.
         #[inline]
         pub const fn linear_velocity_units(&self) -> u32 {
             self.linear_velocity_units
         }
-        /// Sets `0x518A` Linear velocity units.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x518A` Linear velocity units (see [`Self::linear_velocity_units`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_linear_velocity_units(
             &mut self,
@@ -28419,15 +27397,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x518E` Overvoltage warning level.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VBUS.OVWTHRESH`.
         #[inline]
         pub const fn overvoltage_warning_level(&self) -> u32 {
             self.overvoltage_warning_level
         }
-        /// Sets `0x518E` Overvoltage warning level.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x518E` Overvoltage warning level (see [`Self::overvoltage_warning_level`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_overvoltage_warning_level(
             &mut self,
@@ -28439,15 +27415,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51AE` Velocity loop feedback source.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.FBSOURCE`.
         #[inline]
         pub const fn velocity_loop_feedback_source(&self) -> u32 {
             self.velocity_loop_feedback_source
         }
-        /// Sets `0x51AE` Velocity loop feedback source.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51AE` Velocity loop feedback source (see [`Self::velocity_loop_feedback_source`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_loop_feedback_source(
             &mut self,
@@ -28459,15 +27433,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51B0` Velocity generation mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.GENMODE`.
         #[inline]
         pub const fn velocity_generation_mode(&self) -> u32 {
             self.velocity_generation_mode
         }
-        /// Sets `0x51B0` Velocity generation mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51B0` Velocity generation mode (see [`Self::velocity_generation_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_generation_mode(
             &mut self,
@@ -28479,15 +27451,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51B3` Observer velocity scale.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.KO`.
         #[inline]
         pub const fn observer_velocity_scale(&self) -> u32 {
             self.observer_velocity_scale
         }
-        /// Sets `0x51B3` Observer velocity scale.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51B3` Observer velocity scale (see [`Self::observer_velocity_scale`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_observer_velocity_scale(
             &mut self,
@@ -28499,15 +27469,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51B8` Load to motor inertia ratio.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.LMJR`.
         #[inline]
         pub const fn load_to_motor_inertia_ratio(&self) -> u32 {
             self.load_to_motor_inertia_ratio
         }
-        /// Sets `0x51B8` Load to motor inertia ratio.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51B8` Load to motor inertia ratio (see [`Self::load_to_motor_inertia_ratio`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_load_to_motor_inertia_ratio(
             &mut self,
@@ -28519,15 +27487,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51BA` Observer bandwidth.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.OBSBW`.
         #[inline]
         pub const fn observer_bandwidth(&self) -> u32 {
             self.observer_bandwidth
         }
-        /// Sets `0x51BA` Observer bandwidth.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51BA` Observer bandwidth (see [`Self::observer_bandwidth`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_observer_bandwidth(
             &mut self,
@@ -28539,15 +27505,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51BB` Observer mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.OBSMODE`.
         #[inline]
         pub const fn observer_mode(&self) -> u32 {
             self.observer_mode
         }
-        /// Sets `0x51BB` Observer mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51BB` Observer mode (see [`Self::observer_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_observer_mode(
             &mut self,
@@ -28559,15 +27523,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51CB` Digital input 1 filter mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN1.FILTER`.
         #[inline]
         pub const fn digital_input_1_filter_mode(&self) -> u32 {
             self.digital_input_1_filter_mode
         }
-        /// Sets `0x51CB` Digital input 1 filter mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51CB` Digital input 1 filter mode (see [`Self::digital_input_1_filter_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_1_filter_mode(
             &mut self,
@@ -28579,15 +27541,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51CC` Digital input 2 filter mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN2.FILTER`.
         #[inline]
         pub const fn digital_input_2_filter_mode(&self) -> u32 {
             self.digital_input_2_filter_mode
         }
-        /// Sets `0x51CC` Digital input 2 filter mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51CC` Digital input 2 filter mode (see [`Self::digital_input_2_filter_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_2_filter_mode(
             &mut self,
@@ -28599,15 +27559,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51CD` Digital input 3 filter mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN3.FILTER`.
         #[inline]
         pub const fn digital_input_3_filter_mode(&self) -> u32 {
             self.digital_input_3_filter_mode
         }
-        /// Sets `0x51CD` Digital input 3 filter mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51CD` Digital input 3 filter mode (see [`Self::digital_input_3_filter_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_3_filter_mode(
             &mut self,
@@ -28619,15 +27577,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51CE` Digital input 4 filter mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN4.FILTER`.
         #[inline]
         pub const fn digital_input_4_filter_mode(&self) -> u32 {
             self.digital_input_4_filter_mode
         }
-        /// Sets `0x51CE` Digital input 4 filter mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51CE` Digital input 4 filter mode (see [`Self::digital_input_4_filter_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_4_filter_mode(
             &mut self,
@@ -28639,15 +27595,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51CF` Digital input 5 filter mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN5.FILTER`.
         #[inline]
         pub const fn digital_input_5_filter_mode(&self) -> u32 {
             self.digital_input_5_filter_mode
         }
-        /// Sets `0x51CF` Digital input 5 filter mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51CF` Digital input 5 filter mode (see [`Self::digital_input_5_filter_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_5_filter_mode(
             &mut self,
@@ -28659,15 +27613,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51D0` Digital input 6 filter mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN6.FILTER`.
         #[inline]
         pub const fn digital_input_6_filter_mode(&self) -> u32 {
             self.digital_input_6_filter_mode
         }
-        /// Sets `0x51D0` Digital input 6 filter mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51D0` Digital input 6 filter mode (see [`Self::digital_input_6_filter_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_6_filter_mode(
             &mut self,
@@ -28679,15 +27631,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51D1` Digital input 7 filter mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIN7.FILTER`.
         #[inline]
         pub const fn digital_input_7_filter_mode(&self) -> u32 {
             self.digital_input_7_filter_mode
         }
-        /// Sets `0x51D1` Digital input 7 filter mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51D1` Digital input 7 filter mode (see [`Self::digital_input_7_filter_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_input_7_filter_mode(
             &mut self,
@@ -28699,15 +27649,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51E7` Modbus user units input.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MODBUS.PIN`.
         #[inline]
         pub const fn modbus_user_units_input(&self) -> u32 {
             self.modbus_user_units_input
         }
-        /// Sets `0x51E7` Modbus user units input.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51E7` Modbus user units input (see [`Self::modbus_user_units_input`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_modbus_user_units_input(
             &mut self,
@@ -28719,15 +27667,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51E8` Modbus user units output.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MODBUS.POUT`.
         #[inline]
         pub const fn modbus_user_units_output(&self) -> u32 {
             self.modbus_user_units_output
         }
-        /// Sets `0x51E8` Modbus user units output.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51E8` Modbus user units output (see [`Self::modbus_user_units_output`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_modbus_user_units_output(
             &mut self,
@@ -28739,15 +27685,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51E9` Modbus feedback resolution.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MODBUS.PSCALE`.
         #[inline]
         pub const fn modbus_feedback_resolution(&self) -> u32 {
             self.modbus_feedback_resolution
         }
-        /// Sets `0x51E9` Modbus feedback resolution.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51E9` Modbus feedback resolution (see [`Self::modbus_feedback_resolution`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_modbus_feedback_resolution(
             &mut self,
@@ -28759,15 +27703,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51EC` Secondary feedback resolution.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FB2.ENCRES`.
         #[inline]
         pub const fn secondary_feedback_resolution(&self) -> u32 {
             self.secondary_feedback_resolution
         }
-        /// Sets `0x51EC` Secondary feedback resolution.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51EC` Secondary feedback resolution (see [`Self::secondary_feedback_resolution`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_secondary_feedback_resolution(
             &mut self,
@@ -28779,15 +27721,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51ED` Secondary feedback mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FB2.MODE`.
         #[inline]
         pub const fn secondary_feedback_mode(&self) -> u32 {
             self.secondary_feedback_mode
         }
-        /// Sets `0x51ED` Secondary feedback mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51ED` Secondary feedback mode (see [`Self::secondary_feedback_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_secondary_feedback_mode(
             &mut self,
@@ -28799,15 +27739,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51EE` Secondary feedback source.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FB2.SOURCE`.
         #[inline]
         pub const fn secondary_feedback_source(&self) -> u32 {
             self.secondary_feedback_source
         }
-        /// Sets `0x51EE` Secondary feedback source.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51EE` Secondary feedback source (see [`Self::secondary_feedback_source`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_secondary_feedback_source(
             &mut self,
@@ -28819,15 +27757,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51EF` Brake apply timeout.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.TBRAKETO`.
         #[inline]
         pub const fn brake_apply_timeout(&self) -> u32 {
             self.brake_apply_timeout
         }
-        /// Sets `0x51EF` Brake apply timeout.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51EF` Brake apply timeout (see [`Self::brake_apply_timeout`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_brake_apply_timeout(
             &mut self,
@@ -28839,15 +27775,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x51F0` Modbus message log.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MODBUS.MSGLOG`.
         #[inline]
         pub const fn modbus_message_log(&self) -> u32 {
             self.modbus_message_log
         }
-        /// Sets `0x51F0` Modbus message log.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x51F0` Modbus message log (see [`Self::modbus_message_log`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_modbus_message_log(
             &mut self,
@@ -28859,15 +27793,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x520C` Modbus scaling mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MODBUS.SCALING`.
         #[inline]
         pub const fn modbus_scaling_mode(&self) -> u32 {
             self.modbus_scaling_mode
         }
-        /// Sets `0x520C` Modbus scaling mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x520C` Modbus scaling mode (see [`Self::modbus_scaling_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_modbus_scaling_mode(
             &mut self,
@@ -28879,15 +27811,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x520D` Emulated encoder pulse width.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.EMUEPULSEWIDTH`.
         #[inline]
         pub const fn emulated_encoder_pulse_width(&self) -> u32 {
             self.emulated_encoder_pulse_width
         }
-        /// Sets `0x520D` Emulated encoder pulse width.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x520D` Emulated encoder pulse width (see [`Self::emulated_encoder_pulse_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_emulated_encoder_pulse_width(
             &mut self,
@@ -28899,15 +27829,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x520E` Emulated encoder velocity monitoring.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.EMUECHECKSPEED`.
         #[inline]
         pub const fn emulated_encoder_velocity_monitoring(&self) -> u32 {
             self.emulated_encoder_velocity_monitoring
         }
-        /// Sets `0x520E` Emulated encoder velocity monitoring.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x520E` Emulated encoder velocity monitoring (see [`Self::emulated_encoder_velocity_monitoring`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_emulated_encoder_velocity_monitoring(
             &mut self,
@@ -28919,15 +27847,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5251` Analog input deadband mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `AIN.DEADBANDMODE`.
         #[inline]
         pub const fn analog_input_deadband_mode(&self) -> u32 {
             self.analog_input_deadband_mode
         }
-        /// Sets `0x5251` Analog input deadband mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5251` Analog input deadband mode (see [`Self::analog_input_deadband_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_input_deadband_mode(
             &mut self,
@@ -28939,15 +27865,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5252` Analog input mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `AIN.MODE`.
         #[inline]
         pub const fn analog_input_mode(&self) -> u32 {
             self.analog_input_mode
         }
-        /// Sets `0x5252` Analog input mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5252` Analog input mode (see [`Self::analog_input_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_analog_input_mode(
             &mut self,
@@ -28959,15 +27883,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5253` DIO10 direction.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIO10.DIR`.
         #[inline]
         pub const fn dio10_direction(&self) -> u32 {
             self.dio10_direction
         }
-        /// Sets `0x5253` DIO10 direction.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5253` DIO10 direction (see [`Self::dio10_direction`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_dio10_direction(
             &mut self,
@@ -28979,15 +27901,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5254` DIO10 output inversion.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIO10.INV`.
         #[inline]
         pub const fn dio10_output_inversion(&self) -> u32 {
             self.dio10_output_inversion
         }
-        /// Sets `0x5254` DIO10 output inversion.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5254` DIO10 output inversion (see [`Self::dio10_output_inversion`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_dio10_output_inversion(
             &mut self,
@@ -28999,15 +27919,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5255` DIO11 direction.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIO11.DIR`.
         #[inline]
         pub const fn dio11_direction(&self) -> u32 {
             self.dio11_direction
         }
-        /// Sets `0x5255` DIO11 direction.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5255` DIO11 direction (see [`Self::dio11_direction`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_dio11_direction(
             &mut self,
@@ -29019,15 +27937,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5256` DIO11 output inversion.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIO11.INV`.
         #[inline]
         pub const fn dio11_output_inversion(&self) -> u32 {
             self.dio11_output_inversion
         }
-        /// Sets `0x5256` DIO11 output inversion.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5256` DIO11 output inversion (see [`Self::dio11_output_inversion`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_dio11_output_inversion(
             &mut self,
@@ -29039,15 +27955,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5257` DIO9 direction.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIO9.DIR`.
         #[inline]
         pub const fn dio9_direction(&self) -> u32 {
             self.dio9_direction
         }
-        /// Sets `0x5257` DIO9 direction.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5257` DIO9 direction (see [`Self::dio9_direction`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_dio9_direction(
             &mut self,
@@ -29059,15 +27973,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5258` DIO9 output inversion.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DIO9.INV`.
         #[inline]
         pub const fn dio9_output_inversion(&self) -> u32 {
             self.dio9_output_inversion
         }
-        /// Sets `0x5258` DIO9 output inversion.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5258` DIO9 output inversion (see [`Self::dio9_output_inversion`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_dio9_output_inversion(
             &mut self,
@@ -29079,15 +27991,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5259` Fault 130 action.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FAULT130.ACTION`.
         #[inline]
         pub const fn fault_130_action(&self) -> u32 {
             self.fault_130_action
         }
-        /// Sets `0x5259` Fault 130 action.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5259` Fault 130 action (see [`Self::fault_130_action`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fault_130_action(
             &mut self,
@@ -29099,15 +28009,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x525A` Fault 131 action.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FAULT131.ACTION`.
         #[inline]
         pub const fn fault_131_action(&self) -> u32 {
             self.fault_131_action
         }
-        /// Sets `0x525A` Fault 131 action.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x525A` Fault 131 action (see [`Self::fault_131_action`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fault_131_action(
             &mut self,
@@ -29119,15 +28027,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x525B` Fault 132 action.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FAULT132.ACTION`.
         #[inline]
         pub const fn fault_132_action(&self) -> u32 {
             self.fault_132_action
         }
-        /// Sets `0x525B` Fault 132 action.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x525B` Fault 132 action (see [`Self::fault_132_action`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fault_132_action(
             &mut self,
@@ -29139,15 +28045,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x525C` Fault 134 action.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FAULT134.ACTION`.
         #[inline]
         pub const fn fault_134_action(&self) -> u32 {
             self.fault_134_action
         }
-        /// Sets `0x525C` Fault 134 action.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x525C` Fault 134 action (see [`Self::fault_134_action`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fault_134_action(
             &mut self,
@@ -29159,15 +28063,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x525D` Fault 702 action.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FAULT702.ACTION`.
         #[inline]
         pub const fn fault_702_action(&self) -> u32 {
             self.fault_702_action
         }
-        /// Sets `0x525D` Fault 702 action.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x525D` Fault 702 action (see [`Self::fault_702_action`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fault_702_action(
             &mut self,
@@ -29179,15 +28081,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x525E` IP address mode.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IP.MODE`.
         #[inline]
         pub const fn ip_address_mode(&self) -> u32 {
             self.ip_address_mode
         }
-        /// Sets `0x525E` IP address mode.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x525E` IP address mode (see [`Self::ip_address_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_ip_address_mode(
             &mut self,
@@ -29199,15 +28099,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x525F` Load inertia.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `LOAD.INERTIA`.
         #[inline]
         pub const fn load_inertia(&self) -> u32 {
             self.load_inertia
         }
-        /// Sets `0x525F` Load inertia.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x525F` Load inertia (see [`Self::load_inertia`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_load_inertia(
             &mut self,
@@ -29219,15 +28117,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5260` Motor back EMF constant.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.KE`.
         #[inline]
         pub const fn motor_back_emf_constant(&self) -> u32 {
             self.motor_back_emf_constant
         }
-        /// Sets `0x5260` Motor back EMF constant.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5260` Motor back EMF constant (see [`Self::motor_back_emf_constant`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_back_emf_constant(
             &mut self,
@@ -29239,15 +28135,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5261` Bus voltage half-voltage thresholds.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `VBUS.HALFVOLT`.
         #[inline]
         pub const fn bus_voltage_half_voltage_thresholds(&self) -> u32 {
             self.bus_voltage_half_voltage_thresholds
         }
-        /// Sets `0x5261` Bus voltage half-voltage thresholds.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5261` Bus voltage half-voltage thresholds (see [`Self::bus_voltage_half_voltage_thresholds`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_bus_voltage_half_voltage_thresholds(
             &mut self,
@@ -29259,15 +28153,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5262` Secondary feedback direction.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FB2.DIR`.
         #[inline]
         pub const fn secondary_feedback_direction(&self) -> u32 {
             self.secondary_feedback_direction
         }
-        /// Sets `0x5262` Secondary feedback direction.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5262` Secondary feedback direction (see [`Self::secondary_feedback_direction`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_secondary_feedback_direction(
             &mut self,
@@ -29279,15 +28171,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5263` Handwheel feedback source.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.HANDWHEELSRC`.
         #[inline]
         pub const fn handwheel_feedback_source(&self) -> u32 {
             self.handwheel_feedback_source
         }
-        /// Sets `0x5263` Handwheel feedback source.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5263` Handwheel feedback source (see [`Self::handwheel_feedback_source`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_handwheel_feedback_source(
             &mut self,
@@ -29299,15 +28189,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5264` Hardware enable delay.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `DRV.HWENDELAY`.
         #[inline]
         pub const fn hardware_enable_delay(&self) -> u32 {
             self.hardware_enable_delay
         }
-        /// Sets `0x5264` Hardware enable delay.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5264` Hardware enable delay (see [`Self::hardware_enable_delay`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_hardware_enable_delay(
             &mut self,
@@ -29319,15 +28207,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5265` Current loop gain scheduling index.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.KPLOOKUPINDEX`.
         #[inline]
         pub const fn current_loop_gain_scheduling_index(&self) -> u32 {
             self.current_loop_gain_scheduling_index
         }
-        /// Sets `0x5265` Current loop gain scheduling index.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5265` Current loop gain scheduling index (see [`Self::current_loop_gain_scheduling_index`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_current_loop_gain_scheduling_index(
             &mut self,
@@ -29339,15 +28225,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5266` Current loop gain scheduling value.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `IL.KPLOOKUPVALUE`.
         #[inline]
         pub const fn current_loop_gain_scheduling_value(&self) -> u32 {
             self.current_loop_gain_scheduling_value
         }
-        /// Sets `0x5266` Current loop gain scheduling value.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5266` Current loop gain scheduling value (see [`Self::current_loop_gain_scheduling_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_current_loop_gain_scheduling_value(
             &mut self,
@@ -29359,15 +28243,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5267` Fault 451 action.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `FAULT451.ACTION`.
         #[inline]
         pub const fn fault_451_action(&self) -> u32 {
             self.fault_451_action
         }
-        /// Sets `0x5267` Fault 451 action.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5267` Fault 451 action (see [`Self::fault_451_action`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_fault_451_action(
             &mut self,
@@ -29379,15 +28261,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x5268` Brake immediately on disable.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `MOTOR.BRAKEIMM`.
         #[inline]
         pub const fn brake_immediately_on_disable(&self) -> u32 {
             self.brake_immediately_on_disable
         }
-        /// Sets `0x5268` Brake immediately on disable.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x5268` Brake immediately on disable (see [`Self::brake_immediately_on_disable`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_brake_immediately_on_disable(
             &mut self,
@@ -29403,11 +28283,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn controlword(&self) -> u16 {
             self.controlword
         }
-        /// Sets `0x6040` Controlword.
-        ///
-        /// UNSIGNED16, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6040` Controlword (see [`Self::controlword`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_controlword(
             &mut self,
@@ -29423,11 +28299,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn statusword(&self) -> u16 {
             self.statusword
         }
-        /// Sets `0x6041` Statusword.
-        ///
-        /// UNSIGNED16, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6041` Statusword (see [`Self::statusword`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_statusword(
             &mut self,
@@ -29443,11 +28315,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn modes_of_operation(&self) -> i8 {
             self.modes_of_operation
         }
-        /// Sets `0x6060` Modes of operation.
-        ///
-        /// INTEGER8, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6060` Modes of operation (see [`Self::modes_of_operation`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_modes_of_operation(
             &mut self,
@@ -29463,11 +28331,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn modes_of_operation_display(&self) -> i8 {
             self.modes_of_operation_display
         }
-        /// Sets `0x6061` Modes of operation display.
-        ///
-        /// INTEGER8, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6061` Modes of operation display (see [`Self::modes_of_operation_display`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_modes_of_operation_display(
             &mut self,
@@ -29483,11 +28347,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn position_actual_internal_value(&self) -> i32 {
             self.position_actual_internal_value
         }
-        /// Sets `0x6063` Position actual internal value.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6063` Position actual internal value (see [`Self::position_actual_internal_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_actual_internal_value(
             &mut self,
@@ -29499,15 +28359,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x6064` Position actual value.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `PL.FB`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::position_actual_value`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn position_actual_value(&self) -> i32 {
             self.position_actual_value
         }
-        /// Sets `0x6064` Position actual value.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6064` Position actual value (see [`Self::position_actual_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_actual_value(
             &mut self,
@@ -29519,15 +28381,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x6065` Following error window.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `PL.ERRFTHRESH`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::following_error_window`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn following_error_window(&self) -> u32 {
             self.following_error_window
         }
-        /// Sets `0x6065` Following error window.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6065` Following error window (see [`Self::following_error_window`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_following_error_window(
             &mut self,
@@ -29539,15 +28403,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x606B` Velocity demand value.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Vendor parameter: `VL.CMD`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_demand_value`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn velocity_demand_value(&self) -> i32 {
             self.velocity_demand_value
         }
-        /// Sets `0x606B` Velocity demand value.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x606B` Velocity demand value (see [`Self::velocity_demand_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_demand_value(
             &mut self,
@@ -29559,15 +28425,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x606C` Velocity actual value.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `VL.FB`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_actual_value`).
+        ///
+        /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
         pub const fn velocity_actual_value(&self) -> i32 {
             self.velocity_actual_value
         }
-        /// Sets `0x606C` Velocity actual value.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x606C` Velocity actual value (see [`Self::velocity_actual_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_actual_value(
             &mut self,
@@ -29579,15 +28447,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x606D` Velocity window.
         ///
         /// UNSIGNED16, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_window`).
         #[inline]
         pub const fn velocity_window(&self) -> u16 {
             self.velocity_window
         }
-        /// Sets `0x606D` Velocity window.
-        ///
-        /// UNSIGNED16, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x606D` Velocity window (see [`Self::velocity_window`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_window(
             &mut self,
@@ -29599,15 +28465,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x606E` Velocity window time.
         ///
         /// UNSIGNED16, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Time (typed conversion: `units::Units::velocity_window_time`).
         #[inline]
         pub const fn velocity_window_time(&self) -> u16 {
             self.velocity_window_time
         }
-        /// Sets `0x606E` Velocity window time.
-        ///
-        /// UNSIGNED16, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x606E` Velocity window time (see [`Self::velocity_window_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_window_time(
             &mut self,
@@ -29619,15 +28483,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x6071` Target torque.
         ///
         /// INTEGER16, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Torque (typed conversion: `units::Units::target_torque`).
         #[inline]
         pub const fn target_torque(&self) -> i16 {
             self.target_torque
         }
-        /// Sets `0x6071` Target torque.
-        ///
-        /// INTEGER16, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6071` Target torque (see [`Self::target_torque`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_target_torque(
             &mut self,
@@ -29639,15 +28501,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x6072` Max torque.
         ///
         /// UNSIGNED16, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Torque (typed conversion: `units::Units::max_torque`).
         #[inline]
         pub const fn max_torque(&self) -> u16 {
             self.max_torque
         }
-        /// Sets `0x6072` Max torque.
-        ///
-        /// UNSIGNED16, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6072` Max torque (see [`Self::max_torque`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_max_torque(
             &mut self,
@@ -29663,11 +28523,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn max_current(&self) -> u16 {
             self.max_current
         }
-        /// Sets `0x6073` Max current.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6073` Max current (see [`Self::max_current`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_max_current(
             &mut self,
@@ -29679,15 +28535,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x6077` Torque actual value.
         ///
         /// INTEGER16, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Torque (typed conversion: `units::Units::torque_actual_value`).
         #[inline]
         pub const fn torque_actual_value(&self) -> i16 {
             self.torque_actual_value
         }
-        /// Sets `0x6077` Torque actual value.
-        ///
-        /// INTEGER16, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6077` Torque actual value (see [`Self::torque_actual_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_torque_actual_value(
             &mut self,
@@ -29699,15 +28553,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x607A` Target position.
         ///
         /// INTEGER32, access `rw`, PDO-mappable. Default: 0. At least -2147483647.
+        ///
+        /// Vendor parameter: `MT.P`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::target_position`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn target_position(&self) -> i32 {
             self.target_position
         }
-        /// Sets `0x607A` Target position.
-        ///
-        /// INTEGER32, access `rw`, PDO-mappable. Default: 0. At least -2147483647.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607A` Target position (see [`Self::target_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_target_position(
             &mut self,
@@ -29722,15 +28578,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x607C` Home offset.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `HOME.P`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::home_offset`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn home_offset(&self) -> i32 {
             self.home_offset
         }
-        /// Sets `0x607C` Home offset.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607C` Home offset (see [`Self::home_offset`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_home_offset(
             &mut self,
@@ -29746,11 +28604,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn software_position_limit_number_of_entries(&self) -> u8 {
             self.software_position_limit_number_of_entries
         }
-        /// Sets `0x607D` sub 0 Software position limit: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607D` sub 0 Software position limit: Number of entries (see [`Self::software_position_limit_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_software_position_limit_number_of_entries(
             &mut self,
@@ -29762,15 +28616,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x607D` sub 1 Software position limit: Min position limit.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `SWLS.LIMIT0`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_min_position_limit`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn software_position_limit_min_position_limit(&self) -> i32 {
             self.software_position_limit_min_position_limit
         }
-        /// Sets `0x607D` sub 1 Software position limit: Min position limit.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607D` sub 1 Software position limit: Min position limit (see [`Self::software_position_limit_min_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_software_position_limit_min_position_limit(
             &mut self,
@@ -29782,15 +28638,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x607D` sub 2 Software position limit: Max position limit.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `SWLS.LIMIT1`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_max_position_limit`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn software_position_limit_max_position_limit(&self) -> i32 {
             self.software_position_limit_max_position_limit
         }
-        /// Sets `0x607D` sub 2 Software position limit: Max position limit.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607D` sub 2 Software position limit: Max position limit (see [`Self::software_position_limit_max_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_software_position_limit_max_position_limit(
             &mut self,
@@ -29802,15 +28660,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x6081` Profile velocity.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 10.
+        ///
+        /// Vendor parameter: `MT.V`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::profile_velocity`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn profile_velocity(&self) -> u32 {
             self.profile_velocity
         }
-        /// Sets `0x6081` Profile velocity.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 10.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6081` Profile velocity (see [`Self::profile_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_profile_velocity(
             &mut self,
@@ -29822,15 +28682,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x6083` Profile acceleration.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `MT.ACC`.
+        ///
+        /// Dimension: Acceleration (typed conversion: `units::Units::profile_acceleration`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn profile_acceleration(&self) -> u32 {
             self.profile_acceleration
         }
-        /// Sets `0x6083` Profile acceleration.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6083` Profile acceleration (see [`Self::profile_acceleration`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_profile_acceleration(
             &mut self,
@@ -29842,15 +28704,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x6084` Profile deceleration.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `MT.DEC`.
+        ///
+        /// Dimension: Acceleration (typed conversion: `units::Units::profile_deceleration`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn profile_deceleration(&self) -> u32 {
             self.profile_deceleration
         }
-        /// Sets `0x6084` Profile deceleration.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6084` Profile deceleration (see [`Self::profile_deceleration`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_profile_deceleration(
             &mut self,
@@ -29866,11 +28730,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn position_encoder_resolution_number_of_entries(&self) -> u8 {
             self.position_encoder_resolution_number_of_entries
         }
-        /// Sets `0x608F` sub 0 Position encoder resolution: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x608F` sub 0 Position encoder resolution: Number of entries (see [`Self::position_encoder_resolution_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_encoder_resolution_number_of_entries(
             &mut self,
@@ -29886,11 +28746,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn position_encoder_resolution_encoder_increments(&self) -> u32 {
             self.position_encoder_resolution_encoder_increments
         }
-        /// Sets `0x608F` sub 1 Position encoder resolution: Encoder increments.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1048576 (0x100000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x608F` sub 1 Position encoder resolution: Encoder increments (see [`Self::position_encoder_resolution_encoder_increments`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_encoder_resolution_encoder_increments(
             &mut self,
@@ -29906,11 +28762,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn position_encoder_resolution_motor_revolutions(&self) -> u32 {
             self.position_encoder_resolution_motor_revolutions
         }
-        /// Sets `0x608F` sub 2 Position encoder resolution: Motor revolutions.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x608F` sub 2 Position encoder resolution: Motor revolutions (see [`Self::position_encoder_resolution_motor_revolutions`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_encoder_resolution_motor_revolutions(
             &mut self,
@@ -29926,11 +28778,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn gear_ratio_number_of_entries(&self) -> u8 {
             self.gear_ratio_number_of_entries
         }
-        /// Sets `0x6091` sub 0 Gear ratio: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6091` sub 0 Gear ratio: Number of entries (see [`Self::gear_ratio_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gear_ratio_number_of_entries(
             &mut self,
@@ -29946,11 +28794,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn gear_ratio_motor_shaft_revolutions(&self) -> u32 {
             self.gear_ratio_motor_shaft_revolutions
         }
-        /// Sets `0x6091` sub 1 Gear ratio: Motor shaft revolutions.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6091` sub 1 Gear ratio: Motor shaft revolutions (see [`Self::gear_ratio_motor_shaft_revolutions`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gear_ratio_motor_shaft_revolutions(
             &mut self,
@@ -29966,11 +28810,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn gear_ratio_driving_shaft_revolutions(&self) -> u32 {
             self.gear_ratio_driving_shaft_revolutions
         }
-        /// Sets `0x6091` sub 2 Gear ratio: Driving shaft revolutions.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6091` sub 2 Gear ratio: Driving shaft revolutions (see [`Self::gear_ratio_driving_shaft_revolutions`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gear_ratio_driving_shaft_revolutions(
             &mut self,
@@ -29986,11 +28826,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn feed_constant_number_of_entries(&self) -> u8 {
             self.feed_constant_number_of_entries
         }
-        /// Sets `0x6092` sub 0 Feed constant: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6092` sub 0 Feed constant: Number of entries (see [`Self::feed_constant_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feed_constant_number_of_entries(
             &mut self,
@@ -30002,15 +28838,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x6092` sub 1 Feed constant: Feed.
         ///
         /// UNSIGNED32, access `rw`. Default: 1.
+        ///
+        /// Vendor parameter: `UNIT.PIN`.
         #[inline]
         pub const fn feed_constant_feed(&self) -> u32 {
             self.feed_constant_feed
         }
-        /// Sets `0x6092` sub 1 Feed constant: Feed.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6092` sub 1 Feed constant: Feed (see [`Self::feed_constant_feed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feed_constant_feed(
             &mut self,
@@ -30022,15 +28856,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x6092` sub 2 Feed constant: Shaft revolutions.
         ///
         /// UNSIGNED32, access `rw`. Default: 1.
+        ///
+        /// Vendor parameter: `UNIT.POUT`.
         #[inline]
         pub const fn feed_constant_shaft_revolutions(&self) -> u32 {
             self.feed_constant_shaft_revolutions
         }
-        /// Sets `0x6092` sub 2 Feed constant: Shaft revolutions.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6092` sub 2 Feed constant: Shaft revolutions (see [`Self::feed_constant_shaft_revolutions`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feed_constant_shaft_revolutions(
             &mut self,
@@ -30042,15 +28874,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x6098` Homing method.
         ///
         /// INTEGER8, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `HOME.MODE, HOME.DIR`.
         #[inline]
         pub const fn homing_method(&self) -> i8 {
             self.homing_method
         }
-        /// Sets `0x6098` Homing method.
-        ///
-        /// INTEGER8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6098` Homing method (see [`Self::homing_method`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_method(
             &mut self,
@@ -30066,11 +28896,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn homing_speeds_number_of_entries(&self) -> u8 {
             self.homing_speeds_number_of_entries
         }
-        /// Sets `0x6099` sub 0 Homing speeds: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6099` sub 0 Homing speeds: Number of entries (see [`Self::homing_speeds_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_speeds_number_of_entries(
             &mut self,
@@ -30082,15 +28908,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x6099` sub 1 Homing speeds: Speed during search for switch.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `HOME.V`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_speed_during_search_for_switch`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn homing_speeds_speed_during_search_for_switch(&self) -> u32 {
             self.homing_speeds_speed_during_search_for_switch
         }
-        /// Sets `0x6099` sub 1 Homing speeds: Speed during search for switch.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6099` sub 1 Homing speeds: Speed during search for switch (see [`Self::homing_speeds_speed_during_search_for_switch`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_speeds_speed_during_search_for_switch(
             &mut self,
@@ -30102,15 +28930,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x6099` sub 2 Homing speeds: Speed during search for zero.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `HOME.FEEDRATE`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_speed_during_search_for_zero`).
         #[inline]
         pub const fn homing_speeds_speed_during_search_for_zero(&self) -> u32 {
             self.homing_speeds_speed_during_search_for_zero
         }
-        /// Sets `0x6099` sub 2 Homing speeds: Speed during search for zero.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6099` sub 2 Homing speeds: Speed during search for zero (see [`Self::homing_speeds_speed_during_search_for_zero`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_speeds_speed_during_search_for_zero(
             &mut self,
@@ -30122,15 +28950,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x609A` Homing acceleration.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Vendor parameter: `HOME.ACC, HOME.DEC`.
+        ///
+        /// Dimension: Acceleration (typed conversion: `units::Units::homing_acceleration`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn homing_acceleration(&self) -> u32 {
             self.homing_acceleration
         }
-        /// Sets `0x609A` Homing acceleration.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x609A` Homing acceleration (see [`Self::homing_acceleration`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_acceleration(
             &mut self,
@@ -30142,15 +28972,17 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x60B1` Velocity offset.
         ///
         /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `VL.BUSFF`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_offset`).
+        ///
+        /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
         pub const fn velocity_offset(&self) -> i32 {
             self.velocity_offset
         }
-        /// Sets `0x60B1` Velocity offset.
-        ///
-        /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60B1` Velocity offset (see [`Self::velocity_offset`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_offset(
             &mut self,
@@ -30162,15 +28994,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x60B2` Torque offset.
         ///
         /// INTEGER16, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Torque (typed conversion: `units::Units::torque_offset`).
         #[inline]
         pub const fn torque_offset(&self) -> i16 {
             self.torque_offset
         }
-        /// Sets `0x60B2` Torque offset.
-        ///
-        /// INTEGER16, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60B2` Torque offset (see [`Self::torque_offset`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_torque_offset(
             &mut self,
@@ -30186,11 +29016,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn touch_probe_function(&self) -> u16 {
             self.touch_probe_function
         }
-        /// Sets `0x60B8` Touch probe function.
-        ///
-        /// UNSIGNED16, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60B8` Touch probe function (see [`Self::touch_probe_function`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_touch_probe_function(
             &mut self,
@@ -30206,11 +29032,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn touch_probe_status(&self) -> u16 {
             self.touch_probe_status
         }
-        /// Sets `0x60B9` Touch probe status.
-        ///
-        /// UNSIGNED16, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60B9` Touch probe status (see [`Self::touch_probe_status`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_touch_probe_status(
             &mut self,
@@ -30222,15 +29044,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x60BA` Touch probe 1 positive edge.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::touch_probe_1_positive_edge`).
         #[inline]
         pub const fn touch_probe_1_positive_edge(&self) -> i32 {
             self.touch_probe_1_positive_edge
         }
-        /// Sets `0x60BA` Touch probe 1 positive edge.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60BA` Touch probe 1 positive edge (see [`Self::touch_probe_1_positive_edge`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_touch_probe_1_positive_edge(
             &mut self,
@@ -30242,15 +29062,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x60BB` Touch probe 1 negative edge.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::touch_probe_1_negative_edge`).
         #[inline]
         pub const fn touch_probe_1_negative_edge(&self) -> i32 {
             self.touch_probe_1_negative_edge
         }
-        /// Sets `0x60BB` Touch probe 1 negative edge.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60BB` Touch probe 1 negative edge (see [`Self::touch_probe_1_negative_edge`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_touch_probe_1_negative_edge(
             &mut self,
@@ -30262,15 +29080,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x60BC` Touch probe 2 positive edge.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::touch_probe_2_positive_edge`).
         #[inline]
         pub const fn touch_probe_2_positive_edge(&self) -> i32 {
             self.touch_probe_2_positive_edge
         }
-        /// Sets `0x60BC` Touch probe 2 positive edge.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60BC` Touch probe 2 positive edge (see [`Self::touch_probe_2_positive_edge`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_touch_probe_2_positive_edge(
             &mut self,
@@ -30282,15 +29098,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x60BD` Touch probe 2 negative edge.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::touch_probe_2_negative_edge`).
         #[inline]
         pub const fn touch_probe_2_negative_edge(&self) -> i32 {
             self.touch_probe_2_negative_edge
         }
-        /// Sets `0x60BD` Touch probe 2 negative edge.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60BD` Touch probe 2 negative edge (see [`Self::touch_probe_2_negative_edge`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_touch_probe_2_negative_edge(
             &mut self,
@@ -30306,11 +29120,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn interpolation_sub_mode_select(&self) -> i16 {
             self.interpolation_sub_mode_select
         }
-        /// Sets `0x60C0` Interpolation sub mode select.
-        ///
-        /// INTEGER16, access `rw`. Default: 0. Range -2..=0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60C0` Interpolation sub mode select (see [`Self::interpolation_sub_mode_select`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_interpolation_sub_mode_select(
             &mut self,
@@ -30332,11 +29142,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn interpolation_data_record_number_of_entries(&self) -> u8 {
             self.interpolation_data_record_number_of_entries
         }
-        /// Sets `0x60C1` sub 0 Interpolation data record: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 3.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60C1` sub 0 Interpolation data record: Number of entries (see [`Self::interpolation_data_record_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_interpolation_data_record_number_of_entries(
             &mut self,
@@ -30354,11 +29160,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> i32 {
             self.interpolation_data_record_interpolation_target_position
         }
-        /// Sets `0x60C1` sub 1 Interpolation data record: Interpolation target position.
-        ///
-        /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60C1` sub 1 Interpolation data record: Interpolation target position (see [`Self::interpolation_data_record_interpolation_target_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_interpolation_data_record_interpolation_target_position(
             &mut self,
@@ -30370,15 +29172,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x60C1` sub 2 Interpolation data record: Interpolation time.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Time (typed conversion: `units::Units::interpolation_data_record_interpolation_time`).
         #[inline]
         pub const fn interpolation_data_record_interpolation_time(&self) -> u32 {
             self.interpolation_data_record_interpolation_time
         }
-        /// Sets `0x60C1` sub 2 Interpolation data record: Interpolation time.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60C1` sub 2 Interpolation data record: Interpolation time (see [`Self::interpolation_data_record_interpolation_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_interpolation_data_record_interpolation_time(
             &mut self,
@@ -30396,11 +29196,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> i32 {
             self.interpolation_data_record_interpolation_target_velocity
         }
-        /// Sets `0x60C1` sub 3 Interpolation data record: Interpolation target velocity.
-        ///
-        /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60C1` sub 3 Interpolation data record: Interpolation target velocity (see [`Self::interpolation_data_record_interpolation_target_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_interpolation_data_record_interpolation_target_velocity(
             &mut self,
@@ -30416,11 +29212,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn interpolation_time_period_number_of_entries(&self) -> u8 {
             self.interpolation_time_period_number_of_entries
         }
-        /// Sets `0x60C2` sub 0 Interpolation time period: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60C2` sub 0 Interpolation time period: Number of entries (see [`Self::interpolation_time_period_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_interpolation_time_period_number_of_entries(
             &mut self,
@@ -30438,11 +29230,7 @@ Denotation=MOTOR.BRAKEIMM
         ) -> u8 {
             self.interpolation_time_period_interpolation_time_period_value
         }
-        /// Sets `0x60C2` sub 1 Interpolation time period: Interpolation time period value.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60C2` sub 1 Interpolation time period: Interpolation time period value (see [`Self::interpolation_time_period_interpolation_time_period_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_interpolation_time_period_interpolation_time_period_value(
             &mut self,
@@ -30458,11 +29246,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn interpolation_time_period_interpolation_time_index(&self) -> i16 {
             self.interpolation_time_period_interpolation_time_index
         }
-        /// Sets `0x60C2` sub 2 Interpolation time period: Interpolation time index.
-        ///
-        /// INTEGER16, access `rw`. Default: -3.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60C2` sub 2 Interpolation time period: Interpolation time index (see [`Self::interpolation_time_period_interpolation_time_index`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_interpolation_time_period_interpolation_time_index(
             &mut self,
@@ -30478,11 +29262,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn interpolation_data_configuration_number_of_entries(&self) -> u8 {
             self.interpolation_data_configuration_number_of_entries
         }
-        /// Sets `0x60C4` sub 0 Interpolation data configuration: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 6.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60C4` sub 0 Interpolation data configuration: Number of entries (see [`Self::interpolation_data_configuration_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_interpolation_data_configuration_number_of_entries(
             &mut self,
@@ -30498,11 +29278,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn interpolation_data_configuration_maximum_buffer_size(&self) -> u32 {
             self.interpolation_data_configuration_maximum_buffer_size
         }
-        /// Sets `0x60C4` sub 1 Interpolation data configuration: Maximum buffer size.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 10.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60C4` sub 1 Interpolation data configuration: Maximum buffer size (see [`Self::interpolation_data_configuration_maximum_buffer_size`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_interpolation_data_configuration_maximum_buffer_size(
             &mut self,
@@ -30518,11 +29294,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn interpolation_data_configuration_actual_buffer_size(&self) -> u32 {
             self.interpolation_data_configuration_actual_buffer_size
         }
-        /// Sets `0x60C4` sub 2 Interpolation data configuration: Actual buffer size.
-        ///
-        /// UNSIGNED32, access `ro`, PDO-mappable. Default: 9. At most 9.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60C4` sub 2 Interpolation data configuration: Actual buffer size (see [`Self::interpolation_data_configuration_actual_buffer_size`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_interpolation_data_configuration_actual_buffer_size(
             &mut self,
@@ -30541,11 +29313,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn interpolation_data_configuration_buffer_organization(&self) -> u8 {
             self.interpolation_data_configuration_buffer_organization
         }
-        /// Sets `0x60C4` sub 3 Interpolation data configuration: Buffer organization.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60C4` sub 3 Interpolation data configuration: Buffer organization (see [`Self::interpolation_data_configuration_buffer_organization`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_interpolation_data_configuration_buffer_organization(
             &mut self,
@@ -30561,11 +29329,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn interpolation_data_configuration_buffer_position(&self) -> u16 {
             self.interpolation_data_configuration_buffer_position
         }
-        /// Sets `0x60C4` sub 4 Interpolation data configuration: Buffer position.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60C4` sub 4 Interpolation data configuration: Buffer position (see [`Self::interpolation_data_configuration_buffer_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_interpolation_data_configuration_buffer_position(
             &mut self,
@@ -30581,11 +29345,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn interpolation_data_configuration_size_of_data_record(&self) -> u8 {
             self.interpolation_data_configuration_size_of_data_record
         }
-        /// Sets `0x60C4` sub 5 Interpolation data configuration: Size of data record.
-        ///
-        /// UNSIGNED8, access `wo`. Default: 1. Range 1..=254.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60C4` sub 5 Interpolation data configuration: Size of data record (see [`Self::interpolation_data_configuration_size_of_data_record`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_interpolation_data_configuration_size_of_data_record(
             &mut self,
@@ -30607,11 +29367,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn interpolation_data_configuration_buffer_clear(&self) -> u8 {
             self.interpolation_data_configuration_buffer_clear
         }
-        /// Sets `0x60C4` sub 6 Interpolation data configuration: Buffer clear.
-        ///
-        /// UNSIGNED8, access `wo`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60C4` sub 6 Interpolation data configuration: Buffer clear (see [`Self::interpolation_data_configuration_buffer_clear`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_interpolation_data_configuration_buffer_clear(
             &mut self,
@@ -30627,11 +29383,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn touch_probe_source_number_of_entries(&self) -> u8 {
             self.touch_probe_source_number_of_entries
         }
-        /// Sets `0x60D0` sub 0 Touch probe source: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60D0` sub 0 Touch probe source: Number of entries (see [`Self::touch_probe_source_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_touch_probe_source_number_of_entries(
             &mut self,
@@ -30647,11 +29399,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn touch_probe_source_touch_probe_1_source(&self) -> i16 {
             self.touch_probe_source_touch_probe_1_source
         }
-        /// Sets `0x60D0` sub 1 Touch probe source: Touch probe 1 source.
-        ///
-        /// INTEGER16, access `rw`. Default: 1. Range -11..=5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60D0` sub 1 Touch probe source: Touch probe 1 source (see [`Self::touch_probe_source_touch_probe_1_source`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_touch_probe_source_touch_probe_1_source(
             &mut self,
@@ -30673,11 +29421,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn touch_probe_source_touch_probe_2_source(&self) -> i16 {
             self.touch_probe_source_touch_probe_2_source
         }
-        /// Sets `0x60D0` sub 2 Touch probe source: Touch probe 2 source.
-        ///
-        /// INTEGER16, access `rw`. Default: 1. Range -11..=5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60D0` sub 2 Touch probe source: Touch probe 2 source (see [`Self::touch_probe_source_touch_probe_2_source`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_touch_probe_source_touch_probe_2_source(
             &mut self,
@@ -30695,15 +29439,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x60F4` Following error actual value.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `PL.ERR`.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::following_error_actual_value`).
         #[inline]
         pub const fn following_error_actual_value(&self) -> i32 {
             self.following_error_actual_value
         }
-        /// Sets `0x60F4` Following error actual value.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60F4` Following error actual value (see [`Self::following_error_actual_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_following_error_actual_value(
             &mut self,
@@ -30715,15 +29459,13 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x60FD` Digital inputs.
         ///
         /// UNSIGNED32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `DIN1.MODE to DIN6.MODE`.
         #[inline]
         pub const fn digital_inputs(&self) -> u32 {
             self.digital_inputs
         }
-        /// Sets `0x60FD` Digital inputs.
-        ///
-        /// UNSIGNED32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60FD` Digital inputs (see [`Self::digital_inputs`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_inputs(
             &mut self,
@@ -30739,11 +29481,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn digital_outputs_number_of_entries(&self) -> u8 {
             self.digital_outputs_number_of_entries
         }
-        /// Sets `0x60FE` sub 0 Digital outputs: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60FE` sub 0 Digital outputs: Number of entries (see [`Self::digital_outputs_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_outputs_number_of_entries(
             &mut self,
@@ -30759,11 +29497,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn digital_outputs_physical_outputs(&self) -> u32 {
             self.digital_outputs_physical_outputs
         }
-        /// Sets `0x60FE` sub 1 Digital outputs: Physical outputs.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60FE` sub 1 Digital outputs: Physical outputs (see [`Self::digital_outputs_physical_outputs`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_outputs_physical_outputs(
             &mut self,
@@ -30779,11 +29513,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn digital_outputs_bit_mask(&self) -> u32 {
             self.digital_outputs_bit_mask
         }
-        /// Sets `0x60FE` sub 2 Digital outputs: Bit mask.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60FE` sub 2 Digital outputs: Bit mask (see [`Self::digital_outputs_bit_mask`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_digital_outputs_bit_mask(
             &mut self,
@@ -30795,15 +29525,15 @@ Denotation=MOTOR.BRAKEIMM
         /// Reads `0x60FF` Target velocity.
         ///
         /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Vendor parameter: `VL.CMDU`.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::target_velocity`).
         #[inline]
         pub const fn target_velocity(&self) -> i32 {
             self.target_velocity
         }
-        /// Sets `0x60FF` Target velocity.
-        ///
-        /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60FF` Target velocity (see [`Self::target_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_target_velocity(
             &mut self,
@@ -30819,11 +29549,7 @@ Denotation=MOTOR.BRAKEIMM
         pub const fn supported_drive_modes(&self) -> u32 {
             self.supported_drive_modes
         }
-        /// Sets `0x6502` Supported drive modes.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 101.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6502` Supported drive modes (see [`Self::supported_drive_modes`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_supported_drive_modes(
             &mut self,

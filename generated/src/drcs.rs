@@ -9815,11 +9815,7 @@ PDOMapping=0
         pub const fn device_type(&self) -> u32 {
             self.device_type
         }
-        /// Sets `0x1000` Device type.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 4286316946 (0xFF7C0192).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1000` Device type (see [`Self::device_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_device_type(
             &mut self,
@@ -9835,11 +9831,7 @@ PDOMapping=0
         pub const fn error_register(&self) -> u8 {
             self.error_register
         }
-        /// Sets `0x1001` Error register.
-        ///
-        /// UNSIGNED8, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1001` Error register (see [`Self::error_register`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_error_register(
             &mut self,
@@ -9855,11 +9847,7 @@ PDOMapping=0
         pub const fn manufacturer_status_register(&self) -> u32 {
             self.manufacturer_status_register
         }
-        /// Sets `0x1002` Manufacturer status register.
-        ///
-        /// UNSIGNED32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1002` Manufacturer status register (see [`Self::manufacturer_status_register`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_manufacturer_status_register(
             &mut self,
@@ -9875,11 +9863,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_number_of_errors(&self) -> u8 {
             self.pre_defined_error_field_number_of_errors
         }
-        /// Sets `0x1003` sub 0 Pre-defined error field: Number of errors.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 0 Pre-defined error field: Number of errors (see [`Self::pre_defined_error_field_number_of_errors`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_number_of_errors(
             &mut self,
@@ -9895,11 +9879,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_1(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_1
         }
-        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1 (see [`Self::pre_defined_error_field_standard_error_field_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_1(
             &mut self,
@@ -9915,11 +9895,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_2(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_2
         }
-        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2 (see [`Self::pre_defined_error_field_standard_error_field_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_2(
             &mut self,
@@ -9935,11 +9911,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_3(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_3
         }
-        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3 (see [`Self::pre_defined_error_field_standard_error_field_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_3(
             &mut self,
@@ -9955,11 +9927,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_4(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_4
         }
-        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4 (see [`Self::pre_defined_error_field_standard_error_field_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_4(
             &mut self,
@@ -9975,11 +9943,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_5(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_5
         }
-        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5 (see [`Self::pre_defined_error_field_standard_error_field_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_5(
             &mut self,
@@ -9995,11 +9959,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_6(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_6
         }
-        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6 (see [`Self::pre_defined_error_field_standard_error_field_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_6(
             &mut self,
@@ -10015,11 +9975,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_7(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_7
         }
-        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7 (see [`Self::pre_defined_error_field_standard_error_field_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_7(
             &mut self,
@@ -10035,11 +9991,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_8(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_8
         }
-        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8 (see [`Self::pre_defined_error_field_standard_error_field_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_8(
             &mut self,
@@ -10055,11 +10007,7 @@ PDOMapping=0
         pub const fn cob_id_sync(&self) -> u32 {
             self.cob_id_sync
         }
-        /// Sets `0x1005` COB-ID SYNC.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 128.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1005` COB-ID SYNC (see [`Self::cob_id_sync`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_cob_id_sync(
             &mut self,
@@ -10075,11 +10023,7 @@ PDOMapping=0
         pub const fn communication_cycle_period(&self) -> u32 {
             self.communication_cycle_period
         }
-        /// Sets `0x1006` Communication cycle period.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1006` Communication cycle period (see [`Self::communication_cycle_period`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_communication_cycle_period(
             &mut self,
@@ -10095,11 +10039,7 @@ PDOMapping=0
         pub const fn synchronous_window_length(&self) -> u32 {
             self.synchronous_window_length
         }
-        /// Sets `0x1007` Synchronous window length.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1007` Synchronous window length (see [`Self::synchronous_window_length`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_synchronous_window_length(
             &mut self,
@@ -10115,11 +10055,7 @@ PDOMapping=0
         pub fn manufacturer_device_name(&self) -> &[u8] {
             self.manufacturer_device_name.as_slice()
         }
-        /// Sets `0x1008` Manufacturer device name.
-        ///
-        /// VISIBLE_STRING, access `const`. Default: "DRCS". Capacity 32 bytes.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1008` Manufacturer device name (see [`Self::manufacturer_device_name`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         pub fn set_manufacturer_device_name(
             &mut self,
             v: &[u8],
@@ -10133,11 +10069,7 @@ PDOMapping=0
         pub fn manufacturer_hardware_version(&self) -> &[u8] {
             self.manufacturer_hardware_version.as_slice()
         }
-        /// Sets `0x1009` Manufacturer hardware version.
-        ///
-        /// VISIBLE_STRING, access `const`. Default: "1". Capacity 32 bytes.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1009` Manufacturer hardware version (see [`Self::manufacturer_hardware_version`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         pub fn set_manufacturer_hardware_version(
             &mut self,
             v: &[u8],
@@ -10151,11 +10083,7 @@ PDOMapping=0
         pub fn manufacturer_software_version(&self) -> &[u8] {
             self.manufacturer_software_version.as_slice()
         }
-        /// Sets `0x100A` Manufacturer software version.
-        ///
-        /// VISIBLE_STRING, access `const`. Default: "1.18". Capacity 32 bytes.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x100A` Manufacturer software version (see [`Self::manufacturer_software_version`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         pub fn set_manufacturer_software_version(
             &mut self,
             v: &[u8],
@@ -10169,11 +10097,7 @@ PDOMapping=0
         pub const fn guard_time(&self) -> u16 {
             self.guard_time
         }
-        /// Sets `0x100C` Guard time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x100C` Guard time (see [`Self::guard_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_guard_time(
             &mut self,
@@ -10189,11 +10113,7 @@ PDOMapping=0
         pub const fn life_time_factor(&self) -> u8 {
             self.life_time_factor
         }
-        /// Sets `0x100D` Life time factor.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x100D` Life time factor (see [`Self::life_time_factor`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_life_time_factor(
             &mut self,
@@ -10209,11 +10129,7 @@ PDOMapping=0
         pub const fn store_parameter_field_highest_sub_index_supported(&self) -> u8 {
             self.store_parameter_field_highest_sub_index_supported
         }
-        /// Sets `0x1010` sub 0 Store parameter field: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1010` sub 0 Store parameter field: Highest sub-index supported (see [`Self::store_parameter_field_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_store_parameter_field_highest_sub_index_supported(
             &mut self,
@@ -10229,11 +10145,7 @@ PDOMapping=0
         pub const fn store_parameter_field_save_all_parameters(&self) -> u32 {
             self.store_parameter_field_save_all_parameters
         }
-        /// Sets `0x1010` sub 1 Store parameter field: Save all parameters.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1010` sub 1 Store parameter field: Save all parameters (see [`Self::store_parameter_field_save_all_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_store_parameter_field_save_all_parameters(
             &mut self,
@@ -10251,11 +10163,7 @@ PDOMapping=0
         ) -> u8 {
             self.restore_default_parameters_highest_sub_index_supported
         }
-        /// Sets `0x1011` sub 0 Restore default parameters: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1011` sub 0 Restore default parameters: Highest sub-index supported (see [`Self::restore_default_parameters_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_restore_default_parameters_highest_sub_index_supported(
             &mut self,
@@ -10273,11 +10181,7 @@ PDOMapping=0
         ) -> u32 {
             self.restore_default_parameters_restore_all_default_parameters
         }
-        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters (see [`Self::restore_default_parameters_restore_all_default_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_restore_default_parameters_restore_all_default_parameters(
             &mut self,
@@ -10293,11 +10197,7 @@ PDOMapping=0
         pub const fn cob_id_time_stamp(&self) -> u32 {
             self.cob_id_time_stamp
         }
-        /// Sets `0x1012` COB-ID time stamp.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483904 (0x80000100).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1012` COB-ID time stamp (see [`Self::cob_id_time_stamp`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_cob_id_time_stamp(
             &mut self,
@@ -10313,11 +10213,7 @@ PDOMapping=0
         pub const fn cob_id_emcy(&self) -> u32 {
             self.cob_id_emcy
         }
-        /// Sets `0x1014` COB-ID EMCY.
-        ///
-        /// UNSIGNED32, access `ro`. Default: $NODEID + 0x80.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1014` COB-ID EMCY (see [`Self::cob_id_emcy`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_cob_id_emcy(
             &mut self,
@@ -10333,11 +10229,7 @@ PDOMapping=0
         pub const fn inhibit_time_emergency(&self) -> u16 {
             self.inhibit_time_emergency
         }
-        /// Sets `0x1015` Inhibit time emergency.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1015` Inhibit time emergency (see [`Self::inhibit_time_emergency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_inhibit_time_emergency(
             &mut self,
@@ -10353,11 +10245,7 @@ PDOMapping=0
         pub const fn producer_heartbeat_time(&self) -> u16 {
             self.producer_heartbeat_time
         }
-        /// Sets `0x1017` Producer heartbeat time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1017` Producer heartbeat time (see [`Self::producer_heartbeat_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_producer_heartbeat_time(
             &mut self,
@@ -10373,11 +10261,7 @@ PDOMapping=0
         pub const fn identity_object_number_of_entries(&self) -> u8 {
             self.identity_object_number_of_entries
         }
-        /// Sets `0x1018` sub 0 Identity object: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 4.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 0 Identity object: Number of entries (see [`Self::identity_object_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_number_of_entries(
             &mut self,
@@ -10393,11 +10277,7 @@ PDOMapping=0
         pub const fn identity_object_vendor_id(&self) -> u32 {
             self.identity_object_vendor_id
         }
-        /// Sets `0x1018` sub 1 Identity object: Vendor ID.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 337 (0x151).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 1 Identity object: Vendor ID (see [`Self::identity_object_vendor_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_vendor_id(
             &mut self,
@@ -10413,11 +10293,7 @@ PDOMapping=0
         pub const fn identity_object_product_code(&self) -> u32 {
             self.identity_object_product_code
         }
-        /// Sets `0x1018` sub 2 Identity object: Product code.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 90.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 2 Identity object: Product code (see [`Self::identity_object_product_code`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_product_code(
             &mut self,
@@ -10433,11 +10309,7 @@ PDOMapping=0
         pub const fn identity_object_revision_number(&self) -> u32 {
             self.identity_object_revision_number
         }
-        /// Sets `0x1018` sub 3 Identity object: Revision number.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 3 Identity object: Revision number (see [`Self::identity_object_revision_number`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_revision_number(
             &mut self,
@@ -10453,11 +10325,7 @@ PDOMapping=0
         pub const fn identity_object_serial_number(&self) -> u32 {
             self.identity_object_serial_number
         }
-        /// Sets `0x1018` sub 4 Identity object: Serial number.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 4 Identity object: Serial number (see [`Self::identity_object_serial_number`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_serial_number(
             &mut self,
@@ -10473,11 +10341,7 @@ PDOMapping=0
         pub const fn synchronous_counter_overflow_value(&self) -> u8 {
             self.synchronous_counter_overflow_value
         }
-        /// Sets `0x1019` Synchronous counter overflow value.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0. At most 240.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1019` Synchronous counter overflow value (see [`Self::synchronous_counter_overflow_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_synchronous_counter_overflow_value(
             &mut self,
@@ -10496,11 +10360,7 @@ PDOMapping=0
         pub const fn verify_configuration_highest_sub_index_supported(&self) -> u8 {
             self.verify_configuration_highest_sub_index_supported
         }
-        /// Sets `0x1020` sub 0 Verify configuration: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1020` sub 0 Verify configuration: Highest sub-index supported (see [`Self::verify_configuration_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_verify_configuration_highest_sub_index_supported(
             &mut self,
@@ -10516,11 +10376,7 @@ PDOMapping=0
         pub const fn verify_configuration_configuration_date(&self) -> u32 {
             self.verify_configuration_configuration_date
         }
-        /// Sets `0x1020` sub 1 Verify configuration: Configuration date.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1020` sub 1 Verify configuration: Configuration date (see [`Self::verify_configuration_configuration_date`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_verify_configuration_configuration_date(
             &mut self,
@@ -10536,11 +10392,7 @@ PDOMapping=0
         pub const fn verify_configuration_configuration_time(&self) -> u32 {
             self.verify_configuration_configuration_time
         }
-        /// Sets `0x1020` sub 2 Verify configuration: Configuration time.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1020` sub 2 Verify configuration: Configuration time (see [`Self::verify_configuration_configuration_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_verify_configuration_configuration_time(
             &mut self,
@@ -10556,11 +10408,7 @@ PDOMapping=0
         pub const fn server_sdo_parameter_highest_sub_index_supported(&self) -> u8 {
             self.server_sdo_parameter_highest_sub_index_supported
         }
-        /// Sets `0x1200` sub 0 Server SDO parameter: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1200` sub 0 Server SDO parameter: Highest sub-index supported (see [`Self::server_sdo_parameter_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_server_sdo_parameter_highest_sub_index_supported(
             &mut self,
@@ -10576,11 +10424,7 @@ PDOMapping=0
         pub const fn server_sdo_parameter_cob_id_client_to_server(&self) -> u32 {
             self.server_sdo_parameter_cob_id_client_to_server
         }
-        /// Sets `0x1200` sub 1 Server SDO parameter: COB-ID client to server.
-        ///
-        /// UNSIGNED32, access `ro`. Default: $NODEID + 0x600.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1200` sub 1 Server SDO parameter: COB-ID client to server (see [`Self::server_sdo_parameter_cob_id_client_to_server`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_server_sdo_parameter_cob_id_client_to_server(
             &mut self,
@@ -10596,11 +10440,7 @@ PDOMapping=0
         pub const fn server_sdo_parameter_cob_id_server_to_client(&self) -> u32 {
             self.server_sdo_parameter_cob_id_server_to_client
         }
-        /// Sets `0x1200` sub 2 Server SDO parameter: COB-ID server to client.
-        ///
-        /// UNSIGNED32, access `ro`. Default: $NODEID + 0x580.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1200` sub 2 Server SDO parameter: COB-ID server to client (see [`Self::server_sdo_parameter_cob_id_server_to_client`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_server_sdo_parameter_cob_id_server_to_client(
             &mut self,
@@ -10618,11 +10458,7 @@ PDOMapping=0
         ) -> u8 {
             self.rx_pdo_communication_parameter_1_highest_sub_index_supported
         }
-        /// Sets `0x1400` sub 0 Rx PDO communication parameter 1: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1400` sub 0 Rx PDO communication parameter 1: Highest sub-index supported (see [`Self::rx_pdo_communication_parameter_1_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_1_highest_sub_index_supported(
             &mut self,
@@ -10638,11 +10474,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_1_cob_id(&self) -> u32 {
             self.rx_pdo_communication_parameter_1_cob_id
         }
-        /// Sets `0x1400` sub 1 Rx PDO communication parameter 1: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x200.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1400` sub 1 Rx PDO communication parameter 1: COB-ID (see [`Self::rx_pdo_communication_parameter_1_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_1_cob_id(
             &mut self,
@@ -10658,11 +10490,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_1_transmission_type(&self) -> u8 {
             self.rx_pdo_communication_parameter_1_transmission_type
         }
-        /// Sets `0x1400` sub 2 Rx PDO communication parameter 1: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1400` sub 2 Rx PDO communication parameter 1: Transmission type (see [`Self::rx_pdo_communication_parameter_1_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_1_transmission_type(
             &mut self,
@@ -10680,11 +10508,7 @@ PDOMapping=0
         ) -> u8 {
             self.rx_pdo_communication_parameter_2_highest_sub_index_supported
         }
-        /// Sets `0x1401` sub 0 Rx PDO communication parameter 2: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1401` sub 0 Rx PDO communication parameter 2: Highest sub-index supported (see [`Self::rx_pdo_communication_parameter_2_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_2_highest_sub_index_supported(
             &mut self,
@@ -10700,11 +10524,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_2_cob_id(&self) -> u32 {
             self.rx_pdo_communication_parameter_2_cob_id
         }
-        /// Sets `0x1401` sub 1 Rx PDO communication parameter 2: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x80000300.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1401` sub 1 Rx PDO communication parameter 2: COB-ID (see [`Self::rx_pdo_communication_parameter_2_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_2_cob_id(
             &mut self,
@@ -10720,11 +10540,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_2_transmission_type(&self) -> u8 {
             self.rx_pdo_communication_parameter_2_transmission_type
         }
-        /// Sets `0x1401` sub 2 Rx PDO communication parameter 2: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1401` sub 2 Rx PDO communication parameter 2: Transmission type (see [`Self::rx_pdo_communication_parameter_2_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_2_transmission_type(
             &mut self,
@@ -10742,11 +10558,7 @@ PDOMapping=0
         ) -> u8 {
             self.rx_pdo_communication_parameter_3_highest_sub_index_supported
         }
-        /// Sets `0x1402` sub 0 Rx PDO communication parameter 3: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1402` sub 0 Rx PDO communication parameter 3: Highest sub-index supported (see [`Self::rx_pdo_communication_parameter_3_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_3_highest_sub_index_supported(
             &mut self,
@@ -10762,11 +10574,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_3_cob_id(&self) -> u32 {
             self.rx_pdo_communication_parameter_3_cob_id
         }
-        /// Sets `0x1402` sub 1 Rx PDO communication parameter 3: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x80000400.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1402` sub 1 Rx PDO communication parameter 3: COB-ID (see [`Self::rx_pdo_communication_parameter_3_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_3_cob_id(
             &mut self,
@@ -10782,11 +10590,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_3_transmission_type(&self) -> u8 {
             self.rx_pdo_communication_parameter_3_transmission_type
         }
-        /// Sets `0x1402` sub 2 Rx PDO communication parameter 3: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1402` sub 2 Rx PDO communication parameter 3: Transmission type (see [`Self::rx_pdo_communication_parameter_3_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_3_transmission_type(
             &mut self,
@@ -10804,11 +10608,7 @@ PDOMapping=0
         ) -> u8 {
             self.rx_pdo_communication_parameter_4_highest_sub_index_supported
         }
-        /// Sets `0x1403` sub 0 Rx PDO communication parameter 4: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1403` sub 0 Rx PDO communication parameter 4: Highest sub-index supported (see [`Self::rx_pdo_communication_parameter_4_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_4_highest_sub_index_supported(
             &mut self,
@@ -10824,11 +10624,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_4_cob_id(&self) -> u32 {
             self.rx_pdo_communication_parameter_4_cob_id
         }
-        /// Sets `0x1403` sub 1 Rx PDO communication parameter 4: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x80000500.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1403` sub 1 Rx PDO communication parameter 4: COB-ID (see [`Self::rx_pdo_communication_parameter_4_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_4_cob_id(
             &mut self,
@@ -10844,11 +10640,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_4_transmission_type(&self) -> u8 {
             self.rx_pdo_communication_parameter_4_transmission_type
         }
-        /// Sets `0x1403` sub 2 Rx PDO communication parameter 4: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1403` sub 2 Rx PDO communication parameter 4: Transmission type (see [`Self::rx_pdo_communication_parameter_4_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_4_transmission_type(
             &mut self,
@@ -10866,11 +10658,7 @@ PDOMapping=0
         ) -> u8 {
             self.rx_pdo_communication_parameter_5_highest_sub_index_supported
         }
-        /// Sets `0x1404` sub 0 Rx PDO communication parameter 5: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1404` sub 0 Rx PDO communication parameter 5: Highest sub-index supported (see [`Self::rx_pdo_communication_parameter_5_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_5_highest_sub_index_supported(
             &mut self,
@@ -10886,11 +10674,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_5_cob_id(&self) -> u32 {
             self.rx_pdo_communication_parameter_5_cob_id
         }
-        /// Sets `0x1404` sub 1 Rx PDO communication parameter 5: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483648 (0x80000000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1404` sub 1 Rx PDO communication parameter 5: COB-ID (see [`Self::rx_pdo_communication_parameter_5_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_5_cob_id(
             &mut self,
@@ -10906,11 +10690,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_5_transmission_type(&self) -> u8 {
             self.rx_pdo_communication_parameter_5_transmission_type
         }
-        /// Sets `0x1404` sub 2 Rx PDO communication parameter 5: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1404` sub 2 Rx PDO communication parameter 5: Transmission type (see [`Self::rx_pdo_communication_parameter_5_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_5_transmission_type(
             &mut self,
@@ -10928,11 +10708,7 @@ PDOMapping=0
         ) -> u8 {
             self.rx_pdo_communication_parameter_6_highest_sub_index_supported
         }
-        /// Sets `0x1405` sub 0 Rx PDO communication parameter 6: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1405` sub 0 Rx PDO communication parameter 6: Highest sub-index supported (see [`Self::rx_pdo_communication_parameter_6_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_6_highest_sub_index_supported(
             &mut self,
@@ -10948,11 +10724,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_6_cob_id(&self) -> u32 {
             self.rx_pdo_communication_parameter_6_cob_id
         }
-        /// Sets `0x1405` sub 1 Rx PDO communication parameter 6: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483648 (0x80000000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1405` sub 1 Rx PDO communication parameter 6: COB-ID (see [`Self::rx_pdo_communication_parameter_6_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_6_cob_id(
             &mut self,
@@ -10968,11 +10740,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_6_transmission_type(&self) -> u8 {
             self.rx_pdo_communication_parameter_6_transmission_type
         }
-        /// Sets `0x1405` sub 2 Rx PDO communication parameter 6: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1405` sub 2 Rx PDO communication parameter 6: Transmission type (see [`Self::rx_pdo_communication_parameter_6_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_6_transmission_type(
             &mut self,
@@ -10990,11 +10758,7 @@ PDOMapping=0
         ) -> u8 {
             self.rx_pdo_communication_parameter_7_highest_sub_index_supported
         }
-        /// Sets `0x1406` sub 0 Rx PDO communication parameter 7: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1406` sub 0 Rx PDO communication parameter 7: Highest sub-index supported (see [`Self::rx_pdo_communication_parameter_7_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_7_highest_sub_index_supported(
             &mut self,
@@ -11010,11 +10774,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_7_cob_id(&self) -> u32 {
             self.rx_pdo_communication_parameter_7_cob_id
         }
-        /// Sets `0x1406` sub 1 Rx PDO communication parameter 7: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483648 (0x80000000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1406` sub 1 Rx PDO communication parameter 7: COB-ID (see [`Self::rx_pdo_communication_parameter_7_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_7_cob_id(
             &mut self,
@@ -11030,11 +10790,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_7_transmission_type(&self) -> u8 {
             self.rx_pdo_communication_parameter_7_transmission_type
         }
-        /// Sets `0x1406` sub 2 Rx PDO communication parameter 7: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1406` sub 2 Rx PDO communication parameter 7: Transmission type (see [`Self::rx_pdo_communication_parameter_7_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_7_transmission_type(
             &mut self,
@@ -11052,11 +10808,7 @@ PDOMapping=0
         ) -> u8 {
             self.rx_pdo_communication_parameter_8_highest_sub_index_supported
         }
-        /// Sets `0x1407` sub 0 Rx PDO communication parameter 8: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1407` sub 0 Rx PDO communication parameter 8: Highest sub-index supported (see [`Self::rx_pdo_communication_parameter_8_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_8_highest_sub_index_supported(
             &mut self,
@@ -11072,11 +10824,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_8_cob_id(&self) -> u32 {
             self.rx_pdo_communication_parameter_8_cob_id
         }
-        /// Sets `0x1407` sub 1 Rx PDO communication parameter 8: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483648 (0x80000000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1407` sub 1 Rx PDO communication parameter 8: COB-ID (see [`Self::rx_pdo_communication_parameter_8_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_8_cob_id(
             &mut self,
@@ -11092,11 +10840,7 @@ PDOMapping=0
         pub const fn rx_pdo_communication_parameter_8_transmission_type(&self) -> u8 {
             self.rx_pdo_communication_parameter_8_transmission_type
         }
-        /// Sets `0x1407` sub 2 Rx PDO communication parameter 8: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1407` sub 2 Rx PDO communication parameter 8: Transmission type (see [`Self::rx_pdo_communication_parameter_8_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_communication_parameter_8_transmission_type(
             &mut self,
@@ -11112,11 +10856,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_1_number_of_mapped_objects(&self) -> u8 {
             self.rx_pdo_mapping_parameter_1_number_of_mapped_objects
         }
-        /// Sets `0x1600` sub 0 Rx PDO mapping parameter 1: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 0 Rx PDO mapping parameter 1: Number of mapped objects (see [`Self::rx_pdo_mapping_parameter_1_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_1_number_of_mapped_objects(
             &mut self,
@@ -11132,11 +10872,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_1_mapping_entry_1(&self) -> u32 {
             self.rx_pdo_mapping_parameter_1_mapping_entry_1
         }
-        /// Sets `0x1600` sub 1 Rx PDO mapping parameter 1: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1614807056 (0x60400010).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 1 Rx PDO mapping parameter 1: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_1(
             &mut self,
@@ -11152,11 +10888,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_1_mapping_entry_2(&self) -> u32 {
             self.rx_pdo_mapping_parameter_1_mapping_entry_2
         }
-        /// Sets `0x1600` sub 2 Rx PDO mapping parameter 1: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 2 Rx PDO mapping parameter 1: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_2(
             &mut self,
@@ -11172,11 +10904,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_1_mapping_entry_3(&self) -> u32 {
             self.rx_pdo_mapping_parameter_1_mapping_entry_3
         }
-        /// Sets `0x1600` sub 3 Rx PDO mapping parameter 1: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 3 Rx PDO mapping parameter 1: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_3(
             &mut self,
@@ -11192,11 +10920,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_1_mapping_entry_4(&self) -> u32 {
             self.rx_pdo_mapping_parameter_1_mapping_entry_4
         }
-        /// Sets `0x1600` sub 4 Rx PDO mapping parameter 1: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 4 Rx PDO mapping parameter 1: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_4(
             &mut self,
@@ -11212,11 +10936,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_1_mapping_entry_5(&self) -> u32 {
             self.rx_pdo_mapping_parameter_1_mapping_entry_5
         }
-        /// Sets `0x1600` sub 5 Rx PDO mapping parameter 1: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 5 Rx PDO mapping parameter 1: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_5(
             &mut self,
@@ -11232,11 +10952,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_1_mapping_entry_6(&self) -> u32 {
             self.rx_pdo_mapping_parameter_1_mapping_entry_6
         }
-        /// Sets `0x1600` sub 6 Rx PDO mapping parameter 1: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 6 Rx PDO mapping parameter 1: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_6(
             &mut self,
@@ -11252,11 +10968,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_1_mapping_entry_7(&self) -> u32 {
             self.rx_pdo_mapping_parameter_1_mapping_entry_7
         }
-        /// Sets `0x1600` sub 7 Rx PDO mapping parameter 1: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 7 Rx PDO mapping parameter 1: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_7(
             &mut self,
@@ -11272,11 +10984,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_1_mapping_entry_8(&self) -> u32 {
             self.rx_pdo_mapping_parameter_1_mapping_entry_8
         }
-        /// Sets `0x1600` sub 8 Rx PDO mapping parameter 1: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 8 Rx PDO mapping parameter 1: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_8(
             &mut self,
@@ -11292,11 +11000,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_2_number_of_mapped_objects(&self) -> u8 {
             self.rx_pdo_mapping_parameter_2_number_of_mapped_objects
         }
-        /// Sets `0x1601` sub 0 Rx PDO mapping parameter 2: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 0 Rx PDO mapping parameter 2: Number of mapped objects (see [`Self::rx_pdo_mapping_parameter_2_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_2_number_of_mapped_objects(
             &mut self,
@@ -11312,11 +11016,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_2_mapping_entry_1(&self) -> u32 {
             self.rx_pdo_mapping_parameter_2_mapping_entry_1
         }
-        /// Sets `0x1601` sub 1 Rx PDO mapping parameter 2: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 1 Rx PDO mapping parameter 2: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_1(
             &mut self,
@@ -11332,11 +11032,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_2_mapping_entry_2(&self) -> u32 {
             self.rx_pdo_mapping_parameter_2_mapping_entry_2
         }
-        /// Sets `0x1601` sub 2 Rx PDO mapping parameter 2: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 2 Rx PDO mapping parameter 2: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_2(
             &mut self,
@@ -11352,11 +11048,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_2_mapping_entry_3(&self) -> u32 {
             self.rx_pdo_mapping_parameter_2_mapping_entry_3
         }
-        /// Sets `0x1601` sub 3 Rx PDO mapping parameter 2: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 3 Rx PDO mapping parameter 2: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_3(
             &mut self,
@@ -11372,11 +11064,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_2_mapping_entry_4(&self) -> u32 {
             self.rx_pdo_mapping_parameter_2_mapping_entry_4
         }
-        /// Sets `0x1601` sub 4 Rx PDO mapping parameter 2: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 4 Rx PDO mapping parameter 2: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_4(
             &mut self,
@@ -11392,11 +11080,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_2_mapping_entry_5(&self) -> u32 {
             self.rx_pdo_mapping_parameter_2_mapping_entry_5
         }
-        /// Sets `0x1601` sub 5 Rx PDO mapping parameter 2: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 5 Rx PDO mapping parameter 2: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_5(
             &mut self,
@@ -11412,11 +11096,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_2_mapping_entry_6(&self) -> u32 {
             self.rx_pdo_mapping_parameter_2_mapping_entry_6
         }
-        /// Sets `0x1601` sub 6 Rx PDO mapping parameter 2: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 6 Rx PDO mapping parameter 2: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_6(
             &mut self,
@@ -11432,11 +11112,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_2_mapping_entry_7(&self) -> u32 {
             self.rx_pdo_mapping_parameter_2_mapping_entry_7
         }
-        /// Sets `0x1601` sub 7 Rx PDO mapping parameter 2: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 7 Rx PDO mapping parameter 2: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_7(
             &mut self,
@@ -11452,11 +11128,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_2_mapping_entry_8(&self) -> u32 {
             self.rx_pdo_mapping_parameter_2_mapping_entry_8
         }
-        /// Sets `0x1601` sub 8 Rx PDO mapping parameter 2: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 8 Rx PDO mapping parameter 2: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_8(
             &mut self,
@@ -11472,11 +11144,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_3_number_of_mapped_objects(&self) -> u8 {
             self.rx_pdo_mapping_parameter_3_number_of_mapped_objects
         }
-        /// Sets `0x1602` sub 0 Rx PDO mapping parameter 3: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 0 Rx PDO mapping parameter 3: Number of mapped objects (see [`Self::rx_pdo_mapping_parameter_3_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_3_number_of_mapped_objects(
             &mut self,
@@ -11492,11 +11160,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_3_mapping_entry_1(&self) -> u32 {
             self.rx_pdo_mapping_parameter_3_mapping_entry_1
         }
-        /// Sets `0x1602` sub 1 Rx PDO mapping parameter 3: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 1 Rx PDO mapping parameter 3: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_1(
             &mut self,
@@ -11512,11 +11176,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_3_mapping_entry_2(&self) -> u32 {
             self.rx_pdo_mapping_parameter_3_mapping_entry_2
         }
-        /// Sets `0x1602` sub 2 Rx PDO mapping parameter 3: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 2 Rx PDO mapping parameter 3: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_2(
             &mut self,
@@ -11532,11 +11192,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_3_mapping_entry_3(&self) -> u32 {
             self.rx_pdo_mapping_parameter_3_mapping_entry_3
         }
-        /// Sets `0x1602` sub 3 Rx PDO mapping parameter 3: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 3 Rx PDO mapping parameter 3: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_3(
             &mut self,
@@ -11552,11 +11208,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_3_mapping_entry_4(&self) -> u32 {
             self.rx_pdo_mapping_parameter_3_mapping_entry_4
         }
-        /// Sets `0x1602` sub 4 Rx PDO mapping parameter 3: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 4 Rx PDO mapping parameter 3: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_4(
             &mut self,
@@ -11572,11 +11224,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_3_mapping_entry_5(&self) -> u32 {
             self.rx_pdo_mapping_parameter_3_mapping_entry_5
         }
-        /// Sets `0x1602` sub 5 Rx PDO mapping parameter 3: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 5 Rx PDO mapping parameter 3: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_5(
             &mut self,
@@ -11592,11 +11240,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_3_mapping_entry_6(&self) -> u32 {
             self.rx_pdo_mapping_parameter_3_mapping_entry_6
         }
-        /// Sets `0x1602` sub 6 Rx PDO mapping parameter 3: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 6 Rx PDO mapping parameter 3: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_6(
             &mut self,
@@ -11612,11 +11256,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_3_mapping_entry_7(&self) -> u32 {
             self.rx_pdo_mapping_parameter_3_mapping_entry_7
         }
-        /// Sets `0x1602` sub 7 Rx PDO mapping parameter 3: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 7 Rx PDO mapping parameter 3: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_7(
             &mut self,
@@ -11632,11 +11272,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_3_mapping_entry_8(&self) -> u32 {
             self.rx_pdo_mapping_parameter_3_mapping_entry_8
         }
-        /// Sets `0x1602` sub 8 Rx PDO mapping parameter 3: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 8 Rx PDO mapping parameter 3: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_8(
             &mut self,
@@ -11652,11 +11288,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_4_number_of_mapped_objects(&self) -> u8 {
             self.rx_pdo_mapping_parameter_4_number_of_mapped_objects
         }
-        /// Sets `0x1603` sub 0 Rx PDO mapping parameter 4: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 0 Rx PDO mapping parameter 4: Number of mapped objects (see [`Self::rx_pdo_mapping_parameter_4_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_4_number_of_mapped_objects(
             &mut self,
@@ -11672,11 +11304,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_4_mapping_entry_1(&self) -> u32 {
             self.rx_pdo_mapping_parameter_4_mapping_entry_1
         }
-        /// Sets `0x1603` sub 1 Rx PDO mapping parameter 4: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 1 Rx PDO mapping parameter 4: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_1(
             &mut self,
@@ -11692,11 +11320,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_4_mapping_entry_2(&self) -> u32 {
             self.rx_pdo_mapping_parameter_4_mapping_entry_2
         }
-        /// Sets `0x1603` sub 2 Rx PDO mapping parameter 4: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 2 Rx PDO mapping parameter 4: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_2(
             &mut self,
@@ -11712,11 +11336,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_4_mapping_entry_3(&self) -> u32 {
             self.rx_pdo_mapping_parameter_4_mapping_entry_3
         }
-        /// Sets `0x1603` sub 3 Rx PDO mapping parameter 4: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 3 Rx PDO mapping parameter 4: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_3(
             &mut self,
@@ -11732,11 +11352,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_4_mapping_entry_4(&self) -> u32 {
             self.rx_pdo_mapping_parameter_4_mapping_entry_4
         }
-        /// Sets `0x1603` sub 4 Rx PDO mapping parameter 4: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 4 Rx PDO mapping parameter 4: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_4(
             &mut self,
@@ -11752,11 +11368,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_4_mapping_entry_5(&self) -> u32 {
             self.rx_pdo_mapping_parameter_4_mapping_entry_5
         }
-        /// Sets `0x1603` sub 5 Rx PDO mapping parameter 4: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 5 Rx PDO mapping parameter 4: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_5(
             &mut self,
@@ -11772,11 +11384,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_4_mapping_entry_6(&self) -> u32 {
             self.rx_pdo_mapping_parameter_4_mapping_entry_6
         }
-        /// Sets `0x1603` sub 6 Rx PDO mapping parameter 4: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 6 Rx PDO mapping parameter 4: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_6(
             &mut self,
@@ -11792,11 +11400,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_4_mapping_entry_7(&self) -> u32 {
             self.rx_pdo_mapping_parameter_4_mapping_entry_7
         }
-        /// Sets `0x1603` sub 7 Rx PDO mapping parameter 4: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 7 Rx PDO mapping parameter 4: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_7(
             &mut self,
@@ -11812,11 +11416,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_4_mapping_entry_8(&self) -> u32 {
             self.rx_pdo_mapping_parameter_4_mapping_entry_8
         }
-        /// Sets `0x1603` sub 8 Rx PDO mapping parameter 4: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 8 Rx PDO mapping parameter 4: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_8(
             &mut self,
@@ -11832,11 +11432,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_5_number_of_mapped_objects(&self) -> u8 {
             self.rx_pdo_mapping_parameter_5_number_of_mapped_objects
         }
-        /// Sets `0x1604` sub 0 Rx PDO mapping parameter 5: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 0 Rx PDO mapping parameter 5: Number of mapped objects (see [`Self::rx_pdo_mapping_parameter_5_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_5_number_of_mapped_objects(
             &mut self,
@@ -11852,11 +11448,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_5_mapping_entry_1(&self) -> u32 {
             self.rx_pdo_mapping_parameter_5_mapping_entry_1
         }
-        /// Sets `0x1604` sub 1 Rx PDO mapping parameter 5: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 1 Rx PDO mapping parameter 5: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_1(
             &mut self,
@@ -11872,11 +11464,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_5_mapping_entry_2(&self) -> u32 {
             self.rx_pdo_mapping_parameter_5_mapping_entry_2
         }
-        /// Sets `0x1604` sub 2 Rx PDO mapping parameter 5: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 2 Rx PDO mapping parameter 5: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_2(
             &mut self,
@@ -11892,11 +11480,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_5_mapping_entry_3(&self) -> u32 {
             self.rx_pdo_mapping_parameter_5_mapping_entry_3
         }
-        /// Sets `0x1604` sub 3 Rx PDO mapping parameter 5: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 3 Rx PDO mapping parameter 5: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_3(
             &mut self,
@@ -11912,11 +11496,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_5_mapping_entry_4(&self) -> u32 {
             self.rx_pdo_mapping_parameter_5_mapping_entry_4
         }
-        /// Sets `0x1604` sub 4 Rx PDO mapping parameter 5: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 4 Rx PDO mapping parameter 5: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_4(
             &mut self,
@@ -11932,11 +11512,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_5_mapping_entry_5(&self) -> u32 {
             self.rx_pdo_mapping_parameter_5_mapping_entry_5
         }
-        /// Sets `0x1604` sub 5 Rx PDO mapping parameter 5: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 5 Rx PDO mapping parameter 5: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_5(
             &mut self,
@@ -11952,11 +11528,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_5_mapping_entry_6(&self) -> u32 {
             self.rx_pdo_mapping_parameter_5_mapping_entry_6
         }
-        /// Sets `0x1604` sub 6 Rx PDO mapping parameter 5: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 6 Rx PDO mapping parameter 5: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_6(
             &mut self,
@@ -11972,11 +11544,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_5_mapping_entry_7(&self) -> u32 {
             self.rx_pdo_mapping_parameter_5_mapping_entry_7
         }
-        /// Sets `0x1604` sub 7 Rx PDO mapping parameter 5: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 7 Rx PDO mapping parameter 5: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_7(
             &mut self,
@@ -11992,11 +11560,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_5_mapping_entry_8(&self) -> u32 {
             self.rx_pdo_mapping_parameter_5_mapping_entry_8
         }
-        /// Sets `0x1604` sub 8 Rx PDO mapping parameter 5: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 8 Rx PDO mapping parameter 5: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_8(
             &mut self,
@@ -12012,11 +11576,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_6_number_of_mapped_objects(&self) -> u8 {
             self.rx_pdo_mapping_parameter_6_number_of_mapped_objects
         }
-        /// Sets `0x1605` sub 0 Rx PDO mapping parameter 6: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 0 Rx PDO mapping parameter 6: Number of mapped objects (see [`Self::rx_pdo_mapping_parameter_6_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_6_number_of_mapped_objects(
             &mut self,
@@ -12032,11 +11592,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_6_mapping_entry_1(&self) -> u32 {
             self.rx_pdo_mapping_parameter_6_mapping_entry_1
         }
-        /// Sets `0x1605` sub 1 Rx PDO mapping parameter 6: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 1 Rx PDO mapping parameter 6: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_1(
             &mut self,
@@ -12052,11 +11608,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_6_mapping_entry_2(&self) -> u32 {
             self.rx_pdo_mapping_parameter_6_mapping_entry_2
         }
-        /// Sets `0x1605` sub 2 Rx PDO mapping parameter 6: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 2 Rx PDO mapping parameter 6: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_2(
             &mut self,
@@ -12072,11 +11624,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_6_mapping_entry_3(&self) -> u32 {
             self.rx_pdo_mapping_parameter_6_mapping_entry_3
         }
-        /// Sets `0x1605` sub 3 Rx PDO mapping parameter 6: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 3 Rx PDO mapping parameter 6: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_3(
             &mut self,
@@ -12092,11 +11640,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_6_mapping_entry_4(&self) -> u32 {
             self.rx_pdo_mapping_parameter_6_mapping_entry_4
         }
-        /// Sets `0x1605` sub 4 Rx PDO mapping parameter 6: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 4 Rx PDO mapping parameter 6: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_4(
             &mut self,
@@ -12112,11 +11656,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_6_mapping_entry_5(&self) -> u32 {
             self.rx_pdo_mapping_parameter_6_mapping_entry_5
         }
-        /// Sets `0x1605` sub 5 Rx PDO mapping parameter 6: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 5 Rx PDO mapping parameter 6: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_5(
             &mut self,
@@ -12132,11 +11672,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_6_mapping_entry_6(&self) -> u32 {
             self.rx_pdo_mapping_parameter_6_mapping_entry_6
         }
-        /// Sets `0x1605` sub 6 Rx PDO mapping parameter 6: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 6 Rx PDO mapping parameter 6: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_6(
             &mut self,
@@ -12152,11 +11688,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_6_mapping_entry_7(&self) -> u32 {
             self.rx_pdo_mapping_parameter_6_mapping_entry_7
         }
-        /// Sets `0x1605` sub 7 Rx PDO mapping parameter 6: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 7 Rx PDO mapping parameter 6: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_7(
             &mut self,
@@ -12172,11 +11704,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_6_mapping_entry_8(&self) -> u32 {
             self.rx_pdo_mapping_parameter_6_mapping_entry_8
         }
-        /// Sets `0x1605` sub 8 Rx PDO mapping parameter 6: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 8 Rx PDO mapping parameter 6: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_8(
             &mut self,
@@ -12192,11 +11720,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_7_number_of_mapped_objects(&self) -> u8 {
             self.rx_pdo_mapping_parameter_7_number_of_mapped_objects
         }
-        /// Sets `0x1606` sub 0 Rx PDO mapping parameter 7: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 0 Rx PDO mapping parameter 7: Number of mapped objects (see [`Self::rx_pdo_mapping_parameter_7_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_7_number_of_mapped_objects(
             &mut self,
@@ -12212,11 +11736,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_7_mapping_entry_1(&self) -> u32 {
             self.rx_pdo_mapping_parameter_7_mapping_entry_1
         }
-        /// Sets `0x1606` sub 1 Rx PDO mapping parameter 7: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 1 Rx PDO mapping parameter 7: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_1(
             &mut self,
@@ -12232,11 +11752,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_7_mapping_entry_2(&self) -> u32 {
             self.rx_pdo_mapping_parameter_7_mapping_entry_2
         }
-        /// Sets `0x1606` sub 2 Rx PDO mapping parameter 7: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 2 Rx PDO mapping parameter 7: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_2(
             &mut self,
@@ -12252,11 +11768,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_7_mapping_entry_3(&self) -> u32 {
             self.rx_pdo_mapping_parameter_7_mapping_entry_3
         }
-        /// Sets `0x1606` sub 3 Rx PDO mapping parameter 7: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 3 Rx PDO mapping parameter 7: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_3(
             &mut self,
@@ -12272,11 +11784,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_7_mapping_entry_4(&self) -> u32 {
             self.rx_pdo_mapping_parameter_7_mapping_entry_4
         }
-        /// Sets `0x1606` sub 4 Rx PDO mapping parameter 7: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 4 Rx PDO mapping parameter 7: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_4(
             &mut self,
@@ -12292,11 +11800,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_7_mapping_entry_5(&self) -> u32 {
             self.rx_pdo_mapping_parameter_7_mapping_entry_5
         }
-        /// Sets `0x1606` sub 5 Rx PDO mapping parameter 7: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 5 Rx PDO mapping parameter 7: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_5(
             &mut self,
@@ -12312,11 +11816,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_7_mapping_entry_6(&self) -> u32 {
             self.rx_pdo_mapping_parameter_7_mapping_entry_6
         }
-        /// Sets `0x1606` sub 6 Rx PDO mapping parameter 7: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 6 Rx PDO mapping parameter 7: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_6(
             &mut self,
@@ -12332,11 +11832,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_7_mapping_entry_7(&self) -> u32 {
             self.rx_pdo_mapping_parameter_7_mapping_entry_7
         }
-        /// Sets `0x1606` sub 7 Rx PDO mapping parameter 7: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 7 Rx PDO mapping parameter 7: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_7(
             &mut self,
@@ -12352,11 +11848,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_7_mapping_entry_8(&self) -> u32 {
             self.rx_pdo_mapping_parameter_7_mapping_entry_8
         }
-        /// Sets `0x1606` sub 8 Rx PDO mapping parameter 7: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 8 Rx PDO mapping parameter 7: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_8(
             &mut self,
@@ -12372,11 +11864,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_8_number_of_mapped_objects(&self) -> u8 {
             self.rx_pdo_mapping_parameter_8_number_of_mapped_objects
         }
-        /// Sets `0x1607` sub 0 Rx PDO mapping parameter 8: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 0 Rx PDO mapping parameter 8: Number of mapped objects (see [`Self::rx_pdo_mapping_parameter_8_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_8_number_of_mapped_objects(
             &mut self,
@@ -12392,11 +11880,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_8_mapping_entry_1(&self) -> u32 {
             self.rx_pdo_mapping_parameter_8_mapping_entry_1
         }
-        /// Sets `0x1607` sub 1 Rx PDO mapping parameter 8: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 1 Rx PDO mapping parameter 8: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_1(
             &mut self,
@@ -12412,11 +11896,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_8_mapping_entry_2(&self) -> u32 {
             self.rx_pdo_mapping_parameter_8_mapping_entry_2
         }
-        /// Sets `0x1607` sub 2 Rx PDO mapping parameter 8: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 2 Rx PDO mapping parameter 8: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_2(
             &mut self,
@@ -12432,11 +11912,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_8_mapping_entry_3(&self) -> u32 {
             self.rx_pdo_mapping_parameter_8_mapping_entry_3
         }
-        /// Sets `0x1607` sub 3 Rx PDO mapping parameter 8: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 3 Rx PDO mapping parameter 8: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_3(
             &mut self,
@@ -12452,11 +11928,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_8_mapping_entry_4(&self) -> u32 {
             self.rx_pdo_mapping_parameter_8_mapping_entry_4
         }
-        /// Sets `0x1607` sub 4 Rx PDO mapping parameter 8: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 4 Rx PDO mapping parameter 8: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_4(
             &mut self,
@@ -12472,11 +11944,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_8_mapping_entry_5(&self) -> u32 {
             self.rx_pdo_mapping_parameter_8_mapping_entry_5
         }
-        /// Sets `0x1607` sub 5 Rx PDO mapping parameter 8: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 5 Rx PDO mapping parameter 8: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_5(
             &mut self,
@@ -12492,11 +11960,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_8_mapping_entry_6(&self) -> u32 {
             self.rx_pdo_mapping_parameter_8_mapping_entry_6
         }
-        /// Sets `0x1607` sub 6 Rx PDO mapping parameter 8: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 6 Rx PDO mapping parameter 8: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_6(
             &mut self,
@@ -12512,11 +11976,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_8_mapping_entry_7(&self) -> u32 {
             self.rx_pdo_mapping_parameter_8_mapping_entry_7
         }
-        /// Sets `0x1607` sub 7 Rx PDO mapping parameter 8: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 7 Rx PDO mapping parameter 8: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_7(
             &mut self,
@@ -12532,11 +11992,7 @@ PDOMapping=0
         pub const fn rx_pdo_mapping_parameter_8_mapping_entry_8(&self) -> u32 {
             self.rx_pdo_mapping_parameter_8_mapping_entry_8
         }
-        /// Sets `0x1607` sub 8 Rx PDO mapping parameter 8: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 8 Rx PDO mapping parameter 8: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_8(
             &mut self,
@@ -12554,11 +12010,7 @@ PDOMapping=0
         ) -> u8 {
             self.tx_pdo_communication_parameter_1_highest_sub_index_supported
         }
-        /// Sets `0x1800` sub 0 Tx PDO communication parameter 1: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 0 Tx PDO communication parameter 1: Highest sub-index supported (see [`Self::tx_pdo_communication_parameter_1_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_1_highest_sub_index_supported(
             &mut self,
@@ -12574,11 +12026,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_1_cob_id(&self) -> u32 {
             self.tx_pdo_communication_parameter_1_cob_id
         }
-        /// Sets `0x1800` sub 1 Tx PDO communication parameter 1: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x180.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 1 Tx PDO communication parameter 1: COB-ID (see [`Self::tx_pdo_communication_parameter_1_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_1_cob_id(
             &mut self,
@@ -12594,11 +12042,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_1_transmission_type(&self) -> u8 {
             self.tx_pdo_communication_parameter_1_transmission_type
         }
-        /// Sets `0x1800` sub 2 Tx PDO communication parameter 1: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 2 Tx PDO communication parameter 1: Transmission type (see [`Self::tx_pdo_communication_parameter_1_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_1_transmission_type(
             &mut self,
@@ -12614,11 +12058,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_1_inhibit_time(&self) -> u16 {
             self.tx_pdo_communication_parameter_1_inhibit_time
         }
-        /// Sets `0x1800` sub 3 Tx PDO communication parameter 1: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 3 Tx PDO communication parameter 1: Inhibit time (see [`Self::tx_pdo_communication_parameter_1_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_1_inhibit_time(
             &mut self,
@@ -12634,11 +12074,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_1_compatibility_entry(&self) -> u8 {
             self.tx_pdo_communication_parameter_1_compatibility_entry
         }
-        /// Sets `0x1800` sub 4 Tx PDO communication parameter 1: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 4 Tx PDO communication parameter 1: Compatibility entry (see [`Self::tx_pdo_communication_parameter_1_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_1_compatibility_entry(
             &mut self,
@@ -12654,11 +12090,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_1_event_timer(&self) -> u16 {
             self.tx_pdo_communication_parameter_1_event_timer
         }
-        /// Sets `0x1800` sub 5 Tx PDO communication parameter 1: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 5 Tx PDO communication parameter 1: Event timer (see [`Self::tx_pdo_communication_parameter_1_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_1_event_timer(
             &mut self,
@@ -12676,11 +12108,7 @@ PDOMapping=0
         ) -> u8 {
             self.tx_pdo_communication_parameter_2_highest_sub_index_supported
         }
-        /// Sets `0x1801` sub 0 Tx PDO communication parameter 2: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 0 Tx PDO communication parameter 2: Highest sub-index supported (see [`Self::tx_pdo_communication_parameter_2_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_2_highest_sub_index_supported(
             &mut self,
@@ -12696,11 +12124,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_2_cob_id(&self) -> u32 {
             self.tx_pdo_communication_parameter_2_cob_id
         }
-        /// Sets `0x1801` sub 1 Tx PDO communication parameter 2: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x80000280.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 1 Tx PDO communication parameter 2: COB-ID (see [`Self::tx_pdo_communication_parameter_2_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_2_cob_id(
             &mut self,
@@ -12716,11 +12140,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_2_transmission_type(&self) -> u8 {
             self.tx_pdo_communication_parameter_2_transmission_type
         }
-        /// Sets `0x1801` sub 2 Tx PDO communication parameter 2: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 2 Tx PDO communication parameter 2: Transmission type (see [`Self::tx_pdo_communication_parameter_2_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_2_transmission_type(
             &mut self,
@@ -12736,11 +12156,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_2_inhibit_time(&self) -> u16 {
             self.tx_pdo_communication_parameter_2_inhibit_time
         }
-        /// Sets `0x1801` sub 3 Tx PDO communication parameter 2: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 3 Tx PDO communication parameter 2: Inhibit time (see [`Self::tx_pdo_communication_parameter_2_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_2_inhibit_time(
             &mut self,
@@ -12756,11 +12172,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_2_compatibility_entry(&self) -> u8 {
             self.tx_pdo_communication_parameter_2_compatibility_entry
         }
-        /// Sets `0x1801` sub 4 Tx PDO communication parameter 2: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 4 Tx PDO communication parameter 2: Compatibility entry (see [`Self::tx_pdo_communication_parameter_2_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_2_compatibility_entry(
             &mut self,
@@ -12776,11 +12188,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_2_event_timer(&self) -> u16 {
             self.tx_pdo_communication_parameter_2_event_timer
         }
-        /// Sets `0x1801` sub 5 Tx PDO communication parameter 2: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 5 Tx PDO communication parameter 2: Event timer (see [`Self::tx_pdo_communication_parameter_2_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_2_event_timer(
             &mut self,
@@ -12798,11 +12206,7 @@ PDOMapping=0
         ) -> u8 {
             self.tx_pdo_communication_parameter_3_highest_sub_index_supported
         }
-        /// Sets `0x1802` sub 0 Tx PDO communication parameter 3: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 0 Tx PDO communication parameter 3: Highest sub-index supported (see [`Self::tx_pdo_communication_parameter_3_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_3_highest_sub_index_supported(
             &mut self,
@@ -12818,11 +12222,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_3_cob_id(&self) -> u32 {
             self.tx_pdo_communication_parameter_3_cob_id
         }
-        /// Sets `0x1802` sub 1 Tx PDO communication parameter 3: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x80000380.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 1 Tx PDO communication parameter 3: COB-ID (see [`Self::tx_pdo_communication_parameter_3_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_3_cob_id(
             &mut self,
@@ -12838,11 +12238,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_3_transmission_type(&self) -> u8 {
             self.tx_pdo_communication_parameter_3_transmission_type
         }
-        /// Sets `0x1802` sub 2 Tx PDO communication parameter 3: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 2 Tx PDO communication parameter 3: Transmission type (see [`Self::tx_pdo_communication_parameter_3_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_3_transmission_type(
             &mut self,
@@ -12858,11 +12254,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_3_inhibit_time(&self) -> u16 {
             self.tx_pdo_communication_parameter_3_inhibit_time
         }
-        /// Sets `0x1802` sub 3 Tx PDO communication parameter 3: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 3 Tx PDO communication parameter 3: Inhibit time (see [`Self::tx_pdo_communication_parameter_3_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_3_inhibit_time(
             &mut self,
@@ -12878,11 +12270,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_3_compatibility_entry(&self) -> u8 {
             self.tx_pdo_communication_parameter_3_compatibility_entry
         }
-        /// Sets `0x1802` sub 4 Tx PDO communication parameter 3: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 4 Tx PDO communication parameter 3: Compatibility entry (see [`Self::tx_pdo_communication_parameter_3_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_3_compatibility_entry(
             &mut self,
@@ -12898,11 +12286,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_3_event_timer(&self) -> u16 {
             self.tx_pdo_communication_parameter_3_event_timer
         }
-        /// Sets `0x1802` sub 5 Tx PDO communication parameter 3: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 5 Tx PDO communication parameter 3: Event timer (see [`Self::tx_pdo_communication_parameter_3_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_3_event_timer(
             &mut self,
@@ -12920,11 +12304,7 @@ PDOMapping=0
         ) -> u8 {
             self.tx_pdo_communication_parameter_4_highest_sub_index_supported
         }
-        /// Sets `0x1803` sub 0 Tx PDO communication parameter 4: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 0 Tx PDO communication parameter 4: Highest sub-index supported (see [`Self::tx_pdo_communication_parameter_4_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_4_highest_sub_index_supported(
             &mut self,
@@ -12940,11 +12320,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_4_cob_id(&self) -> u32 {
             self.tx_pdo_communication_parameter_4_cob_id
         }
-        /// Sets `0x1803` sub 1 Tx PDO communication parameter 4: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x80000480.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 1 Tx PDO communication parameter 4: COB-ID (see [`Self::tx_pdo_communication_parameter_4_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_4_cob_id(
             &mut self,
@@ -12960,11 +12336,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_4_transmission_type(&self) -> u8 {
             self.tx_pdo_communication_parameter_4_transmission_type
         }
-        /// Sets `0x1803` sub 2 Tx PDO communication parameter 4: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 2 Tx PDO communication parameter 4: Transmission type (see [`Self::tx_pdo_communication_parameter_4_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_4_transmission_type(
             &mut self,
@@ -12980,11 +12352,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_4_inhibit_time(&self) -> u16 {
             self.tx_pdo_communication_parameter_4_inhibit_time
         }
-        /// Sets `0x1803` sub 3 Tx PDO communication parameter 4: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 3 Tx PDO communication parameter 4: Inhibit time (see [`Self::tx_pdo_communication_parameter_4_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_4_inhibit_time(
             &mut self,
@@ -13000,11 +12368,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_4_compatibility_entry(&self) -> u8 {
             self.tx_pdo_communication_parameter_4_compatibility_entry
         }
-        /// Sets `0x1803` sub 4 Tx PDO communication parameter 4: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 4 Tx PDO communication parameter 4: Compatibility entry (see [`Self::tx_pdo_communication_parameter_4_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_4_compatibility_entry(
             &mut self,
@@ -13020,11 +12384,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_4_event_timer(&self) -> u16 {
             self.tx_pdo_communication_parameter_4_event_timer
         }
-        /// Sets `0x1803` sub 5 Tx PDO communication parameter 4: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 5 Tx PDO communication parameter 4: Event timer (see [`Self::tx_pdo_communication_parameter_4_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_4_event_timer(
             &mut self,
@@ -13042,11 +12402,7 @@ PDOMapping=0
         ) -> u8 {
             self.tx_pdo_communication_parameter_5_highest_sub_index_supported
         }
-        /// Sets `0x1804` sub 0 Tx PDO communication parameter 5: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1804` sub 0 Tx PDO communication parameter 5: Highest sub-index supported (see [`Self::tx_pdo_communication_parameter_5_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_5_highest_sub_index_supported(
             &mut self,
@@ -13062,11 +12418,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_5_cob_id(&self) -> u32 {
             self.tx_pdo_communication_parameter_5_cob_id
         }
-        /// Sets `0x1804` sub 1 Tx PDO communication parameter 5: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483648 (0x80000000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1804` sub 1 Tx PDO communication parameter 5: COB-ID (see [`Self::tx_pdo_communication_parameter_5_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_5_cob_id(
             &mut self,
@@ -13082,11 +12434,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_5_transmission_type(&self) -> u8 {
             self.tx_pdo_communication_parameter_5_transmission_type
         }
-        /// Sets `0x1804` sub 2 Tx PDO communication parameter 5: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1804` sub 2 Tx PDO communication parameter 5: Transmission type (see [`Self::tx_pdo_communication_parameter_5_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_5_transmission_type(
             &mut self,
@@ -13102,11 +12450,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_5_inhibit_time(&self) -> u16 {
             self.tx_pdo_communication_parameter_5_inhibit_time
         }
-        /// Sets `0x1804` sub 3 Tx PDO communication parameter 5: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1804` sub 3 Tx PDO communication parameter 5: Inhibit time (see [`Self::tx_pdo_communication_parameter_5_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_5_inhibit_time(
             &mut self,
@@ -13122,11 +12466,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_5_compatibility_entry(&self) -> u8 {
             self.tx_pdo_communication_parameter_5_compatibility_entry
         }
-        /// Sets `0x1804` sub 4 Tx PDO communication parameter 5: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1804` sub 4 Tx PDO communication parameter 5: Compatibility entry (see [`Self::tx_pdo_communication_parameter_5_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_5_compatibility_entry(
             &mut self,
@@ -13142,11 +12482,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_5_event_timer(&self) -> u16 {
             self.tx_pdo_communication_parameter_5_event_timer
         }
-        /// Sets `0x1804` sub 5 Tx PDO communication parameter 5: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1804` sub 5 Tx PDO communication parameter 5: Event timer (see [`Self::tx_pdo_communication_parameter_5_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_5_event_timer(
             &mut self,
@@ -13164,11 +12500,7 @@ PDOMapping=0
         ) -> u8 {
             self.tx_pdo_communication_parameter_6_highest_sub_index_supported
         }
-        /// Sets `0x1805` sub 0 Tx PDO communication parameter 6: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1805` sub 0 Tx PDO communication parameter 6: Highest sub-index supported (see [`Self::tx_pdo_communication_parameter_6_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_6_highest_sub_index_supported(
             &mut self,
@@ -13184,11 +12516,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_6_cob_id(&self) -> u32 {
             self.tx_pdo_communication_parameter_6_cob_id
         }
-        /// Sets `0x1805` sub 1 Tx PDO communication parameter 6: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483648 (0x80000000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1805` sub 1 Tx PDO communication parameter 6: COB-ID (see [`Self::tx_pdo_communication_parameter_6_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_6_cob_id(
             &mut self,
@@ -13204,11 +12532,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_6_transmission_type(&self) -> u8 {
             self.tx_pdo_communication_parameter_6_transmission_type
         }
-        /// Sets `0x1805` sub 2 Tx PDO communication parameter 6: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1805` sub 2 Tx PDO communication parameter 6: Transmission type (see [`Self::tx_pdo_communication_parameter_6_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_6_transmission_type(
             &mut self,
@@ -13224,11 +12548,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_6_inhibit_time(&self) -> u16 {
             self.tx_pdo_communication_parameter_6_inhibit_time
         }
-        /// Sets `0x1805` sub 3 Tx PDO communication parameter 6: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1805` sub 3 Tx PDO communication parameter 6: Inhibit time (see [`Self::tx_pdo_communication_parameter_6_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_6_inhibit_time(
             &mut self,
@@ -13244,11 +12564,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_6_compatibility_entry(&self) -> u8 {
             self.tx_pdo_communication_parameter_6_compatibility_entry
         }
-        /// Sets `0x1805` sub 4 Tx PDO communication parameter 6: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1805` sub 4 Tx PDO communication parameter 6: Compatibility entry (see [`Self::tx_pdo_communication_parameter_6_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_6_compatibility_entry(
             &mut self,
@@ -13264,11 +12580,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_6_event_timer(&self) -> u16 {
             self.tx_pdo_communication_parameter_6_event_timer
         }
-        /// Sets `0x1805` sub 5 Tx PDO communication parameter 6: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1805` sub 5 Tx PDO communication parameter 6: Event timer (see [`Self::tx_pdo_communication_parameter_6_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_6_event_timer(
             &mut self,
@@ -13286,11 +12598,7 @@ PDOMapping=0
         ) -> u8 {
             self.tx_pdo_communication_parameter_7_highest_sub_index_supported
         }
-        /// Sets `0x1806` sub 0 Tx PDO communication parameter 7: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1806` sub 0 Tx PDO communication parameter 7: Highest sub-index supported (see [`Self::tx_pdo_communication_parameter_7_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_7_highest_sub_index_supported(
             &mut self,
@@ -13306,11 +12614,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_7_cob_id(&self) -> u32 {
             self.tx_pdo_communication_parameter_7_cob_id
         }
-        /// Sets `0x1806` sub 1 Tx PDO communication parameter 7: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483648 (0x80000000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1806` sub 1 Tx PDO communication parameter 7: COB-ID (see [`Self::tx_pdo_communication_parameter_7_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_7_cob_id(
             &mut self,
@@ -13326,11 +12630,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_7_transmission_type(&self) -> u8 {
             self.tx_pdo_communication_parameter_7_transmission_type
         }
-        /// Sets `0x1806` sub 2 Tx PDO communication parameter 7: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1806` sub 2 Tx PDO communication parameter 7: Transmission type (see [`Self::tx_pdo_communication_parameter_7_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_7_transmission_type(
             &mut self,
@@ -13346,11 +12646,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_7_inhibit_time(&self) -> u16 {
             self.tx_pdo_communication_parameter_7_inhibit_time
         }
-        /// Sets `0x1806` sub 3 Tx PDO communication parameter 7: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1806` sub 3 Tx PDO communication parameter 7: Inhibit time (see [`Self::tx_pdo_communication_parameter_7_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_7_inhibit_time(
             &mut self,
@@ -13366,11 +12662,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_7_compatibility_entry(&self) -> u8 {
             self.tx_pdo_communication_parameter_7_compatibility_entry
         }
-        /// Sets `0x1806` sub 4 Tx PDO communication parameter 7: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1806` sub 4 Tx PDO communication parameter 7: Compatibility entry (see [`Self::tx_pdo_communication_parameter_7_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_7_compatibility_entry(
             &mut self,
@@ -13386,11 +12678,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_7_event_timer(&self) -> u16 {
             self.tx_pdo_communication_parameter_7_event_timer
         }
-        /// Sets `0x1806` sub 5 Tx PDO communication parameter 7: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1806` sub 5 Tx PDO communication parameter 7: Event timer (see [`Self::tx_pdo_communication_parameter_7_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_7_event_timer(
             &mut self,
@@ -13408,11 +12696,7 @@ PDOMapping=0
         ) -> u8 {
             self.tx_pdo_communication_parameter_8_highest_sub_index_supported
         }
-        /// Sets `0x1807` sub 0 Tx PDO communication parameter 8: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1807` sub 0 Tx PDO communication parameter 8: Highest sub-index supported (see [`Self::tx_pdo_communication_parameter_8_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_8_highest_sub_index_supported(
             &mut self,
@@ -13428,11 +12712,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_8_cob_id(&self) -> u32 {
             self.tx_pdo_communication_parameter_8_cob_id
         }
-        /// Sets `0x1807` sub 1 Tx PDO communication parameter 8: COB-ID.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483648 (0x80000000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1807` sub 1 Tx PDO communication parameter 8: COB-ID (see [`Self::tx_pdo_communication_parameter_8_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_8_cob_id(
             &mut self,
@@ -13448,11 +12728,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_8_transmission_type(&self) -> u8 {
             self.tx_pdo_communication_parameter_8_transmission_type
         }
-        /// Sets `0x1807` sub 2 Tx PDO communication parameter 8: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1807` sub 2 Tx PDO communication parameter 8: Transmission type (see [`Self::tx_pdo_communication_parameter_8_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_8_transmission_type(
             &mut self,
@@ -13468,11 +12744,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_8_inhibit_time(&self) -> u16 {
             self.tx_pdo_communication_parameter_8_inhibit_time
         }
-        /// Sets `0x1807` sub 3 Tx PDO communication parameter 8: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1807` sub 3 Tx PDO communication parameter 8: Inhibit time (see [`Self::tx_pdo_communication_parameter_8_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_8_inhibit_time(
             &mut self,
@@ -13488,11 +12760,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_8_compatibility_entry(&self) -> u8 {
             self.tx_pdo_communication_parameter_8_compatibility_entry
         }
-        /// Sets `0x1807` sub 4 Tx PDO communication parameter 8: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1807` sub 4 Tx PDO communication parameter 8: Compatibility entry (see [`Self::tx_pdo_communication_parameter_8_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_8_compatibility_entry(
             &mut self,
@@ -13508,11 +12776,7 @@ PDOMapping=0
         pub const fn tx_pdo_communication_parameter_8_event_timer(&self) -> u16 {
             self.tx_pdo_communication_parameter_8_event_timer
         }
-        /// Sets `0x1807` sub 5 Tx PDO communication parameter 8: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1807` sub 5 Tx PDO communication parameter 8: Event timer (see [`Self::tx_pdo_communication_parameter_8_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_communication_parameter_8_event_timer(
             &mut self,
@@ -13528,11 +12792,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_1_number_of_mapped_objects(&self) -> u8 {
             self.tx_pdo_mapping_parameter_1_number_of_mapped_objects
         }
-        /// Sets `0x1A00` sub 0 Tx PDO mapping parameter 1: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 0 Tx PDO mapping parameter 1: Number of mapped objects (see [`Self::tx_pdo_mapping_parameter_1_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_1_number_of_mapped_objects(
             &mut self,
@@ -13548,11 +12808,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_1_mapping_entry_1(&self) -> u32 {
             self.tx_pdo_mapping_parameter_1_mapping_entry_1
         }
-        /// Sets `0x1A00` sub 1 Tx PDO mapping parameter 1: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1614872592 (0x60410010).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 1 Tx PDO mapping parameter 1: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_1(
             &mut self,
@@ -13568,11 +12824,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_1_mapping_entry_2(&self) -> u32 {
             self.tx_pdo_mapping_parameter_1_mapping_entry_2
         }
-        /// Sets `0x1A00` sub 2 Tx PDO mapping parameter 1: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 2 Tx PDO mapping parameter 1: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_2(
             &mut self,
@@ -13588,11 +12840,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_1_mapping_entry_3(&self) -> u32 {
             self.tx_pdo_mapping_parameter_1_mapping_entry_3
         }
-        /// Sets `0x1A00` sub 3 Tx PDO mapping parameter 1: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 3 Tx PDO mapping parameter 1: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_3(
             &mut self,
@@ -13608,11 +12856,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_1_mapping_entry_4(&self) -> u32 {
             self.tx_pdo_mapping_parameter_1_mapping_entry_4
         }
-        /// Sets `0x1A00` sub 4 Tx PDO mapping parameter 1: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 4 Tx PDO mapping parameter 1: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_4(
             &mut self,
@@ -13628,11 +12872,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_1_mapping_entry_5(&self) -> u32 {
             self.tx_pdo_mapping_parameter_1_mapping_entry_5
         }
-        /// Sets `0x1A00` sub 5 Tx PDO mapping parameter 1: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 5 Tx PDO mapping parameter 1: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_5(
             &mut self,
@@ -13648,11 +12888,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_1_mapping_entry_6(&self) -> u32 {
             self.tx_pdo_mapping_parameter_1_mapping_entry_6
         }
-        /// Sets `0x1A00` sub 6 Tx PDO mapping parameter 1: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 6 Tx PDO mapping parameter 1: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_6(
             &mut self,
@@ -13668,11 +12904,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_1_mapping_entry_7(&self) -> u32 {
             self.tx_pdo_mapping_parameter_1_mapping_entry_7
         }
-        /// Sets `0x1A00` sub 7 Tx PDO mapping parameter 1: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 7 Tx PDO mapping parameter 1: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_7(
             &mut self,
@@ -13688,11 +12920,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_1_mapping_entry_8(&self) -> u32 {
             self.tx_pdo_mapping_parameter_1_mapping_entry_8
         }
-        /// Sets `0x1A00` sub 8 Tx PDO mapping parameter 1: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 8 Tx PDO mapping parameter 1: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_8(
             &mut self,
@@ -13708,11 +12936,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_2_number_of_mapped_objects(&self) -> u8 {
             self.tx_pdo_mapping_parameter_2_number_of_mapped_objects
         }
-        /// Sets `0x1A01` sub 0 Tx PDO mapping parameter 2: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 0 Tx PDO mapping parameter 2: Number of mapped objects (see [`Self::tx_pdo_mapping_parameter_2_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_2_number_of_mapped_objects(
             &mut self,
@@ -13728,11 +12952,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_2_mapping_entry_1(&self) -> u32 {
             self.tx_pdo_mapping_parameter_2_mapping_entry_1
         }
-        /// Sets `0x1A01` sub 1 Tx PDO mapping parameter 2: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 1 Tx PDO mapping parameter 2: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_1(
             &mut self,
@@ -13748,11 +12968,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_2_mapping_entry_2(&self) -> u32 {
             self.tx_pdo_mapping_parameter_2_mapping_entry_2
         }
-        /// Sets `0x1A01` sub 2 Tx PDO mapping parameter 2: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 2 Tx PDO mapping parameter 2: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_2(
             &mut self,
@@ -13768,11 +12984,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_2_mapping_entry_3(&self) -> u32 {
             self.tx_pdo_mapping_parameter_2_mapping_entry_3
         }
-        /// Sets `0x1A01` sub 3 Tx PDO mapping parameter 2: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 3 Tx PDO mapping parameter 2: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_3(
             &mut self,
@@ -13788,11 +13000,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_2_mapping_entry_4(&self) -> u32 {
             self.tx_pdo_mapping_parameter_2_mapping_entry_4
         }
-        /// Sets `0x1A01` sub 4 Tx PDO mapping parameter 2: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 4 Tx PDO mapping parameter 2: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_4(
             &mut self,
@@ -13808,11 +13016,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_2_mapping_entry_5(&self) -> u32 {
             self.tx_pdo_mapping_parameter_2_mapping_entry_5
         }
-        /// Sets `0x1A01` sub 5 Tx PDO mapping parameter 2: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 5 Tx PDO mapping parameter 2: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_5(
             &mut self,
@@ -13828,11 +13032,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_2_mapping_entry_6(&self) -> u32 {
             self.tx_pdo_mapping_parameter_2_mapping_entry_6
         }
-        /// Sets `0x1A01` sub 6 Tx PDO mapping parameter 2: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 6 Tx PDO mapping parameter 2: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_6(
             &mut self,
@@ -13848,11 +13048,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_2_mapping_entry_7(&self) -> u32 {
             self.tx_pdo_mapping_parameter_2_mapping_entry_7
         }
-        /// Sets `0x1A01` sub 7 Tx PDO mapping parameter 2: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 7 Tx PDO mapping parameter 2: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_7(
             &mut self,
@@ -13868,11 +13064,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_2_mapping_entry_8(&self) -> u32 {
             self.tx_pdo_mapping_parameter_2_mapping_entry_8
         }
-        /// Sets `0x1A01` sub 8 Tx PDO mapping parameter 2: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 8 Tx PDO mapping parameter 2: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_8(
             &mut self,
@@ -13888,11 +13080,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_3_number_of_mapped_objects(&self) -> u8 {
             self.tx_pdo_mapping_parameter_3_number_of_mapped_objects
         }
-        /// Sets `0x1A02` sub 0 Tx PDO mapping parameter 3: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 0 Tx PDO mapping parameter 3: Number of mapped objects (see [`Self::tx_pdo_mapping_parameter_3_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_3_number_of_mapped_objects(
             &mut self,
@@ -13908,11 +13096,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_3_mapping_entry_1(&self) -> u32 {
             self.tx_pdo_mapping_parameter_3_mapping_entry_1
         }
-        /// Sets `0x1A02` sub 1 Tx PDO mapping parameter 3: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 1 Tx PDO mapping parameter 3: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_1(
             &mut self,
@@ -13928,11 +13112,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_3_mapping_entry_2(&self) -> u32 {
             self.tx_pdo_mapping_parameter_3_mapping_entry_2
         }
-        /// Sets `0x1A02` sub 2 Tx PDO mapping parameter 3: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 2 Tx PDO mapping parameter 3: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_2(
             &mut self,
@@ -13948,11 +13128,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_3_mapping_entry_3(&self) -> u32 {
             self.tx_pdo_mapping_parameter_3_mapping_entry_3
         }
-        /// Sets `0x1A02` sub 3 Tx PDO mapping parameter 3: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 3 Tx PDO mapping parameter 3: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_3(
             &mut self,
@@ -13968,11 +13144,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_3_mapping_entry_4(&self) -> u32 {
             self.tx_pdo_mapping_parameter_3_mapping_entry_4
         }
-        /// Sets `0x1A02` sub 4 Tx PDO mapping parameter 3: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 4 Tx PDO mapping parameter 3: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_4(
             &mut self,
@@ -13988,11 +13160,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_3_mapping_entry_5(&self) -> u32 {
             self.tx_pdo_mapping_parameter_3_mapping_entry_5
         }
-        /// Sets `0x1A02` sub 5 Tx PDO mapping parameter 3: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 5 Tx PDO mapping parameter 3: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_5(
             &mut self,
@@ -14008,11 +13176,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_3_mapping_entry_6(&self) -> u32 {
             self.tx_pdo_mapping_parameter_3_mapping_entry_6
         }
-        /// Sets `0x1A02` sub 6 Tx PDO mapping parameter 3: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 6 Tx PDO mapping parameter 3: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_6(
             &mut self,
@@ -14028,11 +13192,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_3_mapping_entry_7(&self) -> u32 {
             self.tx_pdo_mapping_parameter_3_mapping_entry_7
         }
-        /// Sets `0x1A02` sub 7 Tx PDO mapping parameter 3: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 7 Tx PDO mapping parameter 3: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_7(
             &mut self,
@@ -14048,11 +13208,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_3_mapping_entry_8(&self) -> u32 {
             self.tx_pdo_mapping_parameter_3_mapping_entry_8
         }
-        /// Sets `0x1A02` sub 8 Tx PDO mapping parameter 3: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 8 Tx PDO mapping parameter 3: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_8(
             &mut self,
@@ -14068,11 +13224,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_4_number_of_mapped_objects(&self) -> u8 {
             self.tx_pdo_mapping_parameter_4_number_of_mapped_objects
         }
-        /// Sets `0x1A03` sub 0 Tx PDO mapping parameter 4: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 0 Tx PDO mapping parameter 4: Number of mapped objects (see [`Self::tx_pdo_mapping_parameter_4_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_4_number_of_mapped_objects(
             &mut self,
@@ -14088,11 +13240,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_4_mapping_entry_1(&self) -> u32 {
             self.tx_pdo_mapping_parameter_4_mapping_entry_1
         }
-        /// Sets `0x1A03` sub 1 Tx PDO mapping parameter 4: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 1 Tx PDO mapping parameter 4: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_1(
             &mut self,
@@ -14108,11 +13256,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_4_mapping_entry_2(&self) -> u32 {
             self.tx_pdo_mapping_parameter_4_mapping_entry_2
         }
-        /// Sets `0x1A03` sub 2 Tx PDO mapping parameter 4: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 2 Tx PDO mapping parameter 4: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_2(
             &mut self,
@@ -14128,11 +13272,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_4_mapping_entry_3(&self) -> u32 {
             self.tx_pdo_mapping_parameter_4_mapping_entry_3
         }
-        /// Sets `0x1A03` sub 3 Tx PDO mapping parameter 4: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 3 Tx PDO mapping parameter 4: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_3(
             &mut self,
@@ -14148,11 +13288,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_4_mapping_entry_4(&self) -> u32 {
             self.tx_pdo_mapping_parameter_4_mapping_entry_4
         }
-        /// Sets `0x1A03` sub 4 Tx PDO mapping parameter 4: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 4 Tx PDO mapping parameter 4: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_4(
             &mut self,
@@ -14168,11 +13304,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_4_mapping_entry_5(&self) -> u32 {
             self.tx_pdo_mapping_parameter_4_mapping_entry_5
         }
-        /// Sets `0x1A03` sub 5 Tx PDO mapping parameter 4: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 5 Tx PDO mapping parameter 4: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_5(
             &mut self,
@@ -14188,11 +13320,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_4_mapping_entry_6(&self) -> u32 {
             self.tx_pdo_mapping_parameter_4_mapping_entry_6
         }
-        /// Sets `0x1A03` sub 6 Tx PDO mapping parameter 4: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 6 Tx PDO mapping parameter 4: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_6(
             &mut self,
@@ -14208,11 +13336,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_4_mapping_entry_7(&self) -> u32 {
             self.tx_pdo_mapping_parameter_4_mapping_entry_7
         }
-        /// Sets `0x1A03` sub 7 Tx PDO mapping parameter 4: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 7 Tx PDO mapping parameter 4: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_7(
             &mut self,
@@ -14228,11 +13352,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_4_mapping_entry_8(&self) -> u32 {
             self.tx_pdo_mapping_parameter_4_mapping_entry_8
         }
-        /// Sets `0x1A03` sub 8 Tx PDO mapping parameter 4: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 8 Tx PDO mapping parameter 4: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_8(
             &mut self,
@@ -14248,11 +13368,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_5_number_of_mapped_objects(&self) -> u8 {
             self.tx_pdo_mapping_parameter_5_number_of_mapped_objects
         }
-        /// Sets `0x1A04` sub 0 Tx PDO mapping parameter 5: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 0 Tx PDO mapping parameter 5: Number of mapped objects (see [`Self::tx_pdo_mapping_parameter_5_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_5_number_of_mapped_objects(
             &mut self,
@@ -14268,11 +13384,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_5_mapping_entry_1(&self) -> u32 {
             self.tx_pdo_mapping_parameter_5_mapping_entry_1
         }
-        /// Sets `0x1A04` sub 1 Tx PDO mapping parameter 5: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 1 Tx PDO mapping parameter 5: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_1(
             &mut self,
@@ -14288,11 +13400,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_5_mapping_entry_2(&self) -> u32 {
             self.tx_pdo_mapping_parameter_5_mapping_entry_2
         }
-        /// Sets `0x1A04` sub 2 Tx PDO mapping parameter 5: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 2 Tx PDO mapping parameter 5: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_2(
             &mut self,
@@ -14308,11 +13416,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_5_mapping_entry_3(&self) -> u32 {
             self.tx_pdo_mapping_parameter_5_mapping_entry_3
         }
-        /// Sets `0x1A04` sub 3 Tx PDO mapping parameter 5: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 3 Tx PDO mapping parameter 5: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_3(
             &mut self,
@@ -14328,11 +13432,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_5_mapping_entry_4(&self) -> u32 {
             self.tx_pdo_mapping_parameter_5_mapping_entry_4
         }
-        /// Sets `0x1A04` sub 4 Tx PDO mapping parameter 5: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 4 Tx PDO mapping parameter 5: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_4(
             &mut self,
@@ -14348,11 +13448,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_5_mapping_entry_5(&self) -> u32 {
             self.tx_pdo_mapping_parameter_5_mapping_entry_5
         }
-        /// Sets `0x1A04` sub 5 Tx PDO mapping parameter 5: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 5 Tx PDO mapping parameter 5: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_5(
             &mut self,
@@ -14368,11 +13464,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_5_mapping_entry_6(&self) -> u32 {
             self.tx_pdo_mapping_parameter_5_mapping_entry_6
         }
-        /// Sets `0x1A04` sub 6 Tx PDO mapping parameter 5: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 6 Tx PDO mapping parameter 5: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_6(
             &mut self,
@@ -14388,11 +13480,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_5_mapping_entry_7(&self) -> u32 {
             self.tx_pdo_mapping_parameter_5_mapping_entry_7
         }
-        /// Sets `0x1A04` sub 7 Tx PDO mapping parameter 5: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 7 Tx PDO mapping parameter 5: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_7(
             &mut self,
@@ -14408,11 +13496,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_5_mapping_entry_8(&self) -> u32 {
             self.tx_pdo_mapping_parameter_5_mapping_entry_8
         }
-        /// Sets `0x1A04` sub 8 Tx PDO mapping parameter 5: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 8 Tx PDO mapping parameter 5: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_8(
             &mut self,
@@ -14428,11 +13512,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_6_number_of_mapped_objects(&self) -> u8 {
             self.tx_pdo_mapping_parameter_6_number_of_mapped_objects
         }
-        /// Sets `0x1A05` sub 0 Tx PDO mapping parameter 6: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 0 Tx PDO mapping parameter 6: Number of mapped objects (see [`Self::tx_pdo_mapping_parameter_6_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_6_number_of_mapped_objects(
             &mut self,
@@ -14448,11 +13528,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_6_mapping_entry_1(&self) -> u32 {
             self.tx_pdo_mapping_parameter_6_mapping_entry_1
         }
-        /// Sets `0x1A05` sub 1 Tx PDO mapping parameter 6: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 1 Tx PDO mapping parameter 6: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_1(
             &mut self,
@@ -14468,11 +13544,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_6_mapping_entry_2(&self) -> u32 {
             self.tx_pdo_mapping_parameter_6_mapping_entry_2
         }
-        /// Sets `0x1A05` sub 2 Tx PDO mapping parameter 6: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 2 Tx PDO mapping parameter 6: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_2(
             &mut self,
@@ -14488,11 +13560,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_6_mapping_entry_3(&self) -> u32 {
             self.tx_pdo_mapping_parameter_6_mapping_entry_3
         }
-        /// Sets `0x1A05` sub 3 Tx PDO mapping parameter 6: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 3 Tx PDO mapping parameter 6: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_3(
             &mut self,
@@ -14508,11 +13576,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_6_mapping_entry_4(&self) -> u32 {
             self.tx_pdo_mapping_parameter_6_mapping_entry_4
         }
-        /// Sets `0x1A05` sub 4 Tx PDO mapping parameter 6: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 4 Tx PDO mapping parameter 6: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_4(
             &mut self,
@@ -14528,11 +13592,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_6_mapping_entry_5(&self) -> u32 {
             self.tx_pdo_mapping_parameter_6_mapping_entry_5
         }
-        /// Sets `0x1A05` sub 5 Tx PDO mapping parameter 6: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 5 Tx PDO mapping parameter 6: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_5(
             &mut self,
@@ -14548,11 +13608,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_6_mapping_entry_6(&self) -> u32 {
             self.tx_pdo_mapping_parameter_6_mapping_entry_6
         }
-        /// Sets `0x1A05` sub 6 Tx PDO mapping parameter 6: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 6 Tx PDO mapping parameter 6: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_6(
             &mut self,
@@ -14568,11 +13624,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_6_mapping_entry_7(&self) -> u32 {
             self.tx_pdo_mapping_parameter_6_mapping_entry_7
         }
-        /// Sets `0x1A05` sub 7 Tx PDO mapping parameter 6: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 7 Tx PDO mapping parameter 6: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_7(
             &mut self,
@@ -14588,11 +13640,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_6_mapping_entry_8(&self) -> u32 {
             self.tx_pdo_mapping_parameter_6_mapping_entry_8
         }
-        /// Sets `0x1A05` sub 8 Tx PDO mapping parameter 6: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 8 Tx PDO mapping parameter 6: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_8(
             &mut self,
@@ -14608,11 +13656,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_7_number_of_mapped_objects(&self) -> u8 {
             self.tx_pdo_mapping_parameter_7_number_of_mapped_objects
         }
-        /// Sets `0x1A06` sub 0 Tx PDO mapping parameter 7: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 0 Tx PDO mapping parameter 7: Number of mapped objects (see [`Self::tx_pdo_mapping_parameter_7_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_7_number_of_mapped_objects(
             &mut self,
@@ -14628,11 +13672,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_7_mapping_entry_1(&self) -> u32 {
             self.tx_pdo_mapping_parameter_7_mapping_entry_1
         }
-        /// Sets `0x1A06` sub 1 Tx PDO mapping parameter 7: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 1 Tx PDO mapping parameter 7: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_1(
             &mut self,
@@ -14648,11 +13688,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_7_mapping_entry_2(&self) -> u32 {
             self.tx_pdo_mapping_parameter_7_mapping_entry_2
         }
-        /// Sets `0x1A06` sub 2 Tx PDO mapping parameter 7: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 2 Tx PDO mapping parameter 7: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_2(
             &mut self,
@@ -14668,11 +13704,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_7_mapping_entry_3(&self) -> u32 {
             self.tx_pdo_mapping_parameter_7_mapping_entry_3
         }
-        /// Sets `0x1A06` sub 3 Tx PDO mapping parameter 7: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 3 Tx PDO mapping parameter 7: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_3(
             &mut self,
@@ -14688,11 +13720,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_7_mapping_entry_4(&self) -> u32 {
             self.tx_pdo_mapping_parameter_7_mapping_entry_4
         }
-        /// Sets `0x1A06` sub 4 Tx PDO mapping parameter 7: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 4 Tx PDO mapping parameter 7: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_4(
             &mut self,
@@ -14708,11 +13736,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_7_mapping_entry_5(&self) -> u32 {
             self.tx_pdo_mapping_parameter_7_mapping_entry_5
         }
-        /// Sets `0x1A06` sub 5 Tx PDO mapping parameter 7: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 5 Tx PDO mapping parameter 7: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_5(
             &mut self,
@@ -14728,11 +13752,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_7_mapping_entry_6(&self) -> u32 {
             self.tx_pdo_mapping_parameter_7_mapping_entry_6
         }
-        /// Sets `0x1A06` sub 6 Tx PDO mapping parameter 7: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 6 Tx PDO mapping parameter 7: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_6(
             &mut self,
@@ -14748,11 +13768,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_7_mapping_entry_7(&self) -> u32 {
             self.tx_pdo_mapping_parameter_7_mapping_entry_7
         }
-        /// Sets `0x1A06` sub 7 Tx PDO mapping parameter 7: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 7 Tx PDO mapping parameter 7: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_7(
             &mut self,
@@ -14768,11 +13784,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_7_mapping_entry_8(&self) -> u32 {
             self.tx_pdo_mapping_parameter_7_mapping_entry_8
         }
-        /// Sets `0x1A06` sub 8 Tx PDO mapping parameter 7: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 8 Tx PDO mapping parameter 7: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_8(
             &mut self,
@@ -14788,11 +13800,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_8_number_of_mapped_objects(&self) -> u8 {
             self.tx_pdo_mapping_parameter_8_number_of_mapped_objects
         }
-        /// Sets `0x1A07` sub 0 Tx PDO mapping parameter 8: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 0 Tx PDO mapping parameter 8: Number of mapped objects (see [`Self::tx_pdo_mapping_parameter_8_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_8_number_of_mapped_objects(
             &mut self,
@@ -14808,11 +13816,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_8_mapping_entry_1(&self) -> u32 {
             self.tx_pdo_mapping_parameter_8_mapping_entry_1
         }
-        /// Sets `0x1A07` sub 1 Tx PDO mapping parameter 8: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 1 Tx PDO mapping parameter 8: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_1(
             &mut self,
@@ -14828,11 +13832,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_8_mapping_entry_2(&self) -> u32 {
             self.tx_pdo_mapping_parameter_8_mapping_entry_2
         }
-        /// Sets `0x1A07` sub 2 Tx PDO mapping parameter 8: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 2 Tx PDO mapping parameter 8: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_2(
             &mut self,
@@ -14848,11 +13848,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_8_mapping_entry_3(&self) -> u32 {
             self.tx_pdo_mapping_parameter_8_mapping_entry_3
         }
-        /// Sets `0x1A07` sub 3 Tx PDO mapping parameter 8: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 3 Tx PDO mapping parameter 8: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_3(
             &mut self,
@@ -14868,11 +13864,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_8_mapping_entry_4(&self) -> u32 {
             self.tx_pdo_mapping_parameter_8_mapping_entry_4
         }
-        /// Sets `0x1A07` sub 4 Tx PDO mapping parameter 8: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 4 Tx PDO mapping parameter 8: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_4(
             &mut self,
@@ -14888,11 +13880,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_8_mapping_entry_5(&self) -> u32 {
             self.tx_pdo_mapping_parameter_8_mapping_entry_5
         }
-        /// Sets `0x1A07` sub 5 Tx PDO mapping parameter 8: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 5 Tx PDO mapping parameter 8: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_5(
             &mut self,
@@ -14908,11 +13896,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_8_mapping_entry_6(&self) -> u32 {
             self.tx_pdo_mapping_parameter_8_mapping_entry_6
         }
-        /// Sets `0x1A07` sub 6 Tx PDO mapping parameter 8: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 6 Tx PDO mapping parameter 8: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_6(
             &mut self,
@@ -14928,11 +13912,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_8_mapping_entry_7(&self) -> u32 {
             self.tx_pdo_mapping_parameter_8_mapping_entry_7
         }
-        /// Sets `0x1A07` sub 7 Tx PDO mapping parameter 8: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 7 Tx PDO mapping parameter 8: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_7(
             &mut self,
@@ -14948,11 +13928,7 @@ PDOMapping=0
         pub const fn tx_pdo_mapping_parameter_8_mapping_entry_8(&self) -> u32 {
             self.tx_pdo_mapping_parameter_8_mapping_entry_8
         }
-        /// Sets `0x1A07` sub 8 Tx PDO mapping parameter 8: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 8 Tx PDO mapping parameter 8: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_8(
             &mut self,
@@ -14968,11 +13944,7 @@ PDOMapping=0
         pub const fn nmt_startup(&self) -> u32 {
             self.nmt_startup
         }
-        /// Sets `0x1F80` NMT startup.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 4.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1F80` NMT startup (see [`Self::nmt_startup`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_nmt_startup(
             &mut self,
@@ -14988,11 +13960,7 @@ PDOMapping=0
         pub const fn feed_converter_highest_sub_index_supported(&self) -> u8 {
             self.feed_converter_highest_sub_index_supported
         }
-        /// Sets `0x2001` sub 0 Feed converter: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2001` sub 0 Feed converter: Highest sub-index supported (see [`Self::feed_converter_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feed_converter_highest_sub_index_supported(
             &mut self,
@@ -15008,11 +13976,7 @@ PDOMapping=0
         pub const fn feed_converter_numerator(&self) -> u32 {
             self.feed_converter_numerator
         }
-        /// Sets `0x2001` sub 1 Feed converter: Numerator.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2001` sub 1 Feed converter: Numerator (see [`Self::feed_converter_numerator`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feed_converter_numerator(
             &mut self,
@@ -15028,11 +13992,7 @@ PDOMapping=0
         pub const fn feed_converter_denominator(&self) -> u32 {
             self.feed_converter_denominator
         }
-        /// Sets `0x2001` sub 2 Feed converter: Denominator.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2001` sub 2 Feed converter: Denominator (see [`Self::feed_converter_denominator`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feed_converter_denominator(
             &mut self,
@@ -15048,11 +14008,7 @@ PDOMapping=0
         pub const fn input_status(&self) -> u32 {
             self.input_status
         }
-        /// Sets `0x2002` Input status.
-        ///
-        /// UNSIGNED32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2002` Input status (see [`Self::input_status`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_input_status(
             &mut self,
@@ -15068,11 +14024,7 @@ PDOMapping=0
         pub const fn output_status(&self) -> u32 {
             self.output_status
         }
-        /// Sets `0x2003` Output status.
-        ///
-        /// UNSIGNED32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2003` Output status (see [`Self::output_status`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_output_status(
             &mut self,
@@ -15088,11 +14040,7 @@ PDOMapping=0
         pub const fn homing_status(&self) -> u8 {
             self.homing_status
         }
-        /// Sets `0x2004` Homing status.
-        ///
-        /// UNSIGNED8, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2004` Homing status (see [`Self::homing_status`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_status(
             &mut self,
@@ -15108,11 +14056,7 @@ PDOMapping=0
         pub const fn brake(&self) -> u8 {
             self.brake
         }
-        /// Sets `0x2005` Brake.
-        ///
-        /// UNSIGNED8, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2005` Brake (see [`Self::brake`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_brake(&mut self, v: u8) -> Result<(), ::od_runtime::od::AbortCode> {
             self.brake = v;
@@ -15125,11 +14069,7 @@ PDOMapping=0
         pub const fn total_time_off(&self) -> u32 {
             self.total_time_off
         }
-        /// Sets `0x2100` Total time off.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2100` Total time off (see [`Self::total_time_off`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_total_time_off(
             &mut self,
@@ -15145,11 +14085,7 @@ PDOMapping=0
         pub const fn total_time_on(&self) -> u32 {
             self.total_time_on
         }
-        /// Sets `0x2101` Total time on.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2101` Total time on (see [`Self::total_time_on`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_total_time_on(
             &mut self,
@@ -15165,11 +14101,7 @@ PDOMapping=0
         pub const fn total_time_run(&self) -> u32 {
             self.total_time_run
         }
-        /// Sets `0x2102` Total time run.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2102` Total time run (see [`Self::total_time_run`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_total_time_run(
             &mut self,
@@ -15185,11 +14117,7 @@ PDOMapping=0
         pub const fn total_stroke(&self) -> u32 {
             self.total_stroke
         }
-        /// Sets `0x2103` Total stroke.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2103` Total stroke (see [`Self::total_stroke`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_total_stroke(
             &mut self,
@@ -15205,11 +14133,7 @@ PDOMapping=0
         pub const fn error_code(&self) -> u16 {
             self.error_code
         }
-        /// Sets `0x603F` Error code.
-        ///
-        /// UNSIGNED16, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x603F` Error code (see [`Self::error_code`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_error_code(
             &mut self,
@@ -15225,11 +14149,7 @@ PDOMapping=0
         pub const fn controlword(&self) -> u16 {
             self.controlword
         }
-        /// Sets `0x6040` Controlword.
-        ///
-        /// UNSIGNED16, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6040` Controlword (see [`Self::controlword`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_controlword(
             &mut self,
@@ -15245,11 +14165,7 @@ PDOMapping=0
         pub const fn statusword(&self) -> u16 {
             self.statusword
         }
-        /// Sets `0x6041` Statusword.
-        ///
-        /// UNSIGNED16, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6041` Statusword (see [`Self::statusword`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_statusword(
             &mut self,
@@ -15265,11 +14181,7 @@ PDOMapping=0
         pub const fn modes_of_operation(&self) -> i8 {
             self.modes_of_operation
         }
-        /// Sets `0x6060` Modes of operation.
-        ///
-        /// INTEGER8, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6060` Modes of operation (see [`Self::modes_of_operation`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_modes_of_operation(
             &mut self,
@@ -15285,11 +14197,7 @@ PDOMapping=0
         pub const fn modes_of_operation_display(&self) -> i8 {
             self.modes_of_operation_display
         }
-        /// Sets `0x6061` Modes of operation display.
-        ///
-        /// INTEGER8, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6061` Modes of operation display (see [`Self::modes_of_operation_display`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_modes_of_operation_display(
             &mut self,
@@ -15301,15 +14209,13 @@ PDOMapping=0
         /// Reads `0x6062` Position demand value.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::position_demand_value`).
         #[inline]
         pub const fn position_demand_value(&self) -> i32 {
             self.position_demand_value
         }
-        /// Sets `0x6062` Position demand value.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6062` Position demand value (see [`Self::position_demand_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_demand_value(
             &mut self,
@@ -15321,15 +14227,13 @@ PDOMapping=0
         /// Reads `0x6064` Position actual value.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::position_actual_value`).
         #[inline]
         pub const fn position_actual_value(&self) -> i32 {
             self.position_actual_value
         }
-        /// Sets `0x6064` Position actual value.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6064` Position actual value (see [`Self::position_actual_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_actual_value(
             &mut self,
@@ -15341,15 +14245,13 @@ PDOMapping=0
         /// Reads `0x606B` Velocity demand value.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_demand_value`).
         #[inline]
         pub const fn velocity_demand_value(&self) -> i32 {
             self.velocity_demand_value
         }
-        /// Sets `0x606B` Velocity demand value.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x606B` Velocity demand value (see [`Self::velocity_demand_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_demand_value(
             &mut self,
@@ -15361,15 +14263,13 @@ PDOMapping=0
         /// Reads `0x606C` Velocity actual value.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_actual_value`).
         #[inline]
         pub const fn velocity_actual_value(&self) -> i32 {
             self.velocity_actual_value
         }
-        /// Sets `0x606C` Velocity actual value.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x606C` Velocity actual value (see [`Self::velocity_actual_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_actual_value(
             &mut self,
@@ -15381,15 +14281,13 @@ PDOMapping=0
         /// Reads `0x606D` Velocity window.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_window`).
         #[inline]
         pub const fn velocity_window(&self) -> u16 {
             self.velocity_window
         }
-        /// Sets `0x606D` Velocity window.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x606D` Velocity window (see [`Self::velocity_window`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_window(
             &mut self,
@@ -15401,15 +14299,13 @@ PDOMapping=0
         /// Reads `0x606E` Velocity window time.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Dimension: Time (typed conversion: `units::Units::velocity_window_time`).
         #[inline]
         pub const fn velocity_window_time(&self) -> u16 {
             self.velocity_window_time
         }
-        /// Sets `0x606E` Velocity window time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x606E` Velocity window time (see [`Self::velocity_window_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_window_time(
             &mut self,
@@ -15421,15 +14317,13 @@ PDOMapping=0
         /// Reads `0x606F` Velocity threshold.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_threshold`).
         #[inline]
         pub const fn velocity_threshold(&self) -> u16 {
             self.velocity_threshold
         }
-        /// Sets `0x606F` Velocity threshold.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x606F` Velocity threshold (see [`Self::velocity_threshold`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_threshold(
             &mut self,
@@ -15441,15 +14335,13 @@ PDOMapping=0
         /// Reads `0x6070` Velocity threshold time.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Dimension: Time (typed conversion: `units::Units::velocity_threshold_time`).
         #[inline]
         pub const fn velocity_threshold_time(&self) -> u16 {
             self.velocity_threshold_time
         }
-        /// Sets `0x6070` Velocity threshold time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6070` Velocity threshold time (see [`Self::velocity_threshold_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_threshold_time(
             &mut self,
@@ -15461,15 +14353,13 @@ PDOMapping=0
         /// Reads `0x607A` Target position.
         ///
         /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::target_position`).
         #[inline]
         pub const fn target_position(&self) -> i32 {
             self.target_position
         }
-        /// Sets `0x607A` Target position.
-        ///
-        /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607A` Target position (see [`Self::target_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_target_position(
             &mut self,
@@ -15481,15 +14371,13 @@ PDOMapping=0
         /// Reads `0x607C` Home offset.
         ///
         /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::home_offset`).
         #[inline]
         pub const fn home_offset(&self) -> i32 {
             self.home_offset
         }
-        /// Sets `0x607C` Home offset.
-        ///
-        /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607C` Home offset (see [`Self::home_offset`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_home_offset(
             &mut self,
@@ -15505,11 +14393,7 @@ PDOMapping=0
         pub const fn software_position_limit_highest_sub_index_supported(&self) -> u8 {
             self.software_position_limit_highest_sub_index_supported
         }
-        /// Sets `0x607D` sub 0 Software position limit: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `const`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607D` sub 0 Software position limit: Highest sub-index supported (see [`Self::software_position_limit_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_software_position_limit_highest_sub_index_supported(
             &mut self,
@@ -15521,15 +14405,13 @@ PDOMapping=0
         /// Reads `0x607D` sub 1 Software position limit: Min software position limit.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_min_software_position_limit`).
         #[inline]
         pub const fn software_position_limit_min_software_position_limit(&self) -> i32 {
             self.software_position_limit_min_software_position_limit
         }
-        /// Sets `0x607D` sub 1 Software position limit: Min software position limit.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607D` sub 1 Software position limit: Min software position limit (see [`Self::software_position_limit_min_software_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_software_position_limit_min_software_position_limit(
             &mut self,
@@ -15541,15 +14423,13 @@ PDOMapping=0
         /// Reads `0x607D` sub 2 Software position limit: Max software position limit.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_max_software_position_limit`).
         #[inline]
         pub const fn software_position_limit_max_software_position_limit(&self) -> i32 {
             self.software_position_limit_max_software_position_limit
         }
-        /// Sets `0x607D` sub 2 Software position limit: Max software position limit.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607D` sub 2 Software position limit: Max software position limit (see [`Self::software_position_limit_max_software_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_software_position_limit_max_software_position_limit(
             &mut self,
@@ -15565,11 +14445,7 @@ PDOMapping=0
         pub const fn polarity(&self) -> u8 {
             self.polarity
         }
-        /// Sets `0x607E` Polarity.
-        ///
-        /// UNSIGNED8, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607E` Polarity (see [`Self::polarity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_polarity(
             &mut self,
@@ -15581,15 +14457,13 @@ PDOMapping=0
         /// Reads `0x6081` Profile velocity in pp-mode.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::profile_velocity_in_pp_mode`).
         #[inline]
         pub const fn profile_velocity_in_pp_mode(&self) -> u32 {
             self.profile_velocity_in_pp_mode
         }
-        /// Sets `0x6081` Profile velocity in pp-mode.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6081` Profile velocity in pp-mode (see [`Self::profile_velocity_in_pp_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_profile_velocity_in_pp_mode(
             &mut self,
@@ -15601,15 +14475,13 @@ PDOMapping=0
         /// Reads `0x6083` Profile acceleration.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Acceleration (typed conversion: `units::Units::profile_acceleration`).
         #[inline]
         pub const fn profile_acceleration(&self) -> u32 {
             self.profile_acceleration
         }
-        /// Sets `0x6083` Profile acceleration.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6083` Profile acceleration (see [`Self::profile_acceleration`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_profile_acceleration(
             &mut self,
@@ -15621,15 +14493,13 @@ PDOMapping=0
         /// Reads `0x6084` Profile deceleration.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Acceleration (typed conversion: `units::Units::profile_deceleration`).
         #[inline]
         pub const fn profile_deceleration(&self) -> u32 {
             self.profile_deceleration
         }
-        /// Sets `0x6084` Profile deceleration.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6084` Profile deceleration (see [`Self::profile_deceleration`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_profile_deceleration(
             &mut self,
@@ -15647,11 +14517,7 @@ PDOMapping=0
         ) -> u8 {
             self.position_encoder_resolution_highest_sub_index_supported
         }
-        /// Sets `0x608F` sub 0 Position encoder resolution: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `const`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x608F` sub 0 Position encoder resolution: Highest sub-index supported (see [`Self::position_encoder_resolution_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_encoder_resolution_highest_sub_index_supported(
             &mut self,
@@ -15667,11 +14533,7 @@ PDOMapping=0
         pub const fn position_encoder_resolution_encoder_increments(&self) -> u32 {
             self.position_encoder_resolution_encoder_increments
         }
-        /// Sets `0x608F` sub 1 Position encoder resolution: Encoder increments.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 1000 (0x3E8).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x608F` sub 1 Position encoder resolution: Encoder increments (see [`Self::position_encoder_resolution_encoder_increments`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_encoder_resolution_encoder_increments(
             &mut self,
@@ -15687,11 +14549,7 @@ PDOMapping=0
         pub const fn position_encoder_resolution_motor_revolutions(&self) -> u32 {
             self.position_encoder_resolution_motor_revolutions
         }
-        /// Sets `0x608F` sub 2 Position encoder resolution: Motor revolutions.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x608F` sub 2 Position encoder resolution: Motor revolutions (see [`Self::position_encoder_resolution_motor_revolutions`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_encoder_resolution_motor_revolutions(
             &mut self,
@@ -15707,11 +14565,7 @@ PDOMapping=0
         pub const fn gear_ratio_highest_sub_index_supported(&self) -> u8 {
             self.gear_ratio_highest_sub_index_supported
         }
-        /// Sets `0x6091` sub 0 Gear ratio: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6091` sub 0 Gear ratio: Highest sub-index supported (see [`Self::gear_ratio_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gear_ratio_highest_sub_index_supported(
             &mut self,
@@ -15727,11 +14581,7 @@ PDOMapping=0
         pub const fn gear_ratio_motor_revolutions(&self) -> u32 {
             self.gear_ratio_motor_revolutions
         }
-        /// Sets `0x6091` sub 1 Gear ratio: Motor revolutions.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6091` sub 1 Gear ratio: Motor revolutions (see [`Self::gear_ratio_motor_revolutions`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gear_ratio_motor_revolutions(
             &mut self,
@@ -15747,11 +14597,7 @@ PDOMapping=0
         pub const fn gear_ratio_shaft_revolutions(&self) -> u32 {
             self.gear_ratio_shaft_revolutions
         }
-        /// Sets `0x6091` sub 2 Gear ratio: Shaft revolutions.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6091` sub 2 Gear ratio: Shaft revolutions (see [`Self::gear_ratio_shaft_revolutions`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gear_ratio_shaft_revolutions(
             &mut self,
@@ -15767,11 +14613,7 @@ PDOMapping=0
         pub const fn feed_constant_highest_sub_index_supported(&self) -> u8 {
             self.feed_constant_highest_sub_index_supported
         }
-        /// Sets `0x6092` sub 0 Feed constant: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6092` sub 0 Feed constant: Highest sub-index supported (see [`Self::feed_constant_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feed_constant_highest_sub_index_supported(
             &mut self,
@@ -15787,11 +14629,7 @@ PDOMapping=0
         pub const fn feed_constant_feed(&self) -> u32 {
             self.feed_constant_feed
         }
-        /// Sets `0x6092` sub 1 Feed constant: Feed.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6092` sub 1 Feed constant: Feed (see [`Self::feed_constant_feed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feed_constant_feed(
             &mut self,
@@ -15807,11 +14645,7 @@ PDOMapping=0
         pub const fn feed_constant_shaft_revolutions(&self) -> u32 {
             self.feed_constant_shaft_revolutions
         }
-        /// Sets `0x6092` sub 2 Feed constant: Shaft revolutions.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6092` sub 2 Feed constant: Shaft revolutions (see [`Self::feed_constant_shaft_revolutions`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feed_constant_shaft_revolutions(
             &mut self,
@@ -15827,11 +14661,7 @@ PDOMapping=0
         pub const fn homing_method(&self) -> i8 {
             self.homing_method
         }
-        /// Sets `0x6098` Homing method.
-        ///
-        /// INTEGER8, access `rw`, PDO-mappable. Default: 17.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6098` Homing method (see [`Self::homing_method`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_method(
             &mut self,
@@ -15847,11 +14677,7 @@ PDOMapping=0
         pub const fn homing_speed_highest_sub_index_supported(&self) -> u8 {
             self.homing_speed_highest_sub_index_supported
         }
-        /// Sets `0x6099` sub 0 Homing speed: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6099` sub 0 Homing speed: Highest sub-index supported (see [`Self::homing_speed_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_speed_highest_sub_index_supported(
             &mut self,
@@ -15863,15 +14689,13 @@ PDOMapping=0
         /// Reads `0x6099` sub 1 Homing speed: Fast homing speed.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speed_fast_homing_speed`).
         #[inline]
         pub const fn homing_speed_fast_homing_speed(&self) -> u32 {
             self.homing_speed_fast_homing_speed
         }
-        /// Sets `0x6099` sub 1 Homing speed: Fast homing speed.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6099` sub 1 Homing speed: Fast homing speed (see [`Self::homing_speed_fast_homing_speed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_speed_fast_homing_speed(
             &mut self,
@@ -15883,15 +14707,13 @@ PDOMapping=0
         /// Reads `0x6099` sub 2 Homing speed: Slow homing speed.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speed_slow_homing_speed`).
         #[inline]
         pub const fn homing_speed_slow_homing_speed(&self) -> u32 {
             self.homing_speed_slow_homing_speed
         }
-        /// Sets `0x6099` sub 2 Homing speed: Slow homing speed.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6099` sub 2 Homing speed: Slow homing speed (see [`Self::homing_speed_slow_homing_speed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_speed_slow_homing_speed(
             &mut self,
@@ -15903,15 +14725,13 @@ PDOMapping=0
         /// Reads `0x60FF` Target velocity.
         ///
         /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::target_velocity`).
         #[inline]
         pub const fn target_velocity(&self) -> i32 {
             self.target_velocity
         }
-        /// Sets `0x60FF` Target velocity.
-        ///
-        /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60FF` Target velocity (see [`Self::target_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_target_velocity(
             &mut self,
@@ -15927,11 +14747,7 @@ PDOMapping=0
         pub const fn motor_type(&self) -> u16 {
             self.motor_type
         }
-        /// Sets `0x6402` Motor type.
-        ///
-        /// UNSIGNED16, access `ro`. Default: 9.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6402` Motor type (see [`Self::motor_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_motor_type(
             &mut self,
@@ -15947,11 +14763,7 @@ PDOMapping=0
         pub fn motor_manufacturer(&self) -> &[u8] {
             self.motor_manufacturer.as_slice()
         }
-        /// Sets `0x6404` Motor manufacturer.
-        ///
-        /// VISIBLE_STRING, access `ro`. Default: "Camozzi". Capacity 32 bytes.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6404` Motor manufacturer (see [`Self::motor_manufacturer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         pub fn set_motor_manufacturer(
             &mut self,
             v: &[u8],
@@ -15965,11 +14777,7 @@ PDOMapping=0
         pub const fn supported_drive_modes(&self) -> u32 {
             self.supported_drive_modes
         }
-        /// Sets `0x6502` Supported drive modes.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 37.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6502` Supported drive modes (see [`Self::supported_drive_modes`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_supported_drive_modes(
             &mut self,
@@ -15985,11 +14793,7 @@ PDOMapping=0
         pub const fn single_device_type(&self) -> u32 {
             self.single_device_type
         }
-        /// Sets `0x67FF` Single device type.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 4456850 (0x440192).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x67FF` Single device type (see [`Self::single_device_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_single_device_type(
             &mut self,

@@ -10193,11 +10193,7 @@ PDOMapping=0
         pub const fn device_type(&self) -> u32 {
             self.device_type
         }
-        /// Sets `0x1000` Device type.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 4286185874 (0xFF7A0192).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1000` Device type (see [`Self::device_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_device_type(
             &mut self,
@@ -10213,11 +10209,7 @@ PDOMapping=0
         pub const fn error_register(&self) -> u8 {
             self.error_register
         }
-        /// Sets `0x1001` Error register.
-        ///
-        /// UNSIGNED8, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1001` Error register (see [`Self::error_register`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_error_register(
             &mut self,
@@ -10233,11 +10225,7 @@ PDOMapping=0
         pub const fn manufacturer_status_register(&self) -> u32 {
             self.manufacturer_status_register
         }
-        /// Sets `0x1002` Manufacturer status register.
-        ///
-        /// UNSIGNED32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1002` Manufacturer status register (see [`Self::manufacturer_status_register`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_manufacturer_status_register(
             &mut self,
@@ -10253,11 +10241,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_number_of_errors(&self) -> u8 {
             self.pre_defined_error_field_number_of_errors
         }
-        /// Sets `0x1003` sub 0 Pre-defined error field: Number of errors.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 0 Pre-defined error field: Number of errors (see [`Self::pre_defined_error_field_number_of_errors`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_number_of_errors(
             &mut self,
@@ -10273,11 +10257,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_1(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_1
         }
-        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1 (see [`Self::pre_defined_error_field_standard_error_field_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_1(
             &mut self,
@@ -10293,11 +10273,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_2(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_2
         }
-        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2 (see [`Self::pre_defined_error_field_standard_error_field_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_2(
             &mut self,
@@ -10313,11 +10289,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_3(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_3
         }
-        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3 (see [`Self::pre_defined_error_field_standard_error_field_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_3(
             &mut self,
@@ -10333,11 +10305,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_4(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_4
         }
-        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4 (see [`Self::pre_defined_error_field_standard_error_field_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_4(
             &mut self,
@@ -10353,11 +10321,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_5(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_5
         }
-        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5 (see [`Self::pre_defined_error_field_standard_error_field_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_5(
             &mut self,
@@ -10373,11 +10337,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_6(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_6
         }
-        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6 (see [`Self::pre_defined_error_field_standard_error_field_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_6(
             &mut self,
@@ -10393,11 +10353,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_7(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_7
         }
-        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7 (see [`Self::pre_defined_error_field_standard_error_field_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_7(
             &mut self,
@@ -10413,11 +10369,7 @@ PDOMapping=0
         pub const fn pre_defined_error_field_standard_error_field_8(&self) -> u32 {
             self.pre_defined_error_field_standard_error_field_8
         }
-        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8 (see [`Self::pre_defined_error_field_standard_error_field_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pre_defined_error_field_standard_error_field_8(
             &mut self,
@@ -10433,11 +10385,7 @@ PDOMapping=0
         pub const fn cob_id_sync(&self) -> u32 {
             self.cob_id_sync
         }
-        /// Sets `0x1005` COB-ID SYNC.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 128.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1005` COB-ID SYNC (see [`Self::cob_id_sync`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_cob_id_sync(
             &mut self,
@@ -10453,11 +10401,7 @@ PDOMapping=0
         pub const fn communication_cycle_period(&self) -> u32 {
             self.communication_cycle_period
         }
-        /// Sets `0x1006` Communication cycle period.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1006` Communication cycle period (see [`Self::communication_cycle_period`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_communication_cycle_period(
             &mut self,
@@ -10473,11 +10417,7 @@ PDOMapping=0
         pub const fn synchronous_window_length(&self) -> u32 {
             self.synchronous_window_length
         }
-        /// Sets `0x1007` Synchronous window length.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1007` Synchronous window length (see [`Self::synchronous_window_length`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_synchronous_window_length(
             &mut self,
@@ -10493,11 +10433,7 @@ PDOMapping=0
         pub fn manufacturer_device_name(&self) -> &[u8] {
             self.manufacturer_device_name.as_slice()
         }
-        /// Sets `0x1008` Manufacturer device name.
-        ///
-        /// VISIBLE_STRING, access `const`. Default: "DRVI". Capacity 32 bytes.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1008` Manufacturer device name (see [`Self::manufacturer_device_name`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         pub fn set_manufacturer_device_name(
             &mut self,
             v: &[u8],
@@ -10511,11 +10447,7 @@ PDOMapping=0
         pub fn manufacturer_hardware_version(&self) -> &[u8] {
             self.manufacturer_hardware_version.as_slice()
         }
-        /// Sets `0x1009` Manufacturer hardware version.
-        ///
-        /// VISIBLE_STRING, access `const`. Default: "1". Capacity 32 bytes.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1009` Manufacturer hardware version (see [`Self::manufacturer_hardware_version`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         pub fn set_manufacturer_hardware_version(
             &mut self,
             v: &[u8],
@@ -10529,11 +10461,7 @@ PDOMapping=0
         pub fn manufacturer_software_version(&self) -> &[u8] {
             self.manufacturer_software_version.as_slice()
         }
-        /// Sets `0x100A` Manufacturer software version.
-        ///
-        /// VISIBLE_STRING, access `const`. Default: "0". Capacity 32 bytes.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x100A` Manufacturer software version (see [`Self::manufacturer_software_version`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         pub fn set_manufacturer_software_version(
             &mut self,
             v: &[u8],
@@ -10547,11 +10475,7 @@ PDOMapping=0
         pub const fn guard_time(&self) -> u16 {
             self.guard_time
         }
-        /// Sets `0x100C` Guard time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x100C` Guard time (see [`Self::guard_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_guard_time(
             &mut self,
@@ -10567,11 +10491,7 @@ PDOMapping=0
         pub const fn life_time_factor(&self) -> u8 {
             self.life_time_factor
         }
-        /// Sets `0x100D` Life time factor.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x100D` Life time factor (see [`Self::life_time_factor`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_life_time_factor(
             &mut self,
@@ -10587,11 +10507,7 @@ PDOMapping=0
         pub const fn store_parameters_highest_sub_index_supported(&self) -> u8 {
             self.store_parameters_highest_sub_index_supported
         }
-        /// Sets `0x1010` sub 0 Store parameters: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1010` sub 0 Store parameters: Highest sub-index supported (see [`Self::store_parameters_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_store_parameters_highest_sub_index_supported(
             &mut self,
@@ -10607,11 +10523,7 @@ PDOMapping=0
         pub const fn store_parameters_save_all_parameters(&self) -> u32 {
             self.store_parameters_save_all_parameters
         }
-        /// Sets `0x1010` sub 1 Store parameters: Save all parameters.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1010` sub 1 Store parameters: Save all parameters (see [`Self::store_parameters_save_all_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_store_parameters_save_all_parameters(
             &mut self,
@@ -10629,11 +10541,7 @@ PDOMapping=0
         ) -> u8 {
             self.restore_default_parameters_highest_sub_index_supported
         }
-        /// Sets `0x1011` sub 0 Restore default parameters: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1011` sub 0 Restore default parameters: Highest sub-index supported (see [`Self::restore_default_parameters_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_restore_default_parameters_highest_sub_index_supported(
             &mut self,
@@ -10651,11 +10559,7 @@ PDOMapping=0
         ) -> u32 {
             self.restore_default_parameters_restore_all_default_parameters
         }
-        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters (see [`Self::restore_default_parameters_restore_all_default_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_restore_default_parameters_restore_all_default_parameters(
             &mut self,
@@ -10671,11 +10575,7 @@ PDOMapping=0
         pub const fn cob_id_emcy(&self) -> u32 {
             self.cob_id_emcy
         }
-        /// Sets `0x1014` COB-ID EMCY.
-        ///
-        /// UNSIGNED32, access `ro`. Default: $NODEID + 0x80.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1014` COB-ID EMCY (see [`Self::cob_id_emcy`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_cob_id_emcy(
             &mut self,
@@ -10691,11 +10591,7 @@ PDOMapping=0
         pub const fn inhibit_time_emcy(&self) -> u16 {
             self.inhibit_time_emcy
         }
-        /// Sets `0x1015` Inhibit time EMCY.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1015` Inhibit time EMCY (see [`Self::inhibit_time_emcy`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_inhibit_time_emcy(
             &mut self,
@@ -10711,11 +10607,7 @@ PDOMapping=0
         pub const fn producer_heartbeat_time(&self) -> u16 {
             self.producer_heartbeat_time
         }
-        /// Sets `0x1017` Producer heartbeat time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1017` Producer heartbeat time (see [`Self::producer_heartbeat_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_producer_heartbeat_time(
             &mut self,
@@ -10731,11 +10623,7 @@ PDOMapping=0
         pub const fn identity_object_number_of_entries(&self) -> u8 {
             self.identity_object_number_of_entries
         }
-        /// Sets `0x1018` sub 0 Identity object: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 4.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 0 Identity object: Number of entries (see [`Self::identity_object_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_number_of_entries(
             &mut self,
@@ -10751,11 +10639,7 @@ PDOMapping=0
         pub const fn identity_object_vendor_id(&self) -> u32 {
             self.identity_object_vendor_id
         }
-        /// Sets `0x1018` sub 1 Identity object: Vendor-ID.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 151.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 1 Identity object: Vendor-ID (see [`Self::identity_object_vendor_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_vendor_id(
             &mut self,
@@ -10771,11 +10655,7 @@ PDOMapping=0
         pub const fn identity_object_product_code(&self) -> u32 {
             self.identity_object_product_code
         }
-        /// Sets `0x1018` sub 2 Identity object: Product code.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 90.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 2 Identity object: Product code (see [`Self::identity_object_product_code`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_product_code(
             &mut self,
@@ -10791,11 +10671,7 @@ PDOMapping=0
         pub const fn identity_object_revision_number(&self) -> u32 {
             self.identity_object_revision_number
         }
-        /// Sets `0x1018` sub 3 Identity object: Revision number.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 3 Identity object: Revision number (see [`Self::identity_object_revision_number`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_revision_number(
             &mut self,
@@ -10811,11 +10687,7 @@ PDOMapping=0
         pub const fn identity_object_serial_number(&self) -> u32 {
             self.identity_object_serial_number
         }
-        /// Sets `0x1018` sub 4 Identity object: Serial number.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 4 Identity object: Serial number (see [`Self::identity_object_serial_number`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_serial_number(
             &mut self,
@@ -10833,11 +10705,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_1_highest_sub_index_supported
         }
-        /// Sets `0x1400` sub 0 Receive PDO communication parameter 1: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1400` sub 0 Receive PDO communication parameter 1: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_1_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_1_highest_sub_index_supported(
             &mut self,
@@ -10855,11 +10723,7 @@ PDOMapping=0
         ) -> u32 {
             self.receive_pdo_communication_parameter_1_cob_id_used_by_rpdo
         }
-        /// Sets `0x1400` sub 1 Receive PDO communication parameter 1: COB-ID used by RPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x200.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1400` sub 1 Receive PDO communication parameter 1: COB-ID used by RPDO (see [`Self::receive_pdo_communication_parameter_1_cob_id_used_by_rpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_1_cob_id_used_by_rpdo(
             &mut self,
@@ -10877,11 +10741,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_1_transmission_type
         }
-        /// Sets `0x1400` sub 2 Receive PDO communication parameter 1: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1400` sub 2 Receive PDO communication parameter 1: Transmission type (see [`Self::receive_pdo_communication_parameter_1_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_1_transmission_type(
             &mut self,
@@ -10899,11 +10759,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_2_highest_sub_index_supported
         }
-        /// Sets `0x1401` sub 0 Receive PDO communication parameter 2: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1401` sub 0 Receive PDO communication parameter 2: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_2_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_2_highest_sub_index_supported(
             &mut self,
@@ -10921,11 +10777,7 @@ PDOMapping=0
         ) -> u32 {
             self.receive_pdo_communication_parameter_2_cob_id_used_by_rpdo
         }
-        /// Sets `0x1401` sub 1 Receive PDO communication parameter 2: COB-ID used by RPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x80000300.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1401` sub 1 Receive PDO communication parameter 2: COB-ID used by RPDO (see [`Self::receive_pdo_communication_parameter_2_cob_id_used_by_rpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_2_cob_id_used_by_rpdo(
             &mut self,
@@ -10943,11 +10795,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_2_transmission_type
         }
-        /// Sets `0x1401` sub 2 Receive PDO communication parameter 2: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1401` sub 2 Receive PDO communication parameter 2: Transmission type (see [`Self::receive_pdo_communication_parameter_2_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_2_transmission_type(
             &mut self,
@@ -10965,11 +10813,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_3_highest_sub_index_supported
         }
-        /// Sets `0x1402` sub 0 Receive PDO communication parameter 3: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1402` sub 0 Receive PDO communication parameter 3: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_3_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_3_highest_sub_index_supported(
             &mut self,
@@ -10987,11 +10831,7 @@ PDOMapping=0
         ) -> u32 {
             self.receive_pdo_communication_parameter_3_cob_id_used_by_rpdo
         }
-        /// Sets `0x1402` sub 1 Receive PDO communication parameter 3: COB-ID used by RPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x80000400.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1402` sub 1 Receive PDO communication parameter 3: COB-ID used by RPDO (see [`Self::receive_pdo_communication_parameter_3_cob_id_used_by_rpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_3_cob_id_used_by_rpdo(
             &mut self,
@@ -11009,11 +10849,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_3_transmission_type
         }
-        /// Sets `0x1402` sub 2 Receive PDO communication parameter 3: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1402` sub 2 Receive PDO communication parameter 3: Transmission type (see [`Self::receive_pdo_communication_parameter_3_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_3_transmission_type(
             &mut self,
@@ -11031,11 +10867,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_4_highest_sub_index_supported
         }
-        /// Sets `0x1403` sub 0 Receive PDO communication parameter 4: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1403` sub 0 Receive PDO communication parameter 4: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_4_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_4_highest_sub_index_supported(
             &mut self,
@@ -11053,11 +10885,7 @@ PDOMapping=0
         ) -> u32 {
             self.receive_pdo_communication_parameter_4_cob_id_used_by_rpdo
         }
-        /// Sets `0x1403` sub 1 Receive PDO communication parameter 4: COB-ID used by RPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x80000500.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1403` sub 1 Receive PDO communication parameter 4: COB-ID used by RPDO (see [`Self::receive_pdo_communication_parameter_4_cob_id_used_by_rpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_4_cob_id_used_by_rpdo(
             &mut self,
@@ -11075,11 +10903,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_4_transmission_type
         }
-        /// Sets `0x1403` sub 2 Receive PDO communication parameter 4: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1403` sub 2 Receive PDO communication parameter 4: Transmission type (see [`Self::receive_pdo_communication_parameter_4_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_4_transmission_type(
             &mut self,
@@ -11097,11 +10921,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_5_highest_sub_index_supported
         }
-        /// Sets `0x1404` sub 0 Receive PDO communication parameter 5: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1404` sub 0 Receive PDO communication parameter 5: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_5_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_5_highest_sub_index_supported(
             &mut self,
@@ -11119,11 +10939,7 @@ PDOMapping=0
         ) -> u32 {
             self.receive_pdo_communication_parameter_5_cob_id_used_by_rpdo
         }
-        /// Sets `0x1404` sub 1 Receive PDO communication parameter 5: COB-ID used by RPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x80000680.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1404` sub 1 Receive PDO communication parameter 5: COB-ID used by RPDO (see [`Self::receive_pdo_communication_parameter_5_cob_id_used_by_rpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_5_cob_id_used_by_rpdo(
             &mut self,
@@ -11141,11 +10957,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_5_transmission_type
         }
-        /// Sets `0x1404` sub 2 Receive PDO communication parameter 5: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1404` sub 2 Receive PDO communication parameter 5: Transmission type (see [`Self::receive_pdo_communication_parameter_5_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_5_transmission_type(
             &mut self,
@@ -11163,11 +10975,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_6_highest_sub_index_supported
         }
-        /// Sets `0x1405` sub 0 Receive PDO communication parameter 6: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1405` sub 0 Receive PDO communication parameter 6: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_6_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_6_highest_sub_index_supported(
             &mut self,
@@ -11185,11 +10993,7 @@ PDOMapping=0
         ) -> u32 {
             self.receive_pdo_communication_parameter_6_cob_id_used_by_rpdo
         }
-        /// Sets `0x1405` sub 1 Receive PDO communication parameter 6: COB-ID used by RPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483648 (0x80000000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1405` sub 1 Receive PDO communication parameter 6: COB-ID used by RPDO (see [`Self::receive_pdo_communication_parameter_6_cob_id_used_by_rpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_6_cob_id_used_by_rpdo(
             &mut self,
@@ -11207,11 +11011,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_6_transmission_type
         }
-        /// Sets `0x1405` sub 2 Receive PDO communication parameter 6: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1405` sub 2 Receive PDO communication parameter 6: Transmission type (see [`Self::receive_pdo_communication_parameter_6_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_6_transmission_type(
             &mut self,
@@ -11229,11 +11029,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_7_highest_sub_index_supported
         }
-        /// Sets `0x1406` sub 0 Receive PDO communication parameter 7: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1406` sub 0 Receive PDO communication parameter 7: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_7_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_7_highest_sub_index_supported(
             &mut self,
@@ -11251,11 +11047,7 @@ PDOMapping=0
         ) -> u32 {
             self.receive_pdo_communication_parameter_7_cob_id_used_by_rpdo
         }
-        /// Sets `0x1406` sub 1 Receive PDO communication parameter 7: COB-ID used by RPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483648 (0x80000000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1406` sub 1 Receive PDO communication parameter 7: COB-ID used by RPDO (see [`Self::receive_pdo_communication_parameter_7_cob_id_used_by_rpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_7_cob_id_used_by_rpdo(
             &mut self,
@@ -11273,11 +11065,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_7_transmission_type
         }
-        /// Sets `0x1406` sub 2 Receive PDO communication parameter 7: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1406` sub 2 Receive PDO communication parameter 7: Transmission type (see [`Self::receive_pdo_communication_parameter_7_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_7_transmission_type(
             &mut self,
@@ -11295,11 +11083,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_8_highest_sub_index_supported
         }
-        /// Sets `0x1407` sub 0 Receive PDO communication parameter 8: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1407` sub 0 Receive PDO communication parameter 8: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_8_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_8_highest_sub_index_supported(
             &mut self,
@@ -11317,11 +11101,7 @@ PDOMapping=0
         ) -> u32 {
             self.receive_pdo_communication_parameter_8_cob_id_used_by_rpdo
         }
-        /// Sets `0x1407` sub 1 Receive PDO communication parameter 8: COB-ID used by RPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483648 (0x80000000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1407` sub 1 Receive PDO communication parameter 8: COB-ID used by RPDO (see [`Self::receive_pdo_communication_parameter_8_cob_id_used_by_rpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_8_cob_id_used_by_rpdo(
             &mut self,
@@ -11339,11 +11119,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_communication_parameter_8_transmission_type
         }
-        /// Sets `0x1407` sub 2 Receive PDO communication parameter 8: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1407` sub 2 Receive PDO communication parameter 8: Transmission type (see [`Self::receive_pdo_communication_parameter_8_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_communication_parameter_8_transmission_type(
             &mut self,
@@ -11361,11 +11137,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_mapping_parameter_1_number_of_mapped_objects
         }
-        /// Sets `0x1600` sub 0 Receive PDO mapping parameter 1: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 0 Receive PDO mapping parameter 1: Number of mapped objects (see [`Self::receive_pdo_mapping_parameter_1_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_1_number_of_mapped_objects(
             &mut self,
@@ -11381,11 +11153,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_1_mapping_entry_1(&self) -> u32 {
             self.receive_pdo_mapping_parameter_1_mapping_entry_1
         }
-        /// Sets `0x1600` sub 1 Receive PDO mapping parameter 1: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1614807056 (0x60400010).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 1 Receive PDO mapping parameter 1: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_1(
             &mut self,
@@ -11401,11 +11169,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_1_mapping_entry_2(&self) -> u32 {
             self.receive_pdo_mapping_parameter_1_mapping_entry_2
         }
-        /// Sets `0x1600` sub 2 Receive PDO mapping parameter 1: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 2 Receive PDO mapping parameter 1: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_2(
             &mut self,
@@ -11421,11 +11185,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_1_mapping_entry_3(&self) -> u32 {
             self.receive_pdo_mapping_parameter_1_mapping_entry_3
         }
-        /// Sets `0x1600` sub 3 Receive PDO mapping parameter 1: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 3 Receive PDO mapping parameter 1: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_3(
             &mut self,
@@ -11441,11 +11201,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_1_mapping_entry_4(&self) -> u32 {
             self.receive_pdo_mapping_parameter_1_mapping_entry_4
         }
-        /// Sets `0x1600` sub 4 Receive PDO mapping parameter 1: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 4 Receive PDO mapping parameter 1: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_4(
             &mut self,
@@ -11461,11 +11217,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_1_mapping_entry_5(&self) -> u32 {
             self.receive_pdo_mapping_parameter_1_mapping_entry_5
         }
-        /// Sets `0x1600` sub 5 Receive PDO mapping parameter 1: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 5 Receive PDO mapping parameter 1: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_5(
             &mut self,
@@ -11481,11 +11233,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_1_mapping_entry_6(&self) -> u32 {
             self.receive_pdo_mapping_parameter_1_mapping_entry_6
         }
-        /// Sets `0x1600` sub 6 Receive PDO mapping parameter 1: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 6 Receive PDO mapping parameter 1: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_6(
             &mut self,
@@ -11501,11 +11249,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_1_mapping_entry_7(&self) -> u32 {
             self.receive_pdo_mapping_parameter_1_mapping_entry_7
         }
-        /// Sets `0x1600` sub 7 Receive PDO mapping parameter 1: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 7 Receive PDO mapping parameter 1: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_7(
             &mut self,
@@ -11521,11 +11265,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_1_mapping_entry_8(&self) -> u32 {
             self.receive_pdo_mapping_parameter_1_mapping_entry_8
         }
-        /// Sets `0x1600` sub 8 Receive PDO mapping parameter 1: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 8 Receive PDO mapping parameter 1: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_8(
             &mut self,
@@ -11543,11 +11283,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_mapping_parameter_2_number_of_mapped_objects
         }
-        /// Sets `0x1601` sub 0 Receive PDO mapping parameter 2: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 0 Receive PDO mapping parameter 2: Number of mapped objects (see [`Self::receive_pdo_mapping_parameter_2_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_2_number_of_mapped_objects(
             &mut self,
@@ -11563,11 +11299,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_2_mapping_entry_1(&self) -> u32 {
             self.receive_pdo_mapping_parameter_2_mapping_entry_1
         }
-        /// Sets `0x1601` sub 1 Receive PDO mapping parameter 2: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 1 Receive PDO mapping parameter 2: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_1(
             &mut self,
@@ -11583,11 +11315,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_2_mapping_entry_2(&self) -> u32 {
             self.receive_pdo_mapping_parameter_2_mapping_entry_2
         }
-        /// Sets `0x1601` sub 2 Receive PDO mapping parameter 2: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 2 Receive PDO mapping parameter 2: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_2(
             &mut self,
@@ -11603,11 +11331,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_2_mapping_entry_3(&self) -> u32 {
             self.receive_pdo_mapping_parameter_2_mapping_entry_3
         }
-        /// Sets `0x1601` sub 3 Receive PDO mapping parameter 2: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 3 Receive PDO mapping parameter 2: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_3(
             &mut self,
@@ -11623,11 +11347,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_2_mapping_entry_4(&self) -> u32 {
             self.receive_pdo_mapping_parameter_2_mapping_entry_4
         }
-        /// Sets `0x1601` sub 4 Receive PDO mapping parameter 2: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 4 Receive PDO mapping parameter 2: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_4(
             &mut self,
@@ -11643,11 +11363,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_2_mapping_entry_5(&self) -> u32 {
             self.receive_pdo_mapping_parameter_2_mapping_entry_5
         }
-        /// Sets `0x1601` sub 5 Receive PDO mapping parameter 2: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 5 Receive PDO mapping parameter 2: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_5(
             &mut self,
@@ -11663,11 +11379,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_2_mapping_entry_6(&self) -> u32 {
             self.receive_pdo_mapping_parameter_2_mapping_entry_6
         }
-        /// Sets `0x1601` sub 6 Receive PDO mapping parameter 2: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 6 Receive PDO mapping parameter 2: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_6(
             &mut self,
@@ -11683,11 +11395,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_2_mapping_entry_7(&self) -> u32 {
             self.receive_pdo_mapping_parameter_2_mapping_entry_7
         }
-        /// Sets `0x1601` sub 7 Receive PDO mapping parameter 2: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 7 Receive PDO mapping parameter 2: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_7(
             &mut self,
@@ -11703,11 +11411,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_2_mapping_entry_8(&self) -> u32 {
             self.receive_pdo_mapping_parameter_2_mapping_entry_8
         }
-        /// Sets `0x1601` sub 8 Receive PDO mapping parameter 2: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1601` sub 8 Receive PDO mapping parameter 2: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_8(
             &mut self,
@@ -11725,11 +11429,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_mapping_parameter_3_number_of_mapped_objects
         }
-        /// Sets `0x1602` sub 0 Receive PDO mapping parameter 3: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 0 Receive PDO mapping parameter 3: Number of mapped objects (see [`Self::receive_pdo_mapping_parameter_3_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_3_number_of_mapped_objects(
             &mut self,
@@ -11745,11 +11445,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_3_mapping_entry_1(&self) -> u32 {
             self.receive_pdo_mapping_parameter_3_mapping_entry_1
         }
-        /// Sets `0x1602` sub 1 Receive PDO mapping parameter 3: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 1 Receive PDO mapping parameter 3: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_1(
             &mut self,
@@ -11765,11 +11461,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_3_mapping_entry_2(&self) -> u32 {
             self.receive_pdo_mapping_parameter_3_mapping_entry_2
         }
-        /// Sets `0x1602` sub 2 Receive PDO mapping parameter 3: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 2 Receive PDO mapping parameter 3: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_2(
             &mut self,
@@ -11785,11 +11477,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_3_mapping_entry_3(&self) -> u32 {
             self.receive_pdo_mapping_parameter_3_mapping_entry_3
         }
-        /// Sets `0x1602` sub 3 Receive PDO mapping parameter 3: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 3 Receive PDO mapping parameter 3: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_3(
             &mut self,
@@ -11805,11 +11493,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_3_mapping_entry_4(&self) -> u32 {
             self.receive_pdo_mapping_parameter_3_mapping_entry_4
         }
-        /// Sets `0x1602` sub 4 Receive PDO mapping parameter 3: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 4 Receive PDO mapping parameter 3: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_4(
             &mut self,
@@ -11825,11 +11509,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_3_mapping_entry_5(&self) -> u32 {
             self.receive_pdo_mapping_parameter_3_mapping_entry_5
         }
-        /// Sets `0x1602` sub 5 Receive PDO mapping parameter 3: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 5 Receive PDO mapping parameter 3: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_5(
             &mut self,
@@ -11845,11 +11525,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_3_mapping_entry_6(&self) -> u32 {
             self.receive_pdo_mapping_parameter_3_mapping_entry_6
         }
-        /// Sets `0x1602` sub 6 Receive PDO mapping parameter 3: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 6 Receive PDO mapping parameter 3: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_6(
             &mut self,
@@ -11865,11 +11541,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_3_mapping_entry_7(&self) -> u32 {
             self.receive_pdo_mapping_parameter_3_mapping_entry_7
         }
-        /// Sets `0x1602` sub 7 Receive PDO mapping parameter 3: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 7 Receive PDO mapping parameter 3: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_7(
             &mut self,
@@ -11885,11 +11557,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_3_mapping_entry_8(&self) -> u32 {
             self.receive_pdo_mapping_parameter_3_mapping_entry_8
         }
-        /// Sets `0x1602` sub 8 Receive PDO mapping parameter 3: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1602` sub 8 Receive PDO mapping parameter 3: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_8(
             &mut self,
@@ -11907,11 +11575,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_mapping_parameter_4_number_of_mapped_objects
         }
-        /// Sets `0x1603` sub 0 Receive PDO mapping parameter 4: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 0 Receive PDO mapping parameter 4: Number of mapped objects (see [`Self::receive_pdo_mapping_parameter_4_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_4_number_of_mapped_objects(
             &mut self,
@@ -11927,11 +11591,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_4_mapping_entry_1(&self) -> u32 {
             self.receive_pdo_mapping_parameter_4_mapping_entry_1
         }
-        /// Sets `0x1603` sub 1 Receive PDO mapping parameter 4: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 1 Receive PDO mapping parameter 4: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_1(
             &mut self,
@@ -11947,11 +11607,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_4_mapping_entry_2(&self) -> u32 {
             self.receive_pdo_mapping_parameter_4_mapping_entry_2
         }
-        /// Sets `0x1603` sub 2 Receive PDO mapping parameter 4: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 2 Receive PDO mapping parameter 4: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_2(
             &mut self,
@@ -11967,11 +11623,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_4_mapping_entry_3(&self) -> u32 {
             self.receive_pdo_mapping_parameter_4_mapping_entry_3
         }
-        /// Sets `0x1603` sub 3 Receive PDO mapping parameter 4: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 3 Receive PDO mapping parameter 4: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_3(
             &mut self,
@@ -11987,11 +11639,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_4_mapping_entry_4(&self) -> u32 {
             self.receive_pdo_mapping_parameter_4_mapping_entry_4
         }
-        /// Sets `0x1603` sub 4 Receive PDO mapping parameter 4: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 4 Receive PDO mapping parameter 4: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_4(
             &mut self,
@@ -12007,11 +11655,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_4_mapping_entry_5(&self) -> u32 {
             self.receive_pdo_mapping_parameter_4_mapping_entry_5
         }
-        /// Sets `0x1603` sub 5 Receive PDO mapping parameter 4: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 5 Receive PDO mapping parameter 4: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_5(
             &mut self,
@@ -12027,11 +11671,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_4_mapping_entry_6(&self) -> u32 {
             self.receive_pdo_mapping_parameter_4_mapping_entry_6
         }
-        /// Sets `0x1603` sub 6 Receive PDO mapping parameter 4: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 6 Receive PDO mapping parameter 4: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_6(
             &mut self,
@@ -12047,11 +11687,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_4_mapping_entry_7(&self) -> u32 {
             self.receive_pdo_mapping_parameter_4_mapping_entry_7
         }
-        /// Sets `0x1603` sub 7 Receive PDO mapping parameter 4: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 7 Receive PDO mapping parameter 4: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_7(
             &mut self,
@@ -12067,11 +11703,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_4_mapping_entry_8(&self) -> u32 {
             self.receive_pdo_mapping_parameter_4_mapping_entry_8
         }
-        /// Sets `0x1603` sub 8 Receive PDO mapping parameter 4: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1603` sub 8 Receive PDO mapping parameter 4: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_8(
             &mut self,
@@ -12089,11 +11721,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_mapping_parameter_5_number_of_mapped_objects
         }
-        /// Sets `0x1604` sub 0 Receive PDO mapping parameter 5: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 0 Receive PDO mapping parameter 5: Number of mapped objects (see [`Self::receive_pdo_mapping_parameter_5_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_5_number_of_mapped_objects(
             &mut self,
@@ -12109,11 +11737,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_5_mapping_entry_1(&self) -> u32 {
             self.receive_pdo_mapping_parameter_5_mapping_entry_1
         }
-        /// Sets `0x1604` sub 1 Receive PDO mapping parameter 5: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 1 Receive PDO mapping parameter 5: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_1(
             &mut self,
@@ -12129,11 +11753,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_5_mapping_entry_2(&self) -> u32 {
             self.receive_pdo_mapping_parameter_5_mapping_entry_2
         }
-        /// Sets `0x1604` sub 2 Receive PDO mapping parameter 5: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 2 Receive PDO mapping parameter 5: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_2(
             &mut self,
@@ -12149,11 +11769,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_5_mapping_entry_3(&self) -> u32 {
             self.receive_pdo_mapping_parameter_5_mapping_entry_3
         }
-        /// Sets `0x1604` sub 3 Receive PDO mapping parameter 5: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 3 Receive PDO mapping parameter 5: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_3(
             &mut self,
@@ -12169,11 +11785,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_5_mapping_entry_4(&self) -> u32 {
             self.receive_pdo_mapping_parameter_5_mapping_entry_4
         }
-        /// Sets `0x1604` sub 4 Receive PDO mapping parameter 5: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 4 Receive PDO mapping parameter 5: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_4(
             &mut self,
@@ -12189,11 +11801,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_5_mapping_entry_5(&self) -> u32 {
             self.receive_pdo_mapping_parameter_5_mapping_entry_5
         }
-        /// Sets `0x1604` sub 5 Receive PDO mapping parameter 5: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 5 Receive PDO mapping parameter 5: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_5(
             &mut self,
@@ -12209,11 +11817,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_5_mapping_entry_6(&self) -> u32 {
             self.receive_pdo_mapping_parameter_5_mapping_entry_6
         }
-        /// Sets `0x1604` sub 6 Receive PDO mapping parameter 5: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 6 Receive PDO mapping parameter 5: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_6(
             &mut self,
@@ -12229,11 +11833,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_5_mapping_entry_7(&self) -> u32 {
             self.receive_pdo_mapping_parameter_5_mapping_entry_7
         }
-        /// Sets `0x1604` sub 7 Receive PDO mapping parameter 5: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 7 Receive PDO mapping parameter 5: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_7(
             &mut self,
@@ -12249,11 +11849,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_5_mapping_entry_8(&self) -> u32 {
             self.receive_pdo_mapping_parameter_5_mapping_entry_8
         }
-        /// Sets `0x1604` sub 8 Receive PDO mapping parameter 5: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1604` sub 8 Receive PDO mapping parameter 5: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_8(
             &mut self,
@@ -12271,11 +11867,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_mapping_parameter_6_number_of_mapped_objects
         }
-        /// Sets `0x1605` sub 0 Receive PDO mapping parameter 6: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 0 Receive PDO mapping parameter 6: Number of mapped objects (see [`Self::receive_pdo_mapping_parameter_6_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_6_number_of_mapped_objects(
             &mut self,
@@ -12291,11 +11883,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_6_mapping_entry_1(&self) -> u32 {
             self.receive_pdo_mapping_parameter_6_mapping_entry_1
         }
-        /// Sets `0x1605` sub 1 Receive PDO mapping parameter 6: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 1 Receive PDO mapping parameter 6: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_1(
             &mut self,
@@ -12311,11 +11899,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_6_mapping_entry_2(&self) -> u32 {
             self.receive_pdo_mapping_parameter_6_mapping_entry_2
         }
-        /// Sets `0x1605` sub 2 Receive PDO mapping parameter 6: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 2 Receive PDO mapping parameter 6: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_2(
             &mut self,
@@ -12331,11 +11915,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_6_mapping_entry_3(&self) -> u32 {
             self.receive_pdo_mapping_parameter_6_mapping_entry_3
         }
-        /// Sets `0x1605` sub 3 Receive PDO mapping parameter 6: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 3 Receive PDO mapping parameter 6: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_3(
             &mut self,
@@ -12351,11 +11931,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_6_mapping_entry_4(&self) -> u32 {
             self.receive_pdo_mapping_parameter_6_mapping_entry_4
         }
-        /// Sets `0x1605` sub 4 Receive PDO mapping parameter 6: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 4 Receive PDO mapping parameter 6: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_4(
             &mut self,
@@ -12371,11 +11947,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_6_mapping_entry_5(&self) -> u32 {
             self.receive_pdo_mapping_parameter_6_mapping_entry_5
         }
-        /// Sets `0x1605` sub 5 Receive PDO mapping parameter 6: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 5 Receive PDO mapping parameter 6: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_5(
             &mut self,
@@ -12391,11 +11963,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_6_mapping_entry_6(&self) -> u32 {
             self.receive_pdo_mapping_parameter_6_mapping_entry_6
         }
-        /// Sets `0x1605` sub 6 Receive PDO mapping parameter 6: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 6 Receive PDO mapping parameter 6: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_6(
             &mut self,
@@ -12411,11 +11979,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_6_mapping_entry_7(&self) -> u32 {
             self.receive_pdo_mapping_parameter_6_mapping_entry_7
         }
-        /// Sets `0x1605` sub 7 Receive PDO mapping parameter 6: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 7 Receive PDO mapping parameter 6: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_7(
             &mut self,
@@ -12431,11 +11995,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_6_mapping_entry_8(&self) -> u32 {
             self.receive_pdo_mapping_parameter_6_mapping_entry_8
         }
-        /// Sets `0x1605` sub 8 Receive PDO mapping parameter 6: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1605` sub 8 Receive PDO mapping parameter 6: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_8(
             &mut self,
@@ -12453,11 +12013,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_mapping_parameter_7_number_of_mapped_objects
         }
-        /// Sets `0x1606` sub 0 Receive PDO mapping parameter 7: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 0 Receive PDO mapping parameter 7: Number of mapped objects (see [`Self::receive_pdo_mapping_parameter_7_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_7_number_of_mapped_objects(
             &mut self,
@@ -12473,11 +12029,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_7_mapping_entry_1(&self) -> u32 {
             self.receive_pdo_mapping_parameter_7_mapping_entry_1
         }
-        /// Sets `0x1606` sub 1 Receive PDO mapping parameter 7: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 1 Receive PDO mapping parameter 7: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_1(
             &mut self,
@@ -12493,11 +12045,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_7_mapping_entry_2(&self) -> u32 {
             self.receive_pdo_mapping_parameter_7_mapping_entry_2
         }
-        /// Sets `0x1606` sub 2 Receive PDO mapping parameter 7: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 2 Receive PDO mapping parameter 7: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_2(
             &mut self,
@@ -12513,11 +12061,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_7_mapping_entry_3(&self) -> u32 {
             self.receive_pdo_mapping_parameter_7_mapping_entry_3
         }
-        /// Sets `0x1606` sub 3 Receive PDO mapping parameter 7: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 3 Receive PDO mapping parameter 7: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_3(
             &mut self,
@@ -12533,11 +12077,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_7_mapping_entry_4(&self) -> u32 {
             self.receive_pdo_mapping_parameter_7_mapping_entry_4
         }
-        /// Sets `0x1606` sub 4 Receive PDO mapping parameter 7: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 4 Receive PDO mapping parameter 7: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_4(
             &mut self,
@@ -12553,11 +12093,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_7_mapping_entry_5(&self) -> u32 {
             self.receive_pdo_mapping_parameter_7_mapping_entry_5
         }
-        /// Sets `0x1606` sub 5 Receive PDO mapping parameter 7: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 5 Receive PDO mapping parameter 7: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_5(
             &mut self,
@@ -12573,11 +12109,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_7_mapping_entry_6(&self) -> u32 {
             self.receive_pdo_mapping_parameter_7_mapping_entry_6
         }
-        /// Sets `0x1606` sub 6 Receive PDO mapping parameter 7: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 6 Receive PDO mapping parameter 7: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_6(
             &mut self,
@@ -12593,11 +12125,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_7_mapping_entry_7(&self) -> u32 {
             self.receive_pdo_mapping_parameter_7_mapping_entry_7
         }
-        /// Sets `0x1606` sub 7 Receive PDO mapping parameter 7: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 7 Receive PDO mapping parameter 7: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_7(
             &mut self,
@@ -12613,11 +12141,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_7_mapping_entry_8(&self) -> u32 {
             self.receive_pdo_mapping_parameter_7_mapping_entry_8
         }
-        /// Sets `0x1606` sub 8 Receive PDO mapping parameter 7: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1606` sub 8 Receive PDO mapping parameter 7: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_8(
             &mut self,
@@ -12635,11 +12159,7 @@ PDOMapping=0
         ) -> u8 {
             self.receive_pdo_mapping_parameter_8_number_of_mapped_objects
         }
-        /// Sets `0x1607` sub 0 Receive PDO mapping parameter 8: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 0 Receive PDO mapping parameter 8: Number of mapped objects (see [`Self::receive_pdo_mapping_parameter_8_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_8_number_of_mapped_objects(
             &mut self,
@@ -12655,11 +12175,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_8_mapping_entry_1(&self) -> u32 {
             self.receive_pdo_mapping_parameter_8_mapping_entry_1
         }
-        /// Sets `0x1607` sub 1 Receive PDO mapping parameter 8: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 1 Receive PDO mapping parameter 8: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_1(
             &mut self,
@@ -12675,11 +12191,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_8_mapping_entry_2(&self) -> u32 {
             self.receive_pdo_mapping_parameter_8_mapping_entry_2
         }
-        /// Sets `0x1607` sub 2 Receive PDO mapping parameter 8: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 2 Receive PDO mapping parameter 8: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_2(
             &mut self,
@@ -12695,11 +12207,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_8_mapping_entry_3(&self) -> u32 {
             self.receive_pdo_mapping_parameter_8_mapping_entry_3
         }
-        /// Sets `0x1607` sub 3 Receive PDO mapping parameter 8: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 3 Receive PDO mapping parameter 8: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_3(
             &mut self,
@@ -12715,11 +12223,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_8_mapping_entry_4(&self) -> u32 {
             self.receive_pdo_mapping_parameter_8_mapping_entry_4
         }
-        /// Sets `0x1607` sub 4 Receive PDO mapping parameter 8: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 4 Receive PDO mapping parameter 8: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_4(
             &mut self,
@@ -12735,11 +12239,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_8_mapping_entry_5(&self) -> u32 {
             self.receive_pdo_mapping_parameter_8_mapping_entry_5
         }
-        /// Sets `0x1607` sub 5 Receive PDO mapping parameter 8: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 5 Receive PDO mapping parameter 8: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_5(
             &mut self,
@@ -12755,11 +12255,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_8_mapping_entry_6(&self) -> u32 {
             self.receive_pdo_mapping_parameter_8_mapping_entry_6
         }
-        /// Sets `0x1607` sub 6 Receive PDO mapping parameter 8: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 6 Receive PDO mapping parameter 8: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_6(
             &mut self,
@@ -12775,11 +12271,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_8_mapping_entry_7(&self) -> u32 {
             self.receive_pdo_mapping_parameter_8_mapping_entry_7
         }
-        /// Sets `0x1607` sub 7 Receive PDO mapping parameter 8: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 7 Receive PDO mapping parameter 8: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_7(
             &mut self,
@@ -12795,11 +12287,7 @@ PDOMapping=0
         pub const fn receive_pdo_mapping_parameter_8_mapping_entry_8(&self) -> u32 {
             self.receive_pdo_mapping_parameter_8_mapping_entry_8
         }
-        /// Sets `0x1607` sub 8 Receive PDO mapping parameter 8: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1607` sub 8 Receive PDO mapping parameter 8: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_8(
             &mut self,
@@ -12817,11 +12305,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_1_highest_sub_index_supported
         }
-        /// Sets `0x1800` sub 0 Transmit PDO communication parameter 1: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 0 Transmit PDO communication parameter 1: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_1_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_1_highest_sub_index_supported(
             &mut self,
@@ -12839,11 +12323,7 @@ PDOMapping=0
         ) -> u32 {
             self.transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo
         }
-        /// Sets `0x1800` sub 1 Transmit PDO communication parameter 1: COB-ID used by TPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x180.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 1 Transmit PDO communication parameter 1: COB-ID used by TPDO (see [`Self::transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo(
             &mut self,
@@ -12861,11 +12341,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_1_transmission_type
         }
-        /// Sets `0x1800` sub 2 Transmit PDO communication parameter 1: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 2 Transmit PDO communication parameter 1: Transmission type (see [`Self::transmit_pdo_communication_parameter_1_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_1_transmission_type(
             &mut self,
@@ -12881,11 +12357,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_1_inhibit_time(&self) -> u16 {
             self.transmit_pdo_communication_parameter_1_inhibit_time
         }
-        /// Sets `0x1800` sub 3 Transmit PDO communication parameter 1: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 3 Transmit PDO communication parameter 1: Inhibit time (see [`Self::transmit_pdo_communication_parameter_1_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_1_inhibit_time(
             &mut self,
@@ -12903,11 +12375,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_1_compatibility_entry
         }
-        /// Sets `0x1800` sub 4 Transmit PDO communication parameter 1: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 4 Transmit PDO communication parameter 1: Compatibility entry (see [`Self::transmit_pdo_communication_parameter_1_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_1_compatibility_entry(
             &mut self,
@@ -12923,11 +12391,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_1_event_timer(&self) -> u16 {
             self.transmit_pdo_communication_parameter_1_event_timer
         }
-        /// Sets `0x1800` sub 5 Transmit PDO communication parameter 1: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 100.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 5 Transmit PDO communication parameter 1: Event timer (see [`Self::transmit_pdo_communication_parameter_1_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_1_event_timer(
             &mut self,
@@ -12945,11 +12409,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_2_highest_sub_index_supported
         }
-        /// Sets `0x1801` sub 0 Transmit PDO communication parameter 2: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 0 Transmit PDO communication parameter 2: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_2_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_2_highest_sub_index_supported(
             &mut self,
@@ -12967,11 +12427,7 @@ PDOMapping=0
         ) -> u32 {
             self.transmit_pdo_communication_parameter_2_cob_id_used_by_tpdo
         }
-        /// Sets `0x1801` sub 1 Transmit PDO communication parameter 2: COB-ID used by TPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x80000280.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 1 Transmit PDO communication parameter 2: COB-ID used by TPDO (see [`Self::transmit_pdo_communication_parameter_2_cob_id_used_by_tpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_2_cob_id_used_by_tpdo(
             &mut self,
@@ -12989,11 +12445,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_2_transmission_type
         }
-        /// Sets `0x1801` sub 2 Transmit PDO communication parameter 2: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 2 Transmit PDO communication parameter 2: Transmission type (see [`Self::transmit_pdo_communication_parameter_2_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_2_transmission_type(
             &mut self,
@@ -13009,11 +12461,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_2_inhibit_time(&self) -> u16 {
             self.transmit_pdo_communication_parameter_2_inhibit_time
         }
-        /// Sets `0x1801` sub 3 Transmit PDO communication parameter 2: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 3 Transmit PDO communication parameter 2: Inhibit time (see [`Self::transmit_pdo_communication_parameter_2_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_2_inhibit_time(
             &mut self,
@@ -13031,11 +12479,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_2_compatibility_entry
         }
-        /// Sets `0x1801` sub 4 Transmit PDO communication parameter 2: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 4 Transmit PDO communication parameter 2: Compatibility entry (see [`Self::transmit_pdo_communication_parameter_2_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_2_compatibility_entry(
             &mut self,
@@ -13051,11 +12495,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_2_event_timer(&self) -> u16 {
             self.transmit_pdo_communication_parameter_2_event_timer
         }
-        /// Sets `0x1801` sub 5 Transmit PDO communication parameter 2: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1801` sub 5 Transmit PDO communication parameter 2: Event timer (see [`Self::transmit_pdo_communication_parameter_2_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_2_event_timer(
             &mut self,
@@ -13073,11 +12513,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_3_highest_sub_index_supported
         }
-        /// Sets `0x1802` sub 0 Transmit PDO communication parameter 3: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 0 Transmit PDO communication parameter 3: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_3_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_3_highest_sub_index_supported(
             &mut self,
@@ -13095,11 +12531,7 @@ PDOMapping=0
         ) -> u32 {
             self.transmit_pdo_communication_parameter_3_cob_id_used_by_tpdo
         }
-        /// Sets `0x1802` sub 1 Transmit PDO communication parameter 3: COB-ID used by TPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x80000380.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 1 Transmit PDO communication parameter 3: COB-ID used by TPDO (see [`Self::transmit_pdo_communication_parameter_3_cob_id_used_by_tpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_3_cob_id_used_by_tpdo(
             &mut self,
@@ -13117,11 +12549,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_3_transmission_type
         }
-        /// Sets `0x1802` sub 2 Transmit PDO communication parameter 3: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 2 Transmit PDO communication parameter 3: Transmission type (see [`Self::transmit_pdo_communication_parameter_3_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_3_transmission_type(
             &mut self,
@@ -13137,11 +12565,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_3_inhibit_time(&self) -> u16 {
             self.transmit_pdo_communication_parameter_3_inhibit_time
         }
-        /// Sets `0x1802` sub 3 Transmit PDO communication parameter 3: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 3 Transmit PDO communication parameter 3: Inhibit time (see [`Self::transmit_pdo_communication_parameter_3_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_3_inhibit_time(
             &mut self,
@@ -13159,11 +12583,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_3_compatibility_entry
         }
-        /// Sets `0x1802` sub 4 Transmit PDO communication parameter 3: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 4 Transmit PDO communication parameter 3: Compatibility entry (see [`Self::transmit_pdo_communication_parameter_3_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_3_compatibility_entry(
             &mut self,
@@ -13179,11 +12599,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_3_event_timer(&self) -> u16 {
             self.transmit_pdo_communication_parameter_3_event_timer
         }
-        /// Sets `0x1802` sub 5 Transmit PDO communication parameter 3: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1802` sub 5 Transmit PDO communication parameter 3: Event timer (see [`Self::transmit_pdo_communication_parameter_3_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_3_event_timer(
             &mut self,
@@ -13201,11 +12617,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_4_highest_sub_index_supported
         }
-        /// Sets `0x1803` sub 0 Transmit PDO communication parameter 4: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 0 Transmit PDO communication parameter 4: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_4_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_4_highest_sub_index_supported(
             &mut self,
@@ -13223,11 +12635,7 @@ PDOMapping=0
         ) -> u32 {
             self.transmit_pdo_communication_parameter_4_cob_id_used_by_tpdo
         }
-        /// Sets `0x1803` sub 1 Transmit PDO communication parameter 4: COB-ID used by TPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x80000480.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 1 Transmit PDO communication parameter 4: COB-ID used by TPDO (see [`Self::transmit_pdo_communication_parameter_4_cob_id_used_by_tpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_4_cob_id_used_by_tpdo(
             &mut self,
@@ -13245,11 +12653,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_4_transmission_type
         }
-        /// Sets `0x1803` sub 2 Transmit PDO communication parameter 4: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 2 Transmit PDO communication parameter 4: Transmission type (see [`Self::transmit_pdo_communication_parameter_4_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_4_transmission_type(
             &mut self,
@@ -13265,11 +12669,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_4_inhibit_time(&self) -> u16 {
             self.transmit_pdo_communication_parameter_4_inhibit_time
         }
-        /// Sets `0x1803` sub 3 Transmit PDO communication parameter 4: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 3 Transmit PDO communication parameter 4: Inhibit time (see [`Self::transmit_pdo_communication_parameter_4_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_4_inhibit_time(
             &mut self,
@@ -13287,11 +12687,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_4_compatibility_entry
         }
-        /// Sets `0x1803` sub 4 Transmit PDO communication parameter 4: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 4 Transmit PDO communication parameter 4: Compatibility entry (see [`Self::transmit_pdo_communication_parameter_4_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_4_compatibility_entry(
             &mut self,
@@ -13307,11 +12703,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_4_event_timer(&self) -> u16 {
             self.transmit_pdo_communication_parameter_4_event_timer
         }
-        /// Sets `0x1803` sub 5 Transmit PDO communication parameter 4: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1803` sub 5 Transmit PDO communication parameter 4: Event timer (see [`Self::transmit_pdo_communication_parameter_4_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_4_event_timer(
             &mut self,
@@ -13329,11 +12721,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_5_highest_sub_index_supported
         }
-        /// Sets `0x1804` sub 0 Transmit PDO communication parameter 5: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1804` sub 0 Transmit PDO communication parameter 5: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_5_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_5_highest_sub_index_supported(
             &mut self,
@@ -13351,11 +12739,7 @@ PDOMapping=0
         ) -> u32 {
             self.transmit_pdo_communication_parameter_5_cob_id_used_by_tpdo
         }
-        /// Sets `0x1804` sub 1 Transmit PDO communication parameter 5: COB-ID used by TPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483648 (0x80000000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1804` sub 1 Transmit PDO communication parameter 5: COB-ID used by TPDO (see [`Self::transmit_pdo_communication_parameter_5_cob_id_used_by_tpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_5_cob_id_used_by_tpdo(
             &mut self,
@@ -13373,11 +12757,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_5_transmission_type
         }
-        /// Sets `0x1804` sub 2 Transmit PDO communication parameter 5: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1804` sub 2 Transmit PDO communication parameter 5: Transmission type (see [`Self::transmit_pdo_communication_parameter_5_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_5_transmission_type(
             &mut self,
@@ -13393,11 +12773,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_5_inhibit_time(&self) -> u16 {
             self.transmit_pdo_communication_parameter_5_inhibit_time
         }
-        /// Sets `0x1804` sub 3 Transmit PDO communication parameter 5: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1804` sub 3 Transmit PDO communication parameter 5: Inhibit time (see [`Self::transmit_pdo_communication_parameter_5_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_5_inhibit_time(
             &mut self,
@@ -13415,11 +12791,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_5_compatibility_entry
         }
-        /// Sets `0x1804` sub 4 Transmit PDO communication parameter 5: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1804` sub 4 Transmit PDO communication parameter 5: Compatibility entry (see [`Self::transmit_pdo_communication_parameter_5_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_5_compatibility_entry(
             &mut self,
@@ -13435,11 +12807,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_5_event_timer(&self) -> u16 {
             self.transmit_pdo_communication_parameter_5_event_timer
         }
-        /// Sets `0x1804` sub 5 Transmit PDO communication parameter 5: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1804` sub 5 Transmit PDO communication parameter 5: Event timer (see [`Self::transmit_pdo_communication_parameter_5_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_5_event_timer(
             &mut self,
@@ -13457,11 +12825,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_6_highest_sub_index_supported
         }
-        /// Sets `0x1805` sub 0 Transmit PDO communication parameter 6: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1805` sub 0 Transmit PDO communication parameter 6: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_6_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_6_highest_sub_index_supported(
             &mut self,
@@ -13479,11 +12843,7 @@ PDOMapping=0
         ) -> u32 {
             self.transmit_pdo_communication_parameter_6_cob_id_used_by_tpdo
         }
-        /// Sets `0x1805` sub 1 Transmit PDO communication parameter 6: COB-ID used by TPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483648 (0x80000000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1805` sub 1 Transmit PDO communication parameter 6: COB-ID used by TPDO (see [`Self::transmit_pdo_communication_parameter_6_cob_id_used_by_tpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_6_cob_id_used_by_tpdo(
             &mut self,
@@ -13501,11 +12861,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_6_transmission_type
         }
-        /// Sets `0x1805` sub 2 Transmit PDO communication parameter 6: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1805` sub 2 Transmit PDO communication parameter 6: Transmission type (see [`Self::transmit_pdo_communication_parameter_6_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_6_transmission_type(
             &mut self,
@@ -13521,11 +12877,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_6_inhibit_time(&self) -> u16 {
             self.transmit_pdo_communication_parameter_6_inhibit_time
         }
-        /// Sets `0x1805` sub 3 Transmit PDO communication parameter 6: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1805` sub 3 Transmit PDO communication parameter 6: Inhibit time (see [`Self::transmit_pdo_communication_parameter_6_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_6_inhibit_time(
             &mut self,
@@ -13543,11 +12895,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_6_compatibility_entry
         }
-        /// Sets `0x1805` sub 4 Transmit PDO communication parameter 6: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1805` sub 4 Transmit PDO communication parameter 6: Compatibility entry (see [`Self::transmit_pdo_communication_parameter_6_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_6_compatibility_entry(
             &mut self,
@@ -13563,11 +12911,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_6_event_timer(&self) -> u16 {
             self.transmit_pdo_communication_parameter_6_event_timer
         }
-        /// Sets `0x1805` sub 5 Transmit PDO communication parameter 6: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1805` sub 5 Transmit PDO communication parameter 6: Event timer (see [`Self::transmit_pdo_communication_parameter_6_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_6_event_timer(
             &mut self,
@@ -13585,11 +12929,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_7_highest_sub_index_supported
         }
-        /// Sets `0x1806` sub 0 Transmit PDO communication parameter 7: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1806` sub 0 Transmit PDO communication parameter 7: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_7_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_7_highest_sub_index_supported(
             &mut self,
@@ -13607,11 +12947,7 @@ PDOMapping=0
         ) -> u32 {
             self.transmit_pdo_communication_parameter_7_cob_id_used_by_tpdo
         }
-        /// Sets `0x1806` sub 1 Transmit PDO communication parameter 7: COB-ID used by TPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483648 (0x80000000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1806` sub 1 Transmit PDO communication parameter 7: COB-ID used by TPDO (see [`Self::transmit_pdo_communication_parameter_7_cob_id_used_by_tpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_7_cob_id_used_by_tpdo(
             &mut self,
@@ -13629,11 +12965,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_7_transmission_type
         }
-        /// Sets `0x1806` sub 2 Transmit PDO communication parameter 7: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1806` sub 2 Transmit PDO communication parameter 7: Transmission type (see [`Self::transmit_pdo_communication_parameter_7_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_7_transmission_type(
             &mut self,
@@ -13649,11 +12981,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_7_inhibit_time(&self) -> u16 {
             self.transmit_pdo_communication_parameter_7_inhibit_time
         }
-        /// Sets `0x1806` sub 3 Transmit PDO communication parameter 7: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1806` sub 3 Transmit PDO communication parameter 7: Inhibit time (see [`Self::transmit_pdo_communication_parameter_7_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_7_inhibit_time(
             &mut self,
@@ -13671,11 +12999,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_7_compatibility_entry
         }
-        /// Sets `0x1806` sub 4 Transmit PDO communication parameter 7: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1806` sub 4 Transmit PDO communication parameter 7: Compatibility entry (see [`Self::transmit_pdo_communication_parameter_7_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_7_compatibility_entry(
             &mut self,
@@ -13691,11 +13015,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_7_event_timer(&self) -> u16 {
             self.transmit_pdo_communication_parameter_7_event_timer
         }
-        /// Sets `0x1806` sub 5 Transmit PDO communication parameter 7: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1806` sub 5 Transmit PDO communication parameter 7: Event timer (see [`Self::transmit_pdo_communication_parameter_7_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_7_event_timer(
             &mut self,
@@ -13713,11 +13033,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_8_highest_sub_index_supported
         }
-        /// Sets `0x1807` sub 0 Transmit PDO communication parameter 8: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1807` sub 0 Transmit PDO communication parameter 8: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_8_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_8_highest_sub_index_supported(
             &mut self,
@@ -13735,11 +13051,7 @@ PDOMapping=0
         ) -> u32 {
             self.transmit_pdo_communication_parameter_8_cob_id_used_by_tpdo
         }
-        /// Sets `0x1807` sub 1 Transmit PDO communication parameter 8: COB-ID used by TPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 2147483648 (0x80000000).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1807` sub 1 Transmit PDO communication parameter 8: COB-ID used by TPDO (see [`Self::transmit_pdo_communication_parameter_8_cob_id_used_by_tpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_8_cob_id_used_by_tpdo(
             &mut self,
@@ -13757,11 +13069,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_8_transmission_type
         }
-        /// Sets `0x1807` sub 2 Transmit PDO communication parameter 8: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1807` sub 2 Transmit PDO communication parameter 8: Transmission type (see [`Self::transmit_pdo_communication_parameter_8_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_8_transmission_type(
             &mut self,
@@ -13777,11 +13085,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_8_inhibit_time(&self) -> u16 {
             self.transmit_pdo_communication_parameter_8_inhibit_time
         }
-        /// Sets `0x1807` sub 3 Transmit PDO communication parameter 8: Inhibit time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1807` sub 3 Transmit PDO communication parameter 8: Inhibit time (see [`Self::transmit_pdo_communication_parameter_8_inhibit_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_8_inhibit_time(
             &mut self,
@@ -13799,11 +13103,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_communication_parameter_8_compatibility_entry
         }
-        /// Sets `0x1807` sub 4 Transmit PDO communication parameter 8: Compatibility entry.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1807` sub 4 Transmit PDO communication parameter 8: Compatibility entry (see [`Self::transmit_pdo_communication_parameter_8_compatibility_entry`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_8_compatibility_entry(
             &mut self,
@@ -13819,11 +13119,7 @@ PDOMapping=0
         pub const fn transmit_pdo_communication_parameter_8_event_timer(&self) -> u16 {
             self.transmit_pdo_communication_parameter_8_event_timer
         }
-        /// Sets `0x1807` sub 5 Transmit PDO communication parameter 8: Event timer.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1807` sub 5 Transmit PDO communication parameter 8: Event timer (see [`Self::transmit_pdo_communication_parameter_8_event_timer`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_communication_parameter_8_event_timer(
             &mut self,
@@ -13841,11 +13137,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_mapping_parameter_1_number_of_mapped_objects
         }
-        /// Sets `0x1A00` sub 0 Transmit PDO mapping parameter 1: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 0 Transmit PDO mapping parameter 1: Number of mapped objects (see [`Self::transmit_pdo_mapping_parameter_1_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_1_number_of_mapped_objects(
             &mut self,
@@ -13861,11 +13153,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_1(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_1_mapping_entry_1
         }
-        /// Sets `0x1A00` sub 1 Transmit PDO mapping parameter 1: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1614872592 (0x60410010).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 1 Transmit PDO mapping parameter 1: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_1(
             &mut self,
@@ -13881,11 +13169,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_2(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_1_mapping_entry_2
         }
-        /// Sets `0x1A00` sub 2 Transmit PDO mapping parameter 1: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 2 Transmit PDO mapping parameter 1: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_2(
             &mut self,
@@ -13901,11 +13185,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_3(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_1_mapping_entry_3
         }
-        /// Sets `0x1A00` sub 3 Transmit PDO mapping parameter 1: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 3 Transmit PDO mapping parameter 1: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_3(
             &mut self,
@@ -13921,11 +13201,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_4(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_1_mapping_entry_4
         }
-        /// Sets `0x1A00` sub 4 Transmit PDO mapping parameter 1: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 4 Transmit PDO mapping parameter 1: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_4(
             &mut self,
@@ -13941,11 +13217,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_5(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_1_mapping_entry_5
         }
-        /// Sets `0x1A00` sub 5 Transmit PDO mapping parameter 1: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 5 Transmit PDO mapping parameter 1: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_5(
             &mut self,
@@ -13961,11 +13233,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_6(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_1_mapping_entry_6
         }
-        /// Sets `0x1A00` sub 6 Transmit PDO mapping parameter 1: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 6 Transmit PDO mapping parameter 1: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_6(
             &mut self,
@@ -13981,11 +13249,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_7(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_1_mapping_entry_7
         }
-        /// Sets `0x1A00` sub 7 Transmit PDO mapping parameter 1: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 7 Transmit PDO mapping parameter 1: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_7(
             &mut self,
@@ -14001,11 +13265,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_8(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_1_mapping_entry_8
         }
-        /// Sets `0x1A00` sub 8 Transmit PDO mapping parameter 1: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 8 Transmit PDO mapping parameter 1: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_8(
             &mut self,
@@ -14023,11 +13283,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_mapping_parameter_2_number_of_mapped_objects
         }
-        /// Sets `0x1A01` sub 0 Transmit PDO mapping parameter 2: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 0 Transmit PDO mapping parameter 2: Number of mapped objects (see [`Self::transmit_pdo_mapping_parameter_2_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_2_number_of_mapped_objects(
             &mut self,
@@ -14043,11 +13299,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_1(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_2_mapping_entry_1
         }
-        /// Sets `0x1A01` sub 1 Transmit PDO mapping parameter 2: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 1 Transmit PDO mapping parameter 2: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_1(
             &mut self,
@@ -14063,11 +13315,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_2(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_2_mapping_entry_2
         }
-        /// Sets `0x1A01` sub 2 Transmit PDO mapping parameter 2: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 2 Transmit PDO mapping parameter 2: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_2(
             &mut self,
@@ -14083,11 +13331,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_3(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_2_mapping_entry_3
         }
-        /// Sets `0x1A01` sub 3 Transmit PDO mapping parameter 2: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 3 Transmit PDO mapping parameter 2: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_3(
             &mut self,
@@ -14103,11 +13347,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_4(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_2_mapping_entry_4
         }
-        /// Sets `0x1A01` sub 4 Transmit PDO mapping parameter 2: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 4 Transmit PDO mapping parameter 2: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_4(
             &mut self,
@@ -14123,11 +13363,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_5(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_2_mapping_entry_5
         }
-        /// Sets `0x1A01` sub 5 Transmit PDO mapping parameter 2: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 5 Transmit PDO mapping parameter 2: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_5(
             &mut self,
@@ -14143,11 +13379,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_6(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_2_mapping_entry_6
         }
-        /// Sets `0x1A01` sub 6 Transmit PDO mapping parameter 2: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 6 Transmit PDO mapping parameter 2: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_6(
             &mut self,
@@ -14163,11 +13395,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_7(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_2_mapping_entry_7
         }
-        /// Sets `0x1A01` sub 7 Transmit PDO mapping parameter 2: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 7 Transmit PDO mapping parameter 2: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_7(
             &mut self,
@@ -14183,11 +13411,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_8(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_2_mapping_entry_8
         }
-        /// Sets `0x1A01` sub 8 Transmit PDO mapping parameter 2: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 8 Transmit PDO mapping parameter 2: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_8(
             &mut self,
@@ -14205,11 +13429,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_mapping_parameter_3_number_of_mapped_objects
         }
-        /// Sets `0x1A02` sub 0 Transmit PDO mapping parameter 3: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 0 Transmit PDO mapping parameter 3: Number of mapped objects (see [`Self::transmit_pdo_mapping_parameter_3_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_3_number_of_mapped_objects(
             &mut self,
@@ -14225,11 +13445,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_1(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_3_mapping_entry_1
         }
-        /// Sets `0x1A02` sub 1 Transmit PDO mapping parameter 3: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 1 Transmit PDO mapping parameter 3: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_1(
             &mut self,
@@ -14245,11 +13461,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_2(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_3_mapping_entry_2
         }
-        /// Sets `0x1A02` sub 2 Transmit PDO mapping parameter 3: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 2 Transmit PDO mapping parameter 3: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_2(
             &mut self,
@@ -14265,11 +13477,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_3(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_3_mapping_entry_3
         }
-        /// Sets `0x1A02` sub 3 Transmit PDO mapping parameter 3: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 3 Transmit PDO mapping parameter 3: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_3(
             &mut self,
@@ -14285,11 +13493,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_4(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_3_mapping_entry_4
         }
-        /// Sets `0x1A02` sub 4 Transmit PDO mapping parameter 3: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 4 Transmit PDO mapping parameter 3: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_4(
             &mut self,
@@ -14305,11 +13509,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_5(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_3_mapping_entry_5
         }
-        /// Sets `0x1A02` sub 5 Transmit PDO mapping parameter 3: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 5 Transmit PDO mapping parameter 3: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_5(
             &mut self,
@@ -14325,11 +13525,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_6(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_3_mapping_entry_6
         }
-        /// Sets `0x1A02` sub 6 Transmit PDO mapping parameter 3: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 6 Transmit PDO mapping parameter 3: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_6(
             &mut self,
@@ -14345,11 +13541,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_7(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_3_mapping_entry_7
         }
-        /// Sets `0x1A02` sub 7 Transmit PDO mapping parameter 3: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 7 Transmit PDO mapping parameter 3: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_7(
             &mut self,
@@ -14365,11 +13557,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_8(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_3_mapping_entry_8
         }
-        /// Sets `0x1A02` sub 8 Transmit PDO mapping parameter 3: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A02` sub 8 Transmit PDO mapping parameter 3: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_8(
             &mut self,
@@ -14387,11 +13575,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_mapping_parameter_4_number_of_mapped_objects
         }
-        /// Sets `0x1A03` sub 0 Transmit PDO mapping parameter 4: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 0 Transmit PDO mapping parameter 4: Number of mapped objects (see [`Self::transmit_pdo_mapping_parameter_4_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_4_number_of_mapped_objects(
             &mut self,
@@ -14407,11 +13591,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_1(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_4_mapping_entry_1
         }
-        /// Sets `0x1A03` sub 1 Transmit PDO mapping parameter 4: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 1 Transmit PDO mapping parameter 4: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_1(
             &mut self,
@@ -14427,11 +13607,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_2(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_4_mapping_entry_2
         }
-        /// Sets `0x1A03` sub 2 Transmit PDO mapping parameter 4: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 2 Transmit PDO mapping parameter 4: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_2(
             &mut self,
@@ -14447,11 +13623,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_3(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_4_mapping_entry_3
         }
-        /// Sets `0x1A03` sub 3 Transmit PDO mapping parameter 4: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 3 Transmit PDO mapping parameter 4: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_3(
             &mut self,
@@ -14467,11 +13639,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_4(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_4_mapping_entry_4
         }
-        /// Sets `0x1A03` sub 4 Transmit PDO mapping parameter 4: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 4 Transmit PDO mapping parameter 4: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_4(
             &mut self,
@@ -14487,11 +13655,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_5(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_4_mapping_entry_5
         }
-        /// Sets `0x1A03` sub 5 Transmit PDO mapping parameter 4: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 5 Transmit PDO mapping parameter 4: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_5(
             &mut self,
@@ -14507,11 +13671,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_6(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_4_mapping_entry_6
         }
-        /// Sets `0x1A03` sub 6 Transmit PDO mapping parameter 4: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 6 Transmit PDO mapping parameter 4: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_6(
             &mut self,
@@ -14527,11 +13687,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_7(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_4_mapping_entry_7
         }
-        /// Sets `0x1A03` sub 7 Transmit PDO mapping parameter 4: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 7 Transmit PDO mapping parameter 4: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_7(
             &mut self,
@@ -14547,11 +13703,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_8(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_4_mapping_entry_8
         }
-        /// Sets `0x1A03` sub 8 Transmit PDO mapping parameter 4: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A03` sub 8 Transmit PDO mapping parameter 4: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_8(
             &mut self,
@@ -14569,11 +13721,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_mapping_parameter_5_number_of_mapped_objects
         }
-        /// Sets `0x1A04` sub 0 Transmit PDO mapping parameter 5: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 0 Transmit PDO mapping parameter 5: Number of mapped objects (see [`Self::transmit_pdo_mapping_parameter_5_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_5_number_of_mapped_objects(
             &mut self,
@@ -14589,11 +13737,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_1(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_5_mapping_entry_1
         }
-        /// Sets `0x1A04` sub 1 Transmit PDO mapping parameter 5: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 1 Transmit PDO mapping parameter 5: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_1(
             &mut self,
@@ -14609,11 +13753,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_2(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_5_mapping_entry_2
         }
-        /// Sets `0x1A04` sub 2 Transmit PDO mapping parameter 5: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 2 Transmit PDO mapping parameter 5: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_2(
             &mut self,
@@ -14629,11 +13769,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_3(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_5_mapping_entry_3
         }
-        /// Sets `0x1A04` sub 3 Transmit PDO mapping parameter 5: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 3 Transmit PDO mapping parameter 5: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_3(
             &mut self,
@@ -14649,11 +13785,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_4(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_5_mapping_entry_4
         }
-        /// Sets `0x1A04` sub 4 Transmit PDO mapping parameter 5: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 4 Transmit PDO mapping parameter 5: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_4(
             &mut self,
@@ -14669,11 +13801,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_5(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_5_mapping_entry_5
         }
-        /// Sets `0x1A04` sub 5 Transmit PDO mapping parameter 5: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 5 Transmit PDO mapping parameter 5: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_5(
             &mut self,
@@ -14689,11 +13817,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_6(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_5_mapping_entry_6
         }
-        /// Sets `0x1A04` sub 6 Transmit PDO mapping parameter 5: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 6 Transmit PDO mapping parameter 5: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_6(
             &mut self,
@@ -14709,11 +13833,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_7(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_5_mapping_entry_7
         }
-        /// Sets `0x1A04` sub 7 Transmit PDO mapping parameter 5: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 7 Transmit PDO mapping parameter 5: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_7(
             &mut self,
@@ -14729,11 +13849,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_8(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_5_mapping_entry_8
         }
-        /// Sets `0x1A04` sub 8 Transmit PDO mapping parameter 5: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A04` sub 8 Transmit PDO mapping parameter 5: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_8(
             &mut self,
@@ -14751,11 +13867,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_mapping_parameter_6_number_of_mapped_objects
         }
-        /// Sets `0x1A05` sub 0 Transmit PDO mapping parameter 6: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 0 Transmit PDO mapping parameter 6: Number of mapped objects (see [`Self::transmit_pdo_mapping_parameter_6_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_6_number_of_mapped_objects(
             &mut self,
@@ -14771,11 +13883,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_1(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_6_mapping_entry_1
         }
-        /// Sets `0x1A05` sub 1 Transmit PDO mapping parameter 6: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 1 Transmit PDO mapping parameter 6: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_1(
             &mut self,
@@ -14791,11 +13899,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_2(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_6_mapping_entry_2
         }
-        /// Sets `0x1A05` sub 2 Transmit PDO mapping parameter 6: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 2 Transmit PDO mapping parameter 6: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_2(
             &mut self,
@@ -14811,11 +13915,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_3(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_6_mapping_entry_3
         }
-        /// Sets `0x1A05` sub 3 Transmit PDO mapping parameter 6: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 3 Transmit PDO mapping parameter 6: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_3(
             &mut self,
@@ -14831,11 +13931,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_4(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_6_mapping_entry_4
         }
-        /// Sets `0x1A05` sub 4 Transmit PDO mapping parameter 6: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 4 Transmit PDO mapping parameter 6: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_4(
             &mut self,
@@ -14851,11 +13947,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_5(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_6_mapping_entry_5
         }
-        /// Sets `0x1A05` sub 5 Transmit PDO mapping parameter 6: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 5 Transmit PDO mapping parameter 6: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_5(
             &mut self,
@@ -14871,11 +13963,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_6(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_6_mapping_entry_6
         }
-        /// Sets `0x1A05` sub 6 Transmit PDO mapping parameter 6: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 6 Transmit PDO mapping parameter 6: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_6(
             &mut self,
@@ -14891,11 +13979,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_7(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_6_mapping_entry_7
         }
-        /// Sets `0x1A05` sub 7 Transmit PDO mapping parameter 6: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 7 Transmit PDO mapping parameter 6: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_7(
             &mut self,
@@ -14911,11 +13995,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_8(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_6_mapping_entry_8
         }
-        /// Sets `0x1A05` sub 8 Transmit PDO mapping parameter 6: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A05` sub 8 Transmit PDO mapping parameter 6: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_8(
             &mut self,
@@ -14933,11 +14013,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_mapping_parameter_7_number_of_mapped_objects
         }
-        /// Sets `0x1A06` sub 0 Transmit PDO mapping parameter 7: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 0 Transmit PDO mapping parameter 7: Number of mapped objects (see [`Self::transmit_pdo_mapping_parameter_7_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_7_number_of_mapped_objects(
             &mut self,
@@ -14953,11 +14029,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_1(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_7_mapping_entry_1
         }
-        /// Sets `0x1A06` sub 1 Transmit PDO mapping parameter 7: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 1 Transmit PDO mapping parameter 7: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_1(
             &mut self,
@@ -14973,11 +14045,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_2(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_7_mapping_entry_2
         }
-        /// Sets `0x1A06` sub 2 Transmit PDO mapping parameter 7: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 2 Transmit PDO mapping parameter 7: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_2(
             &mut self,
@@ -14993,11 +14061,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_3(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_7_mapping_entry_3
         }
-        /// Sets `0x1A06` sub 3 Transmit PDO mapping parameter 7: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 3 Transmit PDO mapping parameter 7: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_3(
             &mut self,
@@ -15013,11 +14077,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_4(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_7_mapping_entry_4
         }
-        /// Sets `0x1A06` sub 4 Transmit PDO mapping parameter 7: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 4 Transmit PDO mapping parameter 7: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_4(
             &mut self,
@@ -15033,11 +14093,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_5(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_7_mapping_entry_5
         }
-        /// Sets `0x1A06` sub 5 Transmit PDO mapping parameter 7: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 5 Transmit PDO mapping parameter 7: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_5(
             &mut self,
@@ -15053,11 +14109,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_6(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_7_mapping_entry_6
         }
-        /// Sets `0x1A06` sub 6 Transmit PDO mapping parameter 7: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 6 Transmit PDO mapping parameter 7: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_6(
             &mut self,
@@ -15073,11 +14125,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_7(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_7_mapping_entry_7
         }
-        /// Sets `0x1A06` sub 7 Transmit PDO mapping parameter 7: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 7 Transmit PDO mapping parameter 7: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_7(
             &mut self,
@@ -15093,11 +14141,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_8(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_7_mapping_entry_8
         }
-        /// Sets `0x1A06` sub 8 Transmit PDO mapping parameter 7: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A06` sub 8 Transmit PDO mapping parameter 7: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_8(
             &mut self,
@@ -15115,11 +14159,7 @@ PDOMapping=0
         ) -> u8 {
             self.transmit_pdo_mapping_parameter_8_number_of_mapped_objects
         }
-        /// Sets `0x1A07` sub 0 Transmit PDO mapping parameter 8: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 0 Transmit PDO mapping parameter 8: Number of mapped objects (see [`Self::transmit_pdo_mapping_parameter_8_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_8_number_of_mapped_objects(
             &mut self,
@@ -15135,11 +14175,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_1(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_8_mapping_entry_1
         }
-        /// Sets `0x1A07` sub 1 Transmit PDO mapping parameter 8: Mapping entry 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 1 Transmit PDO mapping parameter 8: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_1(
             &mut self,
@@ -15155,11 +14191,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_2(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_8_mapping_entry_2
         }
-        /// Sets `0x1A07` sub 2 Transmit PDO mapping parameter 8: Mapping entry 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 2 Transmit PDO mapping parameter 8: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_2(
             &mut self,
@@ -15175,11 +14207,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_3(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_8_mapping_entry_3
         }
-        /// Sets `0x1A07` sub 3 Transmit PDO mapping parameter 8: Mapping entry 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 3 Transmit PDO mapping parameter 8: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_3(
             &mut self,
@@ -15195,11 +14223,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_4(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_8_mapping_entry_4
         }
-        /// Sets `0x1A07` sub 4 Transmit PDO mapping parameter 8: Mapping entry 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 4 Transmit PDO mapping parameter 8: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_4(
             &mut self,
@@ -15215,11 +14239,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_5(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_8_mapping_entry_5
         }
-        /// Sets `0x1A07` sub 5 Transmit PDO mapping parameter 8: Mapping entry 5.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 5 Transmit PDO mapping parameter 8: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_5(
             &mut self,
@@ -15235,11 +14255,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_6(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_8_mapping_entry_6
         }
-        /// Sets `0x1A07` sub 6 Transmit PDO mapping parameter 8: Mapping entry 6.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 6 Transmit PDO mapping parameter 8: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_6(
             &mut self,
@@ -15255,11 +14271,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_7(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_8_mapping_entry_7
         }
-        /// Sets `0x1A07` sub 7 Transmit PDO mapping parameter 8: Mapping entry 7.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 7 Transmit PDO mapping parameter 8: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_7(
             &mut self,
@@ -15275,11 +14287,7 @@ PDOMapping=0
         pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_8(&self) -> u32 {
             self.transmit_pdo_mapping_parameter_8_mapping_entry_8
         }
-        /// Sets `0x1A07` sub 8 Transmit PDO mapping parameter 8: Mapping entry 8.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A07` sub 8 Transmit PDO mapping parameter 8: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_8(
             &mut self,
@@ -15295,11 +14303,7 @@ PDOMapping=0
         pub const fn nmt_startup(&self) -> u32 {
             self.nmt_startup
         }
-        /// Sets `0x1F80` NMT startup.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 4.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1F80` NMT startup (see [`Self::nmt_startup`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_nmt_startup(
             &mut self,
@@ -15315,11 +14319,7 @@ PDOMapping=0
         pub const fn feed_converter_highest_sub_index_supported(&self) -> u8 {
             self.feed_converter_highest_sub_index_supported
         }
-        /// Sets `0x2001` sub 0 Feed converter: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2001` sub 0 Feed converter: Highest sub-index supported (see [`Self::feed_converter_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feed_converter_highest_sub_index_supported(
             &mut self,
@@ -15335,11 +14335,7 @@ PDOMapping=0
         pub const fn feed_converter_numerator(&self) -> u32 {
             self.feed_converter_numerator
         }
-        /// Sets `0x2001` sub 1 Feed converter: Numerator.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2001` sub 1 Feed converter: Numerator (see [`Self::feed_converter_numerator`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feed_converter_numerator(
             &mut self,
@@ -15355,11 +14351,7 @@ PDOMapping=0
         pub const fn feed_converter_denominator(&self) -> u32 {
             self.feed_converter_denominator
         }
-        /// Sets `0x2001` sub 2 Feed converter: Denominator.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2001` sub 2 Feed converter: Denominator (see [`Self::feed_converter_denominator`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feed_converter_denominator(
             &mut self,
@@ -15375,11 +14367,7 @@ PDOMapping=0
         pub const fn input_status(&self) -> u32 {
             self.input_status
         }
-        /// Sets `0x2002` Input status.
-        ///
-        /// UNSIGNED32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2002` Input status (see [`Self::input_status`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_input_status(
             &mut self,
@@ -15395,11 +14383,7 @@ PDOMapping=0
         pub const fn output_status(&self) -> u32 {
             self.output_status
         }
-        /// Sets `0x2003` Output status.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2003` Output status (see [`Self::output_status`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_output_status(
             &mut self,
@@ -15415,11 +14399,7 @@ PDOMapping=0
         pub const fn homing_ok(&self) -> u8 {
             self.homing_ok
         }
-        /// Sets `0x2004` Homing ok.
-        ///
-        /// UNSIGNED8, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2004` Homing ok (see [`Self::homing_ok`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_ok(
             &mut self,
@@ -15435,11 +14415,7 @@ PDOMapping=0
         pub const fn warnings(&self) -> u16 {
             self.warnings
         }
-        /// Sets `0x2006` Warnings.
-        ///
-        /// UNSIGNED16, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2006` Warnings (see [`Self::warnings`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_warnings(
             &mut self,
@@ -15455,11 +14431,7 @@ PDOMapping=0
         pub const fn limits_enable(&self) -> u8 {
             self.limits_enable
         }
-        /// Sets `0x2010` Limits enable.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0. At most 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2010` Limits enable (see [`Self::limits_enable`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_limits_enable(
             &mut self,
@@ -15478,11 +14450,7 @@ PDOMapping=0
         pub const fn pid_parameters_highest_sub_index_supported(&self) -> u8 {
             self.pid_parameters_highest_sub_index_supported
         }
-        /// Sets `0x2011` sub 0 PID parameters: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2011` sub 0 PID parameters: Highest sub-index supported (see [`Self::pid_parameters_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pid_parameters_highest_sub_index_supported(
             &mut self,
@@ -15498,11 +14466,7 @@ PDOMapping=0
         pub const fn pid_parameters_pid_selection(&self) -> u16 {
             self.pid_parameters_pid_selection
         }
-        /// Sets `0x2011` sub 1 PID parameters: PID selection.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 1. At most 4.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2011` sub 1 PID parameters: PID selection (see [`Self::pid_parameters_pid_selection`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pid_parameters_pid_selection(
             &mut self,
@@ -15521,11 +14485,7 @@ PDOMapping=0
         pub const fn pid_parameters_kp_position(&self) -> u16 {
             self.pid_parameters_kp_position
         }
-        /// Sets `0x2011` sub 2 PID parameters: Kp position.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2011` sub 2 PID parameters: Kp position (see [`Self::pid_parameters_kp_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pid_parameters_kp_position(
             &mut self,
@@ -15541,11 +14501,7 @@ PDOMapping=0
         pub const fn pid_parameters_kp_speed(&self) -> u16 {
             self.pid_parameters_kp_speed
         }
-        /// Sets `0x2011` sub 3 PID parameters: Kp speed.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 10000 (0x2710).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2011` sub 3 PID parameters: Kp speed (see [`Self::pid_parameters_kp_speed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pid_parameters_kp_speed(
             &mut self,
@@ -15561,11 +14517,7 @@ PDOMapping=0
         pub const fn pid_parameters_ki_position(&self) -> u16 {
             self.pid_parameters_ki_position
         }
-        /// Sets `0x2011` sub 4 PID parameters: Ki position.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2011` sub 4 PID parameters: Ki position (see [`Self::pid_parameters_ki_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pid_parameters_ki_position(
             &mut self,
@@ -15581,11 +14533,7 @@ PDOMapping=0
         pub const fn pid_parameters_ki_speed(&self) -> u16 {
             self.pid_parameters_ki_speed
         }
-        /// Sets `0x2011` sub 5 PID parameters: Ki speed.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 10.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2011` sub 5 PID parameters: Ki speed (see [`Self::pid_parameters_ki_speed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_pid_parameters_ki_speed(
             &mut self,
@@ -15601,11 +14549,7 @@ PDOMapping=0
         pub const fn profile_parameters_highest_sub_index_supported(&self) -> u8 {
             self.profile_parameters_highest_sub_index_supported
         }
-        /// Sets `0x2012` sub 0 Profile parameters: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2012` sub 0 Profile parameters: Highest sub-index supported (see [`Self::profile_parameters_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_profile_parameters_highest_sub_index_supported(
             &mut self,
@@ -15621,11 +14565,7 @@ PDOMapping=0
         pub const fn profile_parameters_profile_check(&self) -> u8 {
             self.profile_parameters_profile_check
         }
-        /// Sets `0x2012` sub 1 Profile parameters: Profile check.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 1. At most 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2012` sub 1 Profile parameters: Profile check (see [`Self::profile_parameters_profile_check`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_profile_parameters_profile_check(
             &mut self,
@@ -15640,15 +14580,13 @@ PDOMapping=0
         /// Reads `0x2012` sub 2 Profile parameters: Profile check timeout.
         ///
         /// UNSIGNED16, access `rw`. Default: 50.
+        ///
+        /// Dimension: Time (typed conversion: `units::Units::profile_parameters_profile_check_timeout`).
         #[inline]
         pub const fn profile_parameters_profile_check_timeout(&self) -> u16 {
             self.profile_parameters_profile_check_timeout
         }
-        /// Sets `0x2012` sub 2 Profile parameters: Profile check timeout.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 50.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2012` sub 2 Profile parameters: Profile check timeout (see [`Self::profile_parameters_profile_check_timeout`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_profile_parameters_profile_check_timeout(
             &mut self,
@@ -15664,11 +14602,7 @@ PDOMapping=0
         pub const fn homing_torque_limit(&self) -> u16 {
             self.homing_torque_limit
         }
-        /// Sets `0x2013` Homing torque limit.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 10. At most 100.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2013` Homing torque limit (see [`Self::homing_torque_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_torque_limit(
             &mut self,
@@ -15687,11 +14621,7 @@ PDOMapping=0
         pub const fn actuator_type(&self) -> u8 {
             self.actuator_type
         }
-        /// Sets `0x2014` Actuator type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2014` Actuator type (see [`Self::actuator_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_actuator_type(
             &mut self,
@@ -15707,11 +14637,7 @@ PDOMapping=0
         pub const fn torque_limit_enable(&self) -> u8 {
             self.torque_limit_enable
         }
-        /// Sets `0x2015` Torque limit enable.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 0. At most 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2015` Torque limit enable (see [`Self::torque_limit_enable`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_torque_limit_enable(
             &mut self,
@@ -15730,11 +14656,7 @@ PDOMapping=0
         pub const fn error_code(&self) -> u16 {
             self.error_code
         }
-        /// Sets `0x603F` Error code.
-        ///
-        /// UNSIGNED16, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x603F` Error code (see [`Self::error_code`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_error_code(
             &mut self,
@@ -15750,11 +14672,7 @@ PDOMapping=0
         pub const fn controlword(&self) -> u16 {
             self.controlword
         }
-        /// Sets `0x6040` Controlword.
-        ///
-        /// UNSIGNED16, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6040` Controlword (see [`Self::controlword`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_controlword(
             &mut self,
@@ -15770,11 +14688,7 @@ PDOMapping=0
         pub const fn statusword(&self) -> u16 {
             self.statusword
         }
-        /// Sets `0x6041` Statusword.
-        ///
-        /// UNSIGNED16, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6041` Statusword (see [`Self::statusword`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_statusword(
             &mut self,
@@ -15790,11 +14704,7 @@ PDOMapping=0
         pub const fn modes_of_operation(&self) -> i8 {
             self.modes_of_operation
         }
-        /// Sets `0x6060` Modes of operation.
-        ///
-        /// INTEGER8, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6060` Modes of operation (see [`Self::modes_of_operation`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_modes_of_operation(
             &mut self,
@@ -15810,11 +14720,7 @@ PDOMapping=0
         pub const fn modes_of_operation_display(&self) -> i8 {
             self.modes_of_operation_display
         }
-        /// Sets `0x6061` Modes of operation display.
-        ///
-        /// INTEGER8, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6061` Modes of operation display (see [`Self::modes_of_operation_display`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_modes_of_operation_display(
             &mut self,
@@ -15826,15 +14732,13 @@ PDOMapping=0
         /// Reads `0x6062` Position demand value.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::position_demand_value`).
         #[inline]
         pub const fn position_demand_value(&self) -> i32 {
             self.position_demand_value
         }
-        /// Sets `0x6062` Position demand value.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6062` Position demand value (see [`Self::position_demand_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_demand_value(
             &mut self,
@@ -15846,15 +14750,13 @@ PDOMapping=0
         /// Reads `0x6064` Position actual value.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::position_actual_value`).
         #[inline]
         pub const fn position_actual_value(&self) -> i32 {
             self.position_actual_value
         }
-        /// Sets `0x6064` Position actual value.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6064` Position actual value (see [`Self::position_actual_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_actual_value(
             &mut self,
@@ -15866,15 +14768,13 @@ PDOMapping=0
         /// Reads `0x6065` Following error window.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::following_error_window`).
         #[inline]
         pub const fn following_error_window(&self) -> u32 {
             self.following_error_window
         }
-        /// Sets `0x6065` Following error window.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6065` Following error window (see [`Self::following_error_window`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_following_error_window(
             &mut self,
@@ -15886,15 +14786,13 @@ PDOMapping=0
         /// Reads `0x6066` Following error timeout.
         ///
         /// UNSIGNED16, access `ro`. Default: 0.
+        ///
+        /// Dimension: Time (typed conversion: `units::Units::following_error_timeout`).
         #[inline]
         pub const fn following_error_timeout(&self) -> u16 {
             self.following_error_timeout
         }
-        /// Sets `0x6066` Following error timeout.
-        ///
-        /// UNSIGNED16, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6066` Following error timeout (see [`Self::following_error_timeout`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_following_error_timeout(
             &mut self,
@@ -15906,15 +14804,13 @@ PDOMapping=0
         /// Reads `0x606B` Velocity demand value.
         ///
         /// INTEGER32, access `ro`. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_demand_value`).
         #[inline]
         pub const fn velocity_demand_value(&self) -> i32 {
             self.velocity_demand_value
         }
-        /// Sets `0x606B` Velocity demand value.
-        ///
-        /// INTEGER32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x606B` Velocity demand value (see [`Self::velocity_demand_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_demand_value(
             &mut self,
@@ -15926,15 +14822,13 @@ PDOMapping=0
         /// Reads `0x606C` Velocity actual value.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_actual_value`).
         #[inline]
         pub const fn velocity_actual_value(&self) -> i32 {
             self.velocity_actual_value
         }
-        /// Sets `0x606C` Velocity actual value.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x606C` Velocity actual value (see [`Self::velocity_actual_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_actual_value(
             &mut self,
@@ -15946,15 +14840,13 @@ PDOMapping=0
         /// Reads `0x606F` Velocity threshold.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_threshold`).
         #[inline]
         pub const fn velocity_threshold(&self) -> u16 {
             self.velocity_threshold
         }
-        /// Sets `0x606F` Velocity threshold.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x606F` Velocity threshold (see [`Self::velocity_threshold`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_threshold(
             &mut self,
@@ -15966,15 +14858,13 @@ PDOMapping=0
         /// Reads `0x6070` Velocity threshold time.
         ///
         /// UNSIGNED16, access `rw`. Default: 0.
+        ///
+        /// Dimension: Time (typed conversion: `units::Units::velocity_threshold_time`).
         #[inline]
         pub const fn velocity_threshold_time(&self) -> u16 {
             self.velocity_threshold_time
         }
-        /// Sets `0x6070` Velocity threshold time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6070` Velocity threshold time (see [`Self::velocity_threshold_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_threshold_time(
             &mut self,
@@ -15986,15 +14876,13 @@ PDOMapping=0
         /// Reads `0x6071` Target torque.
         ///
         /// INTEGER16, access `rw`, PDO-mappable. Default: 0. Range -15000..=15000.
+        ///
+        /// Dimension: Torque (typed conversion: `units::Units::target_torque`).
         #[inline]
         pub const fn target_torque(&self) -> i16 {
             self.target_torque
         }
-        /// Sets `0x6071` Target torque.
-        ///
-        /// INTEGER16, access `rw`, PDO-mappable. Default: 0. Range -15000..=15000.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6071` Target torque (see [`Self::target_torque`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_target_torque(
             &mut self,
@@ -16012,15 +14900,13 @@ PDOMapping=0
         /// Reads `0x6074` Torque demand value.
         ///
         /// INTEGER16, access `ro`. Default: 0.
+        ///
+        /// Dimension: Torque (typed conversion: `units::Units::torque_demand_value`).
         #[inline]
         pub const fn torque_demand_value(&self) -> i16 {
             self.torque_demand_value
         }
-        /// Sets `0x6074` Torque demand value.
-        ///
-        /// INTEGER16, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6074` Torque demand value (see [`Self::torque_demand_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_torque_demand_value(
             &mut self,
@@ -16032,15 +14918,13 @@ PDOMapping=0
         /// Reads `0x6077` Torque actual value.
         ///
         /// INTEGER16, access `ro`. Default: 0.
+        ///
+        /// Dimension: Torque (typed conversion: `units::Units::torque_actual_value`).
         #[inline]
         pub const fn torque_actual_value(&self) -> i16 {
             self.torque_actual_value
         }
-        /// Sets `0x6077` Torque actual value.
-        ///
-        /// INTEGER16, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6077` Torque actual value (see [`Self::torque_actual_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_torque_actual_value(
             &mut self,
@@ -16052,15 +14936,13 @@ PDOMapping=0
         /// Reads `0x607A` Target position.
         ///
         /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::target_position`).
         #[inline]
         pub const fn target_position(&self) -> i32 {
             self.target_position
         }
-        /// Sets `0x607A` Target position.
-        ///
-        /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607A` Target position (see [`Self::target_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_target_position(
             &mut self,
@@ -16072,15 +14954,13 @@ PDOMapping=0
         /// Reads `0x607C` Home offset.
         ///
         /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::home_offset`).
         #[inline]
         pub const fn home_offset(&self) -> i32 {
             self.home_offset
         }
-        /// Sets `0x607C` Home offset.
-        ///
-        /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607C` Home offset (see [`Self::home_offset`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_home_offset(
             &mut self,
@@ -16096,11 +14976,7 @@ PDOMapping=0
         pub const fn software_position_limit_highest_sub_index_supported(&self) -> u8 {
             self.software_position_limit_highest_sub_index_supported
         }
-        /// Sets `0x607D` sub 0 Software position limit: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607D` sub 0 Software position limit: Highest sub-index supported (see [`Self::software_position_limit_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_software_position_limit_highest_sub_index_supported(
             &mut self,
@@ -16112,15 +14988,13 @@ PDOMapping=0
         /// Reads `0x607D` sub 1 Software position limit: Min software position limit.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_min_software_position_limit`).
         #[inline]
         pub const fn software_position_limit_min_software_position_limit(&self) -> i32 {
             self.software_position_limit_min_software_position_limit
         }
-        /// Sets `0x607D` sub 1 Software position limit: Min software position limit.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607D` sub 1 Software position limit: Min software position limit (see [`Self::software_position_limit_min_software_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_software_position_limit_min_software_position_limit(
             &mut self,
@@ -16132,15 +15006,13 @@ PDOMapping=0
         /// Reads `0x607D` sub 2 Software position limit: Max software position limit.
         ///
         /// INTEGER32, access `rw`. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_max_software_position_limit`).
         #[inline]
         pub const fn software_position_limit_max_software_position_limit(&self) -> i32 {
             self.software_position_limit_max_software_position_limit
         }
-        /// Sets `0x607D` sub 2 Software position limit: Max software position limit.
-        ///
-        /// INTEGER32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607D` sub 2 Software position limit: Max software position limit (see [`Self::software_position_limit_max_software_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_software_position_limit_max_software_position_limit(
             &mut self,
@@ -16156,11 +15028,7 @@ PDOMapping=0
         pub const fn polarity(&self) -> u8 {
             self.polarity
         }
-        /// Sets `0x607E` Polarity.
-        ///
-        /// UNSIGNED8, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607E` Polarity (see [`Self::polarity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_polarity(
             &mut self,
@@ -16172,15 +15040,13 @@ PDOMapping=0
         /// Reads `0x607F` Max profile velocity.
         ///
         /// UNSIGNED32, access `rw`. Default: 65535 (0xFFFF).
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::max_profile_velocity`).
         #[inline]
         pub const fn max_profile_velocity(&self) -> u32 {
             self.max_profile_velocity
         }
-        /// Sets `0x607F` Max profile velocity.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 65535 (0xFFFF).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607F` Max profile velocity (see [`Self::max_profile_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_max_profile_velocity(
             &mut self,
@@ -16192,15 +15058,13 @@ PDOMapping=0
         /// Reads `0x6081` Profile velocity.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::profile_velocity`).
         #[inline]
         pub const fn profile_velocity(&self) -> u32 {
             self.profile_velocity
         }
-        /// Sets `0x6081` Profile velocity.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6081` Profile velocity (see [`Self::profile_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_profile_velocity(
             &mut self,
@@ -16212,15 +15076,13 @@ PDOMapping=0
         /// Reads `0x6083` Profile acceleration.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Acceleration (typed conversion: `units::Units::profile_acceleration`).
         #[inline]
         pub const fn profile_acceleration(&self) -> u32 {
             self.profile_acceleration
         }
-        /// Sets `0x6083` Profile acceleration.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6083` Profile acceleration (see [`Self::profile_acceleration`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_profile_acceleration(
             &mut self,
@@ -16232,15 +15094,13 @@ PDOMapping=0
         /// Reads `0x6084` Profile deceleration.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Acceleration (typed conversion: `units::Units::profile_deceleration`).
         #[inline]
         pub const fn profile_deceleration(&self) -> u32 {
             self.profile_deceleration
         }
-        /// Sets `0x6084` Profile deceleration.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6084` Profile deceleration (see [`Self::profile_deceleration`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_profile_deceleration(
             &mut self,
@@ -16252,15 +15112,13 @@ PDOMapping=0
         /// Reads `0x6087` Torque slope.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
+        ///
+        /// Dimension: TorqueSlope (typed conversion: `units::Units::torque_slope`).
         #[inline]
         pub const fn torque_slope(&self) -> u32 {
             self.torque_slope
         }
-        /// Sets `0x6087` Torque slope.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6087` Torque slope (see [`Self::torque_slope`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_torque_slope(
             &mut self,
@@ -16276,11 +15134,7 @@ PDOMapping=0
         pub const fn gear_ratio_highest_sub_index_supported(&self) -> u8 {
             self.gear_ratio_highest_sub_index_supported
         }
-        /// Sets `0x6091` sub 0 Gear ratio: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6091` sub 0 Gear ratio: Highest sub-index supported (see [`Self::gear_ratio_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gear_ratio_highest_sub_index_supported(
             &mut self,
@@ -16296,11 +15150,7 @@ PDOMapping=0
         pub const fn gear_ratio_motor_revolutions(&self) -> u32 {
             self.gear_ratio_motor_revolutions
         }
-        /// Sets `0x6091` sub 1 Gear ratio: Motor revolutions.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6091` sub 1 Gear ratio: Motor revolutions (see [`Self::gear_ratio_motor_revolutions`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gear_ratio_motor_revolutions(
             &mut self,
@@ -16316,11 +15166,7 @@ PDOMapping=0
         pub const fn gear_ratio_shaft_revolutions(&self) -> u32 {
             self.gear_ratio_shaft_revolutions
         }
-        /// Sets `0x6091` sub 2 Gear ratio: Shaft revolutions.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6091` sub 2 Gear ratio: Shaft revolutions (see [`Self::gear_ratio_shaft_revolutions`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gear_ratio_shaft_revolutions(
             &mut self,
@@ -16336,11 +15182,7 @@ PDOMapping=0
         pub const fn feed_constant_highest_sub_index_supported(&self) -> u8 {
             self.feed_constant_highest_sub_index_supported
         }
-        /// Sets `0x6092` sub 0 Feed constant: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6092` sub 0 Feed constant: Highest sub-index supported (see [`Self::feed_constant_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feed_constant_highest_sub_index_supported(
             &mut self,
@@ -16356,11 +15198,7 @@ PDOMapping=0
         pub const fn feed_constant_feed(&self) -> u32 {
             self.feed_constant_feed
         }
-        /// Sets `0x6092` sub 1 Feed constant: Feed.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 100.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6092` sub 1 Feed constant: Feed (see [`Self::feed_constant_feed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feed_constant_feed(
             &mut self,
@@ -16376,11 +15214,7 @@ PDOMapping=0
         pub const fn feed_constant_shaft_revolutions(&self) -> u32 {
             self.feed_constant_shaft_revolutions
         }
-        /// Sets `0x6092` sub 2 Feed constant: Shaft revolutions.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6092` sub 2 Feed constant: Shaft revolutions (see [`Self::feed_constant_shaft_revolutions`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_feed_constant_shaft_revolutions(
             &mut self,
@@ -16396,11 +15230,7 @@ PDOMapping=0
         pub const fn homing_method(&self) -> i8 {
             self.homing_method
         }
-        /// Sets `0x6098` Homing method.
-        ///
-        /// INTEGER8, access `rw`, PDO-mappable. Default: 37.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6098` Homing method (see [`Self::homing_method`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_method(
             &mut self,
@@ -16416,11 +15246,7 @@ PDOMapping=0
         pub const fn homing_speeds_highest_sub_index_supported(&self) -> u8 {
             self.homing_speeds_highest_sub_index_supported
         }
-        /// Sets `0x6099` sub 0 Homing speeds: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6099` sub 0 Homing speeds: Highest sub-index supported (see [`Self::homing_speeds_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_speeds_highest_sub_index_supported(
             &mut self,
@@ -16432,15 +15258,13 @@ PDOMapping=0
         /// Reads `0x6099` sub 1 Homing speeds: Fast homing speed.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_fast_homing_speed`).
         #[inline]
         pub const fn homing_speeds_fast_homing_speed(&self) -> u32 {
             self.homing_speeds_fast_homing_speed
         }
-        /// Sets `0x6099` sub 1 Homing speeds: Fast homing speed.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6099` sub 1 Homing speeds: Fast homing speed (see [`Self::homing_speeds_fast_homing_speed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_speeds_fast_homing_speed(
             &mut self,
@@ -16452,15 +15276,13 @@ PDOMapping=0
         /// Reads `0x6099` sub 2 Homing speeds: Slow homing speed.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_slow_homing_speed`).
         #[inline]
         pub const fn homing_speeds_slow_homing_speed(&self) -> u32 {
             self.homing_speeds_slow_homing_speed
         }
-        /// Sets `0x6099` sub 2 Homing speeds: Slow homing speed.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6099` sub 2 Homing speeds: Slow homing speed (see [`Self::homing_speeds_slow_homing_speed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_speeds_slow_homing_speed(
             &mut self,
@@ -16472,15 +15294,13 @@ PDOMapping=0
         /// Reads `0x609A` Homing acceleration.
         ///
         /// UNSIGNED32, access `rw`. Default: 0. At most 65535.
+        ///
+        /// Dimension: Acceleration (typed conversion: `units::Units::homing_acceleration`).
         #[inline]
         pub const fn homing_acceleration(&self) -> u32 {
             self.homing_acceleration
         }
-        /// Sets `0x609A` Homing acceleration.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 0. At most 65535.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x609A` Homing acceleration (see [`Self::homing_acceleration`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_acceleration(
             &mut self,
@@ -16495,15 +15315,13 @@ PDOMapping=0
         /// Reads `0x60FF` Target velocity.
         ///
         /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::target_velocity`).
         #[inline]
         pub const fn target_velocity(&self) -> i32 {
             self.target_velocity
         }
-        /// Sets `0x60FF` Target velocity.
-        ///
-        /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x60FF` Target velocity (see [`Self::target_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_target_velocity(
             &mut self,

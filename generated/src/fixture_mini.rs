@@ -1553,11 +1553,7 @@ PDOMapping=0
         pub const fn device_type(&self) -> u32 {
             self.device_type
         }
-        /// Sets `0x1000` Device type.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 131474 (0x20192).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1000` Device type (see [`Self::device_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_device_type(
             &mut self,
@@ -1573,11 +1569,7 @@ PDOMapping=0
         pub const fn error_register(&self) -> u8 {
             self.error_register
         }
-        /// Sets `0x1001` Error register.
-        ///
-        /// UNSIGNED8, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1001` Error register (see [`Self::error_register`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_error_register(
             &mut self,
@@ -1593,11 +1585,7 @@ PDOMapping=0
         pub fn manufacturer_device_name(&self) -> &[u8] {
             self.manufacturer_device_name.as_slice()
         }
-        /// Sets `0x1008` Manufacturer device name.
-        ///
-        /// VISIBLE_STRING, access `const`. Default: "Mini drive". Capacity 32 bytes.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1008` Manufacturer device name (see [`Self::manufacturer_device_name`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         pub fn set_manufacturer_device_name(
             &mut self,
             v: &[u8],
@@ -1611,11 +1599,7 @@ PDOMapping=0
         pub const fn producer_heartbeat_time(&self) -> u16 {
             self.producer_heartbeat_time
         }
-        /// Sets `0x1017` Producer heartbeat time.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1017` Producer heartbeat time (see [`Self::producer_heartbeat_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_producer_heartbeat_time(
             &mut self,
@@ -1631,11 +1615,7 @@ PDOMapping=0
         pub const fn identity_object_highest_sub_index_supported(&self) -> u8 {
             self.identity_object_highest_sub_index_supported
         }
-        /// Sets `0x1018` sub 0 Identity object: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 4.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 0 Identity object: Highest sub-index supported (see [`Self::identity_object_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_highest_sub_index_supported(
             &mut self,
@@ -1651,11 +1631,7 @@ PDOMapping=0
         pub const fn identity_object_vendor_id(&self) -> u32 {
             self.identity_object_vendor_id
         }
-        /// Sets `0x1018` sub 1 Identity object: Vendor-ID.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 4660 (0x1234).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 1 Identity object: Vendor-ID (see [`Self::identity_object_vendor_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_vendor_id(
             &mut self,
@@ -1671,11 +1647,7 @@ PDOMapping=0
         pub const fn identity_object_product_code(&self) -> u32 {
             self.identity_object_product_code
         }
-        /// Sets `0x1018` sub 2 Identity object: Product code.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 2 Identity object: Product code (see [`Self::identity_object_product_code`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_product_code(
             &mut self,
@@ -1691,11 +1663,7 @@ PDOMapping=0
         pub const fn identity_object_revision_number(&self) -> u32 {
             self.identity_object_revision_number
         }
-        /// Sets `0x1018` sub 3 Identity object: Revision number.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 3 Identity object: Revision number (see [`Self::identity_object_revision_number`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_revision_number(
             &mut self,
@@ -1711,11 +1679,7 @@ PDOMapping=0
         pub const fn identity_object_serial_number(&self) -> u32 {
             self.identity_object_serial_number
         }
-        /// Sets `0x1018` sub 4 Identity object: Serial number.
-        ///
-        /// UNSIGNED32, access `ro`. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1018` sub 4 Identity object: Serial number (see [`Self::identity_object_serial_number`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_identity_object_serial_number(
             &mut self,
@@ -1733,11 +1697,7 @@ PDOMapping=0
         ) -> u8 {
             self.rpdo_communication_parameter_1_highest_sub_index_supported
         }
-        /// Sets `0x1400` sub 0 RPDO communication parameter 1: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `const`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1400` sub 0 RPDO communication parameter 1: Highest sub-index supported (see [`Self::rpdo_communication_parameter_1_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rpdo_communication_parameter_1_highest_sub_index_supported(
             &mut self,
@@ -1753,11 +1713,7 @@ PDOMapping=0
         pub const fn rpdo_communication_parameter_1_cob_id_used_by_rpdo(&self) -> u32 {
             self.rpdo_communication_parameter_1_cob_id_used_by_rpdo
         }
-        /// Sets `0x1400` sub 1 RPDO communication parameter 1: COB-ID used by RPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x200.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1400` sub 1 RPDO communication parameter 1: COB-ID used by RPDO (see [`Self::rpdo_communication_parameter_1_cob_id_used_by_rpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rpdo_communication_parameter_1_cob_id_used_by_rpdo(
             &mut self,
@@ -1773,11 +1729,7 @@ PDOMapping=0
         pub const fn rpdo_communication_parameter_1_transmission_type(&self) -> u8 {
             self.rpdo_communication_parameter_1_transmission_type
         }
-        /// Sets `0x1400` sub 2 RPDO communication parameter 1: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1400` sub 2 RPDO communication parameter 1: Transmission type (see [`Self::rpdo_communication_parameter_1_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rpdo_communication_parameter_1_transmission_type(
             &mut self,
@@ -1793,11 +1745,7 @@ PDOMapping=0
         pub const fn rpdo_mapping_parameter_1_number_of_mapped_objects(&self) -> u8 {
             self.rpdo_mapping_parameter_1_number_of_mapped_objects
         }
-        /// Sets `0x1600` sub 0 RPDO mapping parameter 1: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 3.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 0 RPDO mapping parameter 1: Number of mapped objects (see [`Self::rpdo_mapping_parameter_1_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rpdo_mapping_parameter_1_number_of_mapped_objects(
             &mut self,
@@ -1813,11 +1761,7 @@ PDOMapping=0
         pub const fn rpdo_mapping_parameter_1_mapped_object_1(&self) -> u32 {
             self.rpdo_mapping_parameter_1_mapped_object_1
         }
-        /// Sets `0x1600` sub 1 RPDO mapping parameter 1: Mapped object 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1614807056 (0x60400010).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 1 RPDO mapping parameter 1: Mapped object 1 (see [`Self::rpdo_mapping_parameter_1_mapped_object_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rpdo_mapping_parameter_1_mapped_object_1(
             &mut self,
@@ -1833,11 +1777,7 @@ PDOMapping=0
         pub const fn rpdo_mapping_parameter_1_mapped_object_2(&self) -> u32 {
             self.rpdo_mapping_parameter_1_mapped_object_2
         }
-        /// Sets `0x1600` sub 2 RPDO mapping parameter 1: Mapped object 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 327688 (0x50008).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 2 RPDO mapping parameter 1: Mapped object 2 (see [`Self::rpdo_mapping_parameter_1_mapped_object_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rpdo_mapping_parameter_1_mapped_object_2(
             &mut self,
@@ -1853,11 +1793,7 @@ PDOMapping=0
         pub const fn rpdo_mapping_parameter_1_mapped_object_3(&self) -> u32 {
             self.rpdo_mapping_parameter_1_mapped_object_3
         }
-        /// Sets `0x1600` sub 3 RPDO mapping parameter 1: Mapped object 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1616904200 (0x60600008).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1600` sub 3 RPDO mapping parameter 1: Mapped object 3 (see [`Self::rpdo_mapping_parameter_1_mapped_object_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_rpdo_mapping_parameter_1_mapped_object_3(
             &mut self,
@@ -1875,11 +1811,7 @@ PDOMapping=0
         ) -> u8 {
             self.tpdo_communication_parameter_1_highest_sub_index_supported
         }
-        /// Sets `0x1800` sub 0 TPDO communication parameter 1: Highest sub-index supported.
-        ///
-        /// UNSIGNED8, access `const`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 0 TPDO communication parameter 1: Highest sub-index supported (see [`Self::tpdo_communication_parameter_1_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tpdo_communication_parameter_1_highest_sub_index_supported(
             &mut self,
@@ -1895,11 +1827,7 @@ PDOMapping=0
         pub const fn tpdo_communication_parameter_1_cob_id_used_by_tpdo(&self) -> u32 {
             self.tpdo_communication_parameter_1_cob_id_used_by_tpdo
         }
-        /// Sets `0x1800` sub 1 TPDO communication parameter 1: COB-ID used by TPDO.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x180.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 1 TPDO communication parameter 1: COB-ID used by TPDO (see [`Self::tpdo_communication_parameter_1_cob_id_used_by_tpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tpdo_communication_parameter_1_cob_id_used_by_tpdo(
             &mut self,
@@ -1915,11 +1843,7 @@ PDOMapping=0
         pub const fn tpdo_communication_parameter_1_transmission_type(&self) -> u8 {
             self.tpdo_communication_parameter_1_transmission_type
         }
-        /// Sets `0x1800` sub 2 TPDO communication parameter 1: Transmission type.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 255.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1800` sub 2 TPDO communication parameter 1: Transmission type (see [`Self::tpdo_communication_parameter_1_transmission_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tpdo_communication_parameter_1_transmission_type(
             &mut self,
@@ -1935,11 +1859,7 @@ PDOMapping=0
         pub const fn tpdo_mapping_parameter_1_number_of_mapped_objects(&self) -> u8 {
             self.tpdo_mapping_parameter_1_number_of_mapped_objects
         }
-        /// Sets `0x1A00` sub 0 TPDO mapping parameter 1: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 4.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 0 TPDO mapping parameter 1: Number of mapped objects (see [`Self::tpdo_mapping_parameter_1_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tpdo_mapping_parameter_1_number_of_mapped_objects(
             &mut self,
@@ -1955,11 +1875,7 @@ PDOMapping=0
         pub const fn tpdo_mapping_parameter_1_mapped_object_1(&self) -> u32 {
             self.tpdo_mapping_parameter_1_mapped_object_1
         }
-        /// Sets `0x1A00` sub 1 TPDO mapping parameter 1: Mapped object 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1614872592 (0x60410010).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 1 TPDO mapping parameter 1: Mapped object 1 (see [`Self::tpdo_mapping_parameter_1_mapped_object_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tpdo_mapping_parameter_1_mapped_object_1(
             &mut self,
@@ -1975,11 +1891,7 @@ PDOMapping=0
         pub const fn tpdo_mapping_parameter_1_mapped_object_2(&self) -> u32 {
             self.tpdo_mapping_parameter_1_mapped_object_2
         }
-        /// Sets `0x1A00` sub 2 TPDO mapping parameter 1: Mapped object 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1616969736 (0x60610008).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 2 TPDO mapping parameter 1: Mapped object 2 (see [`Self::tpdo_mapping_parameter_1_mapped_object_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tpdo_mapping_parameter_1_mapped_object_2(
             &mut self,
@@ -1995,11 +1907,7 @@ PDOMapping=0
         pub const fn tpdo_mapping_parameter_1_mapped_object_3(&self) -> u32 {
             self.tpdo_mapping_parameter_1_mapped_object_3
         }
-        /// Sets `0x1A00` sub 3 TPDO mapping parameter 1: Mapped object 3.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 536936472 (0x20010018).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 3 TPDO mapping parameter 1: Mapped object 3 (see [`Self::tpdo_mapping_parameter_1_mapped_object_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tpdo_mapping_parameter_1_mapped_object_3(
             &mut self,
@@ -2015,11 +1923,7 @@ PDOMapping=0
         pub const fn tpdo_mapping_parameter_1_mapped_object_4(&self) -> u32 {
             self.tpdo_mapping_parameter_1_mapped_object_4
         }
-        /// Sets `0x1A00` sub 4 TPDO mapping parameter 1: Mapped object 4.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 537001985 (0x20020001).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A00` sub 4 TPDO mapping parameter 1: Mapped object 4 (see [`Self::tpdo_mapping_parameter_1_mapped_object_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tpdo_mapping_parameter_1_mapped_object_4(
             &mut self,
@@ -2035,11 +1939,7 @@ PDOMapping=0
         pub const fn tpdo_mapping_parameter_2_number_of_mapped_objects(&self) -> u8 {
             self.tpdo_mapping_parameter_2_number_of_mapped_objects
         }
-        /// Sets `0x1A01` sub 0 TPDO mapping parameter 2: Number of mapped objects.
-        ///
-        /// UNSIGNED8, access `rw`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 0 TPDO mapping parameter 2: Number of mapped objects (see [`Self::tpdo_mapping_parameter_2_number_of_mapped_objects`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tpdo_mapping_parameter_2_number_of_mapped_objects(
             &mut self,
@@ -2055,11 +1955,7 @@ PDOMapping=0
         pub const fn tpdo_mapping_parameter_2_mapped_object_1(&self) -> u32 {
             self.tpdo_mapping_parameter_2_mapped_object_1
         }
-        /// Sets `0x1A01` sub 1 TPDO mapping parameter 2: Mapped object 1.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1617166368 (0x60640020).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 1 TPDO mapping parameter 2: Mapped object 1 (see [`Self::tpdo_mapping_parameter_2_mapped_object_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tpdo_mapping_parameter_2_mapped_object_1(
             &mut self,
@@ -2075,11 +1971,7 @@ PDOMapping=0
         pub const fn tpdo_mapping_parameter_2_mapped_object_2(&self) -> u32 {
             self.tpdo_mapping_parameter_2_mapped_object_2
         }
-        /// Sets `0x1A01` sub 2 TPDO mapping parameter 2: Mapped object 2.
-        ///
-        /// UNSIGNED32, access `rw`. Default: 1617690656 (0x606C0020).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x1A01` sub 2 TPDO mapping parameter 2: Mapped object 2 (see [`Self::tpdo_mapping_parameter_2_mapped_object_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_tpdo_mapping_parameter_2_mapped_object_2(
             &mut self,
@@ -2097,13 +1989,7 @@ PDOMapping=0
         pub const fn signed_24(&self) -> i32 {
             self.signed_24
         }
-        /// Sets `0x2001` Signed 24.
-        ///
-        /// A 24-bit value &lt;in&gt; \[units\] with \*stars\*
-        ///
-        /// INTEGER24, access `rwr`, PDO-mappable. Default: -5. Range -1000..=1000.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2001` Signed 24 (see [`Self::signed_24`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_signed_24(
             &mut self,
@@ -2125,11 +2011,7 @@ PDOMapping=0
         pub const fn flag(&self) -> bool {
             self.flag
         }
-        /// Sets `0x2002` Flag.
-        ///
-        /// BOOLEAN, access `rwr`, PDO-mappable. Default: true.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2002` Flag (see [`Self::flag`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_flag(&mut self, v: bool) -> Result<(), ::od_runtime::od::AbortCode> {
             self.flag = v;
@@ -2142,11 +2024,7 @@ PDOMapping=0
         pub const fn gain(&self) -> f32 {
             self.gain
         }
-        /// Sets `0x2003` Gain.
-        ///
-        /// REAL32, access `rw`. Default: 1.5.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2003` Gain (see [`Self::gain`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gain(&mut self, v: f32) -> Result<(), ::od_runtime::od::AbortCode> {
             if v < 0.0 {
@@ -2165,11 +2043,7 @@ PDOMapping=0
         pub fn blob(&self) -> &[u8] {
             self.blob.as_slice()
         }
-        /// Sets `0x2004` Blob.
-        ///
-        /// OCTET_STRING, access `rw`. Default: 2 bytes. Capacity 32 bytes.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2004` Blob (see [`Self::blob`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         pub fn set_blob(&mut self, v: &[u8]) -> Result<(), ::od_runtime::od::AbortCode> {
             self.blob.set(v)
         }
@@ -2180,11 +2054,7 @@ PDOMapping=0
         pub const fn counter(&self) -> u64 {
             self.counter
         }
-        /// Sets `0x2005` Counter.
-        ///
-        /// UNSIGNED40, access `rw`. Default: 4886718345 (0x123456789).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2005` Counter (see [`Self::counter`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_counter(
             &mut self,
@@ -2203,11 +2073,7 @@ PDOMapping=0
         pub const fn gains_number_of_entries(&self) -> u8 {
             self.gains_number_of_entries
         }
-        /// Sets `0x2006` sub 0 Gains: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 3.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2006` sub 0 Gains: Number of entries (see [`Self::gains_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gains_number_of_entries(
             &mut self,
@@ -2223,11 +2089,7 @@ PDOMapping=0
         pub const fn gains_type(&self) -> u16 {
             self.gains_type
         }
-        /// Sets `0x2006` sub 1 Gains: Type.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 1.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2006` sub 1 Gains: Type (see [`Self::gains_type`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gains_type(
             &mut self,
@@ -2243,11 +2105,7 @@ PDOMapping=0
         pub const fn gains_gain_2(&self) -> u16 {
             self.gains_gain_2
         }
-        /// Sets `0x2006` sub 2 Gains: Gain 2.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 2. At most 500.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2006` sub 2 Gains: Gain 2 (see [`Self::gains_gain_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gains_gain_2(
             &mut self,
@@ -2266,11 +2124,7 @@ PDOMapping=0
         pub const fn gains_gain_2_2006_3(&self) -> u16 {
             self.gains_gain_2_2006_3
         }
-        /// Sets `0x2006` sub 3 Gains: Gain 2.
-        ///
-        /// UNSIGNED16, access `rw`. Default: 3.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2006` sub 3 Gains: Gain 2 (see [`Self::gains_gain_2_2006_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_gains_gain_2_2006_3(
             &mut self,
@@ -2286,11 +2140,7 @@ PDOMapping=0
         pub const fn position_window(&self) -> u32 {
             self.position_window
         }
-        /// Sets `0x2007` Position window.
-        ///
-        /// UNSIGNED32, access `rw`. Default: $NODEID + 0x10.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x2007` Position window (see [`Self::position_window`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_window(
             &mut self,
@@ -2306,11 +2156,7 @@ PDOMapping=0
         pub const fn controlword(&self) -> u16 {
             self.controlword
         }
-        /// Sets `0x6040` Controlword.
-        ///
-        /// UNSIGNED16, access `rww`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6040` Controlword (see [`Self::controlword`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_controlword(
             &mut self,
@@ -2326,11 +2172,7 @@ PDOMapping=0
         pub const fn statusword(&self) -> u16 {
             self.statusword
         }
-        /// Sets `0x6041` Statusword.
-        ///
-        /// UNSIGNED16, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6041` Statusword (see [`Self::statusword`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_statusword(
             &mut self,
@@ -2346,11 +2188,7 @@ PDOMapping=0
         pub const fn modes_of_operation(&self) -> i8 {
             self.modes_of_operation
         }
-        /// Sets `0x6060` Modes of operation.
-        ///
-        /// INTEGER8, access `rww`, PDO-mappable. Default: 1. Range -3..=10.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6060` Modes of operation (see [`Self::modes_of_operation`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_modes_of_operation(
             &mut self,
@@ -2372,11 +2210,7 @@ PDOMapping=0
         pub const fn modes_of_operation_display(&self) -> i8 {
             self.modes_of_operation_display
         }
-        /// Sets `0x6061` Modes of operation display.
-        ///
-        /// INTEGER8, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6061` Modes of operation display (see [`Self::modes_of_operation_display`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_modes_of_operation_display(
             &mut self,
@@ -2392,11 +2226,7 @@ PDOMapping=0
         pub const fn position_actual_value(&self) -> i32 {
             self.position_actual_value
         }
-        /// Sets `0x6064` Position actual value.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6064` Position actual value (see [`Self::position_actual_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_position_actual_value(
             &mut self,
@@ -2412,11 +2242,7 @@ PDOMapping=0
         pub const fn velocity_actual_value(&self) -> i32 {
             self.velocity_actual_value
         }
-        /// Sets `0x606C` Velocity actual value.
-        ///
-        /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x606C` Velocity actual value (see [`Self::velocity_actual_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_velocity_actual_value(
             &mut self,
@@ -2432,11 +2258,7 @@ PDOMapping=0
         pub const fn target_position(&self) -> i32 {
             self.target_position
         }
-        /// Sets `0x607A` Target position.
-        ///
-        /// INTEGER32, access `rww`, PDO-mappable. Default: 0. Range -1000000..=1000000.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x607A` Target position (see [`Self::target_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_target_position(
             &mut self,
@@ -2458,11 +2280,7 @@ PDOMapping=0
         pub const fn homing_speeds_number_of_entries(&self) -> u8 {
             self.homing_speeds_number_of_entries
         }
-        /// Sets `0x6099` sub 0 Homing speeds: Number of entries.
-        ///
-        /// UNSIGNED8, access `ro`. Default: 2.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6099` sub 0 Homing speeds: Number of entries (see [`Self::homing_speeds_number_of_entries`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_speeds_number_of_entries(
             &mut self,
@@ -2478,11 +2296,7 @@ PDOMapping=0
         pub const fn homing_speeds_speed_during_search_for_switch(&self) -> u32 {
             self.homing_speeds_speed_during_search_for_switch
         }
-        /// Sets `0x6099` sub 1 Homing speeds: Speed during search for switch.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 1000 (0x3E8).
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6099` sub 1 Homing speeds: Speed during search for switch (see [`Self::homing_speeds_speed_during_search_for_switch`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_speeds_speed_during_search_for_switch(
             &mut self,
@@ -2498,11 +2312,7 @@ PDOMapping=0
         pub const fn homing_speeds_speed_during_search_for_zero(&self) -> u32 {
             self.homing_speeds_speed_during_search_for_zero
         }
-        /// Sets `0x6099` sub 2 Homing speeds: Speed during search for zero.
-        ///
-        /// UNSIGNED32, access `rw`, PDO-mappable. Default: 100.
-        ///
-        /// For the application side: the access type is not checked (use `bus_write` for that); limits are.
+        /// Sets `0x6099` sub 2 Homing speeds: Speed during search for zero (see [`Self::homing_speeds_speed_during_search_for_zero`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
         pub fn set_homing_speeds_speed_during_search_for_zero(
             &mut self,

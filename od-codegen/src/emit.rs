@@ -133,7 +133,7 @@ fn default_text(e: &PEntry<'_>) -> String {
     }
 }
 
-fn entry_doc(e: &PEntry<'_>, what: &str) -> Vec<String> {
+fn entry_doc(e: &PEntry<'_>, what: &str, sidecar: Option<&devices::sidecar::Sidecar>) -> Vec<String> {
     let mut lines = vec![format!("{what} {} {}.", location(e), lit::doc_escape(&display_name(e)))];
     if let Some(d) = &e.description {
         lines.push(String::new());
@@ -157,6 +157,28 @@ fn entry_doc(e: &PEntry<'_>, what: &str) -> Vec<String> {
         facts.push_str(&format!(" Capacity {n} bytes."));
     }
     lines.push(facts);
+    if let Some(d) = e.entry.denotation.as_deref().map(str::trim).filter(|d| !d.is_empty()) {
+        lines.push(String::new());
+        lines.push(format!("Vendor parameter: `{}`.", d.replace('`', "'")));
+    }
+    if let Some(sc) = sidecar {
+        if let Some(dim) = sc.dimension_of(e.index, e.sub) {
+            lines.push(String::new());
+            lines.push(format!("Dimension: {dim:?} (typed conversion: `units::Units::{}`).", e.field));
+        }
+        let r = |sub| devices::sidecar::ObjRef { index: e.index, sub };
+        if let Some(b) = sc.bus_scaling.get(&r(Some(e.sub))).or_else(|| sc.bus_scaling.get(&r(None))) {
+            lines.push(String::new());
+            lines.push(match b {
+                devices::sidecar::BusScaling::Factor(f) => {
+                    format!("Bus scaling {f}:1 (bus value = vendor tool value × {f}).")
+                }
+                devices::sidecar::BusScaling::Variable => {
+                    "Bus scaling: variable (depends on other settings).".to_owned()
+                }
+            });
+        }
+    }
     lines
 }
 
@@ -274,16 +296,13 @@ fn init_expr(e: &PEntry<'_>) -> TokenStream {
 fn setter(e: &PEntry<'_>) -> TokenStream {
     let field = format_ident!("{}", e.field);
     let set = format_ident!("set_{}", e.field);
-    let doc = lit::doc(&{
-        let mut d = entry_doc(e, "Sets");
-        d.push(String::new());
-        d.push(
-            "For the application side: the access type is not checked (use `bus_write` for that); \
-             limits are."
-                .to_owned(),
-        );
-        d
-    });
+    let doc = lit::doc(&[format!(
+        "Sets {} {} (see [`Self::{}`]): limits are checked, the access type is not (the bus side, \
+         `bus_write`, checks it).",
+        location(e),
+        lit::doc_escape(&display_name(e)),
+        e.field
+    )]);
     let ty = rust_type(e.ty);
     if let Ty::Bytes(_) = e.ty {
         return quote! {
@@ -325,9 +344,9 @@ fn setter(e: &PEntry<'_>) -> TokenStream {
     }
 }
 
-fn getter(e: &PEntry<'_>) -> TokenStream {
+fn getter(e: &PEntry<'_>, sidecar: Option<&devices::sidecar::Sidecar>) -> TokenStream {
     let field = format_ident!("{}", e.field);
-    let doc = lit::doc(&entry_doc(e, "Reads"));
+    let doc = lit::doc(&entry_doc(e, "Reads", sidecar));
     match e.ty {
         Ty::Bytes(_) => quote! {
             #doc
@@ -350,7 +369,7 @@ fn getter(e: &PEntry<'_>) -> TokenStream {
 }
 
 /// The storage struct, its inherent methods and the trait implementation.
-pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>) -> TokenStream {
+pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&devices::sidecar::Sidecar>) -> TokenStream {
     let product = model.device_info.product_name.as_deref().unwrap_or("device");
     let vendor = model.device_info.vendor_name.as_deref().unwrap_or("unknown vendor");
     let struct_doc = lit::doc(&[
@@ -426,7 +445,7 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>) -> TokenStream {
         quote!(let (real_low, real_high) = match pos { #(#arms,)* _ => (None, None) };)
     };
     let accessors = plan.entries.iter().map(|e| {
-        let g = getter(e);
+        let g = getter(e, sidecar);
         let s = setter(e);
         quote!(#g #s)
     });

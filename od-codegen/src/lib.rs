@@ -180,7 +180,7 @@ pub fn expand(model: &Model, options: &Options) -> Generated {
     let eds_text = lit::text_block(options.eds_text.as_deref().unwrap_or(""));
     let index = emit::index_consts(&plan);
     let tables = emit::tables(&plan);
-    let dictionary = emit::dictionary(model, &plan);
+    let dictionary = emit::dictionary(model, &plan, options.sidecar.as_ref());
     let pdo = pdo::module(model, &plan, &mut sink);
     let units = match &options.sidecar {
         Some(sc) => units::module(model, &plan, sc, &mut sink),
