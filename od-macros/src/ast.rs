@@ -584,7 +584,9 @@ fn parse_sub(tokens: &[TokenTree], kind: ObjKind, end: Loc, cx: &mut Ctxt) -> Op
     let sub = parse_num(&mut cur, cx, "a sub-index")?;
     let name = parse_name(&mut cur, cx)?;
     let loc = Loc::of_tokens(tokens, end);
-    if kind == ObjKind::Record {
+    // A record's sub-objects, and an array's count entry (sub-index 0), have their own spec.
+    let has_spec = matches!(cur.peek(), Some(TokenTree::Punct(p)) if p.as_char() == ':');
+    if kind == ObjKind::Record || has_spec {
         if cur.punct(':').is_none() {
             cx.error(cur.here(), "expected `:` and then the data type and access, as in `: u32, ro`");
             return None;
@@ -598,12 +600,7 @@ fn parse_sub(tokens: &[TokenTree], kind: ObjKind, end: Loc, cx: &mut Ctxt) -> Op
         return Some(SubDecl { sub, name, spec: None, props: Vec::new(), loc });
     }
     if cur.punct(',').is_none() {
-        let msg = if cur.ident_is("_") || matches!(cur.peek(), Some(TokenTree::Punct(p)) if p.as_char() == ':') {
-            "an array element takes its type and access from the array; write `N \"name\", default = …`"
-        } else {
-            "expected `,` and then the element's `default`, `min` or `max`"
-        };
-        cx.error(cur.here(), msg);
+        cx.error(cur.here(), "expected `,` and then the element's `default`, `min` or `max`");
         return None;
     }
     let props = parse_props(cur.rest().iter().cloned().collect(), Loc::of(cur.whole.end), cx);

@@ -70,8 +70,9 @@
 //! * Values: integers (`0x` hex stays hex in the EDS), `-5`, `1.5`, `"text"`, `b"\x01\x02"`,
 //!   `true`/`false`, and `NODEID + 0x180` (also `$NODEID + …`, `0x180 + NODEID`), kept symbolic
 //!   and resolved by `Dictionary::new(node_id)`.
-//! * Sub-index 0 of an ARRAY or RECORD (the highest sub-index, `u8`, `ro`) is generated; a
-//!   RECORD may declare its own sub-index 0 instead (as 0x1003 does).
+//! * Sub-index 0 of an ARRAY or RECORD (the highest sub-index, `u8`, `ro`) is generated unless
+//!   the body declares it with its own type and access, as 0x1003 needs:
+//!   `array 0x1003 "Pre-defined error field": u32, ro { 0 "Number of errors": u8, rw, default = 0; 1 "Standard error field 1"; }`.
 //! * PDO props: `cob_id` (default: the predefined connection set, `NODEID + 0x200`… for RPDOs
 //!   1–4 and `NODEID + 0x180`… for TPDOs 1–4, else `0x80000000`), `transmission` (default
 //!   `0xFF`), `inhibit` (TPDOs), `event_timer`, `capacity` (mapping entries, default 8) and

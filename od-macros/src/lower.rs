@@ -728,22 +728,14 @@ impl Lowerer<'_> {
         Some(plain_object(index, &d.name.value, ObjectType::Var, BTreeMap::from([(SubIndex(0), e)])))
     }
 
-    /// A sub-index of a record (0..=254) or of an array element (1..=254).
-    fn sub_index(&mut self, n: Num, array: bool) -> Option<u8> {
+    /// A sub-index, 0..=254 (255 is reserved).
+    fn sub_index(&mut self, n: Num) -> Option<u8> {
         match u8::try_from(n.value) {
-            Ok(0) if array => {
-                self.cx.error(
-                    n.loc,
-                    "sub-index 0 of an array holds its element count and is generated; elements start at 1",
-                );
-                None
-            }
             Ok(s) if s < 0xFF => Some(s),
             _ => {
-                let range = if array { "1..=254" } else { "0..=254" };
                 self.cx.error(
                     n.loc,
-                    format!("sub-index {} is out of range: sub-indices are {range} (255 is reserved)", n.value),
+                    format!("sub-index {} is out of range: sub-indices are 0..=254 (255 is reserved)", n.value),
                 );
                 None
             }
@@ -755,7 +747,7 @@ impl Lowerer<'_> {
         let mut subs = BTreeMap::new();
         let mut ok = true;
         for s in body {
-            let Some(sub) = self.sub_index(s.sub, false) else {
+            let Some(sub) = self.sub_index(s.sub) else {
                 ok = false;
                 continue;
             };
@@ -840,7 +832,7 @@ impl Lowerer<'_> {
             (Some(body), None) => {
                 let mut ok = true;
                 for s in body {
-                    let Some(sub) = self.sub_index(s.sub, true) else {
+                    let Some(sub) = self.sub_index(s.sub) else {
                         ok = false;
                         continue;
                     };
@@ -851,6 +843,43 @@ impl Lowerer<'_> {
                         );
                         ok = false;
                         continue;
+                    }
+                    match (&s.spec, sub) {
+                        (Some(spec), 0) => {
+                            // The count entry, declared with its own type and access.
+                            let (cdt, cacc) = self.spec_types(spec);
+                            let (ep, _) = self.entry_props(&s.props, &[], true);
+                            self.check_text(&s.name.value, s.name.loc, "the name", true);
+                            if let (Some(cdt), Some(cacc)) = (cdt, cacc) {
+                                let locs = self.locs(s.loc, &s.name, spec);
+                                subs.insert(
+                                    SubIndex(0),
+                                    self.make_entry(index, 0, &s.name.value, cdt, cacc, &ep, &locs),
+                                );
+                            } else {
+                                ok = false;
+                            }
+                            continue;
+                        }
+                        (Some(spec), _) => {
+                            self.cx.error(
+                                Loc::of(spec.ty.span()),
+                                "an array element takes its type and access from the array; write `N \"name\", default = …` \
+                                 (only sub-index 0, the count, is declared with its own)",
+                            );
+                            ok = false;
+                            continue;
+                        }
+                        (None, 0) => {
+                            self.cx.error(
+                                s.sub.loc,
+                                "sub-index 0 of an array is its element count: leave it out (it is generated) or declare \
+                                 it with its type and access, as in `0 \"Number of errors\": u8, rw, default = 0;`",
+                            );
+                            ok = false;
+                            continue;
+                        }
+                        (None, _) => {}
                     }
                     self.check_text(&s.name.value, s.name.loc, "the name", true);
                     let (own, _) = self.entry_props(&s.props, &[], false);

@@ -180,6 +180,11 @@ fn values_types_and_node_id_forms() {
         var 0x2105 "Wide": UNICODE_STRING, rw, default = "Grüße";
         var 0x2106 "Time": TIME_OF_DAY, ro;
         var 0x2107 "Counter": UNSIGNED24, rw;
+        array 0x1003 "Pre-defined error field": u32, ro {
+            0 "Number of errors": u8, rw, default = 0, max = 2;
+            1 "Standard error field 1";
+            2 "Standard error field 2";
+        }
     });
     let hex180 = Value::NodeIdPlus { offset: 0x180, radix: eds::model::Radix::Hex };
     for sub in 1..=4 {
@@ -200,6 +205,12 @@ fn values_types_and_node_id_forms() {
     assert_eq!(m.entry(0x2106, 0).unwrap().data_type, DataType::TimeOfDay);
     assert_eq!(m.entry(0x2107, 0).unwrap().data_type, DataType::Unsigned24);
     assert_eq!(m.object(0x2100).unwrap().category, eds::model::Category::Manufacturer);
+    let count = m.entry(0x1003, 0).unwrap();
+    assert_eq!(
+        (count.name.as_str(), count.access, count.default.clone()),
+        ("Number of errors", Access::Rw, Some(Value::int(0)))
+    );
+    assert_eq!(m.entry(0x1003, 2).unwrap().data_type, DataType::Unsigned32);
 }
 
 #[test]
@@ -259,7 +270,7 @@ var 0x10000 "F": u8, rw;
 var 0x2006 "G": i16, rw, default = 5, min = 10, max = 0;
 var 0x2007 "H": u16, rw, default = 70, max = 60;
 array 0x2008 "I": u8, ro, len = 2 { 1 "x"; }
-array 0x2009 "J": u8, ro { 0 "zero"; }
+array 0x2009 "J": u8, ro { 0 "zero"; 1 "one": u8, ro; 1 "dup"; }
 var 0x200A "K": VISIBLE_STRING, ro, default = 5, min = 1;
 var 0x200B "L": u32, rw, min = NODEID + 1;
 var 0x200C " M": u8, rw;
