@@ -9,7 +9,8 @@
 //! | G0002 | warning  | an entry has a data type the generator cannot store; it is left out |
 //! | G0003 | error    | a default value does not fit the entry's type |
 //! | G0004 | warning  | a limit the runtime cannot enforce (`$NODEID` limit) is ignored |
-//! | G0005 | warning  | an object of a kind that holds no value (DEFTYPE, DEFSTRUCT, NULL) is left out |
+//! | G0005 | note     | an object of a kind that holds no value (DEFTYPE, DEFSTRUCT, NULL) is left out |
+//! | G0006 | error    | the module name is not a Rust identifier |
 //! | G0101 | error    | a default PDO mapping carries more than 64 bits |
 //! | G0102 | error    | a mapped entry does not have `PDOMapping=1` |
 //! | G0103 | error    | a mapped entry's access type does not allow this PDO direction |
@@ -33,6 +34,8 @@ pub const BAD_DEFAULT: Code = Code("G0003");
 pub const LIMIT_IGNORED: Code = Code("G0004");
 /// Object without value left out.
 pub const NO_VALUE_OBJECT: Code = Code("G0005");
+/// Module name not an identifier.
+pub const BAD_MODULE_NAME: Code = Code("G0006");
 /// PDO longer than 64 bits.
 pub const PDO_TOO_LONG: Code = Code("G0101");
 /// Mapped entry lacks `PDOMapping=1`.

@@ -170,7 +170,7 @@ pub fn expand(model: &Model, options: &Options) -> Generated {
         Err(_) => {
             sink.general(
                 Severity::Error,
-                diag::NAME_COLLISION,
+                diag::BAD_MODULE_NAME,
                 format!("module name `{}` is not a Rust identifier; using `device`", options.module),
             );
             format_ident!("device")
