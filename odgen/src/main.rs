@@ -1,4 +1,4 @@
-//! `odgen`: check, format, dump and configure CANopen device descriptions (EDS/DCF).
+//! `odgen`: check, format, dump, compare and configure CANopen device descriptions (EDS/DCF).
 //!
 //! Each subcommand lives in its own module under `cmd/` with an `Args` struct (its flags) and a
 //! `run` function returning the process exit code, so new subcommands are one file and one enum
@@ -11,7 +11,7 @@ use clap::{Parser, Subcommand};
 mod cmd;
 mod yaml;
 
-/// CANopen device descriptions (CiA 306 EDS and DCF files): check, format, dump, configure.
+/// CANopen device descriptions (CiA 306 EDS and DCF files): check, format, dump, compare, configure.
 #[derive(Parser, Debug)]
 #[command(name = "odgen", version, about, long_about = None)]
 struct Cli {
@@ -27,8 +27,10 @@ enum Command {
     Fmt(cmd::fmt::Args),
     /// Print the typed model of a file as YAML or JSON.
     Dump(cmd::dump::Args),
-    /// Configure an EDS for one node and write the DCF.
+    /// Configure an EDS for one node and write the DCF, or every node of a network (`--network`).
     Dcf(cmd::dcf::Args),
+    /// Show what changed between two descriptions (exit 0: same, 1: different, 2: error).
+    Diff(cmd::diff::Args),
     /// Measure read+validate throughput (used by scripts/bench-read.sh).
     #[command(hide = true)]
     BenchRead(cmd::bench_read::Args),
@@ -41,6 +43,7 @@ fn main() -> ExitCode {
         Command::Fmt(args) => cmd::fmt::run(args),
         Command::Dump(args) => cmd::dump::run(args),
         Command::Dcf(args) => cmd::dcf::run(args),
+        Command::Diff(args) => cmd::diff::run(args),
         Command::BenchRead(args) => cmd::bench_read::run(args),
     }
 }

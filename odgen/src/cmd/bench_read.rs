@@ -88,7 +88,7 @@ pub fn run(args: Args) -> ExitCode {
         _ => None,
     };
     let mb = (bytes as f64 * iterations as f64) / 1e6;
-    println!(
+    super::outln!(
         "{}",
         serde_json::json!({
             "files": files.len(),

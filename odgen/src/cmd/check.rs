@@ -46,7 +46,7 @@ pub fn run(args: Args) -> ExitCode {
         match args.format {
             Format::Human => {
                 for d in &parsed.diagnostics {
-                    println!("{}", eds::diag::render(d, &parsed.document.source));
+                    super::outln!("{}", eds::diag::render(d, &parsed.document.source));
                 }
             }
             Format::Json => {
@@ -67,7 +67,7 @@ pub fn run(args: Args) -> ExitCode {
             if unreadable > 0 {
                 line.push_str(&format!(", {unreadable} unreadable"));
             }
-            println!("{line}");
+            super::outln!("{line}");
         }
         Format::Json => {
             let doc = serde_json::json!({
@@ -77,7 +77,7 @@ pub fn run(args: Args) -> ExitCode {
                 "notes": count(Severity::Note),
                 "unreadable": unreadable,
             });
-            println!("{}", serde_json::to_string_pretty(&doc).unwrap_or_default());
+            super::outln!("{}", serde_json::to_string_pretty(&doc).unwrap_or_default());
         }
     }
     if unreadable > 0 {

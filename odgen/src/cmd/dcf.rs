@@ -13,12 +13,16 @@ use eds::write::ConfigProblem;
 
 use super::{EXIT_FAILURE, EXIT_TROUBLE};
 
-/// `odgen dcf --node-id N [--baud KBIT] [--set 0x6060sub0=1 ...] EDS [-o OUT.dcf]`
+/// `odgen dcf --node-id N [--baud KBIT] [--set 0x6060sub0=1 ...] EDS [-o OUT.dcf]`, or
+/// `odgen dcf --network NET.toml -o DIR` (one DCF per node; see `odgen::network`).
 #[derive(clap::Args, Debug)]
 pub struct Args {
+    /// A network description (TOML): writes one DCF per node into the `-o` directory.
+    #[arg(long, value_name = "NET.toml", conflicts_with_all = ["node_id", "baud", "set", "eds"], requires = "output")]
+    pub network: Option<PathBuf>,
     /// Node id, 1..=127 (decimal or 0x hex).
-    #[arg(long, value_parser = parse_node_id)]
-    pub node_id: u8,
+    #[arg(long, value_parser = parse_node_id, required_unless_present = "network")]
+    pub node_id: Option<u8>,
     /// Bit rate in kbit/s (10, 20, 50, 125, 250, 500, 800 or 1000).
     #[arg(long)]
     pub baud: Option<u16>,
@@ -26,8 +30,10 @@ pub struct Args {
     #[arg(long = "set", value_name = "INDEXsubSUB=VALUE")]
     pub set: Vec<String>,
     /// The device description to configure.
-    pub eds: PathBuf,
-    /// Where to write the DCF (default: standard output).
+    #[arg(required_unless_present = "network")]
+    pub eds: Option<PathBuf>,
+    /// Where to write the DCF (default: standard output); with `--network`, the directory for
+    /// the DCFs (created if missing).
     #[arg(short = 'o', long = "output")]
     pub output: Option<PathBuf>,
 }
@@ -57,12 +63,20 @@ pub fn parse_set(s: &str) -> Result<(u16, u8, &str), String> {
     Ok((index, sub, value.trim()))
 }
 
-/// Runs the subcommand.
+/// Runs the subcommand: exit 0 when the DCF(s) were written, 1 when the configuration has
+/// problems (nothing is written), 2 when a file cannot be read or written.
 pub fn run(args: Args) -> ExitCode {
-    let Some(parsed) = super::read_or_report(&args.eds, &eds::Options::lenient()) else {
+    if let Some(network) = &args.network {
+        return run_network(network, args.output.as_deref());
+    }
+    let (Some(eds_path), Some(node_id)) = (&args.eds, args.node_id) else {
+        eprintln!("error: give an EDS and --node-id, or --network NET.toml");
         return ExitCode::from(EXIT_TROUBLE);
     };
-    let file = args.eds.display().to_string();
+    let Some(parsed) = super::read_or_report(eds_path, &eds::Options::lenient()) else {
+        return ExitCode::from(EXIT_TROUBLE);
+    };
+    let file = eds_path.display().to_string();
     if parsed.has_errors() {
         for d in parsed.errors() {
             eprintln!("{}", eds::diag::render(d, &parsed.document.source));
@@ -98,7 +112,7 @@ pub fn run(args: Args) -> ExitCode {
             }
         }
     }
-    let configured = match eds::write::configure(model, args.node_id, args.baud, &values) {
+    let configured = match eds::write::configure(model, node_id, args.baud, &values) {
         Ok(m) if problems.is_empty() => Some(m),
         Ok(_) => None,
         Err(e) => {
@@ -115,7 +129,7 @@ pub fn run(args: Args) -> ExitCode {
     };
     let text = eds::write::write_dcf(&configured);
     match &args.output {
-        None => print!("{text}"),
+        None => super::write_stdout(&text),
         Some(out) => {
             if let Err(e) = super::fmt::write_atomically(out, text.as_bytes()) {
                 eprintln!("error: cannot write {}: {e}", out.display());
@@ -124,11 +138,51 @@ pub fn run(args: Args) -> ExitCode {
             eprintln!(
                 "wrote {} (node {}, {} configured value{})",
                 out.display(),
-                args.node_id,
+                node_id,
                 values.len(),
                 if values.len() == 1 { "" } else { "s" }
             );
         }
+    }
+    ExitCode::SUCCESS
+}
+
+/// `--network`: every node's DCF into `out_dir`, or every problem and nothing written.
+fn run_network(network: &std::path::Path, out_dir: Option<&std::path::Path>) -> ExitCode {
+    let Some(out_dir) = out_dir else {
+        eprintln!("error: --network needs -o DIR (the directory for the DCFs)");
+        return ExitCode::from(EXIT_TROUBLE);
+    };
+    let outcome = match odgen::network::build_file(network) {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("error: cannot read {}: {e}", network.display());
+            return ExitCode::from(EXIT_TROUBLE);
+        }
+    };
+    for d in &outcome.diagnostics {
+        eprintln!("{}", odgen::network::render(d));
+    }
+    if outcome.has_errors() {
+        let n = outcome.diagnostics.iter().filter(|d| d.severity == eds::Severity::Error).count();
+        eprintln!("error: no DCF written ({n} problem{})", if n == 1 { "" } else { "s" });
+        return ExitCode::from(EXIT_FAILURE);
+    }
+    if out_dir.exists() && !out_dir.is_dir() {
+        eprintln!("error: {} is not a directory", out_dir.display());
+        return ExitCode::from(EXIT_TROUBLE);
+    }
+    if let Err(e) = std::fs::create_dir_all(out_dir) {
+        eprintln!("error: cannot create {}: {e}", out_dir.display());
+        return ExitCode::from(EXIT_TROUBLE);
+    }
+    for dcf in &outcome.dcfs {
+        let path = out_dir.join(&dcf.file_name);
+        if let Err(e) = super::fmt::write_atomically(&path, dcf.text.as_bytes()) {
+            eprintln!("error: cannot write {}: {e}", path.display());
+            return ExitCode::from(EXIT_TROUBLE);
+        }
+        eprintln!("wrote {} (node {}, {})", path.display(), dcf.node_id, dcf.device);
     }
     ExitCode::SUCCESS
 }

@@ -43,9 +43,9 @@ pub fn run(args: Args) -> ExitCode {
         }
     };
     match args.format {
-        Format::Json => println!("{json}"),
+        Format::Json => super::outln!("{json}"),
         Format::Yaml => match crate::yaml::from_json(&json) {
-            Ok(y) => print!("{y}"),
+            Ok(y) => super::write_stdout(&y),
             Err(e) => {
                 eprintln!("error: cannot convert the model to YAML: {e}");
                 return ExitCode::from(EXIT_TROUBLE);

@@ -78,7 +78,7 @@ fn format_one(path: &Path, check: bool) -> Outcome {
     }
     if check {
         let first = first_difference(&bytes, text.as_bytes());
-        println!("{name}: not in canonical form (first difference at line {first})");
+        super::outln!("{name}: not in canonical form (first difference at line {first})");
         return Outcome::NotCanonical;
     }
     let comments =
@@ -93,7 +93,7 @@ fn format_one(path: &Path, check: bool) -> Outcome {
             if comments == 1 { "" } else { "s" }
         );
     }
-    println!("formatted {name}");
+    super::outln!("formatted {name}");
     Outcome::Rewritten
 }
 

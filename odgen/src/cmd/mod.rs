@@ -3,6 +3,7 @@
 pub mod bench_read;
 pub mod check;
 pub mod dcf;
+pub mod diff;
 pub mod dump;
 pub mod fmt;
 
@@ -23,3 +24,28 @@ pub fn read_or_report(path: &Path, options: &eds::Options) -> Option<eds::Parsed
         }
     }
 }
+
+/// Writes text to standard output. When the reader has gone away (`odgen dump x.eds | head`),
+/// the process exits quietly with code 0 instead of panicking the way `print!` does; any other
+/// write error is reported and exits with [`EXIT_TROUBLE`].
+pub fn write_stdout(text: &str) {
+    use std::io::Write as _;
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+        eprintln!("error: cannot write to standard output: {e}");
+        std::process::exit(i32::from(EXIT_TROUBLE));
+    }
+}
+
+/// `println!` through [`write_stdout`].
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        let mut s = format!($($arg)*);
+        s.push('\n');
+        $crate::cmd::write_stdout(&s);
+    }};
+}
+pub(crate) use outln;

@@ -1,0 +1,9 @@
+//! `odgen` as a library: the parts of the command-line tool that other tools reuse.
+//!
+//! * [`network`]: DCFs for a whole network from one TOML description (`odgen dcf --network`).
+//! * [`diff`]: what changed between two device descriptions (`odgen diff`, and `cargo xtask gen`
+//!   to report what a regeneration is about).
+#![deny(missing_docs)]
+
+pub mod diff;
+pub mod network;
