@@ -378,7 +378,7 @@ fn device_info(old: &Model, new: &Model, changes: &mut Vec<Change>) {
 }
 
 /// Longest cell text in the table; longer values are cut with `…` (the JSON has them whole).
-pub const MAX_CELL: usize = 40;
+pub const MAX_CELL: usize = 48;
 
 fn cell(s: &str) -> String {
     if s.chars().count() > MAX_CELL {
@@ -394,11 +394,11 @@ fn cell(s: &str) -> String {
 /// the descriptions mean the same.
 ///
 /// ```text
-/// WHERE       NAME                       CHANGE   FIELD         OLD                    NEW
-/// 0x6060      Modes of operation         changed  AccessType    rw                     ro
-/// 0x6502      Supported drive modes      added                                         UNSIGNED32 ro = 0x00000065
-/// 0x1A00sub3  TPDO 1 mapping / Entry 3   removed                UNSIGNED32 rw = 0x0
-/// 1 object added, 1 entry removed, 1 field changed
+/// WHERE         NAME                                CHANGE   FIELD         OLD                                NEW
+/// 0x1008        Manufacturer device name            removed                VISIBLE_STRING const = Test drive
+/// 0x1018sub3    Identity object / Revision number   added                                                     UNSIGNED32 ro = 0x00000002
+/// 0x6060        Modes of operation                  changed  AccessType    rw                                 ro
+/// 1 object removed, 1 entry added, 1 field changed
 /// ```
 pub fn render_table(d: &Diff) -> String {
     let mut out = String::new();

@@ -356,3 +356,64 @@ fn bench_read_reports_throughput() {
     assert_eq!(v["objects_per_pass"], 10);
     assert!(v["mb_per_s"].as_f64().unwrap() > 0.0);
 }
+
+/// Runs odgen with its standard output a pipe whose reading end is closed at once, as
+/// `odgen dump x.eds | head -0` does.
+fn with_closed_stdout(args: &[&str]) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_odgen"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run odgen");
+    drop(child.stdout.take());
+    child.wait_with_output().expect("wait for odgen")
+}
+
+#[test]
+fn a_closed_stdout_ends_quietly_with_the_usual_exit_code() {
+    let akd = "../devices/kollmorgen-akd.eds";
+    for (args, code) in [
+        (vec!["dump", akd], 0),
+        (vec!["dump", "--format", "json", akd], 0),
+        (vec!["check", akd, akd], 0),
+        (vec!["dcf", "--node-id", "3", akd], 0),
+        (vec!["diff", "tests/fixtures/diff/old.eds", "tests/fixtures/diff/new.eds"], 1),
+    ] {
+        let o = with_closed_stdout(&args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(code), "odgen {args:?}: {err}");
+        assert!(!err.contains("panicked") && !err.contains("Broken pipe"), "odgen {args:?}: {err}");
+    }
+}
+
+#[test]
+fn bad_paths_and_arguments_get_clear_errors() {
+    let dir = TempDir::new("bad-args");
+    let eds = dir.file("good.eds", GOOD);
+    for (args, code, message) in [
+        (vec!["dump", "/nonexistent/x.eds"], 2, "error: cannot read /nonexistent/x.eds: "),
+        (vec!["dump", s(&dir.0)], 2, "error: cannot read "),
+        (vec!["fmt", "/nonexistent/x.eds"], 2, "error: cannot read /nonexistent/x.eds"),
+        (vec!["diff", s(&eds), "/nonexistent/x.eds"], 2, "error: cannot read /nonexistent/x.eds"),
+        (
+            vec!["dcf", "--node-id", "5", s(&eds), "-o", "/nonexistent/dir/x.dcf"],
+            2,
+            "error: cannot write /nonexistent/dir/x.dcf",
+        ),
+        (vec!["dcf", "--node-id", "x", s(&eds)], 2, "`x` is not a node id"),
+        (vec!["dcf", s(&eds)], 2, "--node-id"),
+        (vec!["dcf", "--network", "net.toml", "--node-id", "5", "-o", "out"], 2, "cannot be used with"),
+        (vec!["dcf", "--network", "/nonexistent/net.toml", "-o", s(&dir.0)], 2, "cannot read /nonexistent/net.toml"),
+        (vec!["dcf", "--network", "/nonexistent/net.toml", "-o", s(&eds)], 2, "cannot read /nonexistent/net.toml"),
+        (vec!["diff", s(&eds)], 2, "<NEW>"),
+        (vec!["frobnicate"], 2, "unrecognized subcommand"),
+    ] {
+        let o = odgen(&args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(code), "odgen {args:?}: {err}");
+        assert!(err.contains(message), "odgen {args:?}: expected {message:?} in {err}");
+        assert!(!err.contains("panicked"), "odgen {args:?}: {err}");
+    }
+}

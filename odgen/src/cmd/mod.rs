@@ -25,15 +25,25 @@ pub fn read_or_report(path: &Path, options: &eds::Options) -> Option<eds::Parsed
     }
 }
 
+/// Set once standard output's reader has gone away.
+static STDOUT_GONE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
 /// Writes text to standard output. When the reader has gone away (`odgen dump x.eds | head`),
-/// the process exits quietly with code 0 instead of panicking the way `print!` does; any other
-/// write error is reported and exits with [`EXIT_TROUBLE`].
+/// the rest of the output is dropped quietly and the command finishes with the exit code it
+/// would have had (so `odgen diff A B | head` still says 1 for "different"), instead of
+/// panicking the way `print!` does. Any other write error (a full disk) is reported and exits
+/// with [`EXIT_TROUBLE`].
 pub fn write_stdout(text: &str) {
     use std::io::Write as _;
+    use std::sync::atomic::Ordering;
+    if STDOUT_GONE.load(Ordering::Relaxed) {
+        return;
+    }
     let mut out = std::io::stdout().lock();
     if let Err(e) = out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
         if e.kind() == std::io::ErrorKind::BrokenPipe {
-            std::process::exit(0);
+            STDOUT_GONE.store(true, Ordering::Relaxed);
+            return;
         }
         eprintln!("error: cannot write to standard output: {e}");
         std::process::exit(i32::from(EXIT_TROUBLE));

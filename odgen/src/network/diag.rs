@@ -194,18 +194,19 @@ fn push_snippet(out: &mut String, s: &Snippet, arrow: &str, pad: &str) {
 /// `:::` arrow:
 ///
 /// ```text
-/// error[N0504]: `statusword` is `ro`: an RPDO can only map entries the master may write
-///   --> networks/line.toml:12:10
-///    |
-/// 12 | rpdo1 = ["statusword"]
-///    |          ^^^^^^^^^^^^
-///    = note: in node `x_axis` (devices/camozzi-drvi.eds), RPDO 1
+/// error[N0504]: `statusword` is `ro`, but an RPDO carries values the master writes
+///     --> networks/line.toml:7:25
+///      |
+///    7 | rpdo1 = ["controlword", "statusword"]
+///      |                         ^^^^^^^^^^^^
+///      = note: in node `x_axis` (devices/camozzi-drvi.eds), RPDO 1
+///      = note: the run-time check refuses it with SDO abort 0x06040041: maps 0x6041 sub 0 "Statusword" with access `ro` into an RPDO, which needs wo, rw or rww
 /// note: 0x6041 "Statusword" is defined here
-///    ::: devices/camozzi-drvi.eds:1290:1
-///     |
-/// 1290 | [6041]
-///     |
-///    = help: map it into a TPDO instead
+///     ::: devices/camozzi-drvi.eds:2371:2
+///      |
+/// 2371 | [6041]
+///      |
+///      = help: map it into a TPDO, or pick an entry with access wo, rw or rww
 /// ```
 pub fn render(d: &Diagnostic) -> String {
     let mut out = String::new();
