@@ -103,11 +103,8 @@ impl Document {
 
     /// Entry lines that come before any section header.
     pub fn orphan_entries(&self) -> Vec<usize> {
-        let first = self
-            .lines
-            .iter()
-            .position(|l| matches!(l.kind, LineKind::Section { .. }))
-            .unwrap_or(self.lines.len());
+        let first =
+            self.lines.iter().position(|l| matches!(l.kind, LineKind::Section { .. })).unwrap_or(self.lines.len());
         (0..first).filter(|&i| matches!(self.lines[i].kind, LineKind::Entry { .. })).collect()
     }
 
