@@ -231,7 +231,7 @@ pub fn build(display: &str, dir: &Path, text: &str) -> Outcome {
         let context = format!("node `{name}` ({})", device.display);
 
         // The device must support the bit rate.
-        let baud = baud.filter(|(b, _)| eds::write::STANDARD_BAUD_RATES.contains(&(*b as u16)) && *b > 0);
+        let baud = baud.filter(|(b, _)| u16::try_from(*b).is_ok_and(|b| eds::write::STANDARD_BAUD_RATES.contains(&b)));
         if let Some((b, span)) = &baud {
             let rates = &device.parsed.model.device_info.baud_rates;
             if !rates.is_empty() && rates.get(&(*b as u16)) != Some(&true) {
