@@ -184,3 +184,43 @@ fn command_line_mistakes_are_explained() {
     assert_eq!(got, Some(2), "{stderr}");
     assert!(stderr.contains("--listen") && stderr.contains("--bus"), "{stderr}");
 }
+
+#[test]
+fn saved_parameters_persist_and_a_corrupt_file_is_reported() {
+    let dir = std::env::temp_dir().join(format!("drive-e2e-cli-state-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let state = dir.to_str().unwrap();
+    let args = ["run", "--device", "drvi", "--node-id", "2", "--state-dir", state, "--listen", "127.0.0.1:0"];
+    let sdo = |bus: &mut SocketcandClient, data: [u8; 8]| {
+        bus.send(CanFrame::standard(0x602, &data).unwrap()).unwrap();
+        next_with_id(bus, 0x582).data().to_vec()
+    };
+
+    let mut first = Process::start(&args, "listening on ");
+    let mut bus = SocketcandClient::connect(first.ready.as_str(), "can0").unwrap();
+    assert_eq!(sdo(&mut bus, [0x23, 0x83, 0x60, 0x00, 0x39, 0x30, 0, 0])[0], 0x60); // 6083h = 12345
+    assert_eq!(sdo(&mut bus, [0x23, 0x10, 0x10, 0x01, b's', b'a', b'v', b'e'])[0], 0x60);
+    first.signal(libc::SIGTERM);
+    assert!(first.wait().0.success());
+
+    let mut second = Process::start(&args, "listening on ");
+    let mut bus = SocketcandClient::connect(second.ready.as_str(), "can0").unwrap();
+    assert_eq!(upload_expedited(&mut bus, 2, 0x6083), 12345u32.to_le_bytes());
+    second.signal(libc::SIGTERM);
+    assert!(second.wait().0.success());
+
+    let file = dir.join("drvi-node2.app.params");
+    let mut bytes = std::fs::read(&file).unwrap();
+    let middle = bytes.len() / 2;
+    bytes[middle] ^= 0xFF;
+    std::fs::write(&file, bytes).unwrap();
+    let mut third = Process::start(&args, "listening on ");
+    let mut bus = SocketcandClient::connect(third.ready.as_str(), "can0").unwrap();
+    assert_eq!(upload_expedited(&mut bus, 2, 0x6083), [0, 0, 0, 0]);
+    third.signal(libc::SIGTERM);
+    let (status, log) = third.wait();
+    assert!(status.success());
+    assert!(log.contains("drvi-node2: warning: ignoring stored parameters, defaults used"), "{log}");
+    assert!(log.contains("drvi-node2.app.params"), "{log}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

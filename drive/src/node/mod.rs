@@ -21,6 +21,25 @@
 //!   [`NodeConfig`]; [`Apps`] chooses the application each kind runs.
 //! * [`ParameterSet`] and [`NodeStorage`] apply a DCF's values at every reset.
 //!
+//! # Adding a device behaviour
+//!
+//! A vendor behaviour or a motion model is a [`DriveApp`] over the device's generated
+//! dictionary; nothing in this module changes:
+//!
+//! 1. `impl DriveApp<generated::drvi::Dictionary> for DrviBehaviour`: refuse writes in
+//!    [`DriveApp::on_write`] (synchronous, before the dictionary changes), react to events in
+//!    [`DriveApp::on_event`] (a write done, an NMT change, a CiA 402 transition, SYNC), run
+//!    the motion model in [`DriveApp::tick`] (1 kHz by default), acting through [`Ctx`]:
+//!    typed dictionary access, [`Ctx::set_fault`], [`Ctx::quick_stop_done`],
+//!    [`Ctx::set_statusword_flags`], [`Ctx::signal_error`], ...
+//! 2. Keep a [`DefaultApp`] inside and pass it the events not handled, for the standard
+//!    reactions (error control losses by EMCY; instant quick stop and fault reaction for
+//!    those the behaviour does not model).
+//! 3. Return it from an [`Apps`] implementation and give that to [`DeviceKind::build`];
+//!    `drive-sim` builds its devices with `DefaultApps` in one place (`run_devices`).
+//! 4. Test it frame for frame with [`Sim`] (virtual time) and the tests of
+//!    `drive/tests/node_sim.rs` as a model.
+//!
 //! # Example: a DRVI on the in-memory bus
 //!
 //! ```
