@@ -107,7 +107,9 @@ def test_the_emcy_inhibit_time_spaces_messages(devices, frames):
     for _ in range(3):
         network.send_message(0x202, [0x06])
     stamps = [seen.next(0x082, timeout=2)[0] for _ in range(3)]
-    assert all(g >= 0.14 for g in intervals(stamps)), intervals(stamps)
+    # Measured on arrival here, so allow for delivery jitter; without the inhibit time the
+    # three would arrive within a millisecond.
+    assert all(g >= 0.11 for g in intervals(stamps)), intervals(stamps)
 
 
 def test_emcy_stays_silent_when_stopped(devices, frames):
