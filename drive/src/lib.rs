@@ -1,6 +1,7 @@
 //! Simulated CANopen drives and the buses they are reached through.
 #![deny(missing_docs)]
 
+pub mod drives;
 pub mod motion;
 pub mod node;
 pub mod storage;

@@ -262,6 +262,16 @@ impl StateMachine {
         out
     }
 
+    /// Transition 15 without a controlword edge: a fault reset the device accepts another way
+    /// (the Camozzi DRVI also resets on 0 written to 1003h sub 0). Nothing outside Fault.
+    pub fn fault_reset(&mut self) -> Transitions {
+        let mut out = Transitions::default();
+        if self.state == State::Fault {
+            self.go(&mut out, 15, State::SwitchOnDisabled);
+        }
+        out
+    }
+
     /// Transition 14: the fault reaction is complete.
     pub fn fault_reaction_done(&mut self) -> Transitions {
         let mut out = Transitions::default();

@@ -1387,6 +1387,31 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
         }
     }
 
+    /// Like [`Device::set_fault`], with the EMCY's error register bits and manufacturer-specific
+    /// bytes given: a vendor's error table says both (the DRVI puts a manufacturer parameter in
+    /// EMCY byte 3, that is `info[0]`). `register` is or-ed into 1001h with the generic bit.
+    pub fn set_fault_with(&mut self, error_code: u16, register: u8, info: [u8; 5]) {
+        if self.core.od.info(0x603F, 0).is_ok() {
+            let _ = self.core.od.write(0x603F, 0, &error_code.to_le_bytes());
+        }
+        self.core.emcy(error_code, register, info);
+        if let Some(sm) = &mut self.core.drive {
+            let ts = sm.fault();
+            self.core.drive_transitions(ts);
+        }
+    }
+
+    /// A fault reset that does not come from controlword bit 7 (the DRVI resets its faults when
+    /// 0 is written to 1003h sub 0): in Fault, transition 15 with the same effects as the
+    /// controlword's (603Fh cleared, the fault's 1001h bits cleared, the error reset EMCY).
+    /// Nothing in other states.
+    pub fn fault_reset(&mut self) {
+        if let Some(sm) = &mut self.core.drive {
+            let ts = sm.fault_reset();
+            self.core.drive_transitions(ts);
+        }
+    }
+
     /// The fault reaction is complete: Fault reaction active → Fault (transition 14).
     pub fn fault_reaction_done(&mut self) {
         if let Some(sm) = &mut self.core.drive {

@@ -150,6 +150,8 @@ pub(crate) trait DeviceOps<OD> {
     fn nmt_command(&mut self, cmd: NmtCommand, now: Micros);
     fn cia402_state(&self) -> Option<State>;
     fn set_fault(&mut self, code: u16);
+    fn set_fault_with(&mut self, code: u16, register: u8, info: [u8; 5]);
+    fn fault_reset(&mut self);
     fn fault_reaction_done(&mut self);
     fn quick_stop_done(&mut self);
     fn set_remote(&mut self, remote: bool);
@@ -190,6 +192,12 @@ where
     }
     fn set_fault(&mut self, code: u16) {
         od_runtime::Device::set_fault(self, code)
+    }
+    fn set_fault_with(&mut self, code: u16, register: u8, info: [u8; 5]) {
+        od_runtime::Device::set_fault_with(self, code, register, info)
+    }
+    fn fault_reset(&mut self) {
+        od_runtime::Device::fault_reset(self)
     }
     fn fault_reaction_done(&mut self) {
         od_runtime::Device::fault_reaction_done(self)
@@ -298,6 +306,19 @@ impl<'a, OD> Ctx<'a, OD> {
     /// reaction active). Finish the fault reaction with [`Ctx::fault_reaction_done`].
     pub fn set_fault(&mut self, error_code: u16) {
         self.dev.set_fault(error_code)
+    }
+
+    /// Like [`Ctx::set_fault`], with the EMCY's error register bits and manufacturer-specific
+    /// bytes (`info[0]` is EMCY byte 3) as a vendor's error table gives them.
+    pub fn set_fault_with(&mut self, error_code: u16, register: u8, info: [u8; 5]) {
+        self.dev.set_fault_with(error_code, register, info)
+    }
+
+    /// A fault reset from something other than controlword bit 7 (the DRVI's 0 written to
+    /// 1003h sub 0): transition 15 from Fault, with 603Fh, 1001h and the error reset EMCY as
+    /// for the controlword's. Nothing in other states.
+    pub fn fault_reset(&mut self) {
+        self.dev.fault_reset()
     }
 
     /// The fault reaction is complete: transition 14 to Fault.

@@ -1,0 +1,383 @@
+//! The common CiA 402 drive layer (drive::drives::cia402) on the in-memory bus, through real
+//! frames: state machine and power stage, modes, stops, errors from the sidecar tables,
+//! heartbeat loss, traces.
+
+use std::sync::{Arc, Mutex};
+
+use drive::drives::cia402::{BusScale, Plain, Vendor, read_int, scale_i64, write_int};
+use drive::drives::master::{Master, SdoError};
+use drive::drives::{Cia402App, DeviceApps, ErrorTable, Reaction, error_table, sidecar};
+use drive::motion::{Environment, Ratio};
+use drive::node::{DeviceKind, Node, NodeConfig, NodeStorage, Sim};
+use drive::trace::Trace;
+use generated::drvi::Dictionary;
+use od_runtime::NodeId;
+use od_runtime::cia402::State;
+
+const ID: u8 = 5;
+
+type PlainNode = Node<Dictionary, Cia402App<Dictionary, Plain>>;
+
+/// A plain CiA 402 drive (every Vendor default) on the DRVI dictionary.
+fn plain() -> Master {
+    let mut sim = Sim::new();
+    let app = Cia402App::<Dictionary, _>::new(Plain, error_table(DeviceKind::Drvi));
+    let node = Node::new(Dictionary::new(ID), app, NodeStorage::memory(), NodeId::new(ID).unwrap());
+    sim.add(Box::new(node));
+    let mut m = Master::new(sim);
+    m.advance(1000);
+    m.nmt_start(ID);
+    m
+}
+
+fn app(m: &Master) -> &Cia402App<Dictionary, Plain> {
+    m.sim().downcast::<PlainNode>(0).unwrap().app().unwrap()
+}
+
+fn profile(m: &mut Master, v: u32, a: u32) {
+    m.write_u32(ID, 0x6081, 0, v).unwrap();
+    m.write_u32(ID, 0x6083, 0, a).unwrap();
+    m.write_u32(ID, 0x6084, 0, a).unwrap();
+}
+
+#[test]
+fn every_sidecar_parses_and_has_an_error_table() {
+    for kind in DeviceKind::ALL {
+        let s = sidecar(kind).unwrap_or_else(|| panic!("{kind} sidecar"));
+        let t = error_table(kind);
+        assert_eq!(t.entries().len(), s.errors.len(), "{kind}: every error kept");
+        assert!(!t.entries().is_empty());
+    }
+}
+
+#[test]
+fn error_lookup_by_code_and_manufacturer() {
+    let t = error_table(DeviceKind::Drvi);
+    let over_current = t.find(0x2310, Some(0)).unwrap();
+    let i2t = t.find(0x2310, Some(11)).unwrap();
+    assert_eq!(over_current.text, "Over current error");
+    assert_eq!(i2t.text, "I2T fault");
+    assert_eq!(i2t.info(), [11, 0, 0, 0, 0]);
+    assert_eq!(i2t.register_bits(), 0x03);
+    assert_eq!(t.find(0x4210, Some(1)).unwrap().reaction, Reaction::QuickStop);
+    // Without a manufacturer value: the first with that code.
+    assert_eq!(t.find(0x2310, None).unwrap().text, "Over current error");
+    // Unknown codes are hard errors with od-runtime's register bits.
+    let unknown = t.resolve(0x5678, None);
+    assert_eq!(unknown.reaction, Reaction::PowerOff);
+    assert_eq!(unknown.register_bits(), od_runtime::emcy::register_bits(0x5678) | 1);
+    let akd = error_table(DeviceKind::Akd);
+    assert_eq!(akd.find_vendor("f523").unwrap().code, 0x3110);
+    assert!(ErrorTable::default().find(0x2310, None).is_none());
+}
+
+#[test]
+fn scaling_rounds_half_away_and_saturates() {
+    assert_eq!(scale_i64(10, Ratio::new(1, 3)), 3);
+    assert_eq!(scale_i64(-5, Ratio::new(1, 2)), -3);
+    assert_eq!(scale_i64(5, Ratio::new(1, 2)), 3);
+    assert_eq!(scale_i64(i64::MAX, Ratio::new(2, 1)), i64::MAX);
+    assert_eq!(scale_i64(7, Ratio::new(0, 1)), 7, "a zero term counts as 1/1");
+    let s = BusScale { position: Ratio::new(254, 100), ..BusScale::ONE };
+    assert_eq!(s.position_in(1000), 2540);
+    assert_eq!(s.position_out(2540), 1000);
+}
+
+#[test]
+fn od_helpers_saturate_to_the_entry_type() {
+    let mut od = Dictionary::new(1);
+    assert!(write_int(&mut od, 0x6041, 0, 0x1_2345)); // U16: saturates
+    assert_eq!(read_int(&od, 0x6041, 0), Some(0xFFFF));
+    assert!(write_int(&mut od, 0x6064, 0, -5));
+    assert_eq!(read_int(&od, 0x6064, 0), Some(-5));
+    assert!(!write_int(&mut od, 0x6FFF, 0, 1));
+    assert_eq!(read_int(&od, 0x1008, 0), None, "a string is not an integer");
+}
+
+#[test]
+fn state_machine_walk_switches_the_power_stage() {
+    let mut m = plain();
+    assert_eq!(m.state(ID).unwrap(), Some(State::SwitchOnDisabled));
+    m.switch_on(ID).unwrap();
+    assert!(app(&m).drive().axis().status().power);
+    // Disable operation (5): power off.
+    m.controlword(ID, 0x07).unwrap();
+    m.advance(2000);
+    assert_eq!(m.state(ID).unwrap(), Some(State::SwitchedOn));
+    assert!(!app(&m).drive().axis().status().power);
+    m.controlword(ID, 0x0F).unwrap();
+    m.advance(2000);
+    assert!(app(&m).drive().axis().status().power);
+    // Shutdown (8) and disable voltage (9).
+    m.controlword(ID, 0x06).unwrap();
+    m.advance(2000);
+    assert_eq!(m.state(ID).unwrap(), Some(State::ReadyToSwitchOn));
+    assert!(!app(&m).drive().axis().status().power);
+    m.controlword(ID, 0x0F).unwrap();
+    m.advance(2000);
+    assert_eq!(m.state(ID).unwrap(), Some(State::OperationEnabled));
+    m.controlword(ID, 0x00).unwrap();
+    m.advance(2000);
+    assert_eq!(m.state(ID).unwrap(), Some(State::SwitchOnDisabled));
+    assert!(!app(&m).drive().axis().status().power);
+}
+
+#[test]
+fn unsupported_modes_and_homing_methods_are_refused() {
+    let mut m = plain();
+    assert_eq!(m.write(ID, 0x6060, 0, &[2]), Err(SdoError::Abort(0x0609_0030)));
+    assert_eq!(m.write(ID, 0x6060, 0, &[0xFF]), Err(SdoError::Abort(0x0609_0030)), "-1 is not CiA 402");
+    m.set_mode(ID, 1).unwrap();
+    assert_eq!(m.write(ID, 0x6098, 0, &[36]), Err(SdoError::Abort(0x0609_0030)));
+    m.write(ID, 0x6098, 0, &[35]).unwrap();
+}
+
+#[test]
+fn profile_position_absolute_and_relative_with_handshake() {
+    let mut m = plain();
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 1).unwrap();
+    profile(&mut m, 1000, 2000);
+    m.write_i32(ID, 0x607A, 0, 1500).unwrap();
+    m.controlword(ID, 0x1F).unwrap();
+    let sw = m.statusword(ID).unwrap();
+    assert_ne!(sw & (1 << 12), 0, "set-point acknowledge");
+    assert_eq!(sw & (1 << 10), 0, "moving");
+    m.controlword(ID, 0x0F).unwrap();
+    let sw = m.wait_statusword(ID, 1 << 10, 1 << 10, 5_000_000, 10_000).expect("target reached");
+    assert_eq!(sw & (1 << 12), 0, "acknowledge dropped with bit 4");
+    assert_eq!(m.read_i64(ID, 0x6064, 0).unwrap(), 1500);
+    assert_eq!(m.read_i64(ID, 0x6062, 0).unwrap(), 1500);
+    // 0.5 s up, 1 s cruise, 0.5 s down: about 2 s.
+    let t = app(&m).drive().status().time_us;
+    assert!((1_990_000..2_200_000).contains(&t), "{t}");
+    // Relative: +500 from the previous target.
+    m.write_i32(ID, 0x607A, 0, 500).unwrap();
+    m.controlword(ID, 0x5F).unwrap();
+    m.controlword(ID, 0x4F).unwrap();
+    m.wait_statusword(ID, 1 << 10, 1 << 10, 5_000_000, 10_000).unwrap();
+    assert_eq!(m.read_i64(ID, 0x6064, 0).unwrap(), 2000);
+}
+
+#[test]
+fn set_point_edges_while_disabled_are_ignored() {
+    let mut m = plain();
+    m.set_mode(ID, 1).unwrap();
+    profile(&mut m, 1000, 2000);
+    m.write_i32(ID, 0x607A, 0, 800).unwrap();
+    m.controlword(ID, 0x06).unwrap();
+    m.controlword(ID, 0x17).unwrap(); // switched on, bit 4 rises while not enabled
+    m.controlword(ID, 0x1F).unwrap(); // enabled with bit 4 still high: no edge
+    m.advance(100_000);
+    assert_eq!(m.read_i64(ID, 0x6064, 0).unwrap(), 0);
+    m.controlword(ID, 0x0F).unwrap();
+    m.controlword(ID, 0x1F).unwrap();
+    m.wait_statusword(ID, 1 << 10, 1 << 10, 5_000_000, 10_000).unwrap();
+    assert_eq!(m.read_i64(ID, 0x6064, 0).unwrap(), 800);
+}
+
+#[test]
+fn profile_velocity_with_halt_and_speed_bit() {
+    let mut m = plain();
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 1000);
+    m.write_i32(ID, 0x60FF, 0, 500).unwrap();
+    m.advance(600_000);
+    assert_eq!(m.read_i64(ID, 0x606C, 0).unwrap(), 500);
+    assert_eq!(m.statusword(ID).unwrap() & (1 << 12), 0, "moving: speed bit 0");
+    m.controlword(ID, 0x010F).unwrap(); // halt
+    m.advance(600_000);
+    assert_eq!(m.read_i64(ID, 0x606C, 0).unwrap(), 0);
+    let sw = m.statusword(ID).unwrap();
+    assert_ne!(sw & (1 << 10), 0, "halted and standing: target reached");
+    assert_ne!(sw & (1 << 12), 0, "speed bit: standing");
+    m.controlword(ID, 0x000F).unwrap();
+    m.advance(600_000);
+    assert_eq!(m.read_i64(ID, 0x606C, 0).unwrap(), 500, "resumes after halt");
+}
+
+#[test]
+fn profile_torque_ramps_with_the_slope() {
+    let mut m = plain();
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 4).unwrap();
+    m.write_u32(ID, 0x6087, 0, 1000).unwrap(); // 1000 mA/s
+    m.write(ID, 0x6071, 0, &500i16.to_le_bytes()).unwrap();
+    m.advance(250_000);
+    let t = m.read_i64(ID, 0x6077, 0).unwrap();
+    assert!((230..=270).contains(&t), "ramping: {t}");
+    m.advance(500_000);
+    assert_eq!(m.read_i64(ID, 0x6077, 0).unwrap(), 500);
+    assert_ne!(m.statusword(ID).unwrap() & (1 << 10), 0, "target torque reached");
+}
+
+#[test]
+fn quick_stop_ramps_then_switches_off() {
+    let mut m = plain();
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 1000);
+    m.write_i32(ID, 0x60FF, 0, 1000).unwrap();
+    m.advance(1_100_000);
+    m.controlword(ID, 0x0B).unwrap(); // quick stop
+    assert_eq!(m.state(ID).unwrap(), Some(State::QuickStopActive));
+    assert!(app(&m).drive().axis().status().power, "power stays on while ramping");
+    m.advance(500_000);
+    assert_eq!(m.state(ID).unwrap(), Some(State::QuickStopActive));
+    assert!(m.wait_until(1_000_000, 10_000, |m| m.state(ID).unwrap() == Some(State::SwitchOnDisabled)));
+    assert!(!app(&m).drive().axis().status().power);
+    assert_eq!(m.read_i64(ID, 0x606C, 0).unwrap(), 0);
+}
+
+#[test]
+fn soft_and_hard_errors_from_the_table() {
+    let mut m = plain();
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 1000);
+    m.write_i32(ID, 0x60FF, 0, 1000).unwrap();
+    m.advance(1_100_000);
+    m.take_seen();
+    // Soft: over temperature drive (4210h / 1): quick stop ramp, then Fault.
+    let now = m.now();
+    let node = m.sim_mut().downcast_mut::<PlainNode>(0).unwrap();
+    node.with_app(now, |app, ctx| {
+        app.drive_mut().raise(ctx, 0x4210, Some(1));
+    });
+    m.advance(0);
+    let emcy = m.take_id(0x80 + u32::from(ID));
+    assert_eq!(emcy.len(), 1);
+    assert_eq!(emcy[0].frame.data(), [0x10, 0x42, 0x09, 1, 0, 0, 0, 0]);
+    assert_eq!(m.state(ID).unwrap(), Some(State::FaultReactionActive));
+    assert_eq!(m.read_u16(ID, 0x603F, 0).unwrap(), 0x4210);
+    m.advance(300_000);
+    assert!(m.read_i64(ID, 0x606C, 0).unwrap() > 0, "still ramping down");
+    assert!(m.wait_until(2_000_000, 10_000, |m| m.state(ID).unwrap() == Some(State::Fault)));
+    assert_eq!(m.read_i64(ID, 0x606C, 0).unwrap(), 0);
+    // Fault reset (cw bit 7), enable again.
+    m.controlword(ID, 0x80).unwrap();
+    assert_eq!(m.state(ID).unwrap(), Some(State::SwitchOnDisabled));
+    assert_eq!(m.read_u16(ID, 0x603F, 0).unwrap(), 0);
+    assert!(app(&m).drive().fault().is_none());
+    m.controlword(ID, 0x00).unwrap();
+    m.switch_on(ID).unwrap();
+    m.advance(1_100_000);
+    assert_eq!(m.read_i64(ID, 0x606C, 0).unwrap(), 1000);
+    // Hard: over current (2310h / 0): power off at once, the axis coasts.
+    let now = m.now();
+    let node = m.sim_mut().downcast_mut::<PlainNode>(0).unwrap();
+    node.with_app(now, |app, ctx| {
+        app.drive_mut().raise(ctx, 0x2310, Some(0));
+    });
+    m.advance(0);
+    assert_eq!(m.state(ID).unwrap(), Some(State::Fault));
+    assert!(!app(&m).drive().axis().status().power);
+    let emcy = m.take_id(0x80 + u32::from(ID));
+    assert_eq!(emcy.last().unwrap().frame.data(), [0x10, 0x23, 0x03, 0, 0, 0, 0, 0]);
+}
+
+#[test]
+fn heartbeat_loss_is_the_fieldbus_disconnection_error() {
+    let mut m = plain();
+    // Consume the master's (node 127) heartbeat, 100 ms.
+    m.write_u32(ID, 0x1016, 1, (127 << 16) | 100).ok();
+    let has_consumer = m.read_u32(ID, 0x1016, 1).is_ok();
+    if !has_consumer {
+        // The DRVI has no 1016h: guard instead (100 ms × 3).
+        m.write_u16(ID, 0x100C, 0, 100).unwrap();
+        m.write_u8(ID, 0x100D, 0, 3).unwrap();
+    }
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 1000);
+    m.write_i32(ID, 0x60FF, 0, 1000).unwrap();
+    for _ in 0..12 {
+        if has_consumer {
+            m.heartbeat(127);
+        } else {
+            m.send(drive::transport::CanFrame::remote(0x700 + u32::from(ID), false, 1).unwrap());
+        }
+        m.advance(90_000);
+    }
+    assert_eq!(m.state(ID).unwrap(), Some(State::OperationEnabled));
+    m.take_seen();
+    // Silence: the life time runs out.
+    assert!(m.wait_until(1_000_000, 5_000, |m| m.seen().any(|s| s.frame.id() == 0x80 + u32::from(ID))));
+    let emcy = m.take_id(0x80 + u32::from(ID));
+    assert_eq!(&emcy[0].frame.data()[..3], [0x30, 0x81, 0x11]);
+    assert_eq!(m.state(ID).unwrap(), Some(State::FaultReactionActive), "soft error: quick stop first");
+    assert!(m.wait_until(3_000_000, 10_000, |m| m.state(ID).unwrap() == Some(State::Fault)));
+    assert_eq!(m.read_i64(ID, 0x606C, 0).unwrap(), 0);
+}
+
+/// A vendor that refuses every set-point and records the refusals.
+#[derive(Default)]
+struct Refuser {
+    refused: Arc<Mutex<u32>>,
+}
+
+impl Vendor<Dictionary> for Refuser {
+    fn before_command(
+        &mut self,
+        _: &mut drive::drives::Drive,
+        _: &mut drive::node::Ctx<'_, Dictionary>,
+        cmd: &mut drive::drives::Command,
+    ) -> bool {
+        if matches!(cmd, drive::drives::Command::SetPoint(_)) {
+            *self.refused.lock().unwrap() += 1;
+            return false;
+        }
+        true
+    }
+
+    fn statusword(&self, _: &drive::drives::Drive, _: &Dictionary, _: &drive::motion::Status, bits: &mut u16) {
+        *bits |= 1 << 15;
+    }
+}
+
+#[test]
+fn vendor_hooks_refuse_commands_and_add_statusword_bits() {
+    let refused = Arc::new(Mutex::new(0));
+    let mut sim = Sim::new();
+    let app = Cia402App::<Dictionary, _>::new(Refuser { refused: Arc::clone(&refused) }, error_table(DeviceKind::Drvi));
+    sim.add(Box::new(Node::new(Dictionary::new(ID), app, NodeStorage::memory(), NodeId::new(ID).unwrap())));
+    let mut m = Master::new(sim);
+    m.advance(1000);
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 1).unwrap();
+    profile(&mut m, 1000, 1000);
+    m.write_i32(ID, 0x607A, 0, 1000).unwrap();
+    m.controlword(ID, 0x1F).unwrap();
+    m.advance(100_000);
+    assert_eq!(*refused.lock().unwrap(), 1);
+    let sw = m.statusword(ID).unwrap();
+    assert_eq!(sw & (1 << 12), 0, "no acknowledge for a refused set-point");
+    assert_ne!(sw & (1 << 15), 0, "vendor bit");
+    assert_eq!(m.read_i64(ID, 0x6064, 0).unwrap(), 0);
+}
+
+#[test]
+fn traces_record_bus_values_every_tick() {
+    let apps = DeviceApps::with_trace(0);
+    let mut sim = Sim::new();
+    sim.add(DeviceKind::Drvi.build(&NodeConfig { node_id: Some(ID), ..Default::default() }, &apps).unwrap());
+    let mut m = Master::new(sim);
+    m.advance(1000);
+    m.advance(50_000);
+    let traces = apps.traces();
+    assert_eq!(traces.len(), 1);
+    assert_eq!(traces[0].0, DeviceKind::Drvi);
+    let t: Trace = traces[0].1.lock().unwrap().clone();
+    assert!((45..=52).contains(&t.samples().len()), "{}", t.samples().len());
+    assert!(t.samples().windows(2).all(|w| w[1].time_us - w[0].time_us == 1000));
+}
+
+#[test]
+fn mechanics_are_reachable_for_tests() {
+    let mut m = plain();
+    let node = m.sim_mut().downcast_mut::<PlainNode>(0).unwrap();
+    let app = node.app_mut().unwrap();
+    *app.drive_mut().axis_mut().environment_mut() = Environment { negative_end_stop: Some(-100), ..Default::default() };
+    assert_eq!(app.drive().axis().environment().negative_end_stop, Some(-100));
+}
