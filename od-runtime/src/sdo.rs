@@ -481,7 +481,10 @@ impl<const N: usize> SdoServer<N> {
                     let acked = (acked + 7 * usize::from(ackseq)).min(len);
                     if last && ackseq == sent {
                         let unused = if len == 0 { 7 } else { (7 - len % 7) % 7 } as u8;
-                        let crc_value = if crc { crc16_ccitt(0, &self.buf[..len]) } else { 0 };
+                        // The CRC is always sent: this server announces CRC support in its initiate response,
+                        // and clients (python-canopen among them) check it whenever the server announced it,
+                        // whether or not they asked for it themselves.
+                        let crc_value = crc16_ccitt(0, &self.buf[..len]);
                         let c = crc_value.to_le_bytes();
                         self.respond([0xC1 | (unused << 2), c[0], c[1], 0, 0, 0, 0, 0]);
                         self.state =

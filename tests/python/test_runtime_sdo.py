@@ -124,6 +124,13 @@ def test_block_download_without_crc(bus):
     assert drvi.sdo[0x6083].raw == 31337
 
 
+def test_block_upload_without_crc(bus):
+    drvi, _, _ = bus
+    with drvi.sdo.open(0x1008, 0, "rb", block_transfer=True, request_crc_support=False) as stream:
+        data = stream.read()
+    assert data == DCF_NAME.encode()
+
+
 def test_many_transfers_in_a_row_stay_in_step(bus):
     drvi, akd, _ = bus
     for value in range(0, 200000, 4001):
