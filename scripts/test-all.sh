@@ -22,11 +22,13 @@ export ODGEN_PYTHON="$PYTHON"
 step "cargo fmt --check"
 cargo fmt --all -- --check
 
-step "build"
-cargo build --workspace --all-targets --locked
-
-step "cargo test (workspace)"
+# One build profile only: `cargo test --all-targets` also compiles the benchmarks (in the test
+# profile) and runs each of them once as a smoke test.
+step "cargo test (workspace, all targets)"
 cargo test --workspace --all-targets --locked
+
+step "binaries for the end-to-end tests"
+cargo build --workspace --bins --locked
 
 step "SocketCAN transport compiles"
 cargo check -p drive --features socketcan --locked
