@@ -1,52 +1,59 @@
-//! The nom lexer: decoded text → lossless [`crate::ast::Document`].
+//! The lexer: decoded text → lossless [`crate::ast::Document`].
 //!
 //! The lexer works one physical line at a time. A line ends at `\r\n`, `\n` or a lone `\r`;
-//! the last line may have no ending at all. Finding line ends is most of the work, so it scans
-//! eight bytes at a time. Each line's content (without its ending) is then classified by its
-//! first non-blank byte and a small nom grammar:
+//! the last line may have no ending at all. Each line's content (without its ending) is
+//! classified by its first non-blank byte:
 //!
 //! ```text
 //! line     = blank | comment | section | entry | garbage
-//! blank    = ws*
-//! comment  = ws* (";" | "#") any*          ; "#" is not CiA 306; lowering reports it
-//! section  = ws* "[" name "]" trailing     ; name is trimmed, trailing is everything after "]"
-//! entry    = key "=" value                 ; key (non-empty) and value are trimmed
-//! garbage  = anything else                 ; kept for round trips, reported by lowering
+//! blank    = ws*                       ; also a line of Unicode white space only
+//! comment  = ws* (";" | "#") any*      ; "#" is not CiA 306; lowering reports it
+//! section  = ws* "[" name "]" trailing ; name has no "[" or "]"; it is trimmed; trailing is
+//!                                      ; everything after "]"
+//! entry    = key "=" value             ; at the first "="; key (non-empty) and value are trimmed
+//! garbage  = anything else             ; kept for round trips, reported by lowering
+//! ws       = " " | "\t" | "\x0B" | "\x0C"
 //! ```
+//!
+//! "Trimmed" means Unicode white space is removed from both ends, as [`str::trim`] does.
 //!
 //! Positions are byte [`Span`]s into the decoded text; [`crate::source::SourceFile::line_col`]
 //! turns them into lines and columns for diagnostics. The lexer never fails and never drops a
 //! byte: the `raw` spans of the lines tile the text exactly, so
-//! [`crate::ast::Document::write_lossless`] gives the input back. It allocates the `Vec` of
-//! lines and nothing else.
-
-use nom::{
-    IResult, Parser,
-    bytes::complete::{take_till, take_while},
-    character::complete::{char, one_of},
-    combinator::rest,
-    sequence::{delimited, preceded},
-};
+//! [`crate::ast::Document::write_lossless`] gives the input back.
+//!
+//! # Speed
+//!
+//! The lexer is the first thing every byte of a file goes through, so it works on bytes, not
+//! `char`s: every character that decides the shape of a line (`[`, `]`, `=`, `;`, `#`, line ends,
+//! ASCII blanks) is ASCII, and UTF-8 never uses ASCII bytes inside a multi-byte character.
+//! Searches for line ends and for `=` look at eight bytes at a time. Trimming looks at the
+//! bytes at either end and only falls back to [`str::trim`] when it meets a non-ASCII byte there
+//! (which may be Unicode white space). It allocates the `Vec` of lines and nothing else.
 
 use crate::ast::{Document, Line, LineEnding, LineKind};
 use crate::source::{SourceFile, Span};
 
 /// Lexes a decoded source file. Never fails: unrecognised lines become [`LineKind::Garbage`].
 pub fn lex(source: SourceFile) -> Document {
-    let lines = lex_lines(&source.text);
+    // The source counted its `\n`s: the exact number of lines unless a file ends lines with a
+    // lone `\r`.
+    let lines = lex_into(&source.text, Vec::with_capacity(source.line_count()));
     Document { source, lines }
 }
 
 /// Lexes text into lines (the work behind [`lex`]).
 pub fn lex_lines(text: &str) -> Vec<Line> {
+    // Typical EDS lines are 12-25 bytes long.
+    lex_into(text, Vec::with_capacity(text.len() / 12 + 1))
+}
+
+fn lex_into(text: &str, mut lines: Vec<Line>) -> Vec<Line> {
     let bytes = text.as_bytes();
-    // Typical EDS lines are 15-25 bytes long.
-    let mut lines = Vec::with_capacity(bytes.len() / 20 + 1);
     let mut start = 0usize;
     while start < bytes.len() {
-        let (content_end, ending, next) = match find_eol(&bytes[start..]) {
-            Some(off) => {
-                let i = start + off;
+        let (content_end, ending, next) = match find_eol(bytes, start) {
+            Some(i) => {
                 if bytes[i] == b'\n' {
                     (i, LineEnding::Lf, i + 1)
                 } else if bytes.get(i + 1) == Some(&b'\n') {
@@ -57,9 +64,7 @@ pub fn lex_lines(text: &str) -> Vec<Line> {
             }
             None => (bytes.len(), LineEnding::None, bytes.len()),
         };
-        // Line ends are ASCII, so these offsets are char boundaries.
-        let content = &text[start..content_end];
-        let kind = classify(content, start as u32);
+        let kind = classify(text, start, content_end);
         lines.push(Line {
             raw: Span::new(start as u32, next as u32),
             content: Span::new(start as u32, content_end as u32),
@@ -71,25 +76,35 @@ pub fn lex_lines(text: &str) -> Vec<Line> {
     lines
 }
 
-/// Offset of the first `\n` or `\r` in `b`. Scans eight bytes at a time (SWAR), because this
-/// search is most of the lexer's work.
+const LO: u64 = 0x0101_0101_0101_0101;
+const HI: u64 = 0x8080_8080_8080_8080;
+
+/// Flags (with its high bit) each byte of `w` that equals the byte repeated in `pattern`. The
+/// lowest flag is always a real match: a false flag can only come from a borrow out of a real
+/// match below it. Callers use the lowest flag only.
+#[inline(always)]
+fn eq_bytes(w: u64, pattern: u64) -> u64 {
+    let x = w ^ pattern;
+    x.wrapping_sub(LO) & !x & HI
+}
+
+#[inline(always)]
+fn word(b: &[u8], i: usize) -> u64 {
+    let mut w = [0u8; 8];
+    w.copy_from_slice(&b[i..i + 8]);
+    u64::from_le_bytes(w)
+}
+
+/// Offset of the first `\n` or `\r` in `b` at or after `from`. Scans eight bytes at a time
+/// (SWAR), because this search is most of the lexer's work.
 #[inline]
-fn find_eol(b: &[u8]) -> Option<usize> {
-    const LO: u64 = 0x0101_0101_0101_0101;
-    const HI: u64 = 0x8080_8080_8080_8080;
+fn find_eol(b: &[u8], from: usize) -> Option<usize> {
     const NL: u64 = LO * b'\n' as u64;
     const CR: u64 = LO * b'\r' as u64;
-    let mut i = 0;
+    let mut i = from;
     while i + 8 <= b.len() {
-        let mut w = [0u8; 8];
-        w.copy_from_slice(&b[i..i + 8]);
-        let w = u64::from_le_bytes(w);
-        let x = w ^ NL;
-        let y = w ^ CR;
-        // A byte of x or y is zero where w had '\n' or '\r'.
-        let zx = x.wrapping_sub(LO) & !x & HI;
-        let zy = y.wrapping_sub(LO) & !y & HI;
-        let z = zx | zy;
+        let w = word(b, i);
+        let z = eq_bytes(w, NL) | eq_bytes(w, CR);
         if z != 0 {
             return Some(i + (z.trailing_zeros() / 8) as usize);
         }
@@ -98,64 +113,150 @@ fn find_eol(b: &[u8]) -> Option<usize> {
     b[i..].iter().position(|&c| c == b'\n' || c == b'\r').map(|p| i + p)
 }
 
-fn is_ws(c: char) -> bool {
-    c == ' ' || c == '\t' || c == '\u{0B}' || c == '\u{0C}'
-}
-
-/// Classifies the content of one line. `base` is the content's offset in the file.
-fn classify(content: &str, base: u32) -> LineKind {
-    let span_of = |s: &str| {
-        let off = s.as_ptr() as usize - content.as_ptr() as usize;
-        Span::new(base + off as u32, base + (off + s.len()) as u32)
-    };
-    // Dispatch on the first non-blank byte, then let the matching nom parser do the work.
-    match content.bytes().find(|&b| !matches!(b, b' ' | b'\t' | 0x0B | 0x0C)) {
-        None => return LineKind::Blank,
-        Some(b';' | b'#') => {
-            if let Ok((_, text)) = comment(content) {
-                return LineKind::Comment { text: span_of(text) };
-            }
+/// Offset of the first `=` in `b[from..to]`, eight bytes at a time.
+#[inline]
+fn find_eq(b: &[u8], from: usize, to: usize) -> Option<usize> {
+    const EQ: u64 = LO * b'=' as u64;
+    let mut i = from;
+    while i + 8 <= to {
+        let z = eq_bytes(word(b, i), EQ);
+        if z != 0 {
+            return Some(i + (z.trailing_zeros() / 8) as usize);
         }
-        Some(b'[') => {
-            if let Ok((trailing, name)) = section(content) {
-                return LineKind::Section { name: span_of(name.trim()), trailing: span_of(trailing) };
-            }
-        }
-        Some(_) => {
-            if let Ok((value, key)) = entry(content) {
-                let key = key.trim();
-                if !key.is_empty() {
-                    return LineKind::Entry { key: span_of(key), value: span_of(value.trim()) };
-                }
-            } else if content.trim().is_empty() {
-                // Only Unicode white space (e.g. a no-break space).
-                return LineKind::Blank;
-            }
-        }
+        i += 8;
     }
-    LineKind::Garbage
+    b[i..to].iter().position(|&c| c == b'=').map(|p| i + p)
 }
 
-fn comment(i: &str) -> IResult<&str, &str> {
-    preceded((take_while(is_ws), one_of(";#")), rest).parse(i)
+/// The blanks that may come before a comment or section header.
+#[inline]
+fn is_blank(b: u8) -> bool {
+    matches!(b, b' ' | b'\t' | 0x0B | 0x0C)
 }
 
-fn section(i: &str) -> IResult<&str, &str> {
-    preceded(take_while(is_ws), delimited(char('['), take_till(|c| c == ']' || c == '['), char(']'))).parse(i)
+/// The ASCII characters [`char::is_whitespace`] accepts (unlike [`u8::is_ascii_whitespace`], it
+/// includes the vertical tab).
+#[inline]
+fn is_ascii_space(b: u8) -> bool {
+    matches!(b, b' ' | b'\t' | b'\n' | 0x0B | 0x0C | b'\r')
 }
 
-fn entry(i: &str) -> IResult<&str, &str> {
-    let (i, key) = take_till(|c| c == '=')(i)?;
-    let (i, _) = char('=')(i)?;
-    Ok((i, key))
+/// `text[start..end]` trimmed as [`str::trim`] trims it, as a span. ASCII bytes at both ends
+/// are decided here; a non-ASCII byte at either end leaves the decision to [`str::trim`].
+#[inline]
+fn trim_span(text: &str, start: usize, end: usize) -> Span {
+    let b = text.as_bytes();
+    let mut i = start;
+    while i < end && is_ascii_space(b[i]) {
+        i += 1;
+    }
+    let mut j = end;
+    while j > i && is_ascii_space(b[j - 1]) {
+        j -= 1;
+    }
+    if (i < j && (b[i] >= 0x80 || b[j - 1] >= 0x80)) || i == end {
+        // Possibly Unicode white space at an end (or nothing but white space, where `trim`
+        // gives the empty string at the start). Both offsets lie on char boundaries: `start`
+        // and `end` do, and only ASCII bytes were skipped.
+        let s = &text[start..end];
+        let t = s.trim();
+        let off = start + (t.as_ptr() as usize - s.as_ptr() as usize);
+        return Span::new(off as u32, (off + t.len()) as u32);
+    }
+    Span::new(i as u32, j as u32)
+}
+
+/// Classifies the content `text[start..end]` of one line.
+fn classify(text: &str, start: usize, end: usize) -> LineKind {
+    let b = text.as_bytes();
+    let mut first = start;
+    while first < end && is_blank(b[first]) {
+        first += 1;
+    }
+    if first == end {
+        return LineKind::Blank;
+    }
+    match b[first] {
+        b';' | b'#' => LineKind::Comment { text: Span::new(first as u32 + 1, end as u32) },
+        b'[' => {
+            let name_start = first + 1;
+            let close = b[name_start..end].iter().position(|&c| c == b']' || c == b'[').map(|p| name_start + p);
+            match close {
+                Some(c) if b[c] == b']' => LineKind::Section {
+                    name: trim_span(text, name_start, c),
+                    trailing: Span::new(c as u32 + 1, end as u32),
+                },
+                _ => LineKind::Garbage,
+            }
+        }
+        _ => match find_eq(b, first, end) {
+            Some(eq) => {
+                // The blanks before `first` would be trimmed anyway.
+                let key = trim_span(text, first, eq);
+                if key.is_empty() {
+                    LineKind::Garbage
+                } else {
+                    LineKind::Entry { key, value: trim_span(text, eq + 1, end) }
+                }
+            }
+            // Only Unicode white space (e.g. a no-break space) is a blank line too.
+            None if text[start..end].trim().is_empty() => LineKind::Blank,
+            None => LineKind::Garbage,
+        },
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
 
     fn kinds(text: &str) -> Vec<(LineKind, LineEnding)> {
         lex_lines(text).into_iter().map(|l| (l.kind, l.ending)).collect()
+    }
+
+    /// The grammar in the module docs, written the obvious way with `str` methods: the lexer
+    /// must agree with it on every input.
+    fn classify_reference(content: &str, base: u32) -> LineKind {
+        let span_of = |s: &str| {
+            let off = s.as_ptr() as usize - content.as_ptr() as usize;
+            Span::new(base + off as u32, base + (off + s.len()) as u32)
+        };
+        let body = content.trim_start_matches([' ', '\t', '\u{0B}', '\u{0C}']);
+        if body.is_empty() {
+            return LineKind::Blank;
+        }
+        if let Some(text) = body.strip_prefix([';', '#']) {
+            return LineKind::Comment { text: span_of(text) };
+        }
+        if let Some(rest) = body.strip_prefix('[') {
+            return match rest.find([']', '[']) {
+                Some(i) if rest[i..].starts_with(']') => {
+                    LineKind::Section { name: span_of(rest[..i].trim()), trailing: span_of(&rest[i + 1..]) }
+                }
+                _ => LineKind::Garbage,
+            };
+        }
+        match content.split_once('=') {
+            Some((key, value)) if !key.trim().is_empty() => {
+                LineKind::Entry { key: span_of(key.trim()), value: span_of(value.trim()) }
+            }
+            Some(_) => LineKind::Garbage,
+            None if content.trim().is_empty() => LineKind::Blank,
+            None => LineKind::Garbage,
+        }
+    }
+
+    fn check_against_reference(text: &str) {
+        let lines = lex_lines(text);
+        let mut joined = String::new();
+        for l in &lines {
+            joined.push_str(&text[l.raw.start as usize..l.raw.end as usize]);
+            let content = &text[l.content.start as usize..l.content.end as usize];
+            assert!(!content.contains(['\n', '\r']), "{content:?}");
+            assert_eq!(l.kind, classify_reference(content, l.content.start), "line {content:?}");
+        }
+        assert_eq!(joined, text);
     }
 
     #[test]
@@ -195,6 +296,30 @@ mod tests {
         assert!(matches!(lines[7].kind, LineKind::Comment { .. }));
         assert_eq!(lines[8].kind, LineKind::Garbage);
         assert_eq!(lines.len(), 9);
+        check_against_reference(text);
+    }
+
+    #[test]
+    fn unicode_white_space_is_trimmed_like_str_trim() {
+        for text in [
+            "\u{A0}Key\u{A0}=\u{2003}value\u{3000}",
+            "Key\x0B=\x0Bvalue\x0B",
+            "[\u{A0}1018\u{85}]",
+            "[ \u{A0} ]",
+            "[   ]",
+            "\u{A0}\u{A0}",
+            "K=\u{A0}",
+            "K=  ",
+            "\u{A0}=v",
+            "Kä=ö",
+            "Keyé =  é",
+        ] {
+            check_against_reference(text);
+        }
+        let lines = lex_lines("K=\u{A0}x\u{A0}\n[ \u{A0} ]");
+        assert!(matches!(lines[0].kind, LineKind::Entry { value, .. } if value == Span::new(4, 5)));
+        // A name of white space only is the empty string at its start, as `str::trim` gives it.
+        assert!(matches!(lines[1].kind, LineKind::Section { name, .. } if name == Span::new(9, 9)));
     }
 
     #[test]
@@ -202,16 +327,45 @@ mod tests {
         let text = "0123456789abcdef\r0123\n".repeat(3);
         let b = text.as_bytes();
         for s in 0..b.len() {
-            let naive = b[s..].iter().position(|&c| c == b'\n' || c == b'\r');
-            assert_eq!(find_eol(&b[s..]), naive);
+            let naive = b[s..].iter().position(|&c| c == b'\n' || c == b'\r').map(|p| s + p);
+            assert_eq!(find_eol(b, s), naive);
         }
         // Bytes just above and below the line-end characters must not match.
-        assert_eq!(find_eol(&[0x0B, 0x0C, 0x0E, 0x09, 0x8A, 0x8D, 0xFF, 0x00, b'\r']), Some(8));
+        assert_eq!(find_eol(&[0x0B, 0x0C, 0x0E, 0x09, 0x8A, 0x8D, 0xFF, 0x00, b'\r'], 0), Some(8));
+        // A borrow out of a real match does not hide it (0x0A followed by 0x0B).
+        assert_eq!(find_eol(&[1, 1, b'\n', 0x0B, 1, 1, 1, 1], 0), Some(2));
+    }
+
+    #[test]
+    fn eq_search_matches_naive() {
+        let text = "Key=Value;a=b;0123456789ABCDEF<>===".as_bytes();
+        for from in 0..text.len() {
+            for to in from..=text.len() {
+                let naive = text[from..to].iter().position(|&c| c == b'=').map(|p| from + p);
+                assert_eq!(find_eq(text, from, to), naive, "{from}..{to}");
+            }
+        }
+        assert_eq!(find_eq(&[b'<', b'>', 0x3C, 0x3E, 0xBD, b'=', 0, 0], 0, 8), Some(5));
     }
 
     #[test]
     fn empty_input() {
         assert!(kinds("").is_empty());
         assert_eq!(kinds("\n"), vec![(LineKind::Blank, LineEnding::Lf)]);
+    }
+
+    proptest! {
+        #[test]
+        fn agrees_with_the_reference_grammar(text in "([ \t\x0B\x0C\u{A0}\u{85}\u{3000}]|\\PC|\r|\n|\\[|\\]|=|;|#|[a-z]){0,200}") {
+            check_against_reference(&text);
+        }
+
+        #[test]
+        fn agrees_with_the_reference_on_eds_like_lines(
+            lines in proptest::collection::vec("[ \t\u{A0}]{0,2}(\\[[0-9A-Fa-fsub ]{0,10}\\]|[A-Za-z]{1,14}[ \t]?=[ \t]?[0-9a-zA-Z$+ ;#]{0,12}|;.{0,5}|#.{0,3})[ \t\u{A0}]{0,2}", 0..40),
+            ending in "\r\n|\n|\r",
+        ) {
+            check_against_reference(&lines.join(&ending));
+        }
     }
 }
