@@ -36,7 +36,8 @@ use crate::{Options, Strictness};
 /// concern the whole file come last).
 pub fn lower(doc: &Document, options: &Options) -> (Model, Vec<Diagnostic>) {
     let mut cx = Ctx { src: &doc.source, strictness: options.strictness, diags: Vec::new() };
-    let secs = sections::collect(doc, &mut cx);
+    let collected = sections::collect(doc, &mut cx);
+    let secs = collected.sections();
     let mut model = Model::default();
     info::lower_info(&secs, &mut model, &mut cx);
     let is_dcf = model.commissioning.is_some()
@@ -50,6 +51,60 @@ pub fn lower(doc: &Document, options: &Options) -> (Model, Vec<Diagnostic>) {
     // at the same place keep the order in which they were found.
     diags.sort_by_key(|d| d.span.map(|s| s.start).unwrap_or(u32::MAX));
     (model, diags)
+}
+
+/// A hash map for the small keys lowering looks things up by (indices, section kinds). The
+/// standard hasher resists collision attacks, which costs more than the rest of a lookup; these
+/// keys come from one file and the maps are dropped with it, so a multiplicative hash is enough.
+pub(crate) type FastMap<K, V> = std::collections::HashMap<K, V, std::hash::BuildHasherDefault<FastHasher>>;
+
+/// The hasher of [`FastMap`]: each word is mixed in with a rotate, an xor and a multiplication.
+#[derive(Clone, Copy, Default)]
+pub(crate) struct FastHasher(u64);
+
+impl FastHasher {
+    #[inline]
+    fn add(&mut self, word: u64) {
+        self.0 = (self.0.rotate_left(5) ^ word).wrapping_mul(0x517C_C1B7_2722_0A95);
+    }
+}
+
+impl std::hash::Hasher for FastHasher {
+    #[inline]
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.add(b as u64);
+        }
+    }
+
+    #[inline]
+    fn write_u8(&mut self, n: u8) {
+        self.add(n as u64);
+    }
+
+    #[inline]
+    fn write_u16(&mut self, n: u16) {
+        self.add(n as u64);
+    }
+
+    #[inline]
+    fn write_u32(&mut self, n: u32) {
+        self.add(n as u64);
+    }
+
+    #[inline]
+    fn write_u64(&mut self, n: u64) {
+        self.add(n);
+    }
+
+    #[inline]
+    fn write_usize(&mut self, n: usize) {
+        self.add(n as u64);
+    }
 }
 
 /// Lowering state shared by the passes: the source and the diagnostics found so far.

@@ -1,9 +1,7 @@
 //! Pass 2: the information sections and the object lists.
 
-use std::collections::HashMap;
-
-use super::sections::{Kind, Kv, Section, Sections, match_keys};
-use super::{Crumbs, Ctx};
+use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys};
+use super::{Crumbs, Ctx, FastMap};
 use crate::codes;
 use crate::model::{Category, Commissioning, DeviceInfo, ExtraSection, FileInfo, Index, Model, Role};
 use crate::source::Span;
@@ -71,11 +69,17 @@ fn info_bool(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
     }
 }
 
-fn missing_keys(cx: &mut Ctx<'_>, sec: &Section<'_>, known: &[&str], found: &[Option<&Kv<'_>>], required: &[&str]) {
+fn missing_keys<const N: usize>(
+    cx: &mut Ctx<'_>,
+    sec: &Section<'_>,
+    known: &KeySet<N>,
+    keys: &Keys<'_, N>,
+    required: &[&str],
+) {
     let missing: Vec<&str> = required
         .iter()
         .copied()
-        .filter(|r| known.iter().position(|k| k == r).is_none_or(|i| found[i].is_none()))
+        .filter(|r| known.names.iter().position(|k| k == r).is_none_or(|i| keys.get(i).is_none()))
         .collect();
     if !missing.is_empty() {
         let d = cx.emit(
@@ -114,7 +118,7 @@ fn is_time(s: &str) -> bool {
         && m.parse::<u8>().is_ok_and(|m| m < 60)
 }
 
-const FILE_INFO_KEYS: &[&str] = &[
+const FILE_INFO_KEYS: KeySet<12> = KeySet::new([
     "FileName",
     "FileVersion",
     "FileRevision",
@@ -127,10 +131,10 @@ const FILE_INFO_KEYS: &[&str] = &[
     "ModificationDate",
     "ModifiedBy",
     "LastEDS",
-];
+]);
 
 fn lower_file_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> FileInfo {
-    let keys = match_keys(cx, sec, FILE_INFO_KEYS, Crumbs::default(), true);
+    let keys = match_keys(cx, sec, &FILE_INFO_KEYS, Crumbs::default(), true);
     let mut fi = FileInfo::default();
     let s = |i: usize| keys.get(i).map(|kv| kv.value.to_owned());
     fi.file_name = s(0);
@@ -189,11 +193,11 @@ fn lower_file_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> FileInfo {
         fi.extra.push(owned(kv));
     }
     fi.extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
-    missing_keys(cx, sec, FILE_INFO_KEYS, &keys.found, &["FileName", "FileVersion", "FileRevision", "EDSVersion"]);
+    missing_keys(cx, sec, &FILE_INFO_KEYS, &keys, &["FileName", "FileVersion", "FileRevision", "EDSVersion"]);
     fi
 }
 
-const DEVICE_INFO_KEYS: &[&str] = &[
+const DEVICE_INFO_KEYS: KeySet<21> = KeySet::new([
     "VendorName",
     "VendorNumber",
     "ProductName",
@@ -216,11 +220,11 @@ const DEVICE_INFO_KEYS: &[&str] = &[
     "LMT_ProductName",
     "ExtendedBootUpMaster",
     "ExtendedBootUpSlave",
-];
+]);
 
 fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
     const S: &str = "DeviceInfo";
-    let keys = match_keys(cx, sec, DEVICE_INFO_KEYS, Crumbs::default(), false);
+    let keys = match_keys(cx, sec, &DEVICE_INFO_KEYS, Crumbs::default(), false);
     let mut di = DeviceInfo {
         vendor_name: keys.get(0).map(|kv| kv.value.to_owned()),
         product_name: keys.get(2).map(|kv| kv.value.to_owned()),
@@ -270,7 +274,7 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
         );
         d.hint = Some("call eds::lower::expand_compact_pdo to add the implied PDO objects".to_owned());
     }
-    for i in 15..DEVICE_INFO_KEYS.len() {
+    for i in 15..DEVICE_INFO_KEYS.names.len() {
         if let Some(kv) = keys.get(i) {
             keep.push(owned(kv));
         }
@@ -317,8 +321,8 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
     missing_keys(
         cx,
         sec,
-        DEVICE_INFO_KEYS,
-        &keys.found,
+        &DEVICE_INFO_KEYS,
+        &keys,
         &[
             "VendorName",
             "ProductName",
@@ -336,12 +340,12 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
     di
 }
 
-const COMMISSIONING_KEYS: &[&str] =
-    &["NodeID", "NodeName", "Baudrate", "NetNumber", "NetworkName", "CANopenManager", "LSS_SerialNumber"];
+const COMMISSIONING_KEYS: KeySet<7> =
+    KeySet::new(["NodeID", "NodeName", "Baudrate", "NetNumber", "NetworkName", "CANopenManager", "LSS_SerialNumber"]);
 
 fn lower_commissioning(cx: &mut Ctx<'_>, sec: &Section<'_>) -> Commissioning {
     const S: &str = "DeviceComissioning";
-    let keys = match_keys(cx, sec, COMMISSIONING_KEYS, Crumbs::default(), true);
+    let keys = match_keys(cx, sec, &COMMISSIONING_KEYS, Crumbs::default(), true);
     let mut c = Commissioning { node_name: keys.get(1).map(|kv| kv.value.to_owned()), ..Default::default() };
     c.network_name = keys.get(4).map(|kv| kv.value.to_owned());
     let mut keep = Vec::new();
@@ -392,7 +396,7 @@ fn lower_commissioning(cx: &mut Ctx<'_>, sec: &Section<'_>) -> Commissioning {
 }
 
 fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
-    let keys = match_keys(cx, sec, &[], Crumbs::default(), false);
+    let keys = match_keys(cx, sec, &KeySet::new([]), Crumbs::default(), false);
     for kv in &keys.unknown {
         let ty = kv.key.get(..5).filter(|p| p.eq_ignore_ascii_case("Dummy")).and_then(|_| {
             let digits = &kv.key[5..];
@@ -434,7 +438,7 @@ fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
 }
 
 fn lower_comments(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
-    let keys = match_keys(cx, sec, &["Lines"], Crumbs::default(), false);
+    let keys = match_keys(cx, sec, &KeySet::new(["Lines"]), Crumbs::default(), false);
     let mut lines: Vec<(u32, &str)> = Vec::new();
     for kv in &keys.unknown {
         let n =
@@ -543,7 +547,7 @@ pub(crate) struct Lists {
     /// Which of the three lists exist (Mandatory, Optional, Manufacturer).
     pub present: [bool; 3],
     /// Each listed index with the list that names it first and the span of that entry.
-    pub listed: HashMap<u16, (Category, Span)>,
+    pub listed: FastMap<u16, (Category, Span)>,
 }
 
 pub(crate) fn category_slot(c: Category) -> usize {
@@ -578,7 +582,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
         let Some(sec) = secs.get(Kind::List(cat)) else { continue };
         lists.present[category_slot(cat)] = true;
         let name = list_name(cat);
-        let keys = match_keys(cx, sec, &["SupportedObjects"], Crumbs::default(), false);
+        let keys = match_keys(cx, sec, &KeySet::new(["SupportedObjects"]), Crumbs::default(), false);
         let mut numbers: Vec<u32> = Vec::new();
         for kv in &keys.unknown {
             let Ok(n) = kv.key.parse::<u32>() else {

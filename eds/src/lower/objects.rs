@@ -1,15 +1,15 @@
 //! Pass 3: object sections → [`Object`]s with typed [`Entry`]s.
 
-use std::collections::{BTreeMap, HashMap, HashSet};
+use std::collections::BTreeMap;
 
 use super::info::{Lists, expected_category};
-use super::sections::{Keys, Kind, Kv, Section, Sections, match_keys};
+use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys};
 use super::{Crumbs, Ctx, otype};
 use crate::codes;
 use crate::model::{Access, DataType, Entry, FileKind, Index, Model, Object, ObjectType, SourceRef, SubIndex, Value};
 use crate::value::{self, Quirk, ValueError};
 
-const OBJ_KEYS: &[&str] = &[
+const OBJ_KEYS: KeySet<15> = KeySet::new([
     "ParameterName",
     "ObjectType",
     "DataType",
@@ -25,7 +25,11 @@ const OBJ_KEYS: &[&str] = &[
     "Denotation",
     "UploadFile",
     "DownloadFile",
-];
+]);
+/// The keys of an object or sub-object section, matched.
+type ObjKeys<'a> = Keys<'a, 15>;
+const NR_OF_ENTRIES: KeySet<1> = KeySet::new(["NrOfEntries"]);
+const OBJECT_LINKS: KeySet<1> = KeySet::new(["ObjectLinks"]);
 const K_NAME: usize = 0;
 const K_OTYPE: usize = 1;
 const K_DTYPE: usize = 2;
@@ -50,7 +54,7 @@ const VALUE_KEYS: [usize; 9] = [K_DTYPE, K_ACCESS, K_DEFAULT, K_PDO, K_LOW, K_HI
 /// and its Denotation (meaningful for any object, but the model has no field for it).
 fn keep_entry_keys(
     cx: &mut Ctx<'_>,
-    keys: &Keys<'_, '_>,
+    keys: &ObjKeys<'_>,
     t: ObjectType,
     ctx: Crumbs<'_>,
     extra: &mut Vec<(String, String)>,
@@ -295,7 +299,8 @@ struct EntryDefaults {
 #[derive(Clone, Copy)]
 struct EntryBuilder<'c> {
     is_dcf: bool,
-    defined_types: &'c HashSet<u16>,
+    /// The sections, to look up the types the file defines.
+    secs: &'c Sections<'c>,
     /// Building the template of CompactSubObj entries from an ARRAY section, where SubNumber
     /// and CompactSubObj are expected.
     compact_template: bool,
@@ -307,7 +312,7 @@ impl EntryBuilder<'_> {
         &self,
         cx: &mut Ctx<'_>,
         sec: &Section<'_>,
-        keys: &Keys<'_, '_>,
+        keys: &ObjKeys<'_>,
         sub: u8,
         name: Option<String>,
         defaults: EntryDefaults,
@@ -352,7 +357,7 @@ impl EntryBuilder<'_> {
             },
         };
         if let DataType::Other(code) = data_type
-            && !self.defined_types.contains(&code)
+            && self.secs.get(Kind::Object(code)).is_none()
             && !(0x20..=0x25).contains(&code)
             && let Some(kv) = keys.get(K_DTYPE)
         {
@@ -510,7 +515,7 @@ fn cmp_values(a: &Value, b: &Value) -> Option<std::cmp::Ordering> {
 
 /// Checks within one entry: limits against each other and the values, PDOMapping against the
 /// access type and the data type.
-fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &Keys<'_, '_>, context: Crumbs<'_>) {
+fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &ObjKeys<'_>, context: Crumbs<'_>) {
     let span_of = |i: usize| keys.get(i).map(|kv| kv.value_span);
     if (e.low_limit.is_some() || e.high_limit.is_some()) && !is_numeric(e.data_type) {
         if let DataType::Other(_) = e.data_type {
@@ -541,7 +546,7 @@ fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &Keys<'_, '_>, context: Crumbs
         let low = e.low_limit.as_ref().filter(|lo| cmp_values(v, lo) == Some(std::cmp::Ordering::Less));
         let high = e.high_limit.as_ref().filter(|hi| cmp_values(v, hi) == Some(std::cmp::Ordering::Greater));
         if let Some(bound) = low.or(high) {
-            let key = OBJ_KEYS[i];
+            let key = OBJ_KEYS.names[i];
             let d = cx.emit(
                 codes::E0306,
                 span_of(i),
@@ -581,10 +586,11 @@ fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &Keys<'_, '_>, context: Crumbs
 fn numbered<'s, 'a>(
     cx: &mut Ctx<'_>,
     sec: &'s Section<'a>,
-    count_key: &str,
+    count: &KeySet<1>,
     context: Crumbs<'_>,
 ) -> Vec<(u32, &'s Kv<'a>)> {
-    let keys = match_keys(cx, sec, &[count_key], context, false);
+    let count_key = count.names[0];
+    let keys = match_keys(cx, sec, count, context, false);
     let mut out = Vec::new();
     for kv in &keys.unknown {
         match kv.key.parse::<u32>() {
@@ -628,32 +634,35 @@ fn numbered<'s, 'a>(
 
 /// Lowers every object section into `model.objects`.
 pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Model, cx: &mut Ctx<'_>) {
-    let mut objects: Vec<(u16, &Section<'_>)> = Vec::new();
-    let mut subs: HashMap<u16, Vec<(u8, &Section<'_>)>> = HashMap::new();
-    let mut side: HashMap<Kind, &Section<'_>> = HashMap::new();
+    let mut objects: Vec<(u16, &Section<'_>)> = Vec::with_capacity(secs.list.len());
+    // Sub-object sections by object index, in file order for each index (the sort is stable).
+    let mut subs: Vec<(u16, (u8, &Section<'_>))> = Vec::with_capacity(secs.list.len());
+    let mut orphans: Vec<&Section<'_>> = Vec::new();
     for sec in &secs.list {
         match sec.kind {
             Kind::Object(i) => objects.push((i, sec)),
-            Kind::Sub(i, s) => subs.entry(i).or_default().push((s, sec)),
-            Kind::Names(_) | Kind::Values(_) | Kind::Links(_) => {
-                side.insert(sec.kind, sec);
+            Kind::Sub(i, s) => subs.push((i, (s, sec))),
+            Kind::Names(i) | Kind::Values(i) | Kind::Links(i) if secs.get(Kind::Object(i)).is_none() => {
+                orphans.push(sec)
             }
             _ => {}
         }
     }
-    let object_set: HashSet<u16> = objects.iter().map(|&(i, _)| i).collect();
-    let builder =
-        EntryBuilder { is_dcf: model.kind == FileKind::Dcf, defined_types: &object_set, compact_template: false };
+    subs.sort_by_key(|&(i, _)| i);
+    let sub_indices: Vec<u16> = subs.iter().map(|&(i, _)| i).collect();
+    let subs: Vec<(u8, &Section<'_>)> = subs.into_iter().map(|(_, s)| s).collect();
+    let builder = EntryBuilder { is_dcf: model.kind == FileKind::Dcf, secs, compact_template: false };
     for &(index, sec) in &objects {
-        let my_subs = subs.remove(&index).unwrap_or_default();
-        let names = side.remove(&Kind::Names(index));
-        let values = side.remove(&Kind::Values(index));
-        let links = side.remove(&Kind::Links(index));
-        let mut obj = build_object(cx, &builder, index, sec, &my_subs, names, values);
+        let from = sub_indices.partition_point(|&i| i < index);
+        let to = from + sub_indices[from..].partition_point(|&i| i == index);
+        let names = secs.get(Kind::Names(index));
+        let values = secs.get(Kind::Values(index));
+        let links = secs.get(Kind::Links(index));
+        let mut obj = build_object(cx, &builder, index, sec, &subs[from..to], names, values);
         if let Some(l) = links {
             let oname = obj.name.clone();
             let ctx = Crumbs::object(index, &oname);
-            for (_, kv) in numbered(cx, l, "ObjectLinks", ctx) {
+            for (_, kv) in numbered(cx, l, &OBJECT_LINKS, ctx) {
                 let mut q = Vec::new();
                 match value::parse_int(kv.value, &mut q) {
                     Ok(p) if (0..=0xFFFF).contains(&p.value) => obj.object_links.push(Index(p.value as u16)),
@@ -672,8 +681,9 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
         model.objects.insert(Index(index), obj);
     }
     // Sub-objects and side sections without an object section.
-    let mut orphans: Vec<&Section<'_>> =
-        subs.values().flatten().map(|&(_, s)| s).chain(side.values().copied()).collect();
+    orphans.extend(
+        sub_indices.iter().zip(&subs).filter(|(i, _)| secs.get(Kind::Object(**i)).is_none()).map(|(_, &(_, s))| s),
+    );
     orphans.sort_by_key(|s| s.name_span.start);
     for sec in orphans {
         let index = match sec.kind {
@@ -698,7 +708,7 @@ fn build_object(
 ) -> Object {
     let name = sec.entries.iter().rev().find(|kv| kv.key.eq_ignore_ascii_case("ParameterName")).map(|kv| kv.value);
     let ctx = Crumbs::object(index, name.unwrap_or(sec.name));
-    let keys = match_keys(cx, sec, OBJ_KEYS, ctx, true);
+    let keys = match_keys(cx, sec, &OBJ_KEYS, ctx, true);
     let name = match keys.get(K_NAME) {
         Some(kv) => kv.value.to_owned(),
         None => {
@@ -875,7 +885,7 @@ fn build_object(
         let sub_name =
             ssec.entries.iter().rev().find(|kv| kv.key.eq_ignore_ascii_case("ParameterName")).map(|kv| kv.value);
         let sctx = ctx.sub(sub, sub_name.unwrap_or(""));
-        let skeys = match_keys(cx, ssec, OBJ_KEYS, sctx, true);
+        let skeys = match_keys(cx, ssec, &OBJ_KEYS, sctx, true);
         if let Some(kv) = skeys.get(K_OTYPE)
             && uint_key(cx, kv, 0xFF, sctx) != Ok(0x7)
         {
@@ -908,7 +918,7 @@ fn expand_compact(
     builder: &EntryBuilder<'_>,
     obj: &mut Object,
     sec: &Section<'_>,
-    keys: &Keys<'_, '_>,
+    keys: &ObjKeys<'_>,
     n: u8,
     names: Option<&Section<'_>>,
     values: Option<&Section<'_>>,
@@ -949,7 +959,7 @@ fn expand_compact(
         obj.subs.insert(SubIndex(s), e);
     }
     if let Some(ns) = names {
-        for (k, kv) in numbered(cx, ns, "NrOfEntries", ctx) {
+        for (k, kv) in numbered(cx, ns, &NR_OF_ENTRIES, ctx) {
             match obj.subs.get_mut(&SubIndex(k.min(256) as u8)).filter(|_| (1..=n as u32).contains(&k)) {
                 Some(e) => e.name = kv.value.to_owned(),
                 None => {
@@ -964,7 +974,7 @@ fn expand_compact(
         }
     }
     if let Some(vs) = values {
-        for (k, kv) in numbered(cx, vs, "NrOfEntries", ctx) {
+        for (k, kv) in numbered(cx, vs, &NR_OF_ENTRIES, ctx) {
             let Some(e) = obj.subs.get_mut(&SubIndex(k.min(256) as u8)).filter(|_| (1..=n as u32).contains(&k)) else {
                 let d = cx.emit(
                     codes::E0214,
@@ -994,7 +1004,7 @@ fn check_structure(
     cx: &mut Ctx<'_>,
     obj: &Object,
     sec: &Section<'_>,
-    keys: &Keys<'_, '_>,
+    keys: &ObjKeys<'_>,
     sub_number: Option<u32>,
     compact: Option<u8>,
     subs: &[(u8, &Section<'_>)],

@@ -1,8 +1,10 @@
 //! Pass 1: lines → sections with classified names, and syntax-level diagnostics.
+//!
+//! Every entry of the file is copied once, into one `Vec` in which the entries of each section
+//! are contiguous (entries of a repeated section are moved next to those of its first
+//! occurrence), so that a [`Section`] is a borrowed slice and nothing later allocates per entry.
 
-use std::collections::HashMap;
-
-use super::{Crumbs, Ctx};
+use super::{Crumbs, Ctx, FastMap};
 use crate::ast::{Document, LineKind};
 use crate::codes;
 use crate::model::Category;
@@ -42,19 +44,52 @@ pub(crate) struct Section<'a> {
     pub name: &'a str,
     pub name_span: Span,
     pub kind: Kind,
-    pub entries: Vec<Kv<'a>>,
+    pub entries: &'a [Kv<'a>],
 }
 
 /// All sections in file order (of first occurrence), with a lookup by kind.
 pub(crate) struct Sections<'a> {
     pub list: Vec<Section<'a>>,
-    by_kind: HashMap<Kind, usize>,
+    by_kind: &'a FastMap<Kind, usize>,
 }
 
 impl<'a> Sections<'a> {
     /// The section of a kind (not for [`Kind::Unknown`]).
     pub fn get(&self, kind: Kind) -> Option<&Section<'a>> {
         self.by_kind.get(&kind).map(|&i| &self.list[i])
+    }
+}
+
+/// A section as [`collect`] finds it: its entries are a range of [`Collected::entries`].
+struct Head<'a> {
+    name: &'a str,
+    name_span: Span,
+    kind: Kind,
+    entries: std::ops::Range<usize>,
+}
+
+/// What pass 1 found: the entries of all sections (each section's contiguous) and the sections.
+/// [`Collected::sections`] gives the view the other passes use.
+pub(crate) struct Collected<'a> {
+    entries: Vec<Kv<'a>>,
+    heads: Vec<Head<'a>>,
+    by_kind: FastMap<Kind, usize>,
+}
+
+impl<'d> Collected<'d> {
+    /// The sections, borrowing their entries.
+    pub fn sections(&self) -> Sections<'_> {
+        let list = self
+            .heads
+            .iter()
+            .map(|h| Section {
+                name: h.name,
+                name_span: h.name_span,
+                kind: h.kind,
+                entries: &self.entries[h.entries.clone()],
+            })
+            .collect();
+        Sections { list, by_kind: &self.by_kind }
     }
 }
 
@@ -96,13 +131,17 @@ pub(crate) fn loose_eq(a: &str, b: &str) -> bool {
     }
 }
 
-fn hex4(s: &str) -> Option<u16> {
-    if s.len() == 4 && s.bytes().all(|b| b.is_ascii_hexdigit()) { u16::from_str_radix(s, 16).ok() } else { None }
+fn hex4(s: &[u8]) -> Option<u16> {
+    let mut v = 0u16;
+    for &b in s.get(..4)? {
+        v = v << 4 | (b as char).to_digit(16)? as u16;
+    }
+    Some(v)
 }
 
 /// Classifies a section name.
 pub(crate) fn classify(name: &str) -> (Kind, Spelling) {
-    if let Some(index) = name.get(..4).and_then(hex4) {
+    if let Some(index) = hex4(name.as_bytes()) {
         return classify_object(name, index);
     }
     for &(canon, kind) in FIXED {
@@ -125,15 +164,18 @@ pub(crate) fn classify(name: &str) -> (Kind, Spelling) {
     (Kind::Unknown, Spelling::Exact)
 }
 
-/// Classifies a section name that starts with four hex digits (`index`).
+/// Classifies a section name that starts with four hex digits (`index`). The CiA 306 spelling
+/// is only built when the name differs from it.
 fn classify_object(name: &str, index: u16) -> (Kind, Spelling) {
+    // Hex digits (all ASCII) are canonical in upper case.
+    let upper = |s: &str| !s.bytes().any(|b| b.is_ascii_lowercase());
     let rest = &name[4..];
-    let canon_index = format!("{index:04X}");
-    let spelled = |kind: Kind, canon: String| {
-        if canon == name { (kind, Spelling::Exact) } else { (kind, Spelling::Case(canon)) }
+    let index_exact = upper(&name[..4]);
+    let spelled = |kind: Kind, exact: bool, canon: &dyn Fn() -> String| {
+        if exact { (kind, Spelling::Exact) } else { (kind, Spelling::Case(canon())) }
     };
     if rest.is_empty() {
-        return spelled(Kind::Object(index), canon_index);
+        return spelled(Kind::Object(index), index_exact, &|| format!("{index:04X}"));
     }
     if rest.len() >= 3 && rest.is_char_boundary(3) && rest[..3].eq_ignore_ascii_case("sub") {
         let digits = &rest[3..];
@@ -144,59 +186,88 @@ fn classify_object(name: &str, index: u16) -> (Kind, Spelling) {
         if trimmed.len() > 2 {
             return (Kind::Unknown, Spelling::Malformed(format!("sub-index 0x{digits} is larger than 0xFF")));
         }
-        let sub = u8::from_str_radix(if trimmed.is_empty() { "0" } else { trimmed }, 16).unwrap_or(0);
-        return spelled(Kind::Sub(index, sub), format!("{canon_index}sub{}", digits.to_ascii_uppercase()));
+        let sub = trimmed.bytes().fold(0u8, |v, b| v << 4 | (b as char).to_digit(16).unwrap_or(0) as u8);
+        let exact = index_exact && &rest[..3] == "sub" && upper(digits);
+        return spelled(Kind::Sub(index, sub), exact, &|| format!("{index:04X}sub{}", digits.to_ascii_uppercase()));
     }
     for (suffix, kind) in
         [("Name", Kind::Names(index)), ("Value", Kind::Values(index)), ("ObjectLinks", Kind::Links(index))]
     {
         if rest.eq_ignore_ascii_case(suffix) {
-            return spelled(kind, format!("{canon_index}{suffix}"));
+            return spelled(kind, index_exact && rest == suffix, &|| format!("{index:04X}{suffix}"));
         }
     }
     (Kind::Unknown, Spelling::Exact)
 }
 
 /// Groups the document's lines into sections and reports line-level problems.
-pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Sections<'a> {
+pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> {
     let src = &doc.source;
     if src.encoding == Encoding::Windows1252 {
         cx.emit(codes::E0001, None, "file is not valid UTF-8; it was decoded as Windows-1252").hint =
             Some("save the file as UTF-8 (or plain ASCII, as CiA 306 asks)".to_owned());
-    } else if let Some(pos) = src.text.bytes().position(|b| b >= 0x80) {
+    } else if !src.text.is_ascii()
+        && let Some(pos) = src.text.bytes().position(|b| b >= 0x80)
+    {
         let ch_len = src.text[pos..].chars().next().map(char::len_utf8).unwrap_or(1);
         cx.emit(codes::E0009, Some(Span::new(pos as u32, (pos + ch_len) as u32)), "the file contains non-ASCII text")
             .hint = Some("CiA 306 files are ASCII; tools that expect it may misread this text".to_owned());
     }
-    let mut list: Vec<Section<'a>> = Vec::new();
-    let mut by_kind: HashMap<Kind, usize> = HashMap::new();
-    let mut unknown_by_name: HashMap<String, usize> = HashMap::new();
+    let mut heads: Vec<Head<'a>> = Vec::new();
+    let mut by_kind: FastMap<Kind, usize> = FastMap::default();
+    // Sections of unknown kind, matched by name (ignoring ASCII case); there are few.
+    let mut unknown: Vec<usize> = Vec::new();
     let mut occurrences: Vec<u16> = Vec::new();
-    // Index into `list` of the section the following entries belong to, and its occurrence.
+    let mut entries: Vec<Kv<'a>> = Vec::with_capacity(doc.lines.len());
+    // Each section header starts a run of entries: (section, first entry). A run ends where the
+    // next begins.
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    let mut repeated = false;
+    // The section the following entries belong to, and its occurrence.
     let mut current: Option<(usize, u16)> = None;
     for line in &doc.lines {
         match line.kind {
+            LineKind::Entry { key, value } => match current {
+                Some((_, occurrence)) => entries.push(Kv {
+                    key: src.slice(key),
+                    value: src.slice(value),
+                    key_span: key,
+                    value_span: value,
+                    occurrence,
+                }),
+                None => {
+                    let d = cx.emit(
+                        codes::E0003,
+                        Some(line.content),
+                        format!("entry `{}` comes before any section header and is ignored", src.slice(key)),
+                    );
+                    d.hint = Some("move it into the section it belongs to".to_owned());
+                }
+            },
             LineKind::Section { name, trailing } => {
                 let name_str = src.slice(name);
-                let trailing_str = src.slice(trailing).trim();
-                if !trailing_str.is_empty() && !trailing_str.starts_with(';') {
-                    let d = cx.emit(
-                        codes::E0005,
-                        Some(trailing),
-                        format!("unexpected text `{trailing_str}` after section header [{name_str}]"),
-                    );
-                    d.hint = Some("put comments on their own line, starting with `;`".to_owned());
+                if !trailing.is_empty() {
+                    let trailing_str = src.slice(trailing).trim();
+                    if !trailing_str.is_empty() && !trailing_str.starts_with(';') {
+                        let d = cx.emit(
+                            codes::E0005,
+                            Some(trailing),
+                            format!("unexpected text `{trailing_str}` after section header [{name_str}]"),
+                        );
+                        d.hint = Some("put comments on their own line, starting with `;`".to_owned());
+                    }
                 }
                 let (kind, spelling) = classify(name_str);
                 report_spelling(cx, name, name_str, &spelling);
                 let existing = match kind {
-                    Kind::Unknown => unknown_by_name.get(&name_str.to_ascii_lowercase()).copied(),
+                    Kind::Unknown => unknown.iter().copied().find(|&i| heads[i].name.eq_ignore_ascii_case(name_str)),
                     k => by_kind.get(&k).copied(),
                 };
-                match existing {
+                let i = match existing {
                     Some(i) => {
                         occurrences[i] += 1;
-                        let first = src.line_col(list[i].name_span.start);
+                        repeated = true;
+                        let first = src.line_col(heads[i].name_span.start);
                         let d = cx.emit(
                             codes::E0006,
                             Some(name),
@@ -205,43 +276,23 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Sections<'a> {
                         d.hint = Some(
                             "merge the two sections; where both set a key, this reader uses the later value".to_owned(),
                         );
-                        current = Some((i, occurrences[i]));
+                        i
                     }
                     None => {
-                        let i = list.len();
-                        list.push(Section { name: name_str, name_span: name, kind, entries: Vec::with_capacity(8) });
+                        let i = heads.len();
+                        heads.push(Head { name: name_str, name_span: name, kind, entries: 0..0 });
                         occurrences.push(0);
                         match kind {
-                            Kind::Unknown => {
-                                unknown_by_name.insert(name_str.to_ascii_lowercase(), i);
-                            }
+                            Kind::Unknown => unknown.push(i),
                             k => {
                                 by_kind.insert(k, i);
                             }
                         }
-                        current = Some((i, 0));
+                        i
                     }
-                }
-            }
-            LineKind::Entry { key, value } => {
-                let kv = Kv {
-                    key: src.slice(key),
-                    value: src.slice(value),
-                    key_span: key,
-                    value_span: value,
-                    occurrence: 0,
                 };
-                match current {
-                    Some((i, occ)) => list[i].entries.push(Kv { occurrence: occ, ..kv }),
-                    None => {
-                        let d = cx.emit(
-                            codes::E0003,
-                            Some(line.content),
-                            format!("entry `{}` comes before any section header and is ignored", kv.key),
-                        );
-                        d.hint = Some("move it into the section it belongs to".to_owned());
-                    }
-                }
+                current = Some((i, occurrences[i]));
+                runs.push((i, entries.len()));
             }
             LineKind::Comment { text } => {
                 if text.start > 0 && src.text.as_bytes().get(text.start as usize - 1) == Some(&b'#') {
@@ -268,7 +319,30 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Sections<'a> {
             LineKind::Blank => {}
         }
     }
-    Sections { list, by_kind }
+    let run_end = |r: usize| runs.get(r + 1).map_or(entries.len(), |&(_, start)| start);
+    if !repeated {
+        // Every section has exactly one run, in order.
+        for r in 0..runs.len() {
+            heads[runs[r].0].entries = runs[r].1..run_end(r);
+        }
+    } else {
+        // Move the entries of each section's runs together, sections in order of first
+        // occurrence, runs (and entries) in file order.
+        let mut runs_of: Vec<Vec<usize>> = vec![Vec::new(); heads.len()];
+        for (r, &(i, _)) in runs.iter().enumerate() {
+            runs_of[i].push(r);
+        }
+        let mut grouped = Vec::with_capacity(entries.len());
+        for (i, rs) in runs_of.iter().enumerate() {
+            let start = grouped.len();
+            for &r in rs {
+                grouped.extend_from_slice(&entries[runs[r].1..run_end(r)]);
+            }
+            heads[i].entries = start..grouped.len();
+        }
+        entries = grouped;
+    }
+    Collected { entries, heads, by_kind }
 }
 
 fn report_spelling(cx: &mut Ctx<'_>, span: Span, name: &str, spelling: &Spelling) {
@@ -294,53 +368,94 @@ fn report_spelling(cx: &mut Ctx<'_>, span: Span, name: &str, spelling: &Spelling
     }
 }
 
-/// The known keys of a section, matched against its entries.
-pub(crate) struct Keys<'s, 'a> {
-    /// For each known key, the entry that sets it (the last one if repeated).
-    pub found: Vec<Option<&'s Kv<'a>>>,
-    /// Entries whose key is not known, in file order.
-    pub unknown: Vec<&'s Kv<'a>>,
+/// The known keys of a kind of section, with a lookup that ignores ASCII case and looks at
+/// only the keys of the right length (at most 32 keys of at most 31 bytes).
+pub(crate) struct KeySet<const N: usize> {
+    /// The CiA 306 spellings.
+    pub names: [&'static str; N],
+    /// For each length, a bit per key of that length.
+    by_len: [u32; 32],
 }
 
-impl<'s, 'a> Keys<'s, 'a> {
+impl<const N: usize> KeySet<N> {
+    /// A key set (checked at compile time: at most 32 keys, each shorter than 32 bytes).
+    pub const fn new(names: [&'static str; N]) -> Self {
+        assert!(N <= 32, "at most 32 keys");
+        let mut by_len = [0u32; 32];
+        let mut i = 0;
+        while i < N {
+            let len = names[i].len();
+            assert!(len < 32, "keys are shorter than 32 bytes");
+            by_len[len] |= 1 << i;
+            i += 1;
+        }
+        KeySet { names, by_len }
+    }
+
+    /// The number of the key that equals `key` ignoring ASCII case.
+    #[inline]
+    pub fn find(&self, key: &str) -> Option<usize> {
+        let mut candidates = *self.by_len.get(key.len())?;
+        while candidates != 0 {
+            let i = candidates.trailing_zeros() as usize;
+            if self.names[i].eq_ignore_ascii_case(key) {
+                return Some(i);
+            }
+            candidates &= candidates - 1;
+        }
+        None
+    }
+}
+
+/// The known keys of a section, matched against its entries.
+pub(crate) struct Keys<'a, const N: usize> {
+    /// For each known key, the entry that sets it (the last one if repeated).
+    pub found: [Option<&'a Kv<'a>>; N],
+    /// Entries whose key is not known, in file order.
+    pub unknown: Vec<&'a Kv<'a>>,
+}
+
+impl<'a, const N: usize> Keys<'a, N> {
     /// The entry for known key number `i`.
-    pub fn get(&self, i: usize) -> Option<&'s Kv<'a>> {
+    #[inline]
+    pub fn get(&self, i: usize) -> Option<&'a Kv<'a>> {
         self.found.get(i).copied().flatten()
     }
 }
 
 /// Matches a section's entries against `known` key names (case-insensitively), reporting case
 /// and spelling differences, repeated keys and (when `report_unknown`) unknown keys.
-pub(crate) fn match_keys<'s, 'a>(
+pub(crate) fn match_keys<'a, const N: usize>(
     cx: &mut Ctx<'_>,
-    sec: &'s Section<'a>,
-    known: &[&str],
+    sec: &Section<'a>,
+    known: &KeySet<N>,
     context: Crumbs<'_>,
     report_unknown: bool,
-) -> Keys<'s, 'a> {
-    let mut found: Vec<Option<&'s Kv<'a>>> = vec![None; known.len()];
-    let mut unknown: Vec<&'s Kv<'a>> = Vec::new();
-    for kv in &sec.entries {
-        let mut hit = known.iter().position(|k| k.eq_ignore_ascii_case(kv.key));
+) -> Keys<'a, N> {
+    let mut found: [Option<&'a Kv<'a>>; N] = [None; N];
+    let mut unknown: Vec<&'a Kv<'a>> = Vec::new();
+    let names = &known.names;
+    for kv in sec.entries {
+        let mut hit = known.find(kv.key);
         if let Some(i) = hit {
-            if known[i] != kv.key {
+            if names[i] != kv.key {
                 let d = cx.emit(
                     codes::E0104,
                     Some(kv.key_span),
-                    format!("key `{}` is written `{}` in CiA 306", kv.key, known[i]),
+                    format!("key `{}` is written `{}` in CiA 306", kv.key, names[i]),
                 );
-                d.hint = Some(format!("write `{}`", known[i]));
+                d.hint = Some(format!("write `{}`", names[i]));
                 d.context = context.to_vec();
             }
         } else {
-            hit = known.iter().position(|k| loose_eq(k, kv.key));
+            hit = names.iter().position(|k| loose_eq(k, kv.key));
             if let Some(i) = hit {
                 let d = cx.emit(
                     codes::E0103,
                     Some(kv.key_span),
-                    format!("key `{}` is spelled `{}` in CiA 306", kv.key, known[i]),
+                    format!("key `{}` is spelled `{}` in CiA 306", kv.key, names[i]),
                 );
-                d.hint = Some(format!("write `{}`", known[i]));
+                d.hint = Some(format!("write `{}`", names[i]));
                 d.context = context.to_vec();
             }
         }
@@ -417,5 +532,25 @@ mod tests {
         assert_eq!(classify("M1SubExt6000"), (Kind::Unknown, Spelling::Exact));
         assert_eq!(classify("Tools"), (Kind::Unknown, Spelling::Exact));
         assert_eq!(classify("äöü1"), (Kind::Unknown, Spelling::Exact));
+        assert_eq!(classify("1a2b"), (Kind::Object(0x1A2B), Spelling::Case("1A2B".into())));
+        assert_eq!(classify("1A2Bsub0a"), (Kind::Sub(0x1A2B, 10), Spelling::Case("1A2Bsub0A".into())));
+        assert_eq!(classify("1A2BSUB0"), (Kind::Sub(0x1A2B, 0), Spelling::Case("1A2Bsub0".into())));
+        assert_eq!(classify("1A2Bsub000F"), (Kind::Sub(0x1A2B, 15), Spelling::Exact));
+        assert_eq!(classify("1a2bName"), (Kind::Names(0x1A2B), Spelling::Case("1A2BName".into())));
+        assert_eq!(classify("1A2BOBJECTLINKS"), (Kind::Links(0x1A2B), Spelling::Case("1A2BObjectLinks".into())));
+        assert_eq!(classify("1A2"), (Kind::Unknown, Spelling::Exact));
+        assert_eq!(classify("+1A2"), (Kind::Unknown, Spelling::Exact));
+    }
+
+    #[test]
+    fn key_sets_ignore_case_and_keep_order() {
+        const K: KeySet<4> = KeySet::new(["DataType", "LowLimit", "ObjFlags", "SubNumber"]);
+        assert_eq!(K.find("datatype"), Some(0));
+        assert_eq!(K.find("LOWLIMIT"), Some(1));
+        assert_eq!(K.find("ObjFlags"), Some(2));
+        assert_eq!(K.find("SubNumber"), Some(3));
+        assert_eq!(K.find("SubNumbe"), None);
+        assert_eq!(K.find(""), None);
+        assert_eq!(K.find(&"x".repeat(40)), None);
     }
 }
