@@ -104,8 +104,11 @@ fn a_master_that_stops_guarding_is_reported_by_emcy() {
     let after = last.elapsed();
     assert_eq!(emcy.data(), [0x30, 0x81, 0x11, 0, 0, 0, 0, 0]);
     assert!(after >= Duration::from_millis(150) && after < Duration::from_millis(1500), "{after:?}");
-    // Guarding resumes: the error reset EMCY and the reply.
-    bus.send(CanFrame::remote(0x702, false, 1).unwrap()).unwrap();
+    // Guarding resumes and is answered; the DRVI latches the loss as its "fieldbus
+    // disconnection" error (Fault) until a fault reset, which sends the error reset EMCY.
+    assert!(guard(&mut bus).is_some());
+    assert!(next_with_id(&mut bus, 0x082, Duration::from_millis(150)).is_none(), "latched, no reset yet");
+    sdo_write(&mut bus, [0x2B, 0x40, 0x60, 0x00, 0x80, 0, 0, 0]); // controlword: fault reset
     assert_eq!(next_with_id(&mut bus, 0x082, WAIT).unwrap().data(), [0; 8]);
 }
 

@@ -3,6 +3,8 @@
 //! ```text
 //! drive-sim run --device drvi --node-id 2 [--dcf FILE] [--device akd --node-id 3 ...]
 //!               [--state-dir DIR] (--listen 127.0.0.1:0 | --bus tcp://127.0.0.1:29536/can0)
+//!               [--trace FILE.csv] [--plot FILE.svg] [--trace-interval-ms 5]
+//! drive-sim demo [--device drvi] [--plot demo.svg] [--trace demo.csv]   the main job, in process
 //! drive-sim hub --listen 127.0.0.1:29536        socketcand-compatible hub (python-can connects to it)
 //! drive-sim dump --bus tcp://127.0.0.1:29536/can0 [--count N] [--timeout SECONDS]
 //! drive-sim send --bus tcp://127.0.0.1:29536/can0 601#4041600000000000 000#0100 ...
@@ -13,6 +15,14 @@
 //! (`--channel`, default `can0`) and prints `listening on ADDRESS`; with `--bus` every device
 //! joins that bus (one connection each) and it prints `running on BUS`. Each device runs on its
 //! own thread (`drive::node::run`, 1 ms timer resolution).
+//!
+//! With `--trace`/`--plot`, `run` records each device's demand and actual values and writes them
+//! when it stops (one device: the files as named; several: `-<device>-node<id>` before the
+//! extension).
+//!
+//! `demo` runs the main job in process on the virtual clock: a DRVI on an in-memory bus, a small
+//! master taking it through NMT, the CiA 402 state machine, homing and an absolute move in
+//! physical units with real frames (`drive::drives::demo`), printing what happened.
 //!
 //! `hub` prints `listening on ADDRESS` on stdout once it accepts connections (so a script can
 //! ask for port 0 and read the port chosen). Every subcommand logs to stderr, and `run` and
@@ -26,7 +36,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Parser, Subcommand};
-use drive::node::{AnyNode, DefaultApps, DeviceKind, MonotonicClock, NodeConfig};
+use drive::drives::DeviceApps;
+use drive::drives::demo::{self, DemoOptions};
+use drive::node::{AnyNode, DeviceKind, MonotonicClock, NodeConfig};
 use drive::transport::{BusSpec, CanFrame, DEFAULT_CHANNEL, Endpoint, Hub, HubConfig, TransportError};
 
 #[derive(Debug, Parser)]
@@ -46,6 +58,28 @@ enum Command {
     Dump(DumpArgs),
     /// Put frames on a bus, given in cansend notation (601#2B40600006000000, 701#R).
     Send(SendArgs),
+    /// The main job in process on the virtual clock: NMT, state machine, homing and an absolute
+    /// move in physical units through real frames; prints what happened, writes plot and trace.
+    Demo(DemoArgs),
+}
+
+#[derive(Debug, Args)]
+struct DemoArgs {
+    /// The device to demonstrate.
+    #[arg(long, default_value = "drvi", value_parser = parse_kind)]
+    device: DeviceKind,
+    /// Its node id.
+    #[arg(long, default_value_t = 2)]
+    node_id: u8,
+    /// Write the motion plot (SVG) here.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Write the motion trace (CSV) here.
+    #[arg(long)]
+    trace: Option<PathBuf>,
+    /// Absolute target of the move, degrees.
+    #[arg(long, default_value_t = 720, allow_hyphen_values = true)]
+    target_deg: i64,
 }
 
 #[derive(Debug, Args)]
@@ -96,6 +130,15 @@ struct RunArgs {
     /// With --listen: log only hub problems (no connect/disconnect lines).
     #[arg(long, short)]
     quiet: bool,
+    /// Record every device's motion and write it as CSV here when stopped.
+    #[arg(long)]
+    trace: Option<PathBuf>,
+    /// Draw every device's motion as an SVG plot here when stopped.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// With --trace/--plot: keep one sample per this many milliseconds (0: every tick).
+    #[arg(long, default_value_t = 5)]
+    trace_interval_ms: u64,
 }
 
 fn parse_kind(s: &str) -> Result<DeviceKind, String> {
@@ -139,6 +182,7 @@ fn main() -> ExitCode {
         Command::Hub(args) => run_hub(&args),
         Command::Dump(args) => run_dump(&args),
         Command::Send(args) => run_send(&args),
+        Command::Demo(args) => run_demo(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -211,11 +255,64 @@ fn device_groups(args: &RunArgs, m: &ArgMatches) -> Result<Vec<DeviceGroup>, Str
     Ok(groups)
 }
 
+fn run_demo(args: &DemoArgs) -> Result<(), String> {
+    let options = DemoOptions {
+        device: args.device,
+        node_id: args.node_id,
+        plot: args.plot.clone(),
+        trace: args.trace.clone(),
+        target_deg: args.target_deg,
+    };
+    let mut stdout = std::io::stdout().lock();
+    demo::run(&options, &mut stdout).map(|_| ()).map_err(|e| format!("demo: {e}"))
+}
+
+/// `base` for a single device; `base` with `-<kind>-node<id>` before the extension otherwise.
+fn per_device(base: &std::path::Path, kind: DeviceKind, id: u8, several: bool) -> PathBuf {
+    if !several {
+        return base.to_path_buf();
+    }
+    let stem = base.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = match base.extension() {
+        Some(ext) => format!("{stem}-{kind}-node{id}.{}", ext.to_string_lossy()),
+        None => format!("{stem}-{kind}-node{id}"),
+    };
+    base.with_file_name(name)
+}
+
+fn write_traces(args: &RunArgs, apps: &DeviceApps, nodes: &[(DeviceKind, Box<dyn AnyNode>)]) -> Result<(), String> {
+    let traces = apps.traces();
+    let several = traces.len() > 1;
+    for ((kind, trace), (_, node)) in traces.iter().zip(nodes) {
+        let id = node.node_id().get();
+        let trace = trace.lock().map(|t| t.clone()).unwrap_or_default();
+        if let Some(path) = &args.trace {
+            let path = per_device(path, *kind, id, several);
+            std::fs::write(&path, trace.to_csv()).map_err(|e| format!("{}: {e}", path.display()))?;
+            eprintln!("drive-sim: {kind} node {id}: trace written to {}", path.display());
+        }
+        if let Some(path) = &args.plot {
+            let path = per_device(path, *kind, id, several);
+            let title = format!("{kind} node {id}");
+            let svg = trace.to_svg(&demo::plot_options_for(*kind, &**node, &title));
+            std::fs::write(&path, svg).map_err(|e| format!("{}: {e}", path.display()))?;
+            eprintln!("drive-sim: {kind} node {id}: plot written to {}", path.display());
+        }
+    }
+    Ok(())
+}
+
 fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
     let groups = device_groups(args, m)?;
+    let apps = if args.trace.is_some() || args.plot.is_some() {
+        DeviceApps::with_trace(args.trace_interval_ms.saturating_mul(1000))
+    } else {
+        DeviceApps::new()
+    };
     let mut nodes: Vec<(String, Box<dyn AnyNode>)> = Vec::new();
+    let kinds: Vec<DeviceKind> = groups.iter().map(|g| g.kind).collect();
     for g in &groups {
-        let node = g.kind.build(&g.config, &DefaultApps).map_err(|e| format!("{}: {e}", g.kind))?;
+        let node = g.kind.build(&g.config, &apps).map_err(|e| format!("{}: {e}", g.kind))?;
         let name = format!("{} node {}", g.kind, node.node_id().get());
         if nodes.iter().any(|(_, n)| n.node_id() == node.node_id()) {
             return Err(format!("{name}: two devices with node id {}", node.node_id().get()));
@@ -256,14 +353,17 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
         eprintln!("drive-sim: {name} started");
         let thread = std::thread::Builder::new()
             .name(name.clone())
-            .spawn(move || match drive::node::run(&mut *node, &mut *endpoint, &clock, &stop) {
-                Ok(_) => {}
-                Err(TransportError::Closed) if stop.load(Ordering::SeqCst) => {}
-                Err(e) => {
-                    eprintln!("drive-sim: {name}: {e}");
-                    failed.store(true, Ordering::SeqCst);
-                    Termination::trigger();
+            .spawn(move || {
+                match drive::node::run(&mut *node, &mut *endpoint, &clock, &stop) {
+                    Ok(_) => {}
+                    Err(TransportError::Closed) if stop.load(Ordering::SeqCst) => {}
+                    Err(e) => {
+                        eprintln!("drive-sim: {name}: {e}");
+                        failed.store(true, Ordering::SeqCst);
+                        Termination::trigger();
+                    }
                 }
+                node
             })
             .map_err(|e| format!("cannot start a device thread: {e}"))?;
         threads.push(thread);
@@ -278,11 +378,17 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
         eprintln!("drive-sim: {signal}, stopping");
     }
     stop.store(true, Ordering::SeqCst);
-    for thread in threads {
-        let _ = thread.join();
+    let mut stopped = Vec::new();
+    for (thread, kind) in threads.into_iter().zip(kinds) {
+        if let Ok(node) = thread.join() {
+            stopped.push((kind, node));
+        }
     }
     if let Some(hub) = hub {
         hub.stop();
+    }
+    if args.trace.is_some() || args.plot.is_some() {
+        write_traces(args, &apps, &stopped)?;
     }
     if failed.load(Ordering::SeqCst) { Err("a device stopped on a bus error".into()) } else { Ok(()) }
 }

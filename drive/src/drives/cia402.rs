@@ -11,7 +11,8 @@
 //!     [`Command`]s; `Written 6060h` changes the axis' mode; `Written 607Ah/60FFh/6071h`
 //!     the targets; any other write at 2000h and above marks the configuration stale, and it is
 //!     read again (with [`Vendor::configure`]) before the next command or step;
-//!   * heartbeat or guarding loss raises the device's fieldbus-disconnection error;
+//!   * heartbeat or guarding loss raises the device's fieldbus-disconnection error, once per
+//!     loss; it stays latched (Fault) when the link comes back, until a fault reset;
 //!   * a SYNC in interpolated position mode queues 60C1h sub 1 and starts the next segment;
 //!   * then [`Vendor::on_event`] sees the event (it may also consume it before the drive does,
 //!     see [`Vendor::pre_event`]).
@@ -40,7 +41,7 @@ use crate::motion::{
     Axis, AxisConfig, CommandError, HomingMethod, JogCommand, Mode, QuickStopOption, Ratio, SetPoint, SoftwareLimits,
     Status, StopRamp,
 };
-use crate::node::{Ctx, DefaultApp, DriveApp, WriteRequest};
+use crate::node::{Ctx, DefaultApp, DriveApp, LossRecord, WriteRequest};
 use crate::trace::Sample;
 
 /// Statusword bits the drive (not the state machine) owns: 7 warning, 8 manufacturer, 10 target
@@ -314,7 +315,8 @@ pub trait Vendor<OD>: Send + 'static {
     /// common ones (10, 11, 12, 13 per mode) on entry.
     fn statusword(&self, drive: &Drive, od: &OD, status: &Status, bits: &mut u16) {}
 
-    /// The drive left Fault (transition 15, by controlword bit 7 or [`Ctx::fault_reset`]).
+    /// The drive left Fault (transition 15, by controlword bit 7 or [`Ctx::fault_reset`]);
+    /// [`Drive::fault`] still holds the fault being reset.
     fn on_fault_reset(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>) {}
 }
 
@@ -366,6 +368,7 @@ pub struct Drive {
     target_velocity: i32,
     target_torque: i32,
     ticks: u64,
+    link_lost: LossRecord,
 }
 
 impl Drive {
@@ -391,6 +394,7 @@ impl Drive {
             target_velocity: 0,
             target_torque: 0,
             ticks: 0,
+            link_lost: LossRecord::default(),
         }
     }
 
@@ -514,8 +518,8 @@ impl Drive {
 /// The common CiA 402 drive application for dictionary `OD` and device behaviour `V`.
 ///
 /// It implements [`DriveApp`], so it plugs into [`Node`](crate::node::Node) and
-/// [`Apps`](crate::node::Apps). Events it does not use (RPDO timeouts, NMT, heartbeat
-/// recovery) go to a held [`DefaultApp`].
+/// [`Apps`](crate::node::Apps). Events it does not use (RPDO timeouts, NMT) go to a held
+/// [`DefaultApp`].
 pub struct Cia402App<OD, V> {
     drive: Drive,
     vendor: V,
@@ -746,8 +750,9 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
                     d.axis.quick_stop(ramp);
                 }
                 if from == State::Fault {
-                    d.fault = None;
+                    // The hook still sees the fault being reset (Drive::fault).
                     self.vendor.on_fault_reset(&mut self.drive, ctx);
+                    self.drive.fault = None;
                 }
             }
         }
@@ -841,6 +846,7 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
                 let d = &mut self.drive;
                 d.dirty = true;
                 d.fault = None;
+                d.link_lost = LossRecord::default();
                 d.stopping = Stopping::No;
                 d.controlword = 0;
                 d.axis.set_power(false);
@@ -849,7 +855,6 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
                 self.vendor.init(&mut self.drive, ctx);
                 self.apply_mode(ctx);
             }
-            Event::Reset(ResetKind::Communication) => self.drive.dirty = true,
             Event::Written { index: 0x6040, sub: 0, .. } => self.apply_controlword(ctx, false),
             Event::Written { index: 0x6060, sub: 0, .. } => self.apply_mode(ctx),
             Event::Written { index: 0x60FF, sub: 0, .. } => {
@@ -863,10 +868,24 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
                 self.command(ctx, Command::TargetTorque(t));
             }
             Event::Written { index, .. } if is_config(index) => self.drive.dirty = true,
-            Event::HeartbeatTimeout { .. } | Event::LifeGuardingLost => {
-                let (code, m) = self.vendor.fieldbus_error();
-                self.drive.raise(ctx, code, m);
-                self.follow_state(ctx);
+            // One error per loss: od-runtime reports a lost link again while it stays lost.
+            Event::HeartbeatTimeout { node } => {
+                let bit = 1u128 << (node & 0x7F);
+                if self.drive.link_lost.heartbeats & bit == 0 {
+                    self.drive.link_lost.heartbeats |= bit;
+                    self.link_lost(ctx);
+                }
+            }
+            Event::LifeGuardingLost if !self.drive.link_lost.guarding => {
+                self.drive.link_lost.guarding = true;
+                self.link_lost(ctx);
+            }
+            // The error stays latched until a fault reset; the link is watched again.
+            Event::HeartbeatStarted { node, .. } => self.drive.link_lost.heartbeats &= !(1u128 << (node & 0x7F)),
+            Event::LifeGuardingResumed => self.drive.link_lost.guarding = false,
+            Event::Reset(ResetKind::Communication) => {
+                self.drive.dirty = true;
+                self.drive.link_lost = LossRecord::default();
             }
             Event::Sync { .. } if self.drive.mode == Mode::InterpolatedPosition => {
                 if let Some(p) = Self::int(ctx.od(), 0x60C1, 1) {
@@ -879,6 +898,12 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
             Event::Cia402(_) => {}
             other => self.default.on_event(ctx, other),
         }
+    }
+
+    fn link_lost(&mut self, ctx: &mut Ctx<'_, OD>) {
+        let (code, m) = self.vendor.fieldbus_error();
+        self.drive.raise(ctx, code, m);
+        self.follow_state(ctx);
     }
 
     fn write_actuals(&mut self, ctx: &mut Ctx<'_, OD>, status: &Status) {

@@ -1,21 +1,422 @@
-//! The Camozzi DRVI integrated drive (manual "Series DRVI CANopen" V1.7).
+//! The Camozzi DRVI integrated drive, as its CANopen manual (V1.7) describes it, on top of the
+//! common CiA 402 layer ([`super::cia402`]).
 //!
-//! Built on the common layer ([`super::cia402`]); this file holds what the DRVI manual adds.
+//! | manual | behaviour | here |
+//! |---|---|---|
+//! | Table 6.17 | modes 1, 3, 4, 6, -1 (jog) | [`Vendor::supports_mode`] |
+//! | Table 6.2, 6.3.6.10 | units: 2014h = 0 "only motor" 0.01°, 0.01 rpm, rpm/s; otherwise 0.01 mm, 0.01 mm/s, mm/s²; mA, mA/s | [`Vendor::configure`] sets the axis' unit relations; switching 2014h switches them |
+//! | 6.3.6.1 | feed converter 2001h: new unit = default × num / den for positions, speeds, accelerations, on SDO and PDOs alike | [`Vendor::scale`] |
+//! | 4.1.2, 6.4 | profile position: bit 4 starts, bit 6 relative to the *actual* position; the target cannot change during a movement (refused, warning "command refused"); homing is mandatory first (refused, warning "homing missing") | [`Vendor::before_command`] |
+//! | 4.1.1, 6.5 | profile velocity: bit 12 speed = standing (606Fh/6070h), bit 10 with halt | common layer |
+//! | 4.1.3, 6.6, 5.0.2 | profile torque with 6087h; 2015h = 1 limits \|current\| to \|6071h\| in every mode; statusword bit 14 = torque limit active | [`Vendor::configure`], [`Vendor::statusword`] |
+//! | 4.1.5, 6.7, Table 6.29 | homing 1, 2, 17, 18, 37, -1..-4 with 6099h, 609Ah, 607Ch (actual position := offset), torque homings limited by 6071h with the 2013h threshold (% of the I²T current); 2004h; homing error = error 8613h/13 (soft) | [`crate::motion::HomingMethod::camozzi`], [`Vendor::after_step`] |
+//! | 4.1.4, 6.8 | jog: cw bits 6/5 = cw / ccw, speed \|60FFh\|; sw bits 13/12 | common layer |
+//! | 5.0.1, 6.3.4.15 | software limits 607Dh − 607Ch, in force with 2010h = 1 after homing in the actuator configuration: out-of-range targets and speeds above 607Fh refused ("command refused"); the actual position outside = error 6120h (soft), warning bits 6/7; after its reset the check is suspended until the first movement completes; the EXT PROXY input acts the same way | [`Drvi`] |
+//! | 6.9, Table 6.34 | errors with the manufacturer byte in EMCY byte 3; soft errors quick-stop, hard ones switch the power stage off | the sidecar's table through [`super::Drive::raise`]; causes from [`Conditions`] (supplies, temperatures, I²T, STO, encoder) |
+//! | 6.9, Table 6.36 | 2006h warnings, latched; "homing missing" and "command refused" reset by themselves; statusword bit 7 while any is set | [`Drvi`] |
+//! | 6.9.3 | fault reset by cw bit 7 or 0 written to 1003h sub 0 | [`Vendor::on_event`] |
+//! | 6.3.6.2, 6.3.6.3 | inputs 2002h (IN1, IN2, EXT PROXY, PROXY), output 2003h | [`Vendor::after_step`] |
+//! | 6.3.6.7 | PID selection 2011h: the position loop's bandwidth | [`Vendor::configure`] |
+//! | 6.3.6.8 | profile check 2012h: warnings "target position / speed not reached" after the timeout | [`Vendor::after_step`] |
+//! | 5.0.3 | the position survives a reset when homed and stopped | [`Vendor::init`] |
+//!
+//! Decisions where the manual is silent or unclear:
+//! * profile velocity applies 60FFh when it is written (CiA 402); the manual's "bit 4 starts the
+//!   movement" is also honoured: a rising bit 4 re-applies 60FFh.
+//! * statusword bit 11 "ila = internal limits active (software limits enabled)" is set while
+//!   the software limit check is in force, as the manual's wording says.
+//! * the thermal model: motor and drive temperatures rise with the current squared (+40 °C
+//!   and +30 °C at the I²T current of [`I2T_CURRENT_MA`], time constants 120 s and 60 s);
+//!   the I²T fault trips after the current stayed above [`I2T_CURRENT_MA`] for an energy of
+//!   2 s at twice that current.
 
+use od_runtime::Event;
 use od_runtime::od::ObjectDictionary;
 
-use super::cia402::{BusScale, Cia402App, Vendor, read_int};
-use super::error_table;
-use crate::motion::{AxisConfig, HomingMethod, Ratio, RelativeBase, Units};
-use crate::node::DeviceKind;
+use super::cia402::{BusScale, Cia402App, Command, Vendor, read_int, write_int};
+use super::{Drive, error_table};
+use crate::motion::{
+    AxisConfig, Cam, CommandError, Environment, HomingMethod, HomingState, Mode, PlantConfig, Ratio, RelativeBase,
+    SoftwareLimits, Status, Units,
+};
+use crate::node::{Ctx, DeviceKind};
+
+/// The current of the motor's I²T rating, mA: 2013h is a percentage of it.
+pub const I2T_CURRENT_MA: u32 = 5_000;
+/// The drive's peak current, mA (the 6071h range).
+pub const PEAK_CURRENT_MA: u32 = 15_000;
+
+/// 2006h bits (Table 6.36).
+pub mod warning {
+    /// VDC under-voltage lockout (< 20 V).
+    pub const VDC_UVLO: u16 = 1 << 0;
+    /// VDC over-voltage lockout (> 60 V).
+    pub const VDC_OVLO: u16 = 1 << 1;
+    /// VL under-voltage lockout (< 21 V).
+    pub const VL_UVLO: u16 = 1 << 2;
+    /// VL over-voltage lockout (> 27 V).
+    pub const VL_OVLO: u16 = 1 << 3;
+    /// Motor temperature limit (> 75 °C).
+    pub const MOTOR_TEMPERATURE: u16 = 1 << 4;
+    /// Drive temperature limit (> 75 °C).
+    pub const DRIVE_TEMPERATURE: u16 = 1 << 5;
+    /// Positive position limit reached.
+    pub const POSITIVE_LIMIT: u16 = 1 << 6;
+    /// Negative position limit reached.
+    pub const NEGATIVE_LIMIT: u16 = 1 << 7;
+    /// Homing missing (resets by itself once homed).
+    pub const HOMING_MISSING: u16 = 1 << 8;
+    /// Target speed not reached.
+    pub const SPEED_NOT_REACHED: u16 = 1 << 9;
+    /// Target position not reached.
+    pub const POSITION_NOT_REACHED: u16 = 1 << 10;
+    /// Command refused (resets by itself when a command is accepted).
+    pub const COMMAND_REFUSED: u16 = 1 << 11;
+    /// The bits that reset by themselves (6.9).
+    pub const AUTO_RESET: u16 = HOMING_MISSING | COMMAND_REFUSED;
+}
+
+/// What the drive measures around it: supplies, temperatures, safety input, encoder. Tests and
+/// demos change these to provoke the errors and warnings of Tables 6.34 and 6.36.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Conditions {
+    /// Power supply VBUS/VDC, mV (nominal 48 V).
+    pub vbus_mv: u32,
+    /// Logic supply VL/VLOG, mV (nominal 24 V).
+    pub vlog_mv: u32,
+    /// VEXT present.
+    pub vext: bool,
+    /// The STO hardware enable is present.
+    pub hw_enable: bool,
+    /// The encoder works.
+    pub encoder_ok: bool,
+    /// Ambient temperature, °C.
+    pub ambient_c: f64,
+    /// Digital input IN1 (2002h bit 0).
+    pub in1: bool,
+    /// Digital input IN2 (2002h bit 1).
+    pub in2: bool,
+}
+
+impl Default for Conditions {
+    fn default() -> Self {
+        Self {
+            vbus_mv: 48_000,
+            vlog_mv: 24_000,
+            vext: true,
+            hw_enable: true,
+            encoder_ok: true,
+            ambient_c: 25.0,
+            in1: false,
+            in2: false,
+        }
+    }
+}
+
+/// A condition-driven error: raised when it appears, again after a reset if it persists.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Cause {
+    VbusOver,
+    VlogOver,
+    VbusUnder,
+    VlogUnder,
+    MotorHot,
+    DriveHot,
+    I2t,
+    Vext,
+    Sto,
+    Encoder,
+}
+
+impl Cause {
+    const ALL: [Cause; 10] = [
+        Cause::VbusOver,
+        Cause::VlogOver,
+        Cause::VbusUnder,
+        Cause::VlogUnder,
+        Cause::MotorHot,
+        Cause::DriveHot,
+        Cause::I2t,
+        Cause::Vext,
+        Cause::Sto,
+        Cause::Encoder,
+    ];
+
+    /// Table 6.34: code and manufacturer parameter.
+    fn error(self) -> (u16, u64) {
+        match self {
+            Cause::VbusOver => (0x3110, 0),
+            Cause::VlogOver => (0x3110, 1),
+            Cause::VbusUnder => (0x3120, 0),
+            Cause::VlogUnder => (0x3120, 1),
+            Cause::MotorHot => (0x4210, 0),
+            Cause::DriveHot => (0x4210, 1),
+            Cause::I2t => (0x2310, 11),
+            Cause::Vext => (0x5120, 0),
+            Cause::Sto => (0x5540, 0),
+            Cause::Encoder => (0x7305, 0),
+        }
+    }
+
+    fn bit(self) -> u16 {
+        1 << (self as u16)
+    }
+}
+
+/// The software limit check of 5.0.1.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum LimitCheck {
+    /// In force when its conditions hold.
+    #[default]
+    Normal,
+    /// Suspended after the reset of a limit error, until a movement completes.
+    Suspended {
+        /// The axis has moved since.
+        moved: bool,
+    },
+}
 
 /// The DRVI's behaviour on top of the common CiA 402 drive.
-#[derive(Clone, Debug, Default)]
-pub struct Drvi {}
+#[derive(Clone, Debug)]
+pub struct Drvi {
+    /// Supplies, temperatures and inputs the drive sees.
+    pub conditions: Conditions,
+    /// Motor winding temperature, °C.
+    pub motor_c: f64,
+    /// Drive (power stage) temperature, °C.
+    pub drive_c: f64,
+    /// I²T accumulator: (A² − I²T current²)·s above the rating.
+    i2t: f64,
+    warnings: u16,
+    /// Causes currently raised (bit per [`Cause`]).
+    raised: u16,
+    limit: LimitCheck,
+    /// The limit check is in force (2010h = 1, homed, actuator, not suspended).
+    limits_active: bool,
+    limit_error: bool,
+    last_cw: u16,
+    last_now: Option<u64>,
+    last_dt_us: u64,
+    homing_failed: bool,
+    position_timer_us: u64,
+    speed_timer_us: u64,
+    pid_bandwidth: f64,
+}
 
-/// A DRVI application with the default mechanics.
+impl Default for Drvi {
+    fn default() -> Self {
+        Self {
+            conditions: Conditions::default(),
+            motor_c: 25.0,
+            drive_c: 25.0,
+            i2t: 0.0,
+            warnings: 0,
+            raised: 0,
+            limit: LimitCheck::Normal,
+            limits_active: false,
+            limit_error: false,
+            last_cw: 0,
+            last_now: None,
+            last_dt_us: 0,
+            homing_failed: false,
+            position_timer_us: 0,
+            speed_timer_us: 0,
+            pid_bandwidth: 300.0,
+        }
+    }
+}
+
+/// The mechanics a DRVI app starts with, in the default units (0.01° or 0.01 mm): a home
+/// proximity (PROXY INPUT) from 20 000 to 25 000, hard end stops at −50 000 and 150 000, an
+/// encoder index every 36 000 (one turn) at 1 000, no EXT PROXY.
+pub fn default_environment() -> Environment {
+    Environment {
+        home_switch: Some(Cam { low: 20_000, high: 25_000 }),
+        negative_limit: None,
+        positive_limit: None,
+        negative_end_stop: Some(-50_000),
+        positive_end_stop: Some(150_000),
+        index_period: 36_000,
+        index_phase: 1_000,
+    }
+}
+
+/// The mechanics' constants (torque in mA, positions in 0.01 units): 1 A accelerates the
+/// load at 6000 rpm/s; viscous friction balances 1 A at 3000 rpm; 20 mA dry friction; top
+/// speed 3000 rpm.
+pub fn plant(bandwidth: f64) -> PlantConfig {
+    PlantConfig { inertia: 1000.0 / 3.6e6, viscous: 1000.0 / 1.8e6, coulomb: 20.0, bandwidth, max_speed: 1.8e6 }
+}
+
+/// A DRVI application with the default mechanics ([`default_environment`]).
 pub fn app() -> Cia402App<generated::drvi::Dictionary, Drvi> {
-    Cia402App::new(Drvi::default(), error_table(DeviceKind::Drvi))
+    let mut app = Cia402App::new(Drvi::default(), error_table(DeviceKind::Drvi));
+    *app.drive_mut().axis_mut().environment_mut() = default_environment();
+    app
+}
+
+impl Drvi {
+    /// The latched and automatic warning bits (2006h).
+    pub fn warnings(&self) -> u16 {
+        self.warnings
+    }
+
+    /// Whether the software limit check is in force.
+    pub fn limits_active(&self) -> bool {
+        self.limits_active
+    }
+
+    /// Sets warning bits (latched until a reset unless auto-reset).
+    pub fn warn(&mut self, bits: u16) {
+        self.warnings |= bits;
+    }
+
+    /// A reset command (cw bit 7 edge, 0 written to 1003h sub 0): the latched warnings clear;
+    /// conditions still present raise again at the next tick.
+    fn reset_warnings(&mut self) {
+        self.warnings &= warning::HOMING_MISSING;
+        self.raised = 0;
+        self.homing_failed = false;
+        self.position_timer_us = 0;
+        self.speed_timer_us = 0;
+    }
+
+    fn limits_configured<OD: ObjectDictionary>(od: &OD) -> bool {
+        read_int(od, 0x2010, 0).unwrap_or(0) == 1 && read_int(od, 0x2014, 0).unwrap_or(0) != 0
+    }
+
+    /// The corrected limits (607Dh − 607Ch), internal units, ordered.
+    fn limits<OD: ObjectDictionary>(od: &OD, scale: &BusScale) -> (i64, i64) {
+        let offset = read_int(od, 0x607C, 0).unwrap_or(0);
+        let lo = read_int(od, 0x607D, 1).unwrap_or(0).saturating_sub(offset);
+        let hi = read_int(od, 0x607D, 2).unwrap_or(0).saturating_sub(offset);
+        let (lo, hi) = (scale.position_in(lo), scale.position_in(hi));
+        (lo.min(hi), lo.max(hi))
+    }
+
+    fn thermal(&mut self, current_ma: f64, dt: f64) {
+        let i = current_ma / f64::from(I2T_CURRENT_MA);
+        let ambient = self.conditions.ambient_c;
+        let step = |t: &mut f64, rise: f64, tau: f64| {
+            let target = ambient + rise * i * i;
+            *t += (target - *t) * (dt / tau).min(1.0);
+        };
+        step(&mut self.motor_c, 40.0, 120.0);
+        step(&mut self.drive_c, 30.0, 60.0);
+        let rated = f64::from(I2T_CURRENT_MA) / 1000.0;
+        let amps = current_ma / 1000.0;
+        self.i2t = (self.i2t + (amps * amps - rated * rated) * dt).max(0.0);
+    }
+
+    fn check_conditions<OD: ObjectDictionary>(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>) {
+        let c = self.conditions;
+        let rated = f64::from(I2T_CURRENT_MA) / 1000.0;
+        let present = |cause: Cause| match cause {
+            Cause::VbusOver => c.vbus_mv > 80_000,
+            Cause::VlogOver => c.vlog_mv > 29_000,
+            Cause::VbusUnder => c.vbus_mv < 10_000,
+            Cause::VlogUnder => c.vlog_mv < 16_000,
+            Cause::MotorHot => self.motor_c > 100.0,
+            Cause::DriveHot => self.drive_c > 100.0,
+            Cause::I2t => self.i2t > 2.0 * (4.0 * rated * rated - rated * rated),
+            Cause::Vext => !c.vext,
+            Cause::Sto => !c.hw_enable,
+            Cause::Encoder => !c.encoder_ok,
+        };
+        for cause in Cause::ALL {
+            if present(cause) {
+                if self.raised & cause.bit() == 0 {
+                    self.raised |= cause.bit();
+                    let (code, m) = cause.error();
+                    drive.raise(ctx, code, Some(m));
+                }
+            } else if drive.fault().is_none() {
+                // Gone, and no fault latches it: a new occurrence raises again.
+                self.raised &= !cause.bit();
+            }
+        }
+        let mut w = 0;
+        w |= if c.vbus_mv < 20_000 { warning::VDC_UVLO } else { 0 };
+        w |= if c.vbus_mv > 60_000 { warning::VDC_OVLO } else { 0 };
+        w |= if c.vlog_mv < 21_000 { warning::VL_UVLO } else { 0 };
+        w |= if c.vlog_mv > 27_000 { warning::VL_OVLO } else { 0 };
+        w |= if self.motor_c > 75.0 { warning::MOTOR_TEMPERATURE } else { 0 };
+        w |= if self.drive_c > 75.0 { warning::DRIVE_TEMPERATURE } else { 0 };
+        self.warnings |= w;
+    }
+
+    fn check_limits<OD: ObjectDictionary>(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>, status: &Status) {
+        let configured = Self::limits_configured(ctx.od());
+        if let LimitCheck::Suspended { moved } = &mut self.limit {
+            *moved |= status.velocity_actual != 0;
+            let done = match drive.mode() {
+                Mode::ProfilePosition => status.target_reached,
+                _ => status.standing,
+            };
+            if *moved && done && status.power {
+                self.limit = LimitCheck::Normal;
+            }
+        }
+        let normal = self.limit == LimitCheck::Normal;
+        self.limits_active = configured && status.homed && normal;
+        // The EXT PROXY input is a hardware limit under the same enable (5.0.1).
+        let ext = configured && normal;
+        let (mut over, mut under) = (false, false);
+        if self.limits_active {
+            let (lo, hi) = Self::limits(ctx.od(), &drive.scale());
+            let x = i64::from(status.position_actual);
+            (over, under) = (x > hi, x < lo);
+        }
+        over |= ext && status.inputs.positive_limit;
+        under |= ext && status.inputs.negative_limit;
+        if over {
+            self.warnings |= warning::POSITIVE_LIMIT;
+        }
+        if under {
+            self.warnings |= warning::NEGATIVE_LIMIT;
+        }
+        if over || under {
+            if !self.limit_error && drive.fault().is_none() {
+                drive.raise(ctx, 0x6120, Some(0));
+            }
+            self.limit_error = true;
+        } else {
+            self.limit_error = false;
+        }
+    }
+
+    fn profile_check<OD: ObjectDictionary>(&mut self, drive: &Drive, od: &OD, status: &Status, dt_us: u64) {
+        let enabled = read_int(od, 0x2012, 1).unwrap_or(0) == 1;
+        let timeout = read_int(od, 0x2012, 2).unwrap_or(50).max(0) as u64 * 1000;
+        if !enabled || !status.power {
+            self.position_timer_us = 0;
+            self.speed_timer_us = 0;
+            return;
+        }
+        let bump = |t: &mut u64, on: bool| *t = if on { t.saturating_add(dt_us) } else { 0 };
+        // Position: the demand is at rest and the axis is not on it (blocked, torque-limited).
+        let position_off = drive.mode() == Mode::ProfilePosition
+            && status.velocity_demand == 0
+            && (i64::from(status.position_demand) - i64::from(status.position_actual)).abs() > 10;
+        bump(&mut self.position_timer_us, position_off);
+        if self.position_timer_us > timeout {
+            self.warnings |= warning::POSITION_NOT_REACHED;
+        }
+        // Speed: the demand has reached the target and the axis does not follow.
+        let target = i64::from(status.velocity_demand);
+        let speed_off = matches!(drive.mode(), Mode::ProfileVelocity | Mode::Jog)
+            && target != 0
+            && (target - i64::from(status.velocity_actual)).abs() > (target.abs() / 100).max(1);
+        bump(&mut self.speed_timer_us, speed_off);
+        if self.speed_timer_us > timeout {
+            self.warnings |= warning::SPEED_NOT_REACHED;
+        }
+    }
+
+    fn refuse(&mut self) -> bool {
+        self.warnings |= warning::COMMAND_REFUSED;
+        false
+    }
 }
 
 impl<OD: ObjectDictionary> Vendor<OD> for Drvi {
@@ -30,7 +431,7 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drvi {
     }
 
     /// 2001h: new unit = default unit × numerator / denominator, for positions, velocities and
-    /// accelerations alike.
+    /// accelerations alike (torque stays in mA).
     fn scale(&self, od: &OD) -> BusScale {
         let num = read_int(od, 0x2001, 1).filter(|v| *v > 0).unwrap_or(1);
         let den = read_int(od, 0x2001, 2).filter(|v| *v > 0).unwrap_or(1);
@@ -41,12 +442,181 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drvi {
     fn configure(&mut self, od: &OD, _scale: &BusScale, cfg: &mut AxisConfig) {
         let only_motor = read_int(od, 0x2014, 0).unwrap_or(0) == 0;
         cfg.units = if only_motor {
-            // 0.01°, 0.01 rpm (= 0.06 °/s = 6 units/s), rpm/s (= 600 units/s²).
+            // 0.01°, 0.01 rpm (= 0.06 °/s = 6 units/s), rpm/s (= 6 °/s² = 600 units/s²).
             Units { velocity: Ratio::new(6, 1), acceleration: Ratio::new(600, 1) }
         } else {
             // 0.01 mm, 0.01 mm/s (= 1 unit/s), mm/s² (= 100 units/s²).
             Units { velocity: Ratio::new(1, 1), acceleration: Ratio::new(100, 1) }
         };
         cfg.relative_base = RelativeBase::ActualPosition;
+        // The DRVI checks its limits itself (refusing targets rather than clipping them).
+        cfg.software_limits = SoftwareLimits::default();
+        let target_torque = read_int(od, 0x6071, 0).unwrap_or(0).unsigned_abs().min(u64::from(PEAK_CURRENT_MA)) as u32;
+        cfg.max_torque = if read_int(od, 0x2015, 0) == Some(1) { target_torque } else { PEAK_CURRENT_MA };
+        // Torque homings: 6071h limits the current, 2013h (% of the I²T current) is the
+        // threshold at the end stop.
+        cfg.homing.torque_limit = target_torque;
+        let pct = read_int(od, 0x2013, 0).unwrap_or(10).clamp(0, 100) as u32;
+        let threshold = I2T_CURRENT_MA * pct / 100;
+        cfg.homing.torque_threshold = if target_torque > 0 { threshold.min(target_torque) } else { threshold };
+        cfg.homing.torque_threshold = cfg.homing.torque_threshold.max(1);
+        // 2011h: PID presets as loop bandwidths; custom scales with Kp position (sub 2, ×10).
+        self.pid_bandwidth = match read_int(od, 0x2011, 1).unwrap_or(1) {
+            0 | 2 => 300.0,
+            1 => 150.0,
+            3 => 600.0,
+            _ => (read_int(od, 0x2011, 2).unwrap_or(1) as f64 * 30.0).clamp(10.0, 2000.0),
+        };
+        cfg.plant = plant(self.pid_bandwidth);
+    }
+
+    fn init(&mut self, drive: &mut Drive, _ctx: &mut Ctx<'_, OD>) {
+        // 5.0.3: a homed axis that stood still keeps its position through a power cycle.
+        let status = drive.axis().status();
+        if status.homed && !status.standing {
+            let p = status.position_actual;
+            drive.axis_mut().set_actual_position(p, false);
+        }
+        self.reset_warnings();
+        self.limit = LimitCheck::Normal;
+        self.last_cw = 0;
+    }
+
+    fn on_event(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>, event: &Event) {
+        match *event {
+            Event::Written { index: 0x6040, sub: 0, .. } => {
+                let cw = drive.controlword();
+                let last = self.last_cw;
+                let rose = |bit: u16| cw & bit != 0 && last & bit == 0;
+                if rose(0x80) {
+                    self.reset_warnings();
+                }
+                // 6.5: in profile velocity a rising bit 4 (re)starts the movement at 60FFh.
+                if drive.mode() == Mode::ProfileVelocity && rose(0x10) {
+                    let v = read_int(ctx.od(), 0x60FF, 0).unwrap_or(0);
+                    let v = drive.scale().velocity_in(v).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+                    let _ = drive.axis_mut().set_target_velocity(v);
+                }
+                self.last_cw = cw;
+            }
+            // 6.9.3: 0 written to 1003h sub 0 resets errors and warnings.
+            Event::Written { index: 0x1003, sub: 0, .. } => {
+                self.reset_warnings();
+                ctx.fault_reset();
+            }
+            // 2015h limits the current to |6071h|: a new target torque is a new limit.
+            Event::Written { index: 0x6071, .. } => drive.mark_dirty(),
+            _ => {}
+        }
+    }
+
+    fn before_command(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>, cmd: &mut Command) -> bool {
+        let od = ctx.od();
+        let scale = drive.scale();
+        let status = drive.axis().status();
+        match cmd {
+            Command::SetPoint(sp) => {
+                // 4.1.5: homing first.
+                if !status.homed {
+                    self.warnings |= warning::HOMING_MISSING;
+                    return false;
+                }
+                // 6.4: the target cannot change during a movement.
+                if !status.target_reached && !status.standing {
+                    return self.refuse();
+                }
+                if self.limits_active {
+                    let target = if sp.relative {
+                        i64::from(status.position_actual) + i64::from(sp.target)
+                    } else {
+                        i64::from(sp.target)
+                    };
+                    let (lo, hi) = Self::limits(od, &scale);
+                    let vmax = read_int(od, 0x607F, 0).unwrap_or(i64::MAX);
+                    let v = read_int(od, 0x6081, 0).unwrap_or(0);
+                    if target < lo || target > hi || v > vmax {
+                        return self.refuse();
+                    }
+                }
+            }
+            Command::TargetVelocity(v) if self.limits_active => {
+                let vmax = scale.velocity_in(read_int(od, 0x607F, 0).unwrap_or(i64::MAX));
+                if i64::from(*v).abs() > vmax {
+                    return self.refuse();
+                }
+            }
+            _ => {}
+        }
+        true
+    }
+
+    fn after_command(&mut self, _: &mut Drive, _: &mut Ctx<'_, OD>, cmd: &Command, result: Result<(), CommandError>) {
+        match result {
+            // "Command refused" resets by itself when a command is accepted.
+            Ok(()) => self.warnings &= !warning::COMMAND_REFUSED,
+            Err(_) if matches!(cmd, Command::SetPoint(_) | Command::StartHoming | Command::TargetVelocity(_)) => {
+                self.warnings |= warning::COMMAND_REFUSED;
+            }
+            Err(_) => {}
+        }
+    }
+
+    fn before_step(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>) {
+        let now = ctx.now();
+        let dt = self.last_now.map_or(0, |t| now.saturating_sub(t));
+        self.last_now = Some(now);
+        self.last_dt_us = dt;
+        let current = f64::from(drive.axis().status().torque_actual.unsigned_abs());
+        self.thermal(current, dt as f64 * 1e-6);
+        self.check_conditions(drive, ctx);
+    }
+
+    fn after_step(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>, status: &Status) {
+        // Homing: 2004h, the error 8613h/13 (a soft error), the automatic warning.
+        match status.homing {
+            HomingState::Error(_) if !self.homing_failed => {
+                self.homing_failed = true;
+                drive.raise(ctx, 0x8613, Some(13));
+            }
+            HomingState::InProgress => self.homing_failed = false,
+            _ => {}
+        }
+        if status.homed {
+            self.warnings &= !warning::HOMING_MISSING;
+        }
+        self.check_limits(drive, ctx, status);
+        self.profile_check(drive, ctx.od(), status, self.last_dt_us);
+        let inputs = u32::from(self.conditions.in1)
+            | u32::from(self.conditions.in2) << 1
+            | u32::from(status.inputs.negative_limit || status.inputs.positive_limit) << 2
+            | u32::from(status.inputs.home_switch) << 3;
+        let od = ctx.od_mut();
+        write_int(od, 0x2002, 0, i64::from(inputs));
+        write_int(od, 0x2004, 0, i64::from(status.homed));
+        write_int(od, 0x2006, 0, i64::from(self.warnings));
+    }
+
+    fn on_fault_reset(&mut self, drive: &mut Drive, _ctx: &mut Ctx<'_, OD>) {
+        // 5.0.1: after a limit error the check waits for the first completed movement, so the
+        // axis can be brought back into range.
+        if drive.fault().is_some_and(|f| f.error.code == 0x6120) {
+            self.limit = LimitCheck::Suspended { moved: false };
+            self.limits_active = false;
+        }
+        self.limit_error = false;
+        self.reset_warnings();
+    }
+
+    fn statusword(&self, _drive: &Drive, od: &OD, status: &Status, bits: &mut u16) {
+        let set = |bits: &mut u16, n: u16, on: bool| {
+            if on {
+                *bits |= 1 << n;
+            } else {
+                *bits &= !(1 << n);
+            }
+        };
+        set(bits, 7, self.warnings != 0);
+        set(bits, 11, self.limits_active);
+        set(bits, 14, status.torque_limit_active && read_int(od, 0x2015, 0) == Some(1));
     }
 }

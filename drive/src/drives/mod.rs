@@ -49,6 +49,7 @@
 //! lives in the device files through the [`cia402::Vendor`] hooks.
 
 pub mod cia402;
+pub mod demo;
 pub mod drvi;
 pub mod master;
 
