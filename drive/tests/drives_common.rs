@@ -381,3 +381,98 @@ fn mechanics_are_reachable_for_tests() {
     *app.drive_mut().axis_mut().environment_mut() = Environment { negative_end_stop: Some(-100), ..Default::default() };
     assert_eq!(app.drive().axis().environment().negative_end_stop, Some(-100));
 }
+
+type AkdPlain = Node<generated::akd::Dictionary, Cia402App<generated::akd::Dictionary, Plain>>;
+
+/// A plain CiA 402 drive on the AKD dictionary (which has 1016h and 60C0h..60C4h).
+fn plain_akd() -> Master {
+    let mut sim = Sim::new();
+    let app = Cia402App::<generated::akd::Dictionary, _>::new(Plain, error_table(DeviceKind::Akd));
+    let node = Node::new(generated::akd::Dictionary::new(ID), app, NodeStorage::memory(), NodeId::new(ID).unwrap());
+    sim.add(Box::new(node));
+    let mut m = Master::new(sim);
+    m.advance(1000);
+    m.nmt_start(ID);
+    m
+}
+
+#[test]
+fn interpolated_position_consumes_60c1h_at_each_sync() {
+    let mut m = plain_akd();
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 7).unwrap();
+    // 60C2h: 1 × 10^-3 s, the SYNC period.
+    m.controlword(ID, 0x1F).unwrap(); // enable interpolation
+    assert_ne!(m.statusword(ID).unwrap() & (1 << 12), 0, "ip mode active");
+    for k in 1..=100 {
+        m.write_i32(ID, 0x60C1, 1, 10 * k).unwrap();
+        m.sync();
+        m.advance(1000);
+    }
+    m.advance(5000);
+    assert_eq!(m.read_i64(ID, 0x6064, 0).unwrap(), 1000);
+    // Disabled: further set-points are not followed.
+    m.controlword(ID, 0x0F).unwrap();
+    m.write_i32(ID, 0x60C1, 1, 5000).unwrap();
+    m.sync();
+    m.advance(10_000);
+    assert_eq!(m.read_i64(ID, 0x6064, 0).unwrap(), 1000);
+    let _ = app_akd(&m);
+}
+
+fn app_akd(m: &Master) -> &Cia402App<generated::akd::Dictionary, Plain> {
+    m.sim().downcast::<AkdPlain>(0).unwrap().app().unwrap()
+}
+
+#[test]
+fn a_lost_heartbeat_is_raised_once_and_stays_latched() {
+    let mut m = plain_akd();
+    m.write_u32(ID, 0x1016, 1, (1 << 16) | 100).unwrap(); // node 1, 100 ms
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 1000);
+    m.write_i32(ID, 0x60FF, 0, 1000).unwrap();
+    for _ in 0..10 {
+        m.heartbeat(1);
+        m.advance(50_000);
+    }
+    assert_eq!(m.state(ID).unwrap(), Some(State::OperationEnabled));
+    m.take_seen();
+    m.advance(1_000_000);
+    let emcy = m.take_id(0x80 + u32::from(ID));
+    assert_eq!(emcy.len(), 1, "one EMCY per loss: {emcy:?}");
+    assert_eq!(&emcy[0].frame.data()[..2], [0x30, 0x81]);
+    assert_eq!(m.state(ID).unwrap(), Some(State::Fault));
+    assert!(!app_akd(&m).drive().axis().status().power);
+    // The master is back: still latched until the fault reset.
+    for _ in 0..3 {
+        m.heartbeat(1);
+        m.advance(50_000);
+    }
+    assert_eq!(m.state(ID).unwrap(), Some(State::Fault));
+    m.controlword(ID, 0x80).unwrap();
+    assert_eq!(m.state(ID).unwrap(), Some(State::SwitchOnDisabled));
+}
+
+#[test]
+fn cia402_homing_on_a_limit_switch_sets_bits_12_and_10() {
+    let mut m = plain_akd();
+    {
+        let node = m.sim_mut().downcast_mut::<AkdPlain>(0).unwrap();
+        let env = node.app_mut().unwrap().drive_mut().axis_mut().environment_mut();
+        *env = Environment { negative_limit: Some(-3000), ..Default::default() };
+    }
+    m.switch_on(ID).unwrap();
+    m.write(ID, 0x6098, 0, &[17]).unwrap(); // negative limit switch, no index
+    m.write_u32(ID, 0x6099, 1, 2000).unwrap();
+    m.write_u32(ID, 0x6099, 2, 200).unwrap();
+    m.write_u32(ID, 0x609A, 0, 20_000).unwrap();
+    m.write_i32(ID, 0x607C, 0, 0).unwrap();
+    m.set_mode(ID, 6).unwrap();
+    assert_eq!(m.statusword(ID).unwrap() & 0x3400, 0x0400, "not started: bit 10 only");
+    m.controlword(ID, 0x1F).unwrap();
+    assert_eq!(m.statusword(ID).unwrap() & 0x3400, 0, "in progress");
+    let sw = m.wait_statusword(ID, 0x3400, 0x1400, 10_000_000, 10_000).expect("homing completed");
+    assert_eq!(sw & (1 << 13), 0);
+    assert_eq!(m.read_i64(ID, 0x6064, 0).unwrap(), 0);
+}

@@ -26,7 +26,7 @@
 //! * statusword bit 11 "ila = internal limits active (software limits enabled)" is set while
 //!   the software limit check is in force, as the manual's wording says.
 //! * the thermal model: motor and drive temperatures rise with the current squared (+40 °C
-//!   and +30 °C at the I²T current of [`I2T_CURRENT_MA`], time constants 120 s and 60 s);
+//!   and +30 °C at the I²T current of [`I2T_CURRENT_MA`], time constants 60 s and 30 s);
 //!   the I²T fault trips after the current stayed above [`I2T_CURRENT_MA`] for an energy of
 //!   2 s at twice that current.
 
@@ -301,8 +301,8 @@ impl Drvi {
             let target = ambient + rise * i * i;
             *t += (target - *t) * (dt / tau).min(1.0);
         };
-        step(&mut self.motor_c, 40.0, 120.0);
-        step(&mut self.drive_c, 30.0, 60.0);
+        step(&mut self.motor_c, 40.0, 60.0);
+        step(&mut self.drive_c, 30.0, 30.0);
         let rated = f64::from(I2T_CURRENT_MA) / 1000.0;
         let amps = current_ma / 1000.0;
         self.i2t = (self.i2t + (amps * amps - rated * rated) * dt).max(0.0);
@@ -508,6 +508,8 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drvi {
             Event::Written { index: 0x6071, .. } => drive.mark_dirty(),
             _ => {}
         }
+        // Warnings a command set or a reset cleared are visible at once.
+        write_int(ctx.od_mut(), 0x2006, 0, i64::from(self.warnings));
     }
 
     fn before_command(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>, cmd: &mut Command) -> bool {
@@ -596,7 +598,7 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drvi {
         write_int(od, 0x2006, 0, i64::from(self.warnings));
     }
 
-    fn on_fault_reset(&mut self, drive: &mut Drive, _ctx: &mut Ctx<'_, OD>) {
+    fn on_fault_reset(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>) {
         // 5.0.1: after a limit error the check waits for the first completed movement, so the
         // axis can be brought back into range.
         if drive.fault().is_some_and(|f| f.error.code == 0x6120) {
@@ -605,6 +607,7 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drvi {
         }
         self.limit_error = false;
         self.reset_warnings();
+        write_int(ctx.od_mut(), 0x2006, 0, i64::from(self.warnings));
     }
 
     fn statusword(&self, _drive: &Drive, od: &OD, status: &Status, bits: &mut u16) {

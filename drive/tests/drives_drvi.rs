@@ -1,0 +1,818 @@
+//! The Camozzi DRVI (drive::drives::drvi) on the in-memory bus through real frames: every mode,
+//! every homing method, units (2014h, 2001h), software limits, warnings (2006h), errors of
+//! Table 6.34 with their manufacturer byte, fault reset both ways, persistence.
+
+use std::sync::{Arc, Mutex};
+
+use drive::drives::drvi::{self, Drvi, warning};
+use drive::drives::master::{Master, SdoError};
+use drive::drives::{Cia402App, SharedTrace};
+use drive::motion::{Cam, Environment};
+use drive::node::{Node, NodeStorage, ParameterSet, Sim};
+use drive::storage::FileStorage;
+use drive::trace::Trace;
+use generated::drvi::Dictionary;
+use od_runtime::NodeId;
+use od_runtime::cia402::State;
+
+const ID: u8 = 3;
+const EMCY: u32 = 0x80 + ID as u32;
+
+type DrviNode = Node<Dictionary, Cia402App<Dictionary, Drvi>>;
+
+fn master_with(storage: NodeStorage, trace: Option<SharedTrace>) -> Master {
+    let mut sim = Sim::new();
+    let mut app = drvi::app();
+    if let Some(t) = trace {
+        app = app.with_trace(t);
+    }
+    sim.add(Box::new(Node::new(Dictionary::new(ID), app, storage, NodeId::new(ID).unwrap())));
+    let mut m = Master::new(sim);
+    m.advance(1000);
+    m.nmt_start(ID);
+    m.take_seen();
+    m
+}
+
+fn master() -> Master {
+    master_with(NodeStorage::memory(), None)
+}
+
+fn app(m: &Master) -> &Cia402App<Dictionary, Drvi> {
+    m.sim().downcast::<DrviNode>(0).unwrap().app().unwrap()
+}
+
+fn app_mut(m: &mut Master) -> &mut Cia402App<Dictionary, Drvi> {
+    m.sim_mut().downcast_mut::<DrviNode>(0).unwrap().app_mut().unwrap()
+}
+
+fn set_environment(m: &mut Master, env: Environment) {
+    *app_mut(m).drive_mut().axis_mut().environment_mut() = env;
+}
+
+fn state(m: &mut Master) -> State {
+    m.state(ID).unwrap().unwrap()
+}
+
+fn sw(m: &mut Master) -> u16 {
+    m.statusword(ID).unwrap()
+}
+
+fn pos(m: &mut Master) -> i64 {
+    m.read_i64(ID, 0x6064, 0).unwrap()
+}
+
+fn vel(m: &mut Master) -> i64 {
+    m.read_i64(ID, 0x606C, 0).unwrap()
+}
+
+fn warnings(m: &mut Master) -> u16 {
+    m.read_u16(ID, 0x2006, 0).unwrap()
+}
+
+fn profile(m: &mut Master, v: u32, a: u32) {
+    m.write_u32(ID, 0x6081, 0, v).unwrap();
+    m.write_u32(ID, 0x6083, 0, a).unwrap();
+    m.write_u32(ID, 0x6084, 0, a).unwrap();
+}
+
+fn homing_params(m: &mut Master, method: i8, offset: i32) {
+    m.write(ID, 0x6098, 0, &[method as u8]).unwrap();
+    m.write_u32(ID, 0x6099, 1, 3000).unwrap(); // 30 rpm
+    m.write_u32(ID, 0x6099, 2, 500).unwrap(); // 5 rpm
+    m.write_u32(ID, 0x609A, 0, 200).unwrap(); // 200 rpm/s
+    m.write_i32(ID, 0x607C, 0, offset).unwrap();
+}
+
+/// Runs a homing to completion (sw bits 12 and 10), returns the statusword.
+fn home(m: &mut Master, method: i8, offset: i32) -> u16 {
+    homing_params(m, method, offset);
+    m.set_mode(ID, 6).unwrap();
+    if state(m) != State::OperationEnabled {
+        m.switch_on(ID).unwrap();
+    }
+    m.controlword(ID, 0x0F).unwrap();
+    m.controlword(ID, 0x1F).unwrap();
+    let sw = m.wait_statusword(ID, 0x3400, 0x1400, 60_000_000, 20_000).unwrap_or_else(|| {
+        let s = m.statusword(ID).unwrap();
+        panic!("homing {method} did not complete: statusword {s:#06X}")
+    });
+    m.controlword(ID, 0x0F).unwrap();
+    sw
+}
+
+/// An absolute or relative profile-position move to its end.
+fn move_to(m: &mut Master, target: i32, relative: bool) {
+    m.set_mode(ID, 1).unwrap();
+    m.write_i32(ID, 0x607A, 0, target).unwrap();
+    let rel = if relative { 0x40 } else { 0 };
+    m.controlword(ID, 0x0F | rel).unwrap();
+    m.controlword(ID, 0x1F | rel).unwrap();
+    assert_ne!(sw(m) & (1 << 12), 0, "set-point acknowledged");
+    m.controlword(ID, 0x0F | rel).unwrap();
+    m.wait_statusword(ID, 1 << 10, 1 << 10, 30_000_000, 10_000).expect("target reached");
+}
+
+fn emcys(m: &mut Master) -> Vec<[u8; 8]> {
+    m.take_id(EMCY).iter().map(|s| s.frame.raw_data()).collect()
+}
+
+// ---------------------------------------------------------------------------------------------
+// Modes.
+
+#[test]
+fn positioning_needs_homing_first() {
+    let mut m = master();
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 1).unwrap();
+    profile(&mut m, 6000, 60);
+    m.write_i32(ID, 0x607A, 0, 36_000).unwrap();
+    m.controlword(ID, 0x1F).unwrap();
+    m.advance(100_000);
+    assert_eq!(sw(&mut m) & (1 << 12), 0, "refused: no acknowledge");
+    assert_eq!(pos(&mut m), 0);
+    assert_ne!(warnings(&mut m) & warning::HOMING_MISSING, 0);
+    assert_ne!(sw(&mut m) & (1 << 7), 0, "statusword warning bit");
+    assert_eq!(m.read_u64(ID, 0x2004, 0).unwrap(), 0);
+    // Homing 37 clears "homing missing" by itself (auto reset) and sets 2004h.
+    home(&mut m, 37, 0);
+    assert_eq!(m.read_u64(ID, 0x2004, 0).unwrap(), 1);
+    assert_eq!(warnings(&mut m) & warning::HOMING_MISSING, 0);
+    assert_eq!(sw(&mut m) & (1 << 7), 0);
+}
+
+#[test]
+fn absolute_and_relative_moves_follow_figure_4_2() {
+    let mut m = master();
+    home(&mut m, 37, 0);
+    profile(&mut m, 6000, 60); // 60 rpm, 60 rpm/s
+    let t0 = m.now();
+    move_to(&mut m, 72_000, false); // 720°
+    let took = (m.now() - t0) as f64 * 1e-6;
+    assert!((3.0..3.1).contains(&took), "1 s up, 1 s at 60 rpm, 1 s down: {took}");
+    assert_eq!(pos(&mut m), 72_000);
+    // 4.1.2.1: relative to the actual position.
+    move_to(&mut m, -36_000, true);
+    assert_eq!(pos(&mut m), 36_000);
+    // 4.1.2.2: absolute to where it is: no motion.
+    move_to(&mut m, 36_000, false);
+    assert_eq!(pos(&mut m), 36_000);
+}
+
+#[test]
+fn a_new_target_during_a_move_is_refused_and_the_warning_resets_itself() {
+    let mut m = master();
+    home(&mut m, 37, 0);
+    profile(&mut m, 6000, 60);
+    m.set_mode(ID, 1).unwrap();
+    m.write_i32(ID, 0x607A, 0, 72_000).unwrap();
+    m.controlword(ID, 0x1F).unwrap();
+    m.controlword(ID, 0x0F).unwrap();
+    m.advance(500_000);
+    m.write_i32(ID, 0x607A, 0, 0).unwrap();
+    m.controlword(ID, 0x3F).unwrap(); // even with "change immediately"
+    assert_eq!(sw(&mut m) & (1 << 12), 0);
+    assert_ne!(warnings(&mut m) & warning::COMMAND_REFUSED, 0);
+    m.controlword(ID, 0x0F).unwrap();
+    m.wait_statusword(ID, 1 << 10, 1 << 10, 10_000_000, 10_000).unwrap();
+    assert_eq!(pos(&mut m), 72_000, "the first target stood");
+    // The next accepted command clears "command refused".
+    m.controlword(ID, 0x1F).unwrap();
+    assert_eq!(warnings(&mut m) & warning::COMMAND_REFUSED, 0);
+    m.controlword(ID, 0x0F).unwrap();
+    m.wait_statusword(ID, 1 << 10, 1 << 10, 10_000_000, 10_000).unwrap();
+    assert_eq!(pos(&mut m), 0);
+}
+
+#[test]
+fn profile_velocity_with_halt_and_the_speed_bit() {
+    let mut m = master();
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 60);
+    m.write_u16(ID, 0x606F, 0, 10).unwrap(); // 0.1 rpm
+    m.write_u16(ID, 0x6070, 0, 20).unwrap(); // 20 ms
+    m.write_i32(ID, 0x60FF, 0, 6000).unwrap();
+    m.controlword(ID, 0x1F).unwrap(); // 6.5: bit 4 starts (60FFh applies anyway)
+    m.advance(1_100_000);
+    assert_eq!(vel(&mut m), 6000);
+    let s = sw(&mut m);
+    assert_ne!(s & (1 << 10), 0, "velocity reached");
+    assert_eq!(s & (1 << 12), 0, "moving");
+    m.controlword(ID, 0x11F).unwrap(); // halt
+    m.advance(300_000);
+    assert_eq!(sw(&mut m) & (1 << 10), 0, "decelerating");
+    m.advance(900_000);
+    assert_eq!(vel(&mut m), 0);
+    let s = sw(&mut m);
+    assert_ne!(s & (1 << 10), 0, "halted: stopped");
+    assert_ne!(s & (1 << 12), 0, "speed bit: standing");
+    m.controlword(ID, 0x1F).unwrap();
+    m.advance(1_100_000);
+    assert_eq!(vel(&mut m), 6000, "resumes");
+}
+
+#[test]
+fn profile_torque_follows_the_slope_of_figure_4_4() {
+    let mut m = master();
+    set_environment(&mut m, Environment::default()); // no end stops in the way
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 4).unwrap();
+    m.write_u32(ID, 0x6087, 0, 1000).unwrap(); // 1000 mA/s
+    m.write(ID, 0x6071, 0, &1000i16.to_le_bytes()).unwrap();
+    m.advance(500_000);
+    let t = m.read_i64(ID, 0x6074, 0).unwrap();
+    assert!((480..=520).contains(&t), "{t}");
+    m.advance(600_000);
+    assert_eq!(m.read_i64(ID, 0x6074, 0).unwrap(), 1000);
+    assert!(vel(&mut m) > 0, "the motor turns");
+    assert_ne!(sw(&mut m) & (1 << 10), 0, "target torque reached");
+    m.write(ID, 0x6071, 0, &0i16.to_le_bytes()).unwrap();
+    m.advance(1_100_000);
+    assert_eq!(m.read_i64(ID, 0x6074, 0).unwrap(), 0);
+}
+
+#[test]
+fn torque_limit_2015h_caps_every_mode_and_sets_bit_14() {
+    let mut m = master();
+    home(&mut m, 37, 0);
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 10_000); // a hard acceleration: 10000 rpm/s needs about 1.7 A
+    m.write(ID, 0x6071, 0, &300i16.to_le_bytes()).unwrap(); // limit 300 mA
+    m.write_u8(ID, 0x2015, 0, 1).unwrap();
+    m.write_i32(ID, 0x60FF, 0, 100_000).unwrap(); // 1000 rpm
+    m.advance(50_000);
+    let current = m.read_i64(ID, 0x6077, 0).unwrap();
+    assert!(current.abs() <= 300, "{current}");
+    assert_ne!(sw(&mut m) & (1 << 14), 0, "torque limit active");
+    m.write_u8(ID, 0x2015, 0, 0).unwrap();
+    m.write_i32(ID, 0x60FF, 0, 0).unwrap();
+    m.advance(2_000_000);
+    assert_eq!(sw(&mut m) & (1 << 14), 0);
+}
+
+#[test]
+fn jog_with_controlword_bits_5_and_6() {
+    let mut m = master();
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, -1).unwrap();
+    assert_eq!(m.read_i64(ID, 0x6061, 0).unwrap(), -1);
+    profile(&mut m, 0, 600);
+    m.write_i32(ID, 0x60FF, 0, -3000).unwrap(); // the sign does not matter
+    m.controlword(ID, 0x4F).unwrap(); // bit 6: clockwise
+    m.advance(200_000);
+    assert_eq!(vel(&mut m), 3000);
+    assert_eq!(sw(&mut m) & 0x3000, 0x1000, "jog clockwise");
+    m.controlword(ID, 0x6F).unwrap(); // both: invalid, the previous state persists
+    m.advance(50_000);
+    assert_eq!(vel(&mut m), 3000);
+    m.controlword(ID, 0x2F).unwrap(); // bit 5: counter-clockwise
+    m.advance(300_000);
+    assert_eq!(vel(&mut m), -3000);
+    assert_eq!(sw(&mut m) & 0x3000, 0x2000);
+    m.controlword(ID, 0x0F).unwrap();
+    m.advance(300_000);
+    assert_eq!(vel(&mut m), 0);
+    assert_eq!(sw(&mut m) & 0x3000, 0, "jog off");
+}
+
+#[test]
+fn unsupported_modes_and_methods_are_refused() {
+    let mut m = master();
+    for mode in [2u8, 5, 7, 8, 0xFE] {
+        assert_eq!(m.write(ID, 0x6060, 0, &[mode]), Err(SdoError::Abort(0x0609_0030)), "mode {mode}");
+    }
+    for method in [3u8, 19, 33, 35, 0xFB] {
+        assert_eq!(m.write(ID, 0x6098, 0, &[method]), Err(SdoError::Abort(0x0609_0030)), "method {method}");
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Homing: every method of Table 6.29.
+
+/// Homes with `method` and offset 777 in `env`, returning the mechanical home point (the
+/// position the trace shows right before the frame switched to the offset).
+fn home_point(method: i8, env: Environment) -> i64 {
+    let trace: SharedTrace = Arc::new(Mutex::new(Trace::new()));
+    let mut m = master_with(NodeStorage::memory(), Some(Arc::clone(&trace)));
+    set_environment(&mut m, env);
+    let s = home(&mut m, method, 777);
+    assert_eq!(s & 0x3400, 0x1400, "bits 12 and 10: completed");
+    assert_eq!(pos(&mut m), 777, "6.3.4.14: the actual position becomes the offset");
+    assert_eq!(m.read_u64(ID, 0x2004, 0).unwrap(), 1);
+    let t = trace.lock().unwrap();
+    let samples = t.samples();
+    let i = samples.iter().rposition(|s| s.position_actual != 777).expect("motion before the switch");
+    i64::from(samples[i].position_actual)
+}
+
+fn env(cam: (i64, i64)) -> Environment {
+    Environment { home_switch: Some(Cam { low: cam.0, high: cam.1 }), ..drvi::default_environment() }
+}
+
+#[test]
+fn homing_17_18_on_the_proximity() {
+    assert_eq!(home_point(18, env((20_000, 25_000))), 20_000, "leaves it negative: its low edge");
+    assert_eq!(home_point(17, env((-25_000, -20_000))), -20_000, "leaves it positive: its high edge");
+    // Already on the proximity at the start: only the out phase.
+    assert_eq!(home_point(18, env((-1_000, 5_000))), -1_000);
+}
+
+#[test]
+fn homing_1_2_on_the_index_after_the_proximity() {
+    // Index pulses at 1000 + k·36000.
+    assert_eq!(home_point(2, env((20_000, 25_000))), 1_000);
+    assert_eq!(home_point(1, env((-25_000, -20_000))), 1_000);
+    assert_eq!(home_point(1, env((-45_000, -40_000))), -35_000, "the first index beyond the edge");
+}
+
+#[test]
+fn torque_homings_push_against_the_end_stops() {
+    let ends = drvi::default_environment(); // end stops at −50000 and 150000
+    assert_eq!(home_point(-3, ends), -50_000);
+    assert_eq!(home_point(-4, ends), 150_000);
+    assert_eq!(home_point(-1, ends), -35_000, "then the index going positive");
+    assert_eq!(home_point(-2, ends), 145_000, "then the index going negative");
+}
+
+#[test]
+fn homing_37_takes_the_current_position() {
+    let mut m = master();
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 600);
+    m.write_i32(ID, 0x60FF, 0, 6000).unwrap();
+    m.advance(500_000);
+    m.write_i32(ID, 0x60FF, 0, 0).unwrap();
+    m.advance(500_000);
+    let before = pos(&mut m);
+    assert!(before > 0);
+    home(&mut m, 37, -500);
+    assert_eq!(pos(&mut m), -500);
+}
+
+#[test]
+fn torque_homing_uses_6071h_and_the_2013h_threshold() {
+    let trace: SharedTrace = Arc::new(Mutex::new(Trace::new()));
+    let mut m = master_with(NodeStorage::memory(), Some(Arc::clone(&trace)));
+    m.write(ID, 0x6071, 0, &800i16.to_le_bytes()).unwrap(); // limit 800 mA
+    m.write_u16(ID, 0x2013, 0, 12).unwrap(); // 12 % of 5 A = 600 mA
+    home(&mut m, -4, 0);
+    let peak = trace.lock().unwrap().samples().iter().map(|s| s.torque_actual.abs()).max().unwrap();
+    assert!((600..=800).contains(&peak), "pushed to the threshold, within the limit: {peak}");
+}
+
+#[test]
+fn a_proximity_overrun_is_the_soft_homing_error_8613h() {
+    let mut m = master();
+    m.switch_on(ID).unwrap();
+    homing_params(&mut m, 18, 0);
+    m.write_u32(ID, 0x6099, 1, 30_000).unwrap(); // 300 rpm
+    m.write_u32(ID, 0x609A, 0, 100).unwrap(); // 100 rpm/s: stops far beyond the proximity
+    m.set_mode(ID, 6).unwrap();
+    m.controlword(ID, 0x1F).unwrap();
+    assert!(m.wait_until(20_000_000, 10_000, |m| m.seen().any(|s| s.frame.id() == EMCY)));
+    let e = emcys(&mut m);
+    assert_eq!(e[0], [0x13, 0x86, 0x01, 13, 0, 0, 0, 0], "8613h, manufacturer byte 13");
+    // Found when the axis has stopped beyond the proximity: the quick stop has nothing to do.
+    assert_eq!(state(&mut m), State::Fault);
+    assert_ne!(sw(&mut m) & (1 << 13), 0, "homing error bit");
+    assert_eq!(vel(&mut m), 0);
+    assert_eq!(m.read_u32(ID, 0x1003, 1).unwrap(), 0x000D_8613, "1003h: code + manufacturer info");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Units.
+
+#[test]
+fn actuator_type_2014h_switches_the_unit_system() {
+    let mut m = master();
+    home(&mut m, 37, 0);
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 100);
+    // Only motor: 6000 = 60 rpm = 360 °/s = 36000 position units/s.
+    m.write_i32(ID, 0x60FF, 0, 6000).unwrap();
+    m.advance(1_000_000);
+    let p0 = pos(&mut m);
+    m.advance(1_000_000);
+    assert_eq!(pos(&mut m) - p0, 36_000);
+    m.write_i32(ID, 0x60FF, 0, 0).unwrap();
+    m.advance(1_000_000);
+    // Custom actuator: 6000 = 60 mm/s = 6000 position units (0.01 mm) per second.
+    m.write_u8(ID, 0x2014, 0, 7).unwrap();
+    m.write_i32(ID, 0x60FF, 0, 6000).unwrap();
+    m.advance(1_000_000);
+    let p0 = pos(&mut m);
+    m.advance(1_000_000);
+    assert_eq!(pos(&mut m) - p0, 6_000);
+    let units = generated::drvi::units::Units::from_dictionary(&{
+        let mut od = Dictionary::new(ID);
+        od.set_actuator_type(7).unwrap();
+        od
+    })
+    .unwrap();
+    assert_eq!(units.unit(generated::drvi::units::Dimension::Position), Some(generated::drvi::units::Unit::Millimeter));
+}
+
+#[test]
+fn feed_converter_2001h_rescales_sdo_and_pdo_values() {
+    let mut m = master();
+    home(&mut m, 37, 0);
+    profile(&mut m, 6000, 600);
+    move_to(&mut m, 25_400, false);
+    // Inches (6.3.6.1): numerator 100, denominator 254: the bus unit is now 0.0254 of the old.
+    m.write_u32(ID, 0x2001, 1, 100).unwrap();
+    m.write_u32(ID, 0x2001, 2, 254).unwrap();
+    m.advance(2000);
+    assert_eq!(pos(&mut m), 10_000);
+    // TPDO with 6064h: the same value.
+    m.write_u32(ID, 0x1801, 1, 0x8000_0283).unwrap();
+    m.write_u8(ID, 0x1A01, 0, 0).unwrap();
+    m.write_u32(ID, 0x1A01, 1, 0x6064_0020).unwrap();
+    m.write_u8(ID, 0x1A01, 0, 1).unwrap();
+    m.take_seen();
+    m.write_u32(ID, 0x1801, 1, 0x283).unwrap();
+    m.advance(20_000);
+    let tpdo = m.take_id(0x283);
+    assert_eq!(tpdo.last().unwrap().frame.data(), 10_000i32.to_le_bytes());
+    // Targets in the new unit: 5000 = half the way back.
+    move_to(&mut m, 5_000, false);
+    assert_eq!(pos(&mut m), 5_000);
+    m.write_u32(ID, 0x2001, 1, 1).unwrap();
+    m.write_u32(ID, 0x2001, 2, 1).unwrap();
+    m.advance(2000);
+    assert_eq!(pos(&mut m), 12_700);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Software limits (5.0.1).
+
+fn limited(m: &mut Master) {
+    m.write_u8(ID, 0x2014, 0, 7).unwrap(); // actuator
+    m.write_i32(ID, 0x607C, 0, 1_000).unwrap();
+    m.write_i32(ID, 0x607D, 1, -9_000).unwrap();
+    m.write_i32(ID, 0x607D, 2, 21_000).unwrap(); // corrected: −10000 .. 20000
+    m.write_u8(ID, 0x2010, 0, 1).unwrap();
+}
+
+#[test]
+fn software_limits_refuse_targets_outside_607d_minus_the_offset() {
+    let mut m = master();
+    limited(&mut m);
+    assert_eq!(sw(&mut m) & (1 << 11), 0, "not in force before homing");
+    home(&mut m, 37, 1_000);
+    m.advance(2000);
+    assert_ne!(sw(&mut m) & (1 << 11), 0, "in force: bit 11");
+    profile(&mut m, 5_000, 500);
+    move_to(&mut m, 20_000, false);
+    assert_eq!(pos(&mut m), 20_000, "the corrected maximum is allowed");
+    m.write_i32(ID, 0x607A, 0, 20_001).unwrap();
+    m.controlword(ID, 0x1F).unwrap();
+    m.advance(100_000);
+    assert_eq!(pos(&mut m), 20_000);
+    assert_ne!(warnings(&mut m) & warning::COMMAND_REFUSED, 0);
+    m.controlword(ID, 0x0F).unwrap();
+    // A relative target counts from the actual position.
+    m.write_i32(ID, 0x607A, 0, -30_001).unwrap();
+    m.controlword(ID, 0x5F).unwrap();
+    m.advance(100_000);
+    assert_eq!(pos(&mut m), 20_000);
+    m.controlword(ID, 0x4F).unwrap();
+    // Speeds above 607Fh are refused too.
+    m.write_u32(ID, 0x607F, 0, 4_000).unwrap();
+    m.write_i32(ID, 0x607A, 0, 0).unwrap();
+    m.controlword(ID, 0x1F).unwrap();
+    m.advance(100_000);
+    assert_eq!(pos(&mut m), 20_000, "6081h 5000 > 607Fh 4000: refused");
+    assert_eq!(sw(&mut m) & (1 << 12), 0);
+    m.controlword(ID, 0x0F).unwrap();
+    m.write_u32(ID, 0x6081, 0, 4_000).unwrap();
+    move_to(&mut m, 0, false);
+    assert_eq!(pos(&mut m), 0);
+}
+
+#[test]
+fn leaving_the_limits_raises_6120h_and_the_check_waits_after_its_reset() {
+    let mut m = master();
+    limited(&mut m);
+    home(&mut m, 37, 1_000);
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 1_000);
+    m.write_i32(ID, 0x60FF, 0, 10_000).unwrap();
+    assert!(m.wait_until(5_000_000, 5_000, |m| m.seen().any(|s| s.frame.id() == EMCY)));
+    let e = emcys(&mut m);
+    assert_eq!(e[0], [0x20, 0x61, 0x01, 0, 0, 0, 0, 0], "EMCY 6120h");
+    assert_ne!(warnings(&mut m) & warning::POSITIVE_LIMIT, 0);
+    assert!(m.wait_until(5_000_000, 10_000, |m| m.state(ID).unwrap() == Some(State::Fault)));
+    assert!(pos(&mut m) > 20_000, "stopped with the quick stop ramp beyond the limit");
+    // 5.0.1: reset with 1003h sub 0 = 0, then 0, 6, 7, 15.
+    m.write_u8(ID, 0x1003, 0, 0).unwrap();
+    assert_eq!(state(&mut m), State::SwitchOnDisabled);
+    assert_eq!(e.len(), 1);
+    assert_eq!(emcys(&mut m).last().unwrap()[..2], [0, 0], "error reset EMCY");
+    assert_eq!(warnings(&mut m) & warning::POSITIVE_LIMIT, 0, "warnings reset too");
+    m.controlword(ID, 0).unwrap();
+    m.switch_on(ID).unwrap();
+    assert_eq!(sw(&mut m) & (1 << 11), 0, "check suspended");
+    // Back into range with a move (the check is suspended: no new error).
+    m.write_i32(ID, 0x60FF, 0, -10_000).unwrap();
+    m.advance(800_000);
+    m.write_i32(ID, 0x60FF, 0, 0).unwrap();
+    m.advance(1_000_000);
+    assert!(pos(&mut m) < 20_000);
+    assert_eq!(state(&mut m), State::OperationEnabled);
+    assert_ne!(sw(&mut m) & (1 << 11), 0, "in force again after the first completed movement");
+    assert!(emcys(&mut m).is_empty());
+}
+
+#[test]
+fn the_ext_proxy_input_is_a_hardware_limit_under_2010h() {
+    let mut m = master();
+    set_environment(&mut m, Environment { positive_limit: Some(30_000), ..drvi::default_environment() });
+    m.write_u8(ID, 0x2014, 0, 7).unwrap(); // actuator: 10000 = 100 mm/s
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 1_000);
+    m.write_i32(ID, 0x60FF, 0, 10_000).unwrap();
+    m.advance(4_000_000);
+    assert!(pos(&mut m) > 30_000, "2010h = 0: the input is only reported");
+    assert_ne!(m.read_u32(ID, 0x2002, 0).unwrap() & 0b100, 0, "2002h bit 2 EXT PROXY");
+    assert_eq!(state(&mut m), State::OperationEnabled);
+    m.write_i32(ID, 0x60FF, 0, -10_000).unwrap();
+    m.advance(5_000_000);
+    m.write_i32(ID, 0x60FF, 0, 0).unwrap();
+    m.write_u8(ID, 0x2010, 0, 1).unwrap();
+    m.advance(1_000_000);
+    m.take_seen();
+    m.write_i32(ID, 0x60FF, 0, 10_000).unwrap();
+    assert!(m.wait_until(10_000_000, 5_000, |m| m.seen().any(|s| s.frame.id() == EMCY)));
+    assert_eq!(emcys(&mut m)[0][..3], [0x20, 0x61, 0x01]);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Errors, warnings, resets.
+
+fn conditions(m: &mut Master, f: impl FnOnce(&mut drvi::Conditions)) {
+    f(&mut app_mut(m).vendor_mut().conditions);
+}
+
+#[test]
+fn warnings_latch_until_a_reset_and_set_statusword_bit_7() {
+    let mut m = master();
+    conditions(&mut m, |c| {
+        c.vbus_mv = 62_000;
+        c.vlog_mv = 20_500;
+    });
+    m.advance(2000);
+    assert_eq!(warnings(&mut m), warning::VDC_OVLO | warning::VL_UVLO);
+    assert_ne!(sw(&mut m) & (1 << 7), 0);
+    conditions(&mut m, |c| *c = drvi::Conditions::default());
+    m.advance(10_000);
+    assert_eq!(warnings(&mut m), warning::VDC_OVLO | warning::VL_UVLO, "latched");
+    m.controlword(ID, 0x80).unwrap(); // reset (also outside Fault)
+    m.controlword(ID, 0x00).unwrap();
+    m.advance(2000);
+    assert_eq!(warnings(&mut m), 0);
+    assert_eq!(sw(&mut m) & (1 << 7), 0);
+    // The other reset: 0 written to 1003h sub 0.
+    conditions(&mut m, |c| {
+        c.vbus_mv = 19_000;
+        c.vlog_mv = 28_000;
+        c.ambient_c = 90.0;
+    });
+    m.advance(120_000_000);
+    let w = warnings(&mut m);
+    let all = warning::VDC_UVLO | warning::VL_OVLO | warning::MOTOR_TEMPERATURE | warning::DRIVE_TEMPERATURE;
+    assert_eq!(w, all, "{w:#06X}");
+    assert_eq!(state(&mut m), State::SwitchOnDisabled, "warnings do not change the state");
+    conditions(&mut m, |c| *c = drvi::Conditions::default());
+    m.write_u8(ID, 0x1003, 0, 0).unwrap();
+    m.advance(2000);
+    assert_eq!(warnings(&mut m) & (warning::VDC_UVLO | warning::VL_OVLO), 0);
+}
+
+#[test]
+fn hard_errors_switch_off_at_once_with_their_manufacturer_byte() {
+    for (what, set, emcy) in [
+        (
+            "VLOG over 29 V",
+            Box::new(|c: &mut drvi::Conditions| c.vlog_mv = 30_000) as Box<dyn Fn(&mut drvi::Conditions)>,
+            [0x10, 0x31, 0x05, 1],
+        ),
+        ("VBUS under 10 V", Box::new(|c: &mut drvi::Conditions| c.vbus_mv = 9_000), [0x20, 0x31, 0x05, 0]),
+        ("VLOG under 16 V", Box::new(|c: &mut drvi::Conditions| c.vlog_mv = 15_000), [0x20, 0x31, 0x05, 1]),
+        ("VBUS over 80 V", Box::new(|c: &mut drvi::Conditions| c.vbus_mv = 81_000), [0x10, 0x31, 0x05, 0]),
+        ("STO", Box::new(|c: &mut drvi::Conditions| c.hw_enable = false), [0x40, 0x55, 0x01, 0]),
+        ("VEXT", Box::new(|c: &mut drvi::Conditions| c.vext = false), [0x20, 0x51, 0x05, 0]),
+        ("encoder", Box::new(|c: &mut drvi::Conditions| c.encoder_ok = false), [0x05, 0x73, 0x01, 0]),
+    ] {
+        let mut m = master();
+        m.switch_on(ID).unwrap();
+        m.set_mode(ID, 3).unwrap();
+        profile(&mut m, 0, 600);
+        m.write_i32(ID, 0x60FF, 0, 6000).unwrap();
+        m.advance(1_000_000);
+        m.take_seen();
+        conditions(&mut m, |c| set(c));
+        m.advance(2000);
+        let e = emcys(&mut m);
+        assert_eq!(e[0][..4], emcy, "{what}");
+        assert_eq!(state(&mut m), State::Fault, "{what}: hard error, no ramp");
+        assert!(!app(&m).drive().axis().status().power, "{what}");
+        assert!(vel(&mut m) > 0, "{what}: the axis coasts");
+    }
+}
+
+#[test]
+fn an_over_temperature_is_a_soft_error_and_a_persisting_cause_comes_back_after_reset() {
+    let mut m = master();
+    set_environment(&mut m, Environment::default()); // no end stops in the way
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 600);
+    m.write_i32(ID, 0x60FF, 0, 6000).unwrap();
+    m.advance(1_000_000);
+    m.take_seen();
+    conditions(&mut m, |c| c.ambient_c = 140.0);
+    assert!(m.wait_until(120_000_000, 100_000, |m| m.seen().any(|s| s.frame.id() == EMCY)));
+    let e = emcys(&mut m);
+    assert_eq!(e[0][..4], [0x10, 0x42, 0x09, 1], "the drive heats faster: 4210h / 1");
+    assert_eq!(state(&mut m), State::FaultReactionActive, "soft: quick stop first");
+    assert!(m.wait_until(2_000_000, 10_000, |m| m.state(ID).unwrap() == Some(State::Fault)));
+    // Still hot: the fault comes back after the reset.
+    m.controlword(ID, 0x80).unwrap();
+    m.advance(5000);
+    assert_eq!(state(&mut m), State::Fault);
+    conditions(&mut m, |c| c.ambient_c = 25.0);
+    app_mut(&mut m).vendor_mut().motor_c = 25.0;
+    app_mut(&mut m).vendor_mut().drive_c = 25.0;
+    m.controlword(ID, 0x00).unwrap();
+    m.controlword(ID, 0x80).unwrap();
+    m.advance(5000);
+    assert_eq!(state(&mut m), State::SwitchOnDisabled);
+    assert_eq!(m.read_u16(ID, 0x603F, 0).unwrap(), 0);
+}
+
+#[test]
+fn i2t_trips_after_an_overload() {
+    let mut m = master(); // pushing against the end stop at 150000
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 4).unwrap();
+    m.write(ID, 0x6071, 0, &10_000i16.to_le_bytes()).unwrap(); // twice the I²T current
+    m.write_u32(ID, 0x6087, 0, 1_000_000).unwrap();
+    assert!(m.wait_until(10_000_000, 10_000, |m| m.seen().any(|s| s.frame.id() == EMCY)));
+    let t = m.now();
+    assert_eq!(emcys(&mut m)[0][..4], [0x10, 0x23, 0x03, 11], "2310h / 11: I²T fault");
+    assert!((1_500_000..4_000_000).contains(&t), "about 2 s at twice the rating: {t}");
+    assert_eq!(state(&mut m), State::Fault);
+}
+
+#[test]
+fn fault_reset_by_1003h_sub_0() {
+    let mut m = master();
+    m.switch_on(ID).unwrap();
+    conditions(&mut m, |c| c.hw_enable = false);
+    m.advance(2000);
+    assert_eq!(state(&mut m), State::Fault);
+    conditions(&mut m, |c| c.hw_enable = true);
+    assert_eq!(m.read_u64(ID, 0x1003, 0).unwrap(), 1);
+    m.write_u8(ID, 0x1003, 0, 0).unwrap();
+    assert_eq!(state(&mut m), State::SwitchOnDisabled);
+    assert_eq!(m.read_u64(ID, 0x1003, 0).unwrap(), 0, "history cleared");
+    assert_eq!(m.read_u8_or(ID, 0x1001), 0);
+    m.switch_on(ID).unwrap();
+}
+
+trait ReadU8 {
+    fn read_u8_or(&mut self, node: u8, index: u16) -> u8;
+}
+
+impl ReadU8 for Master {
+    fn read_u8_or(&mut self, node: u8, index: u16) -> u8 {
+        self.read_u64(node, index, 0).unwrap() as u8
+    }
+}
+
+#[test]
+fn a_lost_guarding_master_is_the_fieldbus_disconnection_soft_error() {
+    let mut m = master();
+    m.write_u16(ID, 0x100C, 0, 100).unwrap();
+    m.write_u8(ID, 0x100D, 0, 3).unwrap();
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 600);
+    m.write_i32(ID, 0x60FF, 0, 6000).unwrap();
+    for _ in 0..12 {
+        m.send(drive::transport::CanFrame::remote(0x700 + u32::from(ID), false, 1).unwrap());
+        m.advance(90_000);
+    }
+    m.take_seen();
+    assert!(m.wait_until(1_000_000, 5_000, |m| m.seen().any(|s| s.frame.id() == EMCY)));
+    assert_eq!(emcys(&mut m)[0], [0x30, 0x81, 0x11, 0, 0, 0, 0, 0]);
+    assert_eq!(state(&mut m), State::FaultReactionActive);
+    assert!(m.wait_until(2_000_000, 10_000, |m| m.state(ID).unwrap() == Some(State::Fault)));
+    // Guarding again does not clear the latched error; a reset does.
+    m.send(drive::transport::CanFrame::remote(0x700 + u32::from(ID), false, 1).unwrap());
+    m.advance(50_000);
+    assert_eq!(state(&mut m), State::Fault);
+    m.controlword(ID, 0x80).unwrap();
+    assert_eq!(state(&mut m), State::SwitchOnDisabled);
+}
+
+#[test]
+fn profile_check_2012h_warns_when_the_target_is_not_reached() {
+    let mut m = master();
+    set_environment(&mut m, Environment { positive_end_stop: Some(10_000), ..drvi::default_environment() });
+    home(&mut m, 37, 0);
+    profile(&mut m, 3000, 600);
+    m.set_mode(ID, 1).unwrap();
+    m.write_i32(ID, 0x607A, 0, 20_000).unwrap();
+    m.controlword(ID, 0x1F).unwrap();
+    m.controlword(ID, 0x0F).unwrap();
+    m.advance(3_000_000);
+    assert_eq!(pos(&mut m), 10_000, "blocked by the end stop");
+    assert_ne!(warnings(&mut m) & warning::POSITION_NOT_REACHED, 0);
+    // Disabled: no warning.
+    m.controlword(ID, 0x8F).unwrap();
+    m.controlword(ID, 0x0F).unwrap();
+    m.write_u8(ID, 0x2012, 1, 0).unwrap();
+    m.advance(1_000_000);
+    assert_eq!(warnings(&mut m) & warning::POSITION_NOT_REACHED, 0);
+}
+
+#[test]
+fn speed_check_warns_when_the_torque_limit_holds_the_speed_back() {
+    let mut m = master();
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 60_000);
+    m.write(ID, 0x6071, 0, &100i16.to_le_bytes()).unwrap();
+    m.write_u8(ID, 0x2015, 0, 1).unwrap();
+    m.write_i32(ID, 0x60FF, 0, 300_000).unwrap(); // 3000 rpm: needs more than 100 mA
+    m.advance(1_000_000);
+    assert_ne!(warnings(&mut m) & warning::SPEED_NOT_REACHED, 0);
+}
+
+#[test]
+fn pid_selection_2011h_sets_the_loop_bandwidth() {
+    let mut m = master();
+    let bw = |m: &Master| app(m).drive().axis().config().plant.bandwidth;
+    m.advance(2000);
+    assert_eq!(bw(&m), 150.0, "default: PID low");
+    m.write_u16(ID, 0x2011, 1, 3).unwrap();
+    m.advance(2000);
+    assert_eq!(bw(&m), 600.0);
+    m.write_u16(ID, 0x2011, 1, 4).unwrap();
+    m.write_u16(ID, 0x2011, 2, 20).unwrap();
+    m.advance(2000);
+    assert_eq!(bw(&m), 600.0, "custom: 30 × Kp position (×10)");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Persistence.
+
+#[test]
+fn saved_parameters_survive_a_restart() {
+    let dir = std::env::temp_dir().join(format!("drvi-save-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let storage =
+        || NodeStorage::new(Arc::new(ParameterSet::new()), Box::new(FileStorage::open(&dir, "drvi-node3").unwrap()));
+    {
+        let mut m = master_with(storage(), None);
+        homing_params(&mut m, -2, 4_321);
+        m.write_u8(ID, 0x2014, 0, 7).unwrap();
+        m.write_u32(ID, 0x2001, 1, 100).unwrap();
+        m.write_u32(ID, 0x2001, 2, 254).unwrap();
+        m.write_u16(ID, 0x2013, 0, 40).unwrap();
+        m.write(ID, 0x1010, 1, b"save").unwrap();
+    }
+    let mut m = master_with(storage(), None);
+    assert_eq!(m.read_i64(ID, 0x6098, 0).unwrap(), -2);
+    assert_eq!(m.read_i64(ID, 0x607C, 0).unwrap(), 4_321);
+    assert_eq!(m.read_u64(ID, 0x2014, 0).unwrap(), 7);
+    assert_eq!(m.read_u64(ID, 0x2001, 2).unwrap(), 254);
+    assert_eq!(m.read_u64(ID, 0x2013, 0).unwrap(), 40);
+    // The restored configuration is in force: the actuator unit system and the feed converter.
+    let units = app(&m).drive().axis().config().units;
+    assert_eq!(units.acceleration.num, 100);
+    assert_eq!(app(&m).drive().scale().position.num, 254);
+    // 1011h "load" + reset node: defaults again.
+    m.write(ID, 0x1011, 1, b"load").unwrap();
+    m.nmt(0x81, ID);
+    m.advance(2000);
+    assert_eq!(m.read_i64(ID, 0x6098, 0).unwrap(), 37);
+    assert_eq!(m.read_u64(ID, 0x2014, 0).unwrap(), 0);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_homed_axis_keeps_its_position_through_a_reset_node() {
+    let mut m = master();
+    home(&mut m, 37, 0);
+    profile(&mut m, 6000, 600);
+    move_to(&mut m, 12_345, false);
+    m.nmt(0x81, ID);
+    m.advance(5000);
+    assert_eq!(pos(&mut m), 12_345, "5.0.3");
+    assert_eq!(m.read_u64(ID, 0x2004, 0).unwrap(), 1);
+}
