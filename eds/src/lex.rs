@@ -36,20 +36,25 @@ use crate::source::{SourceFile, Span};
 
 /// Lexes a decoded source file. Never fails: unrecognised lines become [`LineKind::Garbage`].
 pub fn lex(source: SourceFile) -> Document {
-    // The source counted its `\n`s: the exact number of lines unless a file ends lines with a
-    // lone `\r`.
-    let lines = lex_into(&source.text, Vec::with_capacity(source.line_count()));
+    let mut starts = Vec::with_capacity(source.text.len() / 12 + 2);
+    let lines = lex_into(&source.text, &mut starts);
+    // The lexer found every `\n`: give the source its line index instead of letting it search.
+    source.set_line_starts(starts);
     Document { source, lines }
 }
 
 /// Lexes text into lines (the work behind [`lex`]).
 pub fn lex_lines(text: &str) -> Vec<Line> {
-    // Typical EDS lines are 12-25 bytes long.
-    lex_into(text, Vec::with_capacity(text.len() / 12 + 1))
+    lex_into(text, &mut Vec::with_capacity(text.len() / 12 + 2))
 }
 
-fn lex_into(text: &str, mut lines: Vec<Line>) -> Vec<Line> {
+/// Lexes `text`, and puts the offset of every line start that follows a `\n` (with 0 first)
+/// into `line_starts`.
+fn lex_into(text: &str, line_starts: &mut Vec<u32>) -> Vec<Line> {
     let bytes = text.as_bytes();
+    // Typical EDS lines are 12-25 bytes long; a few more or less costs little either way.
+    let mut lines = Vec::with_capacity(bytes.len() / 10 + 16);
+    line_starts.push(0);
     let mut start = 0usize;
     while start < bytes.len() {
         let (content_end, ending, next) = match find_eol(bytes, start) {
@@ -64,6 +69,9 @@ fn lex_into(text: &str, mut lines: Vec<Line>) -> Vec<Line> {
             }
             None => (bytes.len(), LineEnding::None, bytes.len()),
         };
+        if matches!(ending, LineEnding::Lf | LineEnding::CrLf) {
+            line_starts.push(next as u32);
+        }
         let kind = classify(text, start, content_end);
         lines.push(Line {
             raw: Span::new(start as u32, next as u32),
@@ -134,6 +142,25 @@ fn is_blank(b: u8) -> bool {
     matches!(b, b' ' | b'\t' | 0x0B | 0x0C)
 }
 
+/// `s.trim()`, deciding quickly when neither end can be white space: every white space
+/// character is either ASCII at or below `' '` or not ASCII at all.
+#[inline]
+pub(crate) fn trim(s: &str) -> &str {
+    match (s.as_bytes().first(), s.as_bytes().last()) {
+        (Some(0x21..=0x7E), Some(0x21..=0x7E)) => s,
+        _ => s.trim(),
+    }
+}
+
+/// `s.trim_start()`, deciding quickly as [`trim`] does.
+#[inline]
+pub(crate) fn trim_start(s: &str) -> &str {
+    match s.as_bytes().first() {
+        Some(0x21..=0x7E) => s,
+        _ => s.trim_start(),
+    }
+}
+
 /// The ASCII characters [`char::is_whitespace`] accepts (unlike [`u8::is_ascii_whitespace`], it
 /// includes the vertical tab).
 #[inline]
@@ -146,6 +173,10 @@ fn is_ascii_space(b: u8) -> bool {
 #[inline]
 fn trim_span(text: &str, start: usize, end: usize) -> Span {
     let b = text.as_bytes();
+    // Most keys and values have nothing to trim.
+    if start < end && matches!(b[start], 0x21..=0x7E) && matches!(b[end - 1], 0x21..=0x7E) {
+        return Span::new(start as u32, end as u32);
+    }
     let mut i = start;
     while i < end && is_ascii_space(b[i]) {
         i += 1;

@@ -177,10 +177,67 @@ pub(crate) fn otype(t: crate::model::ObjectType) -> &'static str {
 
 /// `object 0x1018 "Identity Object"`
 pub(crate) fn object_context(index: u16, name: &str) -> String {
-    format!("object 0x{index:04X} \"{name}\"")
+    let mut s = String::with_capacity(name.len() + 16);
+    s.push_str("object 0x");
+    push_hex4(&mut s, index);
+    s.push_str(" \"");
+    s.push_str(name);
+    s.push('"');
+    s
 }
 
 /// `sub 2 "Product Code"`
 pub(crate) fn sub_context(sub: u8, name: &str) -> String {
-    format!("sub {sub} \"{name}\"")
+    let mut s = String::with_capacity(name.len() + 10);
+    s.push_str("sub ");
+    push_decimal(&mut s, sub as u32);
+    s.push_str(" \"");
+    s.push_str(name);
+    s.push('"');
+    s
+}
+
+/// Appends `v` as four upper-case hex digits (`format!("{v:04X}")` without the formatter).
+pub(crate) fn push_hex4(s: &mut String, v: u16) {
+    for shift in [12, 8, 4, 0] {
+        s.push(char::from(b"0123456789ABCDEF"[(v >> shift) as usize & 0xF]));
+    }
+}
+
+/// Appends `v` in decimal (`format!("{v}")` without the formatter).
+pub(crate) fn push_decimal(s: &mut String, v: u32) {
+    let mut digits = [0u8; 10];
+    let mut i = digits.len();
+    let mut v = v;
+    loop {
+        i -= 1;
+        digits[i] = b'0' + (v % 10) as u8;
+        v /= 10;
+        if v == 0 {
+            break;
+        }
+    }
+    // The digits are ASCII.
+    s.push_str(std::str::from_utf8(&digits[i..]).unwrap_or_default());
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hand_formatting_matches_format() {
+        for v in [0u16, 1, 0xA, 0x1018, 0xFFFF, 0x0100] {
+            let mut s = String::new();
+            push_hex4(&mut s, v);
+            assert_eq!(s, format!("{v:04X}"));
+        }
+        for v in [0u32, 7, 10, 99, 100, 255, 65535, u32::MAX] {
+            let mut s = String::from("x");
+            push_decimal(&mut s, v);
+            assert_eq!(s, format!("x{v}"));
+        }
+        assert_eq!(object_context(0x1018, "Identity"), "object 0x1018 \"Identity\"");
+        assert_eq!(sub_context(12, "Ä"), "sub 12 \"Ä\"");
+    }
 }

@@ -88,7 +88,9 @@ pub struct SourceFile {
     /// Whether the input started with a UTF-8 byte-order mark (kept for lossless writing; the
     /// mark itself is not part of `text`).
     pub bom: bool,
-    line_starts: Vec<u32>,
+    /// Offsets of the line starts; found by the lexer, which looks at every byte anyway, or
+    /// computed on first use.
+    line_starts: std::sync::OnceLock<Vec<u32>>,
 }
 
 impl SourceFile {
@@ -111,8 +113,20 @@ impl SourceFile {
     }
 
     fn from_parts(name: String, text: String, encoding: Encoding, bom: bool) -> Self {
-        let line_starts = line_starts(text.as_bytes());
-        SourceFile { name, text, encoding, bom, line_starts }
+        SourceFile { name, text, encoding, bom, line_starts: std::sync::OnceLock::new() }
+    }
+
+    /// The offset of every line start (0 and each offset after a `\n`).
+    fn starts(&self) -> &[u32] {
+        self.line_starts.get_or_init(|| line_starts(self.text.as_bytes()))
+    }
+
+    /// Records the line starts a caller found while reading the text (the lexer does), so that
+    /// they need not be searched for again. They must be what [`line_starts`] finds (checked in
+    /// debug builds); if the index was already built, it is kept.
+    pub(crate) fn set_line_starts(&self, starts: Vec<u32>) {
+        debug_assert_eq!(starts, line_starts(self.text.as_bytes()), "line starts of {}", self.name);
+        let _ = self.line_starts.set(starts);
     }
 
     /// The text a span covers (empty if the span is out of range).
@@ -122,11 +136,12 @@ impl SourceFile {
 
     /// Line and column of a byte offset.
     pub fn line_col(&self, offset: u32) -> LineCol {
-        let line_idx = match self.line_starts.binary_search(&offset) {
+        let starts = self.starts();
+        let line_idx = match starts.binary_search(&offset) {
             Ok(i) => i,
             Err(i) => i - 1,
         };
-        let start = self.line_starts[line_idx] as usize;
+        let start = starts[line_idx] as usize;
         let end = (offset as usize).min(self.text.len());
         let col = self.text.get(start..end).map(|s| s.chars().count()).unwrap_or(end - start);
         LineCol { line: line_idx as u32 + 1, col: col as u32 + 1 }
@@ -135,14 +150,15 @@ impl SourceFile {
     /// The text of 1-based line `line`, without its line ending.
     pub fn line_text(&self, line: u32) -> &str {
         let i = line.saturating_sub(1) as usize;
-        let Some(&start) = self.line_starts.get(i) else { return "" };
-        let end = self.line_starts.get(i + 1).map(|&e| e as usize).unwrap_or(self.text.len());
+        let starts = self.starts();
+        let Some(&start) = starts.get(i) else { return "" };
+        let end = starts.get(i + 1).map(|&e| e as usize).unwrap_or(self.text.len());
         self.text[start as usize..end].trim_end_matches(['\n', '\r'])
     }
 
     /// Number of lines.
     pub fn line_count(&self) -> usize {
-        self.line_starts.len()
+        self.starts().len()
     }
 }
 

@@ -151,7 +151,7 @@ pub struct ParsedInt {
 /// ```
 pub fn parse_value(text: &str, ty: DataType) -> Result<ParsedValue, ValueError> {
     let mut quirks = Vec::new();
-    let t = text.trim();
+    let t = crate::lex::trim(text);
     let value = match ty {
         DataType::VisibleString | DataType::UnicodeString => Some(Value::Text(t.to_owned())),
         DataType::OctetString => Some(Value::Bytes(parse_hex_bytes(t)?)),
@@ -222,7 +222,7 @@ pub fn parse_value(text: &str, ty: DataType) -> Result<ParsedValue, ValueError> 
 
 /// Whether `text` mentions `$NODEID` (any case).
 pub fn contains_node_id(text: &str) -> bool {
-    find_ci(text, "$nodeid").is_some()
+    text.as_bytes().contains(&b'$') && find_ci(text, "$nodeid").is_some()
 }
 
 fn find_ci(hay: &str, needle: &str) -> Option<usize> {
@@ -274,20 +274,25 @@ pub fn parse_node_id_expr(text: &str, quirks: &mut Vec<Quirk>) -> Result<(i128, 
 /// leading-zero remarks.
 pub fn parse_int(text: &str, quirks: &mut Vec<Quirk>) -> Result<ParsedInt, ValueError> {
     let nan = || ValueError::NotANumber(text.to_owned());
-    let t = text.trim();
+    let t = crate::lex::trim(text);
     let (negative, rest) = match t.as_bytes().first() {
         Some(b'-') => (true, &t[1..]),
         Some(b'+') => (false, &t[1..]),
         _ => (false, t),
     };
-    let mut body = rest.trim_start();
+    let mut body = crate::lex::trim_start(rest);
     if body.len() != rest.len() {
         quirks.push(Quirk::SpacedNumber);
     }
-    let unsuffixed = body.trim_end_matches(['u', 'U', 'l', 'L']);
-    if unsuffixed.len() != body.len() && unsuffixed.len() + 3 >= body.len() && !unsuffixed.is_empty() {
+    let b = body.as_bytes();
+    let mut unsuffixed = b.len();
+    while unsuffixed > 0 && matches!(b[unsuffixed - 1], b'u' | b'U' | b'l' | b'L') {
+        unsuffixed -= 1;
+    }
+    if unsuffixed != b.len() && unsuffixed + 3 >= b.len() && unsuffixed != 0 {
         quirks.push(Quirk::CSuffix);
-        body = unsuffixed;
+        // The suffix letters are ASCII, so this is a char boundary.
+        body = &body[..unsuffixed];
     }
     let (radix, digits) = if let Some(h) = body.strip_prefix("0x").or_else(|| body.strip_prefix("0X")) {
         (Radix::Hex, h)
@@ -299,19 +304,15 @@ pub fn parse_int(text: &str, quirks: &mut Vec<Quirk>) -> Result<ParsedInt, Value
     if digits.is_empty() {
         return Err(nan());
     }
-    let radix_n = match radix {
-        Radix::Hex => 16,
-        Radix::Dec => 10,
-        Radix::Oct => 8,
-    };
+    let too_large = || ValueError::TooLarge(text.to_owned());
     let (value, radix) = match radix {
         Radix::Oct => {
             if !digits.bytes().all(|b| b.is_ascii_digit()) {
                 return Err(nan());
             }
             if digits.bytes().all(|b| (b'0'..=b'7').contains(&b)) {
-                let oct = accumulate(digits, 8).ok_or_else(|| ValueError::TooLarge(text.to_owned()))?;
-                let dec = accumulate(digits, 10).ok_or_else(|| ValueError::TooLarge(text.to_owned()))?;
+                let oct = accumulate(digits, 8).ok_or_else(too_large)?;
+                let dec = accumulate(digits, 10).ok_or_else(too_large)?;
                 if oct != dec {
                     let sign = if negative { -1 } else { 1 };
                     quirks.push(Quirk::AmbiguousOctal { octal: sign * oct, decimal: sign * dec });
@@ -321,21 +322,44 @@ pub fn parse_int(text: &str, quirks: &mut Vec<Quirk>) -> Result<ParsedInt, Value
                 (oct, Radix::Oct)
             } else {
                 quirks.push(Quirk::DecimalWithLeadingZero);
-                (accumulate(digits, 10).ok_or_else(|| ValueError::TooLarge(text.to_owned()))?, Radix::Dec)
+                (accumulate(digits, 10).ok_or_else(too_large)?, Radix::Dec)
             }
         }
         _ => {
-            let ok = match radix_n {
-                16 => digits.bytes().all(|b| b.is_ascii_hexdigit()),
-                _ => digits.bytes().all(|b| b.is_ascii_digit()),
-            };
-            if !ok {
-                return Err(nan());
+            let radix_n = if radix == Radix::Hex { 16 } else { 10 };
+            // Up to 16 hex or 19 decimal digits fit a u64: read and check them in one go.
+            let short = if radix_n == 16 { 16 } else { 19 };
+            if digits.len() <= short {
+                let mut v = 0u64;
+                for &b in digits.as_bytes() {
+                    let d = digit(b).filter(|&d| d < radix_n).ok_or_else(nan)?;
+                    v = v * radix_n as u64 + d as u64;
+                }
+                (v as i128, radix)
+            } else {
+                let ok = match radix_n {
+                    16 => digits.bytes().all(|b| b.is_ascii_hexdigit()),
+                    _ => digits.bytes().all(|b| b.is_ascii_digit()),
+                };
+                if !ok {
+                    return Err(nan());
+                }
+                (accumulate(digits, radix_n).ok_or_else(too_large)?, radix)
             }
-            (accumulate(digits, radix_n).ok_or_else(|| ValueError::TooLarge(text.to_owned()))?, radix)
         }
     };
     Ok(ParsedInt { value: if negative { -value } else { value }, radix, negative })
+}
+
+/// The value of an ASCII hex digit.
+#[inline]
+fn digit(b: u8) -> Option<u32> {
+    match b {
+        b'0'..=b'9' => Some((b - b'0') as u32),
+        b'a'..=b'f' => Some((b - b'a') as u32 + 10),
+        b'A'..=b'F' => Some((b - b'A') as u32 + 10),
+        _ => None,
+    }
 }
 
 /// Accumulates validated digits; `None` on overflow past 2^100 (far beyond any CiA type).

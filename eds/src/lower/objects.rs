@@ -77,9 +77,8 @@ fn owned(kv: &Kv<'_>) -> (String, String) {
     (kv.key.to_owned(), kv.value.to_owned())
 }
 
-fn source_ref(cx: &Ctx<'_>, sec: &Section<'_>) -> SourceRef {
-    let lc = cx.src.line_col(sec.name_span.start);
-    SourceRef { line: lc.line, col: lc.col, span: sec.name_span }
+fn source_ref(sec: &Section<'_>) -> SourceRef {
+    SourceRef { line: sec.at.line, col: sec.at.col, span: sec.name_span }
 }
 
 /// The text before an inline `;` comment, if there is one.
@@ -246,22 +245,25 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -
     }
 }
 
+/// [`Access::parse`] without allocating: any case, surrounding white space ignored.
+fn parse_access(s: &str) -> Option<Access> {
+    let t = crate::lex::trim(s);
+    [Access::Ro, Access::Wo, Access::Rw, Access::Rwr, Access::Rww, Access::Const]
+        .into_iter()
+        .find(|a| t.eq_ignore_ascii_case(a.as_str()))
+}
+
 /// Parses `AccessType`, accepting common non-standard spellings with a warning.
 fn access_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, context: Crumbs<'_>) -> Access {
-    let mut text = kv.value;
-    let mut acc = Access::parse(text);
-    if acc.is_none()
-        && let Some(head) = before_comment(text).or_else(|| text.find('#').map(|i| text[..i].trim_end()))
-        && let Some(a) = Access::parse(head)
+    let text = kv.value;
+    // Upper or mixed case is common and harmless; CiA 306 is silent on case here.
+    if let Some(a) = parse_access(text) {
+        return a;
+    }
+    if let Some(head) = before_comment(text).or_else(|| text.find('#').map(|i| text[..i].trim_end()))
+        && let Some(a) = parse_access(head)
     {
         inline_comment(cx, kv, head, context);
-        acc = Some(a);
-        text = head;
-    }
-    if let Some(a) = acc {
-        if text != a.as_str() && text.trim() != a.as_str() && text.to_ascii_lowercase() == a.as_str() {
-            // Upper or mixed case is common and harmless; CiA 306 is silent on case here.
-        }
         return a;
     }
     let lower = text.trim().to_ascii_lowercase();
@@ -485,7 +487,7 @@ impl EntryBuilder<'_> {
             upload_file: keys.get(K_UPLOAD).map(|kv| kv.value.to_owned()),
             download_file: keys.get(K_DOWNLOAD).map(|kv| kv.value.to_owned()),
             extra,
-            at: source_ref(cx, sec),
+            at: source_ref(sec),
         };
         check_entry(cx, &entry, keys, context);
         Some(entry)
@@ -764,7 +766,7 @@ fn build_object(
         object_links: Vec::new(),
         obj_flags: None,
         extra: Vec::new(),
-        at: source_ref(cx, sec),
+        at: source_ref(sec),
     };
     if !object_type.has_subs() {
         if object_type != ObjectType::Null {
@@ -925,7 +927,7 @@ fn expand_compact(
     ctx: Crumbs<'_>,
 ) {
     // Sub-index 0 holds the number of entries (named as lely-core and CiA 306 examples do).
-    obj.subs.insert(
+    let sub0 = (
         SubIndex(0),
         Entry {
             sub: SubIndex(0),
@@ -946,18 +948,26 @@ fn expand_compact(
         },
     );
     let template_builder = EntryBuilder { compact_template: true, ..*builder };
-    let Some(template) =
+    let Some(mut template) =
         template_builder.build(cx, sec, keys, 1, Some(obj.name.clone()), EntryDefaults::default(), ctx)
     else {
+        obj.subs.insert(sub0.0, sub0.1);
         return;
     };
+    // Each element gets its own name and no extra keys: clear them once, not in every clone.
+    template.name = String::new();
+    template.extra = Vec::new();
+    // The map is built in one go from entries in order, rather than by n inserts (each of which
+    // searches the tree and moves the 288-byte entries of a full leaf when it splits).
+    let mut all = Vec::with_capacity(n as usize + 1);
+    all.push(sub0);
     for s in 1..=n {
-        let mut e = template.clone();
-        e.sub = SubIndex(s);
-        e.name = format!("{}{s}", obj.name);
-        e.extra.clear();
-        obj.subs.insert(SubIndex(s), e);
+        let mut name = String::with_capacity(obj.name.len() + 3);
+        name.push_str(&obj.name);
+        super::push_decimal(&mut name, s as u32);
+        all.push((SubIndex(s), Entry { sub: SubIndex(s), name, ..template.clone() }));
     }
+    obj.subs = all.into_iter().collect();
     if let Some(ns) = names {
         for (k, kv) in numbered(cx, ns, &NR_OF_ENTRIES, ctx) {
             match obj.subs.get_mut(&SubIndex(k.min(256) as u8)).filter(|_| (1..=n as u32).contains(&k)) {

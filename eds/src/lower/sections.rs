@@ -5,10 +5,10 @@
 //! occurrence), so that a [`Section`] is a borrowed slice and nothing later allocates per entry.
 
 use super::{Crumbs, Ctx, FastMap};
-use crate::ast::{Document, LineKind};
+use crate::ast::{Document, LineEnding, LineKind};
 use crate::codes;
 use crate::model::Category;
-use crate::source::{Encoding, Span};
+use crate::source::{Encoding, LineCol, Span};
 
 /// One `key=value` entry.
 #[derive(Clone, Copy, Debug)]
@@ -43,6 +43,9 @@ pub(crate) enum Kind {
 pub(crate) struct Section<'a> {
     pub name: &'a str,
     pub name_span: Span,
+    /// Where the name starts (what [`crate::source::SourceFile::line_col`] says, found while
+    /// reading the lines in order instead of by a search).
+    pub at: LineCol,
     pub kind: Kind,
     pub entries: &'a [Kv<'a>],
 }
@@ -64,6 +67,7 @@ impl<'a> Sections<'a> {
 struct Head<'a> {
     name: &'a str,
     name_span: Span,
+    at: LineCol,
     kind: Kind,
     entries: std::ops::Range<usize>,
 }
@@ -85,6 +89,7 @@ impl<'d> Collected<'d> {
             .map(|h| Section {
                 name: h.name,
                 name_span: h.name_span,
+                at: h.at,
                 kind: h.kind,
                 entries: &self.entries[h.entries.clone()],
             })
@@ -225,6 +230,11 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
     let mut repeated = false;
     // The section the following entries belong to, and its occurrence.
     let mut current: Option<(usize, u16)> = None;
+    // The line number as `line_col` counts it (lines end at `\n`), and the number of characters
+    // between the start of that line and the start of the current lexer line (not 0 only after
+    // lines that end with a lone `\r`).
+    let mut line_no = 1u32;
+    let mut col_base = 0u32;
     for line in &doc.lines {
         match line.kind {
             LineKind::Entry { key, value } => match current {
@@ -267,11 +277,10 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                     Some(i) => {
                         occurrences[i] += 1;
                         repeated = true;
-                        let first = src.line_col(heads[i].name_span.start);
                         let d = cx.emit(
                             codes::E0006,
                             Some(name),
-                            format!("section [{name_str}] appears again (first at line {})", first.line),
+                            format!("section [{name_str}] appears again (first at line {})", heads[i].at.line),
                         );
                         d.hint = Some(
                             "merge the two sections; where both set a key, this reader uses the later value".to_owned(),
@@ -280,7 +289,9 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                     }
                     None => {
                         let i = heads.len();
-                        heads.push(Head { name: name_str, name_span: name, kind, entries: 0..0 });
+                        let before = src.slice(Span::new(line.raw.start, name.start));
+                        let at = LineCol { line: line_no, col: col_base + char_count(before) + 1 };
+                        heads.push(Head { name: name_str, name_span: name, at, kind, entries: 0..0 });
                         occurrences.push(0);
                         match kind {
                             Kind::Unknown => unknown.push(i),
@@ -318,6 +329,14 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
             }
             LineKind::Blank => {}
         }
+        match line.ending {
+            LineEnding::Lf | LineEnding::CrLf => {
+                line_no += 1;
+                col_base = 0;
+            }
+            LineEnding::Cr => col_base += char_count(src.slice(line.raw)),
+            LineEnding::None => {}
+        }
     }
     let run_end = |r: usize| runs.get(r + 1).map_or(entries.len(), |&(_, start)| start);
     if !repeated {
@@ -345,6 +364,11 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
     Collected { entries, heads, by_kind }
 }
 
+/// The number of characters in `s`.
+fn char_count(s: &str) -> u32 {
+    (if s.is_ascii() { s.len() } else { s.chars().count() }) as u32
+}
+
 fn report_spelling(cx: &mut Ctx<'_>, span: Span, name: &str, spelling: &Spelling) {
     match spelling {
         Spelling::Exact => {}
@@ -368,13 +392,52 @@ fn report_spelling(cx: &mut Ctx<'_>, span: Span, name: &str, spelling: &Spelling
     }
 }
 
-/// The known keys of a kind of section, with a lookup that ignores ASCII case and looks at
-/// only the keys of the right length (at most 32 keys of at most 31 bytes).
+/// The known keys of a kind of section, with a lookup that ignores ASCII case.
+///
+/// A key is found by its length first (a bit mask per length), then by comparing it with the
+/// keys of that length as two 64-bit words (its first and last eight bytes, which cover keys of
+/// up to 16 bytes), lower-cased eight bytes at a time. Longer keys are compared byte by byte.
 pub(crate) struct KeySet<const N: usize> {
     /// The CiA 306 spellings.
     pub names: [&'static str; N],
     /// For each length, a bit per key of that length.
     by_len: [u32; 32],
+    /// Each key's two words as spelled.
+    words: [(u64, u64); N],
+    /// Each key's two words in lower case.
+    lower: [(u64, u64); N],
+}
+
+const LO: u64 = 0x0101_0101_0101_0101;
+
+/// Lower-cases the ASCII letters among the eight bytes of `w` (and nothing else).
+#[inline]
+const fn ascii_lower(w: u64) -> u64 {
+    let low7 = w & (LO * 0x7F);
+    // The high bit of each byte is set where the byte is >= 'A', resp. > 'Z' (no carries: a
+    // byte of `low7` is at most 0x7F and the addends at most 0x3F).
+    let ge_a = low7 + LO * (0x80 - b'A' as u64);
+    let gt_z = low7 + LO * (0x80 - b'Z' as u64 - 1);
+    let upper = ge_a & !gt_z & !w & (LO * 0x80);
+    w | (upper >> 2)
+}
+
+/// The first and the last eight bytes of `b` (for `b.len() >= 8`; they overlap when it is
+/// shorter than 16), or `b` padded with zeros and 0 (when shorter than 8).
+#[inline]
+const fn words(b: &[u8]) -> (u64, u64) {
+    let n = b.len();
+    let mut first = [0u8; 8];
+    let mut last = [0u8; 8];
+    let mut i = 0;
+    while i < 8 && i < n {
+        first[i] = b[i];
+        if n >= 8 {
+            last[i] = b[n - 8 + i];
+        }
+        i += 1;
+    }
+    (u64::from_le_bytes(first), u64::from_le_bytes(last))
 }
 
 impl<const N: usize> KeySet<N> {
@@ -382,24 +445,45 @@ impl<const N: usize> KeySet<N> {
     pub const fn new(names: [&'static str; N]) -> Self {
         assert!(N <= 32, "at most 32 keys");
         let mut by_len = [0u32; 32];
+        let mut words_of = [(0u64, 0u64); N];
+        let mut lower = [(0u64, 0u64); N];
         let mut i = 0;
         while i < N {
             let len = names[i].len();
             assert!(len < 32, "keys are shorter than 32 bytes");
             by_len[len] |= 1 << i;
+            let w = words(names[i].as_bytes());
+            words_of[i] = w;
+            lower[i] = (ascii_lower(w.0), ascii_lower(w.1));
             i += 1;
         }
-        KeySet { names, by_len }
+        KeySet { names, by_len, words: words_of, lower }
     }
 
-    /// The number of the key that equals `key` ignoring ASCII case.
+    /// The number of the key that equals `key` ignoring ASCII case, and whether `key` is
+    /// spelled exactly like it.
     #[inline]
-    pub fn find(&self, key: &str) -> Option<usize> {
+    pub fn find(&self, key: &str) -> Option<(usize, bool)> {
         let mut candidates = *self.by_len.get(key.len())?;
+        if candidates == 0 {
+            return None;
+        }
+        if key.len() > 16 {
+            while candidates != 0 {
+                let i = candidates.trailing_zeros() as usize;
+                if self.names[i].eq_ignore_ascii_case(key) {
+                    return Some((i, self.names[i] == key));
+                }
+                candidates &= candidates - 1;
+            }
+            return None;
+        }
+        let w = words(key.as_bytes());
+        let l = (ascii_lower(w.0), ascii_lower(w.1));
         while candidates != 0 {
             let i = candidates.trailing_zeros() as usize;
-            if self.names[i].eq_ignore_ascii_case(key) {
-                return Some(i);
+            if self.lower[i] == l {
+                return Some((i, self.words[i] == w));
             }
             candidates &= candidates - 1;
         }
@@ -436,9 +520,10 @@ pub(crate) fn match_keys<'a, const N: usize>(
     let mut unknown: Vec<&'a Kv<'a>> = Vec::new();
     let names = &known.names;
     for kv in sec.entries {
-        let mut hit = known.find(kv.key);
-        if let Some(i) = hit {
-            if names[i] != kv.key {
+        let found_key = known.find(kv.key);
+        let mut hit = found_key.map(|(i, _)| i);
+        if let Some((i, exact)) = found_key {
+            if !exact {
                 let d = cx.emit(
                     codes::E0104,
                     Some(kv.key_span),
@@ -543,14 +628,57 @@ mod tests {
     }
 
     #[test]
+    fn section_positions_are_what_line_col_says() {
+        let text = "[FileInfo]\r[DeviceInfo]\r\n  [1000]\nK=v\r\r \u{e4}\u{e4}\r [1001]\n\t[2000]\n[ä]\r\n [3000]";
+        let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text));
+        let mut cx = Ctx { src: &doc.source, strictness: crate::Strictness::Lenient, diags: Vec::new() };
+        let collected = collect(&doc, &mut cx);
+        let secs = collected.sections();
+        assert_eq!(secs.list.len(), 7);
+        for sec in &secs.list {
+            assert_eq!(sec.at, doc.source.line_col(sec.name_span.start), "[{}]", sec.name);
+        }
+    }
+
+    #[test]
     fn key_sets_ignore_case_and_keep_order() {
-        const K: KeySet<4> = KeySet::new(["DataType", "LowLimit", "ObjFlags", "SubNumber"]);
-        assert_eq!(K.find("datatype"), Some(0));
-        assert_eq!(K.find("LOWLIMIT"), Some(1));
-        assert_eq!(K.find("ObjFlags"), Some(2));
-        assert_eq!(K.find("SubNumber"), Some(3));
+        const K: KeySet<6> =
+            KeySet::new(["DataType", "LowLimit", "ObjFlags", "SubNumber", "Lines", "DynamicChannelsSupported"]);
+        assert_eq!(K.find("datatype"), Some((0, false)));
+        assert_eq!(K.find("LOWLIMIT"), Some((1, false)));
+        assert_eq!(K.find("ObjFlags"), Some((2, true)));
+        assert_eq!(K.find("SubNumber"), Some((3, true)));
+        assert_eq!(K.find("lines"), Some((4, false)));
+        assert_eq!(K.find("Lines"), Some((4, true)));
+        assert_eq!(K.find("dynamicchannelssupported"), Some((5, false)));
+        assert_eq!(K.find("DynamicChannelsSupported"), Some((5, true)));
+        assert_eq!(K.find("DynamicChannelsSupporte_"), None);
         assert_eq!(K.find("SubNumbe"), None);
+        assert_eq!(K.find("SubNumb\u{e4}"), None);
+        assert_eq!(K.find("SubNumb\u{c4}"), None);
         assert_eq!(K.find(""), None);
         assert_eq!(K.find(&"x".repeat(40)), None);
+    }
+
+    /// The word comparison agrees with `eq_ignore_ascii_case` on keys that differ from a known
+    /// key in one byte, for every byte value: letters of the other case match, nothing else.
+    #[test]
+    fn key_lookup_agrees_with_eq_ignore_ascii_case() {
+        const K: KeySet<4> = KeySet::new(["ParameterValue", "PDOMapping", "Lines", "A_b-1@[`{"]);
+        for (i, name) in K.names.iter().enumerate() {
+            for pos in 0..name.len() {
+                for byte in 0..=127u8 {
+                    let mut key = name.as_bytes().to_vec();
+                    key[pos] = byte;
+                    let key = String::from_utf8(key).expect("ASCII");
+                    let want = name.eq_ignore_ascii_case(&key).then_some((i, *name == key));
+                    assert_eq!(K.find(&key), want, "{key:?}");
+                }
+            }
+        }
+        for w in [0u64, u64::MAX, 0x4041_5A5B_6061_7A7B, 0xC1DA_C0DB_8041_FF5A] {
+            let bytes = w.to_le_bytes().map(|b| b.to_ascii_lowercase());
+            assert_eq!(ascii_lower(w), u64::from_le_bytes(bytes), "{w:#x}");
+        }
     }
 }
