@@ -336,6 +336,17 @@ fn torque_homings_push_against_the_end_stops() {
 }
 
 #[test]
+fn homing_37_needs_no_speeds() {
+    let mut m = master(); // 6098h = 37 and 6099h = 0 by default
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 6).unwrap();
+    m.controlword(ID, 0x1F).unwrap();
+    m.advance(5_000);
+    assert_eq!(sw(&mut m) & 0x3400, 0x1400);
+    assert_eq!(m.read_u64(ID, 0x2004, 0).unwrap(), 1);
+}
+
+#[test]
 fn homing_37_takes_the_current_position() {
     let mut m = master();
     m.switch_on(ID).unwrap();

@@ -38,8 +38,8 @@ use od_runtime::{Event, Micros, ResetKind, WriteSource};
 
 use super::{ErrorSpec, ErrorTable, Reaction, SharedTrace};
 use crate::motion::{
-    Axis, AxisConfig, CommandError, HomingMethod, JogCommand, Mode, QuickStopOption, Ratio, SetPoint, SoftwareLimits,
-    Status, StopRamp,
+    Axis, AxisConfig, CommandError, HomingKind, HomingMethod, JogCommand, Mode, QuickStopOption, Ratio, SetPoint,
+    SoftwareLimits, Status, StopRamp,
 };
 use crate::node::{Ctx, DefaultApp, DriveApp, LossRecord, WriteRequest};
 use crate::trace::Sample;
@@ -627,6 +627,16 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
         cfg.homing.acceleration = acc(0x609A, 0, 0);
         cfg.homing.deceleration = cfg.homing.acceleration;
         cfg.homing.offset = get(0x607C, 0).map_or(0, |v| sat_i32(s.position_in(v)));
+        // A homing on the current position (35, 37) moves nowhere, but the axis plans its
+        // zero-length move with the homing speeds and never settles when they are 0 (the
+        // DRVI's defaults): give it nominal ones.
+        if cfg.homing.method.kind == HomingKind::CurrentPosition {
+            let h = &mut cfg.homing;
+            h.search_speed = h.search_speed.max(1);
+            h.zero_speed = h.zero_speed.max(1);
+            h.acceleration = h.acceleration.max(1);
+            h.deceleration = h.deceleration.max(1);
+        }
         if let (Some(v), Some(e)) = (get(0x60C2, 1), get(0x60C2, 2)) {
             // 60C2h: sub 1 × 10^sub 2 seconds.
             let us = (v as f64) * 10f64.powi(e.clamp(-9, 9) as i32 + 6);
