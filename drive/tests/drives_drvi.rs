@@ -635,6 +635,52 @@ fn hard_errors_switch_off_at_once_with_their_manufacturer_byte() {
 }
 
 #[test]
+fn every_error_of_table_6_34_has_a_cause_with_its_reaction_and_manufacturer_byte() {
+    type Set = fn(&mut drvi::Conditions);
+    let causes: [(u16, u8, Set); 12] = [
+        (0x2310, 0, |c| c.short_circuit = true),
+        (0x3110, 0, |c| c.vbus_mv = 81_000),
+        (0x3110, 1, |c| c.vlog_mv = 30_000),
+        (0x3120, 0, |c| c.vbus_mv = 9_000),
+        (0x3120, 1, |c| c.vlog_mv = 15_000),
+        (0x5120, 0, |c| c.vext = false),
+        (0x5530, 0, |c| c.memory_fault = true),
+        (0x5540, 0, |c| c.hw_enable = false),
+        (0x6100, 0, |c| c.control_fault = true),
+        (0x7305, 0, |c| c.encoder_ok = false),
+        (0x8120, 0, |c| c.can_error_passive = true),
+        (0x4210, 0, |_| {}), // the motor temperature, set below
+    ];
+    let table = drive::drives::error_table(drive::node::DeviceKind::Drvi);
+    for (code, manufacturer, set) in causes {
+        let spec = table.find(code, Some(u64::from(manufacturer))).unwrap();
+        let mut m = master();
+        m.switch_on(ID).unwrap();
+        m.set_mode(ID, 3).unwrap();
+        profile(&mut m, 0, 600);
+        m.write_i32(ID, 0x60FF, 0, 600).unwrap();
+        m.advance(200_000);
+        m.take_seen();
+        conditions(&mut m, set);
+        if code == 0x4210 {
+            app_mut(&mut m).vendor_mut().motor_c = 101.0;
+            conditions(&mut m, |c| c.ambient_c = 101.0);
+        }
+        m.advance(2000);
+        let e = emcys(&mut m);
+        let [lo, hi] = code.to_le_bytes();
+        assert_eq!(e[0][..4], [lo, hi, spec.register_bits(), manufacturer], "{code:04X}h/{manufacturer}");
+        assert_eq!(m.read_u16(ID, 0x603F, 0).unwrap(), code);
+        assert_eq!(m.read_u32(ID, 0x1003, 1).unwrap(), u32::from(code) | u32::from(manufacturer) << 16);
+        let expected = match spec.reaction {
+            drive::drives::Reaction::PowerOff => State::Fault,
+            _ => State::FaultReactionActive,
+        };
+        assert_eq!(state(&mut m), expected, "{code:04X}h/{manufacturer}: {:?}", spec.reaction);
+    }
+}
+
+#[test]
 fn an_over_temperature_is_a_soft_error_and_a_persisting_cause_comes_back_after_reset() {
     let mut m = master();
     set_environment(&mut m, Environment::default()); // no end stops in the way

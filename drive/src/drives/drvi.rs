@@ -12,7 +12,7 @@
 //! | 4.1.5, 6.7, Table 6.29 | homing 1, 2, 17, 18, 37, -1..-4 with 6099h, 609Ah, 607Ch (actual position := offset), torque homings limited by 6071h with the 2013h threshold (% of the I²T current); 2004h; homing error = error 8613h/13 (soft) | [`crate::motion::HomingMethod::camozzi`], [`Vendor::after_step`] |
 //! | 4.1.4, 6.8 | jog: cw bits 6/5 = cw / ccw, speed \|60FFh\|; sw bits 13/12 | common layer |
 //! | 5.0.1, 6.3.4.15 | software limits 607Dh − 607Ch, in force with 2010h = 1 after homing in the actuator configuration: out-of-range targets and speeds above 607Fh refused ("command refused"); the actual position outside = error 6120h (soft), warning bits 6/7; after its reset the check is suspended until the first movement completes; the EXT PROXY input acts the same way | [`Drvi`] |
-//! | 6.9, Table 6.34 | errors with the manufacturer byte in EMCY byte 3; soft errors quick-stop, hard ones switch the power stage off | the sidecar's table through [`super::Drive::raise`]; causes from [`Conditions`] (supplies, temperatures, I²T, STO, encoder) |
+//! | 6.9, Table 6.34 | errors with the manufacturer byte in EMCY byte 3; soft errors quick-stop, hard ones switch the power stage off | the sidecar's table through [`super::Drive::raise`]; causes from [`Conditions`] (supplies, temperatures, I²T, STO, encoder, short circuit, memory, control, CAN error passive); 8210h/8220h (PDO length) are od-runtime's EMCY only |
 //! | 6.9, Table 6.36 | 2006h warnings, latched; "homing missing" and "command refused" reset by themselves; statusword bit 7 while any is set | [`Drvi`] |
 //! | 6.9.3 | fault reset by cw bit 7 or 0 written to 1003h sub 0 | [`Vendor::on_event`] |
 //! | 6.3.6.2, 6.3.6.3 | inputs 2002h (IN1, IN2, EXT PROXY, PROXY), output 2003h | [`Vendor::after_step`] |
@@ -90,6 +90,14 @@ pub struct Conditions {
     pub hw_enable: bool,
     /// The encoder works.
     pub encoder_ok: bool,
+    /// A short circuit in the motor phases or the power stage (over current, 2310h/0).
+    pub short_circuit: bool,
+    /// The parameter memory is damaged (5530h).
+    pub memory_fault: bool,
+    /// The control firmware failed (6100h).
+    pub control_fault: bool,
+    /// The CAN controller is error passive (8120h).
+    pub can_error_passive: bool,
     /// Ambient temperature, °C.
     pub ambient_c: f64,
     /// Digital input IN1 (2002h bit 0).
@@ -106,6 +114,10 @@ impl Default for Conditions {
             vext: true,
             hw_enable: true,
             encoder_ok: true,
+            short_circuit: false,
+            memory_fault: false,
+            control_fault: false,
+            can_error_passive: false,
             ambient_c: 25.0,
             in1: false,
             in2: false,
@@ -126,10 +138,14 @@ enum Cause {
     Vext,
     Sto,
     Encoder,
+    OverCurrent,
+    Memory,
+    Control,
+    CanPassive,
 }
 
 impl Cause {
-    const ALL: [Cause; 10] = [
+    const ALL: [Cause; 14] = [
         Cause::VbusOver,
         Cause::VlogOver,
         Cause::VbusUnder,
@@ -140,6 +156,10 @@ impl Cause {
         Cause::Vext,
         Cause::Sto,
         Cause::Encoder,
+        Cause::OverCurrent,
+        Cause::Memory,
+        Cause::Control,
+        Cause::CanPassive,
     ];
 
     /// Table 6.34: code and manufacturer parameter.
@@ -155,6 +175,10 @@ impl Cause {
             Cause::Vext => (0x5120, 0),
             Cause::Sto => (0x5540, 0),
             Cause::Encoder => (0x7305, 0),
+            Cause::OverCurrent => (0x2310, 0),
+            Cause::Memory => (0x5530, 0),
+            Cause::Control => (0x6100, 0),
+            Cause::CanPassive => (0x8120, 0),
         }
     }
 
@@ -322,6 +346,10 @@ impl Drvi {
             Cause::Vext => !c.vext,
             Cause::Sto => !c.hw_enable,
             Cause::Encoder => !c.encoder_ok,
+            Cause::OverCurrent => c.short_circuit,
+            Cause::Memory => c.memory_fault,
+            Cause::Control => c.control_fault,
+            Cause::CanPassive => c.can_error_passive,
         };
         for cause in Cause::ALL {
             if present(cause) {

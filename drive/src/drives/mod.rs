@@ -47,9 +47,78 @@
 //!
 //! Everything the manuals add (vendor objects, warnings, extra statusword bits, unit systems)
 //! lives in the device files through the [`cia402::Vendor`] hooks.
+//!
+//! # Writing a device file
+//!
+//! A sketch of what `drcs.rs` or `akd.rs` holds (the DRVI's [`drvi`] is the full example):
+//!
+//! ```
+//! use drive::drives::cia402::{BusScale, Cia402App, Command, Vendor, read_int, write_int};
+//! use drive::drives::{Drive, error_table};
+//! use drive::motion::{AxisConfig, HomingMethod, Status};
+//! use drive::node::{Ctx, DeviceKind};
+//! use od_runtime::od::ObjectDictionary;
+//!
+//! #[derive(Default)]
+//! struct MyDrive {
+//!     refused: u32,
+//! }
+//!
+//! impl<OD: ObjectDictionary> Vendor<OD> for MyDrive {
+//!     // Modes the manual lists (6060h values); others are refused with 0609 0030h.
+//!     fn supports_mode(&self, code: i8) -> bool {
+//!         matches!(code, 0 | 1 | 3 | 6)
+//!     }
+//!     // Homing methods of the manual (6098h values), as motion descriptions.
+//!     fn homing_method(&self, code: i8) -> Option<HomingMethod> {
+//!         matches!(code, 17 | 18 | 37).then(|| HomingMethod::cia402(code)).flatten()
+//!     }
+//!     // Bus units -> the axis' internal units (a factor group, a feed converter).
+//!     fn scale(&self, _od: &OD) -> BusScale {
+//!         BusScale::ONE
+//!     }
+//!     // Vendor objects that shape the motion: units, torque limits, software limits, homing.
+//!     fn configure(&mut self, od: &OD, _scale: &BusScale, cfg: &mut AxisConfig) {
+//!         cfg.software_limits.enabled &= read_int(od, 0x2010, 0) == Some(1);
+//!     }
+//!     // Refuse (or adjust) a command the manual says the drive ignores.
+//!     fn before_command(&mut self, _d: &mut Drive, _ctx: &mut Ctx<'_, OD>, cmd: &mut Command) -> bool {
+//!         if let Command::TargetVelocity(v) = cmd {
+//!             *v = (*v).clamp(-100_000, 100_000);
+//!         }
+//!         true
+//!     }
+//!     // Vendor status objects, errors the device detects itself.
+//!     fn after_step(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>, status: &Status) {
+//!         write_int(ctx.od_mut(), 0x2004, 0, i64::from(status.homed));
+//!         if status.following_error_exceeded && drive.fault().is_none() {
+//!             drive.raise(ctx, 0x8611, None); // looked up in the sidecar's [[error]] table
+//!         }
+//!     }
+//!     // Manufacturer statusword bits (8, 14, 15), warning bit 7.
+//!     fn statusword(&self, _d: &Drive, _od: &OD, _s: &Status, bits: &mut u16) {
+//!         if self.refused > 0 {
+//!             *bits |= 1 << 7;
+//!         }
+//!     }
+//! }
+//!
+//! // The constructor DeviceApps calls (with DeviceApps::attach for traces).
+//! fn app() -> Cia402App<generated::drcs::Dictionary, MyDrive> {
+//!     Cia402App::new(MyDrive::default(), error_table(DeviceKind::Drcs))
+//! }
+//! # let _ = app();
+//! ```
+//!
+//! Tests drive a device through real frames with [`master::Master`] on a
+//! [`Sim`](crate::node::Sim) (virtual time); `Sim::downcast` reaches the app
+//! (`Node<Dictionary, Cia402App<Dictionary, MyDrive>>`) to change the mechanics
+//! ([`Drive::axis_mut`]) or the vendor state.
 
+pub mod akd;
 pub mod cia402;
 pub mod demo;
+pub mod drcs;
 pub mod drvi;
 pub mod master;
 
@@ -265,5 +334,13 @@ impl DeviceApps {
 impl Apps for DeviceApps {
     fn drvi(&self) -> Box<dyn DriveApp<generated::drvi::Dictionary> + Send> {
         Box::new(self.attach(DeviceKind::Drvi, drvi::app()))
+    }
+
+    fn akd(&self) -> Box<dyn DriveApp<generated::akd::Dictionary> + Send> {
+        Box::new(self.attach(DeviceKind::Akd, akd::app()))
+    }
+
+    fn drcs(&self) -> Box<dyn DriveApp<generated::drcs::Dictionary> + Send> {
+        Box::new(self.attach(DeviceKind::Drcs, drcs::app()))
     }
 }
