@@ -117,6 +117,7 @@
 
 pub mod cia402;
 pub mod demo;
+pub mod drcs;
 pub mod drvi;
 pub mod master;
 
@@ -332,5 +333,9 @@ impl DeviceApps {
 impl Apps for DeviceApps {
     fn drvi(&self) -> Box<dyn DriveApp<generated::drvi::Dictionary> + Send> {
         Box::new(self.attach(DeviceKind::Drvi, drvi::app()))
+    }
+
+    fn drcs(&self) -> Box<dyn DriveApp<generated::drcs::Dictionary> + Send> {
+        Box::new(self.attach(DeviceKind::Drcs, drcs::app()))
     }
 }

@@ -80,6 +80,8 @@ impl DeviceKind {
                 boxed(Node::new(generated::drvi::Dictionary::new(raw), apps.drvi(), storage, id), timeout)
             }
             DeviceKind::Drcs => {
+                // 3.2.13: 1010h saves the objects of the manual's list only.
+                let storage = crate::drives::drcs::stored_objects_only(storage);
                 boxed(Node::new(generated::drcs::Dictionary::new(raw), apps.drcs(), storage, id), timeout)
             }
             DeviceKind::Akd => boxed(Node::new(generated::akd::Dictionary::new(raw), apps.akd(), storage, id), timeout),
