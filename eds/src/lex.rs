@@ -51,28 +51,58 @@ pub fn lex_lines(text: &str) -> Vec<Line> {
 /// Lexes `text`, and puts the offset of every line start that follows a `\n` (with 0 first)
 /// into `line_starts`.
 fn lex_into(text: &str, line_starts: &mut Vec<u32>) -> Vec<Line> {
-    let bytes = text.as_bytes();
+    let b = text.as_bytes();
+    let n = b.len();
     // Typical EDS lines are 12-25 bytes long; a few more or less costs little either way.
-    let mut lines = Vec::with_capacity(bytes.len() / 10 + 16);
+    let mut lines = Vec::with_capacity(n / 10 + 16);
     line_starts.push(0);
     let mut start = 0usize;
-    while start < bytes.len() {
-        let (content_end, ending, next) = match find_eol(bytes, start) {
-            Some(i) => {
-                if bytes[i] == b'\n' {
-                    (i, LineEnding::Lf, i + 1)
-                } else if bytes.get(i + 1) == Some(&b'\n') {
-                    (i, LineEnding::CrLf, i + 2)
-                } else {
-                    (i, LineEnding::Cr, i + 1)
-                }
+    while start < n {
+        // Each line is scanned once: up to its first non-blank byte, which decides what to look
+        // for next; an entry line up to its `=` and then to its end.
+        let mut first = start;
+        while first < n && is_blank(b[first]) {
+            first += 1;
+        }
+        let (content_end, kind) = match b.get(first) {
+            None | Some(b'\n' | b'\r') => (first, LineKind::Blank),
+            Some(b';' | b'#') => {
+                let end = find_eol(b, first + 1).unwrap_or(n);
+                (end, LineKind::Comment { text: Span::new(first as u32 + 1, end as u32) })
             }
-            None => (bytes.len(), LineEnding::None, bytes.len()),
+            Some(b'[') => {
+                let end = find_eol(b, first + 1).unwrap_or(n);
+                (end, section(text, first + 1, end))
+            }
+            Some(_) => match find_eq_or_eol(b, first) {
+                Some(eq) if b[eq] == b'=' => {
+                    let end = find_eol(b, eq + 1).unwrap_or(n);
+                    // The blanks before `first` would be trimmed anyway.
+                    let key = trim_span(text, first, eq);
+                    let kind = if key.is_empty() {
+                        LineKind::Garbage
+                    } else {
+                        LineKind::Entry { key, value: trim_span(text, eq + 1, end) }
+                    };
+                    (end, kind)
+                }
+                eol => {
+                    let end = eol.unwrap_or(n);
+                    // Only Unicode white space (e.g. a no-break space) is a blank line too.
+                    let kind = if text[first..end].trim().is_empty() { LineKind::Blank } else { LineKind::Garbage };
+                    (end, kind)
+                }
+            },
+        };
+        let (ending, next) = match b.get(content_end) {
+            None => (LineEnding::None, n),
+            Some(b'\n') => (LineEnding::Lf, content_end + 1),
+            Some(_) if b.get(content_end + 1) == Some(&b'\n') => (LineEnding::CrLf, content_end + 2),
+            Some(_) => (LineEnding::Cr, content_end + 1),
         };
         if matches!(ending, LineEnding::Lf | LineEnding::CrLf) {
             line_starts.push(next as u32);
         }
-        let kind = classify(text, start, content_end);
         lines.push(Line {
             raw: Span::new(start as u32, next as u32),
             content: Span::new(start as u32, content_end as u32),
@@ -86,6 +116,9 @@ fn lex_into(text: &str, line_starts: &mut Vec<u32>) -> Vec<Line> {
 
 const LO: u64 = 0x0101_0101_0101_0101;
 const HI: u64 = 0x8080_8080_8080_8080;
+const NL: u64 = LO * b'\n' as u64;
+const CR: u64 = LO * b'\r' as u64;
+const EQ: u64 = LO * b'=' as u64;
 
 /// Flags (with its high bit) each byte of `w` that equals the byte repeated in `pattern`. The
 /// lowest flag is always a real match: a false flag can only come from a borrow out of a real
@@ -103,12 +136,9 @@ fn word(b: &[u8], i: usize) -> u64 {
     u64::from_le_bytes(w)
 }
 
-/// Offset of the first `\n` or `\r` in `b` at or after `from`. Scans eight bytes at a time
-/// (SWAR), because this search is most of the lexer's work.
+/// Offset of the first `\n` or `\r` in `b` at or after `from`, eight bytes at a time (SWAR).
 #[inline]
 fn find_eol(b: &[u8], from: usize) -> Option<usize> {
-    const NL: u64 = LO * b'\n' as u64;
-    const CR: u64 = LO * b'\r' as u64;
     let mut i = from;
     while i + 8 <= b.len() {
         let w = word(b, i);
@@ -118,22 +148,22 @@ fn find_eol(b: &[u8], from: usize) -> Option<usize> {
         }
         i += 8;
     }
-    b[i..].iter().position(|&c| c == b'\n' || c == b'\r').map(|p| i + p)
+    b.get(i..)?.iter().position(|&c| c == b'\n' || c == b'\r').map(|p| i + p)
 }
 
-/// Offset of the first `=` in `b[from..to]`, eight bytes at a time.
+/// Offset of the first `=`, `\n` or `\r` in `b` at or after `from`, eight bytes at a time.
 #[inline]
-fn find_eq(b: &[u8], from: usize, to: usize) -> Option<usize> {
-    const EQ: u64 = LO * b'=' as u64;
+fn find_eq_or_eol(b: &[u8], from: usize) -> Option<usize> {
     let mut i = from;
-    while i + 8 <= to {
-        let z = eq_bytes(word(b, i), EQ);
+    while i + 8 <= b.len() {
+        let w = word(b, i);
+        let z = eq_bytes(w, EQ) | eq_bytes(w, NL) | eq_bytes(w, CR);
         if z != 0 {
             return Some(i + (z.trailing_zeros() / 8) as usize);
         }
         i += 8;
     }
-    b[i..to].iter().position(|&c| c == b'=').map(|p| i + p)
+    b.get(i..)?.iter().position(|&c| c == b'=' || c == b'\n' || c == b'\r').map(|p| i + p)
 }
 
 /// The blanks that may come before a comment or section header.
@@ -161,79 +191,31 @@ pub(crate) fn trim_start(s: &str) -> &str {
     }
 }
 
-/// The ASCII characters [`char::is_whitespace`] accepts (unlike [`u8::is_ascii_whitespace`], it
-/// includes the vertical tab).
-#[inline]
-fn is_ascii_space(b: u8) -> bool {
-    matches!(b, b' ' | b'\t' | b'\n' | 0x0B | 0x0C | b'\r')
-}
-
-/// `text[start..end]` trimmed as [`str::trim`] trims it, as a span. ASCII bytes at both ends
-/// are decided here; a non-ASCII byte at either end leaves the decision to [`str::trim`].
-#[inline]
+/// `text[start..end]` trimmed as [`str::trim`] trims it, as a span (`start` and `end` are char
+/// boundaries).
+#[inline(always)]
 fn trim_span(text: &str, start: usize, end: usize) -> Span {
     let b = text.as_bytes();
     // Most keys and values have nothing to trim.
     if start < end && matches!(b[start], 0x21..=0x7E) && matches!(b[end - 1], 0x21..=0x7E) {
         return Span::new(start as u32, end as u32);
     }
-    let mut i = start;
-    while i < end && is_ascii_space(b[i]) {
-        i += 1;
-    }
-    let mut j = end;
-    while j > i && is_ascii_space(b[j - 1]) {
-        j -= 1;
-    }
-    if (i < j && (b[i] >= 0x80 || b[j - 1] >= 0x80)) || i == end {
-        // Possibly Unicode white space at an end (or nothing but white space, where `trim`
-        // gives the empty string at the start). Both offsets lie on char boundaries: `start`
-        // and `end` do, and only ASCII bytes were skipped.
-        let s = &text[start..end];
-        let t = s.trim();
-        let off = start + (t.as_ptr() as usize - s.as_ptr() as usize);
-        return Span::new(off as u32, (off + t.len()) as u32);
-    }
-    Span::new(i as u32, j as u32)
+    let s = &text[start..end];
+    let t = s.trim();
+    // `trim` gives the empty string at the start for white space only.
+    let off = start + (t.as_ptr() as usize - s.as_ptr() as usize);
+    Span::new(off as u32, (off + t.len()) as u32)
 }
 
-/// Classifies the content `text[start..end]` of one line.
-fn classify(text: &str, start: usize, end: usize) -> LineKind {
+/// A `[` line whose name starts at `name_start` and whose content ends at `end`: a section if
+/// a `]` closes the name before any other `[`.
+fn section(text: &str, name_start: usize, end: usize) -> LineKind {
     let b = text.as_bytes();
-    let mut first = start;
-    while first < end && is_blank(b[first]) {
-        first += 1;
-    }
-    if first == end {
-        return LineKind::Blank;
-    }
-    match b[first] {
-        b';' | b'#' => LineKind::Comment { text: Span::new(first as u32 + 1, end as u32) },
-        b'[' => {
-            let name_start = first + 1;
-            let close = b[name_start..end].iter().position(|&c| c == b']' || c == b'[').map(|p| name_start + p);
-            match close {
-                Some(c) if b[c] == b']' => LineKind::Section {
-                    name: trim_span(text, name_start, c),
-                    trailing: Span::new(c as u32 + 1, end as u32),
-                },
-                _ => LineKind::Garbage,
-            }
+    match b[name_start..end].iter().position(|&c| c == b']' || c == b'[').map(|p| name_start + p) {
+        Some(c) if b[c] == b']' => {
+            LineKind::Section { name: trim_span(text, name_start, c), trailing: Span::new(c as u32 + 1, end as u32) }
         }
-        _ => match find_eq(b, first, end) {
-            Some(eq) => {
-                // The blanks before `first` would be trimmed anyway.
-                let key = trim_span(text, first, eq);
-                if key.is_empty() {
-                    LineKind::Garbage
-                } else {
-                    LineKind::Entry { key, value: trim_span(text, eq + 1, end) }
-                }
-            }
-            // Only Unicode white space (e.g. a no-break space) is a blank line too.
-            None if text[start..end].trim().is_empty() => LineKind::Blank,
-            None => LineKind::Garbage,
-        },
+        _ => LineKind::Garbage,
     }
 }
 
@@ -369,14 +351,13 @@ mod tests {
 
     #[test]
     fn eq_search_matches_naive() {
-        let text = "Key=Value;a=b;0123456789ABCDEF<>===".as_bytes();
-        for from in 0..text.len() {
-            for to in from..=text.len() {
-                let naive = text[from..to].iter().position(|&c| c == b'=').map(|p| from + p);
-                assert_eq!(find_eq(text, from, to), naive, "{from}..{to}");
-            }
+        let text = "Key=Value;a=b;0123456789ABCDEF<>===\r\nx\ny".as_bytes();
+        for from in 0..=text.len() {
+            let naive = text[from..].iter().position(|&c| matches!(c, b'=' | b'\n' | b'\r')).map(|p| from + p);
+            assert_eq!(find_eq_or_eol(text, from), naive, "{from}");
         }
-        assert_eq!(find_eq(&[b'<', b'>', 0x3C, 0x3E, 0xBD, b'=', 0, 0], 0, 8), Some(5));
+        assert_eq!(find_eq_or_eol(&[b'<', b'>', 0x3C, 0x3E, 0xBD, 0x0B, 0x0E, b'=', 0, 0], 0), Some(7));
+        assert_eq!(find_eol(b"abc", 4), None);
     }
 
     #[test]

@@ -35,7 +35,7 @@ use crate::{Options, Strictness};
 /// far as the file allows; the diagnostics say what was wrong, in file order (problems that
 /// concern the whole file come last).
 pub fn lower(doc: &Document, options: &Options) -> (Model, Vec<Diagnostic>) {
-    let mut cx = Ctx { src: &doc.source, strictness: options.strictness, diags: Vec::new() };
+    let mut cx = Ctx { src: &doc.source, strictness: options.strictness, diags: Vec::with_capacity(32) };
     let collected = sections::collect(doc, &mut cx);
     let secs = collected.sections();
     let mut model = Model::default();

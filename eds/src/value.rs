@@ -191,7 +191,10 @@ pub fn parse_value(text: &str, ty: DataType) -> Result<ParsedValue, ValueError> 
             }
         }
         _ => {
-            if t.is_empty() {
+            if let Some((v, radix)) = parse_plain_uint(t) {
+                // The common case (`0x1A`, `100`), read without the general rules.
+                Some(Value::Int { value: twos_complement(v as i128, radix, false, ty, &mut quirks), radix })
+            } else if t.is_empty() {
                 quirks.push(Quirk::EmptyNumeric);
                 None
             } else if contains_node_id(t) {
@@ -205,19 +208,56 @@ pub fn parse_value(text: &str, ty: DataType) -> Result<ParsedValue, ValueError> 
                 Some(Value::Int { value: 0, radix: Radix::Dec })
             } else {
                 let p = parse_int(t, &mut quirks)?;
-                let mut value = p.value;
-                if let (Some(bits), true, Radix::Hex, false) = (ty.bits(), ty.is_signed(), p.radix, p.negative) {
-                    let max = (1i128 << (bits - 1)) - 1;
-                    if value > max && value < (1i128 << bits) {
-                        value -= 1i128 << bits;
-                        quirks.push(Quirk::HexBitPattern);
-                    }
-                }
-                Some(Value::Int { value, radix: p.radix })
+                Some(Value::Int {
+                    value: twos_complement(p.value, p.radix, p.negative, ty, &mut quirks),
+                    radix: p.radix,
+                })
             }
         }
     };
     Ok(ParsedValue { value, quirks })
+}
+
+/// For a signed type, an unsigned hexadecimal value that does not fit the positive range but
+/// fits the type's width is a two's complement bit pattern (see the module docs).
+fn twos_complement(value: i128, radix: Radix, negative: bool, ty: DataType, quirks: &mut Vec<Quirk>) -> i128 {
+    if let (Some(bits), true, Radix::Hex, false) = (ty.bits(), ty.is_signed(), radix, negative) {
+        let max = (1i128 << (bits - 1)) - 1;
+        if value > max && value < (1i128 << bits) {
+            quirks.push(Quirk::HexBitPattern);
+            return value - (1i128 << bits);
+        }
+    }
+    value
+}
+
+/// Reads the plain forms of an unsigned integer, which need no remark: `0`, decimal digits
+/// without a leading zero (at most 19), or `0x`/`0X` and 1 to 16 hex digits. `None` for
+/// anything else, which [`parse_int`] reads by the general rules. For the plain forms both give
+/// the same value and radix.
+#[inline]
+pub(crate) fn parse_plain_uint(s: &str) -> Option<(u64, Radix)> {
+    match s.as_bytes() {
+        [b'0', b'x' | b'X', digits @ ..] if !digits.is_empty() && digits.len() <= 16 => {
+            let mut v = 0u64;
+            for &b in digits {
+                v = v << 4 | digit(b)? as u64;
+            }
+            Some((v, Radix::Hex))
+        }
+        [b'0'] => Some((0, Radix::Dec)),
+        digits @ [b'1'..=b'9', ..] if digits.len() <= 19 => {
+            let mut v = 0u64;
+            for &b in digits {
+                if !b.is_ascii_digit() {
+                    return None;
+                }
+                v = v * 10 + (b - b'0') as u64;
+            }
+            Some((v, Radix::Dec))
+        }
+        _ => None,
+    }
 }
 
 /// Whether `text` mentions `$NODEID` (any case).
@@ -634,6 +674,49 @@ mod tests {
         assert_eq!(int("12", DataType::TimeDifference), (Some(12), vec![]));
         assert!(parse_value("1 2 3", DataType::TimeOfDay).is_err());
         assert!(parse_value("70000 1", DataType::TimeOfDay).is_err());
+    }
+
+    #[test]
+    fn plain_numbers_read_as_parse_int_reads_them() {
+        for t in [
+            "0",
+            "7",
+            "0x0",
+            "0X1a",
+            "0x0007",
+            "0xFFFFFFFFFFFFFFFF",
+            "18446744073709551615",
+            "9999999999999999999",
+            "10000000000000000000",
+            "0x10000000000000000",
+            "00",
+            "01",
+            "08",
+            "0x",
+            "x1",
+            "1a",
+            "-1",
+            "+1",
+            " 1",
+            "1 ",
+            "1U",
+            "0x1L",
+            "",
+            "0xg",
+            "١",
+        ] {
+            let mut q = Vec::new();
+            let full = parse_int(t, &mut q).ok().filter(|_| q.is_empty()).map(|p| (p.value, p.radix));
+            // Not plain: left to the general rules (which may still read it).
+            if let Some((v, r)) = parse_plain_uint(t) {
+                assert_eq!(full, Some((v as i128, r)), "{t:?}");
+            }
+        }
+        for plain in ["0", "7", "0x0", "0X1a", "0x0007", "0xFFFFFFFFFFFFFFFF", "9999999999999999999"] {
+            assert!(parse_plain_uint(plain).is_some(), "{plain}");
+        }
+        assert_eq!(parse_value("0xFFFF", DataType::Integer16).unwrap().value.and_then(|v| v.as_int()), Some(-1));
+        assert_eq!(parse_value("0xFFFF", DataType::Integer16).unwrap().quirks, vec![Quirk::HexBitPattern]);
     }
 
     #[test]

@@ -578,6 +578,12 @@ pub(crate) fn expected_category(index: u16) -> Category {
 /// Reads the three object lists.
 pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists {
     let mut lists = Lists::default();
+    let listed: usize = [Category::Mandatory, Category::Optional, Category::Manufacturer]
+        .into_iter()
+        .filter_map(|c| secs.get(Kind::List(c)))
+        .map(|s| s.entries.len())
+        .sum();
+    lists.listed.reserve(listed);
     for cat in [Category::Mandatory, Category::Optional, Category::Manufacturer] {
         let Some(sec) = secs.get(Kind::List(cat)) else { continue };
         lists.present[category_slot(cat)] = true;

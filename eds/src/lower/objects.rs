@@ -89,6 +89,9 @@ fn before_comment(v: &str) -> Option<&str> {
 /// Reads a plain unsigned integer key (ObjectType, DataType, SubNumber, ...). An inline comment
 /// is removed with a warning. Returns `Err(text)` when unreadable.
 fn uint_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u32, context: Crumbs<'_>) -> Result<u32, ()> {
+    if let Some((v, _)) = value::parse_plain_uint(kv.value) {
+        return if v <= max as u64 { Ok(v as u32) } else { Err(()) };
+    }
     let mut quirks = Vec::new();
     let mut parsed = value::parse_int(kv.value, &mut quirks);
     if parsed.is_err()
@@ -957,17 +960,13 @@ fn expand_compact(
     // Each element gets its own name and no extra keys: clear them once, not in every clone.
     template.name = String::new();
     template.extra = Vec::new();
-    // The map is built in one go from entries in order, rather than by n inserts (each of which
-    // searches the tree and moves the 288-byte entries of a full leaf when it splits).
-    let mut all = Vec::with_capacity(n as usize + 1);
-    all.push(sub0);
+    obj.subs.insert(sub0.0, sub0.1);
     for s in 1..=n {
         let mut name = String::with_capacity(obj.name.len() + 3);
         name.push_str(&obj.name);
         super::push_decimal(&mut name, s as u32);
-        all.push((SubIndex(s), Entry { sub: SubIndex(s), name, ..template.clone() }));
+        obj.subs.insert(SubIndex(s), Entry { sub: SubIndex(s), name, ..template.clone() });
     }
-    obj.subs = all.into_iter().collect();
     if let Some(ns) = names {
         for (k, kv) in numbered(cx, ns, &NR_OF_ENTRIES, ctx) {
             match obj.subs.get_mut(&SubIndex(k.min(256) as u8)).filter(|_| (1..=n as u32).contains(&k)) {

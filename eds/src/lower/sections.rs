@@ -187,7 +187,7 @@ fn classify_object(name: &str, index: u16) -> (Kind, Spelling) {
         if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_hexdigit()) {
             return (Kind::Unknown, Spelling::Malformed(format!("`{digits}` is not a hexadecimal sub-index")));
         }
-        let trimmed = digits.trim_start_matches('0');
+        let trimmed = &digits[digits.bytes().take_while(|&b| b == b'0').count()..];
         if trimmed.len() > 2 {
             return (Kind::Unknown, Spelling::Malformed(format!("sub-index 0x{digits} is larger than 0xFF")));
         }
@@ -218,15 +218,17 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
         cx.emit(codes::E0009, Some(Span::new(pos as u32, (pos + ch_len) as u32)), "the file contains non-ASCII text")
             .hint = Some("CiA 306 files are ASCII; tools that expect it may misread this text".to_owned());
     }
-    let mut heads: Vec<Head<'a>> = Vec::new();
-    let mut by_kind: FastMap<Kind, usize> = FastMap::default();
+    // Sized for the headers there are, so that nothing grows while lines are read.
+    let headers = doc.lines.iter().filter(|l| matches!(l.kind, LineKind::Section { .. })).count();
+    let mut heads: Vec<Head<'a>> = Vec::with_capacity(headers);
+    let mut by_kind: FastMap<Kind, usize> = FastMap::with_capacity_and_hasher(headers, Default::default());
     // Sections of unknown kind, matched by name (ignoring ASCII case); there are few.
     let mut unknown: Vec<usize> = Vec::new();
-    let mut occurrences: Vec<u16> = Vec::new();
+    let mut occurrences: Vec<u16> = Vec::with_capacity(headers);
     let mut entries: Vec<Kv<'a>> = Vec::with_capacity(doc.lines.len());
     // Each section header starts a run of entries: (section, first entry). A run ends where the
     // next begins.
-    let mut runs: Vec<(usize, usize)> = Vec::new();
+    let mut runs: Vec<(usize, usize)> = Vec::with_capacity(headers);
     let mut repeated = false;
     // The section the following entries belong to, and its occurrence.
     let mut current: Option<(usize, u16)> = None;
@@ -440,6 +442,21 @@ const fn words(b: &[u8]) -> (u64, u64) {
     (u64::from_le_bytes(first), u64::from_le_bytes(last))
 }
 
+/// [`words`] for keys read from a file (eight-byte loads where the key is long enough).
+#[inline(always)]
+fn key_words(b: &[u8]) -> (u64, u64) {
+    let n = b.len();
+    if n >= 8 {
+        let mut first = [0u8; 8];
+        let mut last = [0u8; 8];
+        first.copy_from_slice(&b[..8]);
+        last.copy_from_slice(&b[n - 8..]);
+        (u64::from_le_bytes(first), u64::from_le_bytes(last))
+    } else {
+        (b.iter().rev().fold(0u64, |w, &c| w << 8 | c as u64), 0)
+    }
+}
+
 impl<const N: usize> KeySet<N> {
     /// A key set (checked at compile time: at most 32 keys, each shorter than 32 bytes).
     pub const fn new(names: [&'static str; N]) -> Self {
@@ -478,7 +495,7 @@ impl<const N: usize> KeySet<N> {
             }
             return None;
         }
-        let w = words(key.as_bytes());
+        let w = key_words(key.as_bytes());
         let l = (ascii_lower(w.0), ascii_lower(w.1));
         while candidates != 0 {
             let i = candidates.trailing_zeros() as usize;
@@ -518,6 +535,9 @@ pub(crate) fn match_keys<'a, const N: usize>(
 ) -> Keys<'a, N> {
     let mut found: [Option<&'a Kv<'a>>; N] = [None; N];
     let mut unknown: Vec<&'a Kv<'a>> = Vec::new();
+    // The last unknown entry of each key, once there are enough of them (object lists have
+    // hundreds) that searching the earlier ones for a repeat would cost more than hashing.
+    let mut last_unknown: Option<FastMap<Caseless<'a>, usize>> = None;
     let names = &known.names;
     for kv in sec.entries {
         let found_key = known.find(kv.key);
@@ -552,7 +572,14 @@ pub(crate) fn match_keys<'a, const N: usize>(
                 found[i] = Some(kv);
             }
             None => {
-                if let Some(prev) = unknown.iter().rev().find(|u| u.key.eq_ignore_ascii_case(kv.key)) {
+                if last_unknown.is_none() && unknown.len() >= 8 {
+                    last_unknown = Some(unknown.iter().enumerate().map(|(i, u)| (Caseless(u.key), i)).collect());
+                }
+                let prev = match &mut last_unknown {
+                    Some(map) => map.insert(Caseless(kv.key), unknown.len()).map(|i| unknown[i]),
+                    None => unknown.iter().rev().find(|u| u.key.eq_ignore_ascii_case(kv.key)).copied(),
+                };
+                if let Some(prev) = prev {
                     report_duplicate(cx, prev, kv, context);
                 }
                 unknown.push(kv);
@@ -568,6 +595,27 @@ pub(crate) fn match_keys<'a, const N: usize>(
         }
     }
     Keys { found, unknown }
+}
+
+/// A key compared and hashed ignoring ASCII case.
+#[derive(Clone, Copy)]
+struct Caseless<'a>(&'a str);
+
+impl PartialEq for Caseless<'_> {
+    fn eq(&self, other: &Self) -> bool {
+        self.0.eq_ignore_ascii_case(other.0)
+    }
+}
+
+impl Eq for Caseless<'_> {}
+
+impl std::hash::Hash for Caseless<'_> {
+    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
+        state.write_usize(self.0.len());
+        for b in self.0.bytes() {
+            state.write_u8(b.to_ascii_lowercase());
+        }
+    }
 }
 
 fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, context: Crumbs<'_>) {
@@ -637,6 +685,41 @@ mod tests {
         assert_eq!(secs.list.len(), 7);
         for sec in &secs.list {
             assert_eq!(sec.at, doc.source.line_col(sec.name_span.start), "[{}]", sec.name);
+        }
+    }
+
+    /// Repeated unknown keys are found the same way with few and with many unknown keys.
+    #[test]
+    fn repeated_unknown_keys() {
+        for n in [3, 20] {
+            let mut text = String::from("[OptionalObjects]\n");
+            for i in 1..=n {
+                text.push_str(&format!("{i}=0x{:04X}\n", 0x1000 + i));
+            }
+            text.push_str("xY=1\n2=0x2000\nXy=2\n");
+            let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text));
+            let mut cx = Ctx { src: &doc.source, strictness: crate::Strictness::Lenient, diags: Vec::new() };
+            let collected = collect(&doc, &mut cx);
+            let secs = collected.sections();
+            let keys = match_keys(&mut cx, &secs.list[0], &KeySet::new(["SupportedObjects"]), Crumbs::default(), false);
+            assert_eq!(keys.unknown.len(), n + 3);
+            let repeats: Vec<_> = cx.diags.iter().map(|d| (d.code, d.at.map(|a| a.line), d.message.clone())).collect();
+            assert_eq!(
+                repeats,
+                vec![
+                    (
+                        codes::E0007,
+                        Some(n as u32 + 3),
+                        "key `2` is set again (first at line 3); the later value `0x2000` is used".to_owned()
+                    ),
+                    (
+                        codes::E0007,
+                        Some(n as u32 + 4),
+                        format!("key `Xy` is set again (first at line {}); the later value `2` is used", n + 2)
+                    ),
+                ],
+                "{n}"
+            );
         }
     }
 
