@@ -115,6 +115,7 @@
 //! (`Node<Dictionary, Cia402App<Dictionary, MyDrive>>`) to change the mechanics
 //! ([`Drive::axis_mut`]) or the vendor state.
 
+pub mod akd;
 pub mod cia402;
 pub mod demo;
 pub mod drcs;
@@ -333,6 +334,10 @@ impl DeviceApps {
 impl Apps for DeviceApps {
     fn drvi(&self) -> Box<dyn DriveApp<generated::drvi::Dictionary> + Send> {
         Box::new(self.attach(DeviceKind::Drvi, drvi::app()))
+    }
+
+    fn akd(&self) -> Box<dyn DriveApp<generated::akd::Dictionary> + Send> {
+        Box::new(self.attach(DeviceKind::Akd, akd::app()))
     }
 
     fn drcs(&self) -> Box<dyn DriveApp<generated::drcs::Dictionary> + Send> {

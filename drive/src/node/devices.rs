@@ -84,7 +84,11 @@ impl DeviceKind {
                 let storage = crate::drives::drcs::stored_objects_only(storage);
                 boxed(Node::new(generated::drcs::Dictionary::new(raw), apps.drcs(), storage, id), timeout)
             }
-            DeviceKind::Akd => boxed(Node::new(generated::akd::Dictionary::new(raw), apps.akd(), storage, id), timeout),
+            DeviceKind::Akd => {
+                // 6.2.1.12: 1010h saves the AKD's parameters (the sidecar's list).
+                let storage = crate::drives::akd::stored_objects_only(storage);
+                boxed(Node::new(generated::akd::Dictionary::new(raw), apps.akd(), storage, id), timeout)
+            }
         })
     }
 }
