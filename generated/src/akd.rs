@@ -6525,83 +6525,99 @@ Denotation=MOTOR.BRAKEIMM
         /// `0x6502` Supported drive modes.
         pub const SUPPORTED_DRIVE_MODES: u16 = 0x6502;
     }
-    /// `index << 8 | sub` of every entry, sorted: the lookup table (parallel to [`ENTRIES`]).
-    static KEYS: [u32; 591] = [
-        0x100000, 0x100100, 0x100200, 0x100300, 0x100301, 0x100302, 0x100303, 0x100304,
-        0x100305, 0x100306, 0x100307, 0x100308, 0x100309, 0x10030A, 0x100500, 0x100600,
-        0x100800, 0x100900, 0x100A00, 0x100C00, 0x100D00, 0x101000, 0x101001, 0x101100,
-        0x101101, 0x101400, 0x101600, 0x101601, 0x101700, 0x101800, 0x101801, 0x101802,
-        0x101803, 0x101804, 0x102600, 0x102601, 0x102602, 0x140000, 0x140001, 0x140002,
-        0x140100, 0x140101, 0x140102, 0x140200, 0x140201, 0x140202, 0x140300, 0x140301,
-        0x140302, 0x160000, 0x160001, 0x160002, 0x160003, 0x160004, 0x160005, 0x160006,
-        0x160007, 0x160008, 0x160100, 0x160101, 0x160102, 0x160103, 0x160104, 0x160105,
-        0x160106, 0x160107, 0x160108, 0x160200, 0x160201, 0x160202, 0x160203, 0x160204,
-        0x160205, 0x160206, 0x160207, 0x160208, 0x160300, 0x160301, 0x160302, 0x160303,
-        0x160304, 0x160305, 0x160306, 0x160307, 0x160308, 0x180000, 0x180001, 0x180002,
-        0x180003, 0x180004, 0x180005, 0x180100, 0x180101, 0x180102, 0x180103, 0x180104,
-        0x180105, 0x180200, 0x180201, 0x180202, 0x180203, 0x180204, 0x180205, 0x180300,
-        0x180301, 0x180302, 0x180303, 0x180304, 0x180305, 0x1A0000, 0x1A0001, 0x1A0002,
-        0x1A0003, 0x1A0004, 0x1A0005, 0x1A0006, 0x1A0007, 0x1A0008, 0x1A0100, 0x1A0101,
-        0x1A0102, 0x1A0103, 0x1A0104, 0x1A0105, 0x1A0106, 0x1A0107, 0x1A0108, 0x1A0200,
-        0x1A0201, 0x1A0202, 0x1A0203, 0x1A0204, 0x1A0205, 0x1A0206, 0x1A0207, 0x1A0208,
-        0x1A0300, 0x1A0301, 0x1A0302, 0x1A0303, 0x1A0304, 0x1A0305, 0x1A0306, 0x1A0307,
-        0x1A0308, 0x201400, 0x201401, 0x201402, 0x201500, 0x201501, 0x201502, 0x201600,
-        0x201601, 0x201602, 0x201700, 0x201701, 0x201702, 0x201800, 0x201801, 0x201802,
-        0x201803, 0x201804, 0x202600, 0x202601, 0x202602, 0x204C00, 0x204C01, 0x204C02,
-        0x205000, 0x207100, 0x207700, 0x20A000, 0x20A100, 0x20A200, 0x20A300, 0x20A400,
-        0x20A500, 0x20A600, 0x20B800, 0x210000, 0x340500, 0x340501, 0x340502, 0x340503,
-        0x340504, 0x340600, 0x340601, 0x340602, 0x340603, 0x340604, 0x340605, 0x340606,
-        0x340607, 0x340608, 0x340609, 0x34060A, 0x34060B, 0x34060C, 0x34060D, 0x34060E,
-        0x34060F, 0x340610, 0x340700, 0x340701, 0x340702, 0x340703, 0x340704, 0x341200,
-        0x341400, 0x341500, 0x341600, 0x342000, 0x342100, 0x342200, 0x342300, 0x342400,
-        0x342500, 0x342600, 0x342700, 0x342701, 0x342702, 0x342703, 0x343000, 0x343100,
-        0x344000, 0x344001, 0x344002, 0x344003, 0x344100, 0x344300, 0x344400, 0x344500,
-        0x345000, 0x345100, 0x345200, 0x345300, 0x345400, 0x345500, 0x345600, 0x345700,
-        0x345701, 0x345702, 0x345703, 0x346000, 0x346001, 0x346002, 0x346003, 0x346004,
-        0x346005, 0x346006, 0x346007, 0x346008, 0x346009, 0x34600A, 0x347000, 0x347001,
-        0x347002, 0x347003, 0x347004, 0x347005, 0x347100, 0x347200, 0x347400, 0x347401,
-        0x347402, 0x347403, 0x347404, 0x347405, 0x347406, 0x347407, 0x347408, 0x347409,
-        0x34740A, 0x34740B, 0x34740C, 0x34740D, 0x34740E, 0x347500, 0x347501, 0x347502,
-        0x347503, 0x347504, 0x348000, 0x348100, 0x348101, 0x348102, 0x348200, 0x348300,
-        0x348400, 0x349000, 0x349100, 0x349200, 0x349300, 0x349400, 0x349401, 0x349402,
-        0x349403, 0x349404, 0x349405, 0x349406, 0x349600, 0x349601, 0x349602, 0x349603,
-        0x349604, 0x34A000, 0x34A001, 0x34A002, 0x34A003, 0x34A004, 0x34A005, 0x34A006,
-        0x34A007, 0x34A008, 0x34A100, 0x34A101, 0x34A102, 0x34A103, 0x34A104, 0x34A105,
-        0x34A106, 0x34A107, 0x34A108, 0x34A200, 0x34A201, 0x34A202, 0x34A203, 0x34A204,
-        0x34A205, 0x34A206, 0x34A207, 0x34A208, 0x34A300, 0x34A301, 0x34A302, 0x34A303,
-        0x34A304, 0x34A400, 0x350100, 0x350200, 0x350600, 0x350900, 0x352200, 0x352400,
-        0x352A00, 0x353300, 0x353400, 0x353500, 0x353700, 0x353B00, 0x354200, 0x354800,
-        0x354B00, 0x354D00, 0x355800, 0x355900, 0x355A00, 0x356200, 0x356500, 0x356800,
-        0x356B00, 0x356E00, 0x356F00, 0x358600, 0x358700, 0x358E00, 0x358F00, 0x359300,
-        0x359600, 0x359800, 0x359C00, 0x359D00, 0x35A300, 0x35A400, 0x35AB00, 0x35AF00,
-        0x35B200, 0x35B400, 0x35BC00, 0x35C200, 0x35C500, 0x35C600, 0x35C700, 0x35CA00,
-        0x35CB00, 0x35E200, 0x35EB00, 0x35F000, 0x35FE00, 0x35FF00, 0x361000, 0x361100,
-        0x361200, 0x361700, 0x361800, 0x361A00, 0x361D00, 0x362200, 0x362300, 0x362700,
-        0x362900, 0x365600, 0x365900, 0x365B00, 0x365F00, 0x366000, 0x366E00, 0x366F00,
-        0x368300, 0x368500, 0x36D000, 0x36D100, 0x36D700, 0x36E200, 0x36E500, 0x36E600,
-        0x36E700, 0x36E800, 0x36E900, 0x36EA00, 0x36EB00, 0x36EC00, 0x36ED00, 0x36EE00,
-        0x36F600, 0x36F900, 0x36FC00, 0x385600, 0x500000, 0x500100, 0x500200, 0x500300,
-        0x500900, 0x500B00, 0x501300, 0x501500, 0x501600, 0x501900, 0x506000, 0x508000,
-        0x508300, 0x508400, 0x508500, 0x508C00, 0x508F00, 0x509600, 0x509700, 0x509900,
-        0x509A00, 0x509C00, 0x50B100, 0x50B700, 0x50B900, 0x50BB00, 0x50BC00, 0x50BE00,
-        0x50E200, 0x50FB00, 0x50FE00, 0x510400, 0x510E00, 0x512100, 0x512800, 0x517500,
-        0x517600, 0x517700, 0x517900, 0x517A00, 0x517E00, 0x518400, 0x518700, 0x518A00,
-        0x518E00, 0x51AE00, 0x51B000, 0x51B300, 0x51B800, 0x51BA00, 0x51BB00, 0x51CB00,
-        0x51CC00, 0x51CD00, 0x51CE00, 0x51CF00, 0x51D000, 0x51D100, 0x51E700, 0x51E800,
-        0x51E900, 0x51EC00, 0x51ED00, 0x51EE00, 0x51EF00, 0x51F000, 0x520C00, 0x520D00,
-        0x520E00, 0x525100, 0x525200, 0x525300, 0x525400, 0x525500, 0x525600, 0x525700,
-        0x525800, 0x525900, 0x525A00, 0x525B00, 0x525C00, 0x525D00, 0x525E00, 0x525F00,
-        0x526000, 0x526100, 0x526200, 0x526300, 0x526400, 0x526500, 0x526600, 0x526700,
-        0x526800, 0x604000, 0x604100, 0x606000, 0x606100, 0x606300, 0x606400, 0x606500,
-        0x606B00, 0x606C00, 0x606D00, 0x606E00, 0x607100, 0x607200, 0x607300, 0x607700,
-        0x607A00, 0x607C00, 0x607D00, 0x607D01, 0x607D02, 0x608100, 0x608300, 0x608400,
-        0x608F00, 0x608F01, 0x608F02, 0x609100, 0x609101, 0x609102, 0x609200, 0x609201,
-        0x609202, 0x609800, 0x609900, 0x609901, 0x609902, 0x609A00, 0x60B100, 0x60B200,
-        0x60B800, 0x60B900, 0x60BA00, 0x60BB00, 0x60BC00, 0x60BD00, 0x60C000, 0x60C100,
-        0x60C101, 0x60C102, 0x60C103, 0x60C200, 0x60C201, 0x60C202, 0x60C400, 0x60C401,
-        0x60C402, 0x60C403, 0x60C404, 0x60C405, 0x60C406, 0x60D000, 0x60D001, 0x60D002,
-        0x60F400, 0x60FD00, 0x60FE00, 0x60FE01, 0x60FE02, 0x60FF00, 0x650200,
+    /// The index of every object, sorted (the lookup's page table is computed from it).
+    static OBJECTS: [u16; 333] = [
+        0x1000, 0x1001, 0x1002, 0x1003, 0x1005, 0x1006, 0x1008, 0x1009, 0x100A, 0x100C,
+        0x100D, 0x1010, 0x1011, 0x1014, 0x1016, 0x1017, 0x1018, 0x1026, 0x1400, 0x1401,
+        0x1402, 0x1403, 0x1600, 0x1601, 0x1602, 0x1603, 0x1800, 0x1801, 0x1802, 0x1803,
+        0x1A00, 0x1A01, 0x1A02, 0x1A03, 0x2014, 0x2015, 0x2016, 0x2017, 0x2018, 0x2026,
+        0x204C, 0x2050, 0x2071, 0x2077, 0x20A0, 0x20A1, 0x20A2, 0x20A3, 0x20A4, 0x20A5,
+        0x20A6, 0x20B8, 0x2100, 0x3405, 0x3406, 0x3407, 0x3412, 0x3414, 0x3415, 0x3416,
+        0x3420, 0x3421, 0x3422, 0x3423, 0x3424, 0x3425, 0x3426, 0x3427, 0x3430, 0x3431,
+        0x3440, 0x3441, 0x3443, 0x3444, 0x3445, 0x3450, 0x3451, 0x3452, 0x3453, 0x3454,
+        0x3455, 0x3456, 0x3457, 0x3460, 0x3470, 0x3471, 0x3472, 0x3474, 0x3475, 0x3480,
+        0x3481, 0x3482, 0x3483, 0x3484, 0x3490, 0x3491, 0x3492, 0x3493, 0x3494, 0x3496,
+        0x34A0, 0x34A1, 0x34A2, 0x34A3, 0x34A4, 0x3501, 0x3502, 0x3506, 0x3509, 0x3522,
+        0x3524, 0x352A, 0x3533, 0x3534, 0x3535, 0x3537, 0x353B, 0x3542, 0x3548, 0x354B,
+        0x354D, 0x3558, 0x3559, 0x355A, 0x3562, 0x3565, 0x3568, 0x356B, 0x356E, 0x356F,
+        0x3586, 0x3587, 0x358E, 0x358F, 0x3593, 0x3596, 0x3598, 0x359C, 0x359D, 0x35A3,
+        0x35A4, 0x35AB, 0x35AF, 0x35B2, 0x35B4, 0x35BC, 0x35C2, 0x35C5, 0x35C6, 0x35C7,
+        0x35CA, 0x35CB, 0x35E2, 0x35EB, 0x35F0, 0x35FE, 0x35FF, 0x3610, 0x3611, 0x3612,
+        0x3617, 0x3618, 0x361A, 0x361D, 0x3622, 0x3623, 0x3627, 0x3629, 0x3656, 0x3659,
+        0x365B, 0x365F, 0x3660, 0x366E, 0x366F, 0x3683, 0x3685, 0x36D0, 0x36D1, 0x36D7,
+        0x36E2, 0x36E5, 0x36E6, 0x36E7, 0x36E8, 0x36E9, 0x36EA, 0x36EB, 0x36EC, 0x36ED,
+        0x36EE, 0x36F6, 0x36F9, 0x36FC, 0x3856, 0x5000, 0x5001, 0x5002, 0x5003, 0x5009,
+        0x500B, 0x5013, 0x5015, 0x5016, 0x5019, 0x5060, 0x5080, 0x5083, 0x5084, 0x5085,
+        0x508C, 0x508F, 0x5096, 0x5097, 0x5099, 0x509A, 0x509C, 0x50B1, 0x50B7, 0x50B9,
+        0x50BB, 0x50BC, 0x50BE, 0x50E2, 0x50FB, 0x50FE, 0x5104, 0x510E, 0x5121, 0x5128,
+        0x5175, 0x5176, 0x5177, 0x5179, 0x517A, 0x517E, 0x5184, 0x5187, 0x518A, 0x518E,
+        0x51AE, 0x51B0, 0x51B3, 0x51B8, 0x51BA, 0x51BB, 0x51CB, 0x51CC, 0x51CD, 0x51CE,
+        0x51CF, 0x51D0, 0x51D1, 0x51E7, 0x51E8, 0x51E9, 0x51EC, 0x51ED, 0x51EE, 0x51EF,
+        0x51F0, 0x520C, 0x520D, 0x520E, 0x5251, 0x5252, 0x5253, 0x5254, 0x5255, 0x5256,
+        0x5257, 0x5258, 0x5259, 0x525A, 0x525B, 0x525C, 0x525D, 0x525E, 0x525F, 0x5260,
+        0x5261, 0x5262, 0x5263, 0x5264, 0x5265, 0x5266, 0x5267, 0x5268, 0x6040, 0x6041,
+        0x6060, 0x6061, 0x6063, 0x6064, 0x6065, 0x606B, 0x606C, 0x606D, 0x606E, 0x6071,
+        0x6072, 0x6073, 0x6077, 0x607A, 0x607C, 0x607D, 0x6081, 0x6083, 0x6084, 0x608F,
+        0x6091, 0x6092, 0x6098, 0x6099, 0x609A, 0x60B1, 0x60B2, 0x60B8, 0x60B9, 0x60BA,
+        0x60BB, 0x60BC, 0x60BD, 0x60C0, 0x60C1, 0x60C2, 0x60C4, 0x60D0, 0x60F4, 0x60FD,
+        0x60FE, 0x60FF, 0x6502,
     ];
+    /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
+    /// the index to its object, then the sub-index in the object's run of entries (`first`:
+    /// each object's first entry, then the entry count; `subs`: every entry's sub-index).
+    static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
+        pages: ::od_runtime::__private_v1::pages(&OBJECTS),
+        slots: &::od_runtime::__private_v1::slots::<4096>(&OBJECTS),
+        first: &[
+            0, 1, 2, 3, 14, 15, 16, 17, 18, 19, 20, 21, 23, 25, 26, 28, 29, 34, 37, 40,
+            43, 46, 49, 58, 67, 76, 85, 91, 97, 103, 109, 118, 127, 136, 145, 148, 151,
+            154, 157, 162, 165, 168, 169, 170, 171, 172, 173, 174, 175, 176, 177, 178,
+            179, 180, 185, 202, 207, 208, 209, 210, 211, 212, 213, 214, 215, 216, 217,
+            218, 222, 223, 224, 228, 229, 230, 231, 232, 233, 234, 235, 236, 237, 238,
+            239, 243, 254, 260, 261, 262, 277, 282, 283, 286, 287, 288, 289, 290, 291,
+            292, 293, 300, 305, 314, 323, 332, 337, 338, 339, 340, 341, 342, 343, 344,
+            345, 346, 347, 348, 349, 350, 351, 352, 353, 354, 355, 356, 357, 358, 359,
+            360, 361, 362, 363, 364, 365, 366, 367, 368, 369, 370, 371, 372, 373, 374,
+            375, 376, 377, 378, 379, 380, 381, 382, 383, 384, 385, 386, 387, 388, 389,
+            390, 391, 392, 393, 394, 395, 396, 397, 398, 399, 400, 401, 402, 403, 404,
+            405, 406, 407, 408, 409, 410, 411, 412, 413, 414, 415, 416, 417, 418, 419,
+            420, 421, 422, 423, 424, 425, 426, 427, 428, 429, 430, 431, 432, 433, 434,
+            435, 436, 437, 438, 439, 440, 441, 442, 443, 444, 445, 446, 447, 448, 449,
+            450, 451, 452, 453, 454, 455, 456, 457, 458, 459, 460, 461, 462, 463, 464,
+            465, 466, 467, 468, 469, 470, 471, 472, 473, 474, 475, 476, 477, 478, 479,
+            480, 481, 482, 483, 484, 485, 486, 487, 488, 489, 490, 491, 492, 493, 494,
+            495, 496, 497, 498, 499, 500, 501, 502, 503, 504, 505, 506, 507, 508, 509,
+            510, 511, 512, 513, 514, 515, 516, 517, 518, 519, 520, 521, 522, 523, 524,
+            525, 526, 527, 528, 529, 530, 531, 532, 533, 534, 535, 536, 537, 538, 541,
+            542, 543, 544, 547, 550, 553, 554, 557, 558, 559, 560, 561, 562, 563, 564,
+            565, 566, 567, 571, 574, 581, 584, 585, 586, 589, 590, 591,
+        ],
+        subs: &[
+            0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 1,
+            0, 0, 1, 0, 0, 1, 2, 3, 4, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1,
+            2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0,
+            1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5,
+            0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1,
+            2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0,
+            1, 2, 0, 1, 2, 3, 4, 0, 1, 2, 0, 1, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            1, 2, 3, 4, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 0, 1,
+            2, 3, 4, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2, 3, 0, 0, 0, 1, 2, 3, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 0,
+            1, 2, 3, 4, 5, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 0, 1,
+            2, 3, 4, 0, 0, 1, 2, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 0, 1, 2, 3, 4,
+            0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7,
+            8, 0, 1, 2, 3, 4, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            1, 2, 0, 0, 0, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 0, 1, 2, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 1, 2, 3, 0, 1, 2, 0, 1, 2, 3, 4, 5, 6, 0, 1, 2, 0, 0, 0, 1, 2, 0, 0,
+        ],
+    };
     /// Metadata of every entry, sorted by `(index, sub)`.
     pub static ENTRIES: [::od_runtime::od::EntryInfo; 591] = [
         ::od_runtime::od::EntryInfo {
@@ -13718,9 +13734,9 @@ Denotation=MOTOR.BRAKEIMM
         pre_defined_error_field_standard_error_field_10: u32,
         cob_id_sync_message: u32,
         communication_cycle_period: u32,
-        manufacturer_device_name: __rt::Bytes<32>,
-        manufacturer_hardware_version: __rt::Bytes<32>,
-        manufacturer_software_version: __rt::Bytes<32>,
+        manufacturer_device_name: ::od_runtime::__private_v1::Bytes<32>,
+        manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes<32>,
+        manufacturer_software_version: ::od_runtime::__private_v1::Bytes<32>,
         guard_time: u16,
         life_time_factor: u8,
         store_parameters_number_of_entries: u8,
@@ -13865,8 +13881,8 @@ Denotation=MOTOR.BRAKEIMM
         firmware_version_revision: u16,
         firmware_version_derived_version: u16,
         ascii_channel_number_of_entries: u8,
-        ascii_channel_command: __rt::Bytes<32>,
-        ascii_channel_response: __rt::Bytes<32>,
+        ascii_channel_command: ::od_runtime::__private_v1::Bytes<32>,
+        ascii_channel_response: ::od_runtime::__private_v1::Bytes<32>,
         pv_scaling_factor_number_of_entries: u8,
         pv_scaling_factor_pv_scaling_factor_numerator: i32,
         pv_scaling_factor_pv_scaling_factor_denominator: i32,
@@ -14297,7 +14313,6 @@ Denotation=MOTOR.BRAKEIMM
     impl Dictionary {
         /// A dictionary holding every entry's default, with `$NODEID` resolved for `node_id`.
         pub const fn new(node_id: u8) -> Self {
-            let () = __rt::VERSION_1;
             Dictionary {
                 device_type: 0x20192,
                 error_register: 0x0,
@@ -14315,9 +14330,15 @@ Denotation=MOTOR.BRAKEIMM
                 pre_defined_error_field_standard_error_field_10: 0x0,
                 cob_id_sync_message: 0x80,
                 communication_cycle_period: 0x0,
-                manufacturer_device_name: __rt::Bytes::from_slice(b"M006"),
-                manufacturer_hardware_version: __rt::Bytes::from_slice(b""),
-                manufacturer_software_version: __rt::Bytes::from_slice(b"0.20"),
+                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                    b"M006",
+                ),
+                manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                    b"",
+                ),
+                manufacturer_software_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                    b"0.20",
+                ),
                 guard_time: 0,
                 life_time_factor: 0,
                 store_parameters_number_of_entries: 1,
@@ -14470,8 +14491,12 @@ Denotation=MOTOR.BRAKEIMM
                 firmware_version_revision: 0,
                 firmware_version_derived_version: 0,
                 ascii_channel_number_of_entries: 2,
-                ascii_channel_command: __rt::Bytes::from_slice(b""),
-                ascii_channel_response: __rt::Bytes::from_slice(b""),
+                ascii_channel_command: ::od_runtime::__private_v1::Bytes::from_slice(
+                    b"",
+                ),
+                ascii_channel_response: ::od_runtime::__private_v1::Bytes::from_slice(
+                    b"",
+                ),
                 pv_scaling_factor_number_of_entries: 2,
                 pv_scaling_factor_pv_scaling_factor_numerator: 1,
                 pv_scaling_factor_pv_scaling_factor_denominator: 1,
@@ -14907,3739 +14932,5764 @@ Denotation=MOTOR.BRAKEIMM
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            __rt::position(&KEYS, index, sub)
+            ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
         }
-        fn slot(&self, pos: usize) -> Option<__rt::Slot<'_>> {
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
             Some(
                 match pos {
-                    0 => __rt::Slot::U32(&self.device_type),
-                    1 => __rt::Slot::U8(&self.error_register),
-                    2 => __rt::Slot::U32(&self.manufacturer_status_register),
-                    3 => __rt::Slot::U8(&self.pre_defined_error_field_number_of_errors),
+                    0 => ::od_runtime::__private_v1::Slot::U32(&self.device_type),
+                    1 => ::od_runtime::__private_v1::Slot::U8(&self.error_register),
+                    2 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.manufacturer_status_register,
+                        )
+                    }
+                    3 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.pre_defined_error_field_number_of_errors,
+                        )
+                    }
                     4 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_1,
                         )
                     }
                     5 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_2,
                         )
                     }
                     6 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_3,
                         )
                     }
                     7 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_4,
                         )
                     }
                     8 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_5,
                         )
                     }
                     9 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_6,
                         )
                     }
                     10 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_7,
                         )
                     }
                     11 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_8,
                         )
                     }
                     12 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_9,
                         )
                     }
                     13 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_10,
                         )
                     }
-                    14 => __rt::Slot::U32(&self.cob_id_sync_message),
-                    15 => __rt::Slot::U32(&self.communication_cycle_period),
-                    16 => __rt::Slot::Bytes(self.manufacturer_device_name.as_slice()),
+                    14 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.cob_id_sync_message)
+                    }
+                    15 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.communication_cycle_period,
+                        )
+                    }
+                    16 => {
+                        ::od_runtime::__private_v1::Slot::Bytes(
+                            self.manufacturer_device_name.as_slice(),
+                        )
+                    }
                     17 => {
-                        __rt::Slot::Bytes(self.manufacturer_hardware_version.as_slice())
+                        ::od_runtime::__private_v1::Slot::Bytes(
+                            self.manufacturer_hardware_version.as_slice(),
+                        )
                     }
                     18 => {
-                        __rt::Slot::Bytes(self.manufacturer_software_version.as_slice())
+                        ::od_runtime::__private_v1::Slot::Bytes(
+                            self.manufacturer_software_version.as_slice(),
+                        )
                     }
-                    19 => __rt::Slot::U16(&self.guard_time),
-                    20 => __rt::Slot::U8(&self.life_time_factor),
-                    21 => __rt::Slot::U8(&self.store_parameters_number_of_entries),
-                    22 => __rt::Slot::U32(&self.store_parameters_save_all_parameters),
+                    19 => ::od_runtime::__private_v1::Slot::U16(&self.guard_time),
+                    20 => ::od_runtime::__private_v1::Slot::U8(&self.life_time_factor),
+                    21 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.store_parameters_number_of_entries,
+                        )
+                    }
+                    22 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.store_parameters_save_all_parameters,
+                        )
+                    }
                     23 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.restore_default_parameters_number_of_entries,
                         )
                     }
                     24 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .restore_default_parameters_restore_all_default_parameters,
                         )
                     }
-                    25 => __rt::Slot::U32(&self.cob_id_emcy),
-                    26 => __rt::Slot::U8(&self.consumer_heartbeat_time_number_of_entries),
+                    25 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_emcy),
+                    26 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.consumer_heartbeat_time_number_of_entries,
+                        )
+                    }
                     27 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.consumer_heartbeat_time_consumer_heartbeat_time_1,
                         )
                     }
-                    28 => __rt::Slot::U16(&self.producer_heartbeat_time),
-                    29 => __rt::Slot::U8(&self.identity_object_number_of_entries),
-                    30 => __rt::Slot::U32(&self.identity_object_vendor_id),
-                    31 => __rt::Slot::U32(&self.identity_object_product_code),
-                    32 => __rt::Slot::U32(&self.identity_object_revision_number),
-                    33 => __rt::Slot::U32(&self.identity_object_serial_number),
-                    34 => __rt::Slot::U8(&self.os_prompt_number_of_entries),
-                    35 => __rt::Slot::U8(&self.os_prompt_std_in),
-                    36 => __rt::Slot::U8(&self.os_prompt_std_out),
+                    28 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.producer_heartbeat_time,
+                        )
+                    }
+                    29 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.identity_object_number_of_entries,
+                        )
+                    }
+                    30 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.identity_object_vendor_id,
+                        )
+                    }
+                    31 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.identity_object_product_code,
+                        )
+                    }
+                    32 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.identity_object_revision_number,
+                        )
+                    }
+                    33 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.identity_object_serial_number,
+                        )
+                    }
+                    34 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.os_prompt_number_of_entries,
+                        )
+                    }
+                    35 => ::od_runtime::__private_v1::Slot::U8(&self.os_prompt_std_in),
+                    36 => ::od_runtime::__private_v1::Slot::U8(&self.os_prompt_std_out),
                     37 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_1_communication_parameter_number_of_entries,
                         )
                     }
                     38 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .receive_pdo_1_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     39 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_1_communication_parameter_transmission_type,
                         )
                     }
                     40 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_2_communication_parameter_number_of_entries,
                         )
                     }
                     41 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .receive_pdo_2_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     42 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_2_communication_parameter_transmission_type,
                         )
                     }
                     43 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_3_communication_parameter_number_of_entries,
                         )
                     }
                     44 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .receive_pdo_3_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     45 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_3_communication_parameter_transmission_type,
                         )
                     }
                     46 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_4_communication_parameter_number_of_entries,
                         )
                     }
                     47 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .receive_pdo_4_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     48 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_4_communication_parameter_transmission_type,
                         )
                     }
                     49 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_1_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     50 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_1_mapping_parameter_mapped_object_1,
                         )
                     }
                     51 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_1_mapping_parameter_mapped_object_2,
                         )
                     }
                     52 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_1_mapping_parameter_mapped_object_3,
                         )
                     }
                     53 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_1_mapping_parameter_mapped_object_4,
                         )
                     }
                     54 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_1_mapping_parameter_mapped_object_5,
                         )
                     }
                     55 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_1_mapping_parameter_mapped_object_6,
                         )
                     }
                     56 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_1_mapping_parameter_mapped_object_7,
                         )
                     }
                     57 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_1_mapping_parameter_mapped_object_8,
                         )
                     }
                     58 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_2_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     59 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_2_mapping_parameter_mapped_object_1,
                         )
                     }
                     60 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_2_mapping_parameter_mapped_object_2,
                         )
                     }
                     61 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_2_mapping_parameter_mapped_object_3,
                         )
                     }
                     62 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_2_mapping_parameter_mapped_object_4,
                         )
                     }
                     63 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_2_mapping_parameter_mapped_object_5,
                         )
                     }
                     64 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_2_mapping_parameter_mapped_object_6,
                         )
                     }
                     65 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_2_mapping_parameter_mapped_object_7,
                         )
                     }
                     66 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_2_mapping_parameter_mapped_object_8,
                         )
                     }
                     67 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_3_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     68 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_3_mapping_parameter_mapped_object_1,
                         )
                     }
                     69 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_3_mapping_parameter_mapped_object_2,
                         )
                     }
                     70 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_3_mapping_parameter_mapped_object_3,
                         )
                     }
                     71 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_3_mapping_parameter_mapped_object_4,
                         )
                     }
                     72 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_3_mapping_parameter_mapped_object_5,
                         )
                     }
                     73 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_3_mapping_parameter_mapped_object_6,
                         )
                     }
                     74 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_3_mapping_parameter_mapped_object_7,
                         )
                     }
                     75 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_3_mapping_parameter_mapped_object_8,
                         )
                     }
                     76 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_4_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     77 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_4_mapping_parameter_mapped_object_1,
                         )
                     }
                     78 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_4_mapping_parameter_mapped_object_2,
                         )
                     }
                     79 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_4_mapping_parameter_mapped_object_3,
                         )
                     }
                     80 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_4_mapping_parameter_mapped_object_4,
                         )
                     }
                     81 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_4_mapping_parameter_mapped_object_5,
                         )
                     }
                     82 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_4_mapping_parameter_mapped_object_6,
                         )
                     }
                     83 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_4_mapping_parameter_mapped_object_7,
                         )
                     }
                     84 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_4_mapping_parameter_mapped_object_8,
                         )
                     }
                     85 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_1_communication_parameter_number_of_entries,
                         )
                     }
                     86 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .transmit_pdo_1_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     87 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_1_communication_parameter_transmission_type,
                         )
                     }
                     88 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_1_communication_parameter_inhibit_time,
                         )
                     }
                     89 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.transmit_pdo_1_communication_parameter_reserved,
                         )
                     }
                     90 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_1_communication_parameter_event_timer,
                         )
                     }
                     91 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_2_communication_parameter_number_of_entries,
                         )
                     }
                     92 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .transmit_pdo_2_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     93 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_2_communication_parameter_transmission_type,
                         )
                     }
                     94 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_2_communication_parameter_inhibit_time,
                         )
                     }
                     95 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.transmit_pdo_2_communication_parameter_reserved,
                         )
                     }
                     96 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_2_communication_parameter_event_timer,
                         )
                     }
                     97 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_3_communication_parameter_number_of_entries,
                         )
                     }
                     98 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .transmit_pdo_3_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     99 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_3_communication_parameter_transmission_type,
                         )
                     }
                     100 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_3_communication_parameter_inhibit_time,
                         )
                     }
                     101 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.transmit_pdo_3_communication_parameter_reserved,
                         )
                     }
                     102 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_3_communication_parameter_event_timer,
                         )
                     }
                     103 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_4_communication_parameter_number_of_entries,
                         )
                     }
                     104 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .transmit_pdo_4_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     105 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_4_communication_parameter_transmission_type,
                         )
                     }
                     106 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_4_communication_parameter_inhibit_time,
                         )
                     }
                     107 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.transmit_pdo_4_communication_parameter_reserved,
                         )
                     }
                     108 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_4_communication_parameter_event_timer,
                         )
                     }
                     109 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_1_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     110 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_1_mapping_parameter_mapped_object_1,
                         )
                     }
                     111 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_1_mapping_parameter_mapped_object_2,
                         )
                     }
                     112 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_1_mapping_parameter_mapped_object_3,
                         )
                     }
                     113 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_1_mapping_parameter_mapped_object_4,
                         )
                     }
                     114 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_1_mapping_parameter_mapped_object_5,
                         )
                     }
                     115 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_1_mapping_parameter_mapped_object_6,
                         )
                     }
                     116 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_1_mapping_parameter_mapped_object_7,
                         )
                     }
                     117 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_1_mapping_parameter_mapped_object_8,
                         )
                     }
                     118 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_2_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     119 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_2_mapping_parameter_mapped_object_1,
                         )
                     }
                     120 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_2_mapping_parameter_mapped_object_2,
                         )
                     }
                     121 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_2_mapping_parameter_mapped_object_3,
                         )
                     }
                     122 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_2_mapping_parameter_mapped_object_4,
                         )
                     }
                     123 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_2_mapping_parameter_mapped_object_5,
                         )
                     }
                     124 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_2_mapping_parameter_mapped_object_6,
                         )
                     }
                     125 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_2_mapping_parameter_mapped_object_7,
                         )
                     }
                     126 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_2_mapping_parameter_mapped_object_8,
                         )
                     }
                     127 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_3_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     128 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_3_mapping_parameter_mapped_object_1,
                         )
                     }
                     129 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_3_mapping_parameter_mapped_object_2,
                         )
                     }
                     130 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_3_mapping_parameter_mapped_object_3,
                         )
                     }
                     131 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_3_mapping_parameter_mapped_object_4,
                         )
                     }
                     132 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_3_mapping_parameter_mapped_object_5,
                         )
                     }
                     133 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_3_mapping_parameter_mapped_object_6,
                         )
                     }
                     134 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_3_mapping_parameter_mapped_object_7,
                         )
                     }
                     135 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_3_mapping_parameter_mapped_object_8,
                         )
                     }
                     136 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_4_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     137 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_4_mapping_parameter_mapped_object_1,
                         )
                     }
                     138 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_4_mapping_parameter_mapped_object_2,
                         )
                     }
                     139 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_4_mapping_parameter_mapped_object_3,
                         )
                     }
                     140 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_4_mapping_parameter_mapped_object_4,
                         )
                     }
                     141 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_4_mapping_parameter_mapped_object_5,
                         )
                     }
                     142 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_4_mapping_parameter_mapped_object_6,
                         )
                     }
                     143 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_4_mapping_parameter_mapped_object_7,
                         )
                     }
                     144 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_4_mapping_parameter_mapped_object_8,
                         )
                     }
-                    145 => __rt::Slot::U8(&self.transmit_pdo_1_mask_number_of_entries),
-                    146 => __rt::Slot::U32(&self.transmit_pdo_1_mask_mask_bytes_0_to_3),
-                    147 => __rt::Slot::U32(&self.transmit_pdo_1_mask_mask_bytes_4_to_7),
-                    148 => __rt::Slot::U8(&self.transmit_pdo_2_mask_number_of_entries),
-                    149 => __rt::Slot::U32(&self.transmit_pdo_2_mask_mask_bytes_0_to_3),
-                    150 => __rt::Slot::U32(&self.transmit_pdo_2_mask_mask_bytes_4_to_7),
-                    151 => __rt::Slot::U8(&self.transmit_pdo_3_mask_number_of_entries),
-                    152 => __rt::Slot::U32(&self.transmit_pdo_3_mask_mask_bytes_0_to_3),
-                    153 => __rt::Slot::U32(&self.transmit_pdo_3_mask_mask_bytes_4_to_7),
-                    154 => __rt::Slot::U8(&self.transmit_pdo_4_mask_number_of_entries),
-                    155 => __rt::Slot::U32(&self.transmit_pdo_4_mask_mask_bytes_0_to_3),
-                    156 => __rt::Slot::U32(&self.transmit_pdo_4_mask_mask_bytes_4_to_7),
-                    157 => __rt::Slot::U8(&self.firmware_version_number_of_entries),
-                    158 => __rt::Slot::U16(&self.firmware_version_major_version),
-                    159 => __rt::Slot::U16(&self.firmware_version_minor_version),
-                    160 => __rt::Slot::U16(&self.firmware_version_revision),
-                    161 => __rt::Slot::U16(&self.firmware_version_derived_version),
-                    162 => __rt::Slot::U8(&self.ascii_channel_number_of_entries),
-                    163 => __rt::Slot::Bytes(self.ascii_channel_command.as_slice()),
-                    164 => __rt::Slot::Bytes(self.ascii_channel_response.as_slice()),
-                    165 => __rt::Slot::U8(&self.pv_scaling_factor_number_of_entries),
+                    145 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.transmit_pdo_1_mask_number_of_entries,
+                        )
+                    }
+                    146 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.transmit_pdo_1_mask_mask_bytes_0_to_3,
+                        )
+                    }
+                    147 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.transmit_pdo_1_mask_mask_bytes_4_to_7,
+                        )
+                    }
+                    148 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.transmit_pdo_2_mask_number_of_entries,
+                        )
+                    }
+                    149 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.transmit_pdo_2_mask_mask_bytes_0_to_3,
+                        )
+                    }
+                    150 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.transmit_pdo_2_mask_mask_bytes_4_to_7,
+                        )
+                    }
+                    151 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.transmit_pdo_3_mask_number_of_entries,
+                        )
+                    }
+                    152 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.transmit_pdo_3_mask_mask_bytes_0_to_3,
+                        )
+                    }
+                    153 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.transmit_pdo_3_mask_mask_bytes_4_to_7,
+                        )
+                    }
+                    154 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.transmit_pdo_4_mask_number_of_entries,
+                        )
+                    }
+                    155 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.transmit_pdo_4_mask_mask_bytes_0_to_3,
+                        )
+                    }
+                    156 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.transmit_pdo_4_mask_mask_bytes_4_to_7,
+                        )
+                    }
+                    157 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.firmware_version_number_of_entries,
+                        )
+                    }
+                    158 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.firmware_version_major_version,
+                        )
+                    }
+                    159 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.firmware_version_minor_version,
+                        )
+                    }
+                    160 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.firmware_version_revision,
+                        )
+                    }
+                    161 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.firmware_version_derived_version,
+                        )
+                    }
+                    162 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.ascii_channel_number_of_entries,
+                        )
+                    }
+                    163 => {
+                        ::od_runtime::__private_v1::Slot::Bytes(
+                            self.ascii_channel_command.as_slice(),
+                        )
+                    }
+                    164 => {
+                        ::od_runtime::__private_v1::Slot::Bytes(
+                            self.ascii_channel_response.as_slice(),
+                        )
+                    }
+                    165 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.pv_scaling_factor_number_of_entries,
+                        )
+                    }
                     166 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.pv_scaling_factor_pv_scaling_factor_numerator,
                         )
                     }
                     167 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.pv_scaling_factor_pv_scaling_factor_denominator,
                         )
                     }
-                    168 => __rt::Slot::I32(&self.secondary_feedback_position),
-                    169 => __rt::Slot::I32(&self.target_current),
-                    170 => __rt::Slot::I32(&self.current_actual_value),
-                    171 => __rt::Slot::I32(&self.latch_position_1_positive_edge),
-                    172 => __rt::Slot::I32(&self.latch_position_1_negative_edge),
-                    173 => __rt::Slot::I32(&self.latch_position_2_positive_edge),
-                    174 => __rt::Slot::I32(&self.latch_position_2_negative_edge),
-                    175 => __rt::Slot::U16(&self.latch_control_register),
-                    176 => __rt::Slot::U16(&self.latch_status_register),
-                    177 => {
-                        __rt::Slot::I32(&self.latch_position_1_positive_or_negative_edge)
+                    168 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.secondary_feedback_position,
+                        )
                     }
-                    178 => __rt::Slot::U16(&self.reset_of_changed_input_information),
-                    179 => __rt::Slot::U32(&self.dummy_entry_4_bytes),
+                    169 => ::od_runtime::__private_v1::Slot::I32(&self.target_current),
+                    170 => {
+                        ::od_runtime::__private_v1::Slot::I32(&self.current_actual_value)
+                    }
+                    171 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.latch_position_1_positive_edge,
+                        )
+                    }
+                    172 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.latch_position_1_negative_edge,
+                        )
+                    }
+                    173 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.latch_position_2_positive_edge,
+                        )
+                    }
+                    174 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.latch_position_2_negative_edge,
+                        )
+                    }
+                    175 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.latch_control_register,
+                        )
+                    }
+                    176 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.latch_status_register,
+                        )
+                    }
+                    177 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.latch_position_1_positive_or_negative_edge,
+                        )
+                    }
+                    178 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.reset_of_changed_input_information,
+                        )
+                    }
+                    179 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.dummy_entry_4_bytes)
+                    }
                     180 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.velocity_loop_bi_quad_filter_types_number_of_entries,
                         )
                     }
                     181 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .velocity_loop_bi_quad_filter_types_bi_quad_filter_1_calculation_method,
                         )
                     }
                     182 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .velocity_loop_bi_quad_filter_types_bi_quad_filter_2_calculation_method,
                         )
                     }
                     183 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .velocity_loop_bi_quad_filter_types_bi_quad_filter_3_calculation_method,
                         )
                     }
                     184 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .velocity_loop_bi_quad_filter_types_bi_quad_filter_4_calculation_method,
                         )
                     }
                     185 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.velocity_loop_bi_quad_filters_number_of_entries,
                         )
                     }
                     186 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_natural_frequency,
                         )
                     }
                     187 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_natural_frequency,
                         )
                     }
                     188 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_natural_frequency,
                         )
                     }
                     189 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_natural_frequency,
                         )
                     }
                     190 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q,
                         )
                     }
                     191 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q,
                         )
                     }
                     192 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q,
                         )
                     }
                     193 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q,
                         )
                     }
                     194 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_natural_frequency,
                         )
                     }
                     195 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_natural_frequency,
                         )
                     }
                     196 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_natural_frequency,
                         )
                     }
                     197 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_natural_frequency,
                         )
                     }
                     198 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q,
                         )
                     }
                     199 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q,
                         )
                     }
                     200 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q,
                         )
                     }
                     201 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q,
                         )
                     }
                     202 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.velocity_loop_filter_and_feedforward_number_of_entries,
                         )
                     }
                     203 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self
                                 .velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz,
                         )
                     }
                     204 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_filter_and_feedforward_velocity_feedforward_gain,
                         )
                     }
                     205 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .velocity_loop_filter_and_feedforward_acceleration_feedforward_gain,
                         )
                     }
                     206 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.velocity_loop_filter_and_feedforward_velocity_error,
                         )
                     }
-                    207 => __rt::Slot::I8(&self.regen_resistor_type),
-                    208 => __rt::Slot::U8(&self.regen_resistor_fault_level),
-                    209 => __rt::Slot::U32(&self.regen_resistor_thermal_time_constant),
-                    210 => __rt::Slot::U32(&self.regen_resistor_calculated_power),
-                    211 => __rt::Slot::U16(&self.foldback_fault_level),
-                    212 => __rt::Slot::U32(&self.foldback_fault_level_user_value),
-                    213 => __rt::Slot::U32(&self.friction_compensation_value),
-                    214 => __rt::Slot::I32(&self.current_offset_for_gravity_compensation),
-                    215 => __rt::Slot::U16(&self.current_loop_pi_integrator_enable),
-                    216 => __rt::Slot::U32(&self.overall_foldback_current_limit),
+                    207 => {
+                        ::od_runtime::__private_v1::Slot::I8(&self.regen_resistor_type)
+                    }
+                    208 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.regen_resistor_fault_level,
+                        )
+                    }
+                    209 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.regen_resistor_thermal_time_constant,
+                        )
+                    }
+                    210 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.regen_resistor_calculated_power,
+                        )
+                    }
+                    211 => {
+                        ::od_runtime::__private_v1::Slot::U16(&self.foldback_fault_level)
+                    }
+                    212 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.foldback_fault_level_user_value,
+                        )
+                    }
+                    213 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.friction_compensation_value,
+                        )
+                    }
+                    214 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.current_offset_for_gravity_compensation,
+                        )
+                    }
+                    215 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.current_loop_pi_integrator_enable,
+                        )
+                    }
+                    216 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.overall_foldback_current_limit,
+                        )
+                    }
                     217 => {
-                        __rt::Slot::U32(&self.current_loop_acceleration_feedforward_gain)
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.current_loop_acceleration_feedforward_gain,
+                        )
                     }
                     218 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.motor_protection_parameters_number_of_entries,
                         )
                     }
                     219 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.motor_protection_parameters_motor_protection_mode,
                         )
                     }
                     220 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.motor_protection_parameters_motor_i2t_warning_threshold,
                         )
                     }
                     221 => {
-                        __rt::Slot::U32(&self.motor_protection_parameters_motor_i2t_load)
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.motor_protection_parameters_motor_i2t_load,
+                        )
                     }
-                    222 => __rt::Slot::U8(&self.direction_for_absolute_motion_tasks),
-                    223 => __rt::Slot::U16(&self.motion_task_setting),
+                    222 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.direction_for_absolute_motion_tasks,
+                        )
+                    }
+                    223 => {
+                        ::od_runtime::__private_v1::Slot::U16(&self.motion_task_setting)
+                    }
                     224 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.controlled_stop_parameters_number_of_entries,
                         )
                     }
                     225 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.controlled_stop_parameters_controlled_stop_deceleration,
                         )
                     }
                     226 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .controlled_stop_parameters_controlled_stop_velocity_threshold,
                         )
                     }
                     227 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .controlled_stop_parameters_controlled_stop_velocity_threshold_time,
                         )
                     }
-                    228 => __rt::Slot::U8(&self.controlled_stop_state),
-                    229 => __rt::Slot::U16(&self.drive_disable_cause),
-                    230 => __rt::Slot::U16(&self.dynamic_braking_maximum_current),
-                    231 => __rt::Slot::U32(&self.emergency_timeout_for_braking),
-                    232 => __rt::Slot::U8(&self.motor_brake_release),
-                    233 => __rt::Slot::U8(&self.motor_parameters_automatic_calculation),
-                    234 => __rt::Slot::U16(&self.motor_maximum_voltage),
-                    235 => __rt::Slot::U32(&self.motor_temperature_warning_level),
-                    236 => __rt::Slot::U32(&self.motor_winding_thermal_constant),
+                    228 => {
+                        ::od_runtime::__private_v1::Slot::U8(&self.controlled_stop_state)
+                    }
+                    229 => {
+                        ::od_runtime::__private_v1::Slot::U16(&self.drive_disable_cause)
+                    }
+                    230 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.dynamic_braking_maximum_current,
+                        )
+                    }
+                    231 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.emergency_timeout_for_braking,
+                        )
+                    }
+                    232 => {
+                        ::od_runtime::__private_v1::Slot::U8(&self.motor_brake_release)
+                    }
+                    233 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.motor_parameters_automatic_calculation,
+                        )
+                    }
+                    234 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.motor_maximum_voltage,
+                        )
+                    }
+                    235 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.motor_temperature_warning_level,
+                        )
+                    }
+                    236 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.motor_winding_thermal_constant,
+                        )
+                    }
                     237 => {
-                        __rt::Slot::U32(&self.motor_quadrature_inductance_line_to_line)
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.motor_quadrature_inductance_line_to_line,
+                        )
                     }
                     238 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.motor_stator_winding_resistance_phase_to_phase,
                         )
                     }
                     239 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.induction_motor_parameters_number_of_entries,
                         )
                     }
                     240 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self
                                 .induction_motor_parameters_induction_motor_rated_velocity,
                         )
                     }
                     241 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self
                                 .induction_motor_parameters_induction_motor_rated_voltage,
                         )
                     }
                     242 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self
                                 .induction_motor_parameters_minimum_voltage_for_v_f_control,
                         )
                     }
                     243 => {
-                        __rt::Slot::U8(&self.capture_engine_parameters_number_of_entries)
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.capture_engine_parameters_number_of_entries,
+                        )
                     }
                     244 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.capture_engine_parameters_capture_0_trigger_source,
                         )
                     }
                     245 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.capture_engine_parameters_capture_1_trigger_source,
                         )
                     }
-                    246 => __rt::Slot::U8(&self.capture_engine_parameters_capture_0_mode),
-                    247 => __rt::Slot::U8(&self.capture_engine_parameters_capture_1_mode),
+                    246 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.capture_engine_parameters_capture_0_mode,
+                        )
+                    }
+                    247 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.capture_engine_parameters_capture_1_mode,
+                        )
+                    }
                     248 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.capture_engine_parameters_capture_0_precondition_logic,
                         )
                     }
                     249 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.capture_engine_parameters_capture_1_precondition_logic,
                         )
                     }
                     250 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.capture_engine_parameters_capture_0_precondition_edge,
                         )
                     }
                     251 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.capture_engine_parameters_capture_1_precondition_edge,
                         )
                     }
                     252 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .capture_engine_parameters_capture_0_precondition_trigger,
                         )
                     }
                     253 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .capture_engine_parameters_capture_1_precondition_trigger,
                         )
                     }
                     254 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.analog_input_and_output_parameters_number_of_entries,
                         )
                     }
                     255 => {
-                        __rt::Slot::I8(
+                        ::od_runtime::__private_v1::Slot::I8(
                             &self.analog_input_and_output_parameters_analog_output_mode,
                         )
                     }
                     256 => {
-                        __rt::Slot::I16(
+                        ::od_runtime::__private_v1::Slot::I16(
                             &self.analog_input_and_output_parameters_analog_output_value,
                         )
                     }
                     257 => {
-                        __rt::Slot::I16(
+                        ::od_runtime::__private_v1::Slot::I16(
                             &self
                                 .analog_input_and_output_parameters_analog_output_value_user_units,
                         )
                     }
                     258 => {
-                        __rt::Slot::I16(
+                        ::od_runtime::__private_v1::Slot::I16(
                             &self.analog_input_and_output_parameters_analog_input_value,
                         )
                     }
                     259 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .analog_input_and_output_parameters_analog_output_velocity_scale_factor,
                         )
                     }
-                    260 => __rt::Slot::U32(&self.analog_output_position_scale_factor),
-                    261 => __rt::Slot::U32(&self.analog_input_position_scale_factor),
+                    260 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.analog_output_position_scale_factor,
+                        )
+                    }
+                    261 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.analog_input_position_scale_factor,
+                        )
+                    }
                     262 => {
-                        __rt::Slot::U8(&self.digital_input_parameters_number_of_entries)
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.digital_input_parameters_number_of_entries,
+                        )
                     }
                     263 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_input_parameters_digital_input_1_parameter_low_32_bits,
                         )
                     }
                     264 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_input_parameters_digital_input_2_parameter_low_32_bits,
                         )
                     }
                     265 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_input_parameters_digital_input_3_parameter_low_32_bits,
                         )
                     }
                     266 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_input_parameters_digital_input_4_parameter_low_32_bits,
                         )
                     }
                     267 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_input_parameters_digital_input_5_parameter_low_32_bits,
                         )
                     }
                     268 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_input_parameters_digital_input_6_parameter_low_32_bits,
                         )
                     }
                     269 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_input_parameters_digital_input_7_parameter_low_32_bits,
                         )
                     }
                     270 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_input_parameters_digital_input_1_parameter_high_32_bits,
                         )
                     }
                     271 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_input_parameters_digital_input_2_parameter_high_32_bits,
                         )
                     }
                     272 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_input_parameters_digital_input_3_parameter_high_32_bits,
                         )
                     }
                     273 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_input_parameters_digital_input_4_parameter_high_32_bits,
                         )
                     }
                     274 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_input_parameters_digital_input_5_parameter_high_32_bits,
                         )
                     }
                     275 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_input_parameters_digital_input_6_parameter_high_32_bits,
                         )
                     }
                     276 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_input_parameters_digital_input_7_parameter_high_32_bits,
                         )
                     }
                     277 => {
-                        __rt::Slot::U8(&self.digital_output_parameters_number_of_entries)
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.digital_output_parameters_number_of_entries,
+                        )
                     }
                     278 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_output_parameters_digital_output_1_parameter_low_32_bits,
                         )
                     }
                     279 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_output_parameters_digital_output_2_parameter_low_32_bits,
                         )
                     }
                     280 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_output_parameters_digital_output_1_parameter_high_32_bits,
                         )
                     }
                     281 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .digital_output_parameters_digital_output_2_parameter_high_32_bits,
                         )
                     }
-                    282 => __rt::Slot::U32(&self.position_loop_integral_gain),
+                    282 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.position_loop_integral_gain,
+                        )
+                    }
                     283 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.position_loop_integrator_saturation_number_of_entries,
                         )
                     }
                     284 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .position_loop_integrator_saturation_integrator_input_saturation,
                         )
                     }
                     285 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .position_loop_integrator_saturation_integrator_output_saturation,
                         )
                     }
-                    286 => __rt::Slot::I32(&self.homing_maximum_following_error),
-                    287 => __rt::Slot::I32(&self.position_error_warning_level),
-                    288 => __rt::Slot::I32(&self.homing_additional_move_distance),
-                    289 => __rt::Slot::I32(&self.feedback_position_offset),
-                    290 => {
-                        __rt::Slot::U32(&self.emulated_encoder_index_pulse_turn_position)
+                    286 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.homing_maximum_following_error,
+                        )
                     }
-                    291 => __rt::Slot::U32(&self.drive_motion_status),
-                    292 => __rt::Slot::U8(&self.emulated_encoder_output_direction),
+                    287 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.position_error_warning_level,
+                        )
+                    }
+                    288 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.homing_additional_move_distance,
+                        )
+                    }
+                    289 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.feedback_position_offset,
+                        )
+                    }
+                    290 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.emulated_encoder_index_pulse_turn_position,
+                        )
+                    }
+                    291 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.drive_motion_status)
+                    }
+                    292 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.emulated_encoder_output_direction,
+                        )
+                    }
                     293 => {
-                        __rt::Slot::U8(&self.wake_and_shake_parameters_number_of_entries)
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.wake_and_shake_parameters_number_of_entries,
+                        )
                     }
                     294 => {
-                        __rt::Slot::I16(
+                        ::od_runtime::__private_v1::Slot::I16(
                             &self
                                 .wake_and_shake_parameters_wake_and_shake_maximum_current,
                         )
                     }
                     295 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self
                                 .wake_and_shake_parameters_wake_and_shake_maximum_movement,
                         )
                     }
                     296 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self
                                 .wake_and_shake_parameters_wake_and_shake_delay_between_loops_in_mode_0,
                         )
                     }
                     297 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self
                                 .wake_and_shake_parameters_wake_and_shake_maximum_velocity,
                         )
                     }
                     298 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.wake_and_shake_parameters_wake_and_shake_state,
                         )
                     }
                     299 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.wake_and_shake_parameters_wake_and_shake_arm,
                         )
                     }
                     300 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.fieldbus_synchronization_parameters_number_of_entries,
                         )
                     }
                     301 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .fieldbus_synchronization_parameters_expected_synchronization_distance,
                         )
                     }
                     302 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .fieldbus_synchronization_parameters_actual_synchronization_distance,
                         )
                     }
                     303 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .fieldbus_synchronization_parameters_synchronization_window,
                         )
                     }
                     304 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.fieldbus_synchronization_parameters_compensation_time,
                         )
                     }
                     305 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.programmable_limit_switch_positions_number_of_entries,
                         )
                     }
                     306 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self
                                 .programmable_limit_switch_positions_limit_switch_1_compare_position,
                         )
                     }
                     307 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self
                                 .programmable_limit_switch_positions_limit_switch_2_compare_position,
                         )
                     }
                     308 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self
                                 .programmable_limit_switch_positions_limit_switch_3_compare_position,
                         )
                     }
                     309 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self
                                 .programmable_limit_switch_positions_limit_switch_4_compare_position,
                         )
                     }
                     310 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self
                                 .programmable_limit_switch_positions_limit_switch_5_compare_position,
                         )
                     }
                     311 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self
                                 .programmable_limit_switch_positions_limit_switch_6_compare_position,
                         )
                     }
                     312 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self
                                 .programmable_limit_switch_positions_limit_switch_7_compare_position,
                         )
                     }
                     313 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self
                                 .programmable_limit_switch_positions_limit_switch_8_compare_position,
                         )
                     }
                     314 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.programmable_limit_switch_widths_number_of_entries,
                         )
                     }
                     315 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.programmable_limit_switch_widths_limit_switch_1_width,
                         )
                     }
                     316 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.programmable_limit_switch_widths_limit_switch_2_width,
                         )
                     }
                     317 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.programmable_limit_switch_widths_limit_switch_3_width,
                         )
                     }
                     318 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.programmable_limit_switch_widths_limit_switch_4_width,
                         )
                     }
                     319 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.programmable_limit_switch_widths_limit_switch_5_width,
                         )
                     }
                     320 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.programmable_limit_switch_widths_limit_switch_6_width,
                         )
                     }
                     321 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.programmable_limit_switch_widths_limit_switch_7_width,
                         )
                     }
                     322 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.programmable_limit_switch_widths_limit_switch_8_width,
                         )
                     }
                     323 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.programmable_limit_switch_times_number_of_entries,
                         )
                     }
                     324 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.programmable_limit_switch_times_limit_switch_1_time,
                         )
                     }
                     325 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.programmable_limit_switch_times_limit_switch_2_time,
                         )
                     }
                     326 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.programmable_limit_switch_times_limit_switch_3_time,
                         )
                     }
                     327 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.programmable_limit_switch_times_limit_switch_4_time,
                         )
                     }
                     328 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.programmable_limit_switch_times_limit_switch_5_time,
                         )
                     }
                     329 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.programmable_limit_switch_times_limit_switch_6_time,
                         )
                     }
                     330 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.programmable_limit_switch_times_limit_switch_7_time,
                         )
                     }
                     331 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.programmable_limit_switch_times_limit_switch_8_time,
                         )
                     }
                     332 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .programmable_limit_switch_configuration_number_of_entries,
                         )
                     }
                     333 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self
                                 .programmable_limit_switch_configuration_limit_switch_enable,
                         )
                     }
                     334 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self
                                 .programmable_limit_switch_configuration_limit_switch_reset,
                         )
                     }
                     335 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self
                                 .programmable_limit_switch_configuration_limit_switch_mode,
                         )
                     }
                     336 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self
                                 .programmable_limit_switch_configuration_limit_switch_state,
                         )
                     }
-                    337 => __rt::Slot::U8(&self.programmable_limit_switch_units),
-                    338 => __rt::Slot::I32(&self.acceleration_ramp),
-                    339 => __rt::Slot::I32(&self.homing_and_jog_acceleration_ramp),
-                    340 => __rt::Slot::I32(&self.hardware_enable_input_mode),
-                    341 => __rt::Slot::I32(&self.analog_input_voltage),
-                    342 => __rt::Slot::I32(&self.deceleration_ramp),
-                    343 => __rt::Slot::I32(&self.homing_and_jog_deceleration_ramp),
-                    344 => __rt::Slot::I32(&self.motion_direction),
-                    345 => __rt::Slot::U32(&self.motor_encoder_resolution),
-                    346 => __rt::Slot::U32(&self.emulated_encoder_connector_mode),
-                    347 => __rt::Slot::U32(&self.emulated_encoder_resolution),
-                    348 => __rt::Slot::U32(&self.emulated_encoder_index_pulse_offset),
-                    349 => __rt::Slot::I32(&self.feedback_type_selection),
-                    350 => __rt::Slot::U32(&self.position_loop_proportional_gain),
-                    351 => __rt::Slot::U32(&self.velocity_loop_proportional_gain),
-                    352 => __rt::Slot::I32(&self.velocity_loop_velocity_feedforward_gain),
-                    353 => __rt::Slot::I32(&self.velocity_loop_integral_time),
-                    354 => __rt::Slot::I32(&self.current_feedback),
-                    355 => __rt::Slot::I32(&self.drive_foldback_current),
-                    356 => __rt::Slot::I32(&self.foldback_warning_level),
-                    357 => __rt::Slot::I32(&self.digital_input_1_mode),
-                    358 => __rt::Slot::I32(&self.digital_input_2_mode),
-                    359 => __rt::Slot::I32(&self.digital_input_3_mode),
-                    360 => __rt::Slot::I32(&self.digital_input_4_mode),
+                    337 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.programmable_limit_switch_units,
+                        )
+                    }
+                    338 => ::od_runtime::__private_v1::Slot::I32(&self.acceleration_ramp),
+                    339 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.homing_and_jog_acceleration_ramp,
+                        )
+                    }
+                    340 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.hardware_enable_input_mode,
+                        )
+                    }
+                    341 => {
+                        ::od_runtime::__private_v1::Slot::I32(&self.analog_input_voltage)
+                    }
+                    342 => ::od_runtime::__private_v1::Slot::I32(&self.deceleration_ramp),
+                    343 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.homing_and_jog_deceleration_ramp,
+                        )
+                    }
+                    344 => ::od_runtime::__private_v1::Slot::I32(&self.motion_direction),
+                    345 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.motor_encoder_resolution,
+                        )
+                    }
+                    346 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.emulated_encoder_connector_mode,
+                        )
+                    }
+                    347 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.emulated_encoder_resolution,
+                        )
+                    }
+                    348 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.emulated_encoder_index_pulse_offset,
+                        )
+                    }
+                    349 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.feedback_type_selection,
+                        )
+                    }
+                    350 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.position_loop_proportional_gain,
+                        )
+                    }
+                    351 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.velocity_loop_proportional_gain,
+                        )
+                    }
+                    352 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.velocity_loop_velocity_feedforward_gain,
+                        )
+                    }
+                    353 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.velocity_loop_integral_time,
+                        )
+                    }
+                    354 => ::od_runtime::__private_v1::Slot::I32(&self.current_feedback),
+                    355 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.drive_foldback_current,
+                        )
+                    }
+                    356 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.foldback_warning_level,
+                        )
+                    }
+                    357 => {
+                        ::od_runtime::__private_v1::Slot::I32(&self.digital_input_1_mode)
+                    }
+                    358 => {
+                        ::od_runtime::__private_v1::Slot::I32(&self.digital_input_2_mode)
+                    }
+                    359 => {
+                        ::od_runtime::__private_v1::Slot::I32(&self.digital_input_3_mode)
+                    }
+                    360 => {
+                        ::od_runtime::__private_v1::Slot::I32(&self.digital_input_4_mode)
+                    }
                     361 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.application_peak_current_positive_direction,
                         )
                     }
                     362 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.application_peak_current_negative_direction,
                         )
                     }
-                    363 => __rt::Slot::U32(&self.motor_temperature_fault_level),
-                    364 => __rt::Slot::I32(&self.motor_holding_brake_selection),
-                    365 => __rt::Slot::U32(&self.motor_continuous_current),
-                    366 => __rt::Slot::U32(&self.motor_peak_current),
-                    367 => __rt::Slot::U32(&self.motor_torque_constant),
-                    368 => __rt::Slot::U32(&self.current_loop_d_component_gain_ratio),
-                    369 => __rt::Slot::I32(&self.current_loop_proportional_gain),
-                    370 => __rt::Slot::U32(&self.motor_phase),
-                    371 => __rt::Slot::U32(&self.motor_poles),
-                    372 => __rt::Slot::U32(&self.motor_maximum_velocity),
-                    373 => __rt::Slot::I32(&self.motor_foldback_current_limit),
-                    374 => __rt::Slot::U32(&self.motor_inertia),
-                    375 => __rt::Slot::U32(&self.digital_output_1_mode),
-                    376 => __rt::Slot::U32(&self.digital_output_2_mode),
-                    377 => __rt::Slot::I32(&self.drive_operation_mode),
-                    378 => __rt::Slot::I32(&self.next_motion_task_of_motion_task_0),
-                    379 => __rt::Slot::I32(&self.regen_resistor_selection),
-                    380 => __rt::Slot::I32(&self.position_following_error),
-                    381 => __rt::Slot::I32(&self.in_position_window),
-                    382 => __rt::Slot::I32(&self.maximum_following_error),
-                    383 => __rt::Slot::I32(&self.position_resolution_numerator),
-                    384 => __rt::Slot::I32(&self.position_resolution_denominator),
-                    385 => __rt::Slot::U32(&self.homing_current_limit_for_hard_stop),
-                    386 => __rt::Slot::I32(&self.save_data_to_non_volatile_memory),
-                    387 => __rt::Slot::I32(&self.set_reference_point),
-                    388 => __rt::Slot::I32(&self.stop_motion_task),
-                    389 => __rt::Slot::U32(&self.disable_mode),
-                    390 => __rt::Slot::I32(&self.ambient_temperature),
-                    391 => __rt::Slot::I32(&self.heat_sink_temperature),
-                    392 => __rt::Slot::I32(&self.motor_temperature),
-                    393 => __rt::Slot::U32(&self.undervoltage_mode),
-                    394 => __rt::Slot::I32(&self.velocity_feedback),
-                    395 => __rt::Slot::I32(&self.dc_bus_voltage),
-                    396 => __rt::Slot::U32(&self.undervoltage_fault_level),
-                    397 => __rt::Slot::I32(&self.positive_velocity_limit),
-                    398 => __rt::Slot::I32(&self.negative_velocity_limit),
-                    399 => __rt::Slot::I32(&self.overspeed_threshold),
-                    400 => __rt::Slot::I32(&self.analog_input_velocity_scale_factor),
-                    401 => __rt::Slot::U64(&self.initial_feedback_position),
-                    402 => __rt::Slot::I32(&self.rotary_acceleration_units),
-                    403 => __rt::Slot::I32(&self.motion_task_number),
-                    404 => __rt::Slot::I32(&self.rotary_velocity_units),
-                    405 => __rt::Slot::I32(&self.rotary_position_units),
-                    406 => __rt::Slot::I32(&self.brake_apply_delay),
-                    407 => __rt::Slot::I32(&self.brake_release_delay),
-                    408 => __rt::Slot::U16(&self.wake_and_shake_delay_1),
-                    409 => __rt::Slot::U16(&self.wake_and_shake_delay_2),
-                    410 => __rt::Slot::U16(&self.wake_and_shake_current_vector_time),
-                    411 => __rt::Slot::U32(&self.wake_and_shake_minimum_movement),
-                    412 => __rt::Slot::U32(&self.homing_automatic_move_flag),
-                    413 => __rt::Slot::U8(&self.wake_and_shake_number_of_loops),
-                    414 => __rt::Slot::U32(&self.can_baud_rate_selection),
-                    415 => __rt::Slot::U32(&self.pll_synchronization),
-                    416 => __rt::Slot::U32(&self.fieldbus_parameter_3),
-                    417 => __rt::Slot::U32(&self.sync_supervision),
-                    418 => __rt::Slot::U32(&self.fieldbus_configuration_bits),
-                    419 => __rt::Slot::U32(&self.fieldbus_parameter_6),
-                    420 => __rt::Slot::U32(&self.fieldbus_parameter_7),
-                    421 => __rt::Slot::U32(&self.fieldbus_parameter_8),
-                    422 => __rt::Slot::U32(&self.fieldbus_parameter_9),
-                    423 => __rt::Slot::U32(&self.fieldbus_parameter_10),
-                    424 => __rt::Slot::I32(&self.digital_input_5_mode),
-                    425 => __rt::Slot::I32(&self.digital_input_6_mode),
-                    426 => __rt::Slot::U32(&self.digital_input_7_mode),
-                    427 => __rt::Slot::I32(&self.profile_position_velocity_window),
-                    428 => __rt::Slot::U32(&self.analog_input_low_pass_cutoff_frequency),
-                    429 => __rt::Slot::U32(&self.analog_input_deadband),
-                    430 => __rt::Slot::U32(&self.analog_input_current_scale_factor),
-                    431 => __rt::Slot::U32(&self.analog_input_offset),
-                    432 => __rt::Slot::U32(&self.analog_output_current_scale_factor),
-                    433 => __rt::Slot::U32(&self.analog_output_offset),
-                    434 => __rt::Slot::U32(&self.bode_excitation_update_gap),
-                    435 => __rt::Slot::U32(&self.bode_current_command_amplitude),
-                    436 => __rt::Slot::U32(&self.bode_injection_point),
-                    437 => __rt::Slot::U32(&self.bode_prb_signal_depth),
-                    438 => __rt::Slot::U32(&self.fault_relay_mode),
-                    439 => __rt::Slot::U32(&self.software_enable_default_state),
-                    440 => __rt::Slot::U32(&self.drive_continuous_rated_current),
-                    441 => __rt::Slot::U32(&self.drive_peak_rated_current),
-                    442 => __rt::Slot::U32(&self.zero_procedure_current),
-                    443 => __rt::Slot::U32(&self.bi_ss_sensor_position_bits),
-                    444 => __rt::Slot::U32(&self.initial_feedback_value_signed),
-                    445 => __rt::Slot::U32(&self.phase_finding_current),
-                    446 => __rt::Slot::U32(&self.feedback_poles),
-                    447 => __rt::Slot::U32(&self.resolver_transformation_ratio),
-                    448 => __rt::Slot::U32(&self.resolver_reference_phase_lag),
-                    449 => __rt::Slot::U32(&self.tracking_calibration),
-                    450 => __rt::Slot::U32(&self.pll_lock_threshold),
-                    451 => __rt::Slot::U32(&self.gearing_maximum_acceleration),
-                    452 => __rt::Slot::U32(&self.gearing_maximum_deceleration),
-                    453 => __rt::Slot::U32(&self.gearing_ratio_denominator),
-                    454 => __rt::Slot::U32(&self.gearing_mode),
-                    455 => __rt::Slot::U32(&self.gearing_ratio_numerator),
-                    456 => __rt::Slot::U32(&self.current_loop_fieldbus_feedforward_gain),
-                    457 => __rt::Slot::U32(&self.motor_pitch),
-                    458 => __rt::Slot::U32(&self.motor_thermal_resistor_type),
-                    459 => __rt::Slot::U32(&self.motor_type),
-                    460 => __rt::Slot::U32(&self.motion_task_after_emergency_stop),
-                    461 => __rt::Slot::U32(&self.following_error_mode),
-                    462 => __rt::Slot::U32(&self.position_loop_feedback_source),
-                    463 => __rt::Slot::U32(&self.service_motion_current_1),
-                    464 => __rt::Slot::U32(&self.service_motion_current_2),
-                    465 => __rt::Slot::U32(&self.service_motion_mode),
-                    466 => __rt::Slot::U32(&self.service_motion_time_1),
-                    467 => __rt::Slot::U32(&self.service_motion_time_2),
-                    468 => __rt::Slot::U32(&self.software_limit_switch_enable),
-                    469 => __rt::Slot::U32(&self.linear_acceleration_units),
-                    470 => __rt::Slot::U32(&self.linear_position_units),
-                    471 => __rt::Slot::U32(&self.linear_velocity_units),
-                    472 => __rt::Slot::U32(&self.overvoltage_warning_level),
-                    473 => __rt::Slot::U32(&self.velocity_loop_feedback_source),
-                    474 => __rt::Slot::U32(&self.velocity_generation_mode),
-                    475 => __rt::Slot::U32(&self.observer_velocity_scale),
-                    476 => __rt::Slot::U32(&self.load_to_motor_inertia_ratio),
-                    477 => __rt::Slot::U32(&self.observer_bandwidth),
-                    478 => __rt::Slot::U32(&self.observer_mode),
-                    479 => __rt::Slot::U32(&self.digital_input_1_filter_mode),
-                    480 => __rt::Slot::U32(&self.digital_input_2_filter_mode),
-                    481 => __rt::Slot::U32(&self.digital_input_3_filter_mode),
-                    482 => __rt::Slot::U32(&self.digital_input_4_filter_mode),
-                    483 => __rt::Slot::U32(&self.digital_input_5_filter_mode),
-                    484 => __rt::Slot::U32(&self.digital_input_6_filter_mode),
-                    485 => __rt::Slot::U32(&self.digital_input_7_filter_mode),
-                    486 => __rt::Slot::U32(&self.modbus_user_units_input),
-                    487 => __rt::Slot::U32(&self.modbus_user_units_output),
-                    488 => __rt::Slot::U32(&self.modbus_feedback_resolution),
-                    489 => __rt::Slot::U32(&self.secondary_feedback_resolution),
-                    490 => __rt::Slot::U32(&self.secondary_feedback_mode),
-                    491 => __rt::Slot::U32(&self.secondary_feedback_source),
-                    492 => __rt::Slot::U32(&self.brake_apply_timeout),
-                    493 => __rt::Slot::U32(&self.modbus_message_log),
-                    494 => __rt::Slot::U32(&self.modbus_scaling_mode),
-                    495 => __rt::Slot::U32(&self.emulated_encoder_pulse_width),
-                    496 => __rt::Slot::U32(&self.emulated_encoder_velocity_monitoring),
-                    497 => __rt::Slot::U32(&self.analog_input_deadband_mode),
-                    498 => __rt::Slot::U32(&self.analog_input_mode),
-                    499 => __rt::Slot::U32(&self.dio10_direction),
-                    500 => __rt::Slot::U32(&self.dio10_output_inversion),
-                    501 => __rt::Slot::U32(&self.dio11_direction),
-                    502 => __rt::Slot::U32(&self.dio11_output_inversion),
-                    503 => __rt::Slot::U32(&self.dio9_direction),
-                    504 => __rt::Slot::U32(&self.dio9_output_inversion),
-                    505 => __rt::Slot::U32(&self.fault_130_action),
-                    506 => __rt::Slot::U32(&self.fault_131_action),
-                    507 => __rt::Slot::U32(&self.fault_132_action),
-                    508 => __rt::Slot::U32(&self.fault_134_action),
-                    509 => __rt::Slot::U32(&self.fault_702_action),
-                    510 => __rt::Slot::U32(&self.ip_address_mode),
-                    511 => __rt::Slot::U32(&self.load_inertia),
-                    512 => __rt::Slot::U32(&self.motor_back_emf_constant),
-                    513 => __rt::Slot::U32(&self.bus_voltage_half_voltage_thresholds),
-                    514 => __rt::Slot::U32(&self.secondary_feedback_direction),
-                    515 => __rt::Slot::U32(&self.handwheel_feedback_source),
-                    516 => __rt::Slot::U32(&self.hardware_enable_delay),
-                    517 => __rt::Slot::U32(&self.current_loop_gain_scheduling_index),
-                    518 => __rt::Slot::U32(&self.current_loop_gain_scheduling_value),
-                    519 => __rt::Slot::U32(&self.fault_451_action),
-                    520 => __rt::Slot::U32(&self.brake_immediately_on_disable),
-                    521 => __rt::Slot::U16(&self.controlword),
-                    522 => __rt::Slot::U16(&self.statusword),
-                    523 => __rt::Slot::I8(&self.modes_of_operation),
-                    524 => __rt::Slot::I8(&self.modes_of_operation_display),
-                    525 => __rt::Slot::I32(&self.position_actual_internal_value),
-                    526 => __rt::Slot::I32(&self.position_actual_value),
-                    527 => __rt::Slot::U32(&self.following_error_window),
-                    528 => __rt::Slot::I32(&self.velocity_demand_value),
-                    529 => __rt::Slot::I32(&self.velocity_actual_value),
-                    530 => __rt::Slot::U16(&self.velocity_window),
-                    531 => __rt::Slot::U16(&self.velocity_window_time),
-                    532 => __rt::Slot::I16(&self.target_torque),
-                    533 => __rt::Slot::U16(&self.max_torque),
-                    534 => __rt::Slot::U16(&self.max_current),
-                    535 => __rt::Slot::I16(&self.torque_actual_value),
-                    536 => __rt::Slot::I32(&self.target_position),
-                    537 => __rt::Slot::I32(&self.home_offset),
+                    363 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.motor_temperature_fault_level,
+                        )
+                    }
+                    364 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.motor_holding_brake_selection,
+                        )
+                    }
+                    365 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.motor_continuous_current,
+                        )
+                    }
+                    366 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.motor_peak_current)
+                    }
+                    367 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.motor_torque_constant,
+                        )
+                    }
+                    368 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.current_loop_d_component_gain_ratio,
+                        )
+                    }
+                    369 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.current_loop_proportional_gain,
+                        )
+                    }
+                    370 => ::od_runtime::__private_v1::Slot::U32(&self.motor_phase),
+                    371 => ::od_runtime::__private_v1::Slot::U32(&self.motor_poles),
+                    372 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.motor_maximum_velocity,
+                        )
+                    }
+                    373 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.motor_foldback_current_limit,
+                        )
+                    }
+                    374 => ::od_runtime::__private_v1::Slot::U32(&self.motor_inertia),
+                    375 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.digital_output_1_mode,
+                        )
+                    }
+                    376 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.digital_output_2_mode,
+                        )
+                    }
+                    377 => {
+                        ::od_runtime::__private_v1::Slot::I32(&self.drive_operation_mode)
+                    }
+                    378 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.next_motion_task_of_motion_task_0,
+                        )
+                    }
+                    379 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.regen_resistor_selection,
+                        )
+                    }
+                    380 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.position_following_error,
+                        )
+                    }
+                    381 => {
+                        ::od_runtime::__private_v1::Slot::I32(&self.in_position_window)
+                    }
+                    382 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.maximum_following_error,
+                        )
+                    }
+                    383 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.position_resolution_numerator,
+                        )
+                    }
+                    384 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.position_resolution_denominator,
+                        )
+                    }
+                    385 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.homing_current_limit_for_hard_stop,
+                        )
+                    }
+                    386 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.save_data_to_non_volatile_memory,
+                        )
+                    }
+                    387 => {
+                        ::od_runtime::__private_v1::Slot::I32(&self.set_reference_point)
+                    }
+                    388 => ::od_runtime::__private_v1::Slot::I32(&self.stop_motion_task),
+                    389 => ::od_runtime::__private_v1::Slot::U32(&self.disable_mode),
+                    390 => {
+                        ::od_runtime::__private_v1::Slot::I32(&self.ambient_temperature)
+                    }
+                    391 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.heat_sink_temperature,
+                        )
+                    }
+                    392 => ::od_runtime::__private_v1::Slot::I32(&self.motor_temperature),
+                    393 => ::od_runtime::__private_v1::Slot::U32(&self.undervoltage_mode),
+                    394 => ::od_runtime::__private_v1::Slot::I32(&self.velocity_feedback),
+                    395 => ::od_runtime::__private_v1::Slot::I32(&self.dc_bus_voltage),
+                    396 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.undervoltage_fault_level,
+                        )
+                    }
+                    397 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.positive_velocity_limit,
+                        )
+                    }
+                    398 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.negative_velocity_limit,
+                        )
+                    }
+                    399 => {
+                        ::od_runtime::__private_v1::Slot::I32(&self.overspeed_threshold)
+                    }
+                    400 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.analog_input_velocity_scale_factor,
+                        )
+                    }
+                    401 => {
+                        ::od_runtime::__private_v1::Slot::U64(
+                            &self.initial_feedback_position,
+                        )
+                    }
+                    402 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.rotary_acceleration_units,
+                        )
+                    }
+                    403 => {
+                        ::od_runtime::__private_v1::Slot::I32(&self.motion_task_number)
+                    }
+                    404 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.rotary_velocity_units,
+                        )
+                    }
+                    405 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.rotary_position_units,
+                        )
+                    }
+                    406 => ::od_runtime::__private_v1::Slot::I32(&self.brake_apply_delay),
+                    407 => {
+                        ::od_runtime::__private_v1::Slot::I32(&self.brake_release_delay)
+                    }
+                    408 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.wake_and_shake_delay_1,
+                        )
+                    }
+                    409 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.wake_and_shake_delay_2,
+                        )
+                    }
+                    410 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.wake_and_shake_current_vector_time,
+                        )
+                    }
+                    411 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.wake_and_shake_minimum_movement,
+                        )
+                    }
+                    412 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.homing_automatic_move_flag,
+                        )
+                    }
+                    413 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.wake_and_shake_number_of_loops,
+                        )
+                    }
+                    414 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.can_baud_rate_selection,
+                        )
+                    }
+                    415 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.pll_synchronization)
+                    }
+                    416 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.fieldbus_parameter_3)
+                    }
+                    417 => ::od_runtime::__private_v1::Slot::U32(&self.sync_supervision),
+                    418 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.fieldbus_configuration_bits,
+                        )
+                    }
+                    419 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.fieldbus_parameter_6)
+                    }
+                    420 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.fieldbus_parameter_7)
+                    }
+                    421 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.fieldbus_parameter_8)
+                    }
+                    422 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.fieldbus_parameter_9)
+                    }
+                    423 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.fieldbus_parameter_10,
+                        )
+                    }
+                    424 => {
+                        ::od_runtime::__private_v1::Slot::I32(&self.digital_input_5_mode)
+                    }
+                    425 => {
+                        ::od_runtime::__private_v1::Slot::I32(&self.digital_input_6_mode)
+                    }
+                    426 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.digital_input_7_mode)
+                    }
+                    427 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.profile_position_velocity_window,
+                        )
+                    }
+                    428 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.analog_input_low_pass_cutoff_frequency,
+                        )
+                    }
+                    429 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.analog_input_deadband,
+                        )
+                    }
+                    430 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.analog_input_current_scale_factor,
+                        )
+                    }
+                    431 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.analog_input_offset)
+                    }
+                    432 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.analog_output_current_scale_factor,
+                        )
+                    }
+                    433 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.analog_output_offset)
+                    }
+                    434 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.bode_excitation_update_gap,
+                        )
+                    }
+                    435 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.bode_current_command_amplitude,
+                        )
+                    }
+                    436 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.bode_injection_point)
+                    }
+                    437 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.bode_prb_signal_depth,
+                        )
+                    }
+                    438 => ::od_runtime::__private_v1::Slot::U32(&self.fault_relay_mode),
+                    439 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.software_enable_default_state,
+                        )
+                    }
+                    440 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.drive_continuous_rated_current,
+                        )
+                    }
+                    441 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.drive_peak_rated_current,
+                        )
+                    }
+                    442 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.zero_procedure_current,
+                        )
+                    }
+                    443 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.bi_ss_sensor_position_bits,
+                        )
+                    }
+                    444 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.initial_feedback_value_signed,
+                        )
+                    }
+                    445 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.phase_finding_current,
+                        )
+                    }
+                    446 => ::od_runtime::__private_v1::Slot::U32(&self.feedback_poles),
+                    447 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.resolver_transformation_ratio,
+                        )
+                    }
+                    448 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.resolver_reference_phase_lag,
+                        )
+                    }
+                    449 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.tracking_calibration)
+                    }
+                    450 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.pll_lock_threshold)
+                    }
+                    451 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.gearing_maximum_acceleration,
+                        )
+                    }
+                    452 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.gearing_maximum_deceleration,
+                        )
+                    }
+                    453 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.gearing_ratio_denominator,
+                        )
+                    }
+                    454 => ::od_runtime::__private_v1::Slot::U32(&self.gearing_mode),
+                    455 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.gearing_ratio_numerator,
+                        )
+                    }
+                    456 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.current_loop_fieldbus_feedforward_gain,
+                        )
+                    }
+                    457 => ::od_runtime::__private_v1::Slot::U32(&self.motor_pitch),
+                    458 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.motor_thermal_resistor_type,
+                        )
+                    }
+                    459 => ::od_runtime::__private_v1::Slot::U32(&self.motor_type),
+                    460 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.motion_task_after_emergency_stop,
+                        )
+                    }
+                    461 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.following_error_mode)
+                    }
+                    462 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.position_loop_feedback_source,
+                        )
+                    }
+                    463 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.service_motion_current_1,
+                        )
+                    }
+                    464 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.service_motion_current_2,
+                        )
+                    }
+                    465 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.service_motion_mode)
+                    }
+                    466 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.service_motion_time_1,
+                        )
+                    }
+                    467 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.service_motion_time_2,
+                        )
+                    }
+                    468 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.software_limit_switch_enable,
+                        )
+                    }
+                    469 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.linear_acceleration_units,
+                        )
+                    }
+                    470 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.linear_position_units,
+                        )
+                    }
+                    471 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.linear_velocity_units,
+                        )
+                    }
+                    472 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.overvoltage_warning_level,
+                        )
+                    }
+                    473 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.velocity_loop_feedback_source,
+                        )
+                    }
+                    474 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.velocity_generation_mode,
+                        )
+                    }
+                    475 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.observer_velocity_scale,
+                        )
+                    }
+                    476 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.load_to_motor_inertia_ratio,
+                        )
+                    }
+                    477 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.observer_bandwidth)
+                    }
+                    478 => ::od_runtime::__private_v1::Slot::U32(&self.observer_mode),
+                    479 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.digital_input_1_filter_mode,
+                        )
+                    }
+                    480 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.digital_input_2_filter_mode,
+                        )
+                    }
+                    481 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.digital_input_3_filter_mode,
+                        )
+                    }
+                    482 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.digital_input_4_filter_mode,
+                        )
+                    }
+                    483 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.digital_input_5_filter_mode,
+                        )
+                    }
+                    484 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.digital_input_6_filter_mode,
+                        )
+                    }
+                    485 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.digital_input_7_filter_mode,
+                        )
+                    }
+                    486 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.modbus_user_units_input,
+                        )
+                    }
+                    487 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.modbus_user_units_output,
+                        )
+                    }
+                    488 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.modbus_feedback_resolution,
+                        )
+                    }
+                    489 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.secondary_feedback_resolution,
+                        )
+                    }
+                    490 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.secondary_feedback_mode,
+                        )
+                    }
+                    491 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.secondary_feedback_source,
+                        )
+                    }
+                    492 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.brake_apply_timeout)
+                    }
+                    493 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.modbus_message_log)
+                    }
+                    494 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.modbus_scaling_mode)
+                    }
+                    495 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.emulated_encoder_pulse_width,
+                        )
+                    }
+                    496 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.emulated_encoder_velocity_monitoring,
+                        )
+                    }
+                    497 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.analog_input_deadband_mode,
+                        )
+                    }
+                    498 => ::od_runtime::__private_v1::Slot::U32(&self.analog_input_mode),
+                    499 => ::od_runtime::__private_v1::Slot::U32(&self.dio10_direction),
+                    500 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.dio10_output_inversion,
+                        )
+                    }
+                    501 => ::od_runtime::__private_v1::Slot::U32(&self.dio11_direction),
+                    502 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.dio11_output_inversion,
+                        )
+                    }
+                    503 => ::od_runtime::__private_v1::Slot::U32(&self.dio9_direction),
+                    504 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.dio9_output_inversion,
+                        )
+                    }
+                    505 => ::od_runtime::__private_v1::Slot::U32(&self.fault_130_action),
+                    506 => ::od_runtime::__private_v1::Slot::U32(&self.fault_131_action),
+                    507 => ::od_runtime::__private_v1::Slot::U32(&self.fault_132_action),
+                    508 => ::od_runtime::__private_v1::Slot::U32(&self.fault_134_action),
+                    509 => ::od_runtime::__private_v1::Slot::U32(&self.fault_702_action),
+                    510 => ::od_runtime::__private_v1::Slot::U32(&self.ip_address_mode),
+                    511 => ::od_runtime::__private_v1::Slot::U32(&self.load_inertia),
+                    512 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.motor_back_emf_constant,
+                        )
+                    }
+                    513 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.bus_voltage_half_voltage_thresholds,
+                        )
+                    }
+                    514 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.secondary_feedback_direction,
+                        )
+                    }
+                    515 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.handwheel_feedback_source,
+                        )
+                    }
+                    516 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.hardware_enable_delay,
+                        )
+                    }
+                    517 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.current_loop_gain_scheduling_index,
+                        )
+                    }
+                    518 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.current_loop_gain_scheduling_value,
+                        )
+                    }
+                    519 => ::od_runtime::__private_v1::Slot::U32(&self.fault_451_action),
+                    520 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.brake_immediately_on_disable,
+                        )
+                    }
+                    521 => ::od_runtime::__private_v1::Slot::U16(&self.controlword),
+                    522 => ::od_runtime::__private_v1::Slot::U16(&self.statusword),
+                    523 => ::od_runtime::__private_v1::Slot::I8(&self.modes_of_operation),
+                    524 => {
+                        ::od_runtime::__private_v1::Slot::I8(
+                            &self.modes_of_operation_display,
+                        )
+                    }
+                    525 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.position_actual_internal_value,
+                        )
+                    }
+                    526 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.position_actual_value,
+                        )
+                    }
+                    527 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.following_error_window,
+                        )
+                    }
+                    528 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.velocity_demand_value,
+                        )
+                    }
+                    529 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.velocity_actual_value,
+                        )
+                    }
+                    530 => ::od_runtime::__private_v1::Slot::U16(&self.velocity_window),
+                    531 => {
+                        ::od_runtime::__private_v1::Slot::U16(&self.velocity_window_time)
+                    }
+                    532 => ::od_runtime::__private_v1::Slot::I16(&self.target_torque),
+                    533 => ::od_runtime::__private_v1::Slot::U16(&self.max_torque),
+                    534 => ::od_runtime::__private_v1::Slot::U16(&self.max_current),
+                    535 => {
+                        ::od_runtime::__private_v1::Slot::I16(&self.torque_actual_value)
+                    }
+                    536 => ::od_runtime::__private_v1::Slot::I32(&self.target_position),
+                    537 => ::od_runtime::__private_v1::Slot::I32(&self.home_offset),
                     538 => {
-                        __rt::Slot::U8(&self.software_position_limit_number_of_entries)
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.software_position_limit_number_of_entries,
+                        )
                     }
                     539 => {
-                        __rt::Slot::I32(&self.software_position_limit_min_position_limit)
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.software_position_limit_min_position_limit,
+                        )
                     }
                     540 => {
-                        __rt::Slot::I32(&self.software_position_limit_max_position_limit)
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.software_position_limit_max_position_limit,
+                        )
                     }
-                    541 => __rt::Slot::U32(&self.profile_velocity),
-                    542 => __rt::Slot::U32(&self.profile_acceleration),
-                    543 => __rt::Slot::U32(&self.profile_deceleration),
+                    541 => ::od_runtime::__private_v1::Slot::U32(&self.profile_velocity),
+                    542 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.profile_acceleration)
+                    }
+                    543 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.profile_deceleration)
+                    }
                     544 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.position_encoder_resolution_number_of_entries,
                         )
                     }
                     545 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.position_encoder_resolution_encoder_increments,
                         )
                     }
                     546 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.position_encoder_resolution_motor_revolutions,
                         )
                     }
-                    547 => __rt::Slot::U8(&self.gear_ratio_number_of_entries),
-                    548 => __rt::Slot::U32(&self.gear_ratio_motor_shaft_revolutions),
-                    549 => __rt::Slot::U32(&self.gear_ratio_driving_shaft_revolutions),
-                    550 => __rt::Slot::U8(&self.feed_constant_number_of_entries),
-                    551 => __rt::Slot::U32(&self.feed_constant_feed),
-                    552 => __rt::Slot::U32(&self.feed_constant_shaft_revolutions),
-                    553 => __rt::Slot::I8(&self.homing_method),
-                    554 => __rt::Slot::U8(&self.homing_speeds_number_of_entries),
+                    547 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.gear_ratio_number_of_entries,
+                        )
+                    }
+                    548 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.gear_ratio_motor_shaft_revolutions,
+                        )
+                    }
+                    549 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.gear_ratio_driving_shaft_revolutions,
+                        )
+                    }
+                    550 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.feed_constant_number_of_entries,
+                        )
+                    }
+                    551 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.feed_constant_feed)
+                    }
+                    552 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.feed_constant_shaft_revolutions,
+                        )
+                    }
+                    553 => ::od_runtime::__private_v1::Slot::I8(&self.homing_method),
+                    554 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.homing_speeds_number_of_entries,
+                        )
+                    }
                     555 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.homing_speeds_speed_during_search_for_switch,
                         )
                     }
                     556 => {
-                        __rt::Slot::U32(&self.homing_speeds_speed_during_search_for_zero)
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.homing_speeds_speed_during_search_for_zero,
+                        )
                     }
-                    557 => __rt::Slot::U32(&self.homing_acceleration),
-                    558 => __rt::Slot::I32(&self.velocity_offset),
-                    559 => __rt::Slot::I16(&self.torque_offset),
-                    560 => __rt::Slot::U16(&self.touch_probe_function),
-                    561 => __rt::Slot::U16(&self.touch_probe_status),
-                    562 => __rt::Slot::I32(&self.touch_probe_1_positive_edge),
-                    563 => __rt::Slot::I32(&self.touch_probe_1_negative_edge),
-                    564 => __rt::Slot::I32(&self.touch_probe_2_positive_edge),
-                    565 => __rt::Slot::I32(&self.touch_probe_2_negative_edge),
-                    566 => __rt::Slot::I16(&self.interpolation_sub_mode_select),
+                    557 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.homing_acceleration)
+                    }
+                    558 => ::od_runtime::__private_v1::Slot::I32(&self.velocity_offset),
+                    559 => ::od_runtime::__private_v1::Slot::I16(&self.torque_offset),
+                    560 => {
+                        ::od_runtime::__private_v1::Slot::U16(&self.touch_probe_function)
+                    }
+                    561 => {
+                        ::od_runtime::__private_v1::Slot::U16(&self.touch_probe_status)
+                    }
+                    562 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.touch_probe_1_positive_edge,
+                        )
+                    }
+                    563 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.touch_probe_1_negative_edge,
+                        )
+                    }
+                    564 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.touch_probe_2_positive_edge,
+                        )
+                    }
+                    565 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.touch_probe_2_negative_edge,
+                        )
+                    }
+                    566 => {
+                        ::od_runtime::__private_v1::Slot::I16(
+                            &self.interpolation_sub_mode_select,
+                        )
+                    }
                     567 => {
-                        __rt::Slot::U8(&self.interpolation_data_record_number_of_entries)
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.interpolation_data_record_number_of_entries,
+                        )
                     }
                     568 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.interpolation_data_record_interpolation_target_position,
                         )
                     }
                     569 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.interpolation_data_record_interpolation_time,
                         )
                     }
                     570 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.interpolation_data_record_interpolation_target_velocity,
                         )
                     }
                     571 => {
-                        __rt::Slot::U8(&self.interpolation_time_period_number_of_entries)
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.interpolation_time_period_number_of_entries,
+                        )
                     }
                     572 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .interpolation_time_period_interpolation_time_period_value,
                         )
                     }
                     573 => {
-                        __rt::Slot::I16(
+                        ::od_runtime::__private_v1::Slot::I16(
                             &self.interpolation_time_period_interpolation_time_index,
                         )
                     }
                     574 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.interpolation_data_configuration_number_of_entries,
                         )
                     }
                     575 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.interpolation_data_configuration_maximum_buffer_size,
                         )
                     }
                     576 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.interpolation_data_configuration_actual_buffer_size,
                         )
                     }
                     577 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.interpolation_data_configuration_buffer_organization,
                         )
                     }
                     578 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.interpolation_data_configuration_buffer_position,
                         )
                     }
                     579 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.interpolation_data_configuration_size_of_data_record,
                         )
                     }
                     580 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.interpolation_data_configuration_buffer_clear,
                         )
                     }
-                    581 => __rt::Slot::U8(&self.touch_probe_source_number_of_entries),
-                    582 => __rt::Slot::I16(&self.touch_probe_source_touch_probe_1_source),
-                    583 => __rt::Slot::I16(&self.touch_probe_source_touch_probe_2_source),
-                    584 => __rt::Slot::I32(&self.following_error_actual_value),
-                    585 => __rt::Slot::U32(&self.digital_inputs),
-                    586 => __rt::Slot::U8(&self.digital_outputs_number_of_entries),
-                    587 => __rt::Slot::U32(&self.digital_outputs_physical_outputs),
-                    588 => __rt::Slot::U32(&self.digital_outputs_bit_mask),
-                    589 => __rt::Slot::I32(&self.target_velocity),
-                    590 => __rt::Slot::U32(&self.supported_drive_modes),
+                    581 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.touch_probe_source_number_of_entries,
+                        )
+                    }
+                    582 => {
+                        ::od_runtime::__private_v1::Slot::I16(
+                            &self.touch_probe_source_touch_probe_1_source,
+                        )
+                    }
+                    583 => {
+                        ::od_runtime::__private_v1::Slot::I16(
+                            &self.touch_probe_source_touch_probe_2_source,
+                        )
+                    }
+                    584 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.following_error_actual_value,
+                        )
+                    }
+                    585 => ::od_runtime::__private_v1::Slot::U32(&self.digital_inputs),
+                    586 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.digital_outputs_number_of_entries,
+                        )
+                    }
+                    587 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.digital_outputs_physical_outputs,
+                        )
+                    }
+                    588 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.digital_outputs_bit_mask,
+                        )
+                    }
+                    589 => ::od_runtime::__private_v1::Slot::I32(&self.target_velocity),
+                    590 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.supported_drive_modes,
+                        )
+                    }
                     _ => return None,
                 },
             )
         }
-        fn slot_mut(&mut self, pos: usize) -> Option<__rt::SlotMut<'_>> {
+        fn slot_mut(
+            &mut self,
+            pos: usize,
+        ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
             Some(
                 match pos {
-                    0 => __rt::SlotMut::U32(&mut self.device_type),
-                    1 => __rt::SlotMut::U8(&mut self.error_register),
-                    2 => __rt::SlotMut::U32(&mut self.manufacturer_status_register),
+                    0 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.device_type),
+                    1 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(&mut self.error_register)
+                    }
+                    2 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.manufacturer_status_register,
+                        )
+                    }
                     3 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.pre_defined_error_field_number_of_errors,
                         )
                     }
                     4 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_1,
                         )
                     }
                     5 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_2,
                         )
                     }
                     6 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_3,
                         )
                     }
                     7 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_4,
                         )
                     }
                     8 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_5,
                         )
                     }
                     9 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_6,
                         )
                     }
                     10 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_7,
                         )
                     }
                     11 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_8,
                         )
                     }
                     12 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_9,
                         )
                     }
                     13 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_10,
                         )
                     }
-                    14 => __rt::SlotMut::U32(&mut self.cob_id_sync_message),
-                    15 => __rt::SlotMut::U32(&mut self.communication_cycle_period),
+                    14 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.cob_id_sync_message,
+                        )
+                    }
+                    15 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.communication_cycle_period,
+                        )
+                    }
                     16 => self.manufacturer_device_name.slot_mut(),
                     17 => self.manufacturer_hardware_version.slot_mut(),
                     18 => self.manufacturer_software_version.slot_mut(),
-                    19 => __rt::SlotMut::U16(&mut self.guard_time),
-                    20 => __rt::SlotMut::U8(&mut self.life_time_factor),
-                    21 => __rt::SlotMut::U8(&mut self.store_parameters_number_of_entries),
+                    19 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.guard_time),
+                    20 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.life_time_factor,
+                        )
+                    }
+                    21 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.store_parameters_number_of_entries,
+                        )
+                    }
                     22 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.store_parameters_save_all_parameters,
                         )
                     }
                     23 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.restore_default_parameters_number_of_entries,
                         )
                     }
                     24 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .restore_default_parameters_restore_all_default_parameters,
                         )
                     }
-                    25 => __rt::SlotMut::U32(&mut self.cob_id_emcy),
+                    25 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.cob_id_emcy),
                     26 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.consumer_heartbeat_time_number_of_entries,
                         )
                     }
                     27 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.consumer_heartbeat_time_consumer_heartbeat_time_1,
                         )
                     }
-                    28 => __rt::SlotMut::U16(&mut self.producer_heartbeat_time),
-                    29 => __rt::SlotMut::U8(&mut self.identity_object_number_of_entries),
-                    30 => __rt::SlotMut::U32(&mut self.identity_object_vendor_id),
-                    31 => __rt::SlotMut::U32(&mut self.identity_object_product_code),
-                    32 => __rt::SlotMut::U32(&mut self.identity_object_revision_number),
-                    33 => __rt::SlotMut::U32(&mut self.identity_object_serial_number),
-                    34 => __rt::SlotMut::U8(&mut self.os_prompt_number_of_entries),
-                    35 => __rt::SlotMut::U8(&mut self.os_prompt_std_in),
-                    36 => __rt::SlotMut::U8(&mut self.os_prompt_std_out),
+                    28 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.producer_heartbeat_time,
+                        )
+                    }
+                    29 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.identity_object_number_of_entries,
+                        )
+                    }
+                    30 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.identity_object_vendor_id,
+                        )
+                    }
+                    31 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.identity_object_product_code,
+                        )
+                    }
+                    32 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.identity_object_revision_number,
+                        )
+                    }
+                    33 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.identity_object_serial_number,
+                        )
+                    }
+                    34 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.os_prompt_number_of_entries,
+                        )
+                    }
+                    35 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.os_prompt_std_in,
+                        )
+                    }
+                    36 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.os_prompt_std_out,
+                        )
+                    }
                     37 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_1_communication_parameter_number_of_entries,
                         )
                     }
                     38 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .receive_pdo_1_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     39 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_1_communication_parameter_transmission_type,
                         )
                     }
                     40 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_2_communication_parameter_number_of_entries,
                         )
                     }
                     41 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .receive_pdo_2_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     42 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_2_communication_parameter_transmission_type,
                         )
                     }
                     43 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_3_communication_parameter_number_of_entries,
                         )
                     }
                     44 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .receive_pdo_3_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     45 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_3_communication_parameter_transmission_type,
                         )
                     }
                     46 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_4_communication_parameter_number_of_entries,
                         )
                     }
                     47 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .receive_pdo_4_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     48 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_4_communication_parameter_transmission_type,
                         )
                     }
                     49 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_1_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     50 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_1_mapping_parameter_mapped_object_1,
                         )
                     }
                     51 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_1_mapping_parameter_mapped_object_2,
                         )
                     }
                     52 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_1_mapping_parameter_mapped_object_3,
                         )
                     }
                     53 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_1_mapping_parameter_mapped_object_4,
                         )
                     }
                     54 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_1_mapping_parameter_mapped_object_5,
                         )
                     }
                     55 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_1_mapping_parameter_mapped_object_6,
                         )
                     }
                     56 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_1_mapping_parameter_mapped_object_7,
                         )
                     }
                     57 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_1_mapping_parameter_mapped_object_8,
                         )
                     }
                     58 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_2_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     59 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_2_mapping_parameter_mapped_object_1,
                         )
                     }
                     60 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_2_mapping_parameter_mapped_object_2,
                         )
                     }
                     61 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_2_mapping_parameter_mapped_object_3,
                         )
                     }
                     62 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_2_mapping_parameter_mapped_object_4,
                         )
                     }
                     63 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_2_mapping_parameter_mapped_object_5,
                         )
                     }
                     64 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_2_mapping_parameter_mapped_object_6,
                         )
                     }
                     65 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_2_mapping_parameter_mapped_object_7,
                         )
                     }
                     66 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_2_mapping_parameter_mapped_object_8,
                         )
                     }
                     67 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_3_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     68 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_3_mapping_parameter_mapped_object_1,
                         )
                     }
                     69 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_3_mapping_parameter_mapped_object_2,
                         )
                     }
                     70 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_3_mapping_parameter_mapped_object_3,
                         )
                     }
                     71 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_3_mapping_parameter_mapped_object_4,
                         )
                     }
                     72 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_3_mapping_parameter_mapped_object_5,
                         )
                     }
                     73 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_3_mapping_parameter_mapped_object_6,
                         )
                     }
                     74 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_3_mapping_parameter_mapped_object_7,
                         )
                     }
                     75 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_3_mapping_parameter_mapped_object_8,
                         )
                     }
                     76 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_4_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     77 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_4_mapping_parameter_mapped_object_1,
                         )
                     }
                     78 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_4_mapping_parameter_mapped_object_2,
                         )
                     }
                     79 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_4_mapping_parameter_mapped_object_3,
                         )
                     }
                     80 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_4_mapping_parameter_mapped_object_4,
                         )
                     }
                     81 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_4_mapping_parameter_mapped_object_5,
                         )
                     }
                     82 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_4_mapping_parameter_mapped_object_6,
                         )
                     }
                     83 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_4_mapping_parameter_mapped_object_7,
                         )
                     }
                     84 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_4_mapping_parameter_mapped_object_8,
                         )
                     }
                     85 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_1_communication_parameter_number_of_entries,
                         )
                     }
                     86 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .transmit_pdo_1_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     87 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_1_communication_parameter_transmission_type,
                         )
                     }
                     88 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_1_communication_parameter_inhibit_time,
                         )
                     }
                     89 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.transmit_pdo_1_communication_parameter_reserved,
                         )
                     }
                     90 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_1_communication_parameter_event_timer,
                         )
                     }
                     91 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_2_communication_parameter_number_of_entries,
                         )
                     }
                     92 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .transmit_pdo_2_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     93 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_2_communication_parameter_transmission_type,
                         )
                     }
                     94 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_2_communication_parameter_inhibit_time,
                         )
                     }
                     95 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.transmit_pdo_2_communication_parameter_reserved,
                         )
                     }
                     96 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_2_communication_parameter_event_timer,
                         )
                     }
                     97 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_3_communication_parameter_number_of_entries,
                         )
                     }
                     98 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .transmit_pdo_3_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     99 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_3_communication_parameter_transmission_type,
                         )
                     }
                     100 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_3_communication_parameter_inhibit_time,
                         )
                     }
                     101 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.transmit_pdo_3_communication_parameter_reserved,
                         )
                     }
                     102 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_3_communication_parameter_event_timer,
                         )
                     }
                     103 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_4_communication_parameter_number_of_entries,
                         )
                     }
                     104 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .transmit_pdo_4_communication_parameter_cob_id_used_by_pdo,
                         )
                     }
                     105 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_4_communication_parameter_transmission_type,
                         )
                     }
                     106 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_4_communication_parameter_inhibit_time,
                         )
                     }
                     107 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.transmit_pdo_4_communication_parameter_reserved,
                         )
                     }
                     108 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_4_communication_parameter_event_timer,
                         )
                     }
                     109 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_1_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     110 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_1_mapping_parameter_mapped_object_1,
                         )
                     }
                     111 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_1_mapping_parameter_mapped_object_2,
                         )
                     }
                     112 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_1_mapping_parameter_mapped_object_3,
                         )
                     }
                     113 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_1_mapping_parameter_mapped_object_4,
                         )
                     }
                     114 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_1_mapping_parameter_mapped_object_5,
                         )
                     }
                     115 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_1_mapping_parameter_mapped_object_6,
                         )
                     }
                     116 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_1_mapping_parameter_mapped_object_7,
                         )
                     }
                     117 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_1_mapping_parameter_mapped_object_8,
                         )
                     }
                     118 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_2_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     119 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_2_mapping_parameter_mapped_object_1,
                         )
                     }
                     120 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_2_mapping_parameter_mapped_object_2,
                         )
                     }
                     121 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_2_mapping_parameter_mapped_object_3,
                         )
                     }
                     122 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_2_mapping_parameter_mapped_object_4,
                         )
                     }
                     123 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_2_mapping_parameter_mapped_object_5,
                         )
                     }
                     124 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_2_mapping_parameter_mapped_object_6,
                         )
                     }
                     125 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_2_mapping_parameter_mapped_object_7,
                         )
                     }
                     126 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_2_mapping_parameter_mapped_object_8,
                         )
                     }
                     127 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_3_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     128 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_3_mapping_parameter_mapped_object_1,
                         )
                     }
                     129 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_3_mapping_parameter_mapped_object_2,
                         )
                     }
                     130 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_3_mapping_parameter_mapped_object_3,
                         )
                     }
                     131 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_3_mapping_parameter_mapped_object_4,
                         )
                     }
                     132 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_3_mapping_parameter_mapped_object_5,
                         )
                     }
                     133 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_3_mapping_parameter_mapped_object_6,
                         )
                     }
                     134 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_3_mapping_parameter_mapped_object_7,
                         )
                     }
                     135 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_3_mapping_parameter_mapped_object_8,
                         )
                     }
                     136 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_4_mapping_parameter_number_of_mapped_objects,
                         )
                     }
                     137 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_4_mapping_parameter_mapped_object_1,
                         )
                     }
                     138 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_4_mapping_parameter_mapped_object_2,
                         )
                     }
                     139 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_4_mapping_parameter_mapped_object_3,
                         )
                     }
                     140 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_4_mapping_parameter_mapped_object_4,
                         )
                     }
                     141 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_4_mapping_parameter_mapped_object_5,
                         )
                     }
                     142 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_4_mapping_parameter_mapped_object_6,
                         )
                     }
                     143 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_4_mapping_parameter_mapped_object_7,
                         )
                     }
                     144 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_4_mapping_parameter_mapped_object_8,
                         )
                     }
                     145 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.transmit_pdo_1_mask_number_of_entries,
                         )
                     }
                     146 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_1_mask_mask_bytes_0_to_3,
                         )
                     }
                     147 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_1_mask_mask_bytes_4_to_7,
                         )
                     }
                     148 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.transmit_pdo_2_mask_number_of_entries,
                         )
                     }
                     149 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_2_mask_mask_bytes_0_to_3,
                         )
                     }
                     150 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_2_mask_mask_bytes_4_to_7,
                         )
                     }
                     151 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.transmit_pdo_3_mask_number_of_entries,
                         )
                     }
                     152 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_3_mask_mask_bytes_0_to_3,
                         )
                     }
                     153 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_3_mask_mask_bytes_4_to_7,
                         )
                     }
                     154 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.transmit_pdo_4_mask_number_of_entries,
                         )
                     }
                     155 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_4_mask_mask_bytes_0_to_3,
                         )
                     }
                     156 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_4_mask_mask_bytes_4_to_7,
                         )
                     }
                     157 => {
-                        __rt::SlotMut::U8(&mut self.firmware_version_number_of_entries)
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.firmware_version_number_of_entries,
+                        )
                     }
-                    158 => __rt::SlotMut::U16(&mut self.firmware_version_major_version),
-                    159 => __rt::SlotMut::U16(&mut self.firmware_version_minor_version),
-                    160 => __rt::SlotMut::U16(&mut self.firmware_version_revision),
-                    161 => __rt::SlotMut::U16(&mut self.firmware_version_derived_version),
-                    162 => __rt::SlotMut::U8(&mut self.ascii_channel_number_of_entries),
+                    158 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.firmware_version_major_version,
+                        )
+                    }
+                    159 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.firmware_version_minor_version,
+                        )
+                    }
+                    160 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.firmware_version_revision,
+                        )
+                    }
+                    161 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.firmware_version_derived_version,
+                        )
+                    }
+                    162 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.ascii_channel_number_of_entries,
+                        )
+                    }
                     163 => self.ascii_channel_command.slot_mut(),
                     164 => self.ascii_channel_response.slot_mut(),
                     165 => {
-                        __rt::SlotMut::U8(&mut self.pv_scaling_factor_number_of_entries)
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.pv_scaling_factor_number_of_entries,
+                        )
                     }
                     166 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self.pv_scaling_factor_pv_scaling_factor_numerator,
                         )
                     }
                     167 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self.pv_scaling_factor_pv_scaling_factor_denominator,
                         )
                     }
-                    168 => __rt::SlotMut::I32(&mut self.secondary_feedback_position),
-                    169 => __rt::SlotMut::I32(&mut self.target_current),
-                    170 => __rt::SlotMut::I32(&mut self.current_actual_value),
-                    171 => __rt::SlotMut::I32(&mut self.latch_position_1_positive_edge),
-                    172 => __rt::SlotMut::I32(&mut self.latch_position_1_negative_edge),
-                    173 => __rt::SlotMut::I32(&mut self.latch_position_2_positive_edge),
-                    174 => __rt::SlotMut::I32(&mut self.latch_position_2_negative_edge),
-                    175 => __rt::SlotMut::U16(&mut self.latch_control_register),
-                    176 => __rt::SlotMut::U16(&mut self.latch_status_register),
+                    168 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.secondary_feedback_position,
+                        )
+                    }
+                    169 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.target_current,
+                        )
+                    }
+                    170 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.current_actual_value,
+                        )
+                    }
+                    171 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.latch_position_1_positive_edge,
+                        )
+                    }
+                    172 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.latch_position_1_negative_edge,
+                        )
+                    }
+                    173 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.latch_position_2_positive_edge,
+                        )
+                    }
+                    174 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.latch_position_2_negative_edge,
+                        )
+                    }
+                    175 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.latch_control_register,
+                        )
+                    }
+                    176 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.latch_status_register,
+                        )
+                    }
                     177 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self.latch_position_1_positive_or_negative_edge,
                         )
                     }
                     178 => {
-                        __rt::SlotMut::U16(&mut self.reset_of_changed_input_information)
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.reset_of_changed_input_information,
+                        )
                     }
-                    179 => __rt::SlotMut::U32(&mut self.dummy_entry_4_bytes),
+                    179 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.dummy_entry_4_bytes,
+                        )
+                    }
                     180 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .velocity_loop_bi_quad_filter_types_number_of_entries,
                         )
                     }
                     181 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .velocity_loop_bi_quad_filter_types_bi_quad_filter_1_calculation_method,
                         )
                     }
                     182 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .velocity_loop_bi_quad_filter_types_bi_quad_filter_2_calculation_method,
                         )
                     }
                     183 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .velocity_loop_bi_quad_filter_types_bi_quad_filter_3_calculation_method,
                         )
                     }
                     184 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .velocity_loop_bi_quad_filter_types_bi_quad_filter_4_calculation_method,
                         )
                     }
                     185 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.velocity_loop_bi_quad_filters_number_of_entries,
                         )
                     }
                     186 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_natural_frequency,
                         )
                     }
                     187 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_natural_frequency,
                         )
                     }
                     188 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_natural_frequency,
                         )
                     }
                     189 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_natural_frequency,
                         )
                     }
                     190 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q,
                         )
                     }
                     191 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q,
                         )
                     }
                     192 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q,
                         )
                     }
                     193 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q,
                         )
                     }
                     194 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_natural_frequency,
                         )
                     }
                     195 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_natural_frequency,
                         )
                     }
                     196 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_natural_frequency,
                         )
                     }
                     197 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_natural_frequency,
                         )
                     }
                     198 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q,
                         )
                     }
                     199 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q,
                         )
                     }
                     200 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q,
                         )
                     }
                     201 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q,
                         )
                     }
                     202 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .velocity_loop_filter_and_feedforward_number_of_entries,
                         )
                     }
                     203 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz,
                         )
                     }
                     204 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_filter_and_feedforward_velocity_feedforward_gain,
                         )
                     }
                     205 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .velocity_loop_filter_and_feedforward_acceleration_feedforward_gain,
                         )
                     }
                     206 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.velocity_loop_filter_and_feedforward_velocity_error,
                         )
                     }
-                    207 => __rt::SlotMut::I8(&mut self.regen_resistor_type),
-                    208 => __rt::SlotMut::U8(&mut self.regen_resistor_fault_level),
+                    207 => {
+                        ::od_runtime::__private_v1::SlotMut::I8(
+                            &mut self.regen_resistor_type,
+                        )
+                    }
+                    208 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.regen_resistor_fault_level,
+                        )
+                    }
                     209 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.regen_resistor_thermal_time_constant,
                         )
                     }
-                    210 => __rt::SlotMut::U32(&mut self.regen_resistor_calculated_power),
-                    211 => __rt::SlotMut::U16(&mut self.foldback_fault_level),
-                    212 => __rt::SlotMut::U32(&mut self.foldback_fault_level_user_value),
-                    213 => __rt::SlotMut::U32(&mut self.friction_compensation_value),
+                    210 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.regen_resistor_calculated_power,
+                        )
+                    }
+                    211 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.foldback_fault_level,
+                        )
+                    }
+                    212 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.foldback_fault_level_user_value,
+                        )
+                    }
+                    213 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.friction_compensation_value,
+                        )
+                    }
                     214 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self.current_offset_for_gravity_compensation,
                         )
                     }
                     215 => {
-                        __rt::SlotMut::U16(&mut self.current_loop_pi_integrator_enable)
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.current_loop_pi_integrator_enable,
+                        )
                     }
-                    216 => __rt::SlotMut::U32(&mut self.overall_foldback_current_limit),
+                    216 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.overall_foldback_current_limit,
+                        )
+                    }
                     217 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.current_loop_acceleration_feedforward_gain,
                         )
                     }
                     218 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.motor_protection_parameters_number_of_entries,
                         )
                     }
                     219 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.motor_protection_parameters_motor_protection_mode,
                         )
                     }
                     220 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .motor_protection_parameters_motor_i2t_warning_threshold,
                         )
                     }
                     221 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.motor_protection_parameters_motor_i2t_load,
                         )
                     }
                     222 => {
-                        __rt::SlotMut::U8(&mut self.direction_for_absolute_motion_tasks)
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.direction_for_absolute_motion_tasks,
+                        )
                     }
-                    223 => __rt::SlotMut::U16(&mut self.motion_task_setting),
+                    223 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.motion_task_setting,
+                        )
+                    }
                     224 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.controlled_stop_parameters_number_of_entries,
                         )
                     }
                     225 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .controlled_stop_parameters_controlled_stop_deceleration,
                         )
                     }
                     226 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .controlled_stop_parameters_controlled_stop_velocity_threshold,
                         )
                     }
                     227 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .controlled_stop_parameters_controlled_stop_velocity_threshold_time,
                         )
                     }
-                    228 => __rt::SlotMut::U8(&mut self.controlled_stop_state),
-                    229 => __rt::SlotMut::U16(&mut self.drive_disable_cause),
-                    230 => __rt::SlotMut::U16(&mut self.dynamic_braking_maximum_current),
-                    231 => __rt::SlotMut::U32(&mut self.emergency_timeout_for_braking),
-                    232 => __rt::SlotMut::U8(&mut self.motor_brake_release),
+                    228 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.controlled_stop_state,
+                        )
+                    }
+                    229 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.drive_disable_cause,
+                        )
+                    }
+                    230 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.dynamic_braking_maximum_current,
+                        )
+                    }
+                    231 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.emergency_timeout_for_braking,
+                        )
+                    }
+                    232 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.motor_brake_release,
+                        )
+                    }
                     233 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.motor_parameters_automatic_calculation,
                         )
                     }
-                    234 => __rt::SlotMut::U16(&mut self.motor_maximum_voltage),
-                    235 => __rt::SlotMut::U32(&mut self.motor_temperature_warning_level),
-                    236 => __rt::SlotMut::U32(&mut self.motor_winding_thermal_constant),
+                    234 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.motor_maximum_voltage,
+                        )
+                    }
+                    235 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.motor_temperature_warning_level,
+                        )
+                    }
+                    236 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.motor_winding_thermal_constant,
+                        )
+                    }
                     237 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.motor_quadrature_inductance_line_to_line,
                         )
                     }
                     238 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.motor_stator_winding_resistance_phase_to_phase,
                         )
                     }
                     239 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.induction_motor_parameters_number_of_entries,
                         )
                     }
                     240 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .induction_motor_parameters_induction_motor_rated_velocity,
                         )
                     }
                     241 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self
                                 .induction_motor_parameters_induction_motor_rated_voltage,
                         )
                     }
                     242 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self
                                 .induction_motor_parameters_minimum_voltage_for_v_f_control,
                         )
                     }
                     243 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.capture_engine_parameters_number_of_entries,
                         )
                     }
                     244 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.capture_engine_parameters_capture_0_trigger_source,
                         )
                     }
                     245 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.capture_engine_parameters_capture_1_trigger_source,
                         )
                     }
                     246 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.capture_engine_parameters_capture_0_mode,
                         )
                     }
                     247 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.capture_engine_parameters_capture_1_mode,
                         )
                     }
                     248 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .capture_engine_parameters_capture_0_precondition_logic,
                         )
                     }
                     249 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .capture_engine_parameters_capture_1_precondition_logic,
                         )
                     }
                     250 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .capture_engine_parameters_capture_0_precondition_edge,
                         )
                     }
                     251 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .capture_engine_parameters_capture_1_precondition_edge,
                         )
                     }
                     252 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .capture_engine_parameters_capture_0_precondition_trigger,
                         )
                     }
                     253 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .capture_engine_parameters_capture_1_precondition_trigger,
                         )
                     }
                     254 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .analog_input_and_output_parameters_number_of_entries,
                         )
                     }
                     255 => {
-                        __rt::SlotMut::I8(
+                        ::od_runtime::__private_v1::SlotMut::I8(
                             &mut self
                                 .analog_input_and_output_parameters_analog_output_mode,
                         )
                     }
                     256 => {
-                        __rt::SlotMut::I16(
+                        ::od_runtime::__private_v1::SlotMut::I16(
                             &mut self
                                 .analog_input_and_output_parameters_analog_output_value,
                         )
                     }
                     257 => {
-                        __rt::SlotMut::I16(
+                        ::od_runtime::__private_v1::SlotMut::I16(
                             &mut self
                                 .analog_input_and_output_parameters_analog_output_value_user_units,
                         )
                     }
                     258 => {
-                        __rt::SlotMut::I16(
+                        ::od_runtime::__private_v1::SlotMut::I16(
                             &mut self
                                 .analog_input_and_output_parameters_analog_input_value,
                         )
                     }
                     259 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .analog_input_and_output_parameters_analog_output_velocity_scale_factor,
                         )
                     }
                     260 => {
-                        __rt::SlotMut::U32(&mut self.analog_output_position_scale_factor)
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.analog_output_position_scale_factor,
+                        )
                     }
                     261 => {
-                        __rt::SlotMut::U32(&mut self.analog_input_position_scale_factor)
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.analog_input_position_scale_factor,
+                        )
                     }
                     262 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.digital_input_parameters_number_of_entries,
                         )
                     }
                     263 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_input_parameters_digital_input_1_parameter_low_32_bits,
                         )
                     }
                     264 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_input_parameters_digital_input_2_parameter_low_32_bits,
                         )
                     }
                     265 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_input_parameters_digital_input_3_parameter_low_32_bits,
                         )
                     }
                     266 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_input_parameters_digital_input_4_parameter_low_32_bits,
                         )
                     }
                     267 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_input_parameters_digital_input_5_parameter_low_32_bits,
                         )
                     }
                     268 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_input_parameters_digital_input_6_parameter_low_32_bits,
                         )
                     }
                     269 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_input_parameters_digital_input_7_parameter_low_32_bits,
                         )
                     }
                     270 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_input_parameters_digital_input_1_parameter_high_32_bits,
                         )
                     }
                     271 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_input_parameters_digital_input_2_parameter_high_32_bits,
                         )
                     }
                     272 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_input_parameters_digital_input_3_parameter_high_32_bits,
                         )
                     }
                     273 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_input_parameters_digital_input_4_parameter_high_32_bits,
                         )
                     }
                     274 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_input_parameters_digital_input_5_parameter_high_32_bits,
                         )
                     }
                     275 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_input_parameters_digital_input_6_parameter_high_32_bits,
                         )
                     }
                     276 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_input_parameters_digital_input_7_parameter_high_32_bits,
                         )
                     }
                     277 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.digital_output_parameters_number_of_entries,
                         )
                     }
                     278 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_output_parameters_digital_output_1_parameter_low_32_bits,
                         )
                     }
                     279 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_output_parameters_digital_output_2_parameter_low_32_bits,
                         )
                     }
                     280 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_output_parameters_digital_output_1_parameter_high_32_bits,
                         )
                     }
                     281 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .digital_output_parameters_digital_output_2_parameter_high_32_bits,
                         )
                     }
-                    282 => __rt::SlotMut::U32(&mut self.position_loop_integral_gain),
+                    282 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.position_loop_integral_gain,
+                        )
+                    }
                     283 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .position_loop_integrator_saturation_number_of_entries,
                         )
                     }
                     284 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .position_loop_integrator_saturation_integrator_input_saturation,
                         )
                     }
                     285 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .position_loop_integrator_saturation_integrator_output_saturation,
                         )
                     }
-                    286 => __rt::SlotMut::I32(&mut self.homing_maximum_following_error),
-                    287 => __rt::SlotMut::I32(&mut self.position_error_warning_level),
-                    288 => __rt::SlotMut::I32(&mut self.homing_additional_move_distance),
-                    289 => __rt::SlotMut::I32(&mut self.feedback_position_offset),
+                    286 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.homing_maximum_following_error,
+                        )
+                    }
+                    287 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.position_error_warning_level,
+                        )
+                    }
+                    288 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.homing_additional_move_distance,
+                        )
+                    }
+                    289 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.feedback_position_offset,
+                        )
+                    }
                     290 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.emulated_encoder_index_pulse_turn_position,
                         )
                     }
-                    291 => __rt::SlotMut::U32(&mut self.drive_motion_status),
-                    292 => __rt::SlotMut::U8(&mut self.emulated_encoder_output_direction),
+                    291 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.drive_motion_status,
+                        )
+                    }
+                    292 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.emulated_encoder_output_direction,
+                        )
+                    }
                     293 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.wake_and_shake_parameters_number_of_entries,
                         )
                     }
                     294 => {
-                        __rt::SlotMut::I16(
+                        ::od_runtime::__private_v1::SlotMut::I16(
                             &mut self
                                 .wake_and_shake_parameters_wake_and_shake_maximum_current,
                         )
                     }
                     295 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .wake_and_shake_parameters_wake_and_shake_maximum_movement,
                         )
                     }
                     296 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self
                                 .wake_and_shake_parameters_wake_and_shake_delay_between_loops_in_mode_0,
                         )
                     }
                     297 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .wake_and_shake_parameters_wake_and_shake_maximum_velocity,
                         )
                     }
                     298 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.wake_and_shake_parameters_wake_and_shake_state,
                         )
                     }
                     299 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.wake_and_shake_parameters_wake_and_shake_arm,
                         )
                     }
                     300 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .fieldbus_synchronization_parameters_number_of_entries,
                         )
                     }
                     301 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .fieldbus_synchronization_parameters_expected_synchronization_distance,
                         )
                     }
                     302 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .fieldbus_synchronization_parameters_actual_synchronization_distance,
                         )
                     }
                     303 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .fieldbus_synchronization_parameters_synchronization_window,
                         )
                     }
                     304 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .fieldbus_synchronization_parameters_compensation_time,
                         )
                     }
                     305 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .programmable_limit_switch_positions_number_of_entries,
                         )
                     }
                     306 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_positions_limit_switch_1_compare_position,
                         )
                     }
                     307 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_positions_limit_switch_2_compare_position,
                         )
                     }
                     308 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_positions_limit_switch_3_compare_position,
                         )
                     }
                     309 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_positions_limit_switch_4_compare_position,
                         )
                     }
                     310 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_positions_limit_switch_5_compare_position,
                         )
                     }
                     311 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_positions_limit_switch_6_compare_position,
                         )
                     }
                     312 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_positions_limit_switch_7_compare_position,
                         )
                     }
                     313 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_positions_limit_switch_8_compare_position,
                         )
                     }
                     314 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.programmable_limit_switch_widths_number_of_entries,
                         )
                     }
                     315 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_widths_limit_switch_1_width,
                         )
                     }
                     316 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_widths_limit_switch_2_width,
                         )
                     }
                     317 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_widths_limit_switch_3_width,
                         )
                     }
                     318 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_widths_limit_switch_4_width,
                         )
                     }
                     319 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_widths_limit_switch_5_width,
                         )
                     }
                     320 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_widths_limit_switch_6_width,
                         )
                     }
                     321 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_widths_limit_switch_7_width,
                         )
                     }
                     322 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .programmable_limit_switch_widths_limit_switch_8_width,
                         )
                     }
                     323 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.programmable_limit_switch_times_number_of_entries,
                         )
                     }
                     324 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.programmable_limit_switch_times_limit_switch_1_time,
                         )
                     }
                     325 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.programmable_limit_switch_times_limit_switch_2_time,
                         )
                     }
                     326 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.programmable_limit_switch_times_limit_switch_3_time,
                         )
                     }
                     327 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.programmable_limit_switch_times_limit_switch_4_time,
                         )
                     }
                     328 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.programmable_limit_switch_times_limit_switch_5_time,
                         )
                     }
                     329 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.programmable_limit_switch_times_limit_switch_6_time,
                         )
                     }
                     330 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.programmable_limit_switch_times_limit_switch_7_time,
                         )
                     }
                     331 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.programmable_limit_switch_times_limit_switch_8_time,
                         )
                     }
                     332 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .programmable_limit_switch_configuration_number_of_entries,
                         )
                     }
                     333 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self
                                 .programmable_limit_switch_configuration_limit_switch_enable,
                         )
                     }
                     334 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self
                                 .programmable_limit_switch_configuration_limit_switch_reset,
                         )
                     }
                     335 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self
                                 .programmable_limit_switch_configuration_limit_switch_mode,
                         )
                     }
                     336 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self
                                 .programmable_limit_switch_configuration_limit_switch_state,
                         )
                     }
-                    337 => __rt::SlotMut::U8(&mut self.programmable_limit_switch_units),
-                    338 => __rt::SlotMut::I32(&mut self.acceleration_ramp),
-                    339 => __rt::SlotMut::I32(&mut self.homing_and_jog_acceleration_ramp),
-                    340 => __rt::SlotMut::I32(&mut self.hardware_enable_input_mode),
-                    341 => __rt::SlotMut::I32(&mut self.analog_input_voltage),
-                    342 => __rt::SlotMut::I32(&mut self.deceleration_ramp),
-                    343 => __rt::SlotMut::I32(&mut self.homing_and_jog_deceleration_ramp),
-                    344 => __rt::SlotMut::I32(&mut self.motion_direction),
-                    345 => __rt::SlotMut::U32(&mut self.motor_encoder_resolution),
-                    346 => __rt::SlotMut::U32(&mut self.emulated_encoder_connector_mode),
-                    347 => __rt::SlotMut::U32(&mut self.emulated_encoder_resolution),
-                    348 => {
-                        __rt::SlotMut::U32(&mut self.emulated_encoder_index_pulse_offset)
+                    337 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.programmable_limit_switch_units,
+                        )
                     }
-                    349 => __rt::SlotMut::I32(&mut self.feedback_type_selection),
-                    350 => __rt::SlotMut::U32(&mut self.position_loop_proportional_gain),
-                    351 => __rt::SlotMut::U32(&mut self.velocity_loop_proportional_gain),
+                    338 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.acceleration_ramp,
+                        )
+                    }
+                    339 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.homing_and_jog_acceleration_ramp,
+                        )
+                    }
+                    340 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.hardware_enable_input_mode,
+                        )
+                    }
+                    341 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.analog_input_voltage,
+                        )
+                    }
+                    342 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.deceleration_ramp,
+                        )
+                    }
+                    343 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.homing_and_jog_deceleration_ramp,
+                        )
+                    }
+                    344 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.motion_direction,
+                        )
+                    }
+                    345 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.motor_encoder_resolution,
+                        )
+                    }
+                    346 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.emulated_encoder_connector_mode,
+                        )
+                    }
+                    347 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.emulated_encoder_resolution,
+                        )
+                    }
+                    348 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.emulated_encoder_index_pulse_offset,
+                        )
+                    }
+                    349 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.feedback_type_selection,
+                        )
+                    }
+                    350 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.position_loop_proportional_gain,
+                        )
+                    }
+                    351 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.velocity_loop_proportional_gain,
+                        )
+                    }
                     352 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self.velocity_loop_velocity_feedforward_gain,
                         )
                     }
-                    353 => __rt::SlotMut::I32(&mut self.velocity_loop_integral_time),
-                    354 => __rt::SlotMut::I32(&mut self.current_feedback),
-                    355 => __rt::SlotMut::I32(&mut self.drive_foldback_current),
-                    356 => __rt::SlotMut::I32(&mut self.foldback_warning_level),
-                    357 => __rt::SlotMut::I32(&mut self.digital_input_1_mode),
-                    358 => __rt::SlotMut::I32(&mut self.digital_input_2_mode),
-                    359 => __rt::SlotMut::I32(&mut self.digital_input_3_mode),
-                    360 => __rt::SlotMut::I32(&mut self.digital_input_4_mode),
+                    353 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.velocity_loop_integral_time,
+                        )
+                    }
+                    354 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.current_feedback,
+                        )
+                    }
+                    355 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.drive_foldback_current,
+                        )
+                    }
+                    356 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.foldback_warning_level,
+                        )
+                    }
+                    357 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.digital_input_1_mode,
+                        )
+                    }
+                    358 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.digital_input_2_mode,
+                        )
+                    }
+                    359 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.digital_input_3_mode,
+                        )
+                    }
+                    360 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.digital_input_4_mode,
+                        )
+                    }
                     361 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self.application_peak_current_positive_direction,
                         )
                     }
                     362 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self.application_peak_current_negative_direction,
                         )
                     }
-                    363 => __rt::SlotMut::U32(&mut self.motor_temperature_fault_level),
-                    364 => __rt::SlotMut::I32(&mut self.motor_holding_brake_selection),
-                    365 => __rt::SlotMut::U32(&mut self.motor_continuous_current),
-                    366 => __rt::SlotMut::U32(&mut self.motor_peak_current),
-                    367 => __rt::SlotMut::U32(&mut self.motor_torque_constant),
+                    363 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.motor_temperature_fault_level,
+                        )
+                    }
+                    364 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.motor_holding_brake_selection,
+                        )
+                    }
+                    365 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.motor_continuous_current,
+                        )
+                    }
+                    366 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.motor_peak_current,
+                        )
+                    }
+                    367 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.motor_torque_constant,
+                        )
+                    }
                     368 => {
-                        __rt::SlotMut::U32(&mut self.current_loop_d_component_gain_ratio)
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.current_loop_d_component_gain_ratio,
+                        )
                     }
-                    369 => __rt::SlotMut::I32(&mut self.current_loop_proportional_gain),
-                    370 => __rt::SlotMut::U32(&mut self.motor_phase),
-                    371 => __rt::SlotMut::U32(&mut self.motor_poles),
-                    372 => __rt::SlotMut::U32(&mut self.motor_maximum_velocity),
-                    373 => __rt::SlotMut::I32(&mut self.motor_foldback_current_limit),
-                    374 => __rt::SlotMut::U32(&mut self.motor_inertia),
-                    375 => __rt::SlotMut::U32(&mut self.digital_output_1_mode),
-                    376 => __rt::SlotMut::U32(&mut self.digital_output_2_mode),
-                    377 => __rt::SlotMut::I32(&mut self.drive_operation_mode),
+                    369 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.current_loop_proportional_gain,
+                        )
+                    }
+                    370 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.motor_phase)
+                    }
+                    371 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.motor_poles)
+                    }
+                    372 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.motor_maximum_velocity,
+                        )
+                    }
+                    373 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.motor_foldback_current_limit,
+                        )
+                    }
+                    374 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.motor_inertia)
+                    }
+                    375 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.digital_output_1_mode,
+                        )
+                    }
+                    376 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.digital_output_2_mode,
+                        )
+                    }
+                    377 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.drive_operation_mode,
+                        )
+                    }
                     378 => {
-                        __rt::SlotMut::I32(&mut self.next_motion_task_of_motion_task_0)
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.next_motion_task_of_motion_task_0,
+                        )
                     }
-                    379 => __rt::SlotMut::I32(&mut self.regen_resistor_selection),
-                    380 => __rt::SlotMut::I32(&mut self.position_following_error),
-                    381 => __rt::SlotMut::I32(&mut self.in_position_window),
-                    382 => __rt::SlotMut::I32(&mut self.maximum_following_error),
-                    383 => __rt::SlotMut::I32(&mut self.position_resolution_numerator),
-                    384 => __rt::SlotMut::I32(&mut self.position_resolution_denominator),
+                    379 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.regen_resistor_selection,
+                        )
+                    }
+                    380 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.position_following_error,
+                        )
+                    }
+                    381 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.in_position_window,
+                        )
+                    }
+                    382 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.maximum_following_error,
+                        )
+                    }
+                    383 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.position_resolution_numerator,
+                        )
+                    }
+                    384 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.position_resolution_denominator,
+                        )
+                    }
                     385 => {
-                        __rt::SlotMut::U32(&mut self.homing_current_limit_for_hard_stop)
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.homing_current_limit_for_hard_stop,
+                        )
                     }
-                    386 => __rt::SlotMut::I32(&mut self.save_data_to_non_volatile_memory),
-                    387 => __rt::SlotMut::I32(&mut self.set_reference_point),
-                    388 => __rt::SlotMut::I32(&mut self.stop_motion_task),
-                    389 => __rt::SlotMut::U32(&mut self.disable_mode),
-                    390 => __rt::SlotMut::I32(&mut self.ambient_temperature),
-                    391 => __rt::SlotMut::I32(&mut self.heat_sink_temperature),
-                    392 => __rt::SlotMut::I32(&mut self.motor_temperature),
-                    393 => __rt::SlotMut::U32(&mut self.undervoltage_mode),
-                    394 => __rt::SlotMut::I32(&mut self.velocity_feedback),
-                    395 => __rt::SlotMut::I32(&mut self.dc_bus_voltage),
-                    396 => __rt::SlotMut::U32(&mut self.undervoltage_fault_level),
-                    397 => __rt::SlotMut::I32(&mut self.positive_velocity_limit),
-                    398 => __rt::SlotMut::I32(&mut self.negative_velocity_limit),
-                    399 => __rt::SlotMut::I32(&mut self.overspeed_threshold),
+                    386 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.save_data_to_non_volatile_memory,
+                        )
+                    }
+                    387 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.set_reference_point,
+                        )
+                    }
+                    388 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.stop_motion_task,
+                        )
+                    }
+                    389 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.disable_mode)
+                    }
+                    390 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.ambient_temperature,
+                        )
+                    }
+                    391 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.heat_sink_temperature,
+                        )
+                    }
+                    392 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.motor_temperature,
+                        )
+                    }
+                    393 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.undervoltage_mode,
+                        )
+                    }
+                    394 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.velocity_feedback,
+                        )
+                    }
+                    395 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.dc_bus_voltage,
+                        )
+                    }
+                    396 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.undervoltage_fault_level,
+                        )
+                    }
+                    397 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.positive_velocity_limit,
+                        )
+                    }
+                    398 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.negative_velocity_limit,
+                        )
+                    }
+                    399 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.overspeed_threshold,
+                        )
+                    }
                     400 => {
-                        __rt::SlotMut::I32(&mut self.analog_input_velocity_scale_factor)
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.analog_input_velocity_scale_factor,
+                        )
                     }
-                    401 => __rt::SlotMut::U64(&mut self.initial_feedback_position),
-                    402 => __rt::SlotMut::I32(&mut self.rotary_acceleration_units),
-                    403 => __rt::SlotMut::I32(&mut self.motion_task_number),
-                    404 => __rt::SlotMut::I32(&mut self.rotary_velocity_units),
-                    405 => __rt::SlotMut::I32(&mut self.rotary_position_units),
-                    406 => __rt::SlotMut::I32(&mut self.brake_apply_delay),
-                    407 => __rt::SlotMut::I32(&mut self.brake_release_delay),
-                    408 => __rt::SlotMut::U16(&mut self.wake_and_shake_delay_1),
-                    409 => __rt::SlotMut::U16(&mut self.wake_and_shake_delay_2),
+                    401 => {
+                        ::od_runtime::__private_v1::SlotMut::U64(
+                            &mut self.initial_feedback_position,
+                        )
+                    }
+                    402 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.rotary_acceleration_units,
+                        )
+                    }
+                    403 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.motion_task_number,
+                        )
+                    }
+                    404 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.rotary_velocity_units,
+                        )
+                    }
+                    405 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.rotary_position_units,
+                        )
+                    }
+                    406 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.brake_apply_delay,
+                        )
+                    }
+                    407 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.brake_release_delay,
+                        )
+                    }
+                    408 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.wake_and_shake_delay_1,
+                        )
+                    }
+                    409 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.wake_and_shake_delay_2,
+                        )
+                    }
                     410 => {
-                        __rt::SlotMut::U16(&mut self.wake_and_shake_current_vector_time)
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.wake_and_shake_current_vector_time,
+                        )
                     }
-                    411 => __rt::SlotMut::U32(&mut self.wake_and_shake_minimum_movement),
-                    412 => __rt::SlotMut::U32(&mut self.homing_automatic_move_flag),
-                    413 => __rt::SlotMut::U8(&mut self.wake_and_shake_number_of_loops),
-                    414 => __rt::SlotMut::U32(&mut self.can_baud_rate_selection),
-                    415 => __rt::SlotMut::U32(&mut self.pll_synchronization),
-                    416 => __rt::SlotMut::U32(&mut self.fieldbus_parameter_3),
-                    417 => __rt::SlotMut::U32(&mut self.sync_supervision),
-                    418 => __rt::SlotMut::U32(&mut self.fieldbus_configuration_bits),
-                    419 => __rt::SlotMut::U32(&mut self.fieldbus_parameter_6),
-                    420 => __rt::SlotMut::U32(&mut self.fieldbus_parameter_7),
-                    421 => __rt::SlotMut::U32(&mut self.fieldbus_parameter_8),
-                    422 => __rt::SlotMut::U32(&mut self.fieldbus_parameter_9),
-                    423 => __rt::SlotMut::U32(&mut self.fieldbus_parameter_10),
-                    424 => __rt::SlotMut::I32(&mut self.digital_input_5_mode),
-                    425 => __rt::SlotMut::I32(&mut self.digital_input_6_mode),
-                    426 => __rt::SlotMut::U32(&mut self.digital_input_7_mode),
-                    427 => __rt::SlotMut::I32(&mut self.profile_position_velocity_window),
+                    411 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.wake_and_shake_minimum_movement,
+                        )
+                    }
+                    412 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.homing_automatic_move_flag,
+                        )
+                    }
+                    413 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.wake_and_shake_number_of_loops,
+                        )
+                    }
+                    414 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.can_baud_rate_selection,
+                        )
+                    }
+                    415 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.pll_synchronization,
+                        )
+                    }
+                    416 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.fieldbus_parameter_3,
+                        )
+                    }
+                    417 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.sync_supervision,
+                        )
+                    }
+                    418 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.fieldbus_configuration_bits,
+                        )
+                    }
+                    419 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.fieldbus_parameter_6,
+                        )
+                    }
+                    420 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.fieldbus_parameter_7,
+                        )
+                    }
+                    421 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.fieldbus_parameter_8,
+                        )
+                    }
+                    422 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.fieldbus_parameter_9,
+                        )
+                    }
+                    423 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.fieldbus_parameter_10,
+                        )
+                    }
+                    424 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.digital_input_5_mode,
+                        )
+                    }
+                    425 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.digital_input_6_mode,
+                        )
+                    }
+                    426 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.digital_input_7_mode,
+                        )
+                    }
+                    427 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.profile_position_velocity_window,
+                        )
+                    }
                     428 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.analog_input_low_pass_cutoff_frequency,
                         )
                     }
-                    429 => __rt::SlotMut::U32(&mut self.analog_input_deadband),
+                    429 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.analog_input_deadband,
+                        )
+                    }
                     430 => {
-                        __rt::SlotMut::U32(&mut self.analog_input_current_scale_factor)
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.analog_input_current_scale_factor,
+                        )
                     }
-                    431 => __rt::SlotMut::U32(&mut self.analog_input_offset),
+                    431 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.analog_input_offset,
+                        )
+                    }
                     432 => {
-                        __rt::SlotMut::U32(&mut self.analog_output_current_scale_factor)
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.analog_output_current_scale_factor,
+                        )
                     }
-                    433 => __rt::SlotMut::U32(&mut self.analog_output_offset),
-                    434 => __rt::SlotMut::U32(&mut self.bode_excitation_update_gap),
-                    435 => __rt::SlotMut::U32(&mut self.bode_current_command_amplitude),
-                    436 => __rt::SlotMut::U32(&mut self.bode_injection_point),
-                    437 => __rt::SlotMut::U32(&mut self.bode_prb_signal_depth),
-                    438 => __rt::SlotMut::U32(&mut self.fault_relay_mode),
-                    439 => __rt::SlotMut::U32(&mut self.software_enable_default_state),
-                    440 => __rt::SlotMut::U32(&mut self.drive_continuous_rated_current),
-                    441 => __rt::SlotMut::U32(&mut self.drive_peak_rated_current),
-                    442 => __rt::SlotMut::U32(&mut self.zero_procedure_current),
-                    443 => __rt::SlotMut::U32(&mut self.bi_ss_sensor_position_bits),
-                    444 => __rt::SlotMut::U32(&mut self.initial_feedback_value_signed),
-                    445 => __rt::SlotMut::U32(&mut self.phase_finding_current),
-                    446 => __rt::SlotMut::U32(&mut self.feedback_poles),
-                    447 => __rt::SlotMut::U32(&mut self.resolver_transformation_ratio),
-                    448 => __rt::SlotMut::U32(&mut self.resolver_reference_phase_lag),
-                    449 => __rt::SlotMut::U32(&mut self.tracking_calibration),
-                    450 => __rt::SlotMut::U32(&mut self.pll_lock_threshold),
-                    451 => __rt::SlotMut::U32(&mut self.gearing_maximum_acceleration),
-                    452 => __rt::SlotMut::U32(&mut self.gearing_maximum_deceleration),
-                    453 => __rt::SlotMut::U32(&mut self.gearing_ratio_denominator),
-                    454 => __rt::SlotMut::U32(&mut self.gearing_mode),
-                    455 => __rt::SlotMut::U32(&mut self.gearing_ratio_numerator),
+                    433 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.analog_output_offset,
+                        )
+                    }
+                    434 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.bode_excitation_update_gap,
+                        )
+                    }
+                    435 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.bode_current_command_amplitude,
+                        )
+                    }
+                    436 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.bode_injection_point,
+                        )
+                    }
+                    437 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.bode_prb_signal_depth,
+                        )
+                    }
+                    438 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.fault_relay_mode,
+                        )
+                    }
+                    439 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.software_enable_default_state,
+                        )
+                    }
+                    440 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.drive_continuous_rated_current,
+                        )
+                    }
+                    441 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.drive_peak_rated_current,
+                        )
+                    }
+                    442 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.zero_procedure_current,
+                        )
+                    }
+                    443 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.bi_ss_sensor_position_bits,
+                        )
+                    }
+                    444 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.initial_feedback_value_signed,
+                        )
+                    }
+                    445 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.phase_finding_current,
+                        )
+                    }
+                    446 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.feedback_poles,
+                        )
+                    }
+                    447 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.resolver_transformation_ratio,
+                        )
+                    }
+                    448 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.resolver_reference_phase_lag,
+                        )
+                    }
+                    449 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.tracking_calibration,
+                        )
+                    }
+                    450 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.pll_lock_threshold,
+                        )
+                    }
+                    451 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.gearing_maximum_acceleration,
+                        )
+                    }
+                    452 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.gearing_maximum_deceleration,
+                        )
+                    }
+                    453 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.gearing_ratio_denominator,
+                        )
+                    }
+                    454 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.gearing_mode)
+                    }
+                    455 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.gearing_ratio_numerator,
+                        )
+                    }
                     456 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.current_loop_fieldbus_feedforward_gain,
                         )
                     }
-                    457 => __rt::SlotMut::U32(&mut self.motor_pitch),
-                    458 => __rt::SlotMut::U32(&mut self.motor_thermal_resistor_type),
-                    459 => __rt::SlotMut::U32(&mut self.motor_type),
-                    460 => __rt::SlotMut::U32(&mut self.motion_task_after_emergency_stop),
-                    461 => __rt::SlotMut::U32(&mut self.following_error_mode),
-                    462 => __rt::SlotMut::U32(&mut self.position_loop_feedback_source),
-                    463 => __rt::SlotMut::U32(&mut self.service_motion_current_1),
-                    464 => __rt::SlotMut::U32(&mut self.service_motion_current_2),
-                    465 => __rt::SlotMut::U32(&mut self.service_motion_mode),
-                    466 => __rt::SlotMut::U32(&mut self.service_motion_time_1),
-                    467 => __rt::SlotMut::U32(&mut self.service_motion_time_2),
-                    468 => __rt::SlotMut::U32(&mut self.software_limit_switch_enable),
-                    469 => __rt::SlotMut::U32(&mut self.linear_acceleration_units),
-                    470 => __rt::SlotMut::U32(&mut self.linear_position_units),
-                    471 => __rt::SlotMut::U32(&mut self.linear_velocity_units),
-                    472 => __rt::SlotMut::U32(&mut self.overvoltage_warning_level),
-                    473 => __rt::SlotMut::U32(&mut self.velocity_loop_feedback_source),
-                    474 => __rt::SlotMut::U32(&mut self.velocity_generation_mode),
-                    475 => __rt::SlotMut::U32(&mut self.observer_velocity_scale),
-                    476 => __rt::SlotMut::U32(&mut self.load_to_motor_inertia_ratio),
-                    477 => __rt::SlotMut::U32(&mut self.observer_bandwidth),
-                    478 => __rt::SlotMut::U32(&mut self.observer_mode),
-                    479 => __rt::SlotMut::U32(&mut self.digital_input_1_filter_mode),
-                    480 => __rt::SlotMut::U32(&mut self.digital_input_2_filter_mode),
-                    481 => __rt::SlotMut::U32(&mut self.digital_input_3_filter_mode),
-                    482 => __rt::SlotMut::U32(&mut self.digital_input_4_filter_mode),
-                    483 => __rt::SlotMut::U32(&mut self.digital_input_5_filter_mode),
-                    484 => __rt::SlotMut::U32(&mut self.digital_input_6_filter_mode),
-                    485 => __rt::SlotMut::U32(&mut self.digital_input_7_filter_mode),
-                    486 => __rt::SlotMut::U32(&mut self.modbus_user_units_input),
-                    487 => __rt::SlotMut::U32(&mut self.modbus_user_units_output),
-                    488 => __rt::SlotMut::U32(&mut self.modbus_feedback_resolution),
-                    489 => __rt::SlotMut::U32(&mut self.secondary_feedback_resolution),
-                    490 => __rt::SlotMut::U32(&mut self.secondary_feedback_mode),
-                    491 => __rt::SlotMut::U32(&mut self.secondary_feedback_source),
-                    492 => __rt::SlotMut::U32(&mut self.brake_apply_timeout),
-                    493 => __rt::SlotMut::U32(&mut self.modbus_message_log),
-                    494 => __rt::SlotMut::U32(&mut self.modbus_scaling_mode),
-                    495 => __rt::SlotMut::U32(&mut self.emulated_encoder_pulse_width),
+                    457 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.motor_pitch)
+                    }
+                    458 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.motor_thermal_resistor_type,
+                        )
+                    }
+                    459 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.motor_type),
+                    460 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.motion_task_after_emergency_stop,
+                        )
+                    }
+                    461 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.following_error_mode,
+                        )
+                    }
+                    462 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.position_loop_feedback_source,
+                        )
+                    }
+                    463 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.service_motion_current_1,
+                        )
+                    }
+                    464 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.service_motion_current_2,
+                        )
+                    }
+                    465 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.service_motion_mode,
+                        )
+                    }
+                    466 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.service_motion_time_1,
+                        )
+                    }
+                    467 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.service_motion_time_2,
+                        )
+                    }
+                    468 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.software_limit_switch_enable,
+                        )
+                    }
+                    469 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.linear_acceleration_units,
+                        )
+                    }
+                    470 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.linear_position_units,
+                        )
+                    }
+                    471 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.linear_velocity_units,
+                        )
+                    }
+                    472 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.overvoltage_warning_level,
+                        )
+                    }
+                    473 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.velocity_loop_feedback_source,
+                        )
+                    }
+                    474 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.velocity_generation_mode,
+                        )
+                    }
+                    475 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.observer_velocity_scale,
+                        )
+                    }
+                    476 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.load_to_motor_inertia_ratio,
+                        )
+                    }
+                    477 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.observer_bandwidth,
+                        )
+                    }
+                    478 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.observer_mode)
+                    }
+                    479 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.digital_input_1_filter_mode,
+                        )
+                    }
+                    480 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.digital_input_2_filter_mode,
+                        )
+                    }
+                    481 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.digital_input_3_filter_mode,
+                        )
+                    }
+                    482 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.digital_input_4_filter_mode,
+                        )
+                    }
+                    483 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.digital_input_5_filter_mode,
+                        )
+                    }
+                    484 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.digital_input_6_filter_mode,
+                        )
+                    }
+                    485 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.digital_input_7_filter_mode,
+                        )
+                    }
+                    486 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.modbus_user_units_input,
+                        )
+                    }
+                    487 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.modbus_user_units_output,
+                        )
+                    }
+                    488 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.modbus_feedback_resolution,
+                        )
+                    }
+                    489 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.secondary_feedback_resolution,
+                        )
+                    }
+                    490 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.secondary_feedback_mode,
+                        )
+                    }
+                    491 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.secondary_feedback_source,
+                        )
+                    }
+                    492 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.brake_apply_timeout,
+                        )
+                    }
+                    493 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.modbus_message_log,
+                        )
+                    }
+                    494 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.modbus_scaling_mode,
+                        )
+                    }
+                    495 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.emulated_encoder_pulse_width,
+                        )
+                    }
                     496 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.emulated_encoder_velocity_monitoring,
                         )
                     }
-                    497 => __rt::SlotMut::U32(&mut self.analog_input_deadband_mode),
-                    498 => __rt::SlotMut::U32(&mut self.analog_input_mode),
-                    499 => __rt::SlotMut::U32(&mut self.dio10_direction),
-                    500 => __rt::SlotMut::U32(&mut self.dio10_output_inversion),
-                    501 => __rt::SlotMut::U32(&mut self.dio11_direction),
-                    502 => __rt::SlotMut::U32(&mut self.dio11_output_inversion),
-                    503 => __rt::SlotMut::U32(&mut self.dio9_direction),
-                    504 => __rt::SlotMut::U32(&mut self.dio9_output_inversion),
-                    505 => __rt::SlotMut::U32(&mut self.fault_130_action),
-                    506 => __rt::SlotMut::U32(&mut self.fault_131_action),
-                    507 => __rt::SlotMut::U32(&mut self.fault_132_action),
-                    508 => __rt::SlotMut::U32(&mut self.fault_134_action),
-                    509 => __rt::SlotMut::U32(&mut self.fault_702_action),
-                    510 => __rt::SlotMut::U32(&mut self.ip_address_mode),
-                    511 => __rt::SlotMut::U32(&mut self.load_inertia),
-                    512 => __rt::SlotMut::U32(&mut self.motor_back_emf_constant),
-                    513 => {
-                        __rt::SlotMut::U32(&mut self.bus_voltage_half_voltage_thresholds)
+                    497 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.analog_input_deadband_mode,
+                        )
                     }
-                    514 => __rt::SlotMut::U32(&mut self.secondary_feedback_direction),
-                    515 => __rt::SlotMut::U32(&mut self.handwheel_feedback_source),
-                    516 => __rt::SlotMut::U32(&mut self.hardware_enable_delay),
+                    498 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.analog_input_mode,
+                        )
+                    }
+                    499 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.dio10_direction,
+                        )
+                    }
+                    500 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.dio10_output_inversion,
+                        )
+                    }
+                    501 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.dio11_direction,
+                        )
+                    }
+                    502 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.dio11_output_inversion,
+                        )
+                    }
+                    503 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.dio9_direction,
+                        )
+                    }
+                    504 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.dio9_output_inversion,
+                        )
+                    }
+                    505 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.fault_130_action,
+                        )
+                    }
+                    506 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.fault_131_action,
+                        )
+                    }
+                    507 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.fault_132_action,
+                        )
+                    }
+                    508 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.fault_134_action,
+                        )
+                    }
+                    509 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.fault_702_action,
+                        )
+                    }
+                    510 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.ip_address_mode,
+                        )
+                    }
+                    511 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.load_inertia)
+                    }
+                    512 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.motor_back_emf_constant,
+                        )
+                    }
+                    513 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.bus_voltage_half_voltage_thresholds,
+                        )
+                    }
+                    514 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.secondary_feedback_direction,
+                        )
+                    }
+                    515 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.handwheel_feedback_source,
+                        )
+                    }
+                    516 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.hardware_enable_delay,
+                        )
+                    }
                     517 => {
-                        __rt::SlotMut::U32(&mut self.current_loop_gain_scheduling_index)
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.current_loop_gain_scheduling_index,
+                        )
                     }
                     518 => {
-                        __rt::SlotMut::U32(&mut self.current_loop_gain_scheduling_value)
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.current_loop_gain_scheduling_value,
+                        )
                     }
-                    519 => __rt::SlotMut::U32(&mut self.fault_451_action),
-                    520 => __rt::SlotMut::U32(&mut self.brake_immediately_on_disable),
-                    521 => __rt::SlotMut::U16(&mut self.controlword),
-                    522 => __rt::SlotMut::U16(&mut self.statusword),
-                    523 => __rt::SlotMut::I8(&mut self.modes_of_operation),
-                    524 => __rt::SlotMut::I8(&mut self.modes_of_operation_display),
-                    525 => __rt::SlotMut::I32(&mut self.position_actual_internal_value),
-                    526 => __rt::SlotMut::I32(&mut self.position_actual_value),
-                    527 => __rt::SlotMut::U32(&mut self.following_error_window),
-                    528 => __rt::SlotMut::I32(&mut self.velocity_demand_value),
-                    529 => __rt::SlotMut::I32(&mut self.velocity_actual_value),
-                    530 => __rt::SlotMut::U16(&mut self.velocity_window),
-                    531 => __rt::SlotMut::U16(&mut self.velocity_window_time),
-                    532 => __rt::SlotMut::I16(&mut self.target_torque),
-                    533 => __rt::SlotMut::U16(&mut self.max_torque),
-                    534 => __rt::SlotMut::U16(&mut self.max_current),
-                    535 => __rt::SlotMut::I16(&mut self.torque_actual_value),
-                    536 => __rt::SlotMut::I32(&mut self.target_position),
-                    537 => __rt::SlotMut::I32(&mut self.home_offset),
+                    519 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.fault_451_action,
+                        )
+                    }
+                    520 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.brake_immediately_on_disable,
+                        )
+                    }
+                    521 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(&mut self.controlword)
+                    }
+                    522 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.statusword),
+                    523 => {
+                        ::od_runtime::__private_v1::SlotMut::I8(
+                            &mut self.modes_of_operation,
+                        )
+                    }
+                    524 => {
+                        ::od_runtime::__private_v1::SlotMut::I8(
+                            &mut self.modes_of_operation_display,
+                        )
+                    }
+                    525 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.position_actual_internal_value,
+                        )
+                    }
+                    526 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.position_actual_value,
+                        )
+                    }
+                    527 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.following_error_window,
+                        )
+                    }
+                    528 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.velocity_demand_value,
+                        )
+                    }
+                    529 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.velocity_actual_value,
+                        )
+                    }
+                    530 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.velocity_window,
+                        )
+                    }
+                    531 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.velocity_window_time,
+                        )
+                    }
+                    532 => {
+                        ::od_runtime::__private_v1::SlotMut::I16(&mut self.target_torque)
+                    }
+                    533 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.max_torque),
+                    534 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(&mut self.max_current)
+                    }
+                    535 => {
+                        ::od_runtime::__private_v1::SlotMut::I16(
+                            &mut self.torque_actual_value,
+                        )
+                    }
+                    536 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.target_position,
+                        )
+                    }
+                    537 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(&mut self.home_offset)
+                    }
                     538 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.software_position_limit_number_of_entries,
                         )
                     }
                     539 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self.software_position_limit_min_position_limit,
                         )
                     }
                     540 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self.software_position_limit_max_position_limit,
                         )
                     }
-                    541 => __rt::SlotMut::U32(&mut self.profile_velocity),
-                    542 => __rt::SlotMut::U32(&mut self.profile_acceleration),
-                    543 => __rt::SlotMut::U32(&mut self.profile_deceleration),
+                    541 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.profile_velocity,
+                        )
+                    }
+                    542 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.profile_acceleration,
+                        )
+                    }
+                    543 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.profile_deceleration,
+                        )
+                    }
                     544 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.position_encoder_resolution_number_of_entries,
                         )
                     }
                     545 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.position_encoder_resolution_encoder_increments,
                         )
                     }
                     546 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.position_encoder_resolution_motor_revolutions,
                         )
                     }
-                    547 => __rt::SlotMut::U8(&mut self.gear_ratio_number_of_entries),
+                    547 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.gear_ratio_number_of_entries,
+                        )
+                    }
                     548 => {
-                        __rt::SlotMut::U32(&mut self.gear_ratio_motor_shaft_revolutions)
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.gear_ratio_motor_shaft_revolutions,
+                        )
                     }
                     549 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.gear_ratio_driving_shaft_revolutions,
                         )
                     }
-                    550 => __rt::SlotMut::U8(&mut self.feed_constant_number_of_entries),
-                    551 => __rt::SlotMut::U32(&mut self.feed_constant_feed),
-                    552 => __rt::SlotMut::U32(&mut self.feed_constant_shaft_revolutions),
-                    553 => __rt::SlotMut::I8(&mut self.homing_method),
-                    554 => __rt::SlotMut::U8(&mut self.homing_speeds_number_of_entries),
+                    550 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.feed_constant_number_of_entries,
+                        )
+                    }
+                    551 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.feed_constant_feed,
+                        )
+                    }
+                    552 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.feed_constant_shaft_revolutions,
+                        )
+                    }
+                    553 => {
+                        ::od_runtime::__private_v1::SlotMut::I8(&mut self.homing_method)
+                    }
+                    554 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.homing_speeds_number_of_entries,
+                        )
+                    }
                     555 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.homing_speeds_speed_during_search_for_switch,
                         )
                     }
                     556 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.homing_speeds_speed_during_search_for_zero,
                         )
                     }
-                    557 => __rt::SlotMut::U32(&mut self.homing_acceleration),
-                    558 => __rt::SlotMut::I32(&mut self.velocity_offset),
-                    559 => __rt::SlotMut::I16(&mut self.torque_offset),
-                    560 => __rt::SlotMut::U16(&mut self.touch_probe_function),
-                    561 => __rt::SlotMut::U16(&mut self.touch_probe_status),
-                    562 => __rt::SlotMut::I32(&mut self.touch_probe_1_positive_edge),
-                    563 => __rt::SlotMut::I32(&mut self.touch_probe_1_negative_edge),
-                    564 => __rt::SlotMut::I32(&mut self.touch_probe_2_positive_edge),
-                    565 => __rt::SlotMut::I32(&mut self.touch_probe_2_negative_edge),
-                    566 => __rt::SlotMut::I16(&mut self.interpolation_sub_mode_select),
+                    557 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.homing_acceleration,
+                        )
+                    }
+                    558 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.velocity_offset,
+                        )
+                    }
+                    559 => {
+                        ::od_runtime::__private_v1::SlotMut::I16(&mut self.torque_offset)
+                    }
+                    560 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.touch_probe_function,
+                        )
+                    }
+                    561 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.touch_probe_status,
+                        )
+                    }
+                    562 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.touch_probe_1_positive_edge,
+                        )
+                    }
+                    563 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.touch_probe_1_negative_edge,
+                        )
+                    }
+                    564 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.touch_probe_2_positive_edge,
+                        )
+                    }
+                    565 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.touch_probe_2_negative_edge,
+                        )
+                    }
+                    566 => {
+                        ::od_runtime::__private_v1::SlotMut::I16(
+                            &mut self.interpolation_sub_mode_select,
+                        )
+                    }
                     567 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.interpolation_data_record_number_of_entries,
                         )
                     }
                     568 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .interpolation_data_record_interpolation_target_position,
                         )
                     }
                     569 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.interpolation_data_record_interpolation_time,
                         )
                     }
                     570 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
                                 .interpolation_data_record_interpolation_target_velocity,
                         )
                     }
                     571 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.interpolation_time_period_number_of_entries,
                         )
                     }
                     572 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .interpolation_time_period_interpolation_time_period_value,
                         )
                     }
                     573 => {
-                        __rt::SlotMut::I16(
+                        ::od_runtime::__private_v1::SlotMut::I16(
                             &mut self.interpolation_time_period_interpolation_time_index,
                         )
                     }
                     574 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.interpolation_data_configuration_number_of_entries,
                         )
                     }
                     575 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .interpolation_data_configuration_maximum_buffer_size,
                         )
                     }
                     576 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.interpolation_data_configuration_actual_buffer_size,
                         )
                     }
                     577 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .interpolation_data_configuration_buffer_organization,
                         )
                     }
                     578 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.interpolation_data_configuration_buffer_position,
                         )
                     }
                     579 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .interpolation_data_configuration_size_of_data_record,
                         )
                     }
                     580 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.interpolation_data_configuration_buffer_clear,
                         )
                     }
                     581 => {
-                        __rt::SlotMut::U8(&mut self.touch_probe_source_number_of_entries)
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.touch_probe_source_number_of_entries,
+                        )
                     }
                     582 => {
-                        __rt::SlotMut::I16(
+                        ::od_runtime::__private_v1::SlotMut::I16(
                             &mut self.touch_probe_source_touch_probe_1_source,
                         )
                     }
                     583 => {
-                        __rt::SlotMut::I16(
+                        ::od_runtime::__private_v1::SlotMut::I16(
                             &mut self.touch_probe_source_touch_probe_2_source,
                         )
                     }
-                    584 => __rt::SlotMut::I32(&mut self.following_error_actual_value),
-                    585 => __rt::SlotMut::U32(&mut self.digital_inputs),
-                    586 => __rt::SlotMut::U8(&mut self.digital_outputs_number_of_entries),
-                    587 => __rt::SlotMut::U32(&mut self.digital_outputs_physical_outputs),
-                    588 => __rt::SlotMut::U32(&mut self.digital_outputs_bit_mask),
-                    589 => __rt::SlotMut::I32(&mut self.target_velocity),
-                    590 => __rt::SlotMut::U32(&mut self.supported_drive_modes),
+                    584 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.following_error_actual_value,
+                        )
+                    }
+                    585 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.digital_inputs,
+                        )
+                    }
+                    586 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.digital_outputs_number_of_entries,
+                        )
+                    }
+                    587 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.digital_outputs_physical_outputs,
+                        )
+                    }
+                    588 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.digital_outputs_bit_mask,
+                        )
+                    }
+                    589 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.target_velocity,
+                        )
+                    }
+                    590 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.supported_drive_modes,
+                        )
+                    }
                     _ => return None,
                 },
             )
@@ -18652,7 +20702,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            __rt::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v1::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -18662,7 +20712,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            __rt::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v1::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -18672,9 +20722,9 @@ Denotation=MOTOR.BRAKEIMM
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            __rt::check_mapping(
+            ::od_runtime::__private_v1::check_mapping(
                 &ENTRIES,
-                &KEYS,
+                &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
                 mapping,
             )
@@ -18683,9 +20733,9 @@ Denotation=MOTOR.BRAKEIMM
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            __rt::check_mapping(
+            ::od_runtime::__private_v1::check_mapping(
                 &ENTRIES,
-                &KEYS,
+                &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
                 mapping,
             )
@@ -29580,7 +31630,9 @@ Denotation=MOTOR.BRAKEIMM
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             let pos = Self::position(index, sub)?;
             match (ENTRIES.get(pos), self.slot(pos)) {
-                (Some(info), Some(slot)) => __rt::read(info, slot, buf),
+                (Some(info), Some(slot)) => {
+                    ::od_runtime::__private_v1::read(info, slot, buf)
+                }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
         }
@@ -29594,7 +31646,13 @@ Denotation=MOTOR.BRAKEIMM
             let (real_low, real_high) = (None, None);
             match (ENTRIES.get(pos), self.slot_mut(pos)) {
                 (Some(info), Some(slot)) => {
-                    __rt::write(info, slot, data, real_low, real_high)
+                    ::od_runtime::__private_v1::write(
+                        info,
+                        slot,
+                        data,
+                        real_low,
+                        real_high,
+                    )
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -29602,7 +31660,7 @@ Denotation=MOTOR.BRAKEIMM
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, info) in ENTRIES.iter().enumerate() {
                 if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    __rt::set_default(info, slot, node_id);
+                    ::od_runtime::__private_v1::set_default(info, slot, node_id);
                 }
             }
         }
@@ -29610,7 +31668,8 @@ Denotation=MOTOR.BRAKEIMM
     /// Typed layouts of the device's default PDO mappings.
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
-        pub use super::__rt::PdoLengthError as LengthError;
+        #[doc(inline)]
+        pub use ::od_runtime::__private_v1::PdoLengthError as LengthError;
         /// RPDO 1 (received by the device), default mapping of `0x1600`: 16 bits in 2 bytes.
         ///
         /// | bits | object | field |
@@ -29639,7 +31698,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = super::__rt::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                 })
@@ -29692,7 +31751,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = super::__rt::pdo_word(data, 3)?;
+                let w = ::od_runtime::__private_v1::pdo_word(data, 3)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     modes_of_operation: (((((w >> 16) & 0xFF) << 56) as i64) >> 56) as i8,
@@ -29748,7 +31807,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = super::__rt::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v1::pdo_word(data, 6)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     target_position: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64) >> 32)
@@ -29805,7 +31864,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = super::__rt::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v1::pdo_word(data, 6)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     target_velocity: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64) >> 32)
@@ -29858,7 +31917,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = super::__rt::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                 })
@@ -29911,7 +31970,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = super::__rt::pdo_word(data, 3)?;
+                let w = ::od_runtime::__private_v1::pdo_word(data, 3)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     modes_of_operation_display: (((((w >> 16) & 0xFF) << 56) as i64)
@@ -29968,7 +32027,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = super::__rt::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v1::pdo_word(data, 6)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     position_actual_value: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64)
@@ -30025,7 +32084,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = super::__rt::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v1::pdo_word(data, 6)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     velocity_actual_value: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64)
@@ -30054,7 +32113,8 @@ Denotation=MOTOR.BRAKEIMM
     /// Physical units of the device's values, from its sidecar (see the od-codegen `units`
     /// module docs for the arithmetic).
     pub mod units {
-        pub use super::__rt::Ratio;
+        #[doc(inline)]
+        pub use ::od_runtime::__private_v1::Ratio;
         /// A physical unit.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         pub enum Unit {
@@ -30195,8 +32255,9 @@ Denotation=MOTOR.BRAKEIMM
         #[derive(Clone, Copy, Debug, PartialEq, Eq)]
         pub struct Units {
             system: System,
-            /// Physical value per raw unit, and the physical unit, per dimension.
-            factor: [Option<(Ratio, Unit)>; 6],
+            /// Physical value per raw unit (prepared for fast exact conversions both ways),
+            /// and the physical unit, per dimension.
+            factor: [Option<(::od_runtime::__private_v1::Scale, Unit)>; 6],
             /// Internal value (increments or motor revolutions) per raw unit, per dimension.
             internal: [Option<Ratio>; 6],
         }
@@ -30223,7 +32284,10 @@ Denotation=MOTOR.BRAKEIMM
                                     Self::feed_constant(od)?.recip().ok_or(UnitError::Overflow)?,
                                 )
                                 .ok_or(UnitError::Overflow)?;
-                            factor[0] = Some((f.reduced(), Unit::UserUnit));
+                            factor[0] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::UserUnit,
+                            ));
                             internal[0] = Some(g.reduced());
                         }
                         {
@@ -30234,7 +32298,10 @@ Denotation=MOTOR.BRAKEIMM
                                     Self::feed_constant(od)?.recip().ok_or(UnitError::Overflow)?,
                                 )
                                 .ok_or(UnitError::Overflow)?;
-                            factor[1] = Some((f.reduced(), Unit::UserUnitPerSecond));
+                            factor[1] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::UserUnitPerSecond,
+                            ));
                             internal[1] = Some(g.reduced());
                         }
                         {
@@ -30245,20 +32312,32 @@ Denotation=MOTOR.BRAKEIMM
                                     Self::feed_constant(od)?.recip().ok_or(UnitError::Overflow)?,
                                 )
                                 .ok_or(UnitError::Overflow)?;
-                            factor[2] = Some((f.reduced(), Unit::UserUnitPerSecond2));
+                            factor[2] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::UserUnitPerSecond2,
+                            ));
                             internal[2] = Some(g.reduced());
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
-                            factor[3] = Some((f.reduced(), Unit::PermilleRatedTorque));
+                            factor[3] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::PermilleRatedTorque,
+                            ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
-                            factor[4] = Some((f.reduced(), Unit::MilliAmpere));
+                            factor[4] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::MilliAmpere,
+                            ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
-                            factor[5] = Some((f.reduced(), Unit::Millisecond));
+                            factor[5] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::Millisecond,
+                            ));
                         }
                     }
                     System::Ds402Factors => {
@@ -30276,7 +32355,10 @@ Denotation=MOTOR.BRAKEIMM
                                     Self::feed_constant(od)?.recip().ok_or(UnitError::Overflow)?,
                                 )
                                 .ok_or(UnitError::Overflow)?;
-                            factor[0] = Some((f.reduced(), Unit::UserUnit));
+                            factor[0] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::UserUnit,
+                            ));
                             internal[0] = Some(g.reduced());
                         }
                         {
@@ -30296,7 +32378,10 @@ Denotation=MOTOR.BRAKEIMM
                             let g = g
                                 .checked_mul(Self::velocity_factor(od)?)
                                 .ok_or(UnitError::Overflow)?;
-                            factor[1] = Some((f.reduced(), Unit::UserUnitPerSecond));
+                            factor[1] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::UserUnitPerSecond,
+                            ));
                             internal[1] = Some(g.reduced());
                         }
                         {
@@ -30313,20 +32398,32 @@ Denotation=MOTOR.BRAKEIMM
                                     Self::feed_constant(od)?.recip().ok_or(UnitError::Overflow)?,
                                 )
                                 .ok_or(UnitError::Overflow)?;
-                            factor[2] = Some((f.reduced(), Unit::UserUnitPerSecond2));
+                            factor[2] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::UserUnitPerSecond2,
+                            ));
                             internal[2] = Some(g.reduced());
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
-                            factor[3] = Some((f.reduced(), Unit::PermilleRatedTorque));
+                            factor[3] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::PermilleRatedTorque,
+                            ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
-                            factor[4] = Some((f.reduced(), Unit::MilliAmpere));
+                            factor[4] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::MilliAmpere,
+                            ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
-                            factor[5] = Some((f.reduced(), Unit::Millisecond));
+                            factor[5] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::Millisecond,
+                            ));
                         }
                     }
                 }
@@ -30343,7 +32440,7 @@ Denotation=MOTOR.BRAKEIMM
             }
             /// Physical value per raw unit (exact, reduced).
             pub fn factor(&self, d: Dimension) -> Option<Ratio> {
-                self.factor.get(d.slot()).copied().flatten().map(|(f, _)| f)
+                self.factor.get(d.slot()).copied().flatten().map(|(f, _)| f.factor())
             }
             /// Internal value (encoder increments, or motor revolutions) per raw unit, where
             /// the system's scaling objects define one.
@@ -30357,16 +32454,31 @@ Denotation=MOTOR.BRAKEIMM
                 d: Dimension,
                 raw: i64,
             ) -> Result<Quantity, UnitError> {
-                let (f, unit) = self
-                    .factor
-                    .get(d.slot())
-                    .copied()
-                    .flatten()
-                    .ok_or(UnitError::NoUnit)?;
+                let Some(Some((f, unit))) = self.factor.get(d.slot()) else {
+                    return Err(UnitError::NoUnit);
+                };
                 Ok(Quantity {
-                    value: f.checked_mul_int(raw).ok_or(UnitError::Overflow)?,
-                    unit,
+                    value: f.to_physical(raw).ok_or(UnitError::Overflow)?,
+                    unit: *unit,
                 })
+            }
+            /// The prepared factor for converting `q` in dimension `d`.
+            #[inline]
+            fn scale_for(
+                &self,
+                d: Dimension,
+                q: &Quantity,
+            ) -> Result<&::od_runtime::__private_v1::Scale, UnitError> {
+                match self.factor.get(d.slot()) {
+                    Some(Some((f, unit))) if *unit == q.unit => Ok(f),
+                    Some(Some((_, unit))) => {
+                        Err(UnitError::WrongUnit {
+                            expected: *unit,
+                            got: q.unit,
+                        })
+                    }
+                    _ => Err(UnitError::NoUnit),
+                }
             }
             /// `q / factor`, exact (may be fractional).
             pub fn to_raw_exact(
@@ -30374,25 +32486,12 @@ Denotation=MOTOR.BRAKEIMM
                 d: Dimension,
                 q: Quantity,
             ) -> Result<Ratio, UnitError> {
-                let (f, unit) = self
-                    .factor
-                    .get(d.slot())
-                    .copied()
-                    .flatten()
-                    .ok_or(UnitError::NoUnit)?;
-                if q.unit != unit {
-                    return Err(UnitError::WrongUnit {
-                        expected: unit,
-                        got: q.unit,
-                    });
-                }
-                q.value.checked_div(f).ok_or(UnitError::Overflow)
+                self.scale_for(d, &q)?.to_raw_exact(q.value).ok_or(UnitError::Overflow)
             }
             /// `q / factor` rounded to the nearest integer, halves away from zero.
             #[inline]
             pub fn to_raw(&self, d: Dimension, q: Quantity) -> Result<i64, UnitError> {
-                let exact = self.to_raw_exact(d, q)?;
-                i64::try_from(exact.round()).map_err(|_| UnitError::Overflow)
+                self.scale_for(d, &q)?.to_raw_i64(q.value).ok_or(UnitError::Overflow)
             }
             /// `raw × internal factor`, exact: encoder increments (or motor revolutions).
             pub fn to_internal(
@@ -31938,458 +34037,6 @@ Denotation=MOTOR.BRAKEIMM
                 BusScaling::Factor(f) => Ratio::new(raw as i128, f as i128),
                 BusScaling::Variable => None,
             }
-        }
-    }
-    /// Generic machinery of the generated dictionary (not part of its API; may change
-    /// between generator versions).
-    #[doc(hidden)]
-    pub mod __rt {
-        use ::od_runtime::od::{AbortCode, EntryInfo, ObjectDictionary};
-        /// Marks the interface version generated code was written against.
-        pub const VERSION_1: () = ();
-        /// A fixed-capacity byte buffer holding a string, OCTET_STRING or DOMAIN value.
-        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-        pub struct Bytes<const N: usize> {
-            len: usize,
-            data: [u8; N],
-        }
-        impl<const N: usize> Bytes<N> {
-            /// A buffer holding `src` (cut at `N` bytes; the generator sizes `N` so that
-            /// defaults always fit).
-            pub const fn from_slice(src: &[u8]) -> Self {
-                let mut data = [0u8; N];
-                let mut i = 0;
-                while i < src.len() && i < N {
-                    data[i] = src[i];
-                    i += 1;
-                }
-                Bytes { len: i, data }
-            }
-            /// The current value.
-            pub fn as_slice(&self) -> &[u8] {
-                let (head, _) = self.data.split_at(self.len.min(N));
-                head
-            }
-            /// Replaces the value: `Err(LENGTH_TOO_HIGH)` if it does not fit.
-            pub fn set(&mut self, src: &[u8]) -> Result<(), AbortCode> {
-                match self.data.get_mut(..src.len()) {
-                    Some(dst) => {
-                        dst.copy_from_slice(src);
-                        self.len = src.len();
-                        Ok(())
-                    }
-                    None => Err(AbortCode::LENGTH_TOO_HIGH),
-                }
-            }
-            fn parts_mut(&mut self) -> (&mut [u8], &mut usize) {
-                (&mut self.data, &mut self.len)
-            }
-            /// The value as a mutable slot.
-            pub fn slot_mut(&mut self) -> SlotMut<'_> {
-                let (data, len) = self.parts_mut();
-                SlotMut::Bytes(data, len)
-            }
-        }
-        /// A shared reference to one stored value.
-        #[derive(Clone, Copy, Debug)]
-        pub enum Slot<'a> {
-            Bool(&'a bool),
-            U8(&'a u8),
-            U16(&'a u16),
-            U32(&'a u32),
-            U64(&'a u64),
-            I8(&'a i8),
-            I16(&'a i16),
-            I32(&'a i32),
-            I64(&'a i64),
-            F32(&'a f32),
-            F64(&'a f64),
-            Bytes(&'a [u8]),
-        }
-        /// A mutable reference to one stored value.
-        #[derive(Debug)]
-        pub enum SlotMut<'a> {
-            Bool(&'a mut bool),
-            U8(&'a mut u8),
-            U16(&'a mut u16),
-            U32(&'a mut u32),
-            U64(&'a mut u64),
-            I8(&'a mut i8),
-            I16(&'a mut i16),
-            I32(&'a mut i32),
-            I64(&'a mut i64),
-            F32(&'a mut f32),
-            F64(&'a mut f64),
-            /// Capacity-sized storage and the current length.
-            Bytes(&'a mut [u8], &'a mut usize),
-        }
-        /// Bytes a fixed-size value of `bits` bits takes on the bus (at most 8).
-        pub const fn byte_len(bits: u32) -> usize {
-            let n = (bits as usize).div_ceil(8);
-            if n > 8 { 8 } else { n }
-        }
-        /// Position of `(index, sub)` in a sorted key table (`index << 8 | sub`).
-        #[inline]
-        pub fn position(keys: &[u32], index: u16, sub: u8) -> Result<usize, AbortCode> {
-            let key = ((index as u32) << 8) | sub as u32;
-            match keys.binary_search(&key) {
-                Ok(p) => Ok(p),
-                Err(p) => {
-                    let same = |k: Option<&u32>| {
-                        k.is_some_and(|k| (k >> 8) as u16 == index)
-                    };
-                    if same(keys.get(p)) || (p > 0 && same(keys.get(p - 1))) {
-                        Err(AbortCode::NO_SUB_INDEX)
-                    } else {
-                        Err(AbortCode::NO_OBJECT)
-                    }
-                }
-            }
-        }
-        fn raw(slot: &Slot<'_>) -> Option<u64> {
-            Some(
-                match *slot {
-                    Slot::Bool(v) => *v as u64,
-                    Slot::U8(v) => *v as u64,
-                    Slot::U16(v) => *v as u64,
-                    Slot::U32(v) => *v as u64,
-                    Slot::U64(v) => *v,
-                    Slot::I8(v) => *v as u64,
-                    Slot::I16(v) => *v as u64,
-                    Slot::I32(v) => *v as u64,
-                    Slot::I64(v) => *v as u64,
-                    Slot::F32(v) => v.to_bits() as u64,
-                    Slot::F64(v) => v.to_bits(),
-                    Slot::Bytes(_) => return None,
-                },
-            )
-        }
-        /// Copies a value into `buf` as little-endian bytes.
-        #[inline]
-        pub fn read(
-            info: &EntryInfo,
-            slot: Slot<'_>,
-            buf: &mut [u8],
-        ) -> Result<usize, AbortCode> {
-            let tmp;
-            let src: &[u8] = match raw(&slot) {
-                Some(v) => {
-                    tmp = v.to_le_bytes();
-                    let (head, _) = tmp.split_at(byte_len(info.bits));
-                    head
-                }
-                None => {
-                    match slot {
-                        Slot::Bytes(b) => b,
-                        _ => &[],
-                    }
-                }
-            };
-            let dst = buf.get_mut(..src.len()).ok_or(AbortCode::OUT_OF_MEMORY)?;
-            dst.copy_from_slice(src);
-            Ok(src.len())
-        }
-        /// Checks a real number against REAL limits.
-        #[inline]
-        pub fn check_real(
-            v: f64,
-            low: Option<f64>,
-            high: Option<f64>,
-        ) -> Result<(), AbortCode> {
-            if low.is_some_and(|l| v < l) {
-                return Err(AbortCode::VALUE_TOO_LOW);
-            }
-            if high.is_some_and(|h| v > h) {
-                return Err(AbortCode::VALUE_TOO_HIGH);
-            }
-            Ok(())
-        }
-        /// Stores little-endian bytes into a slot without any check (fixed-size values:
-        /// missing bytes are zero, extra bytes ignored; buffers: cut to the capacity).
-        fn store(slot: SlotMut<'_>, data: &[u8]) {
-            if let SlotMut::Bytes(buf, len) = slot {
-                let n = data.len().min(buf.len());
-                if let (Some(dst), Some(src)) = (buf.get_mut(..n), data.get(..n)) {
-                    dst.copy_from_slice(src);
-                }
-                *len = n;
-                return;
-            }
-            let mut b = [0u8; 8];
-            for (d, s) in b.iter_mut().zip(data) {
-                *d = *s;
-            }
-            let raw = u64::from_le_bytes(b);
-            let width = data.len().min(8) as u32 * 8;
-            let signed = if width == 0 || width == 64 {
-                raw as i64
-            } else {
-                ((raw << (64 - width)) as i64) >> (64 - width)
-            };
-            match slot {
-                SlotMut::Bool(v) => *v = raw != 0,
-                SlotMut::U8(v) => *v = raw as u8,
-                SlotMut::U16(v) => *v = raw as u16,
-                SlotMut::U32(v) => *v = raw as u32,
-                SlotMut::U64(v) => *v = raw,
-                SlotMut::I8(v) => *v = signed as i8,
-                SlotMut::I16(v) => *v = signed as i16,
-                SlotMut::I32(v) => *v = signed as i32,
-                SlotMut::I64(v) => *v = signed,
-                SlotMut::F32(v) => *v = f32::from_bits(raw as u32),
-                SlotMut::F64(v) => *v = f64::from_bits(raw),
-                SlotMut::Bytes(..) => {}
-            }
-        }
-        /// Stores a value given as little-endian bytes after the runtime's shared checks
-        /// ([`EntryInfo::check_value`]: length, limits, BOOLEAN 0/1) and the REAL limits.
-        #[inline]
-        pub fn write(
-            info: &EntryInfo,
-            slot: SlotMut<'_>,
-            data: &[u8],
-            real_low: Option<f64>,
-            real_high: Option<f64>,
-        ) -> Result<(), AbortCode> {
-            info.check_value(data)?;
-            if real_low.is_some() || real_high.is_some() {
-                let real = match slot {
-                    SlotMut::F32(_) => {
-                        data.try_into().ok().map(|b| f32::from_le_bytes(b) as f64)
-                    }
-                    SlotMut::F64(_) => data.try_into().ok().map(f64::from_le_bytes),
-                    _ => None,
-                };
-                if let Some(f) = real {
-                    check_real(f, real_low, real_high)?;
-                }
-            }
-            store(slot, data);
-            Ok(())
-        }
-        /// Sets a value back to its default, resolving `$NODEID` with `node_id`
-        /// ([`DefaultValue::encode`](::od_runtime::od::DefaultValue::encode), the runtime's rule).
-        pub fn set_default(info: &EntryInfo, slot: SlotMut<'_>, node_id: u8) {
-            match slot {
-                SlotMut::Bytes(buf, len) => {
-                    *len = info.default.encode(info, node_id, buf);
-                }
-                fixed => {
-                    let mut b = [0u8; 8];
-                    let n = info.default.encode(info, node_id, &mut b);
-                    store(fixed, b.get(..n).unwrap_or(&[]));
-                }
-            }
-        }
-        /// Reads like an SDO upload: refuses write-only entries (`WRITE_ONLY`).
-        pub fn bus_read<D: ObjectDictionary + ?Sized>(
-            od: &D,
-            index: u16,
-            sub: u8,
-            buf: &mut [u8],
-        ) -> Result<usize, AbortCode> {
-            if !od.info(index, sub)?.access.readable() {
-                return Err(AbortCode::WRITE_ONLY);
-            }
-            od.read(index, sub, buf)
-        }
-        /// Writes like an SDO download: refuses read-only and constant entries (`READ_ONLY`).
-        pub fn bus_write<D: ObjectDictionary + ?Sized>(
-            od: &mut D,
-            index: u16,
-            sub: u8,
-            data: &[u8],
-        ) -> Result<(), AbortCode> {
-            if !od.info(index, sub)?.access.writable() {
-                return Err(AbortCode::READ_ONLY);
-            }
-            od.write(index, sub, data)
-        }
-        /// Checks a PDO mapping with the runtime's rules against a dictionary's table.
-        pub fn check_mapping(
-            entries: &'static [EntryInfo],
-            keys: &[u32],
-            dir: ::od_runtime::pdo::Direction,
-            mapping: &[u32],
-        ) -> Result<u32, AbortCode> {
-            ::od_runtime::pdo::check_mapping(
-                dir,
-                mapping,
-                |index, sub| {
-                    let pos = position(keys, index, sub)?;
-                    entries
-                        .get(pos)
-                        .map(::od_runtime::pdo::Mappable::from)
-                        .ok_or(AbortCode::NO_OBJECT)
-                },
-            )
-        }
-        fn gcd(a: i128, b: i128) -> i128 {
-            let (mut a, mut b) = (a.unsigned_abs(), b.unsigned_abs());
-            while b != 0 {
-                let t = a % b;
-                a = b;
-                b = t;
-            }
-            if a > i128::MAX as u128 { 1 } else { a as i128 }
-        }
-        /// An exact rational number (denominator positive). Arithmetic is checked: `None`
-        /// means an overflow (or a zero denominator), never a wrapped value.
-        #[derive(Clone, Copy, Debug)]
-        pub struct Ratio {
-            num: i128,
-            den: i128,
-        }
-        impl Ratio {
-            /// 1.
-            pub const ONE: Ratio = Ratio { num: 1, den: 1 };
-            /// An integer.
-            pub const fn int(v: i64) -> Ratio {
-                Ratio { num: v as i128, den: 1 }
-            }
-            /// `num / den` in lowest terms; `None` if `den` is 0.
-            pub fn new(num: i128, den: i128) -> Option<Ratio> {
-                if den == 0 || num == i128::MIN || den == i128::MIN {
-                    return None;
-                }
-                let (num, den) = if den < 0 { (-num, -den) } else { (num, den) };
-                let g = gcd(num, den).max(1);
-                Some(Ratio {
-                    num: num / g,
-                    den: den / g,
-                })
-            }
-            /// The numerator (of the stored form, not necessarily reduced).
-            pub const fn num(self) -> i128 {
-                self.num
-            }
-            /// The denominator (positive).
-            pub const fn den(self) -> i128 {
-                self.den
-            }
-            /// This ratio in lowest terms.
-            pub fn reduced(self) -> Ratio {
-                Ratio::new(self.num, self.den).unwrap_or(self)
-            }
-            /// `self × v`, not reduced (fast path of conversions).
-            #[inline]
-            pub fn checked_mul_int(self, v: i64) -> Option<Ratio> {
-                let num = match i64::try_from(self.num) {
-                    Ok(n) => n as i128 * v as i128,
-                    Err(_) => self.num.checked_mul(v as i128)?,
-                };
-                Some(Ratio { num, den: self.den })
-            }
-            /// `self × o`; reduces only when the plain product would overflow.
-            #[inline]
-            pub fn checked_mul(self, o: Ratio) -> Option<Ratio> {
-                if let (Ok(a), Ok(b), Ok(c), Ok(d)) = (
-                    i64::try_from(self.num),
-                    i64::try_from(o.num),
-                    i64::try_from(self.den),
-                    i64::try_from(o.den),
-                ) {
-                    return Some(Ratio {
-                        num: a as i128 * b as i128,
-                        den: c as i128 * d as i128,
-                    });
-                }
-                match (self.num.checked_mul(o.num), self.den.checked_mul(o.den)) {
-                    (Some(num), Some(den)) => Some(Ratio { num, den }),
-                    _ => {
-                        let (a, b) = (self.reduced(), o.reduced());
-                        let g1 = gcd(a.num, b.den).max(1);
-                        let g2 = gcd(b.num, a.den).max(1);
-                        let num = (a.num / g1).checked_mul(b.num / g2)?;
-                        let den = (a.den / g2).checked_mul(b.den / g1)?;
-                        Some(Ratio { num, den })
-                    }
-                }
-            }
-            /// `1 / self`; `None` for 0.
-            pub fn recip(self) -> Option<Ratio> {
-                Ratio::new(self.den, self.num)
-            }
-            /// `self / o`; `None` for a zero divisor or an overflow.
-            #[inline]
-            pub fn checked_div(self, o: Ratio) -> Option<Ratio> {
-                if o.num == 0 || o.num == i128::MIN {
-                    return None;
-                }
-                let (n, d) = if o.num < 0 { (-o.den, -o.num) } else { (o.den, o.num) };
-                self.checked_mul(Ratio { num: n, den: d })
-            }
-            /// The nearest integer, halves rounded away from zero.
-            #[inline]
-            pub fn round(self) -> i128 {
-                let (q, r) = if let (Ok(n), Ok(d)) = (
-                    i64::try_from(self.num),
-                    i64::try_from(self.den),
-                ) {
-                    ((n / d) as i128, (n % d) as i128)
-                } else {
-                    (self.num / self.den, self.num % self.den)
-                };
-                let r = r.unsigned_abs();
-                if r >= self.den.unsigned_abs() - r {
-                    if self.num < 0 { q - 1 } else { q + 1 }
-                } else {
-                    q
-                }
-            }
-            /// The nearest `f64`.
-            pub fn to_f64(self) -> f64 {
-                let r = self.reduced();
-                r.num as f64 / r.den as f64
-            }
-        }
-        impl PartialEq for Ratio {
-            fn eq(&self, o: &Ratio) -> bool {
-                let (a, b) = (self.reduced(), o.reduced());
-                a.num == b.num && a.den == b.den
-            }
-        }
-        impl Eq for Ratio {}
-        impl ::core::fmt::Display for Ratio {
-            fn fmt(&self, f: &mut ::core::fmt::Formatter<'_>) -> ::core::fmt::Result {
-                let r = self.reduced();
-                if r.den == 1 {
-                    write!(f, "{}", r.num)
-                } else {
-                    write!(f, "{}/{}", r.num, r.den)
-                }
-            }
-        }
-        /// A received PDO was shorter than its mapping.
-        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-        pub struct PdoLengthError {
-            /// Bytes the mapping needs.
-            pub expected: usize,
-            /// Bytes received.
-            pub actual: usize,
-        }
-        impl ::core::fmt::Display for PdoLengthError {
-            fn fmt(&self, f: &mut ::core::fmt::Formatter<'_>) -> ::core::fmt::Result {
-                write!(
-                    f, "PDO too short: {} bytes received, the mapping needs {}", self
-                    .actual, self.expected
-                )
-            }
-        }
-        /// Reads up to 8 bytes of a PDO as one little-endian word.
-        #[inline]
-        pub fn pdo_word(data: &[u8], len: usize) -> Result<u64, PdoLengthError> {
-            let src = data
-                .get(..len)
-                .ok_or(PdoLengthError {
-                    expected: len,
-                    actual: data.len(),
-                })?;
-            let mut b = [0u8; 8];
-            if let Some(dst) = b.get_mut(..src.len()) {
-                dst.copy_from_slice(src);
-            }
-            Ok(u64::from_le_bytes(b))
         }
     }
 }

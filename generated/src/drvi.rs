@@ -3089,48 +3089,48 @@ PDOMapping=0
         /// `0x60FF` Target velocity.
         pub const TARGET_VELOCITY: u16 = 0x60FF;
     }
-    /// `index << 8 | sub` of every entry, sorted: the lookup table (parallel to [`ENTRIES`]).
-    static KEYS: [u32; 308] = [
-        0x100000, 0x100100, 0x100200, 0x100300, 0x100301, 0x100302, 0x100303, 0x100304,
-        0x100305, 0x100306, 0x100307, 0x100308, 0x100500, 0x100600, 0x100700, 0x100800,
-        0x100900, 0x100A00, 0x100C00, 0x100D00, 0x101000, 0x101001, 0x101100, 0x101101,
-        0x101400, 0x101500, 0x101700, 0x101800, 0x101801, 0x101802, 0x101803, 0x101804,
-        0x140000, 0x140001, 0x140002, 0x140100, 0x140101, 0x140102, 0x140200, 0x140201,
-        0x140202, 0x140300, 0x140301, 0x140302, 0x140400, 0x140401, 0x140402, 0x140500,
-        0x140501, 0x140502, 0x140600, 0x140601, 0x140602, 0x140700, 0x140701, 0x140702,
-        0x160000, 0x160001, 0x160002, 0x160003, 0x160004, 0x160005, 0x160006, 0x160007,
-        0x160008, 0x160100, 0x160101, 0x160102, 0x160103, 0x160104, 0x160105, 0x160106,
-        0x160107, 0x160108, 0x160200, 0x160201, 0x160202, 0x160203, 0x160204, 0x160205,
-        0x160206, 0x160207, 0x160208, 0x160300, 0x160301, 0x160302, 0x160303, 0x160304,
-        0x160305, 0x160306, 0x160307, 0x160308, 0x160400, 0x160401, 0x160402, 0x160403,
-        0x160404, 0x160405, 0x160406, 0x160407, 0x160408, 0x160500, 0x160501, 0x160502,
-        0x160503, 0x160504, 0x160505, 0x160506, 0x160507, 0x160508, 0x160600, 0x160601,
-        0x160602, 0x160603, 0x160604, 0x160605, 0x160606, 0x160607, 0x160608, 0x160700,
-        0x160701, 0x160702, 0x160703, 0x160704, 0x160705, 0x160706, 0x160707, 0x160708,
-        0x180000, 0x180001, 0x180002, 0x180003, 0x180004, 0x180005, 0x180100, 0x180101,
-        0x180102, 0x180103, 0x180104, 0x180105, 0x180200, 0x180201, 0x180202, 0x180203,
-        0x180204, 0x180205, 0x180300, 0x180301, 0x180302, 0x180303, 0x180304, 0x180305,
-        0x180400, 0x180401, 0x180402, 0x180403, 0x180404, 0x180405, 0x180500, 0x180501,
-        0x180502, 0x180503, 0x180504, 0x180505, 0x180600, 0x180601, 0x180602, 0x180603,
-        0x180604, 0x180605, 0x180700, 0x180701, 0x180702, 0x180703, 0x180704, 0x180705,
-        0x1A0000, 0x1A0001, 0x1A0002, 0x1A0003, 0x1A0004, 0x1A0005, 0x1A0006, 0x1A0007,
-        0x1A0008, 0x1A0100, 0x1A0101, 0x1A0102, 0x1A0103, 0x1A0104, 0x1A0105, 0x1A0106,
-        0x1A0107, 0x1A0108, 0x1A0200, 0x1A0201, 0x1A0202, 0x1A0203, 0x1A0204, 0x1A0205,
-        0x1A0206, 0x1A0207, 0x1A0208, 0x1A0300, 0x1A0301, 0x1A0302, 0x1A0303, 0x1A0304,
-        0x1A0305, 0x1A0306, 0x1A0307, 0x1A0308, 0x1A0400, 0x1A0401, 0x1A0402, 0x1A0403,
-        0x1A0404, 0x1A0405, 0x1A0406, 0x1A0407, 0x1A0408, 0x1A0500, 0x1A0501, 0x1A0502,
-        0x1A0503, 0x1A0504, 0x1A0505, 0x1A0506, 0x1A0507, 0x1A0508, 0x1A0600, 0x1A0601,
-        0x1A0602, 0x1A0603, 0x1A0604, 0x1A0605, 0x1A0606, 0x1A0607, 0x1A0608, 0x1A0700,
-        0x1A0701, 0x1A0702, 0x1A0703, 0x1A0704, 0x1A0705, 0x1A0706, 0x1A0707, 0x1A0708,
-        0x1F8000, 0x200100, 0x200101, 0x200102, 0x200200, 0x200300, 0x200400, 0x200600,
-        0x201000, 0x201100, 0x201101, 0x201102, 0x201103, 0x201104, 0x201105, 0x201200,
-        0x201201, 0x201202, 0x201300, 0x201400, 0x201500, 0x603F00, 0x604000, 0x604100,
-        0x606000, 0x606100, 0x606200, 0x606400, 0x606500, 0x606600, 0x606B00, 0x606C00,
-        0x606F00, 0x607000, 0x607100, 0x607400, 0x607700, 0x607A00, 0x607C00, 0x607D00,
-        0x607D01, 0x607D02, 0x607E00, 0x607F00, 0x608100, 0x608300, 0x608400, 0x608700,
-        0x609100, 0x609101, 0x609102, 0x609200, 0x609201, 0x609202, 0x609800, 0x609900,
-        0x609901, 0x609902, 0x609A00, 0x60FF00,
+    /// The index of every object, sorted (the lookup's page table is computed from it).
+    static OBJECTS: [u16; 93] = [
+        0x1000, 0x1001, 0x1002, 0x1003, 0x1005, 0x1006, 0x1007, 0x1008, 0x1009, 0x100A,
+        0x100C, 0x100D, 0x1010, 0x1011, 0x1014, 0x1015, 0x1017, 0x1018, 0x1400, 0x1401,
+        0x1402, 0x1403, 0x1404, 0x1405, 0x1406, 0x1407, 0x1600, 0x1601, 0x1602, 0x1603,
+        0x1604, 0x1605, 0x1606, 0x1607, 0x1800, 0x1801, 0x1802, 0x1803, 0x1804, 0x1805,
+        0x1806, 0x1807, 0x1A00, 0x1A01, 0x1A02, 0x1A03, 0x1A04, 0x1A05, 0x1A06, 0x1A07,
+        0x1F80, 0x2001, 0x2002, 0x2003, 0x2004, 0x2006, 0x2010, 0x2011, 0x2012, 0x2013,
+        0x2014, 0x2015, 0x603F, 0x6040, 0x6041, 0x6060, 0x6061, 0x6062, 0x6064, 0x6065,
+        0x6066, 0x606B, 0x606C, 0x606F, 0x6070, 0x6071, 0x6074, 0x6077, 0x607A, 0x607C,
+        0x607D, 0x607E, 0x607F, 0x6081, 0x6083, 0x6084, 0x6087, 0x6091, 0x6092, 0x6098,
+        0x6099, 0x609A, 0x60FF,
     ];
+    /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
+    /// the index to its object, then the sub-index in the object's run of entries (`first`:
+    /// each object's first entry, then the entry count; `subs`: every entry's sub-index).
+    static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
+        pages: ::od_runtime::__private_v1::pages(&OBJECTS),
+        slots: &::od_runtime::__private_v1::slots::<2048>(&OBJECTS),
+        first: &[
+            0, 1, 2, 3, 12, 13, 14, 15, 16, 17, 18, 19, 20, 22, 24, 25, 26, 27, 32, 35,
+            38, 41, 44, 47, 50, 53, 56, 65, 74, 83, 92, 101, 110, 119, 128, 134, 140,
+            146, 152, 158, 164, 170, 176, 185, 194, 203, 212, 221, 230, 239, 248, 249,
+            252, 253, 254, 255, 256, 257, 263, 266, 267, 268, 269, 270, 271, 272, 273,
+            274, 275, 276, 277, 278, 279, 280, 281, 282, 283, 284, 285, 286, 287, 290,
+            291, 292, 293, 294, 295, 296, 299, 302, 303, 306, 307, 308,
+        ],
+        subs: &[
+            0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 1, 0, 0,
+            0, 0, 1, 2, 3, 4, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1,
+            2, 0, 1, 2, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3,
+            4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2,
+            3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1,
+            2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3,
+            4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5,
+            6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4,
+            5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3,
+            4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 0, 1, 2, 0, 0, 0, 0, 0, 0, 1, 2,
+            3, 4, 5, 0, 1, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 1, 2, 0, 0, 0, 0, 0, 0, 0, 1, 2, 0, 1, 2, 0, 0, 1, 2, 0, 0,
+        ],
+    };
     /// Metadata of every entry, sorted by `(index, sub)`.
     pub static ENTRIES: [::od_runtime::od::EntryInfo; 308] = [
         ::od_runtime::od::EntryInfo {
@@ -6850,9 +6850,9 @@ PDOMapping=0
         cob_id_sync: u32,
         communication_cycle_period: u32,
         synchronous_window_length: u32,
-        manufacturer_device_name: __rt::Bytes<32>,
-        manufacturer_hardware_version: __rt::Bytes<32>,
-        manufacturer_software_version: __rt::Bytes<32>,
+        manufacturer_device_name: ::od_runtime::__private_v1::Bytes<32>,
+        manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes<32>,
+        manufacturer_software_version: ::od_runtime::__private_v1::Bytes<32>,
         guard_time: u16,
         life_time_factor: u8,
         store_parameters_highest_sub_index_supported: u8,
@@ -7147,7 +7147,6 @@ PDOMapping=0
     impl Dictionary {
         /// A dictionary holding every entry's default, with `$NODEID` resolved for `node_id`.
         pub const fn new(node_id: u8) -> Self {
-            let () = __rt::VERSION_1;
             Dictionary {
                 device_type: 0xFF7A0192,
                 error_register: 0x0,
@@ -7164,9 +7163,15 @@ PDOMapping=0
                 cob_id_sync: 0x80,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
-                manufacturer_device_name: __rt::Bytes::from_slice(b"DRVI"),
-                manufacturer_hardware_version: __rt::Bytes::from_slice(b"1"),
-                manufacturer_software_version: __rt::Bytes::from_slice(b"0"),
+                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                    b"DRVI",
+                ),
+                manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                    b"1",
+                ),
+                manufacturer_software_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                    b"0",
+                ),
                 guard_time: 0,
                 life_time_factor: 0,
                 store_parameters_highest_sub_index_supported: 1,
@@ -7475,2667 +7480,3046 @@ PDOMapping=0
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            __rt::position(&KEYS, index, sub)
+            ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
         }
-        fn slot(&self, pos: usize) -> Option<__rt::Slot<'_>> {
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
             Some(
                 match pos {
-                    0 => __rt::Slot::U32(&self.device_type),
-                    1 => __rt::Slot::U8(&self.error_register),
-                    2 => __rt::Slot::U32(&self.manufacturer_status_register),
-                    3 => __rt::Slot::U8(&self.pre_defined_error_field_number_of_errors),
+                    0 => ::od_runtime::__private_v1::Slot::U32(&self.device_type),
+                    1 => ::od_runtime::__private_v1::Slot::U8(&self.error_register),
+                    2 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.manufacturer_status_register,
+                        )
+                    }
+                    3 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.pre_defined_error_field_number_of_errors,
+                        )
+                    }
                     4 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_1,
                         )
                     }
                     5 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_2,
                         )
                     }
                     6 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_3,
                         )
                     }
                     7 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_4,
                         )
                     }
                     8 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_5,
                         )
                     }
                     9 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_6,
                         )
                     }
                     10 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_7,
                         )
                     }
                     11 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.pre_defined_error_field_standard_error_field_8,
                         )
                     }
-                    12 => __rt::Slot::U32(&self.cob_id_sync),
-                    13 => __rt::Slot::U32(&self.communication_cycle_period),
-                    14 => __rt::Slot::U32(&self.synchronous_window_length),
-                    15 => __rt::Slot::Bytes(self.manufacturer_device_name.as_slice()),
+                    12 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_sync),
+                    13 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.communication_cycle_period,
+                        )
+                    }
+                    14 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.synchronous_window_length,
+                        )
+                    }
+                    15 => {
+                        ::od_runtime::__private_v1::Slot::Bytes(
+                            self.manufacturer_device_name.as_slice(),
+                        )
+                    }
                     16 => {
-                        __rt::Slot::Bytes(self.manufacturer_hardware_version.as_slice())
+                        ::od_runtime::__private_v1::Slot::Bytes(
+                            self.manufacturer_hardware_version.as_slice(),
+                        )
                     }
                     17 => {
-                        __rt::Slot::Bytes(self.manufacturer_software_version.as_slice())
+                        ::od_runtime::__private_v1::Slot::Bytes(
+                            self.manufacturer_software_version.as_slice(),
+                        )
                     }
-                    18 => __rt::Slot::U16(&self.guard_time),
-                    19 => __rt::Slot::U8(&self.life_time_factor),
+                    18 => ::od_runtime::__private_v1::Slot::U16(&self.guard_time),
+                    19 => ::od_runtime::__private_v1::Slot::U8(&self.life_time_factor),
                     20 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.store_parameters_highest_sub_index_supported,
                         )
                     }
-                    21 => __rt::Slot::U32(&self.store_parameters_save_all_parameters),
+                    21 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.store_parameters_save_all_parameters,
+                        )
+                    }
                     22 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.restore_default_parameters_highest_sub_index_supported,
                         )
                     }
                     23 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .restore_default_parameters_restore_all_default_parameters,
                         )
                     }
-                    24 => __rt::Slot::U32(&self.cob_id_emcy),
-                    25 => __rt::Slot::U16(&self.inhibit_time_emcy),
-                    26 => __rt::Slot::U16(&self.producer_heartbeat_time),
-                    27 => __rt::Slot::U8(&self.identity_object_number_of_entries),
-                    28 => __rt::Slot::U32(&self.identity_object_vendor_id),
-                    29 => __rt::Slot::U32(&self.identity_object_product_code),
-                    30 => __rt::Slot::U32(&self.identity_object_revision_number),
-                    31 => __rt::Slot::U32(&self.identity_object_serial_number),
+                    24 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_emcy),
+                    25 => ::od_runtime::__private_v1::Slot::U16(&self.inhibit_time_emcy),
+                    26 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.producer_heartbeat_time,
+                        )
+                    }
+                    27 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.identity_object_number_of_entries,
+                        )
+                    }
+                    28 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.identity_object_vendor_id,
+                        )
+                    }
+                    29 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.identity_object_product_code,
+                        )
+                    }
+                    30 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.identity_object_revision_number,
+                        )
+                    }
+                    31 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.identity_object_serial_number,
+                        )
+                    }
                     32 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_communication_parameter_1_highest_sub_index_supported,
                         )
                     }
                     33 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .receive_pdo_communication_parameter_1_cob_id_used_by_rpdo,
                         )
                     }
                     34 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_communication_parameter_1_transmission_type,
                         )
                     }
                     35 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_communication_parameter_2_highest_sub_index_supported,
                         )
                     }
                     36 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .receive_pdo_communication_parameter_2_cob_id_used_by_rpdo,
                         )
                     }
                     37 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_communication_parameter_2_transmission_type,
                         )
                     }
                     38 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_communication_parameter_3_highest_sub_index_supported,
                         )
                     }
                     39 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .receive_pdo_communication_parameter_3_cob_id_used_by_rpdo,
                         )
                     }
                     40 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_communication_parameter_3_transmission_type,
                         )
                     }
                     41 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_communication_parameter_4_highest_sub_index_supported,
                         )
                     }
                     42 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .receive_pdo_communication_parameter_4_cob_id_used_by_rpdo,
                         )
                     }
                     43 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_communication_parameter_4_transmission_type,
                         )
                     }
                     44 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_communication_parameter_5_highest_sub_index_supported,
                         )
                     }
                     45 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .receive_pdo_communication_parameter_5_cob_id_used_by_rpdo,
                         )
                     }
                     46 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_communication_parameter_5_transmission_type,
                         )
                     }
                     47 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_communication_parameter_6_highest_sub_index_supported,
                         )
                     }
                     48 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .receive_pdo_communication_parameter_6_cob_id_used_by_rpdo,
                         )
                     }
                     49 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_communication_parameter_6_transmission_type,
                         )
                     }
                     50 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_communication_parameter_7_highest_sub_index_supported,
                         )
                     }
                     51 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .receive_pdo_communication_parameter_7_cob_id_used_by_rpdo,
                         )
                     }
                     52 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_communication_parameter_7_transmission_type,
                         )
                     }
                     53 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_communication_parameter_8_highest_sub_index_supported,
                         )
                     }
                     54 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .receive_pdo_communication_parameter_8_cob_id_used_by_rpdo,
                         )
                     }
                     55 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.receive_pdo_communication_parameter_8_transmission_type,
                         )
                     }
                     56 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_mapping_parameter_1_number_of_mapped_objects,
                         )
                     }
                     57 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_1_mapping_entry_1,
                         )
                     }
                     58 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_1_mapping_entry_2,
                         )
                     }
                     59 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_1_mapping_entry_3,
                         )
                     }
                     60 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_1_mapping_entry_4,
                         )
                     }
                     61 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_1_mapping_entry_5,
                         )
                     }
                     62 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_1_mapping_entry_6,
                         )
                     }
                     63 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_1_mapping_entry_7,
                         )
                     }
                     64 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_1_mapping_entry_8,
                         )
                     }
                     65 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_mapping_parameter_2_number_of_mapped_objects,
                         )
                     }
                     66 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_2_mapping_entry_1,
                         )
                     }
                     67 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_2_mapping_entry_2,
                         )
                     }
                     68 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_2_mapping_entry_3,
                         )
                     }
                     69 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_2_mapping_entry_4,
                         )
                     }
                     70 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_2_mapping_entry_5,
                         )
                     }
                     71 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_2_mapping_entry_6,
                         )
                     }
                     72 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_2_mapping_entry_7,
                         )
                     }
                     73 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_2_mapping_entry_8,
                         )
                     }
                     74 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_mapping_parameter_3_number_of_mapped_objects,
                         )
                     }
                     75 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_3_mapping_entry_1,
                         )
                     }
                     76 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_3_mapping_entry_2,
                         )
                     }
                     77 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_3_mapping_entry_3,
                         )
                     }
                     78 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_3_mapping_entry_4,
                         )
                     }
                     79 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_3_mapping_entry_5,
                         )
                     }
                     80 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_3_mapping_entry_6,
                         )
                     }
                     81 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_3_mapping_entry_7,
                         )
                     }
                     82 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_3_mapping_entry_8,
                         )
                     }
                     83 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_mapping_parameter_4_number_of_mapped_objects,
                         )
                     }
                     84 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_4_mapping_entry_1,
                         )
                     }
                     85 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_4_mapping_entry_2,
                         )
                     }
                     86 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_4_mapping_entry_3,
                         )
                     }
                     87 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_4_mapping_entry_4,
                         )
                     }
                     88 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_4_mapping_entry_5,
                         )
                     }
                     89 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_4_mapping_entry_6,
                         )
                     }
                     90 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_4_mapping_entry_7,
                         )
                     }
                     91 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_4_mapping_entry_8,
                         )
                     }
                     92 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_mapping_parameter_5_number_of_mapped_objects,
                         )
                     }
                     93 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_5_mapping_entry_1,
                         )
                     }
                     94 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_5_mapping_entry_2,
                         )
                     }
                     95 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_5_mapping_entry_3,
                         )
                     }
                     96 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_5_mapping_entry_4,
                         )
                     }
                     97 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_5_mapping_entry_5,
                         )
                     }
                     98 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_5_mapping_entry_6,
                         )
                     }
                     99 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_5_mapping_entry_7,
                         )
                     }
                     100 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_5_mapping_entry_8,
                         )
                     }
                     101 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_mapping_parameter_6_number_of_mapped_objects,
                         )
                     }
                     102 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_6_mapping_entry_1,
                         )
                     }
                     103 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_6_mapping_entry_2,
                         )
                     }
                     104 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_6_mapping_entry_3,
                         )
                     }
                     105 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_6_mapping_entry_4,
                         )
                     }
                     106 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_6_mapping_entry_5,
                         )
                     }
                     107 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_6_mapping_entry_6,
                         )
                     }
                     108 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_6_mapping_entry_7,
                         )
                     }
                     109 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_6_mapping_entry_8,
                         )
                     }
                     110 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_mapping_parameter_7_number_of_mapped_objects,
                         )
                     }
                     111 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_7_mapping_entry_1,
                         )
                     }
                     112 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_7_mapping_entry_2,
                         )
                     }
                     113 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_7_mapping_entry_3,
                         )
                     }
                     114 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_7_mapping_entry_4,
                         )
                     }
                     115 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_7_mapping_entry_5,
                         )
                     }
                     116 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_7_mapping_entry_6,
                         )
                     }
                     117 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_7_mapping_entry_7,
                         )
                     }
                     118 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_7_mapping_entry_8,
                         )
                     }
                     119 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .receive_pdo_mapping_parameter_8_number_of_mapped_objects,
                         )
                     }
                     120 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_8_mapping_entry_1,
                         )
                     }
                     121 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_8_mapping_entry_2,
                         )
                     }
                     122 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_8_mapping_entry_3,
                         )
                     }
                     123 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_8_mapping_entry_4,
                         )
                     }
                     124 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_8_mapping_entry_5,
                         )
                     }
                     125 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_8_mapping_entry_6,
                         )
                     }
                     126 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_8_mapping_entry_7,
                         )
                     }
                     127 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.receive_pdo_mapping_parameter_8_mapping_entry_8,
                         )
                     }
                     128 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_1_highest_sub_index_supported,
                         )
                     }
                     129 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo,
                         )
                     }
                     130 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_1_transmission_type,
                         )
                     }
                     131 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_1_inhibit_time,
                         )
                     }
                     132 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_1_compatibility_entry,
                         )
                     }
                     133 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_1_event_timer,
                         )
                     }
                     134 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_2_highest_sub_index_supported,
                         )
                     }
                     135 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .transmit_pdo_communication_parameter_2_cob_id_used_by_tpdo,
                         )
                     }
                     136 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_2_transmission_type,
                         )
                     }
                     137 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_2_inhibit_time,
                         )
                     }
                     138 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_2_compatibility_entry,
                         )
                     }
                     139 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_2_event_timer,
                         )
                     }
                     140 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_3_highest_sub_index_supported,
                         )
                     }
                     141 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .transmit_pdo_communication_parameter_3_cob_id_used_by_tpdo,
                         )
                     }
                     142 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_3_transmission_type,
                         )
                     }
                     143 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_3_inhibit_time,
                         )
                     }
                     144 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_3_compatibility_entry,
                         )
                     }
                     145 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_3_event_timer,
                         )
                     }
                     146 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_4_highest_sub_index_supported,
                         )
                     }
                     147 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .transmit_pdo_communication_parameter_4_cob_id_used_by_tpdo,
                         )
                     }
                     148 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_4_transmission_type,
                         )
                     }
                     149 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_4_inhibit_time,
                         )
                     }
                     150 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_4_compatibility_entry,
                         )
                     }
                     151 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_4_event_timer,
                         )
                     }
                     152 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_5_highest_sub_index_supported,
                         )
                     }
                     153 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .transmit_pdo_communication_parameter_5_cob_id_used_by_tpdo,
                         )
                     }
                     154 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_5_transmission_type,
                         )
                     }
                     155 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_5_inhibit_time,
                         )
                     }
                     156 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_5_compatibility_entry,
                         )
                     }
                     157 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_5_event_timer,
                         )
                     }
                     158 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_6_highest_sub_index_supported,
                         )
                     }
                     159 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .transmit_pdo_communication_parameter_6_cob_id_used_by_tpdo,
                         )
                     }
                     160 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_6_transmission_type,
                         )
                     }
                     161 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_6_inhibit_time,
                         )
                     }
                     162 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_6_compatibility_entry,
                         )
                     }
                     163 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_6_event_timer,
                         )
                     }
                     164 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_7_highest_sub_index_supported,
                         )
                     }
                     165 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .transmit_pdo_communication_parameter_7_cob_id_used_by_tpdo,
                         )
                     }
                     166 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_7_transmission_type,
                         )
                     }
                     167 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_7_inhibit_time,
                         )
                     }
                     168 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_7_compatibility_entry,
                         )
                     }
                     169 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_7_event_timer,
                         )
                     }
                     170 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_8_highest_sub_index_supported,
                         )
                     }
                     171 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self
                                 .transmit_pdo_communication_parameter_8_cob_id_used_by_tpdo,
                         )
                     }
                     172 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_8_transmission_type,
                         )
                     }
                     173 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_8_inhibit_time,
                         )
                     }
                     174 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_communication_parameter_8_compatibility_entry,
                         )
                     }
                     175 => {
-                        __rt::Slot::U16(
+                        ::od_runtime::__private_v1::Slot::U16(
                             &self.transmit_pdo_communication_parameter_8_event_timer,
                         )
                     }
                     176 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_mapping_parameter_1_number_of_mapped_objects,
                         )
                     }
                     177 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_1_mapping_entry_1,
                         )
                     }
                     178 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_1_mapping_entry_2,
                         )
                     }
                     179 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_1_mapping_entry_3,
                         )
                     }
                     180 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_1_mapping_entry_4,
                         )
                     }
                     181 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_1_mapping_entry_5,
                         )
                     }
                     182 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_1_mapping_entry_6,
                         )
                     }
                     183 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_1_mapping_entry_7,
                         )
                     }
                     184 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_1_mapping_entry_8,
                         )
                     }
                     185 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_mapping_parameter_2_number_of_mapped_objects,
                         )
                     }
                     186 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_2_mapping_entry_1,
                         )
                     }
                     187 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_2_mapping_entry_2,
                         )
                     }
                     188 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_2_mapping_entry_3,
                         )
                     }
                     189 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_2_mapping_entry_4,
                         )
                     }
                     190 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_2_mapping_entry_5,
                         )
                     }
                     191 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_2_mapping_entry_6,
                         )
                     }
                     192 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_2_mapping_entry_7,
                         )
                     }
                     193 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_2_mapping_entry_8,
                         )
                     }
                     194 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_mapping_parameter_3_number_of_mapped_objects,
                         )
                     }
                     195 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_3_mapping_entry_1,
                         )
                     }
                     196 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_3_mapping_entry_2,
                         )
                     }
                     197 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_3_mapping_entry_3,
                         )
                     }
                     198 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_3_mapping_entry_4,
                         )
                     }
                     199 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_3_mapping_entry_5,
                         )
                     }
                     200 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_3_mapping_entry_6,
                         )
                     }
                     201 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_3_mapping_entry_7,
                         )
                     }
                     202 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_3_mapping_entry_8,
                         )
                     }
                     203 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_mapping_parameter_4_number_of_mapped_objects,
                         )
                     }
                     204 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_4_mapping_entry_1,
                         )
                     }
                     205 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_4_mapping_entry_2,
                         )
                     }
                     206 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_4_mapping_entry_3,
                         )
                     }
                     207 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_4_mapping_entry_4,
                         )
                     }
                     208 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_4_mapping_entry_5,
                         )
                     }
                     209 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_4_mapping_entry_6,
                         )
                     }
                     210 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_4_mapping_entry_7,
                         )
                     }
                     211 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_4_mapping_entry_8,
                         )
                     }
                     212 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_mapping_parameter_5_number_of_mapped_objects,
                         )
                     }
                     213 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_5_mapping_entry_1,
                         )
                     }
                     214 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_5_mapping_entry_2,
                         )
                     }
                     215 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_5_mapping_entry_3,
                         )
                     }
                     216 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_5_mapping_entry_4,
                         )
                     }
                     217 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_5_mapping_entry_5,
                         )
                     }
                     218 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_5_mapping_entry_6,
                         )
                     }
                     219 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_5_mapping_entry_7,
                         )
                     }
                     220 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_5_mapping_entry_8,
                         )
                     }
                     221 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_mapping_parameter_6_number_of_mapped_objects,
                         )
                     }
                     222 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_6_mapping_entry_1,
                         )
                     }
                     223 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_6_mapping_entry_2,
                         )
                     }
                     224 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_6_mapping_entry_3,
                         )
                     }
                     225 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_6_mapping_entry_4,
                         )
                     }
                     226 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_6_mapping_entry_5,
                         )
                     }
                     227 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_6_mapping_entry_6,
                         )
                     }
                     228 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_6_mapping_entry_7,
                         )
                     }
                     229 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_6_mapping_entry_8,
                         )
                     }
                     230 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_mapping_parameter_7_number_of_mapped_objects,
                         )
                     }
                     231 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_7_mapping_entry_1,
                         )
                     }
                     232 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_7_mapping_entry_2,
                         )
                     }
                     233 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_7_mapping_entry_3,
                         )
                     }
                     234 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_7_mapping_entry_4,
                         )
                     }
                     235 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_7_mapping_entry_5,
                         )
                     }
                     236 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_7_mapping_entry_6,
                         )
                     }
                     237 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_7_mapping_entry_7,
                         )
                     }
                     238 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_7_mapping_entry_8,
                         )
                     }
                     239 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .transmit_pdo_mapping_parameter_8_number_of_mapped_objects,
                         )
                     }
                     240 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_8_mapping_entry_1,
                         )
                     }
                     241 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_8_mapping_entry_2,
                         )
                     }
                     242 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_8_mapping_entry_3,
                         )
                     }
                     243 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_8_mapping_entry_4,
                         )
                     }
                     244 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_8_mapping_entry_5,
                         )
                     }
                     245 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_8_mapping_entry_6,
                         )
                     }
                     246 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_8_mapping_entry_7,
                         )
                     }
                     247 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.transmit_pdo_mapping_parameter_8_mapping_entry_8,
                         )
                     }
-                    248 => __rt::Slot::U32(&self.nmt_startup),
+                    248 => ::od_runtime::__private_v1::Slot::U32(&self.nmt_startup),
                     249 => {
-                        __rt::Slot::U8(&self.feed_converter_highest_sub_index_supported)
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.feed_converter_highest_sub_index_supported,
+                        )
                     }
-                    250 => __rt::Slot::U32(&self.feed_converter_numerator),
-                    251 => __rt::Slot::U32(&self.feed_converter_denominator),
-                    252 => __rt::Slot::U32(&self.input_status),
-                    253 => __rt::Slot::U32(&self.output_status),
-                    254 => __rt::Slot::U8(&self.homing_ok),
-                    255 => __rt::Slot::U16(&self.warnings),
-                    256 => __rt::Slot::U8(&self.limits_enable),
+                    250 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.feed_converter_numerator,
+                        )
+                    }
+                    251 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.feed_converter_denominator,
+                        )
+                    }
+                    252 => ::od_runtime::__private_v1::Slot::U32(&self.input_status),
+                    253 => ::od_runtime::__private_v1::Slot::U32(&self.output_status),
+                    254 => ::od_runtime::__private_v1::Slot::U8(&self.homing_ok),
+                    255 => ::od_runtime::__private_v1::Slot::U16(&self.warnings),
+                    256 => ::od_runtime::__private_v1::Slot::U8(&self.limits_enable),
                     257 => {
-                        __rt::Slot::U8(&self.pid_parameters_highest_sub_index_supported)
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.pid_parameters_highest_sub_index_supported,
+                        )
                     }
-                    258 => __rt::Slot::U16(&self.pid_parameters_pid_selection),
-                    259 => __rt::Slot::U16(&self.pid_parameters_kp_position),
-                    260 => __rt::Slot::U16(&self.pid_parameters_kp_speed),
-                    261 => __rt::Slot::U16(&self.pid_parameters_ki_position),
-                    262 => __rt::Slot::U16(&self.pid_parameters_ki_speed),
+                    258 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.pid_parameters_pid_selection,
+                        )
+                    }
+                    259 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.pid_parameters_kp_position,
+                        )
+                    }
+                    260 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.pid_parameters_kp_speed,
+                        )
+                    }
+                    261 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.pid_parameters_ki_position,
+                        )
+                    }
+                    262 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.pid_parameters_ki_speed,
+                        )
+                    }
                     263 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.profile_parameters_highest_sub_index_supported,
                         )
                     }
-                    264 => __rt::Slot::U8(&self.profile_parameters_profile_check),
-                    265 => {
-                        __rt::Slot::U16(&self.profile_parameters_profile_check_timeout)
+                    264 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.profile_parameters_profile_check,
+                        )
                     }
-                    266 => __rt::Slot::U16(&self.homing_torque_limit),
-                    267 => __rt::Slot::U8(&self.actuator_type),
-                    268 => __rt::Slot::U8(&self.torque_limit_enable),
-                    269 => __rt::Slot::U16(&self.error_code),
-                    270 => __rt::Slot::U16(&self.controlword),
-                    271 => __rt::Slot::U16(&self.statusword),
-                    272 => __rt::Slot::I8(&self.modes_of_operation),
-                    273 => __rt::Slot::I8(&self.modes_of_operation_display),
-                    274 => __rt::Slot::I32(&self.position_demand_value),
-                    275 => __rt::Slot::I32(&self.position_actual_value),
-                    276 => __rt::Slot::U32(&self.following_error_window),
-                    277 => __rt::Slot::U16(&self.following_error_timeout),
-                    278 => __rt::Slot::I32(&self.velocity_demand_value),
-                    279 => __rt::Slot::I32(&self.velocity_actual_value),
-                    280 => __rt::Slot::U16(&self.velocity_threshold),
-                    281 => __rt::Slot::U16(&self.velocity_threshold_time),
-                    282 => __rt::Slot::I16(&self.target_torque),
-                    283 => __rt::Slot::I16(&self.torque_demand_value),
-                    284 => __rt::Slot::I16(&self.torque_actual_value),
-                    285 => __rt::Slot::I32(&self.target_position),
-                    286 => __rt::Slot::I32(&self.home_offset),
+                    265 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.profile_parameters_profile_check_timeout,
+                        )
+                    }
+                    266 => {
+                        ::od_runtime::__private_v1::Slot::U16(&self.homing_torque_limit)
+                    }
+                    267 => ::od_runtime::__private_v1::Slot::U8(&self.actuator_type),
+                    268 => {
+                        ::od_runtime::__private_v1::Slot::U8(&self.torque_limit_enable)
+                    }
+                    269 => ::od_runtime::__private_v1::Slot::U16(&self.error_code),
+                    270 => ::od_runtime::__private_v1::Slot::U16(&self.controlword),
+                    271 => ::od_runtime::__private_v1::Slot::U16(&self.statusword),
+                    272 => ::od_runtime::__private_v1::Slot::I8(&self.modes_of_operation),
+                    273 => {
+                        ::od_runtime::__private_v1::Slot::I8(
+                            &self.modes_of_operation_display,
+                        )
+                    }
+                    274 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.position_demand_value,
+                        )
+                    }
+                    275 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.position_actual_value,
+                        )
+                    }
+                    276 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.following_error_window,
+                        )
+                    }
+                    277 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.following_error_timeout,
+                        )
+                    }
+                    278 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.velocity_demand_value,
+                        )
+                    }
+                    279 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.velocity_actual_value,
+                        )
+                    }
+                    280 => {
+                        ::od_runtime::__private_v1::Slot::U16(&self.velocity_threshold)
+                    }
+                    281 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.velocity_threshold_time,
+                        )
+                    }
+                    282 => ::od_runtime::__private_v1::Slot::I16(&self.target_torque),
+                    283 => {
+                        ::od_runtime::__private_v1::Slot::I16(&self.torque_demand_value)
+                    }
+                    284 => {
+                        ::od_runtime::__private_v1::Slot::I16(&self.torque_actual_value)
+                    }
+                    285 => ::od_runtime::__private_v1::Slot::I32(&self.target_position),
+                    286 => ::od_runtime::__private_v1::Slot::I32(&self.home_offset),
                     287 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.software_position_limit_highest_sub_index_supported,
                         )
                     }
                     288 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.software_position_limit_min_software_position_limit,
                         )
                     }
                     289 => {
-                        __rt::Slot::I32(
+                        ::od_runtime::__private_v1::Slot::I32(
                             &self.software_position_limit_max_software_position_limit,
                         )
                     }
-                    290 => __rt::Slot::U8(&self.polarity),
-                    291 => __rt::Slot::U32(&self.max_profile_velocity),
-                    292 => __rt::Slot::U32(&self.profile_velocity),
-                    293 => __rt::Slot::U32(&self.profile_acceleration),
-                    294 => __rt::Slot::U32(&self.profile_deceleration),
-                    295 => __rt::Slot::U32(&self.torque_slope),
-                    296 => __rt::Slot::U8(&self.gear_ratio_highest_sub_index_supported),
-                    297 => __rt::Slot::U32(&self.gear_ratio_motor_revolutions),
-                    298 => __rt::Slot::U32(&self.gear_ratio_shaft_revolutions),
+                    290 => ::od_runtime::__private_v1::Slot::U8(&self.polarity),
+                    291 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.max_profile_velocity)
+                    }
+                    292 => ::od_runtime::__private_v1::Slot::U32(&self.profile_velocity),
+                    293 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.profile_acceleration)
+                    }
+                    294 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.profile_deceleration)
+                    }
+                    295 => ::od_runtime::__private_v1::Slot::U32(&self.torque_slope),
+                    296 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.gear_ratio_highest_sub_index_supported,
+                        )
+                    }
+                    297 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.gear_ratio_motor_revolutions,
+                        )
+                    }
+                    298 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.gear_ratio_shaft_revolutions,
+                        )
+                    }
                     299 => {
-                        __rt::Slot::U8(&self.feed_constant_highest_sub_index_supported)
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.feed_constant_highest_sub_index_supported,
+                        )
                     }
-                    300 => __rt::Slot::U32(&self.feed_constant_feed),
-                    301 => __rt::Slot::U32(&self.feed_constant_shaft_revolutions),
-                    302 => __rt::Slot::I8(&self.homing_method),
+                    300 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.feed_constant_feed)
+                    }
+                    301 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.feed_constant_shaft_revolutions,
+                        )
+                    }
+                    302 => ::od_runtime::__private_v1::Slot::I8(&self.homing_method),
                     303 => {
-                        __rt::Slot::U8(&self.homing_speeds_highest_sub_index_supported)
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.homing_speeds_highest_sub_index_supported,
+                        )
                     }
-                    304 => __rt::Slot::U32(&self.homing_speeds_fast_homing_speed),
-                    305 => __rt::Slot::U32(&self.homing_speeds_slow_homing_speed),
-                    306 => __rt::Slot::U32(&self.homing_acceleration),
-                    307 => __rt::Slot::I32(&self.target_velocity),
+                    304 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.homing_speeds_fast_homing_speed,
+                        )
+                    }
+                    305 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.homing_speeds_slow_homing_speed,
+                        )
+                    }
+                    306 => {
+                        ::od_runtime::__private_v1::Slot::U32(&self.homing_acceleration)
+                    }
+                    307 => ::od_runtime::__private_v1::Slot::I32(&self.target_velocity),
                     _ => return None,
                 },
             )
         }
-        fn slot_mut(&mut self, pos: usize) -> Option<__rt::SlotMut<'_>> {
+        fn slot_mut(
+            &mut self,
+            pos: usize,
+        ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
             Some(
                 match pos {
-                    0 => __rt::SlotMut::U32(&mut self.device_type),
-                    1 => __rt::SlotMut::U8(&mut self.error_register),
-                    2 => __rt::SlotMut::U32(&mut self.manufacturer_status_register),
+                    0 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.device_type),
+                    1 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(&mut self.error_register)
+                    }
+                    2 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.manufacturer_status_register,
+                        )
+                    }
                     3 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.pre_defined_error_field_number_of_errors,
                         )
                     }
                     4 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_1,
                         )
                     }
                     5 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_2,
                         )
                     }
                     6 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_3,
                         )
                     }
                     7 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_4,
                         )
                     }
                     8 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_5,
                         )
                     }
                     9 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_6,
                         )
                     }
                     10 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_7,
                         )
                     }
                     11 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.pre_defined_error_field_standard_error_field_8,
                         )
                     }
-                    12 => __rt::SlotMut::U32(&mut self.cob_id_sync),
-                    13 => __rt::SlotMut::U32(&mut self.communication_cycle_period),
-                    14 => __rt::SlotMut::U32(&mut self.synchronous_window_length),
+                    12 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.cob_id_sync),
+                    13 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.communication_cycle_period,
+                        )
+                    }
+                    14 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.synchronous_window_length,
+                        )
+                    }
                     15 => self.manufacturer_device_name.slot_mut(),
                     16 => self.manufacturer_hardware_version.slot_mut(),
                     17 => self.manufacturer_software_version.slot_mut(),
-                    18 => __rt::SlotMut::U16(&mut self.guard_time),
-                    19 => __rt::SlotMut::U8(&mut self.life_time_factor),
+                    18 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.guard_time),
+                    19 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.life_time_factor,
+                        )
+                    }
                     20 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.store_parameters_highest_sub_index_supported,
                         )
                     }
                     21 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.store_parameters_save_all_parameters,
                         )
                     }
                     22 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .restore_default_parameters_highest_sub_index_supported,
                         )
                     }
                     23 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .restore_default_parameters_restore_all_default_parameters,
                         )
                     }
-                    24 => __rt::SlotMut::U32(&mut self.cob_id_emcy),
-                    25 => __rt::SlotMut::U16(&mut self.inhibit_time_emcy),
-                    26 => __rt::SlotMut::U16(&mut self.producer_heartbeat_time),
-                    27 => __rt::SlotMut::U8(&mut self.identity_object_number_of_entries),
-                    28 => __rt::SlotMut::U32(&mut self.identity_object_vendor_id),
-                    29 => __rt::SlotMut::U32(&mut self.identity_object_product_code),
-                    30 => __rt::SlotMut::U32(&mut self.identity_object_revision_number),
-                    31 => __rt::SlotMut::U32(&mut self.identity_object_serial_number),
+                    24 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.cob_id_emcy),
+                    25 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.inhibit_time_emcy,
+                        )
+                    }
+                    26 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.producer_heartbeat_time,
+                        )
+                    }
+                    27 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.identity_object_number_of_entries,
+                        )
+                    }
+                    28 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.identity_object_vendor_id,
+                        )
+                    }
+                    29 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.identity_object_product_code,
+                        )
+                    }
+                    30 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.identity_object_revision_number,
+                        )
+                    }
+                    31 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.identity_object_serial_number,
+                        )
+                    }
                     32 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_1_highest_sub_index_supported,
                         )
                     }
                     33 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .receive_pdo_communication_parameter_1_cob_id_used_by_rpdo,
                         )
                     }
                     34 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_1_transmission_type,
                         )
                     }
                     35 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_2_highest_sub_index_supported,
                         )
                     }
                     36 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .receive_pdo_communication_parameter_2_cob_id_used_by_rpdo,
                         )
                     }
                     37 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_2_transmission_type,
                         )
                     }
                     38 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_3_highest_sub_index_supported,
                         )
                     }
                     39 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .receive_pdo_communication_parameter_3_cob_id_used_by_rpdo,
                         )
                     }
                     40 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_3_transmission_type,
                         )
                     }
                     41 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_4_highest_sub_index_supported,
                         )
                     }
                     42 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .receive_pdo_communication_parameter_4_cob_id_used_by_rpdo,
                         )
                     }
                     43 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_4_transmission_type,
                         )
                     }
                     44 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_5_highest_sub_index_supported,
                         )
                     }
                     45 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .receive_pdo_communication_parameter_5_cob_id_used_by_rpdo,
                         )
                     }
                     46 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_5_transmission_type,
                         )
                     }
                     47 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_6_highest_sub_index_supported,
                         )
                     }
                     48 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .receive_pdo_communication_parameter_6_cob_id_used_by_rpdo,
                         )
                     }
                     49 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_6_transmission_type,
                         )
                     }
                     50 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_7_highest_sub_index_supported,
                         )
                     }
                     51 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .receive_pdo_communication_parameter_7_cob_id_used_by_rpdo,
                         )
                     }
                     52 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_7_transmission_type,
                         )
                     }
                     53 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_8_highest_sub_index_supported,
                         )
                     }
                     54 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .receive_pdo_communication_parameter_8_cob_id_used_by_rpdo,
                         )
                     }
                     55 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_communication_parameter_8_transmission_type,
                         )
                     }
                     56 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_mapping_parameter_1_number_of_mapped_objects,
                         )
                     }
                     57 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_1_mapping_entry_1,
                         )
                     }
                     58 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_1_mapping_entry_2,
                         )
                     }
                     59 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_1_mapping_entry_3,
                         )
                     }
                     60 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_1_mapping_entry_4,
                         )
                     }
                     61 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_1_mapping_entry_5,
                         )
                     }
                     62 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_1_mapping_entry_6,
                         )
                     }
                     63 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_1_mapping_entry_7,
                         )
                     }
                     64 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_1_mapping_entry_8,
                         )
                     }
                     65 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_mapping_parameter_2_number_of_mapped_objects,
                         )
                     }
                     66 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_2_mapping_entry_1,
                         )
                     }
                     67 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_2_mapping_entry_2,
                         )
                     }
                     68 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_2_mapping_entry_3,
                         )
                     }
                     69 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_2_mapping_entry_4,
                         )
                     }
                     70 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_2_mapping_entry_5,
                         )
                     }
                     71 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_2_mapping_entry_6,
                         )
                     }
                     72 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_2_mapping_entry_7,
                         )
                     }
                     73 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_2_mapping_entry_8,
                         )
                     }
                     74 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_mapping_parameter_3_number_of_mapped_objects,
                         )
                     }
                     75 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_3_mapping_entry_1,
                         )
                     }
                     76 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_3_mapping_entry_2,
                         )
                     }
                     77 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_3_mapping_entry_3,
                         )
                     }
                     78 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_3_mapping_entry_4,
                         )
                     }
                     79 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_3_mapping_entry_5,
                         )
                     }
                     80 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_3_mapping_entry_6,
                         )
                     }
                     81 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_3_mapping_entry_7,
                         )
                     }
                     82 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_3_mapping_entry_8,
                         )
                     }
                     83 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_mapping_parameter_4_number_of_mapped_objects,
                         )
                     }
                     84 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_4_mapping_entry_1,
                         )
                     }
                     85 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_4_mapping_entry_2,
                         )
                     }
                     86 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_4_mapping_entry_3,
                         )
                     }
                     87 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_4_mapping_entry_4,
                         )
                     }
                     88 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_4_mapping_entry_5,
                         )
                     }
                     89 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_4_mapping_entry_6,
                         )
                     }
                     90 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_4_mapping_entry_7,
                         )
                     }
                     91 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_4_mapping_entry_8,
                         )
                     }
                     92 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_mapping_parameter_5_number_of_mapped_objects,
                         )
                     }
                     93 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_5_mapping_entry_1,
                         )
                     }
                     94 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_5_mapping_entry_2,
                         )
                     }
                     95 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_5_mapping_entry_3,
                         )
                     }
                     96 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_5_mapping_entry_4,
                         )
                     }
                     97 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_5_mapping_entry_5,
                         )
                     }
                     98 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_5_mapping_entry_6,
                         )
                     }
                     99 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_5_mapping_entry_7,
                         )
                     }
                     100 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_5_mapping_entry_8,
                         )
                     }
                     101 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_mapping_parameter_6_number_of_mapped_objects,
                         )
                     }
                     102 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_6_mapping_entry_1,
                         )
                     }
                     103 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_6_mapping_entry_2,
                         )
                     }
                     104 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_6_mapping_entry_3,
                         )
                     }
                     105 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_6_mapping_entry_4,
                         )
                     }
                     106 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_6_mapping_entry_5,
                         )
                     }
                     107 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_6_mapping_entry_6,
                         )
                     }
                     108 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_6_mapping_entry_7,
                         )
                     }
                     109 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_6_mapping_entry_8,
                         )
                     }
                     110 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_mapping_parameter_7_number_of_mapped_objects,
                         )
                     }
                     111 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_7_mapping_entry_1,
                         )
                     }
                     112 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_7_mapping_entry_2,
                         )
                     }
                     113 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_7_mapping_entry_3,
                         )
                     }
                     114 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_7_mapping_entry_4,
                         )
                     }
                     115 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_7_mapping_entry_5,
                         )
                     }
                     116 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_7_mapping_entry_6,
                         )
                     }
                     117 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_7_mapping_entry_7,
                         )
                     }
                     118 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_7_mapping_entry_8,
                         )
                     }
                     119 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .receive_pdo_mapping_parameter_8_number_of_mapped_objects,
                         )
                     }
                     120 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_8_mapping_entry_1,
                         )
                     }
                     121 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_8_mapping_entry_2,
                         )
                     }
                     122 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_8_mapping_entry_3,
                         )
                     }
                     123 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_8_mapping_entry_4,
                         )
                     }
                     124 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_8_mapping_entry_5,
                         )
                     }
                     125 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_8_mapping_entry_6,
                         )
                     }
                     126 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_8_mapping_entry_7,
                         )
                     }
                     127 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.receive_pdo_mapping_parameter_8_mapping_entry_8,
                         )
                     }
                     128 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_1_highest_sub_index_supported,
                         )
                     }
                     129 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo,
                         )
                     }
                     130 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_1_transmission_type,
                         )
                     }
                     131 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_1_inhibit_time,
                         )
                     }
                     132 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_1_compatibility_entry,
                         )
                     }
                     133 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_1_event_timer,
                         )
                     }
                     134 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_2_highest_sub_index_supported,
                         )
                     }
                     135 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .transmit_pdo_communication_parameter_2_cob_id_used_by_tpdo,
                         )
                     }
                     136 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_2_transmission_type,
                         )
                     }
                     137 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_2_inhibit_time,
                         )
                     }
                     138 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_2_compatibility_entry,
                         )
                     }
                     139 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_2_event_timer,
                         )
                     }
                     140 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_3_highest_sub_index_supported,
                         )
                     }
                     141 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .transmit_pdo_communication_parameter_3_cob_id_used_by_tpdo,
                         )
                     }
                     142 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_3_transmission_type,
                         )
                     }
                     143 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_3_inhibit_time,
                         )
                     }
                     144 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_3_compatibility_entry,
                         )
                     }
                     145 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_3_event_timer,
                         )
                     }
                     146 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_4_highest_sub_index_supported,
                         )
                     }
                     147 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .transmit_pdo_communication_parameter_4_cob_id_used_by_tpdo,
                         )
                     }
                     148 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_4_transmission_type,
                         )
                     }
                     149 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_4_inhibit_time,
                         )
                     }
                     150 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_4_compatibility_entry,
                         )
                     }
                     151 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_4_event_timer,
                         )
                     }
                     152 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_5_highest_sub_index_supported,
                         )
                     }
                     153 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .transmit_pdo_communication_parameter_5_cob_id_used_by_tpdo,
                         )
                     }
                     154 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_5_transmission_type,
                         )
                     }
                     155 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_5_inhibit_time,
                         )
                     }
                     156 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_5_compatibility_entry,
                         )
                     }
                     157 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_5_event_timer,
                         )
                     }
                     158 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_6_highest_sub_index_supported,
                         )
                     }
                     159 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .transmit_pdo_communication_parameter_6_cob_id_used_by_tpdo,
                         )
                     }
                     160 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_6_transmission_type,
                         )
                     }
                     161 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_6_inhibit_time,
                         )
                     }
                     162 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_6_compatibility_entry,
                         )
                     }
                     163 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_6_event_timer,
                         )
                     }
                     164 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_7_highest_sub_index_supported,
                         )
                     }
                     165 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .transmit_pdo_communication_parameter_7_cob_id_used_by_tpdo,
                         )
                     }
                     166 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_7_transmission_type,
                         )
                     }
                     167 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_7_inhibit_time,
                         )
                     }
                     168 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_7_compatibility_entry,
                         )
                     }
                     169 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_7_event_timer,
                         )
                     }
                     170 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_8_highest_sub_index_supported,
                         )
                     }
                     171 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
                                 .transmit_pdo_communication_parameter_8_cob_id_used_by_tpdo,
                         )
                     }
                     172 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_8_transmission_type,
                         )
                     }
                     173 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_8_inhibit_time,
                         )
                     }
                     174 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_communication_parameter_8_compatibility_entry,
                         )
                     }
                     175 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.transmit_pdo_communication_parameter_8_event_timer,
                         )
                     }
                     176 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_mapping_parameter_1_number_of_mapped_objects,
                         )
                     }
                     177 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_1,
                         )
                     }
                     178 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_2,
                         )
                     }
                     179 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_3,
                         )
                     }
                     180 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_4,
                         )
                     }
                     181 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_5,
                         )
                     }
                     182 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_6,
                         )
                     }
                     183 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_7,
                         )
                     }
                     184 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_8,
                         )
                     }
                     185 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_mapping_parameter_2_number_of_mapped_objects,
                         )
                     }
                     186 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_1,
                         )
                     }
                     187 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_2,
                         )
                     }
                     188 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_3,
                         )
                     }
                     189 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_4,
                         )
                     }
                     190 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_5,
                         )
                     }
                     191 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_6,
                         )
                     }
                     192 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_7,
                         )
                     }
                     193 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_8,
                         )
                     }
                     194 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_mapping_parameter_3_number_of_mapped_objects,
                         )
                     }
                     195 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_1,
                         )
                     }
                     196 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_2,
                         )
                     }
                     197 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_3,
                         )
                     }
                     198 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_4,
                         )
                     }
                     199 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_5,
                         )
                     }
                     200 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_6,
                         )
                     }
                     201 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_7,
                         )
                     }
                     202 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_8,
                         )
                     }
                     203 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_mapping_parameter_4_number_of_mapped_objects,
                         )
                     }
                     204 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_1,
                         )
                     }
                     205 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_2,
                         )
                     }
                     206 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_3,
                         )
                     }
                     207 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_4,
                         )
                     }
                     208 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_5,
                         )
                     }
                     209 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_6,
                         )
                     }
                     210 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_7,
                         )
                     }
                     211 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_8,
                         )
                     }
                     212 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_mapping_parameter_5_number_of_mapped_objects,
                         )
                     }
                     213 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_1,
                         )
                     }
                     214 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_2,
                         )
                     }
                     215 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_3,
                         )
                     }
                     216 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_4,
                         )
                     }
                     217 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_5,
                         )
                     }
                     218 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_6,
                         )
                     }
                     219 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_7,
                         )
                     }
                     220 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_8,
                         )
                     }
                     221 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_mapping_parameter_6_number_of_mapped_objects,
                         )
                     }
                     222 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_1,
                         )
                     }
                     223 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_2,
                         )
                     }
                     224 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_3,
                         )
                     }
                     225 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_4,
                         )
                     }
                     226 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_5,
                         )
                     }
                     227 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_6,
                         )
                     }
                     228 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_7,
                         )
                     }
                     229 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_8,
                         )
                     }
                     230 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_mapping_parameter_7_number_of_mapped_objects,
                         )
                     }
                     231 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_1,
                         )
                     }
                     232 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_2,
                         )
                     }
                     233 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_3,
                         )
                     }
                     234 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_4,
                         )
                     }
                     235 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_5,
                         )
                     }
                     236 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_6,
                         )
                     }
                     237 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_7,
                         )
                     }
                     238 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_8,
                         )
                     }
                     239 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .transmit_pdo_mapping_parameter_8_number_of_mapped_objects,
                         )
                     }
                     240 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_1,
                         )
                     }
                     241 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_2,
                         )
                     }
                     242 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_3,
                         )
                     }
                     243 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_4,
                         )
                     }
                     244 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_5,
                         )
                     }
                     245 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_6,
                         )
                     }
                     246 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_7,
                         )
                     }
                     247 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_8,
                         )
                     }
-                    248 => __rt::SlotMut::U32(&mut self.nmt_startup),
+                    248 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.nmt_startup)
+                    }
                     249 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.feed_converter_highest_sub_index_supported,
                         )
                     }
-                    250 => __rt::SlotMut::U32(&mut self.feed_converter_numerator),
-                    251 => __rt::SlotMut::U32(&mut self.feed_converter_denominator),
-                    252 => __rt::SlotMut::U32(&mut self.input_status),
-                    253 => __rt::SlotMut::U32(&mut self.output_status),
-                    254 => __rt::SlotMut::U8(&mut self.homing_ok),
-                    255 => __rt::SlotMut::U16(&mut self.warnings),
-                    256 => __rt::SlotMut::U8(&mut self.limits_enable),
+                    250 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.feed_converter_numerator,
+                        )
+                    }
+                    251 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.feed_converter_denominator,
+                        )
+                    }
+                    252 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.input_status)
+                    }
+                    253 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.output_status)
+                    }
+                    254 => ::od_runtime::__private_v1::SlotMut::U8(&mut self.homing_ok),
+                    255 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.warnings),
+                    256 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(&mut self.limits_enable)
+                    }
                     257 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.pid_parameters_highest_sub_index_supported,
                         )
                     }
-                    258 => __rt::SlotMut::U16(&mut self.pid_parameters_pid_selection),
-                    259 => __rt::SlotMut::U16(&mut self.pid_parameters_kp_position),
-                    260 => __rt::SlotMut::U16(&mut self.pid_parameters_kp_speed),
-                    261 => __rt::SlotMut::U16(&mut self.pid_parameters_ki_position),
-                    262 => __rt::SlotMut::U16(&mut self.pid_parameters_ki_speed),
+                    258 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.pid_parameters_pid_selection,
+                        )
+                    }
+                    259 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.pid_parameters_kp_position,
+                        )
+                    }
+                    260 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.pid_parameters_kp_speed,
+                        )
+                    }
+                    261 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.pid_parameters_ki_position,
+                        )
+                    }
+                    262 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.pid_parameters_ki_speed,
+                        )
+                    }
                     263 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.profile_parameters_highest_sub_index_supported,
                         )
                     }
-                    264 => __rt::SlotMut::U8(&mut self.profile_parameters_profile_check),
+                    264 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.profile_parameters_profile_check,
+                        )
+                    }
                     265 => {
-                        __rt::SlotMut::U16(
+                        ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self.profile_parameters_profile_check_timeout,
                         )
                     }
-                    266 => __rt::SlotMut::U16(&mut self.homing_torque_limit),
-                    267 => __rt::SlotMut::U8(&mut self.actuator_type),
-                    268 => __rt::SlotMut::U8(&mut self.torque_limit_enable),
-                    269 => __rt::SlotMut::U16(&mut self.error_code),
-                    270 => __rt::SlotMut::U16(&mut self.controlword),
-                    271 => __rt::SlotMut::U16(&mut self.statusword),
-                    272 => __rt::SlotMut::I8(&mut self.modes_of_operation),
-                    273 => __rt::SlotMut::I8(&mut self.modes_of_operation_display),
-                    274 => __rt::SlotMut::I32(&mut self.position_demand_value),
-                    275 => __rt::SlotMut::I32(&mut self.position_actual_value),
-                    276 => __rt::SlotMut::U32(&mut self.following_error_window),
-                    277 => __rt::SlotMut::U16(&mut self.following_error_timeout),
-                    278 => __rt::SlotMut::I32(&mut self.velocity_demand_value),
-                    279 => __rt::SlotMut::I32(&mut self.velocity_actual_value),
-                    280 => __rt::SlotMut::U16(&mut self.velocity_threshold),
-                    281 => __rt::SlotMut::U16(&mut self.velocity_threshold_time),
-                    282 => __rt::SlotMut::I16(&mut self.target_torque),
-                    283 => __rt::SlotMut::I16(&mut self.torque_demand_value),
-                    284 => __rt::SlotMut::I16(&mut self.torque_actual_value),
-                    285 => __rt::SlotMut::I32(&mut self.target_position),
-                    286 => __rt::SlotMut::I32(&mut self.home_offset),
+                    266 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.homing_torque_limit,
+                        )
+                    }
+                    267 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(&mut self.actuator_type)
+                    }
+                    268 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.torque_limit_enable,
+                        )
+                    }
+                    269 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.error_code),
+                    270 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(&mut self.controlword)
+                    }
+                    271 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.statusword),
+                    272 => {
+                        ::od_runtime::__private_v1::SlotMut::I8(
+                            &mut self.modes_of_operation,
+                        )
+                    }
+                    273 => {
+                        ::od_runtime::__private_v1::SlotMut::I8(
+                            &mut self.modes_of_operation_display,
+                        )
+                    }
+                    274 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.position_demand_value,
+                        )
+                    }
+                    275 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.position_actual_value,
+                        )
+                    }
+                    276 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.following_error_window,
+                        )
+                    }
+                    277 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.following_error_timeout,
+                        )
+                    }
+                    278 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.velocity_demand_value,
+                        )
+                    }
+                    279 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.velocity_actual_value,
+                        )
+                    }
+                    280 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.velocity_threshold,
+                        )
+                    }
+                    281 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.velocity_threshold_time,
+                        )
+                    }
+                    282 => {
+                        ::od_runtime::__private_v1::SlotMut::I16(&mut self.target_torque)
+                    }
+                    283 => {
+                        ::od_runtime::__private_v1::SlotMut::I16(
+                            &mut self.torque_demand_value,
+                        )
+                    }
+                    284 => {
+                        ::od_runtime::__private_v1::SlotMut::I16(
+                            &mut self.torque_actual_value,
+                        )
+                    }
+                    285 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.target_position,
+                        )
+                    }
+                    286 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(&mut self.home_offset)
+                    }
                     287 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.software_position_limit_highest_sub_index_supported,
                         )
                     }
                     288 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self.software_position_limit_min_software_position_limit,
                         )
                     }
                     289 => {
-                        __rt::SlotMut::I32(
+                        ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self.software_position_limit_max_software_position_limit,
                         )
                     }
-                    290 => __rt::SlotMut::U8(&mut self.polarity),
-                    291 => __rt::SlotMut::U32(&mut self.max_profile_velocity),
-                    292 => __rt::SlotMut::U32(&mut self.profile_velocity),
-                    293 => __rt::SlotMut::U32(&mut self.profile_acceleration),
-                    294 => __rt::SlotMut::U32(&mut self.profile_deceleration),
-                    295 => __rt::SlotMut::U32(&mut self.torque_slope),
+                    290 => ::od_runtime::__private_v1::SlotMut::U8(&mut self.polarity),
+                    291 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.max_profile_velocity,
+                        )
+                    }
+                    292 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.profile_velocity,
+                        )
+                    }
+                    293 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.profile_acceleration,
+                        )
+                    }
+                    294 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.profile_deceleration,
+                        )
+                    }
+                    295 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.torque_slope)
+                    }
                     296 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.gear_ratio_highest_sub_index_supported,
                         )
                     }
-                    297 => __rt::SlotMut::U32(&mut self.gear_ratio_motor_revolutions),
-                    298 => __rt::SlotMut::U32(&mut self.gear_ratio_shaft_revolutions),
+                    297 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.gear_ratio_motor_revolutions,
+                        )
+                    }
+                    298 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.gear_ratio_shaft_revolutions,
+                        )
+                    }
                     299 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.feed_constant_highest_sub_index_supported,
                         )
                     }
-                    300 => __rt::SlotMut::U32(&mut self.feed_constant_feed),
-                    301 => __rt::SlotMut::U32(&mut self.feed_constant_shaft_revolutions),
-                    302 => __rt::SlotMut::I8(&mut self.homing_method),
+                    300 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.feed_constant_feed,
+                        )
+                    }
+                    301 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.feed_constant_shaft_revolutions,
+                        )
+                    }
+                    302 => {
+                        ::od_runtime::__private_v1::SlotMut::I8(&mut self.homing_method)
+                    }
                     303 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.homing_speeds_highest_sub_index_supported,
                         )
                     }
-                    304 => __rt::SlotMut::U32(&mut self.homing_speeds_fast_homing_speed),
-                    305 => __rt::SlotMut::U32(&mut self.homing_speeds_slow_homing_speed),
-                    306 => __rt::SlotMut::U32(&mut self.homing_acceleration),
-                    307 => __rt::SlotMut::I32(&mut self.target_velocity),
+                    304 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.homing_speeds_fast_homing_speed,
+                        )
+                    }
+                    305 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.homing_speeds_slow_homing_speed,
+                        )
+                    }
+                    306 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.homing_acceleration,
+                        )
+                    }
+                    307 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.target_velocity,
+                        )
+                    }
                     _ => return None,
                 },
             )
@@ -10148,7 +10532,7 @@ PDOMapping=0
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            __rt::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v1::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -10158,7 +10542,7 @@ PDOMapping=0
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            __rt::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v1::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -10168,9 +10552,9 @@ PDOMapping=0
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            __rt::check_mapping(
+            ::od_runtime::__private_v1::check_mapping(
                 &ENTRIES,
-                &KEYS,
+                &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
                 mapping,
             )
@@ -10179,9 +10563,9 @@ PDOMapping=0
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            __rt::check_mapping(
+            ::od_runtime::__private_v1::check_mapping(
                 &ENTRIES,
-                &KEYS,
+                &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
                 mapping,
             )
@@ -15352,7 +15736,9 @@ PDOMapping=0
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             let pos = Self::position(index, sub)?;
             match (ENTRIES.get(pos), self.slot(pos)) {
-                (Some(info), Some(slot)) => __rt::read(info, slot, buf),
+                (Some(info), Some(slot)) => {
+                    ::od_runtime::__private_v1::read(info, slot, buf)
+                }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
         }
@@ -15366,7 +15752,13 @@ PDOMapping=0
             let (real_low, real_high) = (None, None);
             match (ENTRIES.get(pos), self.slot_mut(pos)) {
                 (Some(info), Some(slot)) => {
-                    __rt::write(info, slot, data, real_low, real_high)
+                    ::od_runtime::__private_v1::write(
+                        info,
+                        slot,
+                        data,
+                        real_low,
+                        real_high,
+                    )
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -15374,7 +15766,7 @@ PDOMapping=0
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, info) in ENTRIES.iter().enumerate() {
                 if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    __rt::set_default(info, slot, node_id);
+                    ::od_runtime::__private_v1::set_default(info, slot, node_id);
                 }
             }
         }
@@ -15382,7 +15774,8 @@ PDOMapping=0
     /// Typed layouts of the device's default PDO mappings.
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
-        pub use super::__rt::PdoLengthError as LengthError;
+        #[doc(inline)]
+        pub use ::od_runtime::__private_v1::PdoLengthError as LengthError;
         /// RPDO 1 (received by the device), default mapping of `0x1600`: 16 bits in 2 bytes.
         ///
         /// | bits | object | field |
@@ -15411,7 +15804,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = super::__rt::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                 })
@@ -15460,7 +15853,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = super::__rt::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                 })
@@ -15485,7 +15878,8 @@ PDOMapping=0
     /// Physical units of the device's values, from its sidecar (see the od-codegen `units`
     /// module docs for the arithmetic).
     pub mod units {
-        pub use super::__rt::Ratio;
+        #[doc(inline)]
+        pub use ::od_runtime::__private_v1::Ratio;
         /// A physical unit.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         pub enum Unit {
@@ -15635,8 +16029,9 @@ PDOMapping=0
         #[derive(Clone, Copy, Debug, PartialEq, Eq)]
         pub struct Units {
             system: System,
-            /// Physical value per raw unit, and the physical unit, per dimension.
-            factor: [Option<(Ratio, Unit)>; 6],
+            /// Physical value per raw unit (prepared for fast exact conversions both ways),
+            /// and the physical unit, per dimension.
+            factor: [Option<(::od_runtime::__private_v1::Scale, Unit)>; 6],
             /// Internal value (increments or motor revolutions) per raw unit, per dimension.
             internal: [Option<Ratio>; 6],
         }
@@ -15664,7 +16059,10 @@ PDOMapping=0
                                         .ok_or(UnitError::Overflow)?,
                                 )
                                 .ok_or(UnitError::Overflow)?;
-                            factor[0] = Some((f.reduced(), Unit::Degree));
+                            factor[0] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::Degree,
+                            ));
                         }
                         {
                             let f = Ratio::new(1, 100).ok_or(UnitError::Overflow)?;
@@ -15675,7 +16073,10 @@ PDOMapping=0
                                         .ok_or(UnitError::Overflow)?,
                                 )
                                 .ok_or(UnitError::Overflow)?;
-                            factor[1] = Some((f.reduced(), Unit::Rpm));
+                            factor[1] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::Rpm,
+                            ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
@@ -15686,19 +16087,31 @@ PDOMapping=0
                                         .ok_or(UnitError::Overflow)?,
                                 )
                                 .ok_or(UnitError::Overflow)?;
-                            factor[2] = Some((f.reduced(), Unit::RpmPerSecond));
+                            factor[2] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::RpmPerSecond,
+                            ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
-                            factor[3] = Some((f.reduced(), Unit::MilliAmpere));
+                            factor[3] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::MilliAmpere,
+                            ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
-                            factor[4] = Some((f.reduced(), Unit::MilliAmperePerSecond));
+                            factor[4] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::MilliAmperePerSecond,
+                            ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
-                            factor[5] = Some((f.reduced(), Unit::Millisecond));
+                            factor[5] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::Millisecond,
+                            ));
                         }
                     }
                     System::Actuator => {
@@ -15711,7 +16124,10 @@ PDOMapping=0
                                         .ok_or(UnitError::Overflow)?,
                                 )
                                 .ok_or(UnitError::Overflow)?;
-                            factor[0] = Some((f.reduced(), Unit::Millimeter));
+                            factor[0] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::Millimeter,
+                            ));
                         }
                         {
                             let f = Ratio::new(1, 100).ok_or(UnitError::Overflow)?;
@@ -15722,7 +16138,10 @@ PDOMapping=0
                                         .ok_or(UnitError::Overflow)?,
                                 )
                                 .ok_or(UnitError::Overflow)?;
-                            factor[1] = Some((f.reduced(), Unit::MillimeterPerSecond));
+                            factor[1] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::MillimeterPerSecond,
+                            ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
@@ -15733,19 +16152,31 @@ PDOMapping=0
                                         .ok_or(UnitError::Overflow)?,
                                 )
                                 .ok_or(UnitError::Overflow)?;
-                            factor[2] = Some((f.reduced(), Unit::MillimeterPerSecond2));
+                            factor[2] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::MillimeterPerSecond2,
+                            ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
-                            factor[3] = Some((f.reduced(), Unit::MilliAmpere));
+                            factor[3] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::MilliAmpere,
+                            ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
-                            factor[4] = Some((f.reduced(), Unit::MilliAmperePerSecond));
+                            factor[4] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::MilliAmperePerSecond,
+                            ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
-                            factor[5] = Some((f.reduced(), Unit::Millisecond));
+                            factor[5] = Some((
+                                ::od_runtime::__private_v1::Scale::new(f),
+                                Unit::Millisecond,
+                            ));
                         }
                     }
                 }
@@ -15762,7 +16193,7 @@ PDOMapping=0
             }
             /// Physical value per raw unit (exact, reduced).
             pub fn factor(&self, d: Dimension) -> Option<Ratio> {
-                self.factor.get(d.slot()).copied().flatten().map(|(f, _)| f)
+                self.factor.get(d.slot()).copied().flatten().map(|(f, _)| f.factor())
             }
             /// Internal value (encoder increments, or motor revolutions) per raw unit, where
             /// the system's scaling objects define one.
@@ -15776,16 +16207,31 @@ PDOMapping=0
                 d: Dimension,
                 raw: i64,
             ) -> Result<Quantity, UnitError> {
-                let (f, unit) = self
-                    .factor
-                    .get(d.slot())
-                    .copied()
-                    .flatten()
-                    .ok_or(UnitError::NoUnit)?;
+                let Some(Some((f, unit))) = self.factor.get(d.slot()) else {
+                    return Err(UnitError::NoUnit);
+                };
                 Ok(Quantity {
-                    value: f.checked_mul_int(raw).ok_or(UnitError::Overflow)?,
-                    unit,
+                    value: f.to_physical(raw).ok_or(UnitError::Overflow)?,
+                    unit: *unit,
                 })
+            }
+            /// The prepared factor for converting `q` in dimension `d`.
+            #[inline]
+            fn scale_for(
+                &self,
+                d: Dimension,
+                q: &Quantity,
+            ) -> Result<&::od_runtime::__private_v1::Scale, UnitError> {
+                match self.factor.get(d.slot()) {
+                    Some(Some((f, unit))) if *unit == q.unit => Ok(f),
+                    Some(Some((_, unit))) => {
+                        Err(UnitError::WrongUnit {
+                            expected: *unit,
+                            got: q.unit,
+                        })
+                    }
+                    _ => Err(UnitError::NoUnit),
+                }
             }
             /// `q / factor`, exact (may be fractional).
             pub fn to_raw_exact(
@@ -15793,25 +16239,12 @@ PDOMapping=0
                 d: Dimension,
                 q: Quantity,
             ) -> Result<Ratio, UnitError> {
-                let (f, unit) = self
-                    .factor
-                    .get(d.slot())
-                    .copied()
-                    .flatten()
-                    .ok_or(UnitError::NoUnit)?;
-                if q.unit != unit {
-                    return Err(UnitError::WrongUnit {
-                        expected: unit,
-                        got: q.unit,
-                    });
-                }
-                q.value.checked_div(f).ok_or(UnitError::Overflow)
+                self.scale_for(d, &q)?.to_raw_exact(q.value).ok_or(UnitError::Overflow)
             }
             /// `q / factor` rounded to the nearest integer, halves away from zero.
             #[inline]
             pub fn to_raw(&self, d: Dimension, q: Quantity) -> Result<i64, UnitError> {
-                let exact = self.to_raw_exact(d, q)?;
-                i64::try_from(exact.round()).map_err(|_| UnitError::Overflow)
+                self.scale_for(d, &q)?.to_raw_i64(q.value).ok_or(UnitError::Overflow)
             }
             /// `raw × internal factor`, exact: encoder increments (or motor revolutions).
             pub fn to_internal(
@@ -16320,458 +16753,6 @@ PDOMapping=0
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
                 od.set_target_velocity(v).map_err(UnitError::Rejected)
             }
-        }
-    }
-    /// Generic machinery of the generated dictionary (not part of its API; may change
-    /// between generator versions).
-    #[doc(hidden)]
-    pub mod __rt {
-        use ::od_runtime::od::{AbortCode, EntryInfo, ObjectDictionary};
-        /// Marks the interface version generated code was written against.
-        pub const VERSION_1: () = ();
-        /// A fixed-capacity byte buffer holding a string, OCTET_STRING or DOMAIN value.
-        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-        pub struct Bytes<const N: usize> {
-            len: usize,
-            data: [u8; N],
-        }
-        impl<const N: usize> Bytes<N> {
-            /// A buffer holding `src` (cut at `N` bytes; the generator sizes `N` so that
-            /// defaults always fit).
-            pub const fn from_slice(src: &[u8]) -> Self {
-                let mut data = [0u8; N];
-                let mut i = 0;
-                while i < src.len() && i < N {
-                    data[i] = src[i];
-                    i += 1;
-                }
-                Bytes { len: i, data }
-            }
-            /// The current value.
-            pub fn as_slice(&self) -> &[u8] {
-                let (head, _) = self.data.split_at(self.len.min(N));
-                head
-            }
-            /// Replaces the value: `Err(LENGTH_TOO_HIGH)` if it does not fit.
-            pub fn set(&mut self, src: &[u8]) -> Result<(), AbortCode> {
-                match self.data.get_mut(..src.len()) {
-                    Some(dst) => {
-                        dst.copy_from_slice(src);
-                        self.len = src.len();
-                        Ok(())
-                    }
-                    None => Err(AbortCode::LENGTH_TOO_HIGH),
-                }
-            }
-            fn parts_mut(&mut self) -> (&mut [u8], &mut usize) {
-                (&mut self.data, &mut self.len)
-            }
-            /// The value as a mutable slot.
-            pub fn slot_mut(&mut self) -> SlotMut<'_> {
-                let (data, len) = self.parts_mut();
-                SlotMut::Bytes(data, len)
-            }
-        }
-        /// A shared reference to one stored value.
-        #[derive(Clone, Copy, Debug)]
-        pub enum Slot<'a> {
-            Bool(&'a bool),
-            U8(&'a u8),
-            U16(&'a u16),
-            U32(&'a u32),
-            U64(&'a u64),
-            I8(&'a i8),
-            I16(&'a i16),
-            I32(&'a i32),
-            I64(&'a i64),
-            F32(&'a f32),
-            F64(&'a f64),
-            Bytes(&'a [u8]),
-        }
-        /// A mutable reference to one stored value.
-        #[derive(Debug)]
-        pub enum SlotMut<'a> {
-            Bool(&'a mut bool),
-            U8(&'a mut u8),
-            U16(&'a mut u16),
-            U32(&'a mut u32),
-            U64(&'a mut u64),
-            I8(&'a mut i8),
-            I16(&'a mut i16),
-            I32(&'a mut i32),
-            I64(&'a mut i64),
-            F32(&'a mut f32),
-            F64(&'a mut f64),
-            /// Capacity-sized storage and the current length.
-            Bytes(&'a mut [u8], &'a mut usize),
-        }
-        /// Bytes a fixed-size value of `bits` bits takes on the bus (at most 8).
-        pub const fn byte_len(bits: u32) -> usize {
-            let n = (bits as usize).div_ceil(8);
-            if n > 8 { 8 } else { n }
-        }
-        /// Position of `(index, sub)` in a sorted key table (`index << 8 | sub`).
-        #[inline]
-        pub fn position(keys: &[u32], index: u16, sub: u8) -> Result<usize, AbortCode> {
-            let key = ((index as u32) << 8) | sub as u32;
-            match keys.binary_search(&key) {
-                Ok(p) => Ok(p),
-                Err(p) => {
-                    let same = |k: Option<&u32>| {
-                        k.is_some_and(|k| (k >> 8) as u16 == index)
-                    };
-                    if same(keys.get(p)) || (p > 0 && same(keys.get(p - 1))) {
-                        Err(AbortCode::NO_SUB_INDEX)
-                    } else {
-                        Err(AbortCode::NO_OBJECT)
-                    }
-                }
-            }
-        }
-        fn raw(slot: &Slot<'_>) -> Option<u64> {
-            Some(
-                match *slot {
-                    Slot::Bool(v) => *v as u64,
-                    Slot::U8(v) => *v as u64,
-                    Slot::U16(v) => *v as u64,
-                    Slot::U32(v) => *v as u64,
-                    Slot::U64(v) => *v,
-                    Slot::I8(v) => *v as u64,
-                    Slot::I16(v) => *v as u64,
-                    Slot::I32(v) => *v as u64,
-                    Slot::I64(v) => *v as u64,
-                    Slot::F32(v) => v.to_bits() as u64,
-                    Slot::F64(v) => v.to_bits(),
-                    Slot::Bytes(_) => return None,
-                },
-            )
-        }
-        /// Copies a value into `buf` as little-endian bytes.
-        #[inline]
-        pub fn read(
-            info: &EntryInfo,
-            slot: Slot<'_>,
-            buf: &mut [u8],
-        ) -> Result<usize, AbortCode> {
-            let tmp;
-            let src: &[u8] = match raw(&slot) {
-                Some(v) => {
-                    tmp = v.to_le_bytes();
-                    let (head, _) = tmp.split_at(byte_len(info.bits));
-                    head
-                }
-                None => {
-                    match slot {
-                        Slot::Bytes(b) => b,
-                        _ => &[],
-                    }
-                }
-            };
-            let dst = buf.get_mut(..src.len()).ok_or(AbortCode::OUT_OF_MEMORY)?;
-            dst.copy_from_slice(src);
-            Ok(src.len())
-        }
-        /// Checks a real number against REAL limits.
-        #[inline]
-        pub fn check_real(
-            v: f64,
-            low: Option<f64>,
-            high: Option<f64>,
-        ) -> Result<(), AbortCode> {
-            if low.is_some_and(|l| v < l) {
-                return Err(AbortCode::VALUE_TOO_LOW);
-            }
-            if high.is_some_and(|h| v > h) {
-                return Err(AbortCode::VALUE_TOO_HIGH);
-            }
-            Ok(())
-        }
-        /// Stores little-endian bytes into a slot without any check (fixed-size values:
-        /// missing bytes are zero, extra bytes ignored; buffers: cut to the capacity).
-        fn store(slot: SlotMut<'_>, data: &[u8]) {
-            if let SlotMut::Bytes(buf, len) = slot {
-                let n = data.len().min(buf.len());
-                if let (Some(dst), Some(src)) = (buf.get_mut(..n), data.get(..n)) {
-                    dst.copy_from_slice(src);
-                }
-                *len = n;
-                return;
-            }
-            let mut b = [0u8; 8];
-            for (d, s) in b.iter_mut().zip(data) {
-                *d = *s;
-            }
-            let raw = u64::from_le_bytes(b);
-            let width = data.len().min(8) as u32 * 8;
-            let signed = if width == 0 || width == 64 {
-                raw as i64
-            } else {
-                ((raw << (64 - width)) as i64) >> (64 - width)
-            };
-            match slot {
-                SlotMut::Bool(v) => *v = raw != 0,
-                SlotMut::U8(v) => *v = raw as u8,
-                SlotMut::U16(v) => *v = raw as u16,
-                SlotMut::U32(v) => *v = raw as u32,
-                SlotMut::U64(v) => *v = raw,
-                SlotMut::I8(v) => *v = signed as i8,
-                SlotMut::I16(v) => *v = signed as i16,
-                SlotMut::I32(v) => *v = signed as i32,
-                SlotMut::I64(v) => *v = signed,
-                SlotMut::F32(v) => *v = f32::from_bits(raw as u32),
-                SlotMut::F64(v) => *v = f64::from_bits(raw),
-                SlotMut::Bytes(..) => {}
-            }
-        }
-        /// Stores a value given as little-endian bytes after the runtime's shared checks
-        /// ([`EntryInfo::check_value`]: length, limits, BOOLEAN 0/1) and the REAL limits.
-        #[inline]
-        pub fn write(
-            info: &EntryInfo,
-            slot: SlotMut<'_>,
-            data: &[u8],
-            real_low: Option<f64>,
-            real_high: Option<f64>,
-        ) -> Result<(), AbortCode> {
-            info.check_value(data)?;
-            if real_low.is_some() || real_high.is_some() {
-                let real = match slot {
-                    SlotMut::F32(_) => {
-                        data.try_into().ok().map(|b| f32::from_le_bytes(b) as f64)
-                    }
-                    SlotMut::F64(_) => data.try_into().ok().map(f64::from_le_bytes),
-                    _ => None,
-                };
-                if let Some(f) = real {
-                    check_real(f, real_low, real_high)?;
-                }
-            }
-            store(slot, data);
-            Ok(())
-        }
-        /// Sets a value back to its default, resolving `$NODEID` with `node_id`
-        /// ([`DefaultValue::encode`](::od_runtime::od::DefaultValue::encode), the runtime's rule).
-        pub fn set_default(info: &EntryInfo, slot: SlotMut<'_>, node_id: u8) {
-            match slot {
-                SlotMut::Bytes(buf, len) => {
-                    *len = info.default.encode(info, node_id, buf);
-                }
-                fixed => {
-                    let mut b = [0u8; 8];
-                    let n = info.default.encode(info, node_id, &mut b);
-                    store(fixed, b.get(..n).unwrap_or(&[]));
-                }
-            }
-        }
-        /// Reads like an SDO upload: refuses write-only entries (`WRITE_ONLY`).
-        pub fn bus_read<D: ObjectDictionary + ?Sized>(
-            od: &D,
-            index: u16,
-            sub: u8,
-            buf: &mut [u8],
-        ) -> Result<usize, AbortCode> {
-            if !od.info(index, sub)?.access.readable() {
-                return Err(AbortCode::WRITE_ONLY);
-            }
-            od.read(index, sub, buf)
-        }
-        /// Writes like an SDO download: refuses read-only and constant entries (`READ_ONLY`).
-        pub fn bus_write<D: ObjectDictionary + ?Sized>(
-            od: &mut D,
-            index: u16,
-            sub: u8,
-            data: &[u8],
-        ) -> Result<(), AbortCode> {
-            if !od.info(index, sub)?.access.writable() {
-                return Err(AbortCode::READ_ONLY);
-            }
-            od.write(index, sub, data)
-        }
-        /// Checks a PDO mapping with the runtime's rules against a dictionary's table.
-        pub fn check_mapping(
-            entries: &'static [EntryInfo],
-            keys: &[u32],
-            dir: ::od_runtime::pdo::Direction,
-            mapping: &[u32],
-        ) -> Result<u32, AbortCode> {
-            ::od_runtime::pdo::check_mapping(
-                dir,
-                mapping,
-                |index, sub| {
-                    let pos = position(keys, index, sub)?;
-                    entries
-                        .get(pos)
-                        .map(::od_runtime::pdo::Mappable::from)
-                        .ok_or(AbortCode::NO_OBJECT)
-                },
-            )
-        }
-        fn gcd(a: i128, b: i128) -> i128 {
-            let (mut a, mut b) = (a.unsigned_abs(), b.unsigned_abs());
-            while b != 0 {
-                let t = a % b;
-                a = b;
-                b = t;
-            }
-            if a > i128::MAX as u128 { 1 } else { a as i128 }
-        }
-        /// An exact rational number (denominator positive). Arithmetic is checked: `None`
-        /// means an overflow (or a zero denominator), never a wrapped value.
-        #[derive(Clone, Copy, Debug)]
-        pub struct Ratio {
-            num: i128,
-            den: i128,
-        }
-        impl Ratio {
-            /// 1.
-            pub const ONE: Ratio = Ratio { num: 1, den: 1 };
-            /// An integer.
-            pub const fn int(v: i64) -> Ratio {
-                Ratio { num: v as i128, den: 1 }
-            }
-            /// `num / den` in lowest terms; `None` if `den` is 0.
-            pub fn new(num: i128, den: i128) -> Option<Ratio> {
-                if den == 0 || num == i128::MIN || den == i128::MIN {
-                    return None;
-                }
-                let (num, den) = if den < 0 { (-num, -den) } else { (num, den) };
-                let g = gcd(num, den).max(1);
-                Some(Ratio {
-                    num: num / g,
-                    den: den / g,
-                })
-            }
-            /// The numerator (of the stored form, not necessarily reduced).
-            pub const fn num(self) -> i128 {
-                self.num
-            }
-            /// The denominator (positive).
-            pub const fn den(self) -> i128 {
-                self.den
-            }
-            /// This ratio in lowest terms.
-            pub fn reduced(self) -> Ratio {
-                Ratio::new(self.num, self.den).unwrap_or(self)
-            }
-            /// `self × v`, not reduced (fast path of conversions).
-            #[inline]
-            pub fn checked_mul_int(self, v: i64) -> Option<Ratio> {
-                let num = match i64::try_from(self.num) {
-                    Ok(n) => n as i128 * v as i128,
-                    Err(_) => self.num.checked_mul(v as i128)?,
-                };
-                Some(Ratio { num, den: self.den })
-            }
-            /// `self × o`; reduces only when the plain product would overflow.
-            #[inline]
-            pub fn checked_mul(self, o: Ratio) -> Option<Ratio> {
-                if let (Ok(a), Ok(b), Ok(c), Ok(d)) = (
-                    i64::try_from(self.num),
-                    i64::try_from(o.num),
-                    i64::try_from(self.den),
-                    i64::try_from(o.den),
-                ) {
-                    return Some(Ratio {
-                        num: a as i128 * b as i128,
-                        den: c as i128 * d as i128,
-                    });
-                }
-                match (self.num.checked_mul(o.num), self.den.checked_mul(o.den)) {
-                    (Some(num), Some(den)) => Some(Ratio { num, den }),
-                    _ => {
-                        let (a, b) = (self.reduced(), o.reduced());
-                        let g1 = gcd(a.num, b.den).max(1);
-                        let g2 = gcd(b.num, a.den).max(1);
-                        let num = (a.num / g1).checked_mul(b.num / g2)?;
-                        let den = (a.den / g2).checked_mul(b.den / g1)?;
-                        Some(Ratio { num, den })
-                    }
-                }
-            }
-            /// `1 / self`; `None` for 0.
-            pub fn recip(self) -> Option<Ratio> {
-                Ratio::new(self.den, self.num)
-            }
-            /// `self / o`; `None` for a zero divisor or an overflow.
-            #[inline]
-            pub fn checked_div(self, o: Ratio) -> Option<Ratio> {
-                if o.num == 0 || o.num == i128::MIN {
-                    return None;
-                }
-                let (n, d) = if o.num < 0 { (-o.den, -o.num) } else { (o.den, o.num) };
-                self.checked_mul(Ratio { num: n, den: d })
-            }
-            /// The nearest integer, halves rounded away from zero.
-            #[inline]
-            pub fn round(self) -> i128 {
-                let (q, r) = if let (Ok(n), Ok(d)) = (
-                    i64::try_from(self.num),
-                    i64::try_from(self.den),
-                ) {
-                    ((n / d) as i128, (n % d) as i128)
-                } else {
-                    (self.num / self.den, self.num % self.den)
-                };
-                let r = r.unsigned_abs();
-                if r >= self.den.unsigned_abs() - r {
-                    if self.num < 0 { q - 1 } else { q + 1 }
-                } else {
-                    q
-                }
-            }
-            /// The nearest `f64`.
-            pub fn to_f64(self) -> f64 {
-                let r = self.reduced();
-                r.num as f64 / r.den as f64
-            }
-        }
-        impl PartialEq for Ratio {
-            fn eq(&self, o: &Ratio) -> bool {
-                let (a, b) = (self.reduced(), o.reduced());
-                a.num == b.num && a.den == b.den
-            }
-        }
-        impl Eq for Ratio {}
-        impl ::core::fmt::Display for Ratio {
-            fn fmt(&self, f: &mut ::core::fmt::Formatter<'_>) -> ::core::fmt::Result {
-                let r = self.reduced();
-                if r.den == 1 {
-                    write!(f, "{}", r.num)
-                } else {
-                    write!(f, "{}/{}", r.num, r.den)
-                }
-            }
-        }
-        /// A received PDO was shorter than its mapping.
-        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-        pub struct PdoLengthError {
-            /// Bytes the mapping needs.
-            pub expected: usize,
-            /// Bytes received.
-            pub actual: usize,
-        }
-        impl ::core::fmt::Display for PdoLengthError {
-            fn fmt(&self, f: &mut ::core::fmt::Formatter<'_>) -> ::core::fmt::Result {
-                write!(
-                    f, "PDO too short: {} bytes received, the mapping needs {}", self
-                    .actual, self.expected
-                )
-            }
-        }
-        /// Reads up to 8 bytes of a PDO as one little-endian word.
-        #[inline]
-        pub fn pdo_word(data: &[u8], len: usize) -> Result<u64, PdoLengthError> {
-            let src = data
-                .get(..len)
-                .ok_or(PdoLengthError {
-                    expected: len,
-                    actual: data.len(),
-                })?;
-            let mut b = [0u8; 8];
-            if let Some(dst) = b.get_mut(..src.len()) {
-                dst.copy_from_slice(src);
-            }
-            Ok(u64::from_le_bytes(b))
         }
     }
 }

@@ -566,15 +566,27 @@ PDOMapping=0
         /// `0x6099` Homing speeds.
         pub const HOMING_SPEEDS: u16 = 0x6099;
     }
-    /// `index << 8 | sub` of every entry, sorted: the lookup table (parallel to [`ENTRIES`]).
-    static KEYS: [u32; 47] = [
-        0x100000, 0x100100, 0x100800, 0x101700, 0x101800, 0x101801, 0x101802, 0x101803,
-        0x101804, 0x140000, 0x140001, 0x140002, 0x160000, 0x160001, 0x160002, 0x160003,
-        0x180000, 0x180001, 0x180002, 0x1A0000, 0x1A0001, 0x1A0002, 0x1A0003, 0x1A0004,
-        0x1A0100, 0x1A0101, 0x1A0102, 0x200100, 0x200200, 0x200300, 0x200400, 0x200500,
-        0x200600, 0x200601, 0x200602, 0x200603, 0x200700, 0x604000, 0x604100, 0x606000,
-        0x606100, 0x606400, 0x606C00, 0x607A00, 0x609900, 0x609901, 0x609902,
+    /// The index of every object, sorted (the lookup's page table is computed from it).
+    static OBJECTS: [u16; 25] = [
+        0x1000, 0x1001, 0x1008, 0x1017, 0x1018, 0x1400, 0x1600, 0x1800, 0x1A00, 0x1A01,
+        0x2001, 0x2002, 0x2003, 0x2004, 0x2005, 0x2006, 0x2007, 0x6040, 0x6041, 0x6060,
+        0x6061, 0x6064, 0x606C, 0x607A, 0x6099,
     ];
+    /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
+    /// the index to its object, then the sub-index in the object's run of entries (`first`:
+    /// each object's first entry, then the entry count; `subs`: every entry's sub-index).
+    static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
+        pages: ::od_runtime::__private_v1::pages(&OBJECTS),
+        slots: &::od_runtime::__private_v1::slots::<1792>(&OBJECTS),
+        first: &[
+            0, 1, 2, 3, 4, 9, 12, 16, 19, 24, 27, 28, 29, 30, 31, 32, 36, 37, 38, 39, 40,
+            41, 42, 43, 44, 47,
+        ],
+        subs: &[
+            0, 0, 0, 0, 0, 1, 2, 3, 4, 0, 1, 2, 0, 1, 2, 3, 0, 1, 2, 0, 1, 2, 3, 4, 0, 1,
+            2, 0, 0, 0, 0, 0, 0, 1, 2, 3, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2,
+        ],
+    };
     /// Metadata of every entry, sorted by `(index, sub)`.
     pub static ENTRIES: [::od_runtime::od::EntryInfo; 47] = [
         ::od_runtime::od::EntryInfo {
@@ -1149,7 +1161,7 @@ PDOMapping=0
     pub struct Dictionary {
         device_type: u32,
         error_register: u8,
-        manufacturer_device_name: __rt::Bytes<32>,
+        manufacturer_device_name: ::od_runtime::__private_v1::Bytes<32>,
         producer_heartbeat_time: u16,
         identity_object_highest_sub_index_supported: u8,
         identity_object_vendor_id: u32,
@@ -1177,7 +1189,7 @@ PDOMapping=0
         signed_24: i32,
         flag: bool,
         gain: f32,
-        blob: __rt::Bytes<32>,
+        blob: ::od_runtime::__private_v1::Bytes<32>,
         counter: u64,
         gains_number_of_entries: u8,
         gains_type: u16,
@@ -1198,11 +1210,12 @@ PDOMapping=0
     impl Dictionary {
         /// A dictionary holding every entry's default, with `$NODEID` resolved for `node_id`.
         pub const fn new(node_id: u8) -> Self {
-            let () = __rt::VERSION_1;
             Dictionary {
                 device_type: 0x20192,
                 error_register: 0,
-                manufacturer_device_name: __rt::Bytes::from_slice(b"Mini drive"),
+                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                    b"Mini drive",
+                ),
                 producer_heartbeat_time: 0,
                 identity_object_highest_sub_index_supported: 4,
                 identity_object_vendor_id: 0x1234,
@@ -1232,7 +1245,7 @@ PDOMapping=0
                 signed_24: -5,
                 flag: true,
                 gain: 1.5,
-                blob: __rt::Bytes::from_slice(b"\x01\x02"),
+                blob: ::od_runtime::__private_v1::Bytes::from_slice(b"\x01\x02"),
                 counter: 0x123456789,
                 gains_number_of_entries: 3,
                 gains_type: 1,
@@ -1258,241 +1271,390 @@ PDOMapping=0
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            __rt::position(&KEYS, index, sub)
+            ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
         }
-        fn slot(&self, pos: usize) -> Option<__rt::Slot<'_>> {
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
             Some(
                 match pos {
-                    0 => __rt::Slot::U32(&self.device_type),
-                    1 => __rt::Slot::U8(&self.error_register),
-                    2 => __rt::Slot::Bytes(self.manufacturer_device_name.as_slice()),
-                    3 => __rt::Slot::U16(&self.producer_heartbeat_time),
-                    4 => {
-                        __rt::Slot::U8(&self.identity_object_highest_sub_index_supported)
+                    0 => ::od_runtime::__private_v1::Slot::U32(&self.device_type),
+                    1 => ::od_runtime::__private_v1::Slot::U8(&self.error_register),
+                    2 => {
+                        ::od_runtime::__private_v1::Slot::Bytes(
+                            self.manufacturer_device_name.as_slice(),
+                        )
                     }
-                    5 => __rt::Slot::U32(&self.identity_object_vendor_id),
-                    6 => __rt::Slot::U32(&self.identity_object_product_code),
-                    7 => __rt::Slot::U32(&self.identity_object_revision_number),
-                    8 => __rt::Slot::U32(&self.identity_object_serial_number),
+                    3 => {
+                        ::od_runtime::__private_v1::Slot::U16(
+                            &self.producer_heartbeat_time,
+                        )
+                    }
+                    4 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.identity_object_highest_sub_index_supported,
+                        )
+                    }
+                    5 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.identity_object_vendor_id,
+                        )
+                    }
+                    6 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.identity_object_product_code,
+                        )
+                    }
+                    7 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.identity_object_revision_number,
+                        )
+                    }
+                    8 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.identity_object_serial_number,
+                        )
+                    }
                     9 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .rpdo_communication_parameter_1_highest_sub_index_supported,
                         )
                     }
                     10 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.rpdo_communication_parameter_1_cob_id_used_by_rpdo,
                         )
                     }
                     11 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.rpdo_communication_parameter_1_transmission_type,
                         )
                     }
                     12 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.rpdo_mapping_parameter_1_number_of_mapped_objects,
                         )
                     }
-                    13 => __rt::Slot::U32(&self.rpdo_mapping_parameter_1_mapped_object_1),
-                    14 => __rt::Slot::U32(&self.rpdo_mapping_parameter_1_mapped_object_2),
-                    15 => __rt::Slot::U32(&self.rpdo_mapping_parameter_1_mapped_object_3),
+                    13 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.rpdo_mapping_parameter_1_mapped_object_1,
+                        )
+                    }
+                    14 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.rpdo_mapping_parameter_1_mapped_object_2,
+                        )
+                    }
+                    15 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.rpdo_mapping_parameter_1_mapped_object_3,
+                        )
+                    }
                     16 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self
                                 .tpdo_communication_parameter_1_highest_sub_index_supported,
                         )
                     }
                     17 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.tpdo_communication_parameter_1_cob_id_used_by_tpdo,
                         )
                     }
                     18 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.tpdo_communication_parameter_1_transmission_type,
                         )
                     }
                     19 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.tpdo_mapping_parameter_1_number_of_mapped_objects,
                         )
                     }
-                    20 => __rt::Slot::U32(&self.tpdo_mapping_parameter_1_mapped_object_1),
-                    21 => __rt::Slot::U32(&self.tpdo_mapping_parameter_1_mapped_object_2),
-                    22 => __rt::Slot::U32(&self.tpdo_mapping_parameter_1_mapped_object_3),
-                    23 => __rt::Slot::U32(&self.tpdo_mapping_parameter_1_mapped_object_4),
+                    20 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.tpdo_mapping_parameter_1_mapped_object_1,
+                        )
+                    }
+                    21 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.tpdo_mapping_parameter_1_mapped_object_2,
+                        )
+                    }
+                    22 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.tpdo_mapping_parameter_1_mapped_object_3,
+                        )
+                    }
+                    23 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.tpdo_mapping_parameter_1_mapped_object_4,
+                        )
+                    }
                     24 => {
-                        __rt::Slot::U8(
+                        ::od_runtime::__private_v1::Slot::U8(
                             &self.tpdo_mapping_parameter_2_number_of_mapped_objects,
                         )
                     }
-                    25 => __rt::Slot::U32(&self.tpdo_mapping_parameter_2_mapped_object_1),
-                    26 => __rt::Slot::U32(&self.tpdo_mapping_parameter_2_mapped_object_2),
-                    27 => __rt::Slot::I32(&self.signed_24),
-                    28 => __rt::Slot::Bool(&self.flag),
-                    29 => __rt::Slot::F32(&self.gain),
-                    30 => __rt::Slot::Bytes(self.blob.as_slice()),
-                    31 => __rt::Slot::U64(&self.counter),
-                    32 => __rt::Slot::U8(&self.gains_number_of_entries),
-                    33 => __rt::Slot::U16(&self.gains_type),
-                    34 => __rt::Slot::U16(&self.gains_gain_2),
-                    35 => __rt::Slot::U16(&self.gains_gain_2_2006_3),
-                    36 => __rt::Slot::U32(&self.position_window),
-                    37 => __rt::Slot::U16(&self.controlword),
-                    38 => __rt::Slot::U16(&self.statusword),
-                    39 => __rt::Slot::I8(&self.modes_of_operation),
-                    40 => __rt::Slot::I8(&self.modes_of_operation_display),
-                    41 => __rt::Slot::I32(&self.position_actual_value),
-                    42 => __rt::Slot::I32(&self.velocity_actual_value),
-                    43 => __rt::Slot::I32(&self.target_position),
-                    44 => __rt::Slot::U8(&self.homing_speeds_number_of_entries),
+                    25 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.tpdo_mapping_parameter_2_mapped_object_1,
+                        )
+                    }
+                    26 => {
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.tpdo_mapping_parameter_2_mapped_object_2,
+                        )
+                    }
+                    27 => ::od_runtime::__private_v1::Slot::I32(&self.signed_24),
+                    28 => ::od_runtime::__private_v1::Slot::Bool(&self.flag),
+                    29 => ::od_runtime::__private_v1::Slot::F32(&self.gain),
+                    30 => ::od_runtime::__private_v1::Slot::Bytes(self.blob.as_slice()),
+                    31 => ::od_runtime::__private_v1::Slot::U64(&self.counter),
+                    32 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.gains_number_of_entries,
+                        )
+                    }
+                    33 => ::od_runtime::__private_v1::Slot::U16(&self.gains_type),
+                    34 => ::od_runtime::__private_v1::Slot::U16(&self.gains_gain_2),
+                    35 => {
+                        ::od_runtime::__private_v1::Slot::U16(&self.gains_gain_2_2006_3)
+                    }
+                    36 => ::od_runtime::__private_v1::Slot::U32(&self.position_window),
+                    37 => ::od_runtime::__private_v1::Slot::U16(&self.controlword),
+                    38 => ::od_runtime::__private_v1::Slot::U16(&self.statusword),
+                    39 => ::od_runtime::__private_v1::Slot::I8(&self.modes_of_operation),
+                    40 => {
+                        ::od_runtime::__private_v1::Slot::I8(
+                            &self.modes_of_operation_display,
+                        )
+                    }
+                    41 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.position_actual_value,
+                        )
+                    }
+                    42 => {
+                        ::od_runtime::__private_v1::Slot::I32(
+                            &self.velocity_actual_value,
+                        )
+                    }
+                    43 => ::od_runtime::__private_v1::Slot::I32(&self.target_position),
+                    44 => {
+                        ::od_runtime::__private_v1::Slot::U8(
+                            &self.homing_speeds_number_of_entries,
+                        )
+                    }
                     45 => {
-                        __rt::Slot::U32(
+                        ::od_runtime::__private_v1::Slot::U32(
                             &self.homing_speeds_speed_during_search_for_switch,
                         )
                     }
                     46 => {
-                        __rt::Slot::U32(&self.homing_speeds_speed_during_search_for_zero)
+                        ::od_runtime::__private_v1::Slot::U32(
+                            &self.homing_speeds_speed_during_search_for_zero,
+                        )
                     }
                     _ => return None,
                 },
             )
         }
-        fn slot_mut(&mut self, pos: usize) -> Option<__rt::SlotMut<'_>> {
+        fn slot_mut(
+            &mut self,
+            pos: usize,
+        ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
             Some(
                 match pos {
-                    0 => __rt::SlotMut::U32(&mut self.device_type),
-                    1 => __rt::SlotMut::U8(&mut self.error_register),
+                    0 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.device_type),
+                    1 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(&mut self.error_register)
+                    }
                     2 => self.manufacturer_device_name.slot_mut(),
-                    3 => __rt::SlotMut::U16(&mut self.producer_heartbeat_time),
+                    3 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.producer_heartbeat_time,
+                        )
+                    }
                     4 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.identity_object_highest_sub_index_supported,
                         )
                     }
-                    5 => __rt::SlotMut::U32(&mut self.identity_object_vendor_id),
-                    6 => __rt::SlotMut::U32(&mut self.identity_object_product_code),
-                    7 => __rt::SlotMut::U32(&mut self.identity_object_revision_number),
-                    8 => __rt::SlotMut::U32(&mut self.identity_object_serial_number),
+                    5 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.identity_object_vendor_id,
+                        )
+                    }
+                    6 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.identity_object_product_code,
+                        )
+                    }
+                    7 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.identity_object_revision_number,
+                        )
+                    }
+                    8 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.identity_object_serial_number,
+                        )
+                    }
                     9 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .rpdo_communication_parameter_1_highest_sub_index_supported,
                         )
                     }
                     10 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.rpdo_communication_parameter_1_cob_id_used_by_rpdo,
                         )
                     }
                     11 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.rpdo_communication_parameter_1_transmission_type,
                         )
                     }
                     12 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.rpdo_mapping_parameter_1_number_of_mapped_objects,
                         )
                     }
                     13 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.rpdo_mapping_parameter_1_mapped_object_1,
                         )
                     }
                     14 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.rpdo_mapping_parameter_1_mapped_object_2,
                         )
                     }
                     15 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.rpdo_mapping_parameter_1_mapped_object_3,
                         )
                     }
                     16 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
                                 .tpdo_communication_parameter_1_highest_sub_index_supported,
                         )
                     }
                     17 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.tpdo_communication_parameter_1_cob_id_used_by_tpdo,
                         )
                     }
                     18 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.tpdo_communication_parameter_1_transmission_type,
                         )
                     }
                     19 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.tpdo_mapping_parameter_1_number_of_mapped_objects,
                         )
                     }
                     20 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.tpdo_mapping_parameter_1_mapped_object_1,
                         )
                     }
                     21 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.tpdo_mapping_parameter_1_mapped_object_2,
                         )
                     }
                     22 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.tpdo_mapping_parameter_1_mapped_object_3,
                         )
                     }
                     23 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.tpdo_mapping_parameter_1_mapped_object_4,
                         )
                     }
                     24 => {
-                        __rt::SlotMut::U8(
+                        ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self.tpdo_mapping_parameter_2_number_of_mapped_objects,
                         )
                     }
                     25 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.tpdo_mapping_parameter_2_mapped_object_1,
                         )
                     }
                     26 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.tpdo_mapping_parameter_2_mapped_object_2,
                         )
                     }
-                    27 => __rt::SlotMut::I32(&mut self.signed_24),
-                    28 => __rt::SlotMut::Bool(&mut self.flag),
-                    29 => __rt::SlotMut::F32(&mut self.gain),
+                    27 => ::od_runtime::__private_v1::SlotMut::I32(&mut self.signed_24),
+                    28 => ::od_runtime::__private_v1::SlotMut::Bool(&mut self.flag),
+                    29 => ::od_runtime::__private_v1::SlotMut::F32(&mut self.gain),
                     30 => self.blob.slot_mut(),
-                    31 => __rt::SlotMut::U64(&mut self.counter),
-                    32 => __rt::SlotMut::U8(&mut self.gains_number_of_entries),
-                    33 => __rt::SlotMut::U16(&mut self.gains_type),
-                    34 => __rt::SlotMut::U16(&mut self.gains_gain_2),
-                    35 => __rt::SlotMut::U16(&mut self.gains_gain_2_2006_3),
-                    36 => __rt::SlotMut::U32(&mut self.position_window),
-                    37 => __rt::SlotMut::U16(&mut self.controlword),
-                    38 => __rt::SlotMut::U16(&mut self.statusword),
-                    39 => __rt::SlotMut::I8(&mut self.modes_of_operation),
-                    40 => __rt::SlotMut::I8(&mut self.modes_of_operation_display),
-                    41 => __rt::SlotMut::I32(&mut self.position_actual_value),
-                    42 => __rt::SlotMut::I32(&mut self.velocity_actual_value),
-                    43 => __rt::SlotMut::I32(&mut self.target_position),
-                    44 => __rt::SlotMut::U8(&mut self.homing_speeds_number_of_entries),
+                    31 => ::od_runtime::__private_v1::SlotMut::U64(&mut self.counter),
+                    32 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.gains_number_of_entries,
+                        )
+                    }
+                    33 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.gains_type),
+                    34 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(&mut self.gains_gain_2)
+                    }
+                    35 => {
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.gains_gain_2_2006_3,
+                        )
+                    }
+                    36 => {
+                        ::od_runtime::__private_v1::SlotMut::U32(
+                            &mut self.position_window,
+                        )
+                    }
+                    37 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.controlword),
+                    38 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.statusword),
+                    39 => {
+                        ::od_runtime::__private_v1::SlotMut::I8(
+                            &mut self.modes_of_operation,
+                        )
+                    }
+                    40 => {
+                        ::od_runtime::__private_v1::SlotMut::I8(
+                            &mut self.modes_of_operation_display,
+                        )
+                    }
+                    41 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.position_actual_value,
+                        )
+                    }
+                    42 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.velocity_actual_value,
+                        )
+                    }
+                    43 => {
+                        ::od_runtime::__private_v1::SlotMut::I32(
+                            &mut self.target_position,
+                        )
+                    }
+                    44 => {
+                        ::od_runtime::__private_v1::SlotMut::U8(
+                            &mut self.homing_speeds_number_of_entries,
+                        )
+                    }
                     45 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.homing_speeds_speed_during_search_for_switch,
                         )
                     }
                     46 => {
-                        __rt::SlotMut::U32(
+                        ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.homing_speeds_speed_during_search_for_zero,
                         )
                     }
@@ -1508,7 +1670,7 @@ PDOMapping=0
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            __rt::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v1::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -1518,7 +1680,7 @@ PDOMapping=0
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            __rt::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v1::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -1528,9 +1690,9 @@ PDOMapping=0
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            __rt::check_mapping(
+            ::od_runtime::__private_v1::check_mapping(
                 &ENTRIES,
-                &KEYS,
+                &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
                 mapping,
             )
@@ -1539,9 +1701,9 @@ PDOMapping=0
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            __rt::check_mapping(
+            ::od_runtime::__private_v1::check_mapping(
                 &ENTRIES,
-                &KEYS,
+                &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
                 mapping,
             )
@@ -2343,7 +2505,9 @@ PDOMapping=0
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             let pos = Self::position(index, sub)?;
             match (ENTRIES.get(pos), self.slot(pos)) {
-                (Some(info), Some(slot)) => __rt::read(info, slot, buf),
+                (Some(info), Some(slot)) => {
+                    ::od_runtime::__private_v1::read(info, slot, buf)
+                }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
         }
@@ -2360,7 +2524,13 @@ PDOMapping=0
             };
             match (ENTRIES.get(pos), self.slot_mut(pos)) {
                 (Some(info), Some(slot)) => {
-                    __rt::write(info, slot, data, real_low, real_high)
+                    ::od_runtime::__private_v1::write(
+                        info,
+                        slot,
+                        data,
+                        real_low,
+                        real_high,
+                    )
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -2368,7 +2538,7 @@ PDOMapping=0
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, info) in ENTRIES.iter().enumerate() {
                 if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    __rt::set_default(info, slot, node_id);
+                    ::od_runtime::__private_v1::set_default(info, slot, node_id);
                 }
             }
         }
@@ -2376,7 +2546,8 @@ PDOMapping=0
     /// Typed layouts of the device's default PDO mappings.
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
-        pub use super::__rt::PdoLengthError as LengthError;
+        #[doc(inline)]
+        pub use ::od_runtime::__private_v1::PdoLengthError as LengthError;
         /// RPDO 1 (received by the device), default mapping of `0x1600`: 32 bits in 4 bytes.
         ///
         /// | bits | object | field |
@@ -2410,7 +2581,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = super::__rt::pdo_word(data, 4)?;
+                let w = ::od_runtime::__private_v1::pdo_word(data, 4)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     modes_of_operation: (((((w >> 24) & 0xFF) << 56) as i64) >> 56) as i8,
@@ -2476,7 +2647,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = super::__rt::pdo_word(data, 7)?;
+                let w = ::od_runtime::__private_v1::pdo_word(data, 7)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     modes_of_operation_display: (((((w >> 16) & 0xFF) << 56) as i64)
@@ -2539,7 +2710,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = super::__rt::pdo_word(data, 8)?;
+                let w = ::od_runtime::__private_v1::pdo_word(data, 8)?;
                 Ok(Self {
                     position_actual_value: ((((w & 0xFFFFFFFF) << 32) as i64) >> 32)
                         as i32,
@@ -2563,458 +2734,6 @@ PDOMapping=0
                 od.set_velocity_actual_value(self.velocity_actual_value)?;
                 Ok(())
             }
-        }
-    }
-    /// Generic machinery of the generated dictionary (not part of its API; may change
-    /// between generator versions).
-    #[doc(hidden)]
-    pub mod __rt {
-        use ::od_runtime::od::{AbortCode, EntryInfo, ObjectDictionary};
-        /// Marks the interface version generated code was written against.
-        pub const VERSION_1: () = ();
-        /// A fixed-capacity byte buffer holding a string, OCTET_STRING or DOMAIN value.
-        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-        pub struct Bytes<const N: usize> {
-            len: usize,
-            data: [u8; N],
-        }
-        impl<const N: usize> Bytes<N> {
-            /// A buffer holding `src` (cut at `N` bytes; the generator sizes `N` so that
-            /// defaults always fit).
-            pub const fn from_slice(src: &[u8]) -> Self {
-                let mut data = [0u8; N];
-                let mut i = 0;
-                while i < src.len() && i < N {
-                    data[i] = src[i];
-                    i += 1;
-                }
-                Bytes { len: i, data }
-            }
-            /// The current value.
-            pub fn as_slice(&self) -> &[u8] {
-                let (head, _) = self.data.split_at(self.len.min(N));
-                head
-            }
-            /// Replaces the value: `Err(LENGTH_TOO_HIGH)` if it does not fit.
-            pub fn set(&mut self, src: &[u8]) -> Result<(), AbortCode> {
-                match self.data.get_mut(..src.len()) {
-                    Some(dst) => {
-                        dst.copy_from_slice(src);
-                        self.len = src.len();
-                        Ok(())
-                    }
-                    None => Err(AbortCode::LENGTH_TOO_HIGH),
-                }
-            }
-            fn parts_mut(&mut self) -> (&mut [u8], &mut usize) {
-                (&mut self.data, &mut self.len)
-            }
-            /// The value as a mutable slot.
-            pub fn slot_mut(&mut self) -> SlotMut<'_> {
-                let (data, len) = self.parts_mut();
-                SlotMut::Bytes(data, len)
-            }
-        }
-        /// A shared reference to one stored value.
-        #[derive(Clone, Copy, Debug)]
-        pub enum Slot<'a> {
-            Bool(&'a bool),
-            U8(&'a u8),
-            U16(&'a u16),
-            U32(&'a u32),
-            U64(&'a u64),
-            I8(&'a i8),
-            I16(&'a i16),
-            I32(&'a i32),
-            I64(&'a i64),
-            F32(&'a f32),
-            F64(&'a f64),
-            Bytes(&'a [u8]),
-        }
-        /// A mutable reference to one stored value.
-        #[derive(Debug)]
-        pub enum SlotMut<'a> {
-            Bool(&'a mut bool),
-            U8(&'a mut u8),
-            U16(&'a mut u16),
-            U32(&'a mut u32),
-            U64(&'a mut u64),
-            I8(&'a mut i8),
-            I16(&'a mut i16),
-            I32(&'a mut i32),
-            I64(&'a mut i64),
-            F32(&'a mut f32),
-            F64(&'a mut f64),
-            /// Capacity-sized storage and the current length.
-            Bytes(&'a mut [u8], &'a mut usize),
-        }
-        /// Bytes a fixed-size value of `bits` bits takes on the bus (at most 8).
-        pub const fn byte_len(bits: u32) -> usize {
-            let n = (bits as usize).div_ceil(8);
-            if n > 8 { 8 } else { n }
-        }
-        /// Position of `(index, sub)` in a sorted key table (`index << 8 | sub`).
-        #[inline]
-        pub fn position(keys: &[u32], index: u16, sub: u8) -> Result<usize, AbortCode> {
-            let key = ((index as u32) << 8) | sub as u32;
-            match keys.binary_search(&key) {
-                Ok(p) => Ok(p),
-                Err(p) => {
-                    let same = |k: Option<&u32>| {
-                        k.is_some_and(|k| (k >> 8) as u16 == index)
-                    };
-                    if same(keys.get(p)) || (p > 0 && same(keys.get(p - 1))) {
-                        Err(AbortCode::NO_SUB_INDEX)
-                    } else {
-                        Err(AbortCode::NO_OBJECT)
-                    }
-                }
-            }
-        }
-        fn raw(slot: &Slot<'_>) -> Option<u64> {
-            Some(
-                match *slot {
-                    Slot::Bool(v) => *v as u64,
-                    Slot::U8(v) => *v as u64,
-                    Slot::U16(v) => *v as u64,
-                    Slot::U32(v) => *v as u64,
-                    Slot::U64(v) => *v,
-                    Slot::I8(v) => *v as u64,
-                    Slot::I16(v) => *v as u64,
-                    Slot::I32(v) => *v as u64,
-                    Slot::I64(v) => *v as u64,
-                    Slot::F32(v) => v.to_bits() as u64,
-                    Slot::F64(v) => v.to_bits(),
-                    Slot::Bytes(_) => return None,
-                },
-            )
-        }
-        /// Copies a value into `buf` as little-endian bytes.
-        #[inline]
-        pub fn read(
-            info: &EntryInfo,
-            slot: Slot<'_>,
-            buf: &mut [u8],
-        ) -> Result<usize, AbortCode> {
-            let tmp;
-            let src: &[u8] = match raw(&slot) {
-                Some(v) => {
-                    tmp = v.to_le_bytes();
-                    let (head, _) = tmp.split_at(byte_len(info.bits));
-                    head
-                }
-                None => {
-                    match slot {
-                        Slot::Bytes(b) => b,
-                        _ => &[],
-                    }
-                }
-            };
-            let dst = buf.get_mut(..src.len()).ok_or(AbortCode::OUT_OF_MEMORY)?;
-            dst.copy_from_slice(src);
-            Ok(src.len())
-        }
-        /// Checks a real number against REAL limits.
-        #[inline]
-        pub fn check_real(
-            v: f64,
-            low: Option<f64>,
-            high: Option<f64>,
-        ) -> Result<(), AbortCode> {
-            if low.is_some_and(|l| v < l) {
-                return Err(AbortCode::VALUE_TOO_LOW);
-            }
-            if high.is_some_and(|h| v > h) {
-                return Err(AbortCode::VALUE_TOO_HIGH);
-            }
-            Ok(())
-        }
-        /// Stores little-endian bytes into a slot without any check (fixed-size values:
-        /// missing bytes are zero, extra bytes ignored; buffers: cut to the capacity).
-        fn store(slot: SlotMut<'_>, data: &[u8]) {
-            if let SlotMut::Bytes(buf, len) = slot {
-                let n = data.len().min(buf.len());
-                if let (Some(dst), Some(src)) = (buf.get_mut(..n), data.get(..n)) {
-                    dst.copy_from_slice(src);
-                }
-                *len = n;
-                return;
-            }
-            let mut b = [0u8; 8];
-            for (d, s) in b.iter_mut().zip(data) {
-                *d = *s;
-            }
-            let raw = u64::from_le_bytes(b);
-            let width = data.len().min(8) as u32 * 8;
-            let signed = if width == 0 || width == 64 {
-                raw as i64
-            } else {
-                ((raw << (64 - width)) as i64) >> (64 - width)
-            };
-            match slot {
-                SlotMut::Bool(v) => *v = raw != 0,
-                SlotMut::U8(v) => *v = raw as u8,
-                SlotMut::U16(v) => *v = raw as u16,
-                SlotMut::U32(v) => *v = raw as u32,
-                SlotMut::U64(v) => *v = raw,
-                SlotMut::I8(v) => *v = signed as i8,
-                SlotMut::I16(v) => *v = signed as i16,
-                SlotMut::I32(v) => *v = signed as i32,
-                SlotMut::I64(v) => *v = signed,
-                SlotMut::F32(v) => *v = f32::from_bits(raw as u32),
-                SlotMut::F64(v) => *v = f64::from_bits(raw),
-                SlotMut::Bytes(..) => {}
-            }
-        }
-        /// Stores a value given as little-endian bytes after the runtime's shared checks
-        /// ([`EntryInfo::check_value`]: length, limits, BOOLEAN 0/1) and the REAL limits.
-        #[inline]
-        pub fn write(
-            info: &EntryInfo,
-            slot: SlotMut<'_>,
-            data: &[u8],
-            real_low: Option<f64>,
-            real_high: Option<f64>,
-        ) -> Result<(), AbortCode> {
-            info.check_value(data)?;
-            if real_low.is_some() || real_high.is_some() {
-                let real = match slot {
-                    SlotMut::F32(_) => {
-                        data.try_into().ok().map(|b| f32::from_le_bytes(b) as f64)
-                    }
-                    SlotMut::F64(_) => data.try_into().ok().map(f64::from_le_bytes),
-                    _ => None,
-                };
-                if let Some(f) = real {
-                    check_real(f, real_low, real_high)?;
-                }
-            }
-            store(slot, data);
-            Ok(())
-        }
-        /// Sets a value back to its default, resolving `$NODEID` with `node_id`
-        /// ([`DefaultValue::encode`](::od_runtime::od::DefaultValue::encode), the runtime's rule).
-        pub fn set_default(info: &EntryInfo, slot: SlotMut<'_>, node_id: u8) {
-            match slot {
-                SlotMut::Bytes(buf, len) => {
-                    *len = info.default.encode(info, node_id, buf);
-                }
-                fixed => {
-                    let mut b = [0u8; 8];
-                    let n = info.default.encode(info, node_id, &mut b);
-                    store(fixed, b.get(..n).unwrap_or(&[]));
-                }
-            }
-        }
-        /// Reads like an SDO upload: refuses write-only entries (`WRITE_ONLY`).
-        pub fn bus_read<D: ObjectDictionary + ?Sized>(
-            od: &D,
-            index: u16,
-            sub: u8,
-            buf: &mut [u8],
-        ) -> Result<usize, AbortCode> {
-            if !od.info(index, sub)?.access.readable() {
-                return Err(AbortCode::WRITE_ONLY);
-            }
-            od.read(index, sub, buf)
-        }
-        /// Writes like an SDO download: refuses read-only and constant entries (`READ_ONLY`).
-        pub fn bus_write<D: ObjectDictionary + ?Sized>(
-            od: &mut D,
-            index: u16,
-            sub: u8,
-            data: &[u8],
-        ) -> Result<(), AbortCode> {
-            if !od.info(index, sub)?.access.writable() {
-                return Err(AbortCode::READ_ONLY);
-            }
-            od.write(index, sub, data)
-        }
-        /// Checks a PDO mapping with the runtime's rules against a dictionary's table.
-        pub fn check_mapping(
-            entries: &'static [EntryInfo],
-            keys: &[u32],
-            dir: ::od_runtime::pdo::Direction,
-            mapping: &[u32],
-        ) -> Result<u32, AbortCode> {
-            ::od_runtime::pdo::check_mapping(
-                dir,
-                mapping,
-                |index, sub| {
-                    let pos = position(keys, index, sub)?;
-                    entries
-                        .get(pos)
-                        .map(::od_runtime::pdo::Mappable::from)
-                        .ok_or(AbortCode::NO_OBJECT)
-                },
-            )
-        }
-        fn gcd(a: i128, b: i128) -> i128 {
-            let (mut a, mut b) = (a.unsigned_abs(), b.unsigned_abs());
-            while b != 0 {
-                let t = a % b;
-                a = b;
-                b = t;
-            }
-            if a > i128::MAX as u128 { 1 } else { a as i128 }
-        }
-        /// An exact rational number (denominator positive). Arithmetic is checked: `None`
-        /// means an overflow (or a zero denominator), never a wrapped value.
-        #[derive(Clone, Copy, Debug)]
-        pub struct Ratio {
-            num: i128,
-            den: i128,
-        }
-        impl Ratio {
-            /// 1.
-            pub const ONE: Ratio = Ratio { num: 1, den: 1 };
-            /// An integer.
-            pub const fn int(v: i64) -> Ratio {
-                Ratio { num: v as i128, den: 1 }
-            }
-            /// `num / den` in lowest terms; `None` if `den` is 0.
-            pub fn new(num: i128, den: i128) -> Option<Ratio> {
-                if den == 0 || num == i128::MIN || den == i128::MIN {
-                    return None;
-                }
-                let (num, den) = if den < 0 { (-num, -den) } else { (num, den) };
-                let g = gcd(num, den).max(1);
-                Some(Ratio {
-                    num: num / g,
-                    den: den / g,
-                })
-            }
-            /// The numerator (of the stored form, not necessarily reduced).
-            pub const fn num(self) -> i128 {
-                self.num
-            }
-            /// The denominator (positive).
-            pub const fn den(self) -> i128 {
-                self.den
-            }
-            /// This ratio in lowest terms.
-            pub fn reduced(self) -> Ratio {
-                Ratio::new(self.num, self.den).unwrap_or(self)
-            }
-            /// `self × v`, not reduced (fast path of conversions).
-            #[inline]
-            pub fn checked_mul_int(self, v: i64) -> Option<Ratio> {
-                let num = match i64::try_from(self.num) {
-                    Ok(n) => n as i128 * v as i128,
-                    Err(_) => self.num.checked_mul(v as i128)?,
-                };
-                Some(Ratio { num, den: self.den })
-            }
-            /// `self × o`; reduces only when the plain product would overflow.
-            #[inline]
-            pub fn checked_mul(self, o: Ratio) -> Option<Ratio> {
-                if let (Ok(a), Ok(b), Ok(c), Ok(d)) = (
-                    i64::try_from(self.num),
-                    i64::try_from(o.num),
-                    i64::try_from(self.den),
-                    i64::try_from(o.den),
-                ) {
-                    return Some(Ratio {
-                        num: a as i128 * b as i128,
-                        den: c as i128 * d as i128,
-                    });
-                }
-                match (self.num.checked_mul(o.num), self.den.checked_mul(o.den)) {
-                    (Some(num), Some(den)) => Some(Ratio { num, den }),
-                    _ => {
-                        let (a, b) = (self.reduced(), o.reduced());
-                        let g1 = gcd(a.num, b.den).max(1);
-                        let g2 = gcd(b.num, a.den).max(1);
-                        let num = (a.num / g1).checked_mul(b.num / g2)?;
-                        let den = (a.den / g2).checked_mul(b.den / g1)?;
-                        Some(Ratio { num, den })
-                    }
-                }
-            }
-            /// `1 / self`; `None` for 0.
-            pub fn recip(self) -> Option<Ratio> {
-                Ratio::new(self.den, self.num)
-            }
-            /// `self / o`; `None` for a zero divisor or an overflow.
-            #[inline]
-            pub fn checked_div(self, o: Ratio) -> Option<Ratio> {
-                if o.num == 0 || o.num == i128::MIN {
-                    return None;
-                }
-                let (n, d) = if o.num < 0 { (-o.den, -o.num) } else { (o.den, o.num) };
-                self.checked_mul(Ratio { num: n, den: d })
-            }
-            /// The nearest integer, halves rounded away from zero.
-            #[inline]
-            pub fn round(self) -> i128 {
-                let (q, r) = if let (Ok(n), Ok(d)) = (
-                    i64::try_from(self.num),
-                    i64::try_from(self.den),
-                ) {
-                    ((n / d) as i128, (n % d) as i128)
-                } else {
-                    (self.num / self.den, self.num % self.den)
-                };
-                let r = r.unsigned_abs();
-                if r >= self.den.unsigned_abs() - r {
-                    if self.num < 0 { q - 1 } else { q + 1 }
-                } else {
-                    q
-                }
-            }
-            /// The nearest `f64`.
-            pub fn to_f64(self) -> f64 {
-                let r = self.reduced();
-                r.num as f64 / r.den as f64
-            }
-        }
-        impl PartialEq for Ratio {
-            fn eq(&self, o: &Ratio) -> bool {
-                let (a, b) = (self.reduced(), o.reduced());
-                a.num == b.num && a.den == b.den
-            }
-        }
-        impl Eq for Ratio {}
-        impl ::core::fmt::Display for Ratio {
-            fn fmt(&self, f: &mut ::core::fmt::Formatter<'_>) -> ::core::fmt::Result {
-                let r = self.reduced();
-                if r.den == 1 {
-                    write!(f, "{}", r.num)
-                } else {
-                    write!(f, "{}/{}", r.num, r.den)
-                }
-            }
-        }
-        /// A received PDO was shorter than its mapping.
-        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-        pub struct PdoLengthError {
-            /// Bytes the mapping needs.
-            pub expected: usize,
-            /// Bytes received.
-            pub actual: usize,
-        }
-        impl ::core::fmt::Display for PdoLengthError {
-            fn fmt(&self, f: &mut ::core::fmt::Formatter<'_>) -> ::core::fmt::Result {
-                write!(
-                    f, "PDO too short: {} bytes received, the mapping needs {}", self
-                    .actual, self.expected
-                )
-            }
-        }
-        /// Reads up to 8 bytes of a PDO as one little-endian word.
-        #[inline]
-        pub fn pdo_word(data: &[u8], len: usize) -> Result<u64, PdoLengthError> {
-            let src = data
-                .get(..len)
-                .ok_or(PdoLengthError {
-                    expected: len,
-                    actual: data.len(),
-                })?;
-            let mut b = [0u8; 8];
-            if let Some(dst) = b.get_mut(..src.len()) {
-                dst.copy_from_slice(src);
-            }
-            Ok(u64::from_le_bytes(b))
         }
     }
 }

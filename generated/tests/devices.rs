@@ -48,6 +48,25 @@ macro_rules! device_tests {
             }
 
             #[test]
+            fn lookup_agrees_with_a_search_of_the_table_for_every_index() {
+                use od_runtime::od::AbortCode;
+                let od = Dictionary::new(3);
+                for index in 0..=u16::MAX {
+                    let here: Vec<u8> = ENTRIES.iter().filter(|e| e.index == index).map(|e| e.sub).collect();
+                    let probes = here.iter().copied().chain([0, 1, 2, 0x7F, 0xFE, 0xFF]);
+                    for sub in probes {
+                        let want = match ENTRIES.iter().position(|e| (e.index, e.sub) == (index, sub)) {
+                            Some(p) => Ok(p),
+                            None if here.is_empty() => Err(AbortCode::NO_OBJECT),
+                            None => Err(AbortCode::NO_SUB_INDEX),
+                        };
+                        assert_eq!(Dictionary::position(index, sub), want, "0x{index:04X} sub {sub}");
+                        assert_eq!(od.info(index, sub).map(|e| (e.index, e.sub)), want.map(|_| (index, sub)));
+                    }
+                }
+            }
+
+            #[test]
             fn every_value_reads_back_and_restores() {
                 let mut od = Dictionary::new(3);
                 let mut buf = [0u8; 256];

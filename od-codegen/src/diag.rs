@@ -11,6 +11,7 @@
 //! | G0004 | warning  | a limit the runtime cannot enforce (`$NODEID` limit) is ignored |
 //! | G0005 | note     | an object of a kind that holds no value (DEFTYPE, DEFSTRUCT, NULL) is left out |
 //! | G0006 | error    | the module name is not a Rust identifier |
+//! | G0007 | error    | more than 65535 objects: the lookup table cannot number them |
 //! | G0101 | error    | a default PDO mapping carries more than 64 bits |
 //! | G0102 | error    | a mapped entry does not have `PDOMapping=1` |
 //! | G0103 | error    | a mapped entry's access type does not allow this PDO direction |
@@ -36,6 +37,8 @@ pub const LIMIT_IGNORED: Code = Code("G0004");
 pub const NO_VALUE_OBJECT: Code = Code("G0005");
 /// Module name not an identifier.
 pub const BAD_MODULE_NAME: Code = Code("G0006");
+/// Too many objects for the lookup table.
+pub const TOO_MANY_OBJECTS: Code = Code("G0007");
 /// PDO longer than 64 bits.
 pub const PDO_TOO_LONG: Code = Code("G0101");
 /// Mapped entry lacks `PDOMapping=1`.

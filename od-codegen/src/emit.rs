@@ -7,6 +7,7 @@ use quote::{format_ident, quote};
 
 use crate::lit;
 use crate::plan::{Def, PEntry, Plan, Ty};
+use crate::support::rt;
 
 pub(crate) fn rust_type(ty: Ty) -> TokenStream {
     match ty {
@@ -23,7 +24,8 @@ pub(crate) fn rust_type(ty: Ty) -> TokenStream {
         Ty::F64 => quote!(f64),
         Ty::Bytes(n) => {
             let n = proc_macro2::Literal::usize_unsuffixed(n);
-            quote!(__rt::Bytes<#n>)
+            let rt = rt();
+            quote!(#rt::Bytes<#n>)
         }
     }
 }
@@ -223,10 +225,21 @@ fn default_value_tokens(e: &PEntry<'_>) -> TokenStream {
     }
 }
 
-/// `KEYS` and `ENTRIES`.
-pub(crate) fn tables(plan: &Plan<'_>) -> TokenStream {
+/// `LOOKUP` and `ENTRIES`.
+pub(crate) fn tables(plan: &Plan<'_>, sink: &mut crate::diag::Sink) -> TokenStream {
     let n = proc_macro2::Literal::usize_unsuffixed(plan.entries.len());
-    let keys = plan.entries.iter().map(|e| lit::hex(((e.index as u64) << 8) | e.sub as u64, 6));
+    let keys: Vec<(u16, u8)> = plan.entries.iter().map(|e| (e.index, e.sub)).collect();
+    let lookup = crate::lookup::tokens(&keys).unwrap_or_else(|| {
+        sink.general(
+            eds::diag::Severity::Error,
+            crate::diag::TOO_MANY_OBJECTS,
+            format!(
+                "the device has more than {} objects; the generated lookup table cannot number them",
+                crate::lookup::MAX_OBJECTS
+            ),
+        );
+        crate::lookup::tokens(&[]).unwrap_or_default()
+    });
     let infos = plan.entries.iter().map(|e| {
         let index = lit::hex(e.index as u64, 4);
         let sub = proc_macro2::Literal::u8_unsuffixed(e.sub);
@@ -261,8 +274,7 @@ pub(crate) fn tables(plan: &Plan<'_>) -> TokenStream {
         }
     });
     quote! {
-        /// `index << 8 | sub` of every entry, sorted: the lookup table (parallel to [`ENTRIES`]).
-        static KEYS: [u32; #n] = [#(#keys),*];
+        #lookup
 
         /// Metadata of every entry, sorted by `(index, sub)`.
         pub static ENTRIES: [::od_runtime::od::EntryInfo; #n] = [#(#infos),*];
@@ -270,12 +282,13 @@ pub(crate) fn tables(plan: &Plan<'_>) -> TokenStream {
 }
 
 fn init_expr(e: &PEntry<'_>) -> TokenStream {
+    let rt = rt();
     match (&e.default, e.ty) {
         (Def::Bytes(b), Ty::Bytes(_)) => {
             let b = lit::bytes(b);
-            quote!(__rt::Bytes::from_slice(#b))
+            quote!(#rt::Bytes::from_slice(#b))
         }
-        (_, Ty::Bytes(_)) => quote!(__rt::Bytes::from_slice(&[])),
+        (_, Ty::Bytes(_)) => quote!(#rt::Bytes::from_slice(&[])),
         (Def::Int(v, hex), t) if t.is_int() => lit::int_radix(*v, *hex),
         (Def::Int(v, _), t) => lit::int_of(*v, t),
         (Def::Real(f), Ty::F32) => lit::real(*f, true),
@@ -286,8 +299,8 @@ fn init_expr(e: &PEntry<'_>) -> TokenStream {
         }
         (Def::NodeId(o, hex), t) => {
             let o = lit::int_radix(*o, *hex);
-            let rt = rust_type(t);
-            quote!((#o + node_id as i128) as #rt)
+            let ty = rust_type(t);
+            quote!((#o + node_id as i128) as #ty)
         }
         (_, t) => lit::int_of(0, t),
     }
@@ -397,13 +410,14 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
         let v = init_expr(e);
         quote!(#f: #v)
     });
+    let rt = rt();
     let slot_arms = plan.entries.iter().enumerate().map(|(i, e)| {
         let i = proc_macro2::Literal::usize_unsuffixed(i);
         let f = format_ident!("{}", e.field);
         let v = slot_variant(e.ty);
         match e.ty {
-            Ty::Bytes(_) => quote!(#i => __rt::Slot::Bytes(self.#f.as_slice())),
-            _ => quote!(#i => __rt::Slot::#v(&self.#f)),
+            Ty::Bytes(_) => quote!(#i => #rt::Slot::Bytes(self.#f.as_slice())),
+            _ => quote!(#i => #rt::Slot::#v(&self.#f)),
         }
     });
     let slot_mut_arms = plan.entries.iter().enumerate().map(|(i, e)| {
@@ -412,7 +426,7 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
         let v = slot_variant(e.ty);
         match e.ty {
             Ty::Bytes(_) => quote!(#i => self.#f.slot_mut()),
-            _ => quote!(#i => __rt::SlotMut::#v(&mut self.#f)),
+            _ => quote!(#i => #rt::SlotMut::#v(&mut self.#f)),
         }
     });
     let (slot_body, slot_mut_body) = if plan.entries.is_empty() {
@@ -460,35 +474,34 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
         impl Dictionary {
             /// A dictionary holding every entry's default, with `$NODEID` resolved for `node_id`.
             pub const fn new(#node_id: u8) -> Self {
-                let () = __rt::VERSION_1;
-                Dictionary { #(#inits,)* }
+                                Dictionary { #(#inits,)* }
             }
 
             /// Position of `(index, sub)` in [`ENTRIES`]: `Err(NO_OBJECT)` if the index is absent,
             /// `Err(NO_SUB_INDEX)` if only the sub-index is.
             #[inline]
             pub fn position(index: u16, sub: u8) -> Result<usize, ::od_runtime::od::AbortCode> {
-                __rt::position(&KEYS, index, sub)
+                #rt::position(&LOOKUP, index, sub)
             }
 
-            fn slot(&self, pos: usize) -> Option<__rt::Slot<'_>> {
+            fn slot(&self, pos: usize) -> Option<#rt::Slot<'_>> {
                 #slot_body
             }
 
-            fn slot_mut(&mut self, pos: usize) -> Option<__rt::SlotMut<'_>> {
+            fn slot_mut(&mut self, pos: usize) -> Option<#rt::SlotMut<'_>> {
                 #slot_mut_body
             }
 
             /// Reads like an SDO upload: as [`read`](::od_runtime::od::ObjectDictionary::read), but
             /// refuses write-only entries with `WRITE_ONLY`.
             pub fn bus_read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, ::od_runtime::od::AbortCode> {
-                __rt::bus_read(self, index, sub, buf)
+                #rt::bus_read(self, index, sub, buf)
             }
 
             /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
             /// but refuses read-only and constant entries with `READ_ONLY`.
             pub fn bus_write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), ::od_runtime::od::AbortCode> {
-                __rt::bus_write(self, index, sub, data)
+                #rt::bus_write(self, index, sub, data)
             }
 
             /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
@@ -497,12 +510,12 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
             /// `PDO_LENGTH_EXCEEDED` (0x0604_0042), `PARAMETER_INCOMPATIBLE` (0x0604_0043), and
             /// `NO_OBJECT`/`NO_SUB_INDEX` for an object the dictionary does not have.
             pub fn check_rpdo_mapping(mapping: &[u32]) -> Result<u32, ::od_runtime::od::AbortCode> {
-                __rt::check_mapping(&ENTRIES, &KEYS, ::od_runtime::pdo::Direction::Receive, mapping)
+                #rt::check_mapping(&ENTRIES, &LOOKUP, ::od_runtime::pdo::Direction::Receive, mapping)
             }
 
             /// Checks a TPDO mapping, like [`Dictionary::check_rpdo_mapping`].
             pub fn check_tpdo_mapping(mapping: &[u32]) -> Result<u32, ::od_runtime::od::AbortCode> {
-                __rt::check_mapping(&ENTRIES, &KEYS, ::od_runtime::pdo::Direction::Transmit, mapping)
+                #rt::check_mapping(&ENTRIES, &LOOKUP, ::od_runtime::pdo::Direction::Transmit, mapping)
             }
 
             #(#accessors)*
@@ -522,7 +535,7 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
             fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, ::od_runtime::od::AbortCode> {
                 let pos = Self::position(index, sub)?;
                 match (ENTRIES.get(pos), self.slot(pos)) {
-                    (Some(info), Some(slot)) => __rt::read(info, slot, buf),
+                    (Some(info), Some(slot)) => #rt::read(info, slot, buf),
                     _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
                 }
             }
@@ -531,7 +544,7 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
                 let pos = Self::position(index, sub)?;
                 #real_limits
                 match (ENTRIES.get(pos), self.slot_mut(pos)) {
-                    (Some(info), Some(slot)) => __rt::write(info, slot, data, real_low, real_high),
+                    (Some(info), Some(slot)) => #rt::write(info, slot, data, real_low, real_high),
                     _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
                 }
             }
@@ -541,7 +554,7 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
                     if area.contains(info.index)
                         && let Some(slot) = self.slot_mut(pos)
                     {
-                        __rt::set_default(info, slot, node_id);
+                        #rt::set_default(info, slot, node_id);
                     }
                 }
             }

@@ -55,8 +55,10 @@
 //!
 //! The OD, PDO and unit code uses only `core` and `::od_runtime` (by absolute paths), so it
 //! compiles in `#![no_std]` crates and never allocates. The code is data-driven: the per-entry
-//! parts are a table, field declarations, inline accessors and two `match`es handing out field
-//! references; everything else is generic code in a hidden, versioned `__rt` module.
+//! parts are tables, field declarations, inline accessors and two `match`es handing out field
+//! references; everything else is generic code in od-runtime's hidden, versioned support module
+//! `::od_runtime::__private_v1` ([`RUNTIME_PRIVATE`]). Code generated against another version
+//! of that module does not compile, with an error naming the module it expected: regenerate it.
 //!
 //! # Storage types
 //!
@@ -93,6 +95,7 @@ pub mod diag;
 mod emit;
 pub mod ident;
 mod lit;
+mod lookup;
 pub mod pdo;
 mod plan;
 mod support;
@@ -104,7 +107,7 @@ use proc_macro2::TokenStream;
 use quote::{format_ident, quote};
 
 pub use builder::{Builder, Error, Output, write_if_changed};
-pub use support::SUPPORT_VERSION;
+pub use support::RUNTIME_PRIVATE;
 
 /// The smallest capacity, in bytes, of a generated string or byte buffer.
 pub const DEFAULT_MIN_CAPACITY: usize = 32;
@@ -179,14 +182,13 @@ pub fn expand(model: &Model, options: &Options) -> Generated {
     let plan = plan::build(model, options, &mut sink);
     let eds_text = lit::text_block(options.eds_text.as_deref().unwrap_or(""));
     let index = emit::index_consts(&plan);
-    let tables = emit::tables(&plan);
+    let tables = emit::tables(&plan, &mut sink);
     let dictionary = emit::dictionary(model, &plan, options.sidecar.as_ref());
     let pdo = pdo::module(model, &plan, &mut sink);
     let units = match &options.sidecar {
         Some(sc) => units::module(model, &plan, sc, &mut sink),
         None => TokenStream::new(),
     };
-    let support = support::module();
     let product = model.device_info.product_name.as_deref().unwrap_or(&options.source_name);
     let mod_doc = lit::doc(&[
         format!("Object dictionary, PDO layouts and units of the {}.", lit::doc_escape(product)),
@@ -205,7 +207,6 @@ pub fn expand(model: &Model, options: &Options) -> Generated {
             #dictionary
             #pdo
             #units
-            #support
         }
     };
     let mut diagnostics = sink.out;

@@ -422,6 +422,7 @@ fn unpack_expr(f: &Field<'_>, e: &PEntry<'_>) -> TokenStream {
 /// `pub mod pdo { … }`, or nothing when the device has no default mapping.
 pub(crate) fn module(model: &Model, plan: &Plan<'_>, sink: &mut Sink) -> TokenStream {
     let layouts = layouts(model, plan, sink);
+    let rt = crate::support::rt();
     let structs = layouts.iter().map(|l| {
         let (kind, verb) = match l.dir {
             Direction::Receive => ("Rpdo", "received"),
@@ -521,7 +522,7 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sink: &mut Sink) -> TokenSt
                 /// error.
                 #[inline]
                 pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                    let #unpack_word = super::__rt::pdo_word(data, #len_lit)?;
+                    let #unpack_word = #rt::pdo_word(data, #len_lit)?;
                     Ok(Self { #(#unpacks,)* })
                 }
 
@@ -543,7 +544,8 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sink: &mut Sink) -> TokenSt
         /// Typed layouts of the device's default PDO mappings.
         pub mod pdo {
             /// A received PDO was shorter than its mapping.
-            pub use super::__rt::PdoLengthError as LengthError;
+            #[doc(inline)]
+            pub use #rt::PdoLengthError as LengthError;
 
             #(#structs)*
         }

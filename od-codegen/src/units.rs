@@ -28,10 +28,14 @@
 //!
 //! # Arithmetic
 //!
-//! Exact rationals on integers: no floating point, no drift. Factors are reduced once when
-//! `Units` is built; conversions multiply (raw → physical: exact) or divide and round (physical
-//! → raw: **to the nearest integer, halves away from zero**, so a round trip is within half an
-//! LSB). Every overflow, a zero scaling term (other than the gear ratio's) and a value outside
+//! Exact rationals on integers: no floating point, no drift. Each dimension's factor is combined
+//! from the scale and the scaling objects, reduced by their gcd and prepared once, when `Units`
+//! is built (od-runtime's `Scale`: the divisor's 64-bit reciprocal is computed then); conversions
+//! multiply (raw → physical: exact) or divide and round (physical → raw: **to the nearest
+//! integer, halves away from zero**, so a round trip is within half an LSB). The division is a
+//! multiplication by that reciprocal with one exact correction step, so converting an integer
+//! or decimal quantity takes no division instruction; values whose products leave 64 bits take
+//! a general 128-bit path with the same results. Every overflow, a zero scaling term (other than the gear ratio's) and a value outside
 //! the entry's type are errors (`UnitError`), never a wrap or a panic.
 
 use std::collections::BTreeMap;
@@ -285,6 +289,7 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
     }
 
     // Per-system, per-dimension factors.
+    let rt = crate::support::rt();
     let mut system_arms = Vec::new();
     for (id, s) in &systems {
         let mut inits = Vec::new();
@@ -331,7 +336,7 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
             inits.push(quote! {
                 {
                     #(#steps)*
-                    factor[#i] = Some((f.reduced(), Unit::#u));
+                    factor[#i] = Some((#rt::Scale::new(f), Unit::#u));
                     #set_internal
                 }
             });
@@ -490,7 +495,8 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
         /// Physical units of the device's values, from its sidecar (see the od-codegen `units`
         /// module docs for the arithmetic).
         pub mod units {
-            pub use super::__rt::Ratio;
+            #[doc(inline)]
+            pub use #rt::Ratio;
 
             /// A physical unit.
             #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -587,8 +593,9 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
             #[derive(Clone, Copy, Debug, PartialEq, Eq)]
             pub struct Units {
                 system: System,
-                /// Physical value per raw unit, and the physical unit, per dimension.
-                factor: [Option<(Ratio, Unit)>; #n_dims],
+                /// Physical value per raw unit (prepared for fast exact conversions both ways),
+                /// and the physical unit, per dimension.
+                factor: [Option<(#rt::Scale, Unit)>; #n_dims],
                 /// Internal value (increments or motor revolutions) per raw unit, per dimension.
                 internal: [Option<Ratio>; #n_dims],
             }
@@ -621,7 +628,7 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
 
                 /// Physical value per raw unit (exact, reduced).
                 pub fn factor(&self, d: Dimension) -> Option<Ratio> {
-                    self.factor.get(d.slot()).copied().flatten().map(|(f, _)| f)
+                    self.factor.get(d.slot()).copied().flatten().map(|(f, _)| f.factor())
                 }
 
                 /// Internal value (encoder increments, or motor revolutions) per raw unit, where
@@ -633,24 +640,31 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
                 /// `raw × factor`, exact.
                 #[inline]
                 pub fn to_physical(&self, d: Dimension, raw: i64) -> Result<Quantity, UnitError> {
-                    let (f, unit) = self.factor.get(d.slot()).copied().flatten().ok_or(UnitError::NoUnit)?;
-                    Ok(Quantity { value: f.checked_mul_int(raw).ok_or(UnitError::Overflow)?, unit })
+                    let Some(Some((f, unit))) = self.factor.get(d.slot()) else {
+                        return Err(UnitError::NoUnit);
+                    };
+                    Ok(Quantity { value: f.to_physical(raw).ok_or(UnitError::Overflow)?, unit: *unit })
+                }
+
+                /// The prepared factor for converting `q` in dimension `d`.
+                #[inline]
+                fn scale_for(&self, d: Dimension, q: &Quantity) -> Result<&#rt::Scale, UnitError> {
+                    match self.factor.get(d.slot()) {
+                        Some(Some((f, unit))) if *unit == q.unit => Ok(f),
+                        Some(Some((_, unit))) => Err(UnitError::WrongUnit { expected: *unit, got: q.unit }),
+                        _ => Err(UnitError::NoUnit),
+                    }
                 }
 
                 /// `q / factor`, exact (may be fractional).
                 pub fn to_raw_exact(&self, d: Dimension, q: Quantity) -> Result<Ratio, UnitError> {
-                    let (f, unit) = self.factor.get(d.slot()).copied().flatten().ok_or(UnitError::NoUnit)?;
-                    if q.unit != unit {
-                        return Err(UnitError::WrongUnit { expected: unit, got: q.unit });
-                    }
-                    q.value.checked_div(f).ok_or(UnitError::Overflow)
+                    self.scale_for(d, &q)?.to_raw_exact(q.value).ok_or(UnitError::Overflow)
                 }
 
                 /// `q / factor` rounded to the nearest integer, halves away from zero.
                 #[inline]
                 pub fn to_raw(&self, d: Dimension, q: Quantity) -> Result<i64, UnitError> {
-                    let exact = self.to_raw_exact(d, q)?;
-                    i64::try_from(exact.round()).map_err(|_| UnitError::Overflow)
+                    self.scale_for(d, &q)?.to_raw_i64(q.value).ok_or(UnitError::Overflow)
                 }
 
                 /// `raw × internal factor`, exact: encoder increments (or motor revolutions).

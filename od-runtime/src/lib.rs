@@ -32,6 +32,9 @@
 #![no_std]
 #![deny(missing_docs)]
 
+#[doc(hidden)]
+#[path = "private_v1.rs"]
+pub mod __private_v1; // support for generated code: not public API (see the module docs)
 pub mod cia402;
 pub mod crc;
 mod device;

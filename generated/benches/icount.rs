@@ -1,0 +1,136 @@
+//! Instructions per operation of generated code, counted by valgrind: a measure that does not
+//! depend on how loaded the machine is (criterion's times in `benches/runtime.rs` do).
+//!
+//! `cargo bench -p generated --bench icount` runs every operation under
+//! `valgrind --tool=cachegrind` twice, with two iteration counts, and prints the difference of
+//! the instruction counts divided by the difference of the iterations: the cost of one
+//! operation, without start-up. The `baseline` row is the loop alone (choosing the next key);
+//! the other rows include it. With an operation name and a count as arguments
+//! (`icount lookup 1000`) the binary just runs that loop, which is what valgrind is given.
+//!
+//! Instructions are not nanoseconds (a division or a cache miss costs more than an add), so the
+//! report gives both: read the counts together with `cargo bench -p generated --bench runtime`.
+
+use std::hint::black_box;
+use std::process::Command;
+
+use generated::akd;
+use generated::drvi;
+use od_runtime::od::ObjectDictionary;
+
+/// Keys visited in a scrambled order, 1024 of them so the next one is `i & 1023`.
+fn keys() -> Vec<(u16, u8)> {
+    let all: Vec<(u16, u8)> = akd::ENTRIES.iter().map(|e| (e.index, e.sub)).collect();
+    (0..1024).map(|i| all[(i * 7919) % all.len()]).collect()
+}
+
+fn units() -> drvi::units::Units {
+    let mut od = drvi::Dictionary::new(32);
+    od.set_feed_converter_numerator(100).unwrap_or_default();
+    od.set_feed_converter_denominator(254).unwrap_or_default();
+    drvi::units::Units::from_dictionary(&od).expect("DRVI units")
+}
+
+const OPS: &[(&str, &str)] = &[
+    ("baseline", "the loop alone: the next key and black_box"),
+    ("lookup", "AKD Dictionary::position(index, sub)"),
+    ("info", "AKD ObjectDictionary::info(index, sub)"),
+    ("read", "AKD ObjectDictionary::read(index, sub) into a buffer"),
+    ("pdo", "AKD Tpdo3 (u16 + i32) pack + unpack"),
+    ("to_physical", "DRVI position raw -> physical (exact)"),
+    ("to_raw", "DRVI position 360.1 deg -> raw (rounded)"),
+    ("to_raw_int", "DRVI position 360 deg -> raw (rounded)"),
+];
+
+/// Runs `f` for `0..n` and keeps the results alive; one monomorphic loop per operation, so the
+/// choice of operation is made once, outside the loop.
+#[inline(never)]
+fn repeat(n: usize, mut f: impl FnMut(usize) -> u64) {
+    let mut sink = 0u64;
+    for i in 0..n {
+        sink = sink.wrapping_add(f(i));
+    }
+    black_box(sink);
+}
+
+fn run(op: &str, n: usize) -> Result<(), String> {
+    use drvi::units::{Dimension, Quantity, Ratio, Unit};
+    let keys = keys();
+    let next = |i: usize| keys[i & 1023];
+    let od = akd::Dictionary::new(1);
+    let u = units();
+    let mut buf = [0u8; 64];
+    let decimal = Quantity::new(Ratio::new(3601, 10).unwrap_or(Ratio::ONE), Unit::Degree);
+    let integer = Quantity::int(360, Unit::Degree);
+    match op {
+        "baseline" => repeat(n, |i| {
+            let (index, sub) = next(i);
+            black_box(index) as u64 + black_box(sub) as u64
+        }),
+        "lookup" => repeat(n, |i| {
+            let (index, sub) = next(i);
+            akd::Dictionary::position(black_box(index), black_box(sub)).unwrap_or(0) as u64
+        }),
+        "info" => repeat(n, |i| {
+            let (index, sub) = next(i);
+            od.info(black_box(index), black_box(sub)).map(|e| e.bits).unwrap_or(0) as u64
+        }),
+        "read" => repeat(n, |i| {
+            let (index, sub) = next(i);
+            od.read(black_box(index), black_box(sub), &mut buf).unwrap_or(0) as u64
+        }),
+        "pdo" => repeat(n, |i| {
+            let t = akd::pdo::Tpdo3 { statusword: 0x0637, position_actual_value: i as i32 };
+            let bytes = black_box(&t).pack();
+            akd::pdo::Tpdo3::unpack(black_box(&bytes)).map(|t| t.position_actual_value as u64).unwrap_or(0)
+        }),
+        "to_physical" => repeat(n, |i| {
+            let q = u.to_physical(Dimension::Position, black_box(i as i64));
+            q.map(|q| q.value.num() as u64).unwrap_or(0)
+        }),
+        "to_raw" => repeat(n, |_| u.to_raw(Dimension::Position, black_box(decimal)).unwrap_or(0) as u64),
+        "to_raw_int" => repeat(n, |_| u.to_raw(Dimension::Position, black_box(integer)).unwrap_or(0) as u64),
+        other => return Err(format!("unknown operation `{other}`")),
+    }
+    Ok(())
+}
+
+fn instructions(exe: &str, op: &str, n: usize) -> Result<u64, String> {
+    let out = Command::new("valgrind")
+        .args(["--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null", exe, op, &n.to_string()])
+        .output()
+        .map_err(|e| format!("cannot run valgrind: {e}"))?;
+    let text = String::from_utf8_lossy(&out.stderr);
+    text.lines()
+        .find_map(|l| l.split_once("I   refs:").map(|(_, v)| v.trim().replace(',', "")))
+        .and_then(|v| v.parse().ok())
+        .ok_or_else(|| format!("no instruction count in valgrind's output:\n{text}"))
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if let (Some(op), Some(n)) = (args.get(1), args.get(2).and_then(|n| n.parse().ok()))
+        && !op.starts_with('-')
+    {
+        if let Err(e) = run(op, n) {
+            eprintln!("{e}");
+            std::process::exit(2);
+        }
+        return;
+    }
+    let exe = args.first().cloned().unwrap_or_default();
+    let (n1, n2) = (1_000usize, 101_000usize);
+    println!("instructions per operation (valgrind cachegrind, ({n2} - {n1}) iterations)");
+    for (op, what) in OPS {
+        match (instructions(&exe, op, n1), instructions(&exe, op, n2)) {
+            (Ok(a), Ok(b)) => {
+                let per = (b.saturating_sub(a)) as f64 / (n2 - n1) as f64;
+                println!("{op:>12}: {per:7.1}  {what}");
+            }
+            (Err(e), _) | (_, Err(e)) => {
+                println!("{op:>12}: not measured ({e})");
+                return;
+            }
+        }
+    }
+}
