@@ -19,6 +19,11 @@ fn generate(name: &str) -> (String, od_codegen::Generated, eds::source::SourceFi
     let source = eds::source::SourceFile::decode(shown.clone(), &bytes);
     let mut options = Options::new("mini", shown.clone());
     options.eds_text = Some(source.text.clone());
+    // The sidecar beside the fixture, as the Builder would find it.
+    let sidecar = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures").join(name).with_extension("toml");
+    if sidecar.is_file() {
+        options.sidecar = Some(devices::sidecar::Sidecar::read(&sidecar).unwrap());
+    }
     (shown, expand(&parsed.model, &options), source)
 }
 
@@ -46,7 +51,42 @@ fn broken_pdos_get_located_diagnostics() {
     for d in g.diagnostics.iter().filter(|d| d.code.0.starts_with("G01")) {
         assert!(d.at.is_some(), "{d:?}");
     }
-    insta::assert_snapshot!("bad_pdo_diagnostics", rendered);
+    assert!(rendered.contains("--> tests/fixtures/bad-pdo.eds:"), "{rendered}");
+}
+
+/// Every code the generator reports from a device description (G0006, the module name, and
+/// G0007, more than 65535 objects, come from the caller and are tested in code).
+const DESCRIPTION_CODES: &[eds::diag::Code] = {
+    use od_codegen::diag::*;
+    &[
+        NAME_COLLISION,
+        UNSUPPORTED_TYPE,
+        BAD_DEFAULT,
+        LIMIT_IGNORED,
+        NO_VALUE_OBJECT,
+        PDO_TOO_LONG,
+        PDO_NOT_MAPPABLE,
+        PDO_ACCESS,
+        PDO_NO_OBJECT,
+        PDO_LENGTH,
+        PDO_MALFORMED,
+        PDO_VARIABLE,
+        UNITS,
+    ]
+};
+
+#[test]
+fn bad_fixtures_cover_every_code_with_a_snapshot_each() {
+    let mut seen = std::collections::BTreeSet::new();
+    for name in ["bad-pdo.eds", "bad-codegen.eds"] {
+        let (_, g, source) = generate(name);
+        seen.extend(g.diagnostics.iter().map(|d| d.code.0));
+        let snapshot = format!("{}_diagnostics", name.trim_end_matches(".eds").replace('-', "_"));
+        insta::assert_snapshot!(snapshot, eds::diag::render_all(&g.diagnostics, &source));
+    }
+    for code in DESCRIPTION_CODES {
+        assert!(seen.contains(code.0), "no bad fixture shows {}", code.0);
+    }
 }
 
 #[test]
