@@ -150,9 +150,11 @@ fn about(value: i64, want: i64) {
 }
 
 /// The basic setup 7.2.1.7 assumes done with the configuration software: 10 000 user units
-/// (µm) per motor turn, UNIT.PIN = 10 000 (6092h sub 1).
+/// (µm) per motor turn, UNIT.PIN = 10 000 (6092h sub 1); and a profile velocity of one turn
+/// per second (6081h defaults to 10 units/s, 1 mm/s here).
 fn resolution_10000(m: &mut Master, id: u8) {
     m.write_u32(id, 0x6092, 1, 10_000).unwrap();
+    m.write_u32(id, 0x6081, 0, 10_000).unwrap();
 }
 
 // =============================================================================================
@@ -837,4 +839,505 @@ fn a_homing_that_finds_no_switch_is_fault_f158() {
     let emcy = got(&mut m, 0x084);
     assert!(emcy.iter().any(|e| e.starts_with("084 A1 86")), "{emcy:?}");
     assert_eq!(m.read_u32(4, 0x1003, 1).unwrap() & 0xFFFF, u32::from(code::F158_SWITCH_NOT_FOUND));
+}
+
+// ---- interpolated position (6.9) and cyclic synchronous position --------------------------
+
+#[test]
+fn interpolated_position_takes_60c1h_in_increments_at_each_sync() {
+    let mut m = started(4);
+    free_axis(&mut m);
+    m.write_u32(4, 0x36E9, 0, 0x10).unwrap();
+    m.write_u32(4, 0x608F, 1, 4096).unwrap(); // 6063h and 60C1h count 4096 per turn
+    m.write_u32(4, 0x6092, 1, 360).unwrap(); // 6064h in degrees
+    m.switch_on(4).unwrap();
+    m.set_mode(4, 7).unwrap();
+    m.controlword(4, 0x1F).unwrap();
+    assert_eq!(m.statusword(4).unwrap(), 0x1237, "7.2.2.1: interpolation enabled");
+    // A quarter turn in 100 SYNC periods of 1 ms (60C2h default 1 × 10^-3 s).
+    for k in 1..=100 {
+        m.write_i32(4, 0x60C1, 1, 1024 * k / 100).unwrap();
+        m.sync();
+        m.advance(1000);
+    }
+    m.advance(2000);
+    assert_eq!(m.read_i64(4, 0x6063, 0).unwrap(), 1024);
+    assert_eq!(m.read_i64(4, 0x6064, 0).unwrap(), 90);
+    // Bit 4 cleared: set-points are no longer followed.
+    m.controlword(4, 0x0F).unwrap();
+    assert_eq!(m.statusword(4).unwrap(), 0x0237);
+    m.write_i32(4, 0x60C1, 1, 0).unwrap();
+    m.sync();
+    m.advance(5000);
+    assert_eq!(m.read_i64(4, 0x6064, 0).unwrap(), 90);
+}
+
+#[test]
+fn interpolation_targets_beyond_the_software_limits_are_clipped_with_warning_n107() {
+    let mut m = started(4);
+    free_axis(&mut m);
+    m.write_i32(4, 0x607D, 1, -1).unwrap();
+    m.write_i32(4, 0x607D, 2, 1).unwrap();
+    save_and_reset(&mut m, 4);
+    m.switch_on(4).unwrap();
+    m.set_mode(4, 7).unwrap();
+    m.controlword(4, 0x1F).unwrap();
+    got(&mut m, 0x084);
+    m.write_i32(4, 0x60C1, 1, 3 * TURN as i32).unwrap();
+    m.sync();
+    m.advance(5000);
+    assert_eq!(m.read_i64(4, 0x6064, 0).unwrap(), 1, "stopped on the limit");
+    let sw = m.statusword(4).unwrap();
+    assert_eq!(sw & 0x0880, 0x0880, "warning and internal limit: {sw:04X}");
+    assert_eq!(got(&mut m, 0x084), ["084 82 85 11 00 00 00 00 00"]);
+    // Back within the limits: the warning goes, with the EMCY 0000h.
+    m.write_i32(4, 0x60C1, 1, 0).unwrap();
+    m.sync();
+    m.advance(5000);
+    assert_eq!(m.statusword(4).unwrap() & 0x0880, 0);
+    assert_eq!(got(&mut m, 0x084), ["084 00 00 00 00 00 00 00 00"]);
+}
+
+/// 7.2.2.2: PVT segments (60C0h = -2), 60C1h sub 1 position, sub 2 time (ms), sub 3 velocity,
+/// taken at each SYNC and run on a cubic.
+#[test]
+fn pvt_interpolation_runs_cubic_segments() {
+    let mut m = started(1);
+    free_axis(&mut m);
+    // 7.2.2.2 writes 60C0h with "2B .. 00 00 FE FF": -2 is FE FF.
+    x(&mut m, "601 2B C0 60 00 FE FF 00 00", "581 60 C0 60 00 00 00 00 00");
+    x(&mut m, "601 2F 60 60 00 07 00 00 00", "581 60 60 60 00 00 00 00 00");
+    // Step 5 (the defaults): 608Fh sub 1 is 32 bits (printed 2B), 204Ch subs too (printed 2F).
+    x(&mut m, "601 23 8F 60 01 00 00 10 00", "581 60 8F 60 01 00 00 00 00");
+    x(&mut m, "601 23 4C 20 01 01 00 00 00", "581 60 4C 20 01 00 00 00 00");
+    x(&mut m, "601 23 4C 20 02 01 00 00 00", "581 60 4C 20 02 00 00 00 00");
+    m.switch_on(1).unwrap();
+    m.controlword(1, 0x1F).unwrap();
+    // Step 8: the usable buffer size.
+    assert_eq!(m.read_u32(1, 0x60C4, 2).unwrap(), 9);
+    // Two segments: a quarter turn in 100 ms ending at 5 turns/s, then a quarter turn in
+    // 50 ms ending at rest.
+    let segments = [(TURN / 4, 100, 5 * TURN), (TURN / 2, 50, 0)];
+    for (p, t, v) in segments {
+        m.write_i32(1, 0x60C1, 1, p as i32).unwrap();
+        m.write_u32(1, 0x60C1, 2, t).unwrap();
+        m.write_i32(1, 0x60C1, 3, v as i32).unwrap();
+        m.sync();
+        m.advance(1000);
+    }
+    m.write_u32(1, 0x60C1, 2, 0).unwrap(); // 0 ends the move
+    m.advance(40_000);
+    let mid = m.read_i64(1, 0x6063, 0).unwrap();
+    assert!(mid > 0 && mid < TURN / 4, "on the first segment: {mid}");
+    m.advance(120_000);
+    assert_eq!(m.read_i64(1, 0x6063, 0).unwrap(), TURN / 2);
+    assert_eq!(vendor(&m, 0).pvt_queued(), 0);
+}
+
+#[test]
+fn cyclic_synchronous_position_follows_607ah_at_each_sync() {
+    let mut m = started(4);
+    free_axis(&mut m);
+    resolution_10000(&mut m, 4);
+    m.set_mode(4, 8).unwrap();
+    m.switch_on(4).unwrap();
+    m.advance(2000);
+    assert_eq!(m.statusword(4).unwrap() & 0x1400, 0x1000, "following the command value");
+    for k in 1..=50 {
+        m.write_i32(4, 0x607A, 0, 100 * k).unwrap();
+        m.sync();
+        m.advance(1000);
+    }
+    m.advance(2000);
+    assert_eq!(m.read_i64(4, 0x6064, 0).unwrap(), 5000);
+}
+
+#[test]
+fn sync_supervision_raises_f125_after_three_missing_syncs() {
+    let mut m = started(4);
+    free_axis(&mut m);
+    m.write_u32(4, 0x36E8, 0, 1).unwrap(); // FBUS.PARAM04
+    m.switch_on(4).unwrap();
+    m.set_mode(4, 7).unwrap();
+    m.controlword(4, 0x1F).unwrap();
+    for _ in 0..5 {
+        m.sync();
+        m.advance(2000);
+    }
+    assert_eq!(m.state(4).unwrap(), Some(State::OperationEnabled));
+    got(&mut m, 0x084);
+    m.advance(10_000);
+    assert_eq!(m.state(4).unwrap(), Some(State::Fault));
+    assert_eq!(got(&mut m, 0x084), ["084 80 87 11 00 00 00 00 00"]);
+}
+
+// ---- inputs and outputs (6.2.3.8, 6.2.3.9, 6.2.2.11) --------------------------------------
+
+#[test]
+fn digital_inputs_show_the_switches_and_latch_changes() {
+    let mut m = started(4);
+    let inputs = |m: &mut Master| m.read_u32(4, 0x60FD, 0).unwrap();
+    assert_eq!(inputs(&mut m), 0);
+    vendor_mut(&mut m, 0).conditions.free_inputs = 0b0001; // DIN4
+    m.advance(2000);
+    assert_eq!(inputs(&mut m), (1 << 19) | (1 << 27), "DIN4 high, changed");
+    // Moving onto the reference switch (0.25..0.5 turn): 60FDh bit 2 and DIN1.
+    resolution_10000(&mut m, 4);
+    m.switch_on(4).unwrap();
+    m.set_mode(4, 1).unwrap();
+    m.write_i32(4, 0x607A, 0, 3000).unwrap();
+    m.controlword(4, 0x1F).unwrap();
+    m.controlword(4, 0x0F).unwrap();
+    wait_sw(&mut m, 4, 0x0400, 0x0400, 2000);
+    let v = inputs(&mut m);
+    assert_eq!(v & 0x7, 0b100, "home switch: {v:08X}");
+    assert_eq!(v & 0x7F_0000, (1 << 16) | (1 << 19), "DIN1 and DIN4");
+    assert_eq!(v >> 24, 0b1001, "DIN1 and DIN4 changed");
+    assert_ne!(m.read_u32(4, 0x1002, 0).unwrap() & akd::manufacturer_status::HOME_SWITCH, 0);
+    // 20B8h bit 3 resets the DIN4 change flag.
+    m.write_u16(4, 0x20B8, 0, 0b1000).unwrap();
+    m.advance(2000);
+    assert_eq!(inputs(&mut m) >> 24, 0b0001);
+    // The positive limit switch at 2 turns.
+    m.write_i32(4, 0x607A, 0, 21_000).unwrap();
+    m.controlword(4, 0x1F).unwrap();
+    m.controlword(4, 0x0F).unwrap();
+    wait_sw(&mut m, 4, 0x0400, 0x0400, 5000);
+    assert_eq!(inputs(&mut m) & 0x7, 0b010);
+    assert_eq!(vendor(&m, 0).inputs() & 0b10, 0b10, "DIN2");
+}
+
+#[test]
+fn digital_outputs_follow_60feh_under_its_mask_and_bit_0_holds_the_brake() {
+    let mut m = started(4);
+    resolution_10000(&mut m, 4);
+    m.write_u32(4, 0x60FE, 1, 0x0003_0001).unwrap();
+    assert_eq!(vendor(&m, 0).outputs(), 0, "the mask enables nothing yet");
+    m.write_u32(4, 0x60FE, 2, 0x0001_0000).unwrap();
+    assert_eq!(vendor(&m, 0).outputs(), 0x0001_0000, "DOUT1 only");
+    m.write_u32(4, 0x60FE, 2, 0x0003_0001).unwrap();
+    assert_eq!(vendor(&m, 0).outputs(), 0x0003_0001);
+    // Brake applied: a profile velocity command does not move the axis.
+    m.switch_on(4).unwrap();
+    m.set_mode(4, 3).unwrap();
+    m.write_i32(4, 0x60FF, 0, 5000).unwrap();
+    m.advance(100_000);
+    assert_eq!(m.read_i64(4, 0x6064, 0).unwrap(), 0);
+    m.write_u32(4, 0x60FE, 1, 0x0003_0000).unwrap();
+    m.advance(100_000);
+    assert!(m.read_i64(4, 0x6064, 0).unwrap() > 0, "released");
+}
+
+// =============================================================================================
+// Errors (6.1, 5.4.4), error control (5.4.7, 5.4.8), fault reset.
+
+/// 1010h "save", reset node (the new software limits take effect only then, 6.11.2.2), start.
+fn save_and_reset(m: &mut Master, id: u8) {
+    m.write(id, 0x1010, 1, b"save").unwrap();
+    m.nmt(0x81, id);
+    m.advance(5000);
+    m.nmt_start(id);
+    m.advance(1000);
+}
+
+#[test]
+fn software_limits_take_effect_after_save_and_restart() {
+    let mut m = started(4);
+    resolution_10000(&mut m, 4);
+    m.write_i32(4, 0x607D, 1, -5000).unwrap();
+    m.write_i32(4, 0x607D, 2, 5000).unwrap();
+    assert_eq!(vendor(&m, 0).limits_in_force(), None, "not before a restart");
+    save_and_reset(&mut m, 4);
+    assert_eq!(vendor(&m, 0).limits_in_force(), Some((-5000, 5000)));
+    assert_eq!(m.read_i64(4, 0x607D, 2).unwrap(), 5000);
+}
+
+/// A target beyond a software limit is clipped: warning n107 (8582h), statusword bits 7 and 11.
+#[test]
+fn a_profile_position_target_beyond_the_limit_is_warning_n107() {
+    let mut m = started(4);
+    resolution_10000(&mut m, 4);
+    m.write_i32(4, 0x607D, 1, -5000).unwrap();
+    m.write_i32(4, 0x607D, 2, 5000).unwrap();
+    save_and_reset(&mut m, 4);
+    m.switch_on(4).unwrap();
+    m.set_mode(4, 1).unwrap();
+    got(&mut m, 0x084);
+    m.write_i32(4, 0x607A, 0, 9000).unwrap();
+    m.controlword(4, 0x1F).unwrap();
+    m.controlword(4, 0x0F).unwrap();
+    wait_sw(&mut m, 4, 0x0400, 0x0400, 5000);
+    assert_eq!(m.read_i64(4, 0x6064, 0).unwrap(), 5000);
+    assert_eq!(m.statusword(4).unwrap(), 0x0EB7, "warning, target reached, internal limit");
+    // EMCY 8582h, register: generic + communication (od-runtime's bits for 8xxxh; the manual
+    // gives no per-code mapping), history 1003h.
+    assert_eq!(got(&mut m, 0x084), ["084 82 85 11 00 00 00 00 00"]);
+    assert_eq!(m.read_u32(4, 0x1003, 1).unwrap() & 0xFFFF, 0x8582);
+    assert_eq!(vendor(&m, 0).warnings(), [code::N107_POSITIVE_LIMIT]);
+    // A target within the limits: the warning goes (EMCY 0000h, 5.4.4.1 transition 4).
+    m.write_i32(4, 0x607A, 0, -4000).unwrap();
+    m.controlword(4, 0x1F).unwrap();
+    m.controlword(4, 0x0F).unwrap();
+    wait_sw(&mut m, 4, 0x0400, 0x0400, 5000);
+    assert_eq!(m.statusword(4).unwrap() & 0x0880, 0);
+    assert_eq!(got(&mut m, 0x084), ["084 00 00 00 00 00 00 00 00"]);
+    assert_eq!(m.read_u32(4, 0x1001, 0).unwrap(), 0);
+    // The other side: n108.
+    m.write_i32(4, 0x607A, 0, -9000).unwrap();
+    m.controlword(4, 0x1F).unwrap();
+    m.controlword(4, 0x0F).unwrap();
+    wait_sw(&mut m, 4, 0x0400, 0x0400, 5000);
+    assert_eq!(vendor(&m, 0).warnings(), [code::N108_NEGATIVE_LIMIT]);
+}
+
+/// Reaching a limit in profile velocity mode is fault F107 (8580h): quick stop, Fault; after the
+/// fault reset the axis may move back, not further.
+#[test]
+fn a_profile_velocity_run_into_the_limit_is_fault_f107() {
+    let mut m = started(4);
+    resolution_10000(&mut m, 4);
+    m.write_i32(4, 0x607D, 1, -5000).unwrap();
+    m.write_i32(4, 0x607D, 2, 5000).unwrap();
+    save_and_reset(&mut m, 4);
+    m.switch_on(4).unwrap();
+    m.set_mode(4, 3).unwrap();
+    got(&mut m, 0x084);
+    m.write_i32(4, 0x60FF, 0, 10_000).unwrap();
+    m.advance(1_000_000);
+    assert_eq!(m.state(4).unwrap(), Some(State::Fault));
+    assert_eq!(got(&mut m, 0x084), ["084 80 85 11 00 00 00 00 00"]);
+    let p = m.read_i64(4, 0x6064, 0).unwrap();
+    assert!(p <= 5000, "{p}");
+    // 603Fh does not exist in the AKD: the code is in 1003h and the EMCY.
+    assert_eq!(m.read(4, 0x603F, 0), Err(SdoError::Abort(0x0602_0000)));
+    assert_eq!(m.read_u32(4, 0x1003, 1).unwrap() & 0xFFFF, 0x8580);
+    // Fault reset (controlword bit 7), then back into range.
+    m.controlword(4, 0x80).unwrap();
+    m.advance(2000);
+    assert_eq!(m.state(4).unwrap(), Some(State::SwitchOnDisabled));
+    assert_eq!(got(&mut m, 0x084), ["084 00 00 00 00 00 00 00 00"]);
+    m.write_i32(4, 0x60FF, 0, -10_000).unwrap();
+    m.switch_on(4).unwrap();
+    m.advance(300_000);
+    assert!(m.read_i64(4, 0x6064, 0).unwrap() < p);
+    assert_eq!(m.state(4).unwrap(), Some(State::OperationEnabled));
+}
+
+#[test]
+fn a_following_error_beyond_6065h_is_fault_f439() {
+    let mut m = started(4);
+    resolution_10000(&mut m, 4);
+    m.write_u32(4, 0x6065, 0, 100).unwrap(); // 100 µm
+    m.switch_on(4).unwrap();
+    m.set_mode(4, 3).unwrap();
+    got(&mut m, 0x084);
+    // Running into the positive end stop at 3 turns.
+    m.write_i32(4, 0x60FF, 0, 50_000).unwrap();
+    m.advance(2_000_000);
+    assert_eq!(m.state(4).unwrap(), Some(State::Fault));
+    assert!(got(&mut m, 0x084).iter().any(|f| f.starts_with("084 11 86")), "F439");
+}
+
+#[test]
+fn a_missing_hardware_enable_is_f602_and_the_axis_coasts() {
+    let mut m = started(4);
+    resolution_10000(&mut m, 4);
+    m.switch_on(4).unwrap();
+    m.set_mode(4, 3).unwrap();
+    m.write_i32(4, 0x60FF, 0, 10_000).unwrap();
+    m.advance(100_000);
+    got(&mut m, 0x084);
+    vendor_mut(&mut m, 0).conditions.hardware_enable = false;
+    m.advance(2000);
+    assert_eq!(m.state(4).unwrap(), Some(State::Fault), "a power_off error: no ramp to wait for");
+    assert!(!node(&m, 0).app().unwrap().drive().axis().status().power);
+    assert_eq!(got(&mut m, 0x084)[0], "084 0B FF 81 00 00 00 00 00");
+    // While it is absent a fault reset leaves only the warning n602.
+    m.controlword(4, 0x80).unwrap();
+    m.advance(2000);
+    assert_eq!(vendor(&m, 0).warnings(), [code::N602_SAFE_TORQUE_OFF]);
+    assert_ne!(m.read_u32(4, 0x1002, 0).unwrap() & akd::manufacturer_status::SAFE_TORQUE_OFF, 0);
+    vendor_mut(&mut m, 0).conditions.hardware_enable = true;
+    m.advance(2000);
+    assert!(vendor(&m, 0).warnings().is_empty());
+}
+
+/// 5.4.8: a lost master heartbeat is F129 (8130h), the EMCY naming the node; the drive brakes
+/// to standstill with the quick stop ramp and stays in Fault until a fault reset.
+#[test]
+fn heartbeat_loss_is_f129_and_a_quick_stop() {
+    let mut m = started(4);
+    resolution_10000(&mut m, 4);
+    m.write_u32(4, 0x1016, 1, (1 << 16) | 100).unwrap(); // master = node 1, 100 ms
+    m.heartbeat(1);
+    m.switch_on(4).unwrap();
+    m.set_mode(4, 3).unwrap();
+    m.write_i32(4, 0x60FF, 0, 10_000).unwrap();
+    for _ in 0..5 {
+        m.advance(50_000);
+        m.heartbeat(1);
+    }
+    about(m.read_i64(4, 0x606C, 0).unwrap(), 10_000_000);
+    got(&mut m, 0x084);
+    m.advance(110_000);
+    assert_eq!(got(&mut m, 0x084), ["084 30 81 11 01 00 00 00 00"]);
+    let state = m.state(4).unwrap();
+    assert!(matches!(state, Some(State::FaultReactionActive | State::Fault)), "{state:?}");
+    m.advance(500_000);
+    assert_eq!(m.state(4).unwrap(), Some(State::Fault));
+    assert_eq!(m.read_i64(4, 0x606C, 0).unwrap(), 0, "braked to standstill");
+    assert_eq!(m.read_u32(4, 0x1001, 0).unwrap(), 0x11);
+    // The heartbeat comes back: still Fault until the reset.
+    m.heartbeat(1);
+    m.advance(10_000);
+    assert_eq!(m.state(4).unwrap(), Some(State::Fault));
+    m.controlword(4, 0x80).unwrap();
+    m.advance(2000);
+    assert_eq!(m.state(4).unwrap(), Some(State::SwitchOnDisabled));
+    assert_eq!(m.read_u32(4, 0x1001, 0).unwrap(), 0);
+}
+
+/// 5.4.7: node guarding lost (100Ch × 100Dh without a guarding request) is F129 too.
+#[test]
+fn guarding_loss_is_f129() {
+    let mut m = started(4);
+    m.write_u16(4, 0x100C, 0, 50).unwrap();
+    m.write_u8(4, 0x100D, 0, 2).unwrap();
+    m.send(CanFrame::remote(0x704, false, 1).unwrap());
+    m.advance(20_000);
+    got(&mut m, 0x084);
+    m.advance(200_000);
+    let emcy = got(&mut m, 0x084);
+    assert_eq!(emcy.first().map(String::as_str), Some("084 30 81 11 00 00 00 00 00"), "{emcy:?}");
+    assert_eq!(m.state(4).unwrap(), Some(State::Fault));
+}
+
+#[test]
+fn heat_sink_warning_then_fault() {
+    let mut m = started(4);
+    got(&mut m, 0x084);
+    vendor_mut(&mut m, 0).conditions.heat_sink_c = 80.0;
+    m.advance(2000);
+    assert_eq!(got(&mut m, 0x084), ["084 91 43 09 00 00 00 00 00"], "n235");
+    assert_eq!(m.statusword(4).unwrap() & 0x80, 0x80, "warning bit");
+    assert_eq!(m.state(4).unwrap(), Some(State::SwitchOnDisabled), "a warning changes no state");
+    vendor_mut(&mut m, 0).conditions.heat_sink_c = 90.0;
+    m.advance(2000);
+    let emcy = got(&mut m, 0x084);
+    assert!(emcy.contains(&"084 10 43 09 00 00 00 00 00".to_owned()), "F235: {emcy:?}");
+    assert_eq!(m.state(4).unwrap(), Some(State::Fault));
+    // 1003h: newest first.
+    assert_eq!(m.read_u32(4, 0x1003, 0).unwrap(), 2);
+    assert_eq!(m.read_u32(4, 0x1003, 1).unwrap() & 0xFFFF, 0x4310);
+    assert_eq!(m.read_u32(4, 0x1003, 2).unwrap() & 0xFFFF, 0x4391);
+    // The fault is reset only once the cause is gone: it comes back at once otherwise.
+    m.controlword(4, 0x80).unwrap();
+    m.controlword(4, 0x00).unwrap();
+    m.advance(2000);
+    assert_eq!(m.state(4).unwrap(), Some(State::Fault));
+    vendor_mut(&mut m, 0).conditions.heat_sink_c = 40.0;
+    m.advance(2000);
+    m.controlword(4, 0x80).unwrap();
+    m.advance(2000);
+    assert_eq!(m.state(4).unwrap(), Some(State::SwitchOnDisabled));
+    // Writing 0 to 1003h sub 0 clears the history.
+    m.write_u8(4, 0x1003, 0, 0).unwrap();
+    assert_eq!(m.read_u32(4, 0x1003, 0).unwrap(), 0);
+}
+
+// =============================================================================================
+// Persistence (6.2.1.12, 6.2.1.13).
+
+fn build_with_state(dir: &std::path::Path) -> Master {
+    let config = NodeConfig { node_id: Some(4), state_dir: Some(dir.to_path_buf()), ..Default::default() };
+    let mut sim = Sim::new();
+    sim.add(DeviceKind::Akd.build(&config, &DeviceApps::new()).unwrap());
+    let mut m = Master::new(sim);
+    m.advance(1000);
+    m
+}
+
+fn temp_dir(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("drives-akd-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn saved_parameters_survive_a_restart_and_process_values_do_not() {
+    let dir = temp_dir("save");
+    let store = &sidecar(DeviceKind::Akd).unwrap().store.objects;
+    let listed = |index: u16| store.iter().any(|r| r.index == index);
+    for index in [0x6092, 0x607D, 0x6081, 0x6098, 0x36E9] {
+        assert!(listed(index), "{index:04X} is a stored parameter");
+    }
+    for index in [0x6040, 0x607A, 0x60FF, 0x6071, 0x60C1, 0x60FE] {
+        assert!(!listed(index), "{index:04X} is a process value or command");
+    }
+    {
+        let mut m = build_with_state(&dir);
+        m.write_u32(4, 0x6092, 1, 36_000).unwrap();
+        m.write_i32(4, 0x607D, 2, 72_000).unwrap();
+        m.write_u32(4, 0x6081, 0, 20_000).unwrap();
+        m.write(4, 0x6098, 0, &[12]).unwrap();
+        m.write_u32(4, 0x36E9, 0, 0x10).unwrap();
+        m.write_i32(4, 0x60FF, 0, 1234).unwrap();
+        m.write_i32(4, 0x607A, 0, 4321).unwrap();
+        m.write(4, 0x1010, 1, b"save").unwrap();
+        // Changed after the save: lost at the restart.
+        m.write_u32(4, 0x6081, 0, 99).unwrap();
+    }
+    let mut m = build_with_state(&dir);
+    assert_eq!(m.read_u32(4, 0x6092, 1).unwrap(), 36_000);
+    assert_eq!(m.read_i64(4, 0x607D, 2).unwrap(), 72_000);
+    assert_eq!(m.read_u32(4, 0x6081, 0).unwrap(), 20_000);
+    assert_eq!(m.read_i64(4, 0x6098, 0).unwrap(), 12);
+    assert_eq!(m.read_u32(4, 0x36E9, 0).unwrap(), 0x10);
+    assert_eq!(m.read_i64(4, 0x60FF, 0).unwrap(), 0);
+    assert_eq!(m.read_i64(4, 0x607A, 0).unwrap(), 0);
+    // 1011h "load": the defaults from the next reset on.
+    m.write(4, 0x1011, 1, b"load").unwrap();
+    m.nmt(0x81, 4);
+    m.advance(5000);
+    assert_eq!(m.read_u32(4, 0x6092, 1).unwrap(), 1);
+    assert_eq!(m.read_u32(4, 0x6081, 0).unwrap(), 10);
+    drop(m);
+    let mut m = build_with_state(&dir);
+    assert_eq!(m.read_u32(4, 0x6092, 1).unwrap(), 1, "erased for good");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+// =============================================================================================
+// The ASCII channel (6.2.2.3).
+
+fn ascii(m: &mut Master, id: u8, command: &str) -> String {
+    let bytes = format!("{command}\r\n").into_bytes();
+    for chunk in bytes.chunks(4) {
+        m.write(id, 0x2026, 1, chunk).unwrap();
+    }
+    String::from_utf8(m.read(id, 0x2026, 2).unwrap()).unwrap()
+}
+
+#[test]
+fn the_ascii_channel_reads_and_writes_workbench_parameters() {
+    let mut m = started(4);
+    assert_eq!(ascii(&mut m, 4, "UNIT.PIN"), ">1\n\r\n");
+    assert_eq!(ascii(&mut m, 4, "UNIT.PIN 360"), ">\n\r\n");
+    assert_eq!(m.read_u32(4, 0x6092, 1).unwrap(), 360);
+    // 1:1 scaled parameters show three decimals (7.1.1: SDO 1000 = MT.P 1000.000).
+    m.write_i32(4, 0x607A, 0, 1000).unwrap();
+    assert_eq!(ascii(&mut m, 4, "mt.p"), ">1000.000\n\r\n");
+    // 1000:1: SDO 1500 is 1.500 in WorkBench.
+    assert_eq!(ascii(&mut m, 4, "IL.KP 2.25"), ">\n\r\n");
+    assert_eq!(m.read_i64(4, 0x3598, 0).unwrap(), 2250);
+    assert_eq!(ascii(&mut m, 4, "IL.KP"), ">2.250\n\r\n");
+    assert_eq!(ascii(&mut m, 4, "NO.SUCH"), ">Error: unknown command\n\r\n");
+    // 6.4.1.2: no control commands through another channel under controlword control.
+    assert!(ascii(&mut m, 4, "DRV.EN").starts_with(">Error"));
+    // A fault shows in DRV.FAULTS.
+    vendor_mut(&mut m, 0).conditions.heat_sink_c = 90.0;
+    m.advance(2000);
+    assert_eq!(ascii(&mut m, 4, "DRV.FAULTS"), ">235: Excess temperature, dri\n\r\n");
+    assert_eq!(ascii(&mut m, 4, "DRV.WARNINGS"), ">No warnings active\n\r\n");
 }

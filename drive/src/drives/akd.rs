@@ -795,7 +795,11 @@ fn parameter(name: &str) -> Option<Parameter> {
         }
         out
     });
-    table.iter().find(|(n, _)| n == name).map(|(_, p)| *p)
+    // A name on several objects (UNIT.PIN on 35CAh and 6092h sub 1, PL.ERR on 35C5h and 60F4h)
+    // is one WorkBench parameter: the profile object stands for it.
+    let mut hits = table.iter().filter(|(n, _)| n == name).map(|(_, p)| *p);
+    let first = hits.next()?;
+    Some(hits.chain(std::iter::once(first)).find(|p| p.index >= 0x6000).unwrap_or(first))
 }
 
 fn read_parameter(od: &Dictionary, p: Parameter) -> String {
@@ -1092,6 +1096,16 @@ impl Vendor<Dictionary> for Akd {
     }
 
     fn after_step(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, Dictionary>, status: &Status) {
+        // 6.4.1.1 "Fault": stopped and disabled. A blocked axis (an end stop, a following error)
+        // never reaches its demand, so the reaction ends when the stop ramp has: the output
+        // stage goes off and the common layer completes the transition.
+        if drive.state() == State::FaultReactionActive
+            && status.power
+            && status.velocity_demand == 0
+            && status.velocity_actual == 0
+        {
+            drive.axis_mut().set_power(false);
+        }
         self.homing_error(drive, ctx, status);
         if status.following_error_exceeded && !self.following_fault && drive.fault().is_none() {
             self.following_fault = true;
@@ -1172,6 +1186,10 @@ impl Vendor<Dictionary> for Akd {
     }
 
     fn on_fault_reset(&mut self, _drive: &mut Drive, _ctx: &mut Ctx<'_, Dictionary>) {
+        // Conditions still present raise their fault again at the next tick (6.4.1.2
+        // transition 15: "if no error exists in the drive").
+        self.heat_fault = false;
+        self.sto_fault = false;
         self.following_fault = false;
         self.homing_failed = false;
         self.sync_lost = false;
