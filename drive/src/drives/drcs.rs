@@ -450,7 +450,8 @@ impl Drcs {
     }
 
     fn write_objects<OD: ObjectDictionary>(&self, drive: &Drive, ctx: &mut Ctx<'_, OD>, status: &Status) {
-        let scale = drive.scale();
+        // The unit 2001h sets now (the drive's own scale follows at its next reconfiguration).
+        let scale = Vendor::<OD>::scale(self, ctx.od());
         let state = drive.state();
         let c = self.conditions;
         let inputs = u32::from(c.inputs)
@@ -622,6 +623,9 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drcs {
             _ => {}
         }
         self.sync_brake(drive);
+        // What the event changed (brake, outputs) is visible at once, not only after a tick.
+        let status = drive.axis().status();
+        self.write_objects(drive, ctx, &status);
     }
 
     fn before_command(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>, cmd: &mut Command) -> bool {

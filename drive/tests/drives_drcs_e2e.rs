@@ -1,0 +1,230 @@
+//! The DRCS end to end in Rust: `drive-sim run --device drcs --node-id 3` on its TCP hub, a
+//! master on the socketcand protocol (the transport's own client), and positions converted
+//! with the generated units module (`generated::drcs::units`) for the feed converter 2001h the
+//! drive reports: homing 17, an absolute and a relative move in millimetres, the unit changed
+//! to micrometres and to inches (chapter 4, 3.6.1); and `--trace`/`--plot` recording the DRCS.
+
+use std::io::{BufRead, BufReader};
+use std::net::SocketAddr;
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use drive::transport::{CanFrame, Endpoint, SocketcandClient};
+use generated::drcs::Dictionary;
+use generated::drcs::units::{Dimension, Quantity, Ratio, Unit, Units};
+
+const ID: u8 = 3;
+const WAIT: Duration = Duration::from_secs(5);
+
+struct DriveSim {
+    child: Child,
+    addr: SocketAddr,
+}
+
+impl DriveSim {
+    fn start(extra: &[&str]) -> Self {
+        let mut args = vec!["run", "--device", "drcs", "--node-id", "3", "--listen", "127.0.0.1:0"];
+        args.extend_from_slice(extra);
+        let mut child = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
+            .args(&args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start drive-sim");
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).expect("read the first line");
+        let addr = line.trim().strip_prefix("listening on ").unwrap_or_else(|| panic!("first line {line:?}"));
+        Self { addr: addr.parse().unwrap(), child }
+    }
+
+    /// Stops the process with SIGTERM (so it writes its trace) and waits for it.
+    fn terminate(mut self) {
+        let status = Command::new("kill").args(["-TERM", &self.child.id().to_string()]).status().unwrap();
+        assert!(status.success());
+        let deadline = Instant::now() + WAIT;
+        while self.child.try_wait().unwrap().is_none() {
+            assert!(Instant::now() < deadline, "drive-sim did not stop after SIGTERM");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+impl Drop for DriveSim {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A master with expedited SDO over the socketcand client.
+struct Master {
+    bus: SocketcandClient,
+}
+
+impl Master {
+    fn connect(sim: &DriveSim) -> Self {
+        Self { bus: SocketcandClient::connect(sim.addr, "can0").unwrap() }
+    }
+
+    fn exchange(&mut self, request: [u8; 8]) -> [u8; 8] {
+        self.bus.send(CanFrame::standard(0x600 + u32::from(ID), &request).unwrap()).unwrap();
+        let deadline = Instant::now() + WAIT;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            assert!(!left.is_zero(), "no SDO response to {request:02X?}");
+            if let Some(f) = self.bus.recv_timeout(left).unwrap()
+                && f.id() == 0x580 + u32::from(ID)
+            {
+                return f.raw_data();
+            }
+        }
+    }
+
+    fn write(&mut self, index: u16, sub: u8, value: i64, len: usize) {
+        let [lo, hi] = index.to_le_bytes();
+        let mut req = [0x23 | (((4 - len) as u8) << 2), lo, hi, sub, 0, 0, 0, 0];
+        req[4..4 + len].copy_from_slice(&value.to_le_bytes()[..len]);
+        let r = self.exchange(req);
+        assert_eq!(r, [0x60, lo, hi, sub, 0, 0, 0, 0], "download {index:04X}h/{sub}");
+    }
+
+    fn read(&mut self, index: u16, sub: u8) -> i64 {
+        let [lo, hi] = index.to_le_bytes();
+        let r = self.exchange([0x40, lo, hi, sub, 0, 0, 0, 0]);
+        assert_eq!(r[0] & 0xE3, 0x43, "upload {index:04X}h/{sub}: {r:02X?}");
+        let n = 4 - usize::from((r[0] >> 2) & 3);
+        let mut b = if r[3 + n] & 0x80 != 0 && n == 4 { [0xFF; 8] } else { [0; 8] };
+        b[..n].copy_from_slice(&r[4..4 + n]);
+        i64::from_le_bytes(b)
+    }
+
+    fn wait_statusword(&mut self, mask: u16, value: u16, timeout: Duration) -> u16 {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let sw = self.read(0x6041, 0) as u16;
+            if sw & mask == value {
+                return sw;
+            }
+            assert!(Instant::now() < deadline, "statusword {sw:04X}h: {mask:04X}h never became {value:04X}h");
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    /// The generated units for the 2001h the drive holds now.
+    fn units(&mut self) -> Units {
+        let mut od = Dictionary::new(ID);
+        od.set_feed_converter_numerator(self.read(0x2001, 1) as u32).unwrap();
+        od.set_feed_converter_denominator(self.read(0x2001, 2) as u32).unwrap();
+        Units::from_dictionary(&od).unwrap()
+    }
+
+    fn position(&mut self) -> Quantity {
+        let raw = self.read(0x6064, 0);
+        self.units().to_physical(Dimension::Position, raw).unwrap()
+    }
+
+    fn move_mm(&mut self, target: Quantity, relative: bool) {
+        let raw = self.units().to_raw(Dimension::Position, target).unwrap();
+        self.write(0x607A, 0, raw, 4);
+        self.write(0x6040, 0, if relative { 0x5F } else { 0x1F }, 2);
+        self.write(0x6040, 0, 0x0F, 2);
+        std::thread::sleep(Duration::from_millis(20));
+        self.wait_statusword(0x1400, 0x0400, Duration::from_secs(10));
+    }
+
+    fn enable_and_home_17(&mut self) {
+        for cw in [0x06, 0x07, 0x0F] {
+            self.write(0x6040, 0, cw, 2);
+        }
+        self.wait_statusword(0x6F, 0x27, WAIT);
+        self.write(0x6060, 0, 6, 1);
+        self.write(0x6098, 0, 17, 1);
+        self.write(0x6083, 0, 400, 4);
+        self.write(0x6084, 0, 400, 4);
+        self.write(0x6099, 1, 150, 4);
+        self.write(0x6099, 2, 30, 4);
+        self.write(0x6040, 0, 0x1F, 2);
+        self.wait_statusword(0x3400, 0x1400, Duration::from_secs(10));
+        self.write(0x6040, 0, 0x0F, 2);
+        self.write(0x6060, 0, 1, 1);
+    }
+}
+
+fn mm(n: i128, d: i128) -> Quantity {
+    Quantity::new(Ratio::new(n, d).unwrap(), Unit::Millimeter)
+}
+
+#[test]
+fn moves_in_millimetres_through_the_generated_units_over_the_hub() {
+    let sim = DriveSim::start(&[]);
+    let mut m = Master::connect(&sim);
+    m.enable_and_home_17();
+    assert_eq!(m.units().unit(Dimension::Position), Some(Unit::Millimeter));
+    m.write(0x6081, 0, 200, 4);
+    m.write(0x6083, 0, 1000, 4);
+    m.write(0x6084, 0, 1000, 4);
+    m.move_mm(mm(300, 1), false);
+    assert_eq!(m.position(), mm(300, 1));
+    m.move_mm(mm(-120, 1), true);
+    assert_eq!(m.position(), mm(180, 1));
+    // Micrometres (2001h = 1000/1): fractions of a millimetre become reachable.
+    m.write(0x2001, 1, 1000, 4);
+    m.write(0x2001, 2, 1, 4);
+    m.write(0x6081, 0, 200_000, 4);
+    m.write(0x6083, 0, 1_000_000, 4);
+    m.write(0x6084, 0, 1_000_000, 4);
+    assert_eq!(m.position(), mm(180, 1));
+    m.move_mm(mm(123_456, 1000), false);
+    assert_eq!(m.read(0x6064, 0), 123_456);
+    m.move_mm(mm(-3_456, 1000), true);
+    assert_eq!(m.position(), mm(120, 1));
+    // Inches by the formula (10/254): 120 mm = 4.72 in reads as 5 in = 127 mm.
+    m.write(0x2001, 1, 10, 4);
+    m.write(0x2001, 2, 254, 4);
+    assert_eq!(m.read(0x6064, 0), 5);
+    assert_eq!(m.position(), mm(127, 1));
+    assert_eq!(m.read(0x607D, 2), 39, "1000 mm full scale");
+    m.write(0x6081, 0, 8, 4);
+    m.write(0x6083, 0, 40, 4);
+    m.write(0x6084, 0, 40, 4);
+    m.move_mm(mm(254, 1), false); // 10 in
+    assert_eq!(m.read(0x6064, 0), 10);
+    assert_eq!(m.position(), mm(254, 1));
+    assert_eq!(m.read(0x1001, 0), 0, "no error on the way");
+}
+
+#[test]
+fn drive_sim_traces_and_plots_the_drcs() {
+    let dir = std::env::temp_dir().join(format!("drcs-trace-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (csv, svg) = (dir.join("drcs.csv"), dir.join("drcs.svg"));
+    let sim = DriveSim::start(&[
+        "--trace",
+        csv.to_str().unwrap(),
+        "--plot",
+        svg.to_str().unwrap(),
+        "--trace-interval-ms",
+        "10",
+    ]);
+    let mut m = Master::connect(&sim);
+    m.enable_and_home_17();
+    m.write(0x6081, 0, 200, 4);
+    m.write(0x6083, 0, 1000, 4);
+    m.write(0x6084, 0, 1000, 4);
+    m.move_mm(mm(100, 1), false);
+    drop(m);
+    sim.terminate();
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let trace = drive::trace::Trace::from_csv(&text).unwrap();
+    let samples = trace.samples();
+    assert!(samples.iter().any(|s| s.velocity_actual == 200), "cruise at 200 mm/s recorded");
+    assert!(samples.iter().any(|s| s.position_actual < -100), "the homing search recorded");
+    assert_eq!(samples.last().unwrap().position_actual, 100);
+    assert!(std::fs::read_to_string(&svg).unwrap().contains("<svg"));
+    remove(&dir);
+}
+
+fn remove(dir: &Path) {
+    let _ = std::fs::remove_dir_all(dir);
+}
