@@ -7,6 +7,9 @@
 //! `drcs`, `akd`); `fixtures` adds the code generated from od-codegen's test fixtures.
 //! The crate is `#![no_std]` and denies warnings, which proves the generated code builds
 //! warning-free without `std`.
+//!
+//! Beside the code, `generated/networks/<network>/` holds one DCF per node of each network
+//! description in `networks/` (`odgen dcf --network`, also written by `cargo xtask gen`).
 #![no_std]
 #![deny(warnings, missing_docs)]
 #[cfg(feature = "drvi")]

@@ -5,7 +5,8 @@ use std::process::ExitCode;
 const USAGE: &str = "usage: cargo xtask <command>
 
 commands:
-  gen [--check]   regenerate generated/ from the device files (--check: fail if stale)";
+  gen [--check]   regenerate generated/ from the device files and network descriptions,
+                  printing what changed in each changed device file (--check: fail if stale)";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
