@@ -3,7 +3,7 @@
 //!
 //! Codes are grouped by area: `E00xx` text and syntax, `E01xx` section and key names, `E02xx`
 //! object definitions, `E03xx` values, `E04xx` object lists, `E05xx` file and device
-//! information, `E06xx` PDOs. A code never changes meaning once published.
+//! information, `E06xx` PDOs, `E07xx` COB-IDs. A code never changes meaning once published.
 //!
 //! The severity a user sees depends on the [`Strictness`]: in lenient mode it is the code's
 //! [`CodeInfo::lenient`] severity; in strict mode every code that is a CiA 306 deviation
@@ -113,6 +113,10 @@ codes! {
     E0219 = Warning, true, "ARRAY elements of different data types";
     /// Sub-objects for an object whose type has none (VAR, DOMAIN).
     E0220 = Warning, true, "sub-objects for an object without sub-objects";
+    /// Sub-index 0 of an ARRAY or RECORD is not the highest sub-index present (for an ARRAY,
+    /// nor the number of elements); a writable sub-index 0 (a count of entries in use) is above
+    /// it. PDO mapping objects are left to E0608.
+    E0221 = Warning, true, "sub-index 0 does not match the sub-objects";
 
     // ---- E03xx: values ----
     /// A value that cannot be read as the entry's data type.
@@ -209,6 +213,20 @@ codes! {
     /// `CompactPDO` in \[DeviceInfo\]: PDO objects are implied rather than written out (see
     /// [`crate::lower::expand_compact_pdo`]).
     E0612 = Note, false, "PDO objects implied by CompactPDO";
+    /// A PDO mapping entry whose length is not a multiple of \[DeviceInfo\] `Granularity`.
+    E0613 = Warning, true, "mapping length is not a multiple of Granularity";
+    /// `Granularity=0` (the mapping cannot be changed) with writable PDO mapping parameters.
+    E0614 = Warning, true, "writable PDO mapping with Granularity=0";
+
+    // ---- E07xx: COB-IDs ----
+    /// A PDO, SYNC or EMCY COB-ID in use whose 11-bit CAN-ID CiA 301 restricts (0x000,
+    /// 0x001..0x07F, 0x101..0x180, 0x581..0x5FF, 0x601..0x67F, 0x6E0..0x6FF, 0x701..0x7FF),
+    /// for some node id when it depends on it.
+    E0701 = Warning, true, "COB-ID uses a restricted CAN-ID";
+    /// A COB-ID in use with bit 29 clear (11-bit CAN-ID) but CAN-ID bits above bit 10 set.
+    E0702 = Warning, true, "11-bit COB-ID with bits above bit 10";
+    /// Two of the device's PDOs (or a PDO and its SYNC or EMCY) in use on the same CAN-ID.
+    E0703 = Warning, true, "duplicate COB-ID";
 }
 
 /// The information about `code` (`None` for a code not in [`ALL`]).

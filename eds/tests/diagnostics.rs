@@ -132,3 +132,190 @@ fn hints_for_known_misspellings() {
     let d = parsed.diagnostics.iter().find(|d| d.code == codes::E0103).expect("E0103");
     assert!(d.hint.as_deref().unwrap_or_default().contains("[DeviceComissioning]"));
 }
+
+/// `base.eds` with edits: each `(section, old, new)` replaces the first `old` after the
+/// `[section]` header; `(section, "", text)` appends `text` after the header line; a section
+/// of `""` appends `new` at the end of the file.
+fn base_with(edits: &[(&str, &str, &str)]) -> String {
+    let mut s = std::fs::read_to_string(fixtures().join("base.eds")).expect("base.eds");
+    for &(section, old, new) in edits {
+        if section.is_empty() {
+            s.push_str(new);
+            continue;
+        }
+        let header = format!("[{section}]\n");
+        let at = s.find(&header).unwrap_or_else(|| panic!("no [{section}]")) + header.len();
+        if old.is_empty() {
+            s.insert_str(at, new);
+        } else {
+            let i = at + s[at..].find(old).unwrap_or_else(|| panic!("no `{old}` in [{section}]"));
+            s.replace_range(i..i + old.len(), new);
+        }
+    }
+    s
+}
+
+/// The codes `text` gets, with the messages of the codes in `of`.
+fn codes_of(text: &str, of: &[eds::Code]) -> Vec<(eds::Code, String)> {
+    let p = eds::parse("t.eds", text.as_bytes(), &Options::lenient());
+    p.diagnostics.iter().filter(|d| of.contains(&d.code)).map(|d| (d.code, d.message.clone())).collect()
+}
+
+/// An RPDO 2 whose communication object has `cob` as COB-ID (appended to `base.eds`, with
+/// NrOfRXPDO raised and the objects listed).
+fn second_rpdo(cob: &str) -> Vec<(&'static str, &'static str, String)> {
+    vec![
+        ("DeviceInfo", "NrOfRXPDO=1", "NrOfRXPDO=2".to_owned()),
+        ("OptionalObjects", "SupportedObjects=4", "SupportedObjects=6\n5=0x1401\n6=0x1601".to_owned()),
+        (
+            "",
+            "",
+            format!(
+                "\n[1401]\nParameterName=RPDO 2 communication\nObjectType=0x9\nSubNumber=2\n\n[1401sub0]\nParameterName=Highest sub-index supported\nObjectType=0x7\nDataType=0x0005\nAccessType=ro\nDefaultValue=1\nPDOMapping=0\n\n[1401sub1]\nParameterName=COB-ID used by RPDO\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\nDefaultValue={cob}\nPDOMapping=0\n\n[1601]\nParameterName=RPDO 2 mapping\nObjectType=0x9\nSubNumber=1\n\n[1601sub0]\nParameterName=Number of mapped objects\nObjectType=0x7\nDataType=0x0005\nAccessType=rw\nDefaultValue=0\nPDOMapping=0\n"
+            ),
+        ),
+    ]
+}
+
+fn edits(e: &[(&'static str, &'static str, String)]) -> String {
+    base_with(&e.iter().map(|(a, b, c)| (*a, *b, c.as_str())).collect::<Vec<_>>())
+}
+
+#[test]
+fn sub_index_zero_against_the_sub_objects() {
+    let c = |e: &[(&str, &str, &str)]| codes_of(&base_with(e), &[codes::E0221]);
+    // Too low and too high, for a read-only sub-index 0.
+    assert_eq!(c(&[("1018sub0", "DefaultValue=2", "DefaultValue=1")]).len(), 1);
+    assert_eq!(c(&[("1018sub0", "DefaultValue=2", "DefaultValue=3")]).len(), 1);
+    // A writable sub-index 0 counts entries in use: lower is fine, higher is not.
+    let rw = ("1018sub0", "AccessType=ro", "AccessType=rw");
+    assert!(c(&[rw, ("1018sub0", "DefaultValue=2", "DefaultValue=0")]).is_empty());
+    assert_eq!(c(&[rw, ("1018sub0", "DefaultValue=2", "DefaultValue=3")]).len(), 1);
+    // PDO mapping objects count mapped entries (E0608's business, not E0221's).
+    assert!(c(&[("1600sub0", "DefaultValue=2", "DefaultValue=1")]).is_empty());
+    // A sub-object whose entry could not be read still counts as present (no second error).
+    assert!(c(&[("1018sub2", "DataType=0x0007\n", "")]).is_empty());
+    // An ARRAY may give the number of its elements where sub-indices are left out.
+    let sparse = "\n[2002]\nParameterName=Gains\nObjectType=0x8\nSubNumber=3\n\n[2002sub0]\nParameterName=Number of gains\nObjectType=0x7\nDataType=0x0005\nAccessType=ro\nDefaultValue=N\nPDOMapping=0\n\n[2002sub1]\nParameterName=P\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\nDefaultValue=1\nPDOMapping=0\n\n[2002sub4]\nParameterName=D\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\nDefaultValue=1\nPDOMapping=0\n";
+    let listed = ("ManufacturerObjects", "SupportedObjects=2\n", "SupportedObjects=3\n3=0x2002\n");
+    for (n, ok) in [("4", true), ("2", true), ("3", false)] {
+        let text = base_with(&[listed, ("", "", &sparse.replace("=N", &format!("={n}")))]);
+        let found = codes_of(&text, &[codes::E0221]);
+        assert_eq!(found.is_empty(), ok, "sub 0 = {n}: {found:?}");
+        if !ok {
+            assert_eq!(
+                found[0].1,
+                "sub-index 0 of ARRAY 0x2002 is 3, but the highest sub-index present is 4 and it has 2 elements"
+            );
+        }
+    }
+    // CompactSubObj arrays are consistent by construction.
+    let compact = "\n[2002]\nParameterName=Table\nObjectType=0x8\nCompactSubObj=5\nDataType=0x0007\nAccessType=rw\nDefaultValue=0\nPDOMapping=0\n";
+    assert!(codes_of(&base_with(&[listed, ("", "", compact)]), &[codes::E0221]).is_empty());
+}
+
+#[test]
+fn granularity_of_mapping_entries() {
+    let c = |g: &str| codes_of(&base_with(&[("DeviceInfo", "Granularity=8", g)]), &[codes::E0613, codes::E0614]);
+    assert!(c("Granularity=8").is_empty());
+    assert!(c("Granularity=1").is_empty());
+    // RPDO 1 maps 16 and 8 bits, TPDO 1 maps 32 and 8 bits.
+    assert_eq!(c("Granularity=16").len(), 2);
+    assert_eq!(c("Granularity=32").len(), 3);
+    // Without Granularity nothing is judged (its absence is E0505).
+    assert!(c("").is_empty());
+    // Granularity 0: the mapping cannot be changed, so writable mapping parameters are one
+    // problem, reported once.
+    let zero = c("Granularity=0");
+    assert_eq!(zero.len(), 1, "{zero:?}");
+    assert_eq!(zero[0].0, codes::E0614);
+    let mut text = base_with(&[("DeviceInfo", "Granularity=8", "Granularity=0")]);
+    for s in ["1600sub0", "1600sub1", "1600sub2", "1A00sub0", "1A00sub1", "1A00sub2"] {
+        let at = text.find(&format!("[{s}]")).expect("section");
+        let i = at + text[at..].find("AccessType=rw").expect("rw");
+        text.replace_range(i..i + "AccessType=rw".len(), "AccessType=ro");
+    }
+    assert!(codes_of(&text, &[codes::E0613, codes::E0614]).is_empty());
+}
+
+#[test]
+fn cob_ids_restricted_frame_bits_and_duplicates() {
+    let tpdo = |cob: &str| {
+        codes_of(
+            &base_with(&[("1800sub1", "DefaultValue=0x180+$NODEID", &format!("DefaultValue={cob}"))]),
+            &[codes::E0701, codes::E0702, codes::E0703],
+        )
+    };
+    assert!(tpdo("$NODEID+0x280").is_empty());
+    assert!(tpdo("0x281").is_empty());
+    let fixed = tpdo("0x5A0");
+    assert_eq!(fixed, vec![(codes::E0701, "TPDO 1 COB-ID 0x5A0 is CAN-ID 0x5A0, which CiA 301 reserves".to_owned())]);
+    // Relative to the node id: only the node ids that land in a restricted range.
+    assert_eq!(
+        tpdo("$NODEID+0x540"),
+        vec![(
+            codes::E0701,
+            "TPDO 1 COB-ID $NODEID+0x540 is CAN-ID 0x581..=0x5BF for node ids 65..=127, which CiA 301 reserves"
+                .to_owned()
+        )]
+    );
+    // A PDO that is not valid (bit 31) and a 29-bit CAN-ID (bit 29) are not judged by the
+    // 11-bit rules; the RTR bit (30) is not part of the CAN-ID.
+    assert!(tpdo("0x800005A0").is_empty());
+    assert!(tpdo("0x200005A0").is_empty());
+    assert!(tpdo("0x20012345").is_empty());
+    assert_eq!(tpdo("0x400005A0").len(), 1);
+    assert_eq!(tpdo("0x12345")[0].0, codes::E0702);
+    assert_eq!(tpdo("$NODEID+0x7FF")[0].0, codes::E0702);
+    // The same CAN-ID as the RPDO: equal offsets from the node id, equal fixed values; with
+    // the RTR bit or an invalid PDO it is the same ID resp. no conflict.
+    assert_eq!(tpdo("$NODEID+0x200")[0].0, codes::E0703);
+    assert_eq!(tpdo("0x40000000+$NODEID+0x200").len(), 0, "not a NODEID expression this reader accepts");
+    assert_eq!(tpdo("$NODEID+0x40000200")[0].0, codes::E0703);
+    assert!(tpdo("$NODEID+0x80000200").is_empty());
+    let two = |a: &str, b: &str| {
+        let mut e = second_rpdo(b);
+        e.push(("1400sub1", "DefaultValue=$NODEID+0x200", format!("DefaultValue={a}")));
+        codes_of(&edits(&e), &[codes::E0703])
+    };
+    assert_eq!(two("0x301", "0x301").len(), 1);
+    assert!(two("0x301", "0x302").is_empty());
+    // A fixed and a relative value meet only for one node id: not judged in an EDS.
+    assert!(two("0x301", "$NODEID+0x300").is_empty());
+    // SYNC and EMCY are the device's CAN-IDs too.
+    let sync = "\n[1005]\nParameterName=COB-ID SYNC\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\nDefaultValue=0x80\nPDOMapping=0\n\n[1014]\nParameterName=COB-ID EMCY\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\nDefaultValue=$NODEID+0x80\nPDOMapping=0\n";
+    let list = ("OptionalObjects", "SupportedObjects=4", "SupportedObjects=6\n5=0x1005\n6=0x1014");
+    let with_sync = |tpdo: &str| {
+        codes_of(
+            &base_with(&[list, ("1800sub1", "DefaultValue=0x180+$NODEID", tpdo), ("", "", sync)]),
+            &[codes::E0701, codes::E0702, codes::E0703],
+        )
+    };
+    assert!(with_sync("DefaultValue=0x180+$NODEID").is_empty());
+    assert_eq!(
+        with_sync("DefaultValue=0x80"),
+        vec![(codes::E0703, "TPDO 1 COB-ID 0x80 is the same CAN-ID as SYNC (0x1005 sub 0: 0x80)".to_owned())]
+    );
+    assert_eq!(with_sync("DefaultValue=$NODEID+0x80")[0].0, codes::E0703);
+}
+
+#[test]
+fn cob_ids_of_a_dcf_are_judged_for_its_node_id() {
+    let dcf = |node: &str, tpdo: &str| {
+        let mut e = second_rpdo("0x305");
+        e.push(("1800sub1", "DefaultValue=0x180+$NODEID", format!("DefaultValue={tpdo}")));
+        e.push(("", "", format!("\n[DeviceComissioning]\nNodeID={node}\nBaudrate=500\n")));
+        let text = edits(&e);
+        let p = eds::parse("t.dcf", text.as_bytes(), &Options::lenient());
+        p.diagnostics.iter().filter(|d| d.code.0.starts_with("E07")).map(|d| d.message.clone()).collect::<Vec<_>>()
+    };
+    // Node 5: RPDO 2 (0x305) meets TPDO 1 at $NODEID+0x300 only on this node.
+    assert_eq!(dcf("5", "$NODEID+0x300").len(), 1);
+    assert!(dcf("6", "$NODEID+0x300").is_empty());
+    // $NODEID+0x540 is restricted for node 100 only when the DCF says node 100.
+    assert_eq!(
+        dcf("100", "$NODEID+0x540"),
+        vec!["TPDO 1 COB-ID $NODEID+0x540 is CAN-ID 0x5A4, which CiA 301 reserves"]
+    );
+    assert!(dcf("10", "$NODEID+0x540").is_empty());
+}

@@ -2,7 +2,7 @@
 
 use super::info::{Lists, category_slot, list_name};
 use super::sections::{Kind, Sections};
-use super::{Ctx, object_context, otype, sub_context};
+use super::{Crumbs, Ctx, FastMap, object_context, otype, sub_context};
 use crate::codes;
 use crate::model::{DataType, Entry, Index, Model, Object, ObjectType, PdoMappingEntry, Role, Value};
 use crate::source::Span;
@@ -11,6 +11,8 @@ pub(crate) fn validate(secs: &Sections<'_>, lists: &Lists, model: &Model, cx: &m
     object_lists(secs, lists, model, cx);
     mandatory(model, cx);
     pdos(secs, model, cx);
+    sub_index_zero(secs, model, cx);
+    cob_ids(secs, model, cx);
 }
 
 fn object_lists(secs: &Sections<'_>, lists: &Lists, model: &Model, cx: &mut Ctx<'_>) {
@@ -113,11 +115,15 @@ fn value_span(secs: &Sections<'_>, obj: &Object, e: &Entry) -> Span {
         keys.iter()
             .find_map(|k| sec.entries.iter().rev().find(|kv| kv.key.eq_ignore_ascii_case(k)).map(|kv| kv.value_span))
     };
-    let key = e.sub.0.to_string();
     let explicit =
         if e.parameter_value.is_some() { &["ParameterValue", "DefaultValue"][..] } else { &["DefaultValue"][..] };
+    if !obj.object_type.has_subs() {
+        return find(Kind::Object(obj.index.0), explicit).unwrap_or(e.at.span);
+    }
+    let mut digits = String::with_capacity(3);
+    super::push_decimal(&mut digits, e.sub.0 as u32);
     find(Kind::Sub(obj.index.0, e.sub.0), explicit)
-        .or_else(|| find(Kind::Values(obj.index.0), &[key.as_str()]))
+        .or_else(|| find(Kind::Values(obj.index.0), &[digits.as_str()]))
         .or_else(|| if obj.compact_sub_obj.is_some() { find(Kind::Object(obj.index.0), explicit) } else { None })
         .unwrap_or(e.at.span)
 }
@@ -150,6 +156,9 @@ fn pdos(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
         mapping(secs, model, obj, is_rpdo, n, cx);
     }
     let di = &model.device_info;
+    if di.granularity == Some(0) {
+        fixed_mapping(secs, model, cx);
+    }
     let compact = di.compact_pdo.unwrap_or(0) != 0;
     for (declared, present, key, what) in [
         (di.nr_of_rx_pdo, rx_comm, "NrOfRXPDO", "RPDO communication objects (0x1400..)"),
@@ -180,9 +189,51 @@ fn pair(model: &Model, obj: &Object, other: u16, other_kind: &str, cx: &mut Ctx<
     }
 }
 
+/// `Granularity=0` says the PDO mappings cannot be changed (CiA 306): then no mapping
+/// parameter may be writable. Reported once, at the Granularity key, naming the first writable
+/// one.
+fn fixed_mapping(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
+    let writable: Vec<(&Object, &Entry)> = model
+        .objects
+        .values()
+        .filter(|o| matches!(o.index.role(), Role::RpdoMapping(_) | Role::TpdoMapping(_)))
+        .filter_map(|o| Some((o, o.subs.values().find(|e| e.access.writable())?)))
+        .collect();
+    let Some(&(obj, e)) = writable.first() else { return };
+    let span = secs
+        .get(Kind::DeviceInfo)
+        .and_then(|s| s.entries.iter().rev().find(|kv| kv.key.eq_ignore_ascii_case("Granularity")))
+        .map(|kv| kv.value_span);
+    let more = match writable.len() {
+        1 => String::new(),
+        n => format!(" (and {} more mapping object{})", n - 1, if n == 2 { "" } else { "s" }),
+    };
+    let d = cx.emit(
+        codes::E0614,
+        span,
+        format!(
+            "Granularity=0 says the PDO mappings cannot be changed, but 0x{:04X} sub {} \"{}\" is {}{more}",
+            obj.index.0,
+            e.sub.0,
+            e.name,
+            e.access.as_str()
+        ),
+    );
+    d.hint = Some(
+        "make the mapping parameters ro (or const), or set Granularity to the mapping unit in bits (usually 8)"
+            .to_owned(),
+    );
+}
+
+/// `RPDO 1`, `TPDO 3` (PDO numbers count from 1).
+fn pdo_name(is_rpdo: bool, n: u16) -> String {
+    format!("{} {}", if is_rpdo { "RPDO" } else { "TPDO" }, n + 1)
+}
+
 fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u16, cx: &mut Ctx<'_>) {
-    let pdo = format!("{} {}", if is_rpdo { "RPDO" } else { "TPDO" }, n + 1);
-    let ctx = vec![object_context(obj.index.0, &obj.name)];
+    // Messages and contexts are only formatted for the diagnostics that are emitted.
+    let pdo = || pdo_name(is_rpdo, n);
+    let ctx = Crumbs::object(obj.index.0, &obj.name);
     let Some(count_entry) = obj.sub(0) else { return };
     let Some(count) = effective(count_entry).and_then(Value::as_int) else { return };
     let present = obj.subs.keys().filter(|s| s.0 != 0).count();
@@ -190,11 +241,12 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
         let d = cx.emit(
             codes::E0608,
             Some(value_span(secs, obj, count_entry)),
-            format!("{pdo} maps {count} entries; a PDO holds at most 64"),
+            format!("{} maps {count} entries; a PDO holds at most 64", pdo()),
         );
-        d.context = ctx.clone();
+        d.context = ctx.to_vec();
         return;
     }
+    let granularity = model.device_info.granularity;
     let mut total_bits: u32 = 0;
     let mut missing = Vec::new();
     for s in 1..=count as u8 {
@@ -202,22 +254,21 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
             missing.push(s);
             continue;
         };
-        let mut c = ctx.clone();
-        c.push(sub_context(s, &e.name));
-        let span = value_span(secs, obj, e);
+        let c = ctx.sub(s, &e.name);
+        let span = || value_span(secs, obj, e);
         let raw = match effective(e) {
             None => continue,
             Some(Value::Int { value, .. }) if (0..=u32::MAX as i128).contains(value) => *value as u32,
             Some(v) => {
                 let d = cx.emit(
                     codes::E0611,
-                    Some(span),
+                    Some(span()),
                     format!(
                         "mapping entry `{}` is not a 32-bit `0xIIIISSLL` value",
                         crate::value::format_value(v, e.data_type)
                     ),
                 );
-                d.context = c;
+                d.context = c.to_vec();
                 continue;
             }
         };
@@ -226,32 +277,51 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
         }
         let m = PdoMappingEntry::from_u32(raw);
         total_bits += m.bits as u32;
-        let target_text = format!("0x{:04X} sub {}", m.index.0, m.sub.0);
+        let target_text = || format!("0x{:04X} sub {}", m.index.0, m.sub.0);
+        if let Some(g) = granularity.filter(|&g| g != 0)
+            && !m.bits.is_multiple_of(g)
+        {
+            let d = cx.emit(
+                codes::E0613,
+                Some(span()),
+                format!(
+                    "{} maps {} with {} bits, which is not a multiple of Granularity={g}",
+                    pdo(),
+                    target_text(),
+                    m.bits
+                ),
+            );
+            d.hint = Some(format!(
+                "this device maps in units of {g} bits ([DeviceInfo] Granularity); map whole units or change Granularity"
+            ));
+            d.context = c.to_vec();
+        }
         if m.is_dummy() {
             let ty = DataType::from_code(m.index.0);
             if model.dummy_usage.get(&m.index.0) != Some(&true) {
                 let d = cx.emit(
                     codes::E0604,
-                    Some(span),
+                    Some(span()),
                     format!(
-                        "{pdo} maps a dummy {} (0x{raw:08X}), but [DummyUsage] does not enable Dummy{:04X}",
+                        "{} maps a dummy {} (0x{raw:08X}), but [DummyUsage] does not enable Dummy{:04X}",
+                        pdo(),
                         ty.name(),
                         m.index.0
                     ),
                 );
                 d.hint = Some(format!("add `Dummy{:04X}=1` to [DummyUsage]", m.index.0));
-                d.context = c.clone();
+                d.context = c.to_vec();
             }
             if let Some(bits) = ty.bits()
                 && bits != m.bits as u32
             {
                 let d = cx.emit(
                     codes::E0603,
-                    Some(span),
+                    Some(span()),
                     format!("dummy {} is {bits} bits long, but the mapping says {}", ty.name(), m.bits),
                 );
                 d.hint = Some(format!("write 0x{:08X}", (raw & !0xFF) | bits));
-                d.context = c;
+                d.context = c.to_vec();
             }
             continue;
         }
@@ -261,51 +331,61 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
             } else {
                 "the file does not define it".to_owned()
             };
-            let d = cx.emit(codes::E0601, Some(span), format!("{pdo} maps {target_text} (0x{raw:08X}), but {what}"));
-            d.context = c;
+            let d = cx.emit(
+                codes::E0601,
+                Some(span()),
+                format!("{} maps {} (0x{raw:08X}), but {what}", pdo(), target_text()),
+            );
+            d.context = c.to_vec();
             continue;
         };
-        let target_text = match model.object(m.index.0) {
-            Some(o) if o.object_type.has_subs() => format!("{target_text} \"{}\" of \"{}\"", target.name, o.name),
+        let target_text = || match model.object(m.index.0) {
+            Some(o) if o.object_type.has_subs() => format!("{} \"{}\" of \"{}\"", target_text(), target.name, o.name),
             _ => format!("0x{:04X} \"{}\"", m.index.0, target.name),
         };
         if !target.pdo_mapping {
-            let d = cx.emit(codes::E0602, Some(span), format!("{pdo} maps {target_text}, which has PDOMapping=0"));
+            let d = cx.emit(
+                codes::E0602,
+                Some(span()),
+                format!("{} maps {}, which has PDOMapping=0", pdo(), target_text()),
+            );
             d.hint = Some("set PDOMapping=1 on the mapped entry, or remove the mapping".to_owned());
-            d.context = c.clone();
+            d.context = c.to_vec();
         }
         if let Some(bits) = target.data_type.bits()
             && bits != m.bits as u32
         {
             let d = cx.emit(
                 codes::E0603,
-                Some(span),
+                Some(span()),
                 format!(
-                    "{pdo} maps {target_text} with {} bits, but it is {} ({bits} bits)",
+                    "{} maps {} with {} bits, but it is {} ({bits} bits)",
+                    pdo(),
+                    target_text(),
                     m.bits,
                     target.data_type.name()
                 ),
             );
             d.hint = Some(format!("write 0x{:08X}", (raw & !0xFF) | bits));
-            d.context = c.clone();
+            d.context = c.to_vec();
         }
         if is_rpdo && !target.access.rpdo_ok() {
             let d = cx.emit(
                 codes::E0606,
-                Some(span),
-                format!("{pdo} writes {target_text}, whose AccessType is {}", target.access.as_str()),
+                Some(span()),
+                format!("{} writes {}, whose AccessType is {}", pdo(), target_text(), target.access.as_str()),
             );
             d.hint = Some("an RPDO entry must be writable (wo, rw or rww)".to_owned());
-            d.context = c.clone();
+            d.context = c.to_vec();
         }
         if !is_rpdo && !target.access.tpdo_ok() {
             let d = cx.emit(
                 codes::E0607,
-                Some(span),
-                format!("{pdo} reads {target_text}, whose AccessType is {}", target.access.as_str()),
+                Some(span()),
+                format!("{} reads {}, whose AccessType is {}", pdo(), target_text(), target.access.as_str()),
             );
             d.hint = Some("a TPDO entry must be readable (ro, rw, rwr or const)".to_owned());
-            d.context = c;
+            d.context = c.to_vec();
         }
     }
     if !missing.is_empty() {
@@ -313,20 +393,238 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
             codes::E0608,
             Some(value_span(secs, obj, count_entry)),
             format!(
-                "{pdo} maps {count} entries, but sub-index {} is missing",
+                "{} maps {count} entries, but sub-index {} is missing",
+                pdo(),
                 missing.iter().map(u8::to_string).collect::<Vec<_>>().join(", ")
             ),
         );
         d.hint = Some(format!("lower the count to {present} or add the mapping entries"));
-        d.context = ctx.clone();
+        d.context = ctx.to_vec();
     }
     if total_bits > 64 {
         let d = cx.emit(
             codes::E0605,
             Some(value_span(secs, obj, count_entry)),
-            format!("{pdo} maps {total_bits} bits; a CAN PDO carries at most 64"),
+            format!("{} maps {total_bits} bits; a CAN PDO carries at most 64", pdo()),
         );
         d.hint = Some("split the mapping over two PDOs".to_owned());
-        d.context = ctx;
+        d.context = ctx.to_vec();
+    }
+}
+
+/// Sub-index 0 of an ARRAY or RECORD says how far the object goes: the highest sub-index it
+/// supports (CiA 301), which for an ARRAY is also the number of its elements. A writable
+/// sub-index 0 counts the entries in use (0x1003 "number of errors") and may be lower. PDO
+/// mapping objects are checked with their mapping (E0608).
+fn sub_index_zero(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
+    let mut highest_section: FastMap<u16, u8> = FastMap::default();
+    for sec in &secs.list {
+        if let Kind::Sub(index, sub) = sec.kind {
+            let h = highest_section.entry(index).or_insert(sub);
+            *h = (*h).max(sub);
+        }
+    }
+    for obj in model.objects.values() {
+        if !matches!(obj.object_type, ObjectType::Array | ObjectType::Record)
+            || matches!(obj.index.role(), Role::RpdoMapping(_) | Role::TpdoMapping(_))
+        {
+            continue;
+        }
+        let Some(e0) = obj.sub(0) else { continue };
+        let Some(value) = effective(e0).and_then(Value::as_int) else { continue };
+        // Sub-object sections count even when their entry could not be read (that is reported
+        // on its own).
+        let sections = highest_section.get(&obj.index.0).copied();
+        let in_model = obj.subs.keys().next_back().map(|s| s.0);
+        let highest = in_model.max(sections).unwrap_or(0) as i128;
+        let count = obj.subs.len() as i128 - 1;
+        let is_array = obj.object_type == ObjectType::Array;
+        let ok = if e0.access.writable() {
+            (0..=highest).contains(&value)
+        } else {
+            value == highest || (is_array && value == count)
+        };
+        if ok {
+            continue;
+        }
+        let elements =
+            if is_array && count != highest { format!(" and it has {count} elements") } else { String::new() };
+        let d = cx.emit(
+            codes::E0221,
+            Some(value_span(secs, obj, e0)),
+            format!(
+                "sub-index 0 of {} 0x{:04X} is {value}, but the highest sub-index present is {highest}{elements}",
+                otype(obj.object_type),
+                obj.index.0
+            ),
+        );
+        d.hint = Some(if e0.access.writable() {
+            format!("sub-index 0 counts the entries in use: at most {highest}")
+        } else {
+            format!("set sub-index 0 to {highest}, the highest sub-index the object supports")
+        });
+        d.context = Crumbs::object(obj.index.0, &obj.name).sub(0, &e0.name).to_vec();
+    }
+}
+
+/// CAN-IDs CiA 301 keeps from configurable communication objects (SYNC, TIME, EMCY, PDO, SDO):
+/// NMT, the default SDO and NMT error control channels, and reserved ranges.
+const RESTRICTED_CAN_IDS: [(u32, u32); 8] = [
+    (0x000, 0x000),
+    (0x001, 0x07F),
+    (0x101, 0x180),
+    (0x581, 0x5FF),
+    (0x601, 0x67F),
+    (0x6E0, 0x6FF),
+    (0x701, 0x77F),
+    (0x780, 0x7FF),
+];
+
+/// A COB-ID entry: a PDO's communication sub-index 1, 0x1005 (SYNC) or 0x1014 (EMCY).
+struct CobId<'m> {
+    obj: &'m Object,
+    entry: &'m Entry,
+    /// `TPDO 1`, `SYNC`, `EMCY`.
+    what: String,
+    value: &'m Value,
+    /// Bit 31 says "not valid" (PDO, EMCY); SYNC has no such bit.
+    has_valid_bit: bool,
+}
+
+impl CobId<'_> {
+    /// The 32-bit value for node id `node` (`None` when out of range).
+    fn resolve(&self, node: u8) -> Option<u32> {
+        u32::try_from(self.value.resolve(node)?).ok()
+    }
+
+    /// Whether the object is in use: bit 31 clear where it means "not valid".
+    fn in_use(&self, raw: u32) -> bool {
+        !self.has_valid_bit || raw & 0x8000_0000 == 0
+    }
+}
+
+/// The node ids a value is judged for: the configured one in a DCF, else all of 1..=127 when
+/// the value depends on the node id, else just one (any).
+fn node_ids(model: &Model, v: &Value) -> std::ops::RangeInclusive<u8> {
+    match model.node_id() {
+        Some(n) => n..=n,
+        None if v.is_node_relative() => 1..=127,
+        None => 1..=1,
+    }
+}
+
+/// `0x181` or, for a value that depends on the node id, `$NODEID+0x180`.
+fn show_cob(v: &Value) -> String {
+    crate::value::format_value(v, DataType::Unsigned32)
+}
+
+/// COB-IDs of PDOs, SYNC and EMCY: 11-bit CAN-IDs that CiA 301 restricts, frame bit against the
+/// bits used, and two of the device's own objects on the same CAN-ID.
+fn cob_ids(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
+    let mut cobs: Vec<CobId<'_>> = Vec::new();
+    for obj in model.objects.values() {
+        let (sub, what, has_valid_bit) = match obj.index.role() {
+            Role::RpdoCommunication(n) => (1, pdo_name(true, n), true),
+            Role::TpdoCommunication(n) => (1, pdo_name(false, n), true),
+            Role::SyncCobId => (0, "SYNC".to_owned(), false),
+            Role::EmcyCobId => (0, "EMCY".to_owned(), true),
+            _ => continue,
+        };
+        let Some(entry) = obj.sub(sub) else { continue };
+        let Some(value) = effective(entry).filter(|v| matches!(v, Value::Int { .. } | Value::NodeIdPlus { .. })) else {
+            continue;
+        };
+        cobs.push(CobId { obj, entry, what, value, has_valid_bit });
+    }
+    for cob in &cobs {
+        let ctx = || Crumbs::object(cob.obj.index.0, &cob.obj.name).sub(cob.entry.sub.0, &cob.entry.name).to_vec();
+        let span = || value_span(secs, cob.obj, cob.entry);
+        // The node ids for which the COB-ID is a used 11-bit CAN-ID with bits above bit 10, or
+        // one that CiA 301 restricts.
+        let mut too_wide: Option<(u8, u32)> = None;
+        let mut restricted: Vec<(u8, u32)> = Vec::new();
+        for node in node_ids(model, cob.value) {
+            let Some(raw) = cob.resolve(node) else { continue };
+            if !cob.in_use(raw) || raw & 0x2000_0000 != 0 {
+                continue;
+            }
+            let id = raw & 0x1FFF_FFFF;
+            if id > 0x7FF {
+                too_wide.get_or_insert((node, raw));
+            } else if RESTRICTED_CAN_IDS.iter().any(|&(lo, hi)| (lo..=hi).contains(&id)) {
+                restricted.push((node, id));
+            }
+        }
+        if let Some((node, raw)) = too_wide {
+            let for_node =
+                if cob.value.is_node_relative() { format!(" (0x{raw:08X} for node id {node})") } else { String::new() };
+            let d = cx.emit(
+                codes::E0702,
+                Some(span()),
+                format!(
+                    "{} COB-ID {}{for_node} has bit 29 clear (an 11-bit CAN-ID) but uses CAN-ID bits above bit 10",
+                    cob.what,
+                    show_cob(cob.value)
+                ),
+            );
+            d.hint = Some("11-bit CAN-IDs are 0x001..0x7FF; set bit 29 (0x20000000) for a 29-bit CAN-ID".to_owned());
+            d.context = ctx();
+        } else if let (Some(&(first, id)), Some(&(last, last_id))) = (restricted.first(), restricted.last()) {
+            let which = if !cob.value.is_node_relative() || model.node_id().is_some() {
+                format!("is CAN-ID 0x{id:03X}")
+            } else if first == last {
+                format!("is CAN-ID 0x{id:03X} for node id {first}")
+            } else if restricted.len() == (last - first) as usize + 1 {
+                format!("is CAN-ID 0x{id:03X}..=0x{last_id:03X} for node ids {first}..={last}")
+            } else {
+                format!("is a restricted CAN-ID for {} node ids (0x{id:03X} for node id {first})", restricted.len())
+            };
+            let d = cx.emit(
+                codes::E0701,
+                Some(span()),
+                format!("{} COB-ID {} {which}, which CiA 301 reserves", cob.what, show_cob(cob.value)),
+            );
+            d.hint = Some(
+                "CiA 301 restricts 0x000, 0x001..0x07F, 0x101..0x180, 0x581..0x5FF, 0x601..0x67F, 0x6E0..0x6FF and 0x701..0x7FF; use the predefined connection set ($NODEID+0x180 .. $NODEID+0x500 for PDOs 1-4) or another free CAN-ID"
+                    .to_owned(),
+            );
+            d.context = ctx();
+        }
+    }
+    // Two of the device's own objects in use on the same CAN-ID (frame bit and ID compared; the
+    // RTR and valid bits are not part of it). Without a node id, values relative to it are
+    // compared by their offsets (equal offsets collide on every node), fixed ones by value.
+    let key = |cob: &CobId<'_>| -> Option<(bool, u32)> {
+        let (relative, raw) = match (model.node_id(), cob.value) {
+            (Some(n), _) => (false, cob.resolve(n)?),
+            (None, Value::Int { value, .. }) => (false, u32::try_from(*value).ok()?),
+            (None, Value::NodeIdPlus { offset, .. }) => (true, u32::try_from(*offset).ok()?),
+            _ => return None,
+        };
+        cob.in_use(raw).then_some((relative, raw & 0x3FFF_FFFF))
+    };
+    let mut seen: Vec<((bool, u32), usize)> = Vec::with_capacity(cobs.len());
+    for (i, cob) in cobs.iter().enumerate() {
+        let Some(k) = key(cob) else { continue };
+        if let Some(&(_, first)) = seen.iter().find(|(s, _)| *s == k) {
+            let other = &cobs[first];
+            let d = cx.emit(
+                codes::E0703,
+                Some(value_span(secs, cob.obj, cob.entry)),
+                format!(
+                    "{} COB-ID {} is the same CAN-ID as {} (0x{:04X} sub {}: {})",
+                    cob.what,
+                    show_cob(cob.value),
+                    other.what,
+                    other.obj.index.0,
+                    other.entry.sub.0,
+                    show_cob(other.value)
+                ),
+            );
+            d.hint = Some("give each PDO, SYNC and EMCY of the device its own CAN-ID".to_owned());
+            d.context = Crumbs::object(cob.obj.index.0, &cob.obj.name).sub(cob.entry.sub.0, &cob.entry.name).to_vec();
+        } else {
+            seen.push((k, i));
+        }
     }
 }
