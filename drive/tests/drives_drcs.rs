@@ -1143,3 +1143,28 @@ fn error_table_is_the_manual_list_plus_the_fieldbus_disconnection() {
     assert_eq!(fieldbus.reaction, drive::drives::Reaction::QuickStop);
     assert_eq!(fieldbus.register_bits(), 0x11);
 }
+
+/// The DRCS has no 605Ah/6085h: a quick stop from the controlword ramps down on 6084h and
+/// ends in Switch on disabled (CiA 402 option 2), torqueless with the brake engaged.
+#[test]
+fn quick_stop_ramps_on_the_profile_deceleration() {
+    let mut m = drcs();
+    assert_eq!(m.read(ID, 0x605A, 0), Err(SdoError::Abort(0x0602_0000)));
+    assert_eq!(m.read(ID, 0x6085, 0), Err(SdoError::Abort(0x0602_0000)));
+    enabled_and_homed(&mut m);
+    m.set_mode(ID, 3).unwrap();
+    m.write_u32(ID, 0x6084, 0, 200).unwrap();
+    m.write_i32(ID, 0x60FF, 0, 100).unwrap();
+    m.advance(1_500_000);
+    assert_eq!(velocity(&mut m), 100);
+    m.controlword(ID, 0x0B).unwrap();
+    m.advance(250_000);
+    assert_eq!(m.state(ID).unwrap(), Some(State::QuickStopActive));
+    let v = velocity(&mut m);
+    assert!((40..=60).contains(&v), "100 mm/s at 200 mm/s² after 0.25 s: {v}");
+    m.advance(300_000);
+    assert_eq!(m.state(ID).unwrap(), Some(State::SwitchOnDisabled));
+    assert_eq!(velocity(&mut m), 0);
+    assert_eq!(m.read_u64(ID, 0x2005, 0).unwrap(), 1);
+    assert!(emcys(&mut m).is_empty());
+}

@@ -228,3 +228,69 @@ fn drive_sim_traces_and_plots_the_drcs() {
 fn remove(dir: &Path) {
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// 1010h under SIGKILL (issue #7, persistence): a drive-sim killed at any moment of a save
+/// restarts with either the previous or the new parameter set of each area, never a mix and
+/// never a corrupt image (which would fall back to the defaults).
+#[test]
+fn a_kill_during_save_never_leaves_a_torn_parameter_set() {
+    let dir = std::env::temp_dir().join(format!("drcs-kill-{}", std::process::id()));
+    remove(&dir);
+    let state = dir.to_str().unwrap().to_owned();
+    let args = ["--state-dir", state.as_str()];
+    // A first complete save: generation 1.
+    let sim = DriveSim::start(&args);
+    let mut m = Master::connect(&sim);
+    let write_generation = |m: &mut Master, g: i64| {
+        m.write(0x2001, 1, g, 4); // manufacturer area
+        m.write(0x2001, 2, g + 1, 4);
+        m.write(0x6081, 0, g, 4); // application area
+        m.write(0x6083, 0, g + 1, 4);
+        m.write(0x1017, 0, g, 2); // communication area
+        m.write(0x1015, 0, g + 1, 2);
+    };
+    write_generation(&mut m, 1);
+    m.write(0x1010, 1, 0x6576_6173, 4);
+    drop(m);
+    drop(sim);
+    // Per area: the generation on file, and the one the last round tried to save.
+    let mut saved = [1i64; 3];
+    let mut attempted = 1i64;
+    let mut seen_new = 0;
+    for round in 0..40u64 {
+        let sim = DriveSim::start(&args);
+        let mut m = Master::connect(&sim);
+        // What the last round left: per area, one whole generation (the old or the new one).
+        let found = [
+            ("2000h", m.read(0x2001, 1), m.read(0x2001, 2)),
+            ("6000h", m.read(0x6081, 0), m.read(0x6083, 0)),
+            ("1000h", m.read(0x1017, 0), m.read(0x1015, 0)),
+        ];
+        for (i, (area, a, b)) in found.into_iter().enumerate() {
+            assert_eq!(b, a + 1, "round {round}: torn {area} set ({a}, {b})");
+            assert!(
+                a == saved[i] || a == attempted,
+                "round {round}: {area} generation {a}, expected {} or {attempted}",
+                saved[i]
+            );
+            if a != saved[i] {
+                saved[i] = a;
+                seen_new += 1;
+            }
+        }
+        // Write a new generation and kill the process while it saves.
+        attempted += 1;
+        write_generation(&mut m, attempted);
+        let [lo, hi] = 0x1010u16.to_le_bytes();
+        let s = 0x6576_6173u32.to_le_bytes();
+        let save = CanFrame::standard(0x600 + u32::from(ID), &[0x23, lo, hi, 1, s[0], s[1], s[2], s[3]]).unwrap();
+        m.bus.send(save).unwrap();
+        std::thread::sleep(Duration::from_micros(round * 97 % 3000));
+        drop(m);
+        drop(sim); // SIGKILL
+    }
+    // Both outcomes happened: kills before, during and after the saves.
+    assert!(seen_new > 0, "some saves completed before the kill");
+    assert!(seen_new < 3 * 40, "some saves were cut short");
+    remove(&dir);
+}
