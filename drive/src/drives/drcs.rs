@@ -55,8 +55,8 @@ use od_runtime::{Event, Micros, NmtCommand, Storage};
 use super::cia402::{BusScale, Cia402App, Command, Vendor, read_int, write_int};
 use super::{Drive, ErrorSpec, ErrorTable, Reaction, sidecar};
 use crate::motion::{
-    AxisConfig, Cam, CommandError, Environment, HomeOffsetMode, HomingMethod, HomingState, Mode, PlantConfig, Ratio,
-    RelativeBase, SoftwareLimits, Status, Units,
+    AxisConfig, Cam, Environment, HomeOffsetMode, HomingMethod, HomingState, Mode, PlantConfig, Ratio, RelativeBase,
+    SoftwareLimits, Status, Units,
 };
 use crate::node::{Ctx, DeviceKind, NodeStorage, ParameterSet, WriteRequest};
 
@@ -665,8 +665,6 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drcs {
         }
         true
     }
-
-    fn after_command(&mut self, _: &mut Drive, _: &mut Ctx<'_, OD>, _: &Command, _: Result<(), CommandError>) {}
 
     fn before_step(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>) {
         if self.start_pending {
