@@ -3095,18 +3095,29 @@ PDOMapping=0
         0x6402, 0x6404, 0x6502, 0x67FF,
     ];
     /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
-    /// the index to its object, then the sub-index in the object's run of entries (`first`:
-    /// each object's first entry, then the entry count; `subs`: every entry's sub-index).
+    /// the index to its object, then the sub-index in the object's run of entries (`runs`:
+    /// `0xFFFFFFLL`, the object's first entry `FFFFFF` and its last position in the run `LL`;
+    /// `subs`: every entry's sub-index).
     static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
         pages: ::od_runtime::__private_v1::pages(&OBJECTS),
-        slots: &::od_runtime::__private_v1::slots::<3328>(&OBJECTS),
-        first: &[
-            0, 1, 2, 3, 12, 13, 14, 15, 16, 17, 18, 19, 20, 22, 24, 25, 26, 27, 28, 33,
-            34, 37, 40, 43, 46, 49, 52, 55, 58, 61, 64, 73, 82, 91, 100, 109, 118, 127,
-            136, 142, 148, 154, 160, 166, 172, 178, 184, 193, 202, 211, 220, 229, 238,
-            247, 256, 257, 260, 261, 262, 263, 264, 265, 266, 267, 268, 269, 270, 271,
-            272, 273, 274, 275, 276, 277, 278, 279, 280, 281, 282, 283, 286, 287, 288,
-            289, 290, 293, 296, 299, 300, 303, 304, 305, 306, 307, 308,
+        slots: &::od_runtime::__private_v1::slots::<3584>(&OBJECTS),
+        runs: &[
+            0x00000000, 0x00000100, 0x00000200, 0x00000308, 0x00000C00, 0x00000D00,
+            0x00000E00, 0x00000F00, 0x00001000, 0x00001100, 0x00001200, 0x00001300,
+            0x00001401, 0x00001601, 0x00001800, 0x00001900, 0x00001A00, 0x00001B00,
+            0x00001C04, 0x00002100, 0x00002202, 0x00002502, 0x00002802, 0x00002B02,
+            0x00002E02, 0x00003102, 0x00003402, 0x00003702, 0x00003A02, 0x00003D02,
+            0x00004008, 0x00004908, 0x00005208, 0x00005B08, 0x00006408, 0x00006D08,
+            0x00007608, 0x00007F08, 0x00008805, 0x00008E05, 0x00009405, 0x00009A05,
+            0x0000A005, 0x0000A605, 0x0000AC05, 0x0000B205, 0x0000B808, 0x0000C108,
+            0x0000CA08, 0x0000D308, 0x0000DC08, 0x0000E508, 0x0000EE08, 0x0000F708,
+            0x00010000, 0x00010102, 0x00010400, 0x00010500, 0x00010600, 0x00010700,
+            0x00010800, 0x00010900, 0x00010A00, 0x00010B00, 0x00010C00, 0x00010D00,
+            0x00010E00, 0x00010F00, 0x00011000, 0x00011100, 0x00011200, 0x00011300,
+            0x00011400, 0x00011500, 0x00011600, 0x00011700, 0x00011800, 0x00011900,
+            0x00011A00, 0x00011B02, 0x00011E00, 0x00011F00, 0x00012000, 0x00012100,
+            0x00012202, 0x00012502, 0x00012802, 0x00012B00, 0x00012C02, 0x00012F00,
+            0x00013000, 0x00013100, 0x00013200, 0x00013300,
         ],
         subs: &[
             0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 1, 0, 0,
@@ -7477,6 +7488,7 @@ PDOMapping=0
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
         }
+        #[inline(always)]
         fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
             Some(
                 match pos {
@@ -8921,6 +8933,7 @@ PDOMapping=0
                 },
             )
         }
+        #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,

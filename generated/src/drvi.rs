@@ -3103,18 +3103,29 @@ PDOMapping=0
         0x6099, 0x609A, 0x60FF,
     ];
     /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
-    /// the index to its object, then the sub-index in the object's run of entries (`first`:
-    /// each object's first entry, then the entry count; `subs`: every entry's sub-index).
+    /// the index to its object, then the sub-index in the object's run of entries (`runs`:
+    /// `0xFFFFFFLL`, the object's first entry `FFFFFF` and its last position in the run `LL`;
+    /// `subs`: every entry's sub-index).
     static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
         pages: ::od_runtime::__private_v1::pages(&OBJECTS),
-        slots: &::od_runtime::__private_v1::slots::<2048>(&OBJECTS),
-        first: &[
-            0, 1, 2, 3, 12, 13, 14, 15, 16, 17, 18, 19, 20, 22, 24, 25, 26, 27, 32, 35,
-            38, 41, 44, 47, 50, 53, 56, 65, 74, 83, 92, 101, 110, 119, 128, 134, 140,
-            146, 152, 158, 164, 170, 176, 185, 194, 203, 212, 221, 230, 239, 248, 249,
-            252, 253, 254, 255, 256, 257, 263, 266, 267, 268, 269, 270, 271, 272, 273,
-            274, 275, 276, 277, 278, 279, 280, 281, 282, 283, 284, 285, 286, 287, 290,
-            291, 292, 293, 294, 295, 296, 299, 302, 303, 306, 307, 308,
+        slots: &::od_runtime::__private_v1::slots::<2304>(&OBJECTS),
+        runs: &[
+            0x00000000, 0x00000100, 0x00000200, 0x00000308, 0x00000C00, 0x00000D00,
+            0x00000E00, 0x00000F00, 0x00001000, 0x00001100, 0x00001200, 0x00001300,
+            0x00001401, 0x00001601, 0x00001800, 0x00001900, 0x00001A00, 0x00001B04,
+            0x00002002, 0x00002302, 0x00002602, 0x00002902, 0x00002C02, 0x00002F02,
+            0x00003202, 0x00003502, 0x00003808, 0x00004108, 0x00004A08, 0x00005308,
+            0x00005C08, 0x00006508, 0x00006E08, 0x00007708, 0x00008005, 0x00008605,
+            0x00008C05, 0x00009205, 0x00009805, 0x00009E05, 0x0000A405, 0x0000AA05,
+            0x0000B008, 0x0000B908, 0x0000C208, 0x0000CB08, 0x0000D408, 0x0000DD08,
+            0x0000E608, 0x0000EF08, 0x0000F800, 0x0000F902, 0x0000FC00, 0x0000FD00,
+            0x0000FE00, 0x0000FF00, 0x00010000, 0x00010105, 0x00010702, 0x00010A00,
+            0x00010B00, 0x00010C00, 0x00010D00, 0x00010E00, 0x00010F00, 0x00011000,
+            0x00011100, 0x00011200, 0x00011300, 0x00011400, 0x00011500, 0x00011600,
+            0x00011700, 0x00011800, 0x00011900, 0x00011A00, 0x00011B00, 0x00011C00,
+            0x00011D00, 0x00011E00, 0x00011F02, 0x00012200, 0x00012300, 0x00012400,
+            0x00012500, 0x00012600, 0x00012700, 0x00012802, 0x00012B02, 0x00012E00,
+            0x00012F02, 0x00013200, 0x00013300,
         ],
         subs: &[
             0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 1, 0, 0,
@@ -7482,6 +7493,7 @@ PDOMapping=0
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
         }
+        #[inline(always)]
         fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
             Some(
                 match pos {
@@ -8970,6 +8982,7 @@ PDOMapping=0
                 },
             )
         }
+        #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,

@@ -573,14 +573,18 @@ PDOMapping=0
         0x6061, 0x6064, 0x606C, 0x607A, 0x6099,
     ];
     /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
-    /// the index to its object, then the sub-index in the object's run of entries (`first`:
-    /// each object's first entry, then the entry count; `subs`: every entry's sub-index).
+    /// the index to its object, then the sub-index in the object's run of entries (`runs`:
+    /// `0xFFFFFFLL`, the object's first entry `FFFFFF` and its last position in the run `LL`;
+    /// `subs`: every entry's sub-index).
     static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
         pages: ::od_runtime::__private_v1::pages(&OBJECTS),
-        slots: &::od_runtime::__private_v1::slots::<1792>(&OBJECTS),
-        first: &[
-            0, 1, 2, 3, 4, 9, 12, 16, 19, 24, 27, 28, 29, 30, 31, 32, 36, 37, 38, 39, 40,
-            41, 42, 43, 44, 47,
+        slots: &::od_runtime::__private_v1::slots::<2048>(&OBJECTS),
+        runs: &[
+            0x00000000, 0x00000100, 0x00000200, 0x00000300, 0x00000404, 0x00000902,
+            0x00000C03, 0x00001002, 0x00001304, 0x00001802, 0x00001B00, 0x00001C00,
+            0x00001D00, 0x00001E00, 0x00001F00, 0x00002003, 0x00002400, 0x00002500,
+            0x00002600, 0x00002700, 0x00002800, 0x00002900, 0x00002A00, 0x00002B00,
+            0x00002C02,
         ],
         subs: &[
             0, 0, 0, 0, 0, 1, 2, 3, 4, 0, 1, 2, 0, 1, 2, 3, 0, 1, 2, 0, 1, 2, 3, 4, 0, 1,
@@ -1273,6 +1277,7 @@ PDOMapping=0
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
         }
+        #[inline(always)]
         fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
             Some(
                 match pos {
@@ -1459,6 +1464,7 @@ PDOMapping=0
                 },
             )
         }
+        #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,

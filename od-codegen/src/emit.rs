@@ -484,10 +484,12 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
                 #rt::position(&LOOKUP, index, sub)
             }
 
+            #[inline(always)]
             fn slot(&self, pos: usize) -> Option<#rt::Slot<'_>> {
                 #slot_body
             }
 
+            #[inline(always)]
             fn slot_mut(&mut self, pos: usize) -> Option<#rt::SlotMut<'_>> {
                 #slot_mut_body
             }

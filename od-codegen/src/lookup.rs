@@ -12,18 +12,20 @@ use quote::quote;
 use crate::lit;
 use crate::support::rt;
 
-/// The most objects the tables can number (slots hold `object + 1` in a `u16`).
+/// The most objects the tables can number (slots hold `object + 1` in a `u16`). 65535 objects
+/// of at most 256 entries also keep every first entry below 2^24, as `runs` needs.
 pub(crate) const MAX_OBJECTS: usize = u16::MAX as usize;
 
 /// The tables for entries with keys `keys`, sorted by `(index, sub)` without duplicates.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub(crate) struct Tables {
-    /// `(high byte, page)` for each high byte present (pages 1-based); all others map to 0.
+    /// `(high byte, offset of its page in slots)` for each high byte present; all others map to
+    /// page 0, a page of zeros (present unless all 256 high bytes are used).
     pub pages: Vec<(u8, u16)>,
     /// 256 slots per page: object number + 1, or 0.
     pub slots: Vec<u16>,
-    /// First entry of each object, then the entry count.
-    pub first: Vec<u32>,
+    /// Per object: `first << 8 | (count - 1)`.
+    pub runs: Vec<u32>,
     /// Sub-index of every entry.
     pub subs: Vec<u8>,
 }
@@ -31,33 +33,42 @@ pub(crate) struct Tables {
 /// Builds the tables, or `None` for more than [`MAX_OBJECTS`] objects. `keys` must be sorted by
 /// `(index, sub)` and free of duplicates (the planner guarantees both).
 pub(crate) fn build(keys: &[(u16, u8)]) -> Option<Tables> {
-    let mut t = Tables::default();
-    let mut last_index = None;
-    for (pos, &(index, sub)) in keys.iter().enumerate() {
-        t.subs.push(sub);
-        if last_index == Some(index) {
-            continue;
+    let mut objects: Vec<(u16, usize, usize)> = Vec::new(); // (index, first, count)
+    for (pos, &(index, _)) in keys.iter().enumerate() {
+        match objects.last_mut() {
+            Some(o) if o.0 == index => o.2 += 1,
+            _ => objects.push((index, pos, 1)),
         }
-        last_index = Some(index);
-        t.first.push(u32::try_from(pos).ok()?);
-        let high = (index >> 8) as u8;
-        if t.pages.last().map(|p| p.0) != Some(high) {
-            t.pages.push((high, t.pages.len() as u16 + 1));
-            t.slots.extend([0; 256]);
-        }
-        let slot = (t.pages.len() - 1) * 256 + usize::from(index & 0xFF);
-        t.slots[slot] = u16::try_from(t.first.len()).ok()?;
     }
-    t.first.push(u32::try_from(keys.len()).ok()?);
+    if objects.len() > MAX_OBJECTS {
+        return None;
+    }
+    let mut highs: Vec<u8> = objects.iter().map(|o| (o.0 >> 8) as u8).collect();
+    highs.dedup();
+    let zero = usize::from(highs.len() < 256);
+    let mut t = Tables {
+        pages: highs.iter().enumerate().map(|(k, h)| (*h, ((k + zero) * 256) as u16)).collect(),
+        slots: vec![0; (highs.len() + zero) * 256],
+        runs: Vec::with_capacity(objects.len()),
+        subs: keys.iter().map(|k| k.1).collect(),
+    };
+    for (n, &(index, first, count)) in objects.iter().enumerate() {
+        let high = (index >> 8) as u8;
+        let offset = t.pages.iter().find(|p| p.0 == high).map(|p| usize::from(p.1))?;
+        *t.slots.get_mut(offset + usize::from(index & 0xFF))? = u16::try_from(n + 1).ok()?;
+        let first = u32::try_from(first).ok().filter(|f| *f < 1 << 24)?;
+        let last = u32::try_from(count - 1).ok().filter(|l| *l < 256)?;
+        t.runs.push(first << 8 | last);
+    }
     Some(t)
 }
 
 /// `OBJECTS` and `static LOOKUP: ::od_runtime::__private_v1::Lookup = …;`, or `None` for more
 /// than [`MAX_OBJECTS`] objects.
 ///
-/// The generated code lists the objects' indices, each object's first entry and every entry's
-/// sub-index; the page table itself is computed from the index list at compile time by the
-/// runtime's `const fn`s (the same layout [`build`] describes, which the tests check).
+/// The generated code lists the objects' indices, each object's run of entries and every
+/// entry's sub-index; the page table itself is computed from the index list at compile time by
+/// the runtime's `const fn`s (the same layout [`build`] describes, which the tests check).
 pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
     let t = build(keys)?;
     let rt = rt();
@@ -66,19 +77,20 @@ pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
     let n_objects = Literal::usize_unsuffixed(objects.len());
     let n_slots = Literal::usize_unsuffixed(t.slots.len());
     let objects = objects.iter().map(|i| lit::hex(u64::from(*i), 4));
-    let first = t.first.iter().map(|f| Literal::u32_unsuffixed(*f));
+    let runs = t.runs.iter().map(|r| lit::hex(u64::from(*r), 8));
     let subs = t.subs.iter().map(|s| Literal::u8_unsuffixed(*s));
     Some(quote! {
         /// The index of every object, sorted (the lookup's page table is computed from it).
         static OBJECTS: [u16; #n_objects] = [#(#objects),*];
 
         /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
-        /// the index to its object, then the sub-index in the object's run of entries (`first`:
-        /// each object's first entry, then the entry count; `subs`: every entry's sub-index).
+        /// the index to its object, then the sub-index in the object's run of entries (`runs`:
+        /// `0xFFFFFFLL`, the object's first entry `FFFFFF` and its last position in the run `LL`;
+        /// `subs`: every entry's sub-index).
         static LOOKUP: #rt::Lookup = #rt::Lookup {
             pages: #rt::pages(&OBJECTS),
             slots: &#rt::slots::<#n_slots>(&OBJECTS),
-            first: &[#(#first),*],
+            runs: &[#(#runs),*],
             subs: &[#(#subs),*],
         };
     })
@@ -106,11 +118,11 @@ mod tests {
             pages[usize::from(*h)] = *g;
         }
         assert_eq!(od_runtime::__private_v1::pages(&objects), pages);
-        // The largest page count the tests use; the generator sizes the array exactly.
+        // The largest page count there is; the generator sizes the array exactly.
         let slots = od_runtime::__private_v1::slots::<{ 256 * 256 }>(&objects);
         assert_eq!(&slots[..t.slots.len()], &t.slots[..]);
         assert!(slots[t.slots.len()..].iter().all(|s| *s == 0));
-        Lookup { pages, slots: leak(t.slots), first: leak(t.first), subs: leak(t.subs) }
+        Lookup { pages, slots: leak(t.slots), runs: leak(t.runs), subs: leak(t.subs) }
     }
 
     /// What a binary search over the sorted keys says.
@@ -145,6 +157,7 @@ mod tests {
     fn every_index_of_a_full_page_and_the_ends_of_the_range() {
         let mut keys: Vec<(u16, u8)> = (0x2000u16..0x2100).map(|i| (i, 0)).collect();
         keys.insert(0, (0, 0));
+        keys.extend((0..=255).map(|s| (0x3000, s)));
         keys.extend([(0xFFFF, 0), (0xFFFF, 3), (0xFFFF, 255)]);
         let l = lookup(&keys);
         for (pos, &(index, sub)) in keys.iter().enumerate() {

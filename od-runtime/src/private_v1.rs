@@ -143,36 +143,53 @@ pub const fn byte_len(bits: u32) -> usize {
 /// entry takes two steps, each a table read:
 ///
 /// 1. **Index → object number**, through a two-level page table: the index's high byte selects
-///    a page ([`pages`](Self::pages), 0 for a high byte without objects) and the low byte a slot
-///    of that page ([`slots`](Self::slots): the object's number plus one, 0 for none).
-/// 2. **Object → entry**: the object's run is `first[obj]..first[obj + 1]`. Sub-indices are
-///    almost always `0, 1, 2, …`, so the entry is tried at `first[obj] + sub` and confirmed with
+///    a page of 256 slots ([`pages`](Self::pages) holds its offset in [`slots`](Self::slots)),
+///    the low byte a slot, which holds the object's number plus one, or 0. High bytes without
+///    objects all share one page of zeros (page 0), so absent indices need no special case.
+/// 2. **Object → entry**: [`runs`](Self::runs) packs the object's first entry and its last
+///    position in the run (`first << 8 | (count - 1)`). Sub-indices are almost always
+///    `0, 1, 2, …`, so the entry is tried at `first + sub` and confirmed with
 ///    [`subs`](Self::subs); objects with gaps fall back to a binary search of their run.
 ///
 /// A dictionary with `O` objects in `P` distinct high bytes and `E` entries needs
-/// `512 + 512·P + 4·(O + 1) + E` bytes (the generator refuses more than 65535 objects).
+/// `512 + 512·(P + 1) + 4·O + E` bytes (no zero page when all 256 high bytes are used). The
+/// generator refuses more than 65535 objects (slots are `u16`).
 #[derive(Debug)]
 pub struct Lookup {
-    /// Page (1-based) of each high byte of an index; 0 if no index has it.
+    /// Offset in [`slots`](Self::slots) of the page of each high byte (0: the page of zeros).
     pub pages: [u16; 256],
     /// 256 slots per page, one per low byte: the object's number plus one, or 0.
     pub slots: &'static [u16],
-    /// Position of each object's first entry, then the number of entries.
-    pub first: &'static [u32],
+    /// Per object: `first << 8 | (count - 1)`, its first entry and its number of entries.
+    pub runs: &'static [u32],
     /// The sub-index of every entry, in `ENTRIES` order.
     pub subs: &'static [u8],
 }
 
-/// [`Lookup::pages`] for the sorted index of every object: page `k` (1-based) for the `k`-th
-/// distinct high byte.
-pub const fn pages(objects: &[u16]) -> [u16; 256] {
-    let mut pages = [0u16; 256];
-    let (mut i, mut page, mut last) = (0, 0u16, None::<u8>);
+/// Whether the sorted `objects` leave a high byte unused (then page 0 is a page of zeros).
+const fn zero_page(objects: &[u16]) -> bool {
+    let (mut i, mut highs, mut last) = (0, 0usize, None::<u8>);
     while i < objects.len() {
         let high = (objects[i] >> 8) as u8;
         if !matches!(last, Some(h) if h == high) {
+            highs += 1;
+            last = Some(high);
+        }
+        i += 1;
+    }
+    highs < 256
+}
+
+/// [`Lookup::pages`] for the sorted index of every object.
+pub const fn pages(objects: &[u16]) -> [u16; 256] {
+    let mut pages = [0u16; 256];
+    let (mut i, mut last) = (0, None::<u8>);
+    let mut page = if zero_page(objects) { 1u32 } else { 0 };
+    while i < objects.len() {
+        let high = (objects[i] >> 8) as u8;
+        if !matches!(last, Some(h) if h == high) {
+            pages[high as usize] = (page * 256) as u16;
             page += 1;
-            pages[high as usize] = page;
             last = Some(high);
         }
         i += 1;
@@ -180,19 +197,20 @@ pub const fn pages(objects: &[u16]) -> [u16; 256] {
     pages
 }
 
-/// [`Lookup::slots`] for the sorted index of every object, `N = 256 ×` the number of pages.
-/// Objects past the capacity or past 65535 are left out (the generator sizes `N` and refuses
-/// more objects, so neither happens).
+/// [`Lookup::slots`] for the sorted index of every object; `N` is 256 × the number of pages
+/// (page 0 included). Objects that do not fit (more than `N` allows, or past 65535) are left out:
+/// the generator sizes `N` and refuses more objects, so neither happens.
 pub const fn slots<const N: usize>(objects: &[u16]) -> [u16; N] {
     let mut slots = [0u16; N];
-    let (mut i, mut page, mut last) = (0, 0usize, None::<u8>);
+    let (mut i, mut last) = (0, None::<u8>);
+    let mut page = if zero_page(objects) { 0usize } else { usize::MAX };
     while i < objects.len() && i < u16::MAX as usize {
         let high = (objects[i] >> 8) as u8;
         if !matches!(last, Some(h) if h == high) {
-            page += 1;
+            page = page.wrapping_add(1);
             last = Some(high);
         }
-        let slot = (page - 1) * 256 + (objects[i] & 0xFF) as usize;
+        let slot = page * 256 + (objects[i] & 0xFF) as usize;
         if slot < N {
             slots[slot] = i as u16 + 1;
         }
@@ -205,24 +223,20 @@ pub const fn slots<const N: usize>(objects: &[u16]) -> [u16; N] {
 /// absent, `Err(NO_SUB_INDEX)` if only the sub-index is.
 #[inline]
 pub fn position(t: &Lookup, index: u16, sub: u8) -> Result<usize, AbortCode> {
-    let page = usize::from(t.pages[usize::from(index >> 8)]);
-    if page == 0 {
-        return Err(AbortCode::NO_OBJECT);
-    }
-    let slot = (page - 1) * 256 + usize::from(index & 0xFF);
+    let slot = usize::from(t.pages[usize::from(index >> 8)]) + usize::from(index & 0xFF);
     let obj = match t.slots.get(slot) {
         Some(&n) if n != 0 => usize::from(n - 1),
         _ => return Err(AbortCode::NO_OBJECT),
     };
-    let (Some(&first), Some(&end)) = (t.first.get(obj), t.first.get(obj + 1)) else {
+    let Some(&run) = t.runs.get(obj) else {
         return Err(AbortCode::NO_OBJECT);
     };
-    let (first, end) = (first as usize, end as usize);
+    let (first, last) = ((run >> 8) as usize, (run & 0xFF) as u8);
     let direct = first + usize::from(sub);
-    if direct < end && t.subs.get(direct) == Some(&sub) {
+    if sub <= last && t.subs.get(direct) == Some(&sub) {
         return Ok(direct);
     }
-    match t.subs.get(first..end) {
+    match t.subs.get(first..=first + usize::from(last)) {
         Some(run) => run.binary_search(&sub).map(|p| first + p).map_err(|_| AbortCode::NO_SUB_INDEX),
         None => Err(AbortCode::NO_OBJECT),
     }

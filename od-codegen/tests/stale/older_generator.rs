@@ -22,12 +22,13 @@ pub mod tiny {
     /// The index of every object, sorted (the lookup's page table is computed from it).
     static OBJECTS: [u16; 1] = [0x2000];
     /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
-    /// the index to its object, then the sub-index in the object's run of entries (`first`:
-    /// each object's first entry, then the entry count; `subs`: every entry's sub-index).
+    /// the index to its object, then the sub-index in the object's run of entries (`runs`:
+    /// `0xFFFFFFLL`, the object's first entry `FFFFFF` and its last position in the run `LL`;
+    /// `subs`: every entry's sub-index).
     static LOOKUP: ::od_runtime::__private_v0::Lookup = ::od_runtime::__private_v0::Lookup {
         pages: ::od_runtime::__private_v0::pages(&OBJECTS),
-        slots: &::od_runtime::__private_v0::slots::<256>(&OBJECTS),
-        first: &[0, 1],
+        slots: &::od_runtime::__private_v0::slots::<512>(&OBJECTS),
+        runs: &[0x00000000],
         subs: &[0],
     };
     /// Metadata of every entry, sorted by `(index, sub)`.
@@ -66,6 +67,7 @@ pub mod tiny {
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v0::position(&LOOKUP, index, sub)
         }
+        #[inline(always)]
         fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v0::Slot<'_>> {
             Some(
                 match pos {
@@ -74,6 +76,7 @@ pub mod tiny {
                 },
             )
         }
+        #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
