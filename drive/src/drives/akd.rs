@@ -1173,8 +1173,8 @@ impl Vendor<Dictionary> for Akd {
                 HomingState::Completed => set(bits, 12, self.homing_done_ticks > 1),
                 _ => {}
             },
-            // 7.2.2.1: 0x0237 and 0x1237 in interpolated position mode.
-            Mode::InterpolatedPosition => set(bits, 10, false),
+            // 7.2.2.1: 0x0237 and 0x1237 in interpolated position mode; no mode has no target.
+            Mode::InterpolatedPosition | Mode::NoMode => set(bits, 10, false),
             _ => {}
         }
         if Self::csp(drive) {
