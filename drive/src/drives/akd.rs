@@ -54,8 +54,8 @@ use super::cia402::{BusScale, Cia402App, Command, Vendor, read_int, scale_i64, w
 use super::drcs::StoreFilter;
 use super::{Drive, ErrorSpec, error_table, sidecar};
 use crate::motion::{
-    AxisConfig, Cam, CommandError, Environment, HomeOffsetMode, HomingError, HomingKind, HomingMethod, HomingSignal,
-    HomingState, Mode, PlantConfig, Ratio, SoftwareLimits, Status, StopRamp, Units,
+    AxisConfig, Cam, Environment, HomeOffsetMode, HomingError, HomingKind, HomingMethod, HomingSignal, HomingState,
+    Mode, PlantConfig, Ratio, SoftwareLimits, Status, StopRamp, Units,
 };
 use crate::node::{Ctx, DeviceKind, NodeStorage, ParameterSet, WriteRequest};
 
@@ -457,7 +457,8 @@ impl Akd {
                 .map(|w| drive.errors().resolve(*w, None).register_bits())
                 .chain(drive.fault().map(|f| f.error.register_bits()))
                 .fold(0u8, |a, b| a | b);
-            ctx.reset_error(bits & !keep & !od_runtime::emcy::REG_GENERIC | u8::from(keep == 0));
+            // The generic bit goes when no other bit remains (od-runtime's reset_error).
+            ctx.reset_error(bits & !keep);
         }
     }
 
@@ -1055,15 +1056,6 @@ impl Vendor<Dictionary> for Akd {
         true
     }
 
-    fn after_command(
-        &mut self,
-        _drive: &mut Drive,
-        _ctx: &mut Ctx<'_, Dictionary>,
-        _cmd: &Command,
-        _result: Result<(), CommandError>,
-    ) {
-    }
-
     fn before_step(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, Dictionary>) {
         let now = ctx.now();
         let dt = self.last_now.map_or(0, |t| now.saturating_sub(t));
@@ -1127,10 +1119,9 @@ impl Vendor<Dictionary> for Akd {
         let fg = FactorGroup::read(ctx.od());
         let velocity = i64::from(status.velocity_actual);
         let rated = rated_current_ma(ctx.od());
-        let free = {
-            let cap = read_int(ctx.od(), 0x60C4, 2).map_or(9, |_| 9i64);
-            cap - status.interpolation_buffered as i64 - self.pvt_queue.len() as i64
-        };
+        // 60C4h sub 2: the usable buffer, one less than its size (6.9.2.4: 10, actual 9).
+        let size = read_int(ctx.od(), 0x60C4, 1).unwrap_or(10).clamp(1, 1024);
+        let free = size - 1 - status.interpolation_buffered as i64 - self.pvt_queue.len() as i64;
         let status_register = self.manufacturer_status(drive, status);
         let od = ctx.od_mut();
         write_int(od, 0x60FD, 0, i64::from(inputs));
