@@ -1341,3 +1341,49 @@ fn the_ascii_channel_reads_and_writes_workbench_parameters() {
     assert_eq!(ascii(&mut m, 4, "DRV.FAULTS"), ">235: Excess temperature, dri\n\r\n");
     assert_eq!(ascii(&mut m, 4, "DRV.WARNINGS"), ">No warnings active\n\r\n");
 }
+
+/// Every code of the 6.1 table as the drive raises it: the EMCY carries the code, 1003h records
+/// it; faults (quick stop or power off) end in Fault, warnings change no state.
+#[test]
+fn every_error_of_chapter_6_1_is_raised_as_its_reaction_says() {
+    use drive::drives::{Reaction, error_table};
+    let table = error_table(DeviceKind::Akd);
+    assert_eq!(table.entries().len(), 171);
+    let mut m = started(4);
+    for e in table.entries().iter().filter(|e| e.code != 0) {
+        got(&mut m, 0x084);
+        let now = m.now();
+        node_mut(&mut m, 0).with_app(now, |app, ctx| {
+            app.drive_mut().raise(ctx, e.code, e.manufacturer);
+        });
+        m.advance(5000);
+        let [lo, hi] = e.code.to_le_bytes();
+        let emcy = got(&mut m, 0x084);
+        assert!(
+            emcy.iter().any(|f| f.starts_with(&format!("084 {lo:02X} {hi:02X}"))),
+            "{:04X} {:?}: {emcy:?}",
+            e.code,
+            e.vendor_code
+        );
+        assert_eq!(m.read_u32(4, 0x1003, 1).unwrap() & 0xFFFF, u32::from(e.code));
+        let state = m.state(4).unwrap();
+        match e.reaction {
+            Reaction::QuickStop | Reaction::PowerOff => {
+                assert_eq!(state, Some(State::Fault), "{:04X} {:?}", e.code, e.vendor_code);
+                m.controlword(4, 0x80).unwrap();
+                m.controlword(4, 0x00).unwrap();
+                m.advance(2000);
+                assert_eq!(m.state(4).unwrap(), Some(State::SwitchOnDisabled), "{:04X} reset", e.code);
+            }
+            Reaction::Warning | Reaction::None => {
+                assert_eq!(state, Some(State::SwitchOnDisabled), "{:04X}", e.code);
+            }
+        }
+        // Faults of the vendor table are F-codes, warnings n-codes.
+        match e.vendor_code.as_deref().and_then(|v| v.chars().next()) {
+            Some('F') => assert!(matches!(e.reaction, Reaction::QuickStop | Reaction::PowerOff)),
+            Some('n') => assert_eq!(e.reaction, Reaction::Warning),
+            _ => {}
+        }
+    }
+}
