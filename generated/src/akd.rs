@@ -32526,7 +32526,11 @@ Denotation=MOTOR.BRAKEIMM
                 self.scale_for(d, &q)?.to_raw_exact(q.value).ok_or(UnitError::Overflow)
             }
             /// `q / factor` rounded to the nearest integer, halves away from zero.
-            #[inline]
+            ///
+            /// Integer and decimal quantities (denominators up to 10^6) convert without a
+            /// division instruction; always inlined, so a loop converting many values keeps
+            /// the prepared factor in registers (the rare general paths stay out of line).
+            #[inline(always)]
             pub fn to_raw(&self, d: Dimension, q: Quantity) -> Result<i64, UnitError> {
                 self.scale_for(d, &q)?.to_raw_i64(q.value).ok_or(UnitError::Overflow)
             }
