@@ -643,16 +643,24 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
     // Sub-object sections by object index, in file order for each index (the sort is stable).
     let mut subs: Vec<(u16, (u8, &Section<'_>))> = Vec::with_capacity(secs.list.len());
     let mut orphans: Vec<&Section<'_>> = Vec::new();
+    // Most files have no [xxxxName]/[xxxxValue]/[xxxxObjectLinks] sections: then nothing is
+    // looked up for them.
+    let mut side = false;
     for sec in &secs.list {
         match sec.kind {
             Kind::Object(i) => objects.push((i, sec)),
             Kind::Sub(i, s) => subs.push((i, (s, sec))),
-            Kind::Names(i) | Kind::Values(i) | Kind::Links(i) if secs.get(Kind::Object(i)).is_none() => {
-                orphans.push(sec)
+            Kind::Names(i) | Kind::Values(i) | Kind::Links(i) => {
+                side = true;
+                if secs.get(Kind::Object(i)).is_none() {
+                    orphans.push(sec)
+                }
             }
             _ => {}
         }
     }
+    let mut object_indices: Vec<u16> = objects.iter().map(|&(i, _)| i).collect();
+    object_indices.sort_unstable();
     subs.sort_by_key(|&(i, _)| i);
     let sub_indices: Vec<u16> = subs.iter().map(|&(i, _)| i).collect();
     let subs: Vec<(u8, &Section<'_>)> = subs.into_iter().map(|(_, s)| s).collect();
@@ -660,9 +668,10 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
     for &(index, sec) in &objects {
         let from = sub_indices.partition_point(|&i| i < index);
         let to = from + sub_indices[from..].partition_point(|&i| i == index);
-        let names = secs.get(Kind::Names(index));
-        let values = secs.get(Kind::Values(index));
-        let links = secs.get(Kind::Links(index));
+        let side_section = |kind| if side { secs.get(kind) } else { None };
+        let names = side_section(Kind::Names(index));
+        let values = side_section(Kind::Values(index));
+        let links = side_section(Kind::Links(index));
         let mut obj = build_object(cx, &builder, index, sec, &subs[from..to], names, values);
         if let Some(l) = links {
             let oname = obj.name.clone();
@@ -687,7 +696,7 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
     }
     // Sub-objects and side sections without an object section.
     orphans.extend(
-        sub_indices.iter().zip(&subs).filter(|(i, _)| secs.get(Kind::Object(**i)).is_none()).map(|(_, &(_, s))| s),
+        sub_indices.iter().zip(&subs).filter(|(i, _)| object_indices.binary_search(i).is_err()).map(|(_, &(_, s))| s),
     );
     orphans.sort_by_key(|s| s.name_span.start);
     for sec in orphans {
