@@ -40,6 +40,7 @@ const OPS: &[(&str, &str)] = &[
     ("to_physical", "DRVI position raw -> physical (exact)"),
     ("to_raw", "DRVI position 360.1 deg -> raw (rounded)"),
     ("to_raw_int", "DRVI position 360 deg -> raw (rounded)"),
+    ("from_dictionary", "DRVI Units::from_dictionary (all dimensions prepared)"),
 ];
 
 /// Runs `f` for `0..n` and keeps the results alive; one monomorphic loop per operation, so the
@@ -90,6 +91,12 @@ fn run(op: &str, n: usize) -> Result<(), String> {
         }),
         "to_raw" => repeat(n, |_| u.to_raw(Dimension::Position, black_box(decimal)).unwrap_or(0) as u64),
         "to_raw_int" => repeat(n, |_| u.to_raw(Dimension::Position, black_box(integer)).unwrap_or(0) as u64),
+        "from_dictionary" => {
+            let mut od = drvi::Dictionary::new(32);
+            od.set_feed_converter_numerator(100).unwrap_or_default();
+            od.set_feed_converter_denominator(254).unwrap_or_default();
+            repeat(n, |_| drvi::units::Units::from_dictionary(black_box(&od)).map(|u| u.system() as u64).unwrap_or(0))
+        }
         other => return Err(format!("unknown operation `{other}`")),
     }
     Ok(())
@@ -119,7 +126,7 @@ fn main() {
         return;
     }
     let exe = args.first().cloned().unwrap_or_default();
-    let (n1, n2) = (1_000usize, 101_000usize);
+    let (n1, n2) = (1_000usize, 21_000usize);
     println!("instructions per operation (valgrind cachegrind, ({n2} - {n1}) iterations)");
     for (op, what) in OPS {
         match (instructions(&exe, op, n1), instructions(&exe, op, n2)) {

@@ -435,6 +435,13 @@ pub fn pdo_word(data: &[u8], len: usize) -> Result<u64, PdoLengthError> {
 
 fn gcd(a: i128, b: i128) -> i128 {
     let (mut a, mut b) = (a.unsigned_abs(), b.unsigned_abs());
+    if let (Ok(mut x), Ok(mut y)) = (u64::try_from(a), u64::try_from(b)) {
+        // The common case, in hardware divisions instead of 128-bit library calls.
+        while y != 0 {
+            (x, y) = (y, x % y);
+        }
+        return i128::from(x);
+    }
     while b != 0 {
         let t = a % b;
         a = b;
@@ -467,6 +474,10 @@ impl Ratio {
         }
         let (num, den) = if den < 0 { (-num, -den) } else { (num, den) };
         let g = gcd(num, den).max(1);
+        if let (Ok(n), Ok(d), Ok(g)) = (i64::try_from(num), i64::try_from(den), i64::try_from(g)) {
+            // g ≥ 1 divides both, and i64::MIN / g only overflows for g = -1: 64-bit divisions.
+            return Some(Ratio { num: i128::from(n / g), den: i128::from(d / g) });
+        }
         Some(Ratio { num: num / g, den: den / g })
     }
 
@@ -637,14 +648,14 @@ impl Scale {
         let none = Divisor { d: 0, c_hi: 0, c_lo: 0 };
         let mut dec = [none; 7];
         if div != 0 {
+            // One 128-bit division; then ⌊⌊x⌋ / 10⌋ = ⌊x / 10⌋ gives each next power of ten.
+            let mut c = (u128::from(mul) << 64) / u128::from(div);
             for (slot, p) in dec.iter_mut().zip(POW10) {
                 match div.checked_mul(p) {
-                    Some(d) if d <= 1 << 62 => {
-                        let c = (u128::from(mul) << 64) / u128::from(d);
-                        *slot = Divisor { d, c_hi: (c >> 64) as u64, c_lo: c as u64 };
-                    }
+                    Some(d) if d <= 1 << 62 => *slot = Divisor { d, c_hi: (c >> 64) as u64, c_lo: c as u64 },
                     _ => break,
                 }
+                c = div10(c);
             }
         }
         Scale { factor, mul, div, neg: factor.num < 0, dec }
@@ -739,6 +750,17 @@ impl Scale {
     }
 }
 
+/// `⌊c / 10⌋` in 64-bit operations with constant divisors (a `u128` division is a library
+/// call): with `c = hi · 2^64 + lo` and `2^64 = 10 · 1844674407370955161 + 6`, the low half of
+/// the quotient is `r · 1844674407370955161 + ⌊lo / 10⌋ + ⌊(6r + lo mod 10) / 10⌋` for
+/// `r = hi mod 10`, which is below 2^64.
+const fn div10(c: u128) -> u128 {
+    let (hi, lo) = ((c >> 64) as u64, c as u64);
+    let r = hi % 10;
+    let low = r * 1_844_674_407_370_955_161 + lo / 10 + (6 * r + lo % 10) / 10;
+    (((hi / 10) as u128) << 64) | low as u128
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -802,6 +824,13 @@ mod tests {
     }
 
     #[test]
+    fn div10_is_u128_division() {
+        for c in [0u128, 9, 10, 11, u128::from(u64::MAX), (1 << 64) + 5, u128::MAX, u128::MAX - 9, 10 << 64] {
+            assert_eq!(div10(c), c / 10, "{c}");
+        }
+    }
+
+    #[test]
     fn decimal_denominators_take_the_prepared_path() {
         let s = Scale::new(Ratio::new(127, 5000).unwrap());
         assert!(s.dec.iter().all(|d| d.d != 0));
@@ -835,6 +864,27 @@ mod tests {
             let want = reference(q, f);
             prop_assert_eq!(s.to_raw(q), want);
             prop_assert_eq!(s.to_raw_i64(q), want.and_then(|w| i64::try_from(w).ok()));
+        }
+
+        #[test]
+        fn ratio_new_reduces_exactly(n in any::<i128>(), d in any::<i128>(), small in any::<(i64, i64)>()) {
+            for (n, d) in [(n, d), (i128::from(small.0), i128::from(small.1))] {
+                match Ratio::new(n, d) {
+                    None => prop_assert!(d == 0 || n == i128::MIN || d == i128::MIN),
+                    Some(r) => {
+                        prop_assert!(r.den() > 0);
+                        prop_assert_eq!(gcd(r.num(), r.den()), 1);
+                        // Same value: r.num / r.den == n / d, compared without overflow.
+                        let g = gcd(n, d);
+                        prop_assert_eq!((r.num(), r.den()), if d < 0 { (-(n / g), -(d / g)) } else { (n / g, d / g) });
+                    }
+                }
+            }
+        }
+
+        #[test]
+        fn div10_matches_u128_division(c in any::<u128>()) {
+            prop_assert_eq!(div10(c), c / 10);
         }
 
         #[test]
