@@ -68,9 +68,12 @@ def test_heartbeat_consumer_reports_a_lost_master(devices, wait_until):
     assert lost[0].data[0] == master_id
     assert akd.sdo[0x1001].raw == 0x11
     assert akd.sdo[0x1003][1].raw & 0xFFFF == 0x8130
-    # The master's heartbeat returns: "error reset" EMCY, register clear.
+    # The master's heartbeat returns. The AKD latches F129 (manual 5.4.7) until a fault reset
+    # (controlword bit 7): then the "error reset" EMCY, register clear.
     heartbeat = network.send_periodic(0x700 + master_id, [0x05], 0.02)
     try:
+        time.sleep(0.1)
+        akd.sdo[0x6040].raw = 0x0080
         wait_until(lambda: [e for e in akd.emcy.log if e.code == 0x0000], timeout=2, what="error reset EMCY")
         assert akd.emcy.active == []
         assert akd.sdo[0x1001].raw == 0
