@@ -24,12 +24,18 @@
 //!
 //! # Speed
 //!
-//! The lexer is the first thing every byte of a file goes through, so it works on bytes, not
-//! `char`s: every character that decides the shape of a line (`[`, `]`, `=`, `;`, `#`, line ends,
-//! ASCII blanks) is ASCII, and UTF-8 never uses ASCII bytes inside a multi-byte character.
-//! Searches for line ends and for `=` look at eight bytes at a time. Trimming looks at the
-//! bytes at either end and only falls back to [`str::trim`] when it meets a non-ASCII byte there
-//! (which may be Unicode white space). It allocates the `Vec` of lines and nothing else.
+//! The grammar is written with nom combinators over bytes, not `char`s: every character that
+//! decides the shape of a line (`[`, `]`, `=`, `;`, `#`, line ends, ASCII blanks) is ASCII, and
+//! UTF-8 never uses ASCII bytes inside a multi-byte character, so byte positions are always
+//! char boundaries where the grammar cuts. Trimming looks at the bytes at either end and only
+//! falls back to [`str::trim`] when it meets a non-ASCII byte there (which may be Unicode white
+//! space). It allocates the `Vec` of lines and nothing else.
+
+use nom::branch::alt;
+use nom::bytes::complete::{tag, take_till, take_while};
+use nom::character::complete::one_of;
+use nom::combinator::{eof, value};
+use nom::{IResult, Parser};
 
 use crate::ast::{Document, Line, LineEnding, LineKind};
 use crate::source::{SourceFile, Span};
@@ -51,119 +57,116 @@ pub fn lex_lines(text: &str) -> Vec<Line> {
 /// Lexes `text`, and puts the offset of every line start that follows a `\n` (with 0 first)
 /// into `line_starts`.
 fn lex_into(text: &str, line_starts: &mut Vec<u32>) -> Vec<Line> {
-    let b = text.as_bytes();
-    let n = b.len();
+    let base = text.as_bytes();
     // Typical EDS lines are 12-25 bytes long; a few more or less costs little either way.
-    let mut lines = Vec::with_capacity(n / 10 + 16);
+    let mut lines = Vec::with_capacity(base.len() / 10 + 16);
     line_starts.push(0);
-    let mut start = 0usize;
-    while start < n {
-        // Each line is scanned once: up to its first non-blank byte, which decides what to look
-        // for next; an entry line up to its `=` and then to its end.
-        let mut first = start;
-        while first < n && is_blank(b[first]) {
-            first += 1;
-        }
-        let (content_end, kind) = match b.get(first) {
-            None | Some(b'\n' | b'\r') => (first, LineKind::Blank),
-            Some(b';' | b'#') => {
-                let end = find_eol(b, first + 1).unwrap_or(n);
-                (end, LineKind::Comment { text: Span::new(first as u32 + 1, end as u32) })
-            }
-            Some(b'[') => {
-                let end = find_eol(b, first + 1).unwrap_or(n);
-                (end, section(text, first + 1, end))
-            }
-            Some(_) => match find_eq_or_eol(b, first) {
-                Some(eq) if b[eq] == b'=' => {
-                    let end = find_eol(b, eq + 1).unwrap_or(n);
-                    // The blanks before `first` would be trimmed anyway.
-                    let key = trim_span(text, first, eq);
-                    let kind = if key.is_empty() {
-                        LineKind::Garbage
-                    } else {
-                        LineKind::Entry { key, value: trim_span(text, eq + 1, end) }
-                    };
-                    (end, kind)
-                }
-                eol => {
-                    let end = eol.unwrap_or(n);
-                    // Only Unicode white space (e.g. a no-break space) is a blank line too.
-                    let kind = if text[first..end].trim().is_empty() { LineKind::Blank } else { LineKind::Garbage };
-                    (end, kind)
-                }
-            },
-        };
-        let (ending, next) = match b.get(content_end) {
-            None => (LineEnding::None, n),
-            Some(b'\n') => (LineEnding::Lf, content_end + 1),
-            Some(_) if b.get(content_end + 1) == Some(&b'\n') => (LineEnding::CrLf, content_end + 2),
-            Some(_) => (LineEnding::Cr, content_end + 1),
-        };
+    let mut input = base;
+    while !input.is_empty() {
+        let start = offset(base, input);
+        // `physical_line` cannot fail on non-empty input: every part of it accepts nothing.
+        let Ok((rest, (content, ending))) = physical_line(input) else { break };
+        let content_start = offset(base, content);
+        let content_end = content_start + content.len();
+        let next = offset(base, rest);
         if matches!(ending, LineEnding::Lf | LineEnding::CrLf) {
             line_starts.push(next as u32);
         }
         lines.push(Line {
             raw: Span::new(start as u32, next as u32),
-            content: Span::new(start as u32, content_end as u32),
+            content: Span::new(content_start as u32, content_end as u32),
             ending,
-            kind,
+            kind: classify(text, content_start, content_end),
         });
-        start = next;
+        input = rest;
     }
     lines
 }
 
-const LO: u64 = 0x0101_0101_0101_0101;
-const HI: u64 = 0x8080_8080_8080_8080;
-const NL: u64 = LO * b'\n' as u64;
-const CR: u64 = LO * b'\r' as u64;
-const EQ: u64 = LO * b'=' as u64;
+type In<'a> = &'a [u8];
 
-/// Flags (with its high bit) each byte of `w` that equals the byte repeated in `pattern`. The
-/// lowest flag is always a real match: a false flag can only come from a borrow out of a real
-/// match below it. Callers use the lowest flag only.
+/// Byte offset of `part` (a sub-slice of `base`) in `base`.
 #[inline(always)]
-fn eq_bytes(w: u64, pattern: u64) -> u64 {
-    let x = w ^ pattern;
-    x.wrapping_sub(LO) & !x & HI
+fn offset(base: In<'_>, part: In<'_>) -> usize {
+    part.as_ptr() as usize - base.as_ptr() as usize
 }
 
-#[inline(always)]
-fn word(b: &[u8], i: usize) -> u64 {
-    let mut w = [0u8; 8];
-    w.copy_from_slice(&b[i..i + 8]);
-    u64::from_le_bytes(w)
+fn is_eol(c: u8) -> bool {
+    c == b'\n' || c == b'\r'
 }
 
-/// Offset of the first `\n` or `\r` in `b` at or after `from`, eight bytes at a time (SWAR).
-#[inline]
-fn find_eol(b: &[u8], from: usize) -> Option<usize> {
-    let mut i = from;
-    while i + 8 <= b.len() {
-        let w = word(b, i);
-        let z = eq_bytes(w, NL) | eq_bytes(w, CR);
-        if z != 0 {
-            return Some(i + (z.trailing_zeros() / 8) as usize);
-        }
-        i += 8;
+/// One physical line: its content (up to, not including, the line end) and how it ends.
+fn physical_line(input: In<'_>) -> IResult<In<'_>, (In<'_>, LineEnding)> {
+    (take_till(is_eol), line_ending).parse(input)
+}
+
+/// `\r\n`, `\n`, a lone `\r`, or the end of the file.
+fn line_ending(input: In<'_>) -> IResult<In<'_>, LineEnding> {
+    alt((
+        value(LineEnding::CrLf, tag(&b"\r\n"[..])),
+        value(LineEnding::Lf, tag(&b"\n"[..])),
+        value(LineEnding::Cr, tag(&b"\r"[..])),
+        value(LineEnding::None, eof),
+    ))
+    .parse(input)
+}
+
+/// The grammar of one line's content (`text[start..end]`, without its line end).
+fn classify(text: &str, start: usize, end: usize) -> LineKind {
+    let base = text.as_bytes();
+    let content = &base[start..end];
+    // Blanks before the first byte that decides the line's shape.
+    let Ok((body, _)) = take_while::<_, _, nom::error::Error<In<'_>>>(is_blank).parse(content) else {
+        return LineKind::Garbage;
+    };
+    if body.is_empty() {
+        return LineKind::Blank;
     }
-    b.get(i..)?.iter().position(|&c| c == b'\n' || c == b'\r').map(|p| i + p)
+    if let Ok((text_part, _)) = one_of::<_, _, nom::error::Error<In<'_>>>(";#").parse(body) {
+        let at = offset(base, text_part) as u32;
+        return LineKind::Comment { text: Span::new(at, end as u32) };
+    }
+    if body[0] == b'[' {
+        return section(text, base, body, end);
+    }
+    entry_or_other(text, base, content, end)
 }
 
-/// Offset of the first `=`, `\n` or `\r` in `b` at or after `from`, eight bytes at a time.
-#[inline]
-fn find_eq_or_eol(b: &[u8], from: usize) -> Option<usize> {
-    let mut i = from;
-    while i + 8 <= b.len() {
-        let w = word(b, i);
-        let z = eq_bytes(w, EQ) | eq_bytes(w, NL) | eq_bytes(w, CR);
-        if z != 0 {
-            return Some(i + (z.trailing_zeros() / 8) as usize);
+/// `"[" name "]" trailing`: a section if a `]` closes the name before any other `[`.
+fn section(text: &str, base: In<'_>, body: In<'_>, end: usize) -> LineKind {
+    let parsed: IResult<In<'_>, (In<'_>, In<'_>, In<'_>)> =
+        (tag(&b"["[..]), take_till(|c| c == b']' || c == b'['), tag(&b"]"[..])).parse(body);
+    match parsed {
+        Ok((trailing, (_, name, _))) => {
+            let name_start = offset(base, name);
+            LineKind::Section {
+                name: trim_span(text, name_start, name_start + name.len()),
+                trailing: Span::new(offset(base, trailing) as u32, end as u32),
+            }
         }
-        i += 8;
+        Err(_) => LineKind::Garbage,
     }
-    b.get(i..)?.iter().position(|&c| c == b'=' || c == b'\n' || c == b'\r').map(|p| i + p)
+}
+
+/// `key "=" value` at the first `=`; a line without one is blank if it holds only Unicode
+/// white space (e.g. a no-break space), garbage otherwise.
+fn entry_or_other(text: &str, base: In<'_>, content: In<'_>, end: usize) -> LineKind {
+    let parsed: IResult<In<'_>, (In<'_>, In<'_>)> = (take_till(|c| c == b'='), tag(&b"="[..])).parse(content);
+    match parsed {
+        Ok((value, (key, _))) => {
+            let key_start = offset(base, key);
+            let key = trim_span(text, key_start, key_start + key.len());
+            if key.is_empty() {
+                LineKind::Garbage
+            } else {
+                LineKind::Entry { key, value: trim_span(text, offset(base, value), end) }
+            }
+        }
+        Err(_) => {
+            let start = offset(base, content);
+            if text[start..end].trim().is_empty() { LineKind::Blank } else { LineKind::Garbage }
+        }
+    }
 }
 
 /// The blanks that may come before a comment or section header.
@@ -205,18 +208,6 @@ fn trim_span(text: &str, start: usize, end: usize) -> Span {
     // `trim` gives the empty string at the start for white space only.
     let off = start + (t.as_ptr() as usize - s.as_ptr() as usize);
     Span::new(off as u32, (off + t.len()) as u32)
-}
-
-/// A `[` line whose name starts at `name_start` and whose content ends at `end`: a section if
-/// a `]` closes the name before any other `[`.
-fn section(text: &str, name_start: usize, end: usize) -> LineKind {
-    let b = text.as_bytes();
-    match b[name_start..end].iter().position(|&c| c == b']' || c == b'[').map(|p| name_start + p) {
-        Some(c) if b[c] == b']' => {
-            LineKind::Section { name: trim_span(text, name_start, c), trailing: Span::new(c as u32 + 1, end as u32) }
-        }
-        _ => LineKind::Garbage,
-    }
 }
 
 #[cfg(test)]
@@ -333,31 +324,6 @@ mod tests {
         assert!(matches!(lines[0].kind, LineKind::Entry { value, .. } if value == Span::new(4, 5)));
         // A name of white space only is the empty string at its start, as `str::trim` gives it.
         assert!(matches!(lines[1].kind, LineKind::Section { name, .. } if name == Span::new(9, 9)));
-    }
-
-    #[test]
-    fn eol_search_matches_naive() {
-        let text = "0123456789abcdef\r0123\n".repeat(3);
-        let b = text.as_bytes();
-        for s in 0..b.len() {
-            let naive = b[s..].iter().position(|&c| c == b'\n' || c == b'\r').map(|p| s + p);
-            assert_eq!(find_eol(b, s), naive);
-        }
-        // Bytes just above and below the line-end characters must not match.
-        assert_eq!(find_eol(&[0x0B, 0x0C, 0x0E, 0x09, 0x8A, 0x8D, 0xFF, 0x00, b'\r'], 0), Some(8));
-        // A borrow out of a real match does not hide it (0x0A followed by 0x0B).
-        assert_eq!(find_eol(&[1, 1, b'\n', 0x0B, 1, 1, 1, 1], 0), Some(2));
-    }
-
-    #[test]
-    fn eq_search_matches_naive() {
-        let text = "Key=Value;a=b;0123456789ABCDEF<>===\r\nx\ny".as_bytes();
-        for from in 0..=text.len() {
-            let naive = text[from..].iter().position(|&c| matches!(c, b'=' | b'\n' | b'\r')).map(|p| from + p);
-            assert_eq!(find_eq_or_eol(text, from), naive, "{from}");
-        }
-        assert_eq!(find_eq_or_eol(&[b'<', b'>', 0x3C, 0x3E, 0xBD, 0x0B, 0x0E, b'=', 0, 0], 0), Some(7));
-        assert_eq!(find_eol(b"abc", 4), None);
     }
 
     #[test]
