@@ -25,7 +25,7 @@ cargo fmt --all -- --check
 # One build profile only: `cargo test --all-targets` also compiles the benchmarks (in the test
 # profile) and runs each of them once as a smoke test.
 step "cargo test (workspace, all targets)"
-cargo test --workspace --all-targets --locked
+cargo test --workspace --all-targets --locked --no-fail-fast
 
 step "binaries for the end-to-end tests"
 cargo build --workspace --bins --locked

@@ -54,9 +54,19 @@ fn next_with_id(bus: &mut SocketcandClient, id: u32, within: Duration) -> Option
     }
 }
 
+/// Sends a guard request and returns the reply. A boot-up message (one byte 0x00, same CAN-ID)
+/// may still be on its way when a test starts, since the device boots while the client connects:
+/// it is skipped, as a guard reply never carries the initialisation state.
 fn guard(bus: &mut SocketcandClient) -> Option<Vec<u8>> {
     bus.send(CanFrame::remote(0x702, false, 1).unwrap()).unwrap();
-    next_with_id(bus, 0x702, Duration::from_millis(500)).map(|f| f.data().to_vec())
+    let deadline = Instant::now() + Duration::from_millis(500);
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        let reply = next_with_id(bus, 0x702, left)?.data().to_vec();
+        if reply != [0x00] {
+            return Some(reply);
+        }
+    }
 }
 
 fn sdo_write(bus: &mut SocketcandClient, data: [u8; 8]) {
