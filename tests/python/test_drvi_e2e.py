@@ -328,3 +328,37 @@ def test_saved_parameters_survive_a_restart(start_drive_sim, canopen_network, de
     assert node.sdo[0x2013].raw == 35
     assert node.sdo[0x2014].raw == 7
     assert Units(node).system == "actuator"
+
+
+# Every homing method of Table 6.29 against the default mechanics of `drive-sim` (home proximity
+# at 200..250 deg, index every turn at 10 deg, hard end stops at -500 and 1500 deg). Methods
+# whose proximity search goes negative (17, 1) run into the end stop without meeting the
+# proximity, which lies on the positive side: the drive reports a homing error (bit 13), as a
+# real axis wired this way would.
+HOMING_OUTCOMES = [(18, "attained"), (2, "attained"), (37, "attained"), (-1, "attained"), (-2, "attained"),
+                   (-3, "attained"), (-4, "attained"), (17, "error"), (1, "error")]
+
+
+@pytest.mark.parametrize("method,outcome", HOMING_OUTCOMES, ids=[f"method{m}" for m, _ in HOMING_OUTCOMES])
+def test_every_homing_method_of_table_6_29(drvi, method, outcome):
+    _, _, node = drvi
+    units = Units(node)
+    node.sdo[0x6098].raw = method
+    # 120 rpm at 1000 rpm/s stops within 43 deg, inside the 50 deg proximity cam (a faster
+    # search overshoots it, which the drive reports as a homing error)
+    node.sdo[0x6099][1].raw = units.to_bus("velocity", 120)  # rpm
+    node.sdo[0x6099][2].raw = units.to_bus("velocity", 10)
+    node.sdo[0x609A].raw = units.to_bus("acceleration", 1000)  # rpm/s
+    node.sdo[0x607C].raw = 777
+    node.op_mode = "HOMING"
+    enable(node)
+    node.controlword = 0x0F
+    node.controlword = 0x1F
+    if outcome == "attained":
+        wait(lambda: statusword(node) & 0x3400 == 0x1400, 20.0, f"homing {method} completed")
+        assert node.sdo[0x6064].raw == 777, "the home point reads as the home offset (6.3.4.14)"
+        assert node.sdo[0x2004].raw == 1
+    else:
+        wait(lambda: statusword(node) & 0x2000, 20.0, f"homing {method} error (bit 13)")
+        assert node.sdo[0x2004].raw == 0
+    node.controlword = 0x0F
