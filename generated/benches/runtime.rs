@@ -106,5 +106,57 @@ fn units(c: &mut Criterion) {
     c.bench_function("units: Units::from_dictionary", |b| b.iter(|| Units::from_dictionary(black_box(&od))));
 }
 
-criterion_group!(benches, lookup, pdo, units);
+/// The device core (od-runtime) over a generated dictionary, as a drive runs it: the DRVI's
+/// RPDO1 (controlword, which also steps the CiA 402 state machine) received and applied, and a
+/// SYNC turned into four synchronous TPDOs of statusword / position / velocity.
+fn device(c: &mut Criterion) {
+    use generated::drvi::Dictionary;
+    use od_runtime::{Device, Frame, NmtCommand, NoStorage, NodeId};
+
+    fn start() -> Device<Dictionary, (), NoStorage> {
+        let mut dev = Device::new(Dictionary::new(2), (), NoStorage, NodeId::new(2).unwrap());
+        dev.poll(0, |_| {});
+        dev.set_remote(true);
+        dev.nmt_command(NmtCommand::Start, 0);
+        dev.poll(0, |_| {});
+        dev
+    }
+
+    let mut dev = start();
+    let rx = Frame::new(0x202, &[0x06, 0x00]).unwrap(); // RPDO1: controlword "shutdown"
+    dev.on_frame(&rx, 0);
+    c.bench_function("device: DRVI RPDO1 received and applied (controlword)", |b| {
+        b.iter(|| dev.on_frame(black_box(&rx), 0))
+    });
+
+    let mut dev = start();
+    let maps: [&[u32]; 4] = [&[0x6041_0010], &[0x6064_0020], &[0x606C_0020], &[0x6041_0010, 0x6064_0020]];
+    for (n, map) in maps.iter().enumerate() {
+        let n = n as u16;
+        let cob = 0x182 + 0x100 * u32::from(n);
+        dev.write(0x1800 + n, 1, &(cob | 0x8000_0000).to_le_bytes()).unwrap();
+        dev.write(0x1800 + n, 2, &[1]).unwrap();
+        dev.write(0x1A00 + n, 0, &[0]).unwrap();
+        for (k, m) in map.iter().enumerate() {
+            dev.write(0x1A00 + n, k as u8 + 1, &m.to_le_bytes()).unwrap();
+        }
+        dev.write(0x1A00 + n, 0, &[map.len() as u8]).unwrap();
+        dev.write(0x1800 + n, 1, &cob.to_le_bytes()).unwrap();
+    }
+    let sync = Frame::new(0x080, &[]).unwrap();
+    let mut count = 0;
+    dev.on_frame(&sync, 0);
+    dev.poll(0, |_| count += 1);
+    assert_eq!(count, 4, "four TPDOs per SYNC");
+    c.bench_function("device: DRVI SYNC turned into 4 TPDOs", |b| {
+        b.iter(|| {
+            let mut sent = 0u32;
+            dev.on_frame(black_box(&sync), 0);
+            dev.poll(0, |f| sent += u32::from(f.data()[0]));
+            black_box(sent)
+        })
+    });
+}
+
+criterion_group!(benches, lookup, pdo, units, device);
 criterion_main!(benches);
