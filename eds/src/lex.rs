@@ -24,17 +24,18 @@
 //!
 //! # Speed
 //!
-//! The grammar is written with nom combinators over bytes, not `char`s: every character that
-//! decides the shape of a line (`[`, `]`, `=`, `;`, `#`, line ends, ASCII blanks) is ASCII, and
-//! UTF-8 never uses ASCII bytes inside a multi-byte character, so byte positions are always
-//! char boundaries where the grammar cuts. Trimming looks at the bytes at either end and only
-//! falls back to [`str::trim`] when it meets a non-ASCII byte there (which may be Unicode white
-//! space). It allocates the `Vec` of lines and nothing else.
+//! The grammar is written as nom parsers over bytes, not `char`s: every character that decides
+//! the shape of a line (`[`, `]`, `=`, `;`, `#`, line ends, ASCII blanks) is ASCII, and UTF-8
+//! never uses ASCII bytes inside a multi-byte character, so byte positions are always char
+//! boundaries where the grammar cuts. The line's first byte picks the rule, so each byte is
+//! looked at once. The parsers that run over the bulk of the text (`take_till` up to `=` or a
+//! line end) compare eight bytes at a time, and the line end is one match on two bytes.
+//! Trimming looks at the bytes at either end and only falls back to [`str::trim`] when it meets
+//! a non-ASCII byte there (which may be Unicode white space). It allocates the `Vec` of lines
+//! and nothing else.
 
-use nom::branch::alt;
-use nom::bytes::complete::{tag, take_till, take_while};
-use nom::character::complete::one_of;
-use nom::combinator::{eof, value};
+use nom::bytes::complete::take_while;
+use nom::character::complete::char;
 use nom::{IResult, Parser};
 
 use crate::ast::{Document, Line, LineEnding, LineKind};
@@ -64,19 +65,20 @@ fn lex_into(text: &str, line_starts: &mut Vec<u32>) -> Vec<Line> {
     let mut input = base;
     while !input.is_empty() {
         let start = offset(base, input);
-        // `physical_line` cannot fail on non-empty input: every part of it accepts nothing.
-        let Ok((rest, (content, ending))) = physical_line(input) else { break };
-        let content_start = offset(base, content);
-        let content_end = content_start + content.len();
+        let (after, kind) = line_content(text, base, input);
+        let content_end = offset(base, after);
+        // `line_ending` cannot fail: its last branch accepts the end of the input, and `after`
+        // is either empty or starts with a line end.
+        let Ok((rest, ending)) = line_ending(after) else { break };
         let next = offset(base, rest);
         if matches!(ending, LineEnding::Lf | LineEnding::CrLf) {
             line_starts.push(next as u32);
         }
         lines.push(Line {
             raw: Span::new(start as u32, next as u32),
-            content: Span::new(content_start as u32, content_end as u32),
+            content: Span::new(start as u32, content_end as u32),
             ending,
-            kind: classify(text, content_start, content_end),
+            kind,
         });
         input = rest;
     }
@@ -84,6 +86,7 @@ fn lex_into(text: &str, line_starts: &mut Vec<u32>) -> Vec<Line> {
 }
 
 type In<'a> = &'a [u8];
+type Res<'a, O> = IResult<In<'a>, O>;
 
 /// Byte offset of `part` (a sub-slice of `base`) in `base`.
 #[inline(always)]
@@ -91,80 +94,175 @@ fn offset(base: In<'_>, part: In<'_>) -> usize {
     part.as_ptr() as usize - base.as_ptr() as usize
 }
 
-fn is_eol(c: u8) -> bool {
-    c == b'\n' || c == b'\r'
+const LO: u64 = 0x0101_0101_0101_0101;
+const HI: u64 = 0x8080_8080_8080_8080;
+
+/// The high bit of the first byte of `w` (in memory order) that equals `t` is set, and no bit
+/// of an earlier byte (later bytes may be flagged wrongly; they do not matter).
+#[inline(always)]
+const fn eq_mask(w: u64, t: u8) -> u64 {
+    let x = w ^ (LO * t as u64);
+    x.wrapping_sub(LO) & !x & HI
 }
 
-/// One physical line: its content (up to, not including, the line end) and how it ends.
-fn physical_line(input: In<'_>) -> IResult<In<'_>, (In<'_>, LineEnding)> {
-    (take_till(is_eol), line_ending).parse(input)
+/// The length of the longest prefix of `b` without any byte of `set`: what
+/// `take_till(|c| set.contains(&c))` finds, eight bytes at a time.
+#[inline(always)]
+fn prefix_without<const N: usize>(b: In<'_>, set: [u8; N]) -> usize {
+    let mut i = 0;
+    let mut words = b.chunks_exact(8);
+    for chunk in &mut words {
+        let mut w = [0u8; 8];
+        w.copy_from_slice(chunk);
+        let w = u64::from_le_bytes(w);
+        let mut m = 0;
+        for t in set {
+            m |= eq_mask(w, t);
+        }
+        if m != 0 {
+            return i + (m.trailing_zeros() / 8) as usize;
+        }
+        i += 8;
+    }
+    i + words.remainder().iter().position(|c| set.contains(c)).unwrap_or(words.remainder().len())
 }
 
-/// `\r\n`, `\n`, a lone `\r`, or the end of the file.
-fn line_ending(input: In<'_>) -> IResult<In<'_>, LineEnding> {
-    alt((
-        value(LineEnding::CrLf, tag(&b"\r\n"[..])),
-        value(LineEnding::Lf, tag(&b"\n"[..])),
-        value(LineEnding::Cr, tag(&b"\r"[..])),
-        value(LineEnding::None, eof),
-    ))
-    .parse(input)
-}
-
-/// The grammar of one line's content (`text[start..end]`, without its line end).
-fn classify(text: &str, start: usize, end: usize) -> LineKind {
-    let base = text.as_bytes();
-    let content = &base[start..end];
-    // Blanks before the first byte that decides the line's shape.
-    let Ok((body, _)) = take_while::<_, _, nom::error::Error<In<'_>>>(is_blank).parse(content) else {
-        return LineKind::Garbage;
+/// The nom parsers that take the bytes up to the first byte of a set (possibly none; they never
+/// fail): nom's `take_till`, with a word-at-a-time scan, because every byte of a file passes
+/// through them.
+macro_rules! till {
+    ($(#[$doc:meta])* $name:ident, $set:expr) => {
+        $(#[$doc])*
+        #[inline(always)]
+        fn $name(input: In<'_>) -> Res<'_, In<'_>> {
+            let n = prefix_without(input, $set);
+            Ok((&input[n..], &input[..n]))
+        }
     };
-    if body.is_empty() {
-        return LineKind::Blank;
-    }
-    if let Ok((text_part, _)) = one_of::<_, _, nom::error::Error<In<'_>>>(";#").parse(body) {
-        let at = offset(base, text_part) as u32;
-        return LineKind::Comment { text: Span::new(at, end as u32) };
-    }
-    if body[0] == b'[' {
-        return section(text, base, body, end);
-    }
-    entry_or_other(text, base, content, end)
 }
 
-/// `"[" name "]" trailing`: a section if a `]` closes the name before any other `[`.
-fn section(text: &str, base: In<'_>, body: In<'_>, end: usize) -> LineKind {
-    let parsed: IResult<In<'_>, (In<'_>, In<'_>, In<'_>)> =
-        (tag(&b"["[..]), take_till(|c| c == b']' || c == b'['), tag(&b"]"[..])).parse(body);
-    match parsed {
-        Ok((trailing, (_, name, _))) => {
-            let name_start = offset(base, name);
-            LineKind::Section {
-                name: trim_span(text, name_start, name_start + name.len()),
-                trailing: Span::new(offset(base, trailing) as u32, end as u32),
+till!(
+    /// The rest of a line: everything up to its line end.
+    rest_of_line,
+    [b'\n', b'\r']
+);
+till!(
+    /// A key: everything up to the first `=` (or the line end, when the line is no entry).
+    till_equals,
+    [b'=', b'\n', b'\r']
+);
+till!(
+    /// A section name: everything up to the first bracket (or the line end).
+    till_bracket,
+    [b']', b'[', b'\n', b'\r']
+);
+
+/// `\r\n`, `\n`, a lone `\r`, or the end of the file (a nom parser; it fails on anything else).
+/// Once per line, so written as one match on the next two bytes rather than as
+/// `alt((tag("\r\n"), tag("\n"), tag("\r"), eof))`, which compares byte slices four times.
+#[inline(always)]
+fn line_ending(input: In<'_>) -> Res<'_, LineEnding> {
+    match input {
+        [b'\r', b'\n', rest @ ..] => Ok((rest, LineEnding::CrLf)),
+        [b'\n', rest @ ..] => Ok((rest, LineEnding::Lf)),
+        [b'\r', rest @ ..] => Ok((rest, LineEnding::Cr)),
+        [] => Ok((input, LineEnding::None)),
+        _ => Err(nom::Err::Error(nom::error::Error::new(input, nom::error::ErrorKind::CrLf))),
+    }
+}
+
+/// The content of the line that starts `input` (which is not empty): what it says, and the
+/// input after it (at the line end). The first byte usually decides.
+#[inline(always)]
+fn line_content<'a>(text: &str, base: In<'a>, input: In<'a>) -> (In<'a>, LineKind) {
+    match input[0] {
+        b'\n' | b'\r' => (input, LineKind::Blank),
+        b';' | b'#' => comment(base, &input[1..]),
+        b'[' => section_or_garbage(text, base, input),
+        b' ' | b'\t' | 0x0B | 0x0C => {
+            // Blanks before the first byte that decides the line's shape.
+            let body =
+                take_while::<_, _, nom::error::Error<In<'_>>>(is_blank).parse(input).map_or(input, |(body, _)| body);
+            match body.first() {
+                None | Some(b'\n' | b'\r') => (body, LineKind::Blank),
+                Some(b';' | b'#') => comment(base, &body[1..]),
+                Some(b'[') => section_or_garbage(text, base, body),
+                Some(_) => entry_or_other(text, base, input),
             }
         }
-        Err(_) => LineKind::Garbage,
+        _ => entry_or_other(text, base, input),
     }
 }
 
-/// `key "=" value` at the first `=`; a line without one is blank if it holds only Unicode
-/// white space (e.g. a no-break space), garbage otherwise.
-fn entry_or_other(text: &str, base: In<'_>, content: In<'_>, end: usize) -> LineKind {
-    let parsed: IResult<In<'_>, (In<'_>, In<'_>)> = (take_till(|c| c == b'='), tag(&b"="[..])).parse(content);
-    match parsed {
-        Ok((value, (key, _))) => {
-            let key_start = offset(base, key);
-            let key = trim_span(text, key_start, key_start + key.len());
+/// The comment text after `;` or `#`, to the line end.
+#[inline(always)]
+fn comment<'a>(base: In<'a>, text_part: In<'a>) -> (In<'a>, LineKind) {
+    let (after, text) = rest_of_line(text_part).unwrap_or((text_part, text_part));
+    (after, LineKind::Comment { text: span(base, text) })
+}
+
+/// The span of `part` (a sub-slice of `base`).
+#[inline(always)]
+fn span(base: In<'_>, part: In<'_>) -> Span {
+    let start = offset(base, part);
+    Span::new(start as u32, (start + part.len()) as u32)
+}
+
+/// `"[" name "]" trailing`, trailing up to the line end: a section header if a `]` closes the
+/// name before any other `[`.
+#[inline(always)]
+fn section(input: In<'_>) -> Res<'_, (In<'_>, In<'_>)> {
+    let (input, _) = char('[').parse(input)?;
+    let (input, name) = till_bracket(input)?;
+    let (input, _) = char(']').parse(input)?;
+    let (input, trailing) = rest_of_line(input)?;
+    Ok((input, (name, trailing)))
+}
+
+/// A section header, or a garbage line that starts like one.
+fn section_or_garbage<'a>(text: &str, base: In<'a>, body: In<'a>) -> (In<'a>, LineKind) {
+    match section(body) {
+        Ok((after, (name, trailing))) => {
+            let name = span(base, name);
+            let kind = LineKind::Section {
+                name: trim_span(text, name.start as usize, name.end as usize),
+                trailing: span(base, trailing),
+            };
+            (after, kind)
+        }
+        Err(_) => (rest_of_line(body).map_or(body, |(after, _)| after), LineKind::Garbage),
+    }
+}
+
+/// `key "=" value` at the first `=`, the value up to the line end.
+#[inline(always)]
+fn entry(input: In<'_>) -> Res<'_, (In<'_>, In<'_>)> {
+    let (input, key) = till_equals(input)?;
+    let (input, _) = char('=').parse(input)?;
+    let (input, value) = rest_of_line(input)?;
+    Ok((input, (key, value)))
+}
+
+/// An entry (with a non-empty key); a line without `=` is blank if it holds only Unicode white
+/// space (e.g. a no-break space), garbage otherwise.
+#[inline(always)]
+fn entry_or_other<'a>(text: &str, base: In<'a>, content: In<'a>) -> (In<'a>, LineKind) {
+    match entry(content) {
+        Ok((after, (key, value))) => {
+            let key = span(base, key);
+            let key = trim_span(text, key.start as usize, key.end as usize);
             if key.is_empty() {
-                LineKind::Garbage
+                (after, LineKind::Garbage)
             } else {
-                LineKind::Entry { key, value: trim_span(text, offset(base, value), end) }
+                let value = span(base, value);
+                (after, LineKind::Entry { key, value: trim_span(text, value.start as usize, value.end as usize) })
             }
         }
         Err(_) => {
-            let start = offset(base, content);
-            if text[start..end].trim().is_empty() { LineKind::Blank } else { LineKind::Garbage }
+            let (after, line) = rest_of_line(content).unwrap_or((content, content));
+            let line = span(base, line);
+            let blank = text[line.start as usize..line.end as usize].trim().is_empty();
+            (after, if blank { LineKind::Blank } else { LineKind::Garbage })
         }
     }
 }
@@ -324,6 +422,26 @@ mod tests {
         assert!(matches!(lines[0].kind, LineKind::Entry { value, .. } if value == Span::new(4, 5)));
         // A name of white space only is the empty string at its start, as `str::trim` gives it.
         assert!(matches!(lines[1].kind, LineKind::Section { name, .. } if name == Span::new(9, 9)));
+    }
+
+    /// The word-at-a-time scan finds what a byte loop finds, at every offset of every byte in
+    /// each of the eight positions of a word, with bytes that differ from a target in one bit
+    /// around it.
+    #[test]
+    fn prefix_scan_matches_a_byte_loop() {
+        let naive = |b: &[u8], set: &[u8]| b.iter().position(|c| set.contains(c)).unwrap_or(b.len());
+        for len in 0..20 {
+            for pos in 0..=len {
+                for &t in &[b'=', b'\n', b'\r', b']', b'['] {
+                    let mut b: Vec<u8> = (0..len).map(|i| [b'a', t ^ 1, t ^ 0x80, 0, 0xFF][i % 5]).collect();
+                    if pos < len {
+                        b[pos] = t;
+                    }
+                    assert_eq!(prefix_without(&b, [b'=', b'\n', b'\r']), naive(&b, b"=\n\r"), "{b:?}");
+                    assert_eq!(prefix_without(&b, [b']', b'[', b'\n', b'\r']), naive(&b, b"][\n\r"), "{b:?}");
+                }
+            }
+        }
     }
 
     #[test]
