@@ -598,6 +598,8 @@ fn error_list_section_3_2_4() {
         (0x7320, "Positioning out of software limits error"),
         (0xFF13, "Operation without reset"),
         (0x5530, "Flash data lost"),
+        // Not in the 3.2.4 list: life guarding lost (3.2.12), CiA 301's code (sidecar decision).
+        (0x8130, "Fieldbus disconnection: life guarding lost"),
     ];
     assert_eq!(s.errors.len(), expected.len());
     for (e, (code, text)) in s.errors.iter().zip(expected) {

@@ -1308,6 +1308,48 @@ fn saved_parameters_survive_a_restart_and_process_values_do_not() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// 6.2.1.12 saves "all parameters" (CiA 301 sub 1: communication and application), and 3.2.2
+/// stores the baud rate through it: the factor group and the PDO configuration come back after
+/// a restart (sidecar decision on 1010h).
+#[test]
+fn the_factor_group_and_the_pdo_configuration_are_saved() {
+    let dir = temp_dir("save-fg-pdo");
+    {
+        let mut m = build_with_state(&dir);
+        m.write_u32(4, 0x608F, 1, 10_000).unwrap();
+        m.write_u32(4, 0x6091, 1, 3).unwrap();
+        m.write_i32(4, 0x204C, 1, -6).unwrap();
+        // TPDO1 = 6064h only, sent every second SYNC; heartbeat 250 ms.
+        m.write_u32(4, 0x1800, 1, 0x8000_0184).unwrap();
+        m.write_u8(4, 0x1A00, 0, 0).unwrap();
+        m.write_u32(4, 0x1A00, 1, 0x6064_0020).unwrap();
+        m.write_u8(4, 0x1A00, 0, 1).unwrap();
+        m.write_u8(4, 0x1800, 2, 2).unwrap();
+        m.write_u32(4, 0x1800, 1, 0x0000_0184).unwrap();
+        m.write_u16(4, 0x1017, 0, 250).unwrap();
+        m.write(4, 0x1010, 1, b"save").unwrap();
+    }
+    let mut m = build_with_state(&dir);
+    assert_eq!(m.read_u32(4, 0x608F, 1).unwrap(), 10_000);
+    assert_eq!(m.read_u32(4, 0x6091, 1).unwrap(), 3);
+    assert_eq!(m.read_i64(4, 0x204C, 1).unwrap(), -6);
+    assert_eq!(m.read_u8(4, 0x1A00, 0).unwrap(), 1);
+    assert_eq!(m.read_u32(4, 0x1A00, 1).unwrap(), 0x6064_0020);
+    assert_eq!(m.read_u8(4, 0x1800, 2).unwrap(), 2);
+    assert_eq!(m.read_u16(4, 0x1017, 0).unwrap(), 250);
+    // The restored mapping is the one in force: one SYNC in two, 4 bytes.
+    m.nmt_start(4);
+    m.take_seen();
+    for _ in 0..4 {
+        m.sync();
+        m.advance(1000);
+    }
+    let tpdo: Vec<_> = m.take_id(0x184);
+    assert_eq!(tpdo.len(), 2, "{tpdo:?}");
+    assert_eq!(tpdo[0].frame.data().len(), 4);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 // =============================================================================================
 // The ASCII channel (6.2.2.3).
 

@@ -476,3 +476,151 @@ fn cia402_homing_on_a_limit_switch_sets_bits_12_and_10() {
     assert_eq!(sw & (1 << 13), 0);
     assert_eq!(m.read_i64(ID, 0x6064, 0).unwrap(), 0);
 }
+
+// ---------------------------------------------------------------------------------------------
+// Polarity and homing (607Eh).
+
+fn app_mut(m: &mut Master) -> &mut Cia402App<Dictionary, Plain> {
+    m.sim_mut().downcast_mut::<PlainNode>(0).unwrap().app_mut().unwrap()
+}
+
+/// Starts homing `method` with 607Eh = `polarity` and returns the sign of 606Ch during the
+/// search and the statusword at its end.
+fn search_direction(m: &mut Master, method: u8, polarity: u8) -> (i64, u16) {
+    m.write_u8(ID, 0x607E, 0, polarity).unwrap();
+    m.write(ID, 0x6098, 0, &[method]).unwrap();
+    m.write_u32(ID, 0x6099, 1, 2000).unwrap();
+    m.write_u32(ID, 0x6099, 2, 500).unwrap();
+    m.write_u32(ID, 0x609A, 0, 20_000).unwrap();
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 6).unwrap();
+    m.controlword(ID, 0x1F).unwrap();
+    m.advance(300_000);
+    let v = m.read_i64(ID, 0x606C, 0).unwrap();
+    let sw = m.wait_statusword(ID, 0x3400, 0x1400, 20_000_000, 10_000).unwrap_or_else(|| m.statusword(ID).unwrap());
+    (v.signum(), sw)
+}
+
+/// CiA 402 (607Eh): "the polarity flag shall have no influence on the homing mode". Method 17
+/// (negative limit switch) searches the motor's negative side either way; with 607Eh = 80h
+/// that direction reads as a positive velocity on the bus.
+#[test]
+fn polarity_leaves_a_cia402_homing_alone() {
+    for (polarity, bus_sign) in [(0x00, -1), (0x80, 1)] {
+        let mut m = plain();
+        let env = Environment { negative_limit: Some(-3000), ..Environment::default() };
+        *app_mut(&mut m).drive_mut().axis_mut().environment_mut() = env;
+        let (sign, sw) = search_direction(&mut m, 17, polarity);
+        assert_eq!(sign, bus_sign, "607Eh = {polarity:#04X}: 606Ch during the search");
+        assert_eq!(sw & 0x3400, 0x1400, "607Eh = {polarity:#04X}: homed on the negative limit switch");
+        assert_eq!(app(&m).drive().axis().status().position_actual, 0, "the home point reads as the offset");
+    }
+}
+
+/// A device whose manual says the polarity reverses the homing too (the Camozzi drives) runs
+/// the mirrored method: with 607Eh = 80h method 17 searches the drive's negative direction
+/// (606Ch < 0), the motor's positive side, where a plain CiA 402 drive finds nothing.
+#[test]
+fn a_vendor_can_make_the_polarity_reverse_the_homing() {
+    struct Camozzi;
+    impl Vendor<Dictionary> for Camozzi {
+        fn homing_method(&self, code: i8) -> Option<drive::motion::HomingMethod> {
+            drive::motion::HomingMethod::cia402(code)
+        }
+        fn polarity_reverses_homing(&self) -> bool {
+            true
+        }
+    }
+    type CamozziNode = Node<Dictionary, Cia402App<Dictionary, Camozzi>>;
+    let mut sim = Sim::new();
+    let mut app = Cia402App::<Dictionary, _>::new(Camozzi, error_table(DeviceKind::Drvi));
+    // Only a positive limit switch: the mirrored method 17 looks for it (the drive's negative
+    // limit is the motor's positive one).
+    *app.drive_mut().axis_mut().environment_mut() =
+        Environment { positive_limit: Some(3000), ..Environment::default() };
+    sim.add(Box::new(Node::new(Dictionary::new(ID), app, NodeStorage::memory(), NodeId::new(ID).unwrap())));
+    let mut m = Master::new(sim);
+    m.advance(1000);
+    m.nmt_start(ID);
+    let (sign, sw) = search_direction(&mut m, 17, 0x80);
+    assert_eq!(sign, -1, "the drive's negative direction");
+    assert_eq!(sw & 0x3400, 0x1400, "homed");
+    let node = m.sim().downcast::<CamozziNode>(0).unwrap();
+    let st = node.app().unwrap().drive().axis().status();
+    assert!(st.homed);
+    assert_eq!(st.position_actual, 0, "the home point reads as the home offset");
+}
+
+// ---------------------------------------------------------------------------------------------
+// 1010h: the sidecar's store list, for every device.
+
+#[test]
+fn every_store_list_object_is_a_writable_entry_of_its_dictionary() {
+    for kind in DeviceKind::ALL {
+        let list = drive::drives::store::store_list(kind);
+        assert!(list.len() > 20, "{kind}: a store list");
+        for r in &list {
+            let writable = kind
+                .entries()
+                .iter()
+                .filter(|e| e.index == r.index && r.sub.is_none_or(|s| s == e.sub))
+                .any(|e| e.access.writable());
+            assert!(writable, "{kind}: {r} is not a writable entry");
+        }
+        for command in [0x6040u16, 0x607A, 0x1010, 0x1011] {
+            assert!(!list.iter().any(|r| r.index == command), "{kind}: {command:04X} is not a parameter");
+        }
+        // The DRCS manual lists the target velocity among its stored objects (3.2.13).
+        assert_eq!(list.iter().any(|r| r.index == 0x60FF), kind == DeviceKind::Drcs, "{kind}: 60FFh");
+    }
+}
+
+/// A save keeps the listed parameters and nothing else (DRVI 6.3.2.13, DRCS 3.2.13, AKD
+/// 6.2.1.12): commands written before the save come back as defaults after a restart.
+#[test]
+fn a_save_keeps_only_the_store_list() {
+    use drive::storage::FileStorage;
+    use od_runtime::od::Area;
+    for kind in DeviceKind::ALL {
+        let dir = std::env::temp_dir().join(format!("drives-common-store-{kind}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let config = NodeConfig { node_id: Some(ID), state_dir: Some(dir.clone()), ..Default::default() };
+        let start = || {
+            let mut sim = Sim::new();
+            sim.add(kind.build(&config, &DeviceApps::new()).unwrap());
+            let mut m = Master::new(sim);
+            m.advance(1000);
+            m
+        };
+        {
+            let mut m = start();
+            m.write_u32(ID, 0x6081, 0, 42).unwrap();
+            m.write_i32(ID, 0x607A, 0, 4321).unwrap();
+            m.write_i32(ID, 0x60FF, 0, 77).unwrap();
+            m.controlword(ID, 0x06).unwrap();
+            m.write(ID, 0x1010, 1, b"save").unwrap();
+        }
+        let files = FileStorage::open(&dir, &format!("{kind}-node{ID}")).unwrap();
+        let list = drive::drives::store::store_list(kind);
+        let mut saved = 0;
+        for area in [Area::Communication, Area::Application, Area::Manufacturer] {
+            for r in files.read_image(area).unwrap().unwrap_or_default() {
+                saved += 1;
+                assert!(
+                    list.iter().any(|o| o.index == r.index && o.sub.is_none_or(|s| s == r.sub)),
+                    "{kind}: {:04X}sub{} saved but not listed",
+                    r.index,
+                    r.sub
+                );
+            }
+        }
+        assert!(saved > 20, "{kind}: {saved} entries saved");
+        let mut m = start();
+        assert_eq!(m.read_u32(ID, 0x6081, 0).unwrap(), 42, "{kind}: a parameter");
+        assert_eq!(m.read_i64(ID, 0x607A, 0).unwrap(), 0, "{kind}: a command");
+        let velocity = if kind == DeviceKind::Drcs { 77 } else { 0 };
+        assert_eq!(m.read_i64(ID, 0x60FF, 0).unwrap(), velocity, "{kind}: 60FFh (stored by the DRCS only)");
+        assert_eq!(m.read_u16(ID, 0x6040, 0).unwrap(), 0, "{kind}: the controlword");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

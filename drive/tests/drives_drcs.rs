@@ -31,7 +31,7 @@ fn drcs_with(mechanics: Mechanics) -> Master {
     let node = Node::new(
         Dictionary::new(ID),
         drcs::app_with(mechanics),
-        drcs::stored_objects_only(NodeStorage::memory()),
+        drive::drives::store::stored_objects_only(DeviceKind::Drcs, NodeStorage::memory()),
         NodeId::new(ID).unwrap(),
     );
     sim.add(Box::new(node));
@@ -1136,7 +1136,10 @@ fn drive_sim_apps_build_the_drcs_with_a_trace() {
 
 #[test]
 fn error_table_is_the_manual_list_plus_the_fieldbus_disconnection() {
-    let t = drcs::error_table();
+    // The sidecar lists 8130h itself (with a decision): the app uses the sidecar's table as is.
+    let t = drive::drives::error_table(DeviceKind::Drcs);
+    let sidecar = drive::drives::sidecar(DeviceKind::Drcs).unwrap();
+    assert!(sidecar.decisions.iter().any(|d| d.text.contains("8130h")), "a decision says why");
     let codes: Vec<u16> = t.entries().iter().map(|e| e.code).collect();
     assert_eq!(codes, vec![0x2310, 0x3120, 0x4210, 0x7305, 0x8613, 0x6320, 0x7320, 0xFF13, 0x5530, 0x8130]);
     let fieldbus = t.find(0x8130, None).unwrap();

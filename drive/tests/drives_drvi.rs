@@ -293,9 +293,15 @@ fn unsupported_modes_and_methods_are_refused() {
 /// Homes with `method` and offset 777 in `env`, returning the mechanical home point (the
 /// position the trace shows right before the frame switched to the offset).
 fn home_point(method: i8, env: Environment) -> i64 {
+    home_point_with_polarity(method, env, 0)
+}
+
+/// [`home_point`] with 607Eh = `polarity`.
+fn home_point_with_polarity(method: i8, env: Environment, polarity: u8) -> i64 {
     let trace: SharedTrace = Arc::new(Mutex::new(Trace::new()));
     let mut m = master_with(NodeStorage::memory(), Some(Arc::clone(&trace)));
     set_environment(&mut m, env);
+    m.write_u8(ID, 0x607E, 0, polarity).unwrap();
     let s = home(&mut m, method, 777);
     assert_eq!(s & 0x3400, 0x1400, "bits 12 and 10: completed");
     assert_eq!(pos(&mut m), 777, "6.3.4.14: the actual position becomes the offset");
@@ -316,6 +322,19 @@ fn homing_17_18_on_the_proximity() {
     assert_eq!(home_point(17, env((-25_000, -20_000))), -20_000, "leaves it positive: its high edge");
     // Already on the proximity at the start: only the out phase.
     assert_eq!(home_point(18, env((-1_000, 5_000))), -1_000);
+}
+
+/// 6.3.4.16: the polarity "has an impact to ALL the mode of operation (homings, ...)": with
+/// 607Eh = 80h every direction is the drive's reversed one, so method 17 (negative search)
+/// finds the proximity on the motor's positive side and leaves it going the motor's negative
+/// way: the cam's low mechanical edge, read in the reversed frame.
+#[test]
+fn reversed_polarity_reverses_the_homing_searches() {
+    assert_eq!(home_point_with_polarity(17, env((20_000, 25_000)), 0x80), -20_000);
+    assert_eq!(home_point_with_polarity(18, env((-25_000, -20_000)), 0x80), 20_000);
+    let ends = drvi::default_environment(); // end stops at −50000 and 150000 (motor frame)
+    assert_eq!(home_point_with_polarity(-3, ends, 0x80), -150_000, "the motor's positive end stop");
+    assert_eq!(home_point_with_polarity(-4, ends, 0x80), 50_000);
 }
 
 #[test]

@@ -17,7 +17,7 @@
 //! | 6.2.1.3 | manufacturer status register 1002h | [`manufacturer_status`] |
 //! | 6.1, 5.4.4 | EMCY codes from the sidecar table; faults stop with the quick stop ramp (F702, F602 switch the power stage off); warnings set statusword bit 7 and are reset by an EMCY 0000h when their cause is gone | the sidecar table through [`super::Drive::raise`] |
 //! | 5.4.7, 5.4.8 | heartbeat or guarding loss: F129 (8130h), braked to standstill | [`Vendor::pre_event`] (the EMCY names the lost node) |
-//! | 6.2.1.12, 5.4.1 | 1010h saves the parameters (the sidecar's `[store]` list: process values and commands are not saved); reset node reloads them | [`stored_objects_only`], wired in `DeviceKind::Akd` |
+//! | 6.2.1.12, 5.4.1 | 1010h saves the parameters (the sidecar's `[store]` list: process values and commands are not saved); reset node reloads them | the sidecar's `[store]` list through [`super::store`] |
 //! | 6.2.2.3, 7.2.1.9 | ASCII channel 2026h: WorkBench commands written 4 characters at a time, answered in sub 2 | [`Vendor::on_event`] |
 //!
 //! Decisions where the manual is silent (recorded here and tested in `drive/tests/drives_akd.rs`):
@@ -42,7 +42,7 @@
 //!   a per-transport value).
 
 use std::collections::VecDeque;
-use std::sync::{Arc, OnceLock};
+use std::sync::OnceLock;
 
 use generated::akd::Dictionary;
 use generated::akd::units::{self, Dimension, System, Units as AkdUnits};
@@ -51,13 +51,12 @@ use od_runtime::od::{AbortCode, ObjectDictionary};
 use od_runtime::{Event, Micros};
 
 use super::cia402::{BusScale, Cia402App, Command, Vendor, read_int, scale_i64, write_int};
-use super::drcs::StoreFilter;
 use super::{Drive, ErrorSpec, error_table, sidecar};
 use crate::motion::{
     AxisConfig, Cam, Environment, HomeOffsetMode, HomingError, HomingKind, HomingMethod, HomingSignal, HomingState,
     Mode, PlantConfig, Ratio, SoftwareLimits, Status, StopRamp, Units,
 };
-use crate::node::{Ctx, DeviceKind, NodeStorage, ParameterSet, WriteRequest};
+use crate::node::{Ctx, DeviceKind, WriteRequest};
 
 /// Increments per motor turn the axis counts internally (2^PRBASE with PRBASE 20, 6.8.2.1).
 pub const COUNTS_PER_TURN: i64 = 1 << 20;
@@ -300,13 +299,6 @@ pub fn plant() -> PlantConfig {
         bandwidth: 300.0,
         max_speed: rpm_counts(motor::VMAX_RPM) as f64,
     }
-}
-
-/// `storage` saving only the AKD's parameters (6.2.1.12, the sidecar's `[store]` list):
-/// what `DeviceKind::Akd` nodes run with. Loading (stored values, a DCF's) is unchanged.
-pub fn stored_objects_only(storage: NodeStorage) -> NodeStorage {
-    let objects = sidecar(DeviceKind::Akd).map(|s| s.store.objects.clone()).unwrap_or_default();
-    NodeStorage::new(Arc::new(ParameterSet::new()), Box::new(StoreFilter::new(storage, objects)))
 }
 
 /// An AKD application with the default mechanics ([`default_environment`]).

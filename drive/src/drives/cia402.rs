@@ -38,8 +38,8 @@ use od_runtime::{Event, Micros, ResetKind, WriteSource};
 
 use super::{ErrorSpec, ErrorTable, Reaction, SharedTrace};
 use crate::motion::{
-    Axis, AxisConfig, CommandError, HomingKind, HomingMethod, JogCommand, Mode, QuickStopOption, Ratio, SetPoint,
-    SoftwareLimits, Status, StopRamp,
+    Axis, AxisConfig, CommandError, Direction, HomingKind, HomingMethod, HomingSignal, JogCommand, Mode,
+    QuickStopOption, Ratio, SetPoint, SoftwareLimits, Status, StopRamp,
 };
 use crate::node::{Ctx, DefaultApp, DriveApp, LossRecord, WriteRequest};
 use crate::trace::Sample;
@@ -246,6 +246,19 @@ pub trait Vendor<OD>: Send + 'static {
         false
     }
 
+    /// Whether reversed polarity (607Eh bit 7) also reverses the homing methods' directions.
+    ///
+    /// CiA 402 (607Eh): "the polarity flag shall have no influence on the homing mode": a
+    /// method searches the same physical switch in the same physical direction whatever the
+    /// polarity, and only the positions it reports are mirrored (default: false). The Camozzi
+    /// manuals say the opposite (DRVI 6.3.4.16: the polarity "has an impact to ALL the mode of
+    /// operation (homings, positioning, speed, torque)"; DRCS 3.4.15 reverses "the movement
+    /// direction"): with `true`, a method runs [`mirrored`], so method 17 ("negative
+    /// direction") searches towards the drive's negative positions, the motor's positive side.
+    fn polarity_reverses_homing(&self) -> bool {
+        false
+    }
+
     /// The error raised when the master's heartbeat or node guarding is lost ("fieldbus
     /// disconnection"): code and manufacturer value, looked up in the error table. Default
     /// 8130h (CiA 301 life guard / heartbeat error).
@@ -318,6 +331,50 @@ pub trait Vendor<OD>: Send + 'static {
     /// The drive left Fault (transition 15, by controlword bit 7 or [`Ctx::fault_reset`]);
     /// [`Drive::fault`] still holds the fault being reset.
     fn on_fault_reset(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>) {}
+}
+
+/// `method` seen through a reversed polarity: every direction reversed and the limit switches
+/// swapped (the drive's negative limit is the motor's positive one), so it does in the
+/// drive's frame what `method` does in the motor's. Edges and index pulses stay as they are,
+/// seen in the (reversed) approach direction.
+///
+/// ```
+/// use drive::drives::cia402::mirrored;
+/// use drive::motion::HomingMethod;
+///
+/// // Camozzi 17 (proximity, negative search) mirrored is 18 (positive search).
+/// let m17 = HomingMethod::camozzi(17).unwrap();
+/// assert_eq!(mirrored(m17).kind, HomingMethod::camozzi(18).unwrap().kind);
+/// assert_eq!(mirrored(m17).code, 17, "the 6098h value stays");
+/// // CiA 402 method 1 (negative limit switch) mirrored is method 2 (positive limit switch).
+/// assert_eq!(mirrored(HomingMethod::cia402(1).unwrap()).kind, HomingMethod::cia402(2).unwrap().kind);
+/// ```
+pub fn mirrored(method: HomingMethod) -> HomingMethod {
+    let flip = |d: Direction| match d {
+        Direction::Negative => Direction::Positive,
+        Direction::Positive => Direction::Negative,
+    };
+    let kind = match method.kind {
+        HomingKind::CurrentPosition => HomingKind::CurrentPosition,
+        HomingKind::Switch { signal, search, approach, edge, index, reverse_at_limit, overshoot_is_error } => {
+            HomingKind::Switch {
+                signal: match signal {
+                    HomingSignal::NegativeLimit => HomingSignal::PositiveLimit,
+                    HomingSignal::PositiveLimit => HomingSignal::NegativeLimit,
+                    HomingSignal::HomeSwitch => HomingSignal::HomeSwitch,
+                },
+                search: flip(search),
+                approach: flip(approach),
+                edge,
+                index,
+                reverse_at_limit,
+                overshoot_is_error,
+            }
+        }
+        HomingKind::EndStop { search, index } => HomingKind::EndStop { search: flip(search), index },
+        HomingKind::Index { dir } => HomingKind::Index { dir: flip(dir) },
+    };
+    HomingMethod { code: method.code, kind }
 }
 
 /// The plain CiA 402 device: every [`Vendor`] default.
@@ -620,7 +677,10 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
         if let Some(method) =
             get(0x6098, 0).and_then(|c| i8::try_from(c).ok()).and_then(|c| self.vendor.homing_method(c))
         {
-            cfg.homing.method = method;
+            // The axis homes in the motor's own directions whatever 607Eh says (CiA 402); a
+            // device whose polarity reverses the homing too searches the mirrored way.
+            let mirror = cfg.reverse_polarity && self.vendor.polarity_reverses_homing();
+            cfg.homing.method = if mirror { mirrored(method) } else { method };
         }
         cfg.homing.search_speed = vel(0x6099, 1, 0);
         cfg.homing.zero_speed = vel(0x6099, 2, 0);

@@ -14,18 +14,18 @@
 //! | 3.6.5 | brake 2005h (1 = engaged): engaged while the motor is torqueless, released with torque; writable only torqueless (0 releases it to move the axis by hand until the next power-stage change) | [`Drcs`] |
 //! | 3.6.6..3.6.9 | counters 2100h torqueless, 2101h torque on and stopped, 2102h torque on and moving (s), 2103h total stroke (motor revolutions, both directions) | [`Counters`] |
 //! | 3.2.4 | errors 2310h, 3120h, 4210h, 6320h, 7305h (power stage off), 8613h (quick stop), 7320h, FF13h, 5530h (reported only: EMCY, 1003h, 1001h, statusword bit 7 until the next accepted command) | the sidecar's table through [`super::Drive::raise`]; causes from [`Conditions`] and the axis |
-//! | 3.2.11, 3.2.12 | life guarding (100Ch × 100Dh) lost: an error, then the communication is reset | [`error_table`] adds 8130h (quick stop); [`Vendor::after_step`] resets the communication once in Fault |
-//! | 3.2.13 | 1010h stores the objects of the manual's list only | [`stored_objects_only`] |
+//! | 3.2.11, 3.2.12 | life guarding (100Ch × 100Dh) lost: an error, then the communication is reset | the sidecar lists 8130h (quick stop, a decision there); [`Vendor::after_step`] resets the communication once in Fault |
+//! | 3.2.13 | 1010h stores the objects of the manual's list only | the sidecar's `[store]` list through [`super::store`] |
 //! | 3.2.25 | 1F80h: only bits 2 and 3 may be set (others abort); bit 3 with bit 2 clear starts the node by itself | [`Vendor::on_write`], [`Vendor::before_step`] |
-//! | 3.4.15 | polarity 607Eh bit 7 reverses the direction, also of the homing searches | [`Vendor::configure`] |
+//! | 3.4.15 | polarity 607Eh bit 7 reverses the direction, also of the homing searches | [`Vendor::polarity_reverses_homing`] |
 //!
 //! Decisions where the manual is silent or unclear:
 //! * the DRCS has no heartbeat consumer (no 1016h in table 3.1): the loss of the master it can
 //!   detect is life guarding. The loss is the "fieldbus disconnection" error 8130h (CiA 301
-//!   life guard error, not in the 3.2.4 list), a soft error: the axis stops on the quick stop
-//!   ramp (6084h, the DRCS has no 6085h), the drive goes to Fault, and then (3.2.12: the
-//!   guarding messages must arrive "to avoid an error and reset the communication") the
-//!   communication is reset: boot-up message, pre-operational.
+//!   life guard error, not in the 3.2.4 list: the sidecar adds it with a decision), a soft
+//!   error: the axis stops on the quick stop ramp (6084h, the DRCS has no 6085h), the drive
+//!   goes to Fault, and then (3.2.12: the guarding messages must arrive "to avoid an error and
+//!   reset the communication") the communication is reset: boot-up message, pre-operational.
 //! * a relative target is relative to the actual position (the DRCS refuses new targets
 //!   during a movement, so this differs from CiA 402's "previous target" only after a halt;
 //!   the Camozzi DRVI documents the actual position).
@@ -43,22 +43,19 @@
 //!   18 V (3120h), drive temperature above 85 °C (4210h), an overcurrent flag (2310h), a motor
 //!   configuration flag (6320h), a flash flag checked after each reset node (5530h).
 
-use std::sync::{Arc, OnceLock};
-
-use devices::sidecar::ObjRef;
 use generated::drcs::Dictionary;
 use generated::drcs::units::System;
 use od_runtime::cia402::State;
-use od_runtime::od::{AbortCode, Area, ObjectDictionary};
-use od_runtime::{Event, Micros, NmtCommand, Storage};
+use od_runtime::od::{AbortCode, ObjectDictionary};
+use od_runtime::{Event, Micros, NmtCommand};
 
 use super::cia402::{BusScale, Cia402App, Command, Vendor, read_int, write_int};
-use super::{Drive, ErrorSpec, ErrorTable, Reaction, sidecar};
+use super::{Drive, Reaction, error_table};
 use crate::motion::{
     AxisConfig, Cam, Environment, HomeOffsetMode, HomingMethod, HomingState, Mode, PlantConfig, Ratio, RelativeBase,
     SoftwareLimits, Status, Units,
 };
-use crate::node::{Ctx, DeviceKind, NodeStorage, ParameterSet, WriteRequest};
+use crate::node::{Ctx, DeviceKind, WriteRequest};
 
 /// Internal units per default bus unit: the axis runs in µm (actuator) or m° (only motor).
 pub const INTERNAL_PER_UNIT: i64 = 1000;
@@ -506,8 +503,9 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drcs {
         matches!(code, 17 | 18 | 37).then(|| HomingMethod::camozzi(code)).flatten()
     }
 
-    fn fieldbus_error(&self) -> (u16, Option<u64>) {
-        (code::FIELDBUS, None)
+    /// 3.4.15: the polarity reverses the movement direction, the homing searches included.
+    fn polarity_reverses_homing(&self) -> bool {
+        true
     }
 
     /// 2001h: bus value = default-unit value × numerator / denominator, for positions,
@@ -541,18 +539,6 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drcs {
         h.offset_mode = HomeOffsetMode::MoveByOffset;
         h.torque_limit = 0;
         h.torque_threshold = 0;
-        // The search directions are the drive's: with reversed polarity (607Eh bit 7) the
-        // motor searches the other way.
-        if cfg.reverse_polarity {
-            let flipped = match h.method.code {
-                17 => HomingMethod::camozzi(18),
-                18 => HomingMethod::camozzi(17),
-                _ => None,
-            };
-            if let Some(f) = flipped {
-                h.method.kind = f.kind;
-            }
-        }
         h.timeout_us = if h.search_speed > 0 {
             let travel = 2.0 * self.mechanics.homing_stroke as f64 + f64::from(h.offset).abs();
             ((travel / f64::from(h.search_speed) + 5.0) * 1e6).min(u64::MAX as f64 / 2.0) as u64
@@ -738,27 +724,9 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drcs {
     }
 }
 
-/// The DRCS error table: the sidecar's 3.2.4 list plus the fieldbus disconnection 8130h
-/// (generic and communication bits, quick stop), which the list lacks.
-pub fn error_table() -> Arc<ErrorTable> {
-    static TABLE: OnceLock<Arc<ErrorTable>> = OnceLock::new();
-    Arc::clone(TABLE.get_or_init(|| {
-        let mut errors = super::error_table(DeviceKind::Drcs).entries().to_vec();
-        errors.push(ErrorSpec {
-            code: code::FIELDBUS,
-            manufacturer: None,
-            vendor_code: None,
-            register: Some(0x11),
-            text: "Fieldbus disconnection: life guarding lost".to_owned(),
-            reaction: Reaction::QuickStop,
-        });
-        Arc::new(ErrorTable::new(errors))
-    }))
-}
-
 /// A DRCS application with mechanics `mechanics`.
 pub fn app_with(mechanics: Mechanics) -> Cia402App<Dictionary, Drcs> {
-    let mut app = Cia402App::new(Drcs::new(mechanics), error_table());
+    let mut app = Cia402App::new(Drcs::new(mechanics), error_table(DeviceKind::Drcs));
     *app.drive_mut().axis_mut().environment_mut() = mechanics.environment;
     app
 }
@@ -766,51 +734,4 @@ pub fn app_with(mechanics: Mechanics) -> Cia402App<Dictionary, Drcs> {
 /// A DRCS on the default actuator ([`Mechanics::actuator`]): what `drive-sim` runs.
 pub fn app() -> Cia402App<Dictionary, Drcs> {
     app_with(Mechanics::actuator())
-}
-
-/// A storage that saves only the objects of the DRCS store list (3.2.13, the sidecar's
-/// `[store]`); loading and erasing pass through.
-pub struct StoreFilter {
-    inner: NodeStorage,
-    objects: Vec<ObjRef>,
-}
-
-impl StoreFilter {
-    /// `inner`, saving only `objects` (a reference without sub-index covers every sub).
-    pub fn new(inner: NodeStorage, objects: Vec<ObjRef>) -> Self {
-        Self { inner, objects }
-    }
-
-    /// Whether `index`/`sub` is saved.
-    pub fn stores(&self, index: u16, sub: u8) -> bool {
-        self.objects.iter().any(|r| r.index == index && r.sub.is_none_or(|s| s == sub))
-    }
-}
-
-impl Storage for StoreFilter {
-    fn begin_save(&mut self, area: Area) -> Result<(), AbortCode> {
-        self.inner.begin_save(area)
-    }
-
-    fn save_entry(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode> {
-        if self.stores(index, sub) { self.inner.save_entry(index, sub, data) } else { Ok(()) }
-    }
-
-    fn end_save(&mut self, area: Area) -> Result<(), AbortCode> {
-        self.inner.end_save(area)
-    }
-
-    fn load(&mut self, area: Area, apply: &mut dyn FnMut(u16, u8, &[u8])) {
-        self.inner.load(area, apply);
-    }
-
-    fn erase(&mut self, area: Area) -> Result<(), AbortCode> {
-        self.inner.erase(area)
-    }
-}
-
-/// `storage` saving only the DRCS store list: what `DeviceKind::Drcs` nodes run with.
-pub fn stored_objects_only(storage: NodeStorage) -> NodeStorage {
-    let objects = sidecar(DeviceKind::Drcs).map(|s| s.store.objects.clone()).unwrap_or_default();
-    NodeStorage::new(Arc::new(ParameterSet::new()), Box::new(StoreFilter::new(storage, objects)))
 }

@@ -18,6 +18,7 @@
 //! | 6.3.6.2, 6.3.6.3 | inputs 2002h (IN1, IN2, EXT PROXY, PROXY), output 2003h | [`Vendor::after_step`] |
 //! | 6.3.6.7 | PID selection 2011h: the position loop's bandwidth | [`Vendor::configure`] |
 //! | 6.3.6.8 | profile check 2012h: warnings "target position / speed not reached" after the timeout | [`Vendor::after_step`] |
+//! | 6.3.4.16 | polarity 607Eh bit 7 reverses every mode, homing searches included | [`Vendor::polarity_reverses_homing`] |
 //! | 5.0.3 | the position survives a reset when homed and stopped | [`Vendor::init`] |
 //!
 //! Decisions where the manual is silent or unclear:
@@ -456,6 +457,12 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drvi {
     /// Table 6.29.
     fn homing_method(&self, code: i8) -> Option<HomingMethod> {
         HomingMethod::camozzi(code)
+    }
+
+    /// 6.3.4.16: the polarity "has an impact to ALL the mode of operation (homings,
+    /// positioning, speed, torque)".
+    fn polarity_reverses_homing(&self) -> bool {
+        true
     }
 
     /// 2001h: new unit = default unit × numerator / denominator, for positions, velocities and

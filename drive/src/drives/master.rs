@@ -305,6 +305,11 @@ impl Master {
         Ok(i64::from_le_bytes(b))
     }
 
+    /// Reads an 8-bit value.
+    pub fn read_u8(&mut self, node: u8, index: u16, sub: u8) -> Result<u8, SdoError> {
+        Ok(self.read_u64(node, index, sub)? as u8)
+    }
+
     /// Reads a 16-bit value.
     pub fn read_u16(&mut self, node: u8, index: u16, sub: u8) -> Result<u16, SdoError> {
         Ok(self.read_u64(node, index, sub)? as u16)

@@ -121,6 +121,7 @@ pub mod demo;
 pub mod drcs;
 pub mod drvi;
 pub mod master;
+pub mod store;
 
 use std::sync::{Arc, Mutex, OnceLock};
 

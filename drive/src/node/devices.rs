@@ -73,22 +73,18 @@ impl DeviceKind {
             ),
             None => Box::new(MemoryStorage::new()),
         };
-        let storage = NodeStorage::new(Arc::new(params), backend);
+        // 1010h saves what the device's manual lists (the sidecar's [store]), not every
+        // writable entry: DRVI 6.3.2.13, DRCS 3.2.13, AKD 6.2.1.12.
+        let storage = crate::drives::store::stored_objects_only(self, NodeStorage::new(Arc::new(params), backend));
         let timeout = config.sdo_timeout;
         Ok(match self {
             DeviceKind::Drvi => {
                 boxed(Node::new(generated::drvi::Dictionary::new(raw), apps.drvi(), storage, id), timeout)
             }
             DeviceKind::Drcs => {
-                // 3.2.13: 1010h saves the objects of the manual's list only.
-                let storage = crate::drives::drcs::stored_objects_only(storage);
                 boxed(Node::new(generated::drcs::Dictionary::new(raw), apps.drcs(), storage, id), timeout)
             }
-            DeviceKind::Akd => {
-                // 6.2.1.12: 1010h saves the AKD's parameters (the sidecar's list).
-                let storage = crate::drives::akd::stored_objects_only(storage);
-                boxed(Node::new(generated::akd::Dictionary::new(raw), apps.akd(), storage, id), timeout)
-            }
+            DeviceKind::Akd => boxed(Node::new(generated::akd::Dictionary::new(raw), apps.akd(), storage, id), timeout),
         })
     }
 }
