@@ -697,6 +697,62 @@ fn factor_group_ds402_moves_in_degrees_through_a_gearbox() {
     about(m.read_i64(4, 0x606C, 0).unwrap(), 60_000);
 }
 
+/// 6.5.2.1: 204Ch "modifies the resolution and the direction": with a negative numerator a
+/// positive 60FFh turns the motor backwards and 606Ch reads it as positive; speeds (6081h)
+/// keep their magnitude, so a profile position move still runs.
+#[test]
+fn a_negative_velocity_factor_reverses_the_velocities() {
+    let mut m = started(4);
+    free_axis(&mut m);
+    m.write_u32(4, 0x36E9, 0, 0x10).unwrap(); // DS402 factors
+    m.write_u32(4, 0x6092, 1, 360).unwrap(); // a degree of the motor
+    m.write_i32(4, 0x204C, 1, -6).unwrap(); // 6 °/s (1 rpm) per unit, reversed
+    m.advance(1000);
+    let fg = FactorGroup::read(node(&m, 0).od());
+    assert!(fg.scale.reverse_velocity);
+    assert_eq!(fg.scale.velocity.num * 60, fg.scale.velocity.den * TURN, "1 rpm per unit, as a magnitude");
+    m.switch_on(4).unwrap();
+    m.set_mode(4, 3).unwrap();
+    m.write_i32(4, 0x60FF, 0, 60).unwrap();
+    m.advance(500_000);
+    assert_eq!(i64::from(node(&m, 0).app().unwrap().drive().axis().status().velocity_actual), -TURN, "backwards");
+    about(m.read_i64(4, 0x606C, 0).unwrap(), 60_000);
+    assert!(m.read_i64(4, 0x6064, 0).unwrap() < 0, "positions are not reversed");
+    m.write_i32(4, 0x60FF, 0, 0).unwrap();
+    m.advance(500_000);
+    // 6081h is a speed: 60 units = 60 rpm whatever the sign of 204Ch.
+    m.set_mode(4, 1).unwrap();
+    m.write_u32(4, 0x6081, 0, 60).unwrap();
+    let start = m.read_i64(4, 0x6064, 0).unwrap();
+    m.write_i32(4, 0x607A, 0, (start + 360) as i32).unwrap();
+    m.controlword(4, 0x1F).unwrap();
+    m.controlword(4, 0x0F).unwrap();
+    m.advance(300_000);
+    about(m.read_i64(4, 0x606C, 0).unwrap(), -60_000);
+    wait_sw(&mut m, 4, 0x0400, 0x0400, 5000);
+    assert_eq!(m.read_i64(4, 0x6064, 0).unwrap(), start + 360);
+}
+
+/// A factor-group write shows in the actual values the master reads next, before any tick:
+/// 6064h in the new user unit, 6063h in the new encoder increments.
+#[test]
+fn factor_group_writes_show_in_the_actual_values_at_once() {
+    let mut m = started(4);
+    free_axis(&mut m);
+    m.switch_on(4).unwrap();
+    m.set_mode(4, 1).unwrap();
+    m.write_i32(4, 0x607A, 0, 2).unwrap(); // two motor turns in the default units
+    m.controlword(4, 0x1F).unwrap();
+    m.controlword(4, 0x0F).unwrap();
+    wait_sw(&mut m, 4, 0x0400, 0x0400, 5000);
+    let ticks = node(&m, 0).app().unwrap().drive().ticks();
+    m.write_u32(4, 0x6092, 1, 360).unwrap();
+    assert_eq!(m.read_i64(4, 0x6064, 0).unwrap(), 720, "degrees of the motor");
+    m.write_u32(4, 0x608F, 1, 4096).unwrap();
+    assert_eq!(m.read_i64(4, 0x6063, 0).unwrap(), 2 * 4096);
+    assert_eq!(node(&m, 0).app().unwrap().drive().ticks(), ticks, "no tick in between");
+}
+
 /// 6.5, 4.4: with FBUS.PARAM05 bit 4 clear, only UNIT.PIN/UNIT.POUT (6092h) scale, per motor turn.
 #[test]
 fn factor_group_workbench_units_ignore_the_ds402_factors() {

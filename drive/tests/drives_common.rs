@@ -624,3 +624,114 @@ fn a_save_keeps_only_the_store_list() {
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Stops on a blocked axis; holding in Switched on.
+
+/// Profile velocity into a hard end stop: the axis stands against it, away from its demand.
+fn blocked_against_an_end_stop() -> Master {
+    let mut m = plain();
+    *app_mut(&mut m).drive_mut().axis_mut().environment_mut() =
+        Environment { positive_end_stop: Some(300), ..Environment::default() };
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 1000);
+    m.write_i32(ID, 0x60FF, 0, 500).unwrap();
+    m.advance(2_000_000);
+    let st = app(&m).drive().axis().status();
+    assert!(st.inputs.end_stop && st.velocity_actual == 0, "blocked: {st:?}");
+    m
+}
+
+/// The stop ramp of a soft error ends, but the blocked axis never settles on its demand: the
+/// fault reaction ends with the ramp (common layer), it does not wait forever.
+#[test]
+fn a_fault_reaction_on_a_blocked_axis_ends_with_its_ramp() {
+    let mut m = blocked_against_an_end_stop();
+    let now = m.now();
+    m.sim_mut().downcast_mut::<PlainNode>(0).unwrap().with_app(now, |app, ctx| {
+        app.drive_mut().raise(ctx, 0x4210, Some(1)); // a quick-stop error
+    });
+    m.advance(0);
+    assert_eq!(m.state(ID).unwrap(), Some(State::FaultReactionActive));
+    assert!(m.wait_until(2_000_000, 10_000, |m| m.state(ID).unwrap() == Some(State::Fault)));
+    assert!(!app(&m).drive().axis().status().power);
+}
+
+#[test]
+fn a_quick_stop_on_a_blocked_axis_ends_with_its_ramp() {
+    let mut m = blocked_against_an_end_stop();
+    m.controlword(ID, 0x0B).unwrap();
+    assert_eq!(m.state(ID).unwrap(), Some(State::QuickStopActive));
+    assert!(m.wait_until(2_000_000, 10_000, |m| m.state(ID).unwrap() == Some(State::SwitchOnDisabled)));
+}
+
+/// Vendor::disable_reaction: a drive whose output stage holds the axis in Switched on (the
+/// AKD's 6.4.1.1) ramps down on disable operation and keeps the power on; CiA 402 (605Ch = 0
+/// here) switches it off at once.
+#[test]
+fn a_vendor_can_hold_the_axis_in_switched_on() {
+    use drive::drives::cia402::DisableReaction;
+    use drive::motion::StopRamp;
+    struct Holder;
+    impl Vendor<Dictionary> for Holder {
+        fn disable_reaction(&self, od: &Dictionary, from: State, to: State) -> DisableReaction {
+            if to == State::SwitchedOn {
+                DisableReaction::hold(StopRamp::ProfileDeceleration)
+            } else {
+                DisableReaction::cia402(od, from, to)
+            }
+        }
+    }
+    type HolderNode = Node<Dictionary, Cia402App<Dictionary, Holder>>;
+    let mut sim = Sim::new();
+    let app = Cia402App::<Dictionary, _>::new(Holder, error_table(DeviceKind::Drvi));
+    sim.add(Box::new(Node::new(Dictionary::new(ID), app, NodeStorage::memory(), NodeId::new(ID).unwrap())));
+    let mut m = Master::new(sim);
+    m.advance(1000);
+    m.nmt_start(ID);
+    let power = |m: &Master| m.sim().downcast::<HolderNode>(0).unwrap().app().unwrap().drive().axis().status();
+    // Switch on (transition 3) already powers the stage.
+    m.controlword(ID, 0x06).unwrap();
+    m.controlword(ID, 0x07).unwrap();
+    assert!(power(&m).power, "Switched on: the stage holds the axis");
+    m.controlword(ID, 0x0F).unwrap();
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 1000);
+    m.write_i32(ID, 0x60FF, 0, 500).unwrap();
+    m.advance(600_000);
+    m.controlword(ID, 0x07).unwrap(); // disable operation
+    m.advance(200_000);
+    let st = power(&m);
+    assert!(st.power && st.velocity_actual > 0, "ramping down with the power on: {st:?}");
+    m.advance(800_000);
+    let st = power(&m);
+    assert!(st.power && st.standing, "stopped and held: {st:?}");
+    assert_eq!(m.state(ID).unwrap(), Some(State::SwitchedOn));
+    // Shutdown (8): CiA 402, off.
+    m.controlword(ID, 0x06).unwrap();
+    assert!(!power(&m).power);
+}
+
+// ---------------------------------------------------------------------------------------------
+// What a master reads right after a write.
+
+/// Bit 10 follows a new target velocity at once: reached at 500, not reached right after
+/// 60FFh = 1000 (before any tick), reached again once at speed.
+#[test]
+fn the_statusword_follows_a_new_target_velocity_at_once() {
+    let mut m = plain();
+    m.switch_on(ID).unwrap();
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 1000);
+    m.write_i32(ID, 0x60FF, 0, 500).unwrap();
+    m.advance(700_000);
+    assert_ne!(m.statusword(ID).unwrap() & (1 << 10), 0, "at 500");
+    let ticks = app(&m).drive().ticks();
+    m.write_i32(ID, 0x60FF, 0, 1000).unwrap();
+    let sw = m.statusword(ID).unwrap();
+    assert_eq!(app(&m).drive().ticks(), ticks, "no tick in between");
+    assert_eq!(sw & (1 << 10), 0, "1000 is not reached yet: {sw:#06X}");
+    m.advance(700_000);
+    assert_ne!(m.statusword(ID).unwrap() & (1 << 10), 0, "at 1000");
+}

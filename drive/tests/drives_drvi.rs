@@ -474,6 +474,32 @@ fn feed_converter_2001h_rescales_sdo_and_pdo_values() {
     assert_eq!(pos(&mut m), 12_700);
 }
 
+/// A unit change shows in what the master reads next, before the next control tick: 2001h
+/// rescales 6064h and 6062h at once, 2014h switches 606Ch from 0.01 rpm to 0.01 mm/s at once.
+#[test]
+fn unit_changes_show_in_the_actual_values_at_once() {
+    let mut m = master();
+    home(&mut m, 37, 0);
+    profile(&mut m, 6000, 600);
+    move_to(&mut m, 25_400, false);
+    let ticks = app(&m).drive().ticks();
+    m.write_u32(ID, 0x2001, 2, 254).unwrap(); // numerator 1: 254 old units per new one
+    assert_eq!(pos(&mut m), 100);
+    assert_eq!(m.read_i64(ID, 0x6062, 0).unwrap(), 100);
+    assert_eq!(app(&m).drive().ticks(), ticks, "no tick in between");
+    m.write_u32(ID, 0x2001, 2, 1).unwrap();
+    // 60 rpm only motor = 36000 units/s; as an actuator the same speed is 36000 (0.01 mm/s).
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 100);
+    m.write_i32(ID, 0x60FF, 0, 6000).unwrap();
+    m.advance(1_000_000);
+    assert_eq!(vel(&mut m), 6000);
+    let ticks = app(&m).drive().ticks();
+    m.write_u8(ID, 0x2014, 0, 7).unwrap();
+    assert_eq!(vel(&mut m), 36_000, "the speed of a moment ago in the new unit");
+    assert_eq!(app(&m).drive().ticks(), ticks, "no tick in between");
+}
+
 // ---------------------------------------------------------------------------------------------
 // Software limits (5.0.1).
 

@@ -7,7 +7,7 @@
 //! | 6.5, 4.4 | unit systems: FBUS.PARAM05 (36E9h) bit 4 = 0 scales positions, velocities and accelerations by UNIT.PIN/UNIT.POUT (6092h) per motor turn; bit 4 = 1 by the factor group 608Fh × 6091h / 6092h and 204Ch for velocities | [`FactorGroup`] through the generated `units` module; every bus value the common layer handles goes through it, PDOs included |
 //! | 6.8.2.1, 6.9.2.2 | 6063h and 60C1h in increments, 608Fh of them per motor turn | [`Vendor::after_step`], the SYNC handler |
 //! | 7.1.1 | bus scaling column: 606Ch is 1000:1 (the bus carries 1000 × VL.FB) | [`Vendor::after_step`] |
-//! | 6.4.1 | "Switched on": the output stage is on and holds the axis; transition 5 stops with the ramp and holds | [`Vendor::on_event`] |
+//! | 6.4.1 | "Switched on": the output stage is on and holds the axis; transition 5 stops with the ramp and holds; a fault reaction on a blocked axis ends with its ramp (common layer) | [`Vendor::disable_reaction`] |
 //! | 6.4.2.2, 7.2 | statusword: bit 10 only in Operation enabled; 0 in interpolated position mode and before a homing; homing ends with 0x0637 then 0x1637 (7.2.1.8); bit 7 while a warning is active | [`Vendor::statusword`] |
 //! | 6.10 | homing methods 1, 2, 8, 12, 17, 18, 24, 28, 33, 34, 35; a falling bit 4 aborts; 6099h defaults 60 rpm and 1/8 of it; HOME.P sets the home position | [`Vendor::homing_method`], [`Vendor::configure`]; errors F157/F158/F161 |
 //! | 6.11 | profile position; 607Dh software limits checked against new targets, in force after save and restart | [`Vendor::init`], [`Vendor::before_command`]; warnings n107/n108, faults F107/F108 |
@@ -26,8 +26,10 @@
 //! * motor data the EDS leaves at 0 take the values of [`motor`] (6000 rpm, ramps of
 //!   10 000 rpm/s, peak torque 3000 ‰, 3 A rated current); 6083h/6084h = 0 use DRV.ACC/DRV.DEC
 //!   (3501h/3522h), and those the default ramp; the quick stop ramp is CS.DEC (3440h sub 1).
-//! * a velocity factor 204Ch with a negative term is applied by its magnitude (BusScale has no
-//!   sign); 0 is refused (6.5.2.1 "0 must not be used"), as are zero terms of 608Fh and 6092h.
+//! * a velocity factor 204Ch with a negative term reverses the signed velocities (60FFh,
+//!   606Bh, 606Ch: 6.5.2.1 "modifies the resolution and the direction"), not the speeds
+//!   (6081h, 6099h, 607Fh); 0 is refused (6.5.2.1 "0 must not be used"), as are zero terms of
+//!   608Fh and 6092h.
 //! * 6099h and 6081h above the motor's top speed are refused with 0609 0031h (7.2.1.8 gets
 //!   that answer for 72 000 units/s in the default units).
 //! * software limits: a profile position or interpolation target beyond them is clipped and
@@ -50,7 +52,7 @@ use od_runtime::cia402::State;
 use od_runtime::od::{AbortCode, ObjectDictionary};
 use od_runtime::{Event, Micros};
 
-use super::cia402::{BusScale, Cia402App, Command, Vendor, read_int, scale_i64, write_int};
+use super::cia402::{BusScale, Cia402App, Command, DisableReaction, Vendor, read_int, scale_i64, write_int};
 use super::{Drive, ErrorSpec, error_table, sidecar};
 use crate::motion::{
     AxisConfig, Cam, Environment, HomeOffsetMode, HomingError, HomingKind, HomingMethod, HomingSignal, HomingState,
@@ -195,11 +197,12 @@ impl FactorGroup {
         let Ok(u) = AkdUnits::from_dictionary(od) else {
             return FactorGroup {
                 system,
-                scale: BusScale { position: turn, velocity: turn, acceleration: turn, torque: Ratio::ONE },
+                scale: BusScale { position: turn, velocity: turn, acceleration: turn, ..BusScale::ONE },
                 increments_per_turn: enc,
             };
         };
-        // Counts per user unit from the module's internal factor (increments or motor turns).
+        // Counts per user unit from the module's internal factor (increments or motor turns),
+        // as a magnitude; a negative factor (204Ch) is a direction, carried apart.
         let counts = |d: Dimension| -> Ratio {
             let Some(g) = u.internal_factor(d) else { return turn };
             let to_counts = match u.system() {
@@ -215,11 +218,14 @@ impl FactorGroup {
                 .filter(|r| r.num > 0)
                 .unwrap_or(turn)
         };
+        // 6.5.2.1: 204Ch "modifies the resolution and the direction" of the velocity values.
+        let reverse_velocity = u.internal_factor(Dimension::Velocity).is_some_and(|g| g.num() < 0);
         FactorGroup {
             system: u.system(),
             scale: BusScale {
                 position: counts(Dimension::Position),
                 velocity: counts(Dimension::Velocity),
+                reverse_velocity,
                 acceleration: counts(Dimension::Acceleration),
                 torque: Ratio::ONE,
             },
@@ -869,6 +875,16 @@ impl Vendor<Dictionary> for Akd {
         (code::F129_HEARTBEAT, None)
     }
 
+    /// 6.4.1.1: in Switched on the output stage is on and holds the axis (with the hardware
+    /// enable present); transition 5 stops with the profile deceleration and holds.
+    fn disable_reaction(&self, od: &Dictionary, from: State, to: State) -> DisableReaction {
+        if to == State::SwitchedOn && self.conditions.hardware_enable {
+            DisableReaction::hold(StopRamp::ProfileDeceleration)
+        } else {
+            DisableReaction::cia402(od, from, to)
+        }
+    }
+
     /// The quick stop ramp (CS.DEC) for every fault.
     fn fault_ramp(&self, _od: &Dictionary, _error: &ErrorSpec) -> StopRamp {
         StopRamp::QuickStopDeceleration
@@ -960,7 +976,7 @@ impl Vendor<Dictionary> for Akd {
             (0x204C | 0x608F | 0x6092, 1 | 2) if value == 0 => Err(AbortCode::INVALID_VALUE),
             (0x6099, 1 | 2) | (0x6081, 0) => {
                 let fg = FactorGroup::read(od);
-                let counts = fg.scale.velocity_in(i64::try_from(value).unwrap_or(i64::MAX));
+                let counts = fg.scale.speed_in(i64::try_from(value).unwrap_or(i64::MAX));
                 if counts > rpm_counts(top_speed_rpm(od)) { Err(AbortCode::VALUE_TOO_HIGH) } else { Ok(()) }
             }
             _ => Ok(()),
@@ -1018,13 +1034,6 @@ impl Vendor<Dictionary> for Akd {
             Event::Written { index: 0x6060, .. } | Event::Reset(od_runtime::ResetKind::Node) if Self::csp(drive) => {
                 drive.axis_mut().set_mode(Mode::InterpolatedPosition);
             }
-            // 6.4.1.1: in Switched on the output stage is on and holds the axis; transition 5
-            // stops with the ramp and keeps the position.
-            Event::Cia402(t) if t.to == State::SwitchedOn && self.conditions.hardware_enable => {
-                let axis = drive.axis_mut();
-                axis.set_power(true);
-                axis.quick_stop(StopRamp::ProfileDeceleration);
-            }
             _ => {}
         }
     }
@@ -1080,16 +1089,6 @@ impl Vendor<Dictionary> for Akd {
     }
 
     fn after_step(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, Dictionary>, status: &Status) {
-        // 6.4.1.1 "Fault": stopped and disabled. A blocked axis (an end stop, a following error)
-        // never reaches its demand, so the reaction ends when the stop ramp has: the output
-        // stage goes off and the common layer completes the transition.
-        if drive.state() == State::FaultReactionActive
-            && status.power
-            && status.velocity_demand == 0
-            && status.velocity_actual == 0
-        {
-            drive.axis_mut().set_power(false);
-        }
         self.homing_error(drive, ctx, status);
         if status.following_error_exceeded && !self.following_fault && drive.fault().is_none() {
             self.following_fault = true;
@@ -1108,26 +1107,25 @@ impl Vendor<Dictionary> for Akd {
             | u32::from(i.home_switch) << 2
             | u32::from(din & 0x7F) << 16
             | u32::from(self.din_changed & 0x7F) << 24;
-        let fg = FactorGroup::read(ctx.od());
-        let velocity = i64::from(status.velocity_actual);
-        let rated = rated_current_ma(ctx.od());
         // 60C4h sub 2: the usable buffer, one less than its size (6.9.2.4: 10, actual 9).
         let size = read_int(ctx.od(), 0x60C4, 1).unwrap_or(10).clamp(1, 1024);
         let free = size - 1 - status.interpolation_buffered as i64 - self.pvt_queue.len() as i64;
         let status_register = self.manufacturer_status(drive, status);
         let od = ctx.od_mut();
         write_int(od, 0x60FD, 0, i64::from(inputs));
-        write_int(od, 0x6063, 0, fg.counts_to_increments(i64::from(status.position_actual)));
-        // 7.1.4: 606Ch is scaled 1000:1.
-        write_int(
-            od,
-            0x606C,
-            0,
-            scale_i64(velocity.saturating_mul(1000), Ratio::new(fg.scale.velocity.den, fg.scale.velocity.num)),
-        );
-        write_int(od, 0x2077, 0, i64::from(status.torque_actual) * rated / 1000);
         write_int(od, 0x1002, 0, i64::from(status_register));
         write_int(od, 0x60C4, 2, free.max(0));
+    }
+
+    /// 6063h in 608Fh increments, 606Ch at 1000:1 (7.1.4), 2077h in mA: every tick and at once
+    /// after a factor-group write.
+    fn actual_values(&mut self, _drive: &Drive, od: &mut Dictionary, status: &Status) {
+        let fg = FactorGroup::read(od);
+        let velocity = i64::from(status.velocity_actual);
+        let rated = rated_current_ma(od);
+        write_int(od, 0x6063, 0, fg.counts_to_increments(i64::from(status.position_actual)));
+        write_int(od, 0x606C, 0, fg.scale.velocity_out(velocity.saturating_mul(1000)));
+        write_int(od, 0x2077, 0, i64::from(status.torque_actual) * rated / 1000);
     }
 
     fn statusword(&self, drive: &Drive, _od: &Dictionary, status: &Status, bits: &mut u16) {

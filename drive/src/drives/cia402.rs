@@ -9,16 +9,21 @@
 //!     Fault reaction active, off in the other states, fault reset leaving Fault);
 //!   * `Written 6040h` applies the controlword's operation-mode bits (4, 5, 6, 8, 9) as
 //!     [`Command`]s; `Written 6060h` changes the axis' mode; `Written 607Ah/60FFh/6071h`
-//!     the targets; any other write at 2000h and above marks the configuration stale, and it is
-//!     read again (with [`Vendor::configure`]) before the next command or step;
+//!     the targets; a write of a configuration object (2000h..5FFFh, the profile parameters)
+//!     is read into the axis at once (with [`Vendor::configure`]) and the actual values are
+//!     written again, so a unit change shows in the next read;
 //!   * heartbeat or guarding loss raises the device's fieldbus-disconnection error, once per
 //!     loss; it stays latched (Fault) when the link comes back, until a fault reset;
 //!   * a SYNC in interpolated position mode queues 60C1h sub 1 and starts the next segment;
 //!   * then [`Vendor::on_event`] sees the event (it may also consume it before the drive does,
-//!     see [`Vendor::pre_event`]).
+//!     see [`Vendor::pre_event`]);
+//!   * last, the statusword bits the drive owns are computed again, so what a command changed
+//!     (set-point acknowledge, target reached of a new target velocity) is visible at once.
 //! * **Ticks** (every 1 ms): follow the state, reconfigure if stale, [`Vendor::before_step`],
 //!   [`Axis::step`](crate::motion::Axis::step) by the elapsed time, report a finished quick stop
-//!   or fault reaction to od-runtime, write the actual values, [`Vendor::after_step`],
+//!   or fault reaction to od-runtime (its ramp has ended: the axis stands, or it is blocked and
+//!   its demand is at rest), write the actual values ([`Vendor::actual_values`] for the
+//!   device's own), [`Vendor::after_step`],
 //!   statusword bits 7, 8, 10..15 ([`Vendor::statusword`]), and a trace sample.
 //!
 //! # Units
@@ -126,12 +131,30 @@ fn sat_u32(v: i64) -> u32 {
 
 /// Internal units per bus unit, per dimension: `internal = bus × ratio`. The identity unless
 /// the device's bus unit is configurable (DRVI 2001h, AKD 6091h/6092h/204Ch).
+///
+/// Ratios are magnitudes (a motion [`Ratio`] has no sign). A bus unit that counts against the
+/// motor's direction (AKD 204Ch with one negative term: "changes the resolution *and the
+/// direction*", 6.5.2.1) sets [`BusScale::reverse_velocity`]: signed velocities are negated on
+/// their way in and out, speeds (unsigned magnitudes: profile velocity, limits, windows,
+/// homing speeds) are not.
+///
+/// ```
+/// use drive::drives::BusScale;
+/// use drive::motion::Ratio;
+///
+/// let s = BusScale { velocity: Ratio::new(6, 1), reverse_velocity: true, ..BusScale::ONE };
+/// assert_eq!(s.velocity_in(10), -60); // 60FFh = 10 turns the motor backwards
+/// assert_eq!(s.velocity_out(-60), 10); // and 606Ch reads it as forwards
+/// assert_eq!(s.speed_in(10), 60); // 6081h = 10 is a speed of 60, whatever the direction
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BusScale {
     /// Positions (6062h, 6064h, 607Ah, 607Ch, 607Dh, 6065h, 6067h, 60F4h, 60C1h).
     pub position: Ratio,
     /// Velocities (606Bh, 606Ch, 606Dh, 606Fh, 607Fh, 6081h, 6099h, 60FFh).
     pub velocity: Ratio,
+    /// Signed velocities (60FFh, 606Bh, 606Ch) count against the motor's direction.
+    pub reverse_velocity: bool,
     /// Accelerations (6083h, 6084h, 6085h, 609Ah).
     pub acceleration: Ratio,
     /// Torques (6071h, 6072h, 6074h, 6077h, 6087h per second).
@@ -146,8 +169,17 @@ impl Default for BusScale {
 
 impl BusScale {
     /// Bus units are the internal units.
-    pub const ONE: BusScale =
-        BusScale { position: Ratio::ONE, velocity: Ratio::ONE, acceleration: Ratio::ONE, torque: Ratio::ONE };
+    pub const ONE: BusScale = BusScale {
+        position: Ratio::ONE,
+        velocity: Ratio::ONE,
+        reverse_velocity: false,
+        acceleration: Ratio::ONE,
+        torque: Ratio::ONE,
+    };
+
+    fn velocity_sign(&self, v: i64) -> i64 {
+        if self.reverse_velocity { v.saturating_neg() } else { v }
+    }
 
     /// Bus position → internal.
     pub fn position_in(&self, bus: i64) -> i64 {
@@ -157,13 +189,17 @@ impl BusScale {
     pub fn position_out(&self, internal: i64) -> i64 {
         scale_i64(internal, recip(self.position))
     }
-    /// Bus velocity → internal.
+    /// Bus velocity (signed: 60FFh) → internal, direction included.
     pub fn velocity_in(&self, bus: i64) -> i64 {
-        scale_i64(bus, self.velocity)
+        self.velocity_sign(scale_i64(bus, self.velocity))
     }
-    /// Internal velocity → bus.
+    /// Internal velocity → bus velocity (signed: 606Bh, 606Ch), direction included.
     pub fn velocity_out(&self, internal: i64) -> i64 {
-        scale_i64(internal, recip(self.velocity))
+        self.velocity_sign(scale_i64(internal, recip(self.velocity)))
+    }
+    /// Bus speed (a magnitude: 6081h, 607Fh, 6099h, 606Dh, 606Fh) → internal.
+    pub fn speed_in(&self, bus: i64) -> i64 {
+        scale_i64(bus, self.velocity)
     }
     /// Bus acceleration → internal.
     pub fn acceleration_in(&self, bus: i64) -> i64 {
@@ -266,6 +302,19 @@ pub trait Vendor<OD>: Send + 'static {
         (0x8130, None)
     }
 
+    /// How the drive stops and what its power stage does on entering a state without
+    /// operation (`to`: Switched on, Ready to switch on, Switch on disabled, from `from`).
+    /// Default: CiA 402 ([`DisableReaction::cia402`]): 605Ch for disable operation (transition
+    /// 5), 605Bh for shutdown (8), the axis coasting otherwise and the power stage off once the
+    /// axis stands. A drive whose output stage stays on and holds the axis in Switched on (AKD
+    /// 6.4.1.1) returns [`DisableReaction::hold`].
+    fn disable_reaction(&self, od: &OD, from: State, to: State) -> DisableReaction
+    where
+        OD: ObjectDictionary,
+    {
+        DisableReaction::cia402(od, from, to)
+    }
+
     /// The ramp of a `quick_stop` error's fault reaction. Default: the quick stop deceleration
     /// (6085h, or the profile deceleration without one).
     fn fault_ramp(&self, od: &OD, error: &ErrorSpec) -> StopRamp {
@@ -321,6 +370,12 @@ pub trait Vendor<OD>: Send + 'static {
     /// Every tick, before the axis steps.
     fn before_step(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>) {}
 
+    /// Writes the device's own actual values (in the bus units of [`Drive::scale`]) after the
+    /// common ones (6062h, 6064h, 606Bh, 606Ch, 6074h, 6077h, 60F4h): every tick, and at once
+    /// after a configuration write that may have changed the units. Values that depend on the
+    /// units belong here rather than in [`Vendor::after_step`].
+    fn actual_values(&mut self, drive: &Drive, od: &mut OD, status: &Status) {}
+
     /// Every tick, after the axis stepped and the actual values were written.
     fn after_step(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>, status: &Status) {}
 
@@ -375,6 +430,37 @@ pub fn mirrored(method: HomingMethod) -> HomingMethod {
         HomingKind::Index { dir } => HomingKind::Index { dir: flip(dir) },
     };
     HomingMethod { code: method.code, kind }
+}
+
+/// What the drive does on entering a state without operation ([`Vendor::disable_reaction`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DisableReaction {
+    /// The ramp down; [`StopRamp::Coast`] switches the power stage off at once.
+    pub ramp: StopRamp,
+    /// The power stage stays on (and is switched on, coming from a state without it) and
+    /// holds the axis where the ramp ends; with `Coast` the ramp is the profile deceleration.
+    pub hold: bool,
+}
+
+impl DisableReaction {
+    /// CiA 402: leaving Operation enabled for Switched on (transition 5) ramps as 605Ch says,
+    /// for Ready to switch on (8) as 605Bh says (codes 1..=3 of the quick stop options;
+    /// absent or 0: coast); any other way in coasts. The power stage goes off.
+    pub fn cia402<OD: ObjectDictionary + ?Sized>(od: &OD, from: State, to: State) -> Self {
+        let ramp = match (from, to) {
+            (State::OperationEnabled, State::SwitchedOn) => read_int(od, 0x605C, 0),
+            (State::OperationEnabled, State::ReadyToSwitchOn) => read_int(od, 0x605B, 0),
+            _ => None,
+        }
+        .and_then(|c| StopRamp::from_option_code(c as i16))
+        .unwrap_or(StopRamp::Coast);
+        Self { ramp, hold: false }
+    }
+
+    /// The power stage stays on and holds the axis after ramping down with `ramp`.
+    pub fn hold(ramp: StopRamp) -> Self {
+        Self { ramp, hold: true }
+    }
 }
 
 /// The plain CiA 402 device: every [`Vendor`] default.
@@ -637,7 +723,7 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
         d.scale = s;
         let mut cfg = d.axis.config().clone();
         let get = |i: u16, sub: u8| Self::int(od, i, sub);
-        let vel = |i: u16, sub: u8, default: u32| get(i, sub).map_or(default, |v| sat_u32(s.velocity_in(v)));
+        let vel = |i: u16, sub: u8, default: u32| get(i, sub).map_or(default, |v| sat_u32(s.speed_in(v)));
         let acc = |i: u16, sub: u8, default: u32| get(i, sub).map_or(default, |v| sat_u32(s.acceleration_in(v)));
         let pos = |i: u16, sub: u8, default: u32| get(i, sub).map_or(default, |v| sat_u32(s.position_in(v)));
         let ms = |i: u16, default: u16| get(i, 0).map_or(default, |v| v.clamp(0, i64::from(u16::MAX)) as u16);
@@ -645,7 +731,7 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
         cfg.profile_acceleration = acc(0x6083, 0, 0);
         cfg.profile_deceleration = acc(0x6084, 0, 0);
         cfg.max_profile_velocity = match get(0x607F, 0) {
-            Some(v) if v > 0 => sat_u32(s.velocity_in(v)),
+            Some(v) if v > 0 => sat_u32(s.speed_in(v)),
             _ => u32::MAX,
         };
         cfg.quick_stop_deceleration = acc(0x6085, 0, 0);
@@ -805,19 +891,21 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
                 d.axis.set_power(false);
             }
             State::SwitchOnDisabled | State::ReadyToSwitchOn | State::SwitchedOn | State::NotReadyToSwitchOn => {
-                let ramp = match (from, now) {
-                    (State::OperationEnabled, State::SwitchedOn) => Self::int(ctx.od(), 0x605C, 0),
-                    (State::OperationEnabled, State::ReadyToSwitchOn) => Self::int(ctx.od(), 0x605B, 0),
-                    _ => None,
-                }
-                .and_then(|c| StopRamp::from_option_code(c as i16))
-                .unwrap_or(StopRamp::Coast);
-                if ramp == StopRamp::Coast || !d.axis.status().power {
+                let r = self.vendor.disable_reaction(ctx.od(), from, now);
+                let powered = d.axis.status().power;
+                if r.hold {
+                    // The output stage stays on and holds the axis (after ramping down).
+                    d.stopping = Stopping::No;
+                    if !powered {
+                        d.axis.set_power(true);
+                    }
+                    d.axis.quick_stop(if r.ramp == StopRamp::Coast { StopRamp::ProfileDeceleration } else { r.ramp });
+                } else if r.ramp == StopRamp::Coast || !powered {
                     d.stopping = Stopping::No;
                     d.axis.set_power(false);
                 } else {
                     d.stopping = Stopping::ThenOff;
-                    d.axis.quick_stop(ramp);
+                    d.axis.quick_stop(r.ramp);
                 }
                 if from == State::Fault {
                     // The hook still sees the fault being reset (Drive::fault).
@@ -937,7 +1025,14 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
                 let t = sat_i32(self.drive.scale.torque_in(t));
                 self.command(ctx, Command::TargetTorque(t));
             }
-            Event::Written { index, .. } if is_config(index) => self.drive.dirty = true,
+            // A configuration write takes effect at once: a unit change (DRVI 2001h, 2014h; AKD
+            // factor group) shows in the actual values the master reads next, not a tick later.
+            Event::Written { index, .. } if is_config(index) => {
+                self.drive.dirty = true;
+                self.refresh(ctx);
+                let status = self.status_now();
+                self.write_actuals(ctx, &status);
+            }
             // One error per loss: od-runtime reports a lost link again while it stays lost.
             Event::HeartbeatTimeout { node } => {
                 let bit = 1u128 << (node & 0x7F);
@@ -990,6 +1085,35 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
         write_int(od, 0x6074, 0, t(status.torque_demand));
         write_int(od, 0x6077, 0, t(status.torque_actual));
         write_int(od, 0x60F4, 0, p(status.following_error));
+        self.vendor.actual_values(&self.drive, ctx.od_mut(), status);
+    }
+
+    /// The axis' status as of now: [`Axis::status`] with target reached in the velocity modes
+    /// checked against the target in force. The axis re-evaluates its velocity window only
+    /// when it steps, so right after a new 60FFh (or a jog command) it would still report the
+    /// old target as reached until the next tick.
+    fn status_now(&self) -> Status {
+        let mut status = self.drive.axis.status();
+        let cfg = self.drive.axis.config();
+        let commanded = self.drive.state == State::OperationEnabled && self.drive.controlword & CW_HALT == 0;
+        let target = match self.drive.mode {
+            Mode::ProfileVelocity => Some(i64::from(self.drive.target_velocity)),
+            Mode::Jog => {
+                let v = i64::from(self.drive.target_velocity).abs();
+                Some(match status.jog {
+                    crate::motion::JogState::Positive => v,
+                    crate::motion::JogState::Negative => -v,
+                    crate::motion::JogState::Off => 0,
+                })
+            }
+            _ => None,
+        };
+        if let Some(target) = target.filter(|_| commanded) {
+            let cap = i64::from(cfg.max_profile_velocity);
+            let off = (target.clamp(-cap, cap) - i64::from(status.velocity_actual)).abs();
+            status.target_reached &= off <= i64::from(cfg.velocity_window);
+        }
+        status
     }
 
     /// Statusword bits 10..13 as CiA 402 defines them for the mode.
@@ -1048,22 +1172,22 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
         let status = self.drive.axis.status();
         // Stops the state machine waits for.
         match self.drive.state {
-            State::QuickStopActive if !self.drive.quick_stop_reported && (!status.power || status.standing) => {
+            State::QuickStopActive if !self.drive.quick_stop_reported && stop_ended(&status) => {
                 self.drive.quick_stop_reported = true;
                 ctx.quick_stop_done();
             }
-            State::FaultReactionActive if !status.power || status.standing => {
+            State::FaultReactionActive if stop_ended(&status) => {
                 self.drive.axis.set_power(false);
                 ctx.fault_reaction_done();
             }
-            _ if self.drive.stopping == Stopping::ThenOff && (!status.power || status.standing) => {
+            _ if self.drive.stopping == Stopping::ThenOff && stop_ended(&status) => {
                 self.drive.stopping = Stopping::No;
                 self.drive.axis.set_power(false);
             }
             _ => {}
         }
         self.follow_state(ctx);
-        let status = self.drive.axis.status();
+        let status = self.status_now();
         self.write_actuals(ctx, &status);
         self.vendor.after_step(&mut self.drive, ctx, &status);
         self.publish(ctx, &status);
@@ -1097,17 +1221,24 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> DriveApp<OD> for Cia402App<OD, V> {
         }
         self.handle_event(ctx, event);
         self.vendor.on_event(&mut self.drive, ctx, &event);
-        // A command's effect on the statusword (set-point acknowledge, homing started) is
-        // visible at once, not only at the next tick.
-        if let Event::Written { index: 0x6040 | 0x6060 | 0x60FF | 0x6071 | 0x607A, .. } = event {
-            let status = self.drive.axis.status();
-            self.publish(ctx, &status);
-        }
+        // What the event changed (a command's set-point acknowledge, a new target's bit 10, a
+        // homing started, a state left) is in the statusword at once, not only after the next
+        // tick: a master reading 6041h (or a TPDO sampled) right after sees it.
+        let status = self.status_now();
+        self.publish(ctx, &status);
     }
 
     fn tick(&mut self, ctx: &mut Ctx<'_, OD>) {
         self.run_tick(ctx);
     }
+}
+
+/// Whether a stop ramp (quick stop, fault reaction, disable) has ended: the power stage is
+/// off, the axis stands on its demand, or the demand has come to rest and the axis does not
+/// move although it is not on it (blocked against an end stop, held by a load it cannot move:
+/// it never settles on the demand, and the drive must not wait for it forever).
+fn stop_ended(status: &Status) -> bool {
+    !status.power || status.standing || (status.velocity_demand == 0 && status.velocity_actual == 0)
 }
 
 /// Whether a write came from the bus (SDO or RPDO) rather than the device itself.

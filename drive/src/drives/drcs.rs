@@ -514,7 +514,7 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drcs {
         let num = read_int(od, 0x2001, 1).filter(|v| *v > 0).unwrap_or(1);
         let den = read_int(od, 0x2001, 2).filter(|v| *v > 0).unwrap_or(1);
         let r = Ratio::new(INTERNAL_PER_UNIT * den, num);
-        BusScale { position: r, velocity: r, acceleration: r, torque: Ratio::ONE }
+        BusScale { position: r, velocity: r, acceleration: r, ..BusScale::ONE }
     }
 
     fn configure(&mut self, _od: &OD, _scale: &BusScale, cfg: &mut AxisConfig) {
@@ -591,19 +591,6 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drcs {
                     self.clear_reported(drive, ctx);
                 }
                 self.last_cw = cw;
-            }
-            Event::Written { index: 0x2001, .. } => {
-                // The new unit applies to what the master reads next, not only after the
-                // next tick: the actual values and the limits in the new unit at once.
-                drive.mark_dirty();
-                let scale = Vendor::<OD>::scale(self, ctx.od());
-                let status = drive.axis().status();
-                let od = ctx.od_mut();
-                write_int(od, 0x6062, 0, scale.position_out(i64::from(status.position_demand)));
-                write_int(od, 0x6064, 0, scale.position_out(i64::from(status.position_actual)));
-                write_int(od, 0x606B, 0, scale.velocity_out(i64::from(status.velocity_demand)));
-                write_int(od, 0x606C, 0, scale.velocity_out(i64::from(status.velocity_actual)));
-                self.write_limits(ctx.od_mut(), &scale);
             }
             Event::LifeGuardingLost => self.comm_reset_pending = true,
             _ => {}

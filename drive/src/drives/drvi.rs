@@ -471,7 +471,7 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drvi {
         let num = read_int(od, 0x2001, 1).filter(|v| *v > 0).unwrap_or(1);
         let den = read_int(od, 0x2001, 2).filter(|v| *v > 0).unwrap_or(1);
         let r = Ratio::new(den, num);
-        BusScale { position: r, velocity: r, acceleration: r, torque: Ratio::ONE }
+        BusScale { position: r, velocity: r, acceleration: r, ..BusScale::ONE }
     }
 
     fn configure(&mut self, od: &OD, _scale: &BusScale, cfg: &mut AxisConfig) {
@@ -577,7 +577,7 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drvi {
                 }
             }
             Command::TargetVelocity(v) if self.limits_active => {
-                let vmax = scale.velocity_in(read_int(od, 0x607F, 0).unwrap_or(i64::MAX));
+                let vmax = scale.speed_in(read_int(od, 0x607F, 0).unwrap_or(i64::MAX));
                 if i64::from(*v).abs() > vmax {
                     return self.refuse();
                 }

@@ -30,8 +30,8 @@
 //!
 //! | CiA 402 | objects | here |
 //! |---|---|---|
-//! | device control (§6.2), power stage | 6040h, 6041h bits 0..6, 9 | od-runtime runs the state machine; [`cia402::Cia402App`] follows its state: power on in Operation enabled (and during Quick stop active / Fault reaction active until the stop is done), off elsewhere; 605Bh/605Ch ramps before switching off (coast when absent) |
-//! | quick stop (§6.2, 605Ah) | 605Ah, 6085h | ramp per 605Ah (2 when absent); `quick_stop_done` reported to od-runtime when the axis stands |
+//! | device control (§6.2), power stage | 6040h, 6041h bits 0..6, 9 | od-runtime runs the state machine; [`cia402::Cia402App`] follows its state: power on in Operation enabled (and during Quick stop active / Fault reaction active until the stop is done), off elsewhere; 605Bh/605Ch ramps before switching off (coast when absent); a device that holds the axis in Switched on says so in [`cia402::Vendor::disable_reaction`] |
+//! | quick stop (§6.2, 605Ah) | 605Ah, 6085h | ramp per 605Ah (2 when absent); `quick_stop_done` reported to od-runtime when the axis stands, or when the ramp has ended on a blocked axis |
 //! | fault reaction | 603Fh, 1001h, 1003h, EMCY | [`ErrorTable`] from the device's sidecar: `quick_stop` errors ramp with the quick stop deceleration before Fault, `power_off` errors switch the power stage off at once (the axis coasts); EMCY with the sidecar's register bits and manufacturer bytes |
 //! | modes of operation (§6.3) | 6060h, 6061h, 6502h | 6060h writes of unsupported modes refused (0609 0030); the axis follows 6061h |
 //! | profile position (§12) | 607Ah, 6081h, 6083h, 6084h, 607Fh, 6067h, 6068h | cw bit 4 edge = new set-point (bit 5 change immediately, bit 6 relative, bit 9 change on set-point); sw bit 12 set-point acknowledge, bit 10 target reached, bit 13 following error |
@@ -41,8 +41,10 @@
 //! | interpolated position (§13) | 60C0h..60C2h | cw bit 4 enables; 60C1h sub 1 queued and consumed at each SYNC |
 //! | halt (§6.2.1 bit 8), 605Dh | 6040h bit 8 | every mode |
 //! | software limits, internal limit | 607Dh, sw bit 11 | targets clipped (the device decides when the limits apply) |
-//! | factor group (§6.4) | [`cia402::BusScale`] | the device converts bus units to the axis' internal units |
-//! | actual values | 6062h, 6064h, 606Bh, 606Ch, 6074h, 6077h, 60F4h | written every tick where the dictionary has them |
+//! | factor group (§6.4) | [`cia402::BusScale`] | the device converts bus units to the axis' internal units (a reversed velocity direction included) |
+//! | polarity (607Eh) | 607Eh bits 7 | positions and velocities mirrored; homing untouched (CiA 402) unless [`cia402::Vendor::polarity_reverses_homing`] |
+//! | actual values | 6062h, 6064h, 606Bh, 606Ch, 6074h, 6077h, 60F4h | written every tick where the dictionary has them, and at once after a configuration (unit) write |
+//! | store parameters (CiA 301) | 1010h, 1011h | only the objects of the sidecar's `[store]` list are saved ([`store`]) |
 //! | error control (CiA 301) | 1016h, 100Ch/100Dh | heartbeat or guarding loss = the device's "fieldbus disconnection" error ([`cia402::Vendor::fieldbus_error`]) |
 //!
 //! Everything the manuals add (vendor objects, warnings, extra statusword bits, unit systems)
