@@ -30,6 +30,7 @@ const OPS: &[(&str, &str)] = &[
     ("sdo_download", "SDO expedited download of 607Ah, request to response"),
     ("rpdo", "RPDO2 (controlword + target position) received and applied"),
     ("sync", "SYNC turned into 4 TPDOs (statusword, mode, position, velocity, error register)"),
+    ("poll_idle", "poll with nothing to do (operational, synchronous TPDOs only)"),
 ];
 
 fn run(op: &str, n: usize) -> Result<(), String> {
@@ -74,6 +75,14 @@ fn run(op: &str, n: usize) -> Result<(), String> {
             // 4 frames of 3, 6, 6 and 1 bytes per SYNC.
             if sink != 16 * n as u64 {
                 return Err(format!("unexpected frames: {sink} bytes for {n} SYNCs"));
+            }
+        }
+        "poll_idle" => {
+            dev.write(0x1800, 2, &[1]).map_err(|e| format!("{e:?}"))?;
+            dev.nmt_command(NmtCommand::Start, 0);
+            dev.poll(0, |_| {});
+            for _ in 0..n {
+                dev.poll(black_box(0), |f| sink += f.len() as u64);
             }
         }
         other => return Err(format!("unknown operation `{other}`")),

@@ -1,6 +1,8 @@
 //! Hot paths of the device core, measured on the hand-built test dictionary with an
 //! application that does nothing (`()`): an expedited SDO request handled to its response, an
-//! RPDO received and applied, and a SYNC turned into four TPDOs.
+//! RPDO received and applied, and a SYNC turned into four TPDOs. The test dictionary implements
+//! the handle methods of `ObjectDictionary` (the PDO fast path); the `plain/…` rows run the same
+//! PDO work on a dictionary that leaves them to the trait's defaults (a lookup per access).
 //!
 //! Every benchmark runs twice: `wall/…` with criterion's wall clock, and `cpu/…` with the
 //! thread's CPU time (Linux `CLOCK_THREAD_CPUTIME_ID`), which stays meaningful on a machine
@@ -12,13 +14,18 @@ mod common;
 use common::*;
 use criterion::measurement::{Measurement, ValueFormatter};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use od_runtime::od::ObjectDictionary;
 use od_runtime::{Device, Frame, NmtCommand, NodeId};
 use std::hint::black_box;
 
-type BenchDevice = Device<TestOd, (), MemStorage>;
+type BenchDevice<OD = TestOd> = Device<OD, (), MemStorage>;
 
 fn device() -> BenchDevice {
-    let mut dev = Device::new(TestOd::new(), (), MemStorage::default(), NodeId::new(1).unwrap());
+    device_with(TestOd::new())
+}
+
+fn device_with<OD: ObjectDictionary>(od: OD) -> BenchDevice<OD> {
+    let mut dev = Device::new(od, (), MemStorage::default(), NodeId::new(1).unwrap());
     dev.poll(0, |_| {});
     dev
 }
@@ -45,8 +52,8 @@ fn sdo<M: Measurement + 'static>(c: &mut Criterion<M>, clock: &str) {
     });
 }
 
-fn rpdo<M: Measurement + 'static>(c: &mut Criterion<M>, clock: &str) {
-    let mut dev = device();
+fn rpdo<M: Measurement + 'static, OD: ObjectDictionary>(c: &mut Criterion<M>, clock: &str, od: OD) {
+    let mut dev = device_with(od);
     dev.nmt_command(NmtCommand::Start, 0);
     dev.poll(0, |_| {});
     // RPDO2: controlword + target position, event-driven (applied on reception).
@@ -56,11 +63,13 @@ fn rpdo<M: Measurement + 'static>(c: &mut Criterion<M>, clock: &str) {
             dev.on_frame(black_box(&rx), 0);
         })
     });
-    assert_eq!(dev.od().get(0x607A, 0), 1_000_000);
+    let mut b = [0u8; 4];
+    assert_eq!(dev.od().read(0x607A, 0, &mut b), Ok(4));
+    assert_eq!(i32::from_le_bytes(b), 1_000_000);
 }
 
-fn sync_tpdos<M: Measurement + 'static>(c: &mut Criterion<M>, clock: &str) {
-    let mut dev = device();
+fn sync_tpdos<M: Measurement + 'static, OD: ObjectDictionary>(c: &mut Criterion<M>, clock: &str, od: OD) {
+    let mut dev = device_with(od);
     for n in 0..4u16 {
         let cob = 0x181 + 0x100 * u32::from(n);
         dev.write(0x1800 + n, 1, &(cob | 0x8000_0000).to_le_bytes()).unwrap();
@@ -68,8 +77,8 @@ fn sync_tpdos<M: Measurement + 'static>(c: &mut Criterion<M>, clock: &str) {
         dev.write(0x1800 + n, 1, &cob.to_le_bytes()).unwrap();
     }
     dev.nmt_command(NmtCommand::Start, 0);
-    dev.od_mut().set(0x6064, 0, 123_456);
-    dev.od_mut().set(0x606C, 0, -789);
+    dev.od_mut().write(0x6064, 0, &123_456i32.to_le_bytes()).unwrap();
+    dev.od_mut().write(0x606C, 0, &(-789i32).to_le_bytes()).unwrap();
     let sync = Frame::new(0x080, &[]).unwrap();
     let mut n = 0;
     dev.on_frame(&sync, 0);
@@ -87,14 +96,18 @@ fn sync_tpdos<M: Measurement + 'static>(c: &mut Criterion<M>, clock: &str) {
 
 fn wall(c: &mut Criterion) {
     sdo(c, "wall");
-    rpdo(c, "wall");
-    sync_tpdos(c, "wall");
+    rpdo(c, "wall", TestOd::new());
+    sync_tpdos(c, "wall", TestOd::new());
+    rpdo(c, "wall/plain", PlainOd::default());
+    sync_tpdos(c, "wall/plain", PlainOd::default());
 }
 
 fn cpu(c: &mut Criterion<CpuTime>) {
     sdo(c, "cpu");
-    rpdo(c, "cpu");
-    sync_tpdos(c, "cpu");
+    rpdo(c, "cpu", TestOd::new());
+    sync_tpdos(c, "cpu", TestOd::new());
+    rpdo(c, "cpu/plain", PlainOd::default());
+    sync_tpdos(c, "cpu/plain", PlainOd::default());
 }
 
 /// Thread CPU time in nanoseconds.

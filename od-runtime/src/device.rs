@@ -5,7 +5,7 @@ use crate::cia402::{self, StateMachine, Transitions};
 use crate::emcy::{self, Queue};
 use crate::frame::{Frame, Micros, NodeId};
 use crate::nmt::{NmtCommand, NmtState};
-use crate::od::{AbortCode, Area, DataType, EntryInfo, ObjectDictionary};
+use crate::od::{AbortCode, Area, DataType, EntryInfo, Handle, ObjectDictionary};
 use crate::pdo::{self, Direction, MAX_MAPPED, MapEntry, Mappable};
 use crate::sdo::{ObjectAccess, SdoServer};
 use crate::storage::{self, LOAD_SIGNATURE, SAVE_SIGNATURE, Storage};
@@ -135,6 +135,41 @@ pub trait App<OD> {
 
 impl<OD> App<OD> for () {}
 
+/// One entry of a loaded PDO mapping, resolved to a [`Handle`] when the mapping was loaded.
+#[derive(Clone, Copy, PartialEq, Eq)]
+struct Mapped {
+    index: u16,
+    sub: u8,
+    /// Length in bits (1..=64).
+    bits: u8,
+    /// The entry (unused for dummy entries).
+    handle: Handle,
+}
+
+impl Mapped {
+    const EMPTY: Self = Self { index: 0, sub: 0, bits: 0, handle: Handle::new(0) };
+
+    /// Whether this is a dummy entry of an RPDO (index 0x0001..=0x0007), which only skips bits.
+    const fn is_dummy(&self) -> bool {
+        self.index >= 1 && self.index <= 7
+    }
+}
+
+/// The low `bits` bits of `v`, in two shifts. `bits` is 1..=64 in a loaded mapping; the shift
+/// count is taken modulo 64, so no value can make it overflow.
+#[inline(always)]
+fn low_bits(v: u64, bits: u32) -> u64 {
+    let s = 64u32.wrapping_sub(bits) & 63;
+    (v << s) >> s
+}
+
+/// Whether a write of `index` has effects beyond the dictionary (communication objects, the
+/// CiA 402 controlword and modes of operation): such writes take [`Core::write_entry`]'s full
+/// path, every other RPDO-mapped entry goes straight to the dictionary.
+const fn has_side_effects(index: u16) -> bool {
+    (index >= 0x1000 && index <= 0x1FFF) || index == 0x6040 || index == 0x6060
+}
+
 #[derive(Clone, Copy)]
 struct Tpdo {
     present: bool,
@@ -147,7 +182,7 @@ struct Tpdo {
     sync_start: u8,
     ok: bool,
     count: u8,
-    map: [MapEntry; MAX_MAPPED],
+    map: [Mapped; MAX_MAPPED],
     bytes: u8,
     /// Data sampled at the last SYNC (types 0..=240, 252).
     sample: [u8; 8],
@@ -176,7 +211,7 @@ impl Tpdo {
         sync_start: 0,
         ok: false,
         count: 0,
-        map: [MapEntry { index: 0, sub: 0, bits: 0 }; MAX_MAPPED],
+        map: [Mapped::EMPTY; MAX_MAPPED],
         bytes: 0,
         sample: [0; 8],
         has_sample: false,
@@ -214,7 +249,7 @@ struct Rpdo {
     ttype: u8,
     ok: bool,
     count: u8,
-    map: [MapEntry; MAX_MAPPED],
+    map: [Mapped; MAX_MAPPED],
     bytes: u8,
     pending: Option<[u8; 8]>,
     /// Deadline monitoring: 0 = off.
@@ -231,7 +266,7 @@ impl Rpdo {
         ttype: 0,
         ok: false,
         count: 0,
-        map: [MapEntry { index: 0, sub: 0, bits: 0 }; MAX_MAPPED],
+        map: [Mapped::EMPTY; MAX_MAPPED],
         bytes: 0,
         pending: None,
         timeout: 0,
@@ -286,9 +321,23 @@ struct Core<OD, A, S, const P: usize> {
     guard_last: Option<Micros>,
     guard_lost: bool,
     consumers: [Consumer; MAX_HEARTBEAT_CONSUMERS],
+    /// `consumers[..consumers_len]` holds every configured consumer (node != 0).
+    consumers_len: usize,
     rpdo: [Rpdo; P],
     tpdo: [Tpdo; P],
+    /// Numbers of the active RPDOs (`rx_active[..rx_len]`), in order, so that frames, SYNCs and
+    /// deadlines only visit the PDOs in use.
+    rx_active: [u16; P],
+    rx_len: usize,
+    /// Numbers of the active TPDOs (`tx_active[..tx_len]`), in order.
+    tx_active: [u16; P],
+    tx_len: usize,
+    /// Whether an active RPDO has deadline monitoring (an event timer).
+    rx_deadlines: bool,
     drive: Option<StateMachine>,
+    /// 6041h (statusword) and 605Ah (quick stop option code), resolved when `drive` is created.
+    statusword: Option<Handle>,
+    quick_stop: Option<Handle>,
     remote: bool,
 }
 
@@ -348,35 +397,19 @@ fn pdo_lookup<OD: ObjectDictionary>(od: &OD) -> impl FnMut(u16, u8) -> Result<Ma
     move |i, s| od.info(i, s).map(Mappable::from)
 }
 
-/// Reads an entry, retrying with a larger buffer for strings longer than 8 bytes.
-fn read_value<OD: ObjectDictionary>(od: &OD, index: u16, sub: u8, out: &mut [u8; 8]) -> usize {
-    match od.read(index, sub, out) {
-        Ok(n) => n.min(8),
-        Err(_) => {
-            let mut big = [0u8; 256];
-            match od.read(index, sub, &mut big) {
-                Ok(n) => {
-                    let n = n.min(8);
-                    out[..n].copy_from_slice(&big[..n]);
-                    n
-                }
-                Err(_) => 0,
-            }
-        }
-    }
-}
-
-fn pack<OD: ObjectDictionary>(od: &OD, map: &[MapEntry]) -> [u8; 8] {
-    let mut data = [0u8; 8];
+/// The data of a TPDO: each mapped value's low `bits` bits, from bit 0 up, in one 64-bit word
+/// (a loaded mapping has at most 64 bits, so every entry fits).
+fn pack<OD: ObjectDictionary>(od: &OD, map: &[Mapped]) -> [u8; 8] {
+    let mut word = 0u64;
     let mut offset = 0u32;
     for e in map {
         let bits = u32::from(e.bits);
-        let mut v = [0u8; 8];
-        let n = read_value(od, e.index, e.sub, &mut v);
-        pdo::put_bits(&mut data, offset, bits, &v[..n]);
+        let v = low_bits(u64::from_le_bytes(od.read_handle(e.handle)), bits);
+        // A loaded mapping has at most 64 bits, so `offset` stays below 64 for every entry.
+        word |= v << (offset & 63);
         offset += bits;
     }
-    data
+    word.to_le_bytes()
 }
 
 impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S, P> {
@@ -447,6 +480,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                 for c in &mut self.consumers[k..] {
                     *c = Consumer::default();
                 }
+                // Polls and heartbeats visit the consumers up to the last configured one.
+                self.consumers_len = self.consumers.iter().rposition(|c| c.node != 0).map_or(0, |last| last + 1);
             }
             0x1017 => {
                 self.hb_period = Micros::from(read_uint(&self.od, 0x1017, 0).unwrap_or(0)) * 1000;
@@ -493,11 +528,19 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
             }
         }
         let bits = pdo::check_mapping(dir, &values[..usize::from(count)], pdo_lookup(od));
-        let ok = ok && bits.is_ok();
+        let mut ok = ok && bits.is_ok();
         let bytes = bits.unwrap_or(0).div_ceil(8) as u8;
-        let mut entries = [MapEntry::default(); MAX_MAPPED];
+        let mut entries = [Mapped::EMPTY; MAX_MAPPED];
         for (e, v) in entries.iter_mut().zip(&values[..usize::from(count)]) {
-            *e = MapEntry::decode(*v);
+            let m = MapEntry::decode(*v);
+            *e = Mapped { index: m.index, sub: m.sub, bits: m.bits, handle: Handle::new(0) };
+            if ok && !m.is_dummy() {
+                // Resolved once here, used on every SYNC and every reception.
+                match od.handle(m.index, m.sub) {
+                    Some(h) => e.handle = h,
+                    None => ok = false,
+                }
+            }
         }
         let c = cob.unwrap_or(0x8000_0000);
         let valid = c & 0xA000_0000 == 0;
@@ -554,6 +597,25 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                     t.restart(self.now);
                 }
                 self.tpdo[n] = t;
+            }
+        }
+        self.index_active();
+    }
+
+    /// Rebuilds the lists of active RPDOs and TPDOs.
+    fn index_active(&mut self) {
+        self.rx_len = 0;
+        self.tx_len = 0;
+        self.rx_deadlines = false;
+        for n in 0..P {
+            if self.rpdo[n].active() {
+                self.rx_active[self.rx_len] = n as u16;
+                self.rx_len += 1;
+                self.rx_deadlines |= self.rpdo[n].timeout != 0;
+            }
+            if self.tpdo[n].active() {
+                self.tx_active[self.tx_len] = n as u16;
+                self.tx_len += 1;
             }
         }
     }
@@ -630,6 +692,41 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
 
     /// The write path shared by SDO, RPDOs and local writes (access rights are the caller's).
     fn write_entry(&mut self, index: u16, sub: u8, data: &[u8], source: WriteSource) -> Result<(), AbortCode> {
+        self.write_resolved(index, sub, None, data, source)
+    }
+
+    /// [`Core::write_entry`], with the entry's handle when the caller has one (an RPDO). Only
+    /// the communication objects and 6040h/6060h have rules and effects beyond the dictionary
+    /// ([`has_side_effects`]); every other write is the application's veto, the dictionary's
+    /// checks and the event.
+    fn write_resolved(
+        &mut self,
+        index: u16,
+        sub: u8,
+        handle: Option<Handle>,
+        data: &[u8],
+        source: WriteSource,
+    ) -> Result<(), AbortCode> {
+        let special = has_side_effects(index);
+        if special && self.write_special(index, sub, data, source)? {
+            return Ok(());
+        }
+        self.app.on_write(&self.od, index, sub, data, source)?;
+        match handle {
+            Some(h) => self.od.write_handle(h, data)?,
+            None => self.od.write(index, sub, data)?,
+        }
+        self.event(Event::Written { index, sub, source });
+        if special {
+            self.after_write(index, sub, data);
+        }
+        Ok(())
+    }
+
+    /// The rules of the objects with side effects, before a write: `Err` refuses the write,
+    /// `Ok(true)` means the write was carried out here in full (store/restore, clearing the
+    /// error history), `Ok(false)` that it goes on to the dictionary.
+    fn write_special(&mut self, index: u16, sub: u8, data: &[u8], source: WriteSource) -> Result<bool, AbortCode> {
         match index {
             0x1010 | 0x1011 if sub >= 1 => {
                 self.od.info(index, sub)?;
@@ -643,7 +740,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                     self.restore(sub, le_u32(data))?
                 }
                 self.event(Event::Written { index, sub, source });
-                return Ok(());
+                return Ok(true);
             }
             0x1003 if sub == 0 => {
                 self.od.info(index, sub)?;
@@ -656,7 +753,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                 self.app.on_write(&self.od, index, sub, data, source)?;
                 self.clear_history();
                 self.event(Event::Written { index, sub, source });
-                return Ok(());
+                return Ok(true);
             }
             0x1019 => {
                 if self.sync_period != 0 {
@@ -679,11 +776,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
             0x6040 if self.drive.is_some() && !self.remote => return Err(AbortCode::LOCAL_CONTROL),
             _ => {}
         }
-        self.app.on_write(&self.od, index, sub, data, source)?;
-        self.od.write(index, sub, data)?;
-        self.event(Event::Written { index, sub, source });
-        self.after_write(index, sub, data);
-        Ok(())
+        Ok(false)
     }
 
     fn after_write(&mut self, index: u16, sub: u8, data: &[u8]) {
@@ -691,7 +784,11 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
             0x1000..=0x1FFF => self.reload(index),
             0x6040 if sub == 0 && self.drive.is_some() => {
                 let cw = le_u32(data) as u16;
-                let opt = self.quick_stop_option();
+                // 605Ah matters only in these two states (transitions 11, 12 and 16).
+                let needs_option = self.drive.is_some_and(|sm| {
+                    matches!(sm.state(), cia402::State::OperationEnabled | cia402::State::QuickStopActive)
+                });
+                let opt = if needs_option { self.quick_stop_option() } else { 2 };
                 if let Some(sm) = &mut self.drive {
                     let ts = sm.controlword(cw, opt);
                     self.drive_transitions(ts);
@@ -810,6 +907,14 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         if kind == ResetKind::Node {
             let has = self.od.info(0x6040, 0).is_ok() && self.od.info(0x6041, 0).is_ok();
             self.drive = has.then(StateMachine::new);
+            // Only a 16-bit 6041h/605Ah is used (as before handles: a read of another length
+            // counted as absent).
+            let u16_entry = |od: &OD, index| match od.info(index, 0) {
+                Ok(e) if e.byte_len() == 2 && !e.data_type.is_variable_length() => od.handle(index, 0),
+                _ => None,
+            };
+            self.statusword = if has { u16_entry(&self.od, 0x6041) } else { None };
+            self.quick_stop = u16_entry(&self.od, 0x605A);
         }
         self.event(Event::Reset(kind));
         if kind == ResetKind::Node
@@ -870,10 +975,12 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
     // ---- CiA 402 --------------------------------------------------------------------------
 
     fn quick_stop_option(&self) -> i16 {
-        let mut b = [0u8; 8];
-        match self.od.read(0x605A, 0, &mut b) {
-            Ok(2) => i16::from_le_bytes([b[0], b[1]]),
-            _ => 2,
+        match self.quick_stop {
+            Some(h) => {
+                let b = self.od.read_handle(h);
+                i16::from_le_bytes([b[0], b[1]])
+            }
+            None => 2,
         }
     }
 
@@ -897,15 +1004,12 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
     }
 
     fn update_statusword(&mut self) {
-        let Some(sm) = self.drive else { return };
-        let mut b = [0u8; 8];
-        let cur = match self.od.read(0x6041, 0, &mut b) {
-            Ok(2) => u16::from_le_bytes([b[0], b[1]]),
-            _ => 0,
-        };
+        let (Some(sm), Some(h)) = (self.drive, self.statusword) else { return };
+        let b = self.od.read_handle(h);
+        let cur = u16::from_le_bytes([b[0], b[1]]);
         let new = (cur & !0x027F) | sm.state().statusword_bits() | if self.remote { 0x0200 } else { 0 };
         if new != cur {
-            let _ = self.od.write(0x6041, 0, &new.to_le_bytes());
+            let _ = self.od.write_handle(h, &new.to_le_bytes());
         }
     }
 
@@ -916,17 +1020,14 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         if !self.nmt.pdo_allowed() {
             return;
         }
-        for n in 0..P {
-            if let Some(data) = self.rpdo[n].pending.take() {
+        for i in 0..self.rx_len.min(P) {
+            let n = usize::from(self.rx_active[i]);
+            if let Some(data) = self.rpdo.get_mut(n).and_then(|r| r.pending.take()) {
                 self.apply_rpdo(n, data);
             }
         }
-        for n in 0..P {
-            let t = &self.tpdo[n];
-            if !t.active() {
-                continue;
-            }
-            let t = &mut self.tpdo[n];
+        for i in 0..self.tx_len.min(P) {
+            let Some(t) = self.tpdo.get_mut(usize::from(self.tx_active[i])) else { continue };
             match t.ttype {
                 0 => {
                     let data = pack(&self.od, &t.map[..usize::from(t.count)]);
@@ -960,44 +1061,66 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         }
     }
 
-    fn on_rpdo(&mut self, n: usize, data: &[u8]) {
-        self.rpdo[n].last_rx = Some(self.now);
-        self.rpdo[n].expired = false;
-        if data.len() < usize::from(self.rpdo[n].bytes) {
+    /// A frame for RPDO `n`: `data` is the frame's eight bytes (zero past its length `len`).
+    fn on_rpdo(&mut self, n: usize, data: &[u8; 8], len: usize) {
+        let now = self.now;
+        let Some(r) = self.rpdo.get_mut(n) else { return };
+        r.last_rx = Some(now);
+        r.expired = false;
+        if len < usize::from(r.bytes) {
             self.emcy(emcy::PDO_LENGTH_ERROR, emcy::REG_COMMUNICATION, [0; 5]);
             return;
         }
-        let mut buf = [0u8; 8];
-        let len = data.len().min(8);
-        buf[..len].copy_from_slice(&data[..len]);
-        if self.rpdo[n].ttype <= 240 {
-            self.rpdo[n].pending = Some(buf);
+        if r.ttype <= 240 {
+            r.pending = Some(*data);
         } else {
-            self.apply_rpdo(n, buf);
+            self.apply_rpdo(n, *data);
         }
     }
 
+    /// Writes the entries of RPDO `n` from its data: each one's bits cut out of one 64-bit
+    /// word, then written through its handle (or the full write path for the objects with
+    /// side effects).
     fn apply_rpdo(&mut self, n: usize, data: [u8; 8]) {
+        let word = u64::from_le_bytes(data);
+        let count = self.rpdo.get(n).map_or(0, |r| usize::from(r.count));
         let mut offset = 0u32;
-        for k in 0..usize::from(self.rpdo[n].count) {
+        for k in 0..count.min(MAX_MAPPED) {
             let e = self.rpdo[n].map[k];
             let bits = u32::from(e.bits);
             if !e.is_dummy() {
-                let mut v = [0u8; 8];
-                let len = pdo::get_bits(&data, offset, bits, &mut v);
-                let _ = self.write_entry(e.index, e.sub, &v[..len], WriteSource::Rpdo(n as u16));
+                let v = low_bits(word >> (offset & 63), bits);
+                let bytes = v.to_le_bytes();
+                let len = (e.bits as usize).div_ceil(8).min(8);
+                let source = WriteSource::Rpdo(n as u16);
+                let _ = if has_side_effects(e.index) {
+                    self.write_resolved(e.index, e.sub, Some(e.handle), &bytes[..len], source)
+                } else {
+                    self.write_plain(e, &bytes[..len], source)
+                };
             }
             offset += bits;
         }
     }
 
+    /// The write of an RPDO entry without side effects: the application's veto, the
+    /// dictionary (through the handle) and the event.
+    fn write_plain(&mut self, e: Mapped, data: &[u8], source: WriteSource) -> Result<(), AbortCode> {
+        self.app.on_write(&self.od, e.index, e.sub, data, source)?;
+        self.od.write_handle(e.handle, data)?;
+        self.event(Event::Written { index: e.index, sub: e.sub, source });
+        Ok(())
+    }
+
     fn poll_tpdos(&mut self, now: Micros, emit: &mut impl FnMut(Frame)) {
-        for t in &mut self.tpdo {
-            if !t.active() {
+        for i in 0..self.tx_len.min(P) {
+            let Some(t) = self.tpdo.get_mut(usize::from(self.tx_active[i])) else { continue };
+            let asynchronous = t.ttype >= 254;
+            if !(t.rtr || t.due || asynchronous) {
                 continue;
             }
             let map = &t.map[..usize::from(t.count)];
-            let inhibited = t.sent_once && t.inhibit != 0 && now < t.last_tx.saturating_add(t.inhibit);
+            let inhibited = t.inhibit != 0 && t.sent_once && now < t.last_tx.saturating_add(t.inhibit);
             let mut out = None;
             if t.rtr {
                 t.rtr = false;
@@ -1007,7 +1130,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                     t.due = false;
                     out = Some(t.sample);
                 }
-            } else if t.ttype >= 254 && !inhibited {
+            } else if !inhibited {
                 let data = pack(&self.od, map);
                 let timer = t.event != 0 && now >= t.next_event;
                 if !t.sent_once || data != t.last || timer || t.requested {
@@ -1058,8 +1181,9 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         }
         if self.nmt.pdo_allowed() {
             self.poll_tpdos(now, emit);
-            for n in 0..P {
-                let r = &mut self.rpdo[n];
+            for i in 0..if self.rx_deadlines { self.rx_len.min(P) } else { 0 } {
+                let n = usize::from(self.rx_active[i]);
+                let Some(r) = self.rpdo.get_mut(n) else { continue };
                 if r.timeout != 0
                     && !r.expired
                     && let Some(last) = r.last_rx
@@ -1080,7 +1204,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
             self.hb_next = now.saturating_add(self.hb_period);
             emit(Frame::short(0x700 + node, [self.nmt.code(), 0, 0, 0, 0, 0, 0, 0], 1));
         }
-        for k in 0..MAX_HEARTBEAT_CONSUMERS {
+        for k in 0..self.consumers_len.min(MAX_HEARTBEAT_CONSUMERS) {
             let c = self.consumers[k];
             if c.node != 0 && c.active && now >= c.last.saturating_add(c.time) {
                 self.consumers[k].active = false;
@@ -1112,8 +1236,11 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                     }
                 }
             } else if self.nmt.pdo_allowed() {
-                for t in &mut self.tpdo {
-                    if t.active() && t.rtr_ok && t.cob == id {
+                for i in 0..self.tx_len.min(P) {
+                    if let Some(t) = self.tpdo.get_mut(usize::from(self.tx_active[i]))
+                        && t.rtr_ok
+                        && t.cob == id
+                    {
                         t.rtr = true;
                     }
                 }
@@ -1138,9 +1265,10 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
             return self.nmt.sdo_allowed() && data.len() == 8;
         }
         if self.nmt.pdo_allowed() {
-            for n in 0..P {
-                if self.rpdo[n].active() && self.rpdo[n].cob == id {
-                    self.on_rpdo(n, data);
+            for i in 0..self.rx_len.min(P) {
+                let n = usize::from(self.rx_active[i]);
+                if self.rpdo.get(n).is_some_and(|r| r.cob == id) {
+                    self.on_rpdo(n, frame.raw(), data.len());
                     return false;
                 }
             }
@@ -1148,7 +1276,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         if (0x701..=0x77F).contains(&id) && !data.is_empty() {
             let from = (id - 0x700) as u8;
             let now = self.now;
-            for k in 0..MAX_HEARTBEAT_CONSUMERS {
+            for k in 0..self.consumers_len.min(MAX_HEARTBEAT_CONSUMERS) {
                 let c = self.consumers[k];
                 if c.node == from {
                     self.consumers[k].last = now;
@@ -1229,9 +1357,17 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
                 guard_last: None,
                 guard_lost: false,
                 consumers: [Consumer::default(); MAX_HEARTBEAT_CONSUMERS],
+                consumers_len: 0,
                 rpdo: [Rpdo::EMPTY; PDOS],
                 tpdo: [Tpdo::EMPTY; PDOS],
+                rx_active: [0; PDOS],
+                rx_len: 0,
+                tx_active: [0; PDOS],
+                tx_len: 0,
+                rx_deadlines: false,
                 drive: None,
+                statusword: None,
+                quick_stop: None,
                 remote: true,
             },
         }

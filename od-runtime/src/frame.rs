@@ -48,29 +48,35 @@ impl Frame {
     }
 
     /// An 8-byte data frame (the runtime's own responses). `id` is masked to 11 bits.
+    #[inline]
     pub(crate) const fn full(id: u16, data: [u8; 8]) -> Self {
         Self { id: id & 0x7FF, rtr: false, len: 8, data }
     }
 
     /// A data frame of `len <= 8` bytes taken from `data` (runtime internal).
+    #[inline]
     pub(crate) fn short(id: u16, data: [u8; 8], len: usize) -> Self {
         let len = len.min(8);
-        let mut d = [0u8; 8];
-        d[..len].copy_from_slice(&data[..len]);
+        // Zero past `len` with a mask rather than a copy of variable length.
+        let keep = if len >= 8 { u64::MAX } else { (1u64 << (8 * len)) - 1 };
+        let d = (u64::from_le_bytes(data) & keep).to_le_bytes();
         Self { id: id & 0x7FF, rtr: false, len: len as u8, data: d }
     }
 
     /// The 11-bit identifier (COB-ID).
+    #[inline]
     pub const fn id(&self) -> u16 {
         self.id
     }
 
     /// Whether this is a remote transmission request.
+    #[inline]
     pub const fn is_rtr(&self) -> bool {
         self.rtr
     }
 
     /// The data length code (0..=8).
+    #[inline]
     pub const fn len(&self) -> usize {
         self.len as usize
     }
@@ -81,11 +87,13 @@ impl Frame {
     }
 
     /// The data bytes (empty for a remote frame).
+    #[inline]
     pub fn data(&self) -> &[u8] {
         if self.rtr { &[] } else { &self.data[..self.len as usize] }
     }
 
     /// All eight data bytes, zero past `len`.
+    #[inline]
     pub const fn raw(&self) -> &[u8; 8] {
         &self.data
     }

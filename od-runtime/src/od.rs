@@ -220,11 +220,52 @@ impl Area {
     }
 }
 
+/// A resolved reference to one entry, for repeated access without looking the entry up again.
+///
+/// The runtime resolves every entry a PDO maps once, when the mapping is loaded, with
+/// [`ObjectDictionary::handle`], and from then on reaches the value with
+/// [`ObjectDictionary::read_handle`] and [`ObjectDictionary::write_handle`]: on every SYNC, for
+/// every received PDO. What the number means is the dictionary's business. The default methods
+/// use the key `index << 8 | sub` ([`Handle::from_key`]), so they work for any dictionary;
+/// generated dictionaries use the entry's position in their table, which makes an access one
+/// `match` on a number, without a lookup.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Handle(u32);
+
+impl Handle {
+    /// A handle with a number of the dictionary's choosing.
+    pub const fn new(raw: u32) -> Self {
+        Self(raw)
+    }
+
+    /// The number given to [`Handle::new`].
+    pub const fn get(self) -> u32 {
+        self.0
+    }
+
+    /// The handle the default methods of [`ObjectDictionary`] use: the key `index << 8 | sub`.
+    pub const fn from_key(index: u16, sub: u8) -> Self {
+        Self((index as u32) << 8 | sub as u32)
+    }
+
+    /// `(index, sub)` of a handle made by [`Handle::from_key`].
+    pub const fn key(self) -> (u16, u8) {
+        ((self.0 >> 8) as u16, self.0 as u8)
+    }
+}
+
 /// An object dictionary the runtime can serve.
 ///
 /// Values travel as little-endian bytes, as on the bus. Implementations check lengths and
 /// limits; the caller (SDO server, PDO engine) checks access rights using [`EntryInfo`].
 /// No method may panic, whatever the arguments.
+///
+/// Five methods are required. Three more, the *handle* methods ([`handle`](Self::handle),
+/// [`read_handle`](Self::read_handle), [`write_handle`](Self::write_handle)), are a fast path
+/// for the PDOs: their defaults go through [`info`](Self::info), [`read`](Self::read) and
+/// [`write`](Self::write), so a hand-written dictionary works without them. A dictionary that
+/// can reach an entry faster by a number of its own (a position, an offset) overrides all three
+/// together, consistently.
 pub trait ObjectDictionary {
     /// Every entry's metadata, sorted by `(index, sub)`.
     fn entries(&self) -> &'static [EntryInfo];
@@ -252,6 +293,52 @@ pub trait ObjectDictionary {
 
     /// Sets every entry of `area` back to its default, resolving `$NODEID` with `node_id`.
     fn restore_defaults(&mut self, area: Area, node_id: u8);
+
+    /// Resolves `(index, sub)` for [`read_handle`](Self::read_handle) and
+    /// [`write_handle`](Self::write_handle); `None` if the entry does not exist. A handle stays
+    /// valid as long as the dictionary value does (the entries are a static table).
+    ///
+    /// Default: [`Handle::from_key`] once [`info`](Self::info) found the entry.
+    fn handle(&self, index: u16, sub: u8) -> Option<Handle> {
+        self.info(index, sub).ok().map(|_| Handle::from_key(index, sub))
+    }
+
+    /// The value behind `h` as little-endian bytes: the whole value for every fixed-size type,
+    /// the first 8 bytes of a longer one (a string mapped into a PDO), zero past the value's
+    /// length. All zeros for a handle that names no entry (never a panic).
+    ///
+    /// Default: [`read`](Self::read) with the key; values longer than 256 bytes read as zeros.
+    fn read_handle(&self, h: Handle) -> [u8; 8] {
+        let (index, sub) = h.key();
+        let mut buf = [0u8; 8];
+        match self.read(index, sub, &mut buf) {
+            Ok(_) => buf,
+            Err(AbortCode::OUT_OF_MEMORY) => read_long(self, index, sub),
+            Err(_) => [0; 8],
+        }
+    }
+
+    /// Stores a value given as bytes, with the same checks as [`write`](Self::write) (length,
+    /// limits; no access rights). `Err(NO_OBJECT)` for a handle that names no entry.
+    ///
+    /// Default: [`write`](Self::write) with the key.
+    fn write_handle(&mut self, h: Handle, data: &[u8]) -> Result<(), AbortCode> {
+        let (index, sub) = h.key();
+        self.write(index, sub, data)
+    }
+}
+
+/// The first 8 bytes of a value too long for an 8-byte buffer (the default
+/// [`ObjectDictionary::read_handle`]); kept out of line so the common case needs no large stack.
+#[cold]
+#[inline(never)]
+fn read_long<D: ObjectDictionary + ?Sized>(od: &D, index: u16, sub: u8) -> [u8; 8] {
+    let mut big = [0u8; 256];
+    let mut out = [0u8; 8];
+    if od.read(index, sub, &mut big).is_ok() {
+        out.copy_from_slice(&big[..8]);
+    }
+    out
 }
 
 impl DataType {
@@ -315,6 +402,9 @@ impl EntryInfo {
         if !self.data_type.is_integer() || len > 16 {
             return Ok(());
         }
+        if self.low.is_none() && self.high.is_none() && self.data_type != DataType::Boolean {
+            return Ok(());
+        }
         let value = decode_int(data, self.data_type.is_signed());
         if self.data_type == DataType::Boolean && value > 1 {
             return Err(AbortCode::INVALID_VALUE);
@@ -335,6 +425,20 @@ impl EntryInfo {
 
 /// Reads up to 16 little-endian bytes as an integer, sign-extending when `signed`.
 pub fn decode_int(data: &[u8], signed: bool) -> i128 {
+    if data.len() <= 8 {
+        // The common case in 64-bit arithmetic, without copying through a buffer.
+        let mut raw = 0u64;
+        for (i, b) in data.iter().enumerate() {
+            raw |= u64::from(*b) << (8 * i);
+        }
+        let width = 8 * data.len() as u32;
+        return if signed && width > 0 {
+            let shift = 64 - width;
+            i128::from(((raw << shift) as i64) >> shift)
+        } else {
+            i128::from(raw)
+        };
+    }
     let mut raw = [0u8; 16];
     let n = data.len().min(16);
     raw[..n].copy_from_slice(&data[..n]);

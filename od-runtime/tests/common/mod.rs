@@ -3,7 +3,7 @@
 #![allow(dead_code)]
 
 use od_runtime::crc::crc16_ccitt;
-use od_runtime::od::{AbortCode, Access, Area, DataType, DefaultValue, EntryInfo, ObjectDictionary};
+use od_runtime::od::{AbortCode, Access, Area, DataType, DefaultValue, EntryInfo, Handle, ObjectDictionary};
 use od_runtime::{App, Device, Event, Frame, Micros, NodeId, Storage, WriteSource};
 use std::collections::BTreeMap;
 
@@ -56,7 +56,7 @@ const fn limits(mut x: EntryInfo, low: i128, high: i128) -> EntryInfo {
 }
 
 /// Number of entries in [`ENTRIES`].
-pub const N: usize = 181;
+pub const N: usize = 182;
 /// Capacity of the DOMAIN 2003h in bytes (larger than the 1 KiB SDO buffer).
 pub const DOMAIN_CAP: u32 = 2048;
 
@@ -190,6 +190,8 @@ const fn table() -> [EntryInfo; N] {
     push!(e(0x2006, 0, Unsigned32, Wo, false, none));
     push!(e(0x2007, 0, Unsigned16, Rw, false, none));
     push!(e(0x2008, 0, Unsigned8, Rw, true, none));
+    // A string a PDO may map in part (its first 1..=8 bytes).
+    push!(sized(e(0x2009, 0, VisibleString, Rw, true, DefaultValue::Bytes(b"ABCDEFGHIJ")), 16));
     push!(e(0x603F, 0, Unsigned16, Ro, true, none));
     push!(e(0x6040, 0, Unsigned16, Rww, true, none));
     push!(e(0x6041, 0, Unsigned16, Ro, true, none));
@@ -318,6 +320,65 @@ impl ObjectDictionary for TestOd {
                 self.lens[i] = e.default.encode(e, node_id, &mut self.data[off..off + cap]) as u16;
             }
         }
+    }
+
+    // The fast path of a hand-written dictionary: a handle is the entry's number in ENTRIES.
+
+    fn handle(&self, index: u16, sub: u8) -> Option<Handle> {
+        self.slot(index, sub).ok().map(|i| Handle::new(i as u32))
+    }
+
+    fn read_handle(&self, h: Handle) -> [u8; 8] {
+        let i = h.get() as usize;
+        let mut out = [0u8; 8];
+        if let (Some(&off), Some(&len)) = (LAYOUT.0.get(i), self.lens.get(i)) {
+            let n = usize::from(len).min(8);
+            match self.data.get(off..off + 8) {
+                // Eight bytes at once, then zero past the value.
+                Some(src) => {
+                    out.copy_from_slice(src);
+                    let keep = if n == 8 { u64::MAX } else { (1u64 << (8 * n)) - 1 };
+                    out = (u64::from_le_bytes(out) & keep).to_le_bytes();
+                }
+                None => out[..n].copy_from_slice(&self.data[off..off + n]),
+            }
+        }
+        out
+    }
+
+    fn write_handle(&mut self, h: Handle, data: &[u8]) -> Result<(), AbortCode> {
+        let i = h.get() as usize;
+        let (Some(e), Some(&off)) = (ENTRIES.get(i), LAYOUT.0.get(i)) else {
+            return Err(AbortCode::NO_OBJECT);
+        };
+        e.check_value(data)?;
+        self.data[off..off + data.len()].copy_from_slice(data);
+        self.lens[i] = data.len() as u16;
+        Ok(())
+    }
+}
+
+/// [`TestOd`] without the handle methods: a dictionary implementing only what
+/// [`ObjectDictionary`] requires, so the runtime takes the default `handle`, `read_handle` and
+/// `write_handle` (through `info`, `read` and `write`).
+#[derive(Clone, Default)]
+pub struct PlainOd(pub TestOd);
+
+impl ObjectDictionary for PlainOd {
+    fn entries(&self) -> &'static [EntryInfo] {
+        self.0.entries()
+    }
+
+    fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, AbortCode> {
+        self.0.read(index, sub, buf)
+    }
+
+    fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode> {
+        self.0.write(index, sub, data)
+    }
+
+    fn restore_defaults(&mut self, area: Area, node_id: u8) {
+        self.0.restore_defaults(area, node_id)
     }
 }
 
