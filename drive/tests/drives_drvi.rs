@@ -8,7 +8,7 @@ use drive::drives::drvi::{self, Drvi, warning};
 use drive::drives::master::{Master, SdoError};
 use drive::drives::{Cia402App, SharedTrace};
 use drive::motion::{Cam, Environment};
-use drive::node::{Node, NodeStorage, ParameterSet, Sim};
+use drive::node::{MemoryRetain, Node, NodeStorage, ParameterSet, Sim};
 use drive::storage::FileStorage;
 use drive::trace::Trace;
 use generated::drvi::Dictionary;
@@ -905,6 +905,68 @@ fn saved_parameters_survive_a_restart() {
     assert_eq!(m.read_i64(ID, 0x6098, 0).unwrap(), 37);
     assert_eq!(m.read_u64(ID, 0x2014, 0).unwrap(), 0);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A DRVI whose retained data (5.0.3) lives in `retain`: "switching it off" is dropping the
+/// master, "on" is a new one with the same `retain`.
+fn master_retaining(retain: &MemoryRetain) -> Master {
+    let mut sim = Sim::new();
+    let node = Node::new(Dictionary::new(ID), drvi::app(), NodeStorage::memory(), NodeId::new(ID).unwrap())
+        .with_retain(Box::new(retain.clone()));
+    sim.add(Box::new(node));
+    let mut m = Master::new(sim);
+    m.advance(1000);
+    m.nmt_start(ID);
+    m
+}
+
+/// 5.0.3: homed and stopped at power-off, the DRVI has its position back at power-on: no
+/// homing needed, and the machine is where it was (the proximity, 20 000..25 000 in the frame
+/// of the first homing, is still there).
+#[test]
+fn a_homed_standing_axis_keeps_its_position_through_a_power_cycle() {
+    let retain = MemoryRetain::new();
+    let proximity = |m: &mut Master| m.read_u64(ID, 0x2002, 0).unwrap() & 0x08 != 0;
+    {
+        let mut m = master_retaining(&retain);
+        home(&mut m, 37, 0);
+        profile(&mut m, 6000, 600);
+        move_to(&mut m, 22_000, false);
+        assert!(proximity(&mut m));
+        move_to(&mut m, -12_345, false);
+        m.advance(10_000);
+        assert_eq!(pos(&mut m), -12_345);
+    } // power off
+    let mut m = master_retaining(&retain);
+    assert_eq!(pos(&mut m), -12_345, "the saved position");
+    assert_eq!(m.read_u64(ID, 0x2004, 0).unwrap(), 1, "homed");
+    m.switch_on(ID).unwrap();
+    profile(&mut m, 6000, 600);
+    move_to(&mut m, 19_000, false);
+    assert_eq!(warnings(&mut m) & warning::HOMING_MISSING, 0, "no homing needed");
+    assert_eq!(pos(&mut m), 19_000);
+    assert!(!proximity(&mut m));
+    move_to(&mut m, 22_000, false);
+    assert!(proximity(&mut m), "the proximity where it was");
+}
+
+/// Power cut while moving: nothing to restore, the homing is needed again.
+#[test]
+fn an_axis_switched_off_while_moving_must_be_homed_again() {
+    let retain = MemoryRetain::new();
+    {
+        let mut m = master_retaining(&retain);
+        home(&mut m, 37, 0);
+        profile(&mut m, 6000, 600);
+        m.set_mode(ID, 1).unwrap();
+        m.write_i32(ID, 0x607A, 0, 30_000).unwrap();
+        m.controlword(ID, 0x1F).unwrap();
+        m.advance(300_000);
+        assert_ne!(vel(&mut m), 0, "moving");
+    }
+    let mut m = master_retaining(&retain);
+    assert_eq!(pos(&mut m), 0);
+    assert_eq!(m.read_u64(ID, 0x2004, 0).unwrap(), 0, "not homed");
 }
 
 #[test]

@@ -362,3 +362,54 @@ def test_every_homing_method_of_table_6_29(drvi, method, outcome):
         wait(lambda: statusword(node) & 0x2000, 20.0, f"homing {method} error (bit 13)")
         assert node.sdo[0x2004].raw == 0
     node.controlword = 0x0F
+
+
+def power_cut(sim):
+    """SIGKILL: the process ends at once, as a drive whose supply is switched off."""
+    import signal
+
+    sim.signal(signal.SIGKILL)
+    sim.process.wait(timeout=10)
+    sim.exit_code = 0  # killed on purpose: not a failure of the drive
+
+
+def test_a_homed_standing_position_survives_a_power_cut(start_drive_sim, canopen_network, device_eds, tmp_path):
+    """5.0.3: homed and stopped when the power goes, the DRVI has its position back at the next
+    power-on (the process killed and started again on the same --state-dir): 2004h says homed
+    and a move runs without a new homing. Killed while moving, it has to be homed again."""
+    sim, network, node = start(start_drive_sim, canopen_network, device_eds, "--state-dir", str(tmp_path))
+    units = Units(node)
+    home_here(node)
+    node.sdo[0x6081].raw = units.to_bus("velocity", 600)  # rpm
+    node.sdo[0x6083].raw = units.to_bus("acceleration", 6000)  # rpm/s
+    node.sdo[0x6084].raw = units.to_bus("acceleration", 6000)
+    target = units.to_bus("position", -123.45)  # degrees
+    move(node, target)
+    wait(lambda: node.sdo[0x606C].raw == 0, 2.0, "standstill")
+    assert node.sdo[0x6064].raw == target
+    network.disconnect()
+    power_cut(sim)
+
+    sim, network, node = start(start_drive_sim, canopen_network, device_eds, "--state-dir", str(tmp_path))
+    assert node.sdo[0x6064].raw == target, "the position saved at power-off"
+    assert node.sdo[0x2004].raw == 1, "homed"
+    units = Units(node)
+    node.sdo[0x6081].raw = units.to_bus("velocity", 600)
+    node.sdo[0x6083].raw = units.to_bus("acceleration", 6000)
+    node.sdo[0x6084].raw = units.to_bus("acceleration", 6000)
+    enable(node)
+    move(node, units.to_bus("position", 10), relative=True)
+    assert node.sdo[0x6064].raw == target + units.to_bus("position", 10), "moved without a new homing"
+    assert node.sdo[0x2006].raw & (1 << 8) == 0, "no 'homing missing' warning"
+    # A power cut in the middle of a movement: nothing to restore.
+    node.op_mode = "PROFILED POSITION"
+    node.sdo[0x607A].raw = units.to_bus("position", 3600)
+    node.controlword = 0x0F
+    node.controlword = 0x1F
+    wait(lambda: node.sdo[0x606C].raw != 0, 2.0, "moving")
+    network.disconnect()
+    power_cut(sim)
+
+    _, _, node = start(start_drive_sim, canopen_network, device_eds, "--state-dir", str(tmp_path))
+    assert node.sdo[0x2004].raw == 0, "not homed"
+    assert node.sdo[0x6064].raw == 0

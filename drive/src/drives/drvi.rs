@@ -19,7 +19,7 @@
 //! | 6.3.6.7 | PID selection 2011h: the position loop's bandwidth | [`Vendor::configure`] |
 //! | 6.3.6.8 | profile check 2012h: warnings "target position / speed not reached" after the timeout | [`Vendor::after_step`] |
 //! | 6.3.4.16 | polarity 607Eh bit 7 reverses every mode, homing searches included | [`Vendor::polarity_reverses_homing`] |
-//! | 5.0.3 | the position survives a reset when homed and stopped | [`Vendor::init`] |
+//! | 5.0.3 | the position survives a reset node, and a power cycle (a restart of the process), when homed and stopped | [`SavedPosition`] kept as the node's retained data ([`Ctx::retain`]: the state directory's `drvi-node<id>.retained`), restored in [`Vendor::init`] |
 //!
 //! Decisions where the manual is silent or unclear:
 //! * profile velocity applies 60FFh when it is written (CiA 402); the manual's "bit 4 starts the
@@ -37,8 +37,8 @@ use od_runtime::od::ObjectDictionary;
 use super::cia402::{BusScale, Cia402App, Command, Vendor, read_int, write_int};
 use super::{Drive, error_table};
 use crate::motion::{
-    AxisConfig, Cam, CommandError, Environment, HomingMethod, HomingState, Mode, PlantConfig, Ratio, RelativeBase,
-    SoftwareLimits, Status, Units,
+    Axis, AxisConfig, Cam, CommandError, Environment, HomingMethod, HomingState, Mode, PlantConfig, Ratio,
+    RelativeBase, SoftwareLimits, Status, Units,
 };
 use crate::node::{Ctx, DeviceKind};
 
@@ -226,6 +226,74 @@ pub struct Drvi {
     position_timer_us: u64,
     speed_timer_us: u64,
     pid_bandwidth: f64,
+    /// 5.0.3: the position record last retained, and whether this run has looked for one.
+    saved: Option<SavedPosition>,
+    restore_done: bool,
+}
+
+/// 5.0.3: what the DRVI keeps at power-off: whether it was homed and standing, its actual
+/// position, and where the motor stood (so the machine is found where it was).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SavedPosition {
+    /// Homed and standing: the position may be restored.
+    pub valid: bool,
+    /// The actual position (6064h in the default unit, 0.01° or 0.01 mm).
+    pub position: i32,
+    /// The motor's own position (the mechanical frame of the simulated machine).
+    pub motor: i64,
+}
+
+impl SavedPosition {
+    const VERSION: u8 = 1;
+
+    /// The retained bytes: version, valid, position (i32 LE), motor (i64 LE).
+    pub fn encode(&self) -> [u8; 14] {
+        let mut b = [0u8; 14];
+        b[0] = Self::VERSION;
+        b[1] = u8::from(self.valid);
+        b[2..6].copy_from_slice(&self.position.to_le_bytes());
+        b[6..14].copy_from_slice(&self.motor.to_le_bytes());
+        b
+    }
+
+    /// A record from retained bytes; `None` for anything else.
+    pub fn decode(b: &[u8]) -> Option<Self> {
+        if b.len() != 14 || b[0] != Self::VERSION || b[1] > 1 {
+            return None;
+        }
+        Some(Self {
+            valid: b[1] == 1,
+            position: i32::from_le_bytes(b[2..6].try_into().ok()?),
+            motor: i64::from_le_bytes(b[6..14].try_into().ok()?),
+        })
+    }
+}
+
+/// The motor's own (mechanical) position. The axis reports positions in the drive's frame
+/// (`±motor + offset`, the sign from 607Eh); read under both polarities, the two readings
+/// differ by twice the motor position.
+fn motor_position(axis: &mut Axis) -> i64 {
+    let reversed = axis.config().reverse_polarity;
+    let a = i64::from(axis.status().position_actual);
+    axis.config_mut().reverse_polarity = !reversed;
+    let b = i64::from(axis.status().position_actual);
+    axis.config_mut().reverse_polarity = reversed;
+    if reversed { (b - a) / 2 } else { (a - b) / 2 }
+}
+
+/// `env` moved by `by` along the motor's axis.
+fn shifted(env: Environment, by: i64) -> Environment {
+    let at = |x: Option<i64>| x.map(|x| x.saturating_add(by));
+    let period = i64::try_from(env.index_period).unwrap_or(0);
+    Environment {
+        home_switch: env.home_switch.map(|c| Cam { low: c.low.saturating_add(by), high: c.high.saturating_add(by) }),
+        negative_limit: at(env.negative_limit),
+        positive_limit: at(env.positive_limit),
+        negative_end_stop: at(env.negative_end_stop),
+        positive_end_stop: at(env.positive_end_stop),
+        index_period: env.index_period,
+        index_phase: if period > 0 { (env.index_phase.saturating_add(by)).rem_euclid(period) } else { env.index_phase },
+    }
 }
 
 impl Default for Drvi {
@@ -247,6 +315,8 @@ impl Default for Drvi {
             position_timer_us: 0,
             speed_timer_us: 0,
             pid_bandwidth: 300.0,
+            saved: None,
+            restore_done: false,
         }
     }
 }
@@ -442,6 +512,27 @@ impl Drvi {
         }
     }
 
+    /// 5.0.3: keeps the position record current, so that whenever the power goes (the process
+    /// ends, even killed) the last one says whether the axis was homed and standing, and
+    /// where. Written when that changes: at the end and at the start of each movement.
+    fn retain_position<OD: ObjectDictionary>(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>, status: &Status) {
+        if !self.restore_done {
+            // Ticks can run before the start-up reset: the record is not ours to replace yet.
+            return;
+        }
+        let valid = status.homed && status.standing;
+        let position = if valid { status.position_actual } else { 0 };
+        if self.saved.is_some_and(|s| s.valid == valid && s.position == position) {
+            return;
+        }
+        let motor = if valid { motor_position(drive.axis_mut()) } else { 0 };
+        let record = SavedPosition { valid, position, motor };
+        // The drive "tries to save" (5.0.3): a failure leaves the previous record, retried
+        // at the next change.
+        let _ = ctx.retain(&record.encode());
+        self.saved = Some(record);
+    }
+
     fn refuse(&mut self) -> bool {
         self.warnings |= warning::COMMAND_REFUSED;
         false
@@ -505,12 +596,26 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drvi {
         cfg.plant = plant(self.pid_bandwidth);
     }
 
-    fn init(&mut self, drive: &mut Drive, _ctx: &mut Ctx<'_, OD>) {
+    fn init(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>) {
         // 5.0.3: a homed axis that stood still keeps its position through a power cycle.
         let status = drive.axis().status();
         if status.homed && !status.standing {
             let p = status.position_actual;
             drive.axis_mut().set_actual_position(p, false);
+        }
+        if !self.restore_done {
+            // Power-on: the position saved at power-off, if the axis was homed and standing.
+            // The motor has not moved since (nothing moves a switched-off simulation), so the
+            // encoder check of 5.0.3 always passes: the machine is where it was, relative to
+            // the motor, and the actual position is the saved one.
+            self.restore_done = true;
+            if let Some(saved) = ctx.retained().and_then(|b| SavedPosition::decode(&b)).filter(|s| s.valid) {
+                let axis = drive.axis_mut();
+                let here = motor_position(axis);
+                *axis.environment_mut() = shifted(*axis.environment(), here - saved.motor);
+                axis.set_actual_position(saved.position, true);
+                self.saved = Some(saved);
+            }
         }
         self.reset_warnings();
         self.limit = LimitCheck::Normal;
@@ -621,6 +726,7 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drvi {
         if status.homed {
             self.warnings &= !warning::HOMING_MISSING;
         }
+        self.retain_position(drive, ctx, status);
         self.check_limits(drive, ctx, status);
         self.profile_check(drive, ctx.od(), status, self.last_dt_us);
         let inputs = u32::from(self.conditions.in1)

@@ -7,6 +7,8 @@ use od_runtime::emcy;
 use od_runtime::od::{AbortCode, ObjectDictionary};
 use od_runtime::{Event, Micros, NmtCommand, NmtState, NodeId, WriteSource};
 
+use super::Retain;
+
 /// A write on its way to the dictionary, as [`DriveApp::on_write`] sees it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct WriteRequest<'a> {
@@ -233,11 +235,33 @@ where
 pub struct Ctx<'a, OD> {
     dev: &'a mut dyn DeviceOps<OD>,
     now: Micros,
+    retain: Option<&'a mut dyn Retain>,
 }
 
 impl<'a, OD> Ctx<'a, OD> {
     pub(crate) fn new(dev: &'a mut dyn DeviceOps<OD>, now: Micros) -> Self {
-        Self { dev, now }
+        Self { dev, now, retain: None }
+    }
+
+    pub(crate) fn with_retain(mut self, retain: &'a mut dyn Retain) -> Self {
+        self.retain = Some(retain);
+        self
+    }
+
+    /// The data the application retained last ([`Ctx::retain`]), in this run or a previous
+    /// one (with a state directory), if any.
+    pub fn retained(&mut self) -> Option<Vec<u8>> {
+        self.retain.as_mut().and_then(|r| r.load())
+    }
+
+    /// Keeps `data` across power cycles, outside the dictionary (what a drive saves by itself,
+    /// like the DRVI's position at power-off, 5.0.3): atomically, in the node's
+    /// [`Retain`] backend. An error (a full disk) is returned, not raised on the bus.
+    pub fn retain(&mut self, data: &[u8]) -> std::io::Result<()> {
+        match self.retain.as_mut() {
+            Some(r) => r.store(data),
+            None => Err(std::io::Error::other("this context has no retained data")),
+        }
     }
 
     /// The time of the call that led here (µs on the node's clock).

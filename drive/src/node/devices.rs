@@ -9,7 +9,9 @@ use std::sync::Arc;
 use od_runtime::od::EntryInfo;
 use od_runtime::{Micros, NodeId};
 
-use super::{AnyNode, DcfError, DefaultApp, DriveApp, Node, NodeStorage, ParameterSet};
+use super::{
+    AnyNode, DcfError, DefaultApp, DriveApp, FileRetain, MemoryRetain, Node, NodeStorage, ParameterSet, Retain,
+};
 use crate::storage::{FileStorage, MemoryStorage};
 
 /// One of the devices whose dictionaries the `generated` crate holds.
@@ -57,7 +59,9 @@ impl DeviceKind {
     /// Builds a node of this kind: the generated dictionary with `$NODEID` resolved, the
     /// application `apps` gives for the kind, and a [`NodeStorage`] with the DCF's values over
     /// a [`FileStorage`] in the state directory (files named `<kind>-node<id>.*.params`) or,
-    /// without one, a [`MemoryStorage`].
+    /// without one, a [`MemoryStorage`], saving the device's store list only; the
+    /// application's retained data ([`Retain`]) in `<kind>-node<id>.retained` there, or in
+    /// memory.
     pub fn build(self, config: &NodeConfig, apps: &dyn Apps) -> Result<Box<dyn AnyNode>, NodeSetupError> {
         let params = match &config.dcf {
             Some(path) => ParameterSet::from_dcf(path, self.entries(), config.node_id)
@@ -66,34 +70,40 @@ impl DeviceKind {
         };
         let raw = config.node_id.or(params.node_id()).ok_or(NodeSetupError::NoNodeId)?;
         let id = NodeId::new(raw).ok_or(NodeSetupError::BadNodeId(raw))?;
-        let backend: Box<dyn od_runtime::Storage + Send> = match &config.state_dir {
-            Some(dir) => Box::new(
-                FileStorage::open(dir, &format!("{}-node{raw}", self.name()))
-                    .map_err(|error| NodeSetupError::Storage { dir: dir.clone(), error })?,
-            ),
-            None => Box::new(MemoryStorage::new()),
+        let tag = format!("{}-node{raw}", self.name());
+        let (backend, retain): (Box<dyn od_runtime::Storage + Send>, Box<dyn Retain>) = match &config.state_dir {
+            Some(dir) => {
+                let error = |error| NodeSetupError::Storage { dir: dir.clone(), error };
+                (
+                    Box::new(FileStorage::open(dir, &tag).map_err(error)?),
+                    Box::new(FileRetain::open(dir, &tag).map_err(error)?),
+                )
+            }
+            None => (Box::new(MemoryStorage::new()), Box::new(MemoryRetain::new())),
         };
         // 1010h saves what the device's manual lists (the sidecar's [store]), not every
         // writable entry: DRVI 6.3.2.13, DRCS 3.2.13, AKD 6.2.1.12.
         let storage = crate::drives::store::stored_objects_only(self, NodeStorage::new(Arc::new(params), backend));
         let timeout = config.sdo_timeout;
+        let config = (timeout, retain);
         Ok(match self {
             DeviceKind::Drvi => {
-                boxed(Node::new(generated::drvi::Dictionary::new(raw), apps.drvi(), storage, id), timeout)
+                boxed(Node::new(generated::drvi::Dictionary::new(raw), apps.drvi(), storage, id), config)
             }
             DeviceKind::Drcs => {
-                boxed(Node::new(generated::drcs::Dictionary::new(raw), apps.drcs(), storage, id), timeout)
+                boxed(Node::new(generated::drcs::Dictionary::new(raw), apps.drcs(), storage, id), config)
             }
-            DeviceKind::Akd => boxed(Node::new(generated::akd::Dictionary::new(raw), apps.akd(), storage, id), timeout),
+            DeviceKind::Akd => boxed(Node::new(generated::akd::Dictionary::new(raw), apps.akd(), storage, id), config),
         })
     }
 }
 
-fn boxed<OD, A>(mut node: Node<OD, A>, sdo_timeout: Option<Micros>) -> Box<dyn AnyNode>
+fn boxed<OD, A>(node: Node<OD, A>, (sdo_timeout, retain): (Option<Micros>, Box<dyn Retain>)) -> Box<dyn AnyNode>
 where
     OD: od_runtime::od::ObjectDictionary + Send + 'static,
     A: DriveApp<OD> + Send + 'static,
 {
+    let mut node = node.with_retain(retain);
     if let Some(t) = sdo_timeout {
         node.set_sdo_timeout(t);
     }

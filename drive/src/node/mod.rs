@@ -20,6 +20,9 @@
 //! * [`DeviceKind`] builds a node for one of the project's devices (DRVI, DRCS, AKD) from a
 //!   [`NodeConfig`]; [`Apps`] chooses the application each kind runs.
 //! * [`ParameterSet`] and [`NodeStorage`] apply a DCF's values at every reset.
+//! * [`Retain`] ([`MemoryRetain`], [`FileRetain`]) keeps what an application retains by itself
+//!   across power cycles, outside the dictionary ([`Ctx::retain`], [`Ctx::retained`]: the
+//!   DRVI's position at power-off).
 //!
 //! # Adding a device behaviour
 //!
@@ -63,6 +66,7 @@
 mod app;
 mod devices;
 mod params;
+mod retain;
 mod run;
 mod sim;
 
@@ -77,6 +81,7 @@ use crate::transport::CanFrame;
 pub use app::{Ctx, DefaultApp, DriveApp, EMCY_HEARTBEAT_OR_GUARDING, EMCY_RPDO_TIMEOUT, LossRecord, WriteRequest};
 pub use devices::{Apps, DefaultApps, DeviceKind, NodeConfig, NodeSetupError};
 pub use params::{DcfError, NodeStorage, ParameterSet};
+pub use retain::{FileRetain, MemoryRetain, Retain};
 pub use run::{Clock, MonotonicClock, RunStats, run};
 pub use sim::Sim;
 
@@ -132,6 +137,7 @@ pub struct Node<OD, A, S = NodeStorage> {
     /// Something outside the normal flow ([`Node::with_app`]) may have queued frames.
     wake: bool,
     ticks: u64,
+    retain: Box<dyn Retain>,
 }
 
 impl<OD, A, S> Node<OD, A, S>
@@ -152,7 +158,17 @@ where
             last_poll: None,
             wake: false,
             ticks: 0,
+            retain: Box::new(MemoryRetain::new()),
         }
+    }
+
+    /// Keeps the application's retained data ([`Ctx::retain`]) in `retain` instead of a
+    /// [`MemoryRetain`] of its own: a [`FileRetain`] in the state directory, or a
+    /// `MemoryRetain` shared with the node this one replaces. Call before the first
+    /// [`Node::handle`] or [`Node::poll`] (the application reads it at the start-up reset).
+    pub fn with_retain(mut self, retain: Box<dyn Retain>) -> Self {
+        self.retain = retain;
+        self
     }
 
     /// Handles one frame from the bus received at `now`, then delivers the events it raised.
@@ -209,7 +225,7 @@ where
 
     fn tick(&mut self, now: Micros) {
         let Some(mut app) = self.dev.app_mut().app.take() else { return };
-        app.tick(&mut Ctx::new(&mut self.dev, now));
+        app.tick(&mut Ctx::new(&mut self.dev, now).with_retain(self.retain.as_mut()));
         self.dev.app_mut().app = Some(app);
         self.ticks += 1;
         self.dispatch(now);
@@ -225,7 +241,7 @@ where
         // the node; what is left is delivered at the next call.
         for _ in 0..EVENT_QUEUE {
             let Some(event) = self.dev.app_mut().events.pop_front() else { break };
-            app.on_event(&mut Ctx::new(&mut self.dev, now), event);
+            app.on_event(&mut Ctx::new(&mut self.dev, now).with_retain(self.retain.as_mut()), event);
         }
         self.dev.app_mut().app = Some(app);
     }
@@ -234,7 +250,7 @@ where
     /// injecting a fault, a command-line action); events it raises are delivered afterwards.
     pub fn with_app<R>(&mut self, now: Micros, f: impl FnOnce(&mut A, &mut Ctx<'_, OD>) -> R) -> Option<R> {
         let mut app = self.dev.app_mut().app.take()?;
-        let out = f(&mut app, &mut Ctx::new(&mut self.dev, now));
+        let out = f(&mut app, &mut Ctx::new(&mut self.dev, now).with_retain(self.retain.as_mut()));
         self.dev.app_mut().app = Some(app);
         self.dispatch(now);
         self.wake = true;
