@@ -86,7 +86,10 @@ impl Retain for MemoryRetain {
     }
 }
 
-/// Retained data in a file, written atomically (see the [module docs](self)).
+/// Retained data in a file, written atomically: temporary file, fsync, rename, fsync of the
+/// directory, so a process killed at any moment leaves the old data or the new. The file is
+/// `"ODRT"`, a version byte (1), the data's length (u32 LE), the data, and a CRC-32 (IEEE) of
+/// all that; a file that fails the checks is ignored with a warning.
 ///
 /// ```
 /// use drive::node::{FileRetain, Retain};
