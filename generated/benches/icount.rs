@@ -41,7 +41,45 @@ const OPS: &[(&str, &str)] = &[
     ("to_raw", "DRVI position 360.1 deg -> raw (rounded)"),
     ("to_raw_int", "DRVI position 360 deg -> raw (rounded)"),
     ("from_dictionary", "DRVI Units::from_dictionary (all dimensions prepared)"),
+    ("device_rpdo", "DRVI device: RPDO1 (controlword) received and applied"),
+    ("device_sync", "DRVI device: SYNC turned into 4 TPDOs (5 mapped entries)"),
 ];
+
+type DrviDevice = od_runtime::Device<drvi::Dictionary, (), od_runtime::NoStorage>;
+
+/// The DRVI device of `benches/runtime.rs`' `device` group: booted, remote, operational.
+fn drvi_device() -> DrviDevice {
+    use od_runtime::{Device, NmtCommand, NoStorage, NodeId};
+    let node = NodeId::new(2).unwrap_or_else(|| unreachable!());
+    let mut dev = Device::new(drvi::Dictionary::new(2), (), NoStorage, node);
+    dev.poll(0, |_| {});
+    dev.set_remote(true);
+    dev.nmt_command(NmtCommand::Start, 0);
+    dev.poll(0, |_| {});
+    dev
+}
+
+/// Maps TPDOs 1..4 of the DRVI device as `benches/runtime.rs` does: synchronous, statusword /
+/// position / velocity / statusword + position.
+fn map_four_tpdos(dev: &mut DrviDevice) -> Result<(), String> {
+    let maps: [&[u32]; 4] = [&[0x6041_0010], &[0x6064_0020], &[0x606C_0020], &[0x6041_0010, 0x6064_0020]];
+    for (n, map) in maps.iter().enumerate() {
+        let n = n as u16;
+        let cob = 0x182 + 0x100 * u32::from(n);
+        let w = |dev: &mut DrviDevice, index: u16, sub: u8, data: &[u8]| {
+            dev.write(index, sub, data).map_err(|e| format!("{index:04X}sub{sub}: {e:?}"))
+        };
+        w(dev, 0x1800 + n, 1, &(cob | 0x8000_0000).to_le_bytes())?;
+        w(dev, 0x1800 + n, 2, &[1])?;
+        w(dev, 0x1A00 + n, 0, &[0])?;
+        for (k, m) in map.iter().enumerate() {
+            w(dev, 0x1A00 + n, k as u8 + 1, &m.to_le_bytes())?;
+        }
+        w(dev, 0x1A00 + n, 0, &[map.len() as u8])?;
+        w(dev, 0x1800 + n, 1, &cob.to_le_bytes())?;
+    }
+    Ok(())
+}
 
 /// Runs `f` for `0..n` and keeps the results alive; one monomorphic loop per operation, so the
 /// choice of operation is made once, outside the loop.
@@ -96,6 +134,32 @@ fn run(op: &str, n: usize) -> Result<(), String> {
             od.set_feed_converter_numerator(100).unwrap_or_default();
             od.set_feed_converter_denominator(254).unwrap_or_default();
             repeat(n, |_| drvi::units::Units::from_dictionary(black_box(&od)).map(|u| u.system() as u64).unwrap_or(0))
+        }
+        "device_rpdo" => {
+            let mut dev = drvi_device();
+            let rx = od_runtime::Frame::new(0x202, &[0x06, 0x00]).ok_or("frame")?;
+            repeat(n, |_| {
+                dev.on_frame(black_box(&rx), 0);
+                0
+            })
+        }
+        "device_sync" => {
+            let mut dev = drvi_device();
+            map_four_tpdos(&mut dev)?;
+            let sync = od_runtime::Frame::new(0x080, &[]).ok_or("frame")?;
+            let mut frames = 0u64;
+            repeat(n, |_| {
+                let mut sent = 0u64;
+                dev.on_frame(black_box(&sync), 0);
+                dev.poll(0, |f| {
+                    sent += u64::from(f.data()[0]);
+                    frames += 1;
+                });
+                sent
+            });
+            if frames != 4 * n as u64 {
+                return Err(format!("{frames} TPDOs for {n} SYNCs"));
+            }
         }
         other => return Err(format!("unknown operation `{other}`")),
     }

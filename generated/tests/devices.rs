@@ -79,6 +79,36 @@ macro_rules! device_tests {
                 assert_eq!(od, Dictionary::new(3));
             }
 
+            /// The handle fast path (what the runtime uses for mapped PDO entries) against the
+            /// keyed path, entry by entry: same bytes read, same outcome and state on writes.
+            #[test]
+            fn handles_agree_with_keyed_access_for_every_entry() {
+                use od_runtime::od::AbortCode;
+                let mut keyed = Dictionary::new(3);
+                let mut fast = Dictionary::new(3);
+                let mut buf = [0u8; 256];
+                for (pos, e) in ENTRIES.iter().enumerate() {
+                    let h = fast.handle(e.index, e.sub).unwrap();
+                    let n = keyed.read(e.index, e.sub, &mut buf).unwrap();
+                    let mut want = [0u8; 8];
+                    want[..n.min(8)].copy_from_slice(&buf[..n.min(8)]);
+                    assert_eq!(fast.read_handle(h), want, "0x{:04X} sub {}", e.index, e.sub);
+                    // A value that is not the default: every bit of the entry's bytes flipped,
+                    // then one byte short and one byte long.
+                    let flipped: Vec<u8> = buf[..n].iter().map(|b| !b).collect();
+                    let tries = [flipped.clone(), flipped[..n.saturating_sub(1)].to_vec(), [flipped.as_slice(), &[0]].concat()];
+                    for data in tries.iter() {
+                        assert_eq!(fast.write_handle(h, data), keyed.write(e.index, e.sub, data), "0x{:04X} sub {} <- {data:02X?}", e.index, e.sub);
+                        assert_eq!(fast, keyed, "entry {pos}");
+                    }
+                }
+                // A handle past the table is refused, never a panic.
+                let past = od_runtime::od::Handle::new(ENTRIES.len() as u32);
+                assert_eq!(fast.read_handle(past), [0; 8]);
+                assert_eq!(fast.write_handle(past, &[0]), Err(AbortCode::NO_OBJECT));
+                assert!(fast.handle(0x0000, 0).is_none());
+            }
+
             static MODEL: std::sync::LazyLock<eds::Model> = std::sync::LazyLock::new(|| model($file));
             static CHECKER: std::sync::LazyLock<od_codegen::pdo::MappingChecker<'static>> = std::sync::LazyLock::new(|| {
                 od_codegen::pdo::MappingChecker::new(&MODEL, &od_codegen::Options::new(stringify!($module), $file))

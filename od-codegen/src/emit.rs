@@ -494,6 +494,17 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
                 #slot_mut_body
             }
 
+            /// Stores a value given as bytes into the entry at `pos` of [`ENTRIES`], after the
+            /// runtime's checks (the shared body of `write` and `write_handle`).
+            #[inline]
+            fn write_at(&mut self, pos: usize, data: &[u8]) -> Result<(), ::od_runtime::od::AbortCode> {
+                #real_limits
+                match (ENTRIES.get(pos), self.slot_mut(pos)) {
+                    (Some(info), Some(slot)) => #rt::write(info, slot, data, real_low, real_high),
+                    _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
+                }
+            }
+
             /// Reads like an SDO upload: as [`read`](::od_runtime::od::ObjectDictionary::read), but
             /// refuses write-only entries with `WRITE_ONLY`.
             pub fn bus_read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, ::od_runtime::od::AbortCode> {
@@ -544,11 +555,7 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
 
             fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), ::od_runtime::od::AbortCode> {
                 let pos = Self::position(index, sub)?;
-                #real_limits
-                match (ENTRIES.get(pos), self.slot_mut(pos)) {
-                    (Some(info), Some(slot)) => #rt::write(info, slot, data, real_low, real_high),
-                    _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
-                }
+                self.write_at(pos, data)
             }
 
             fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
@@ -559,6 +566,28 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
                         #rt::set_default(info, slot, node_id);
                     }
                 }
+            }
+
+            // The PDO fast path: a handle is the entry's position in ENTRIES, so the runtime
+            // reaches a mapped entry with one `match` on it, without a lookup.
+
+            #[inline]
+            fn handle(&self, index: u16, sub: u8) -> Option<::od_runtime::od::Handle> {
+                Self::position(index, sub).ok().map(|pos| ::od_runtime::od::Handle::new(pos as u32))
+            }
+
+            #[inline]
+            fn read_handle(&self, h: ::od_runtime::od::Handle) -> [u8; 8] {
+                let pos = h.get() as usize;
+                match self.slot(pos) {
+                    Some(slot) => #rt::first8(|| ENTRIES.get(pos).map_or(0, |e| e.bits), slot),
+                    None => [0; 8],
+                }
+            }
+
+            #[inline]
+            fn write_handle(&mut self, h: ::od_runtime::od::Handle, data: &[u8]) -> Result<(), ::od_runtime::od::AbortCode> {
+                self.write_at(h.get() as usize, data)
             }
         }
     }

@@ -334,6 +334,8 @@ struct Core<OD, A, S, const P: usize> {
     tx_len: usize,
     /// Whether an active RPDO has deadline monitoring (an event timer).
     rx_deadlines: bool,
+    /// Whether a synchronous RPDO may hold data for the next SYNC.
+    rx_pending: bool,
     drive: Option<StateMachine>,
     /// 6041h (statusword) and 605Ah (quick stop option code), resolved when `drive` is created.
     statusword: Option<Handle>,
@@ -1020,10 +1022,13 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         if !self.nmt.pdo_allowed() {
             return;
         }
-        for i in 0..self.rx_len.min(P) {
-            let n = usize::from(self.rx_active[i]);
-            if let Some(data) = self.rpdo.get_mut(n).and_then(|r| r.pending.take()) {
-                self.apply_rpdo(n, data);
+        if self.rx_pending {
+            self.rx_pending = false;
+            for i in 0..self.rx_len.min(P) {
+                let n = usize::from(self.rx_active[i]);
+                if let Some(data) = self.rpdo.get_mut(n).and_then(|r| r.pending.take()) {
+                    self.apply_rpdo(n, data);
+                }
             }
         }
         for i in 0..self.tx_len.min(P) {
@@ -1073,6 +1078,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         }
         if r.ttype <= 240 {
             r.pending = Some(*data);
+            self.rx_pending = true;
         } else {
             self.apply_rpdo(n, *data);
         }
@@ -1365,6 +1371,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
                 tx_active: [0; PDOS],
                 tx_len: 0,
                 rx_deadlines: false,
+                rx_pending: false,
                 drive: None,
                 statusword: None,
                 quick_stop: None,

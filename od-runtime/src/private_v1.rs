@@ -127,6 +127,7 @@ pub enum SlotMut<'a> {
 }
 
 /// Bytes a fixed-size value of `bits` bits takes on the bus (at most 8).
+#[inline]
 pub const fn byte_len(bits: u32) -> usize {
     let n = (bits as usize).div_ceil(8);
     if n > 8 { 8 } else { n }
@@ -246,6 +247,7 @@ pub fn position(t: &Lookup, index: u16, sub: u8) -> Result<usize, AbortCode> {
 // Reading and writing values
 // ---------------------------------------------------------------------------------------------
 
+#[inline(always)]
 fn raw(slot: &Slot<'_>) -> Option<u64> {
     Some(match *slot {
         Slot::Bool(v) => *v as u64,
@@ -282,6 +284,42 @@ pub fn read(info: &EntryInfo, slot: Slot<'_>, buf: &mut [u8]) -> Result<usize, A
     let dst = buf.get_mut(..src.len()).ok_or(AbortCode::OUT_OF_MEMORY)?;
     dst.copy_from_slice(src);
     Ok(src.len())
+}
+
+/// The value in a slot as the 8 bytes a PDO packs (the runtime's
+/// [`ObjectDictionary::read_handle`](crate::od::ObjectDictionary::read_handle)): little-endian,
+/// zero past the value's length (so a negative INTEGER24 leaves no sign bits in byte 3), the
+/// first 8 bytes of a longer buffer. Only the wider storage types (24, 40, 48, 56 bits in a
+/// `u32`/`i32`/`u64`/`i64`) need `bits`, read from the entry's metadata.
+#[inline(always)]
+pub fn first8(bits: impl FnOnce() -> u32, slot: Slot<'_>) -> [u8; 8] {
+    /// The low bytes of a value of `bits` bits (1..=64; no mask for 0).
+    #[inline(always)]
+    fn keep(bits: u32) -> u64 {
+        u64::MAX >> ((64 - 8 * byte_len(bits) as u32) & 63)
+    }
+    let v = match slot {
+        Slot::Bool(v) => u64::from(*v),
+        Slot::U8(v) => u64::from(*v),
+        Slot::U16(v) => u64::from(*v),
+        Slot::I8(v) => u64::from(*v as u8),
+        Slot::I16(v) => u64::from(*v as u16),
+        Slot::F32(v) => u64::from(v.to_bits()),
+        Slot::F64(v) => v.to_bits(),
+        Slot::U32(v) => u64::from(*v) & keep(bits()),
+        Slot::I32(v) => u64::from(*v as u32) & keep(bits()),
+        Slot::U64(v) => *v & keep(bits()),
+        Slot::I64(v) => *v as u64 & keep(bits()),
+        Slot::Bytes(b) => {
+            let mut out = [0u8; 8];
+            let (head, _) = b.split_at(b.len().min(8));
+            for (o, x) in out.iter_mut().zip(head) {
+                *o = *x;
+            }
+            return out;
+        }
+    };
+    v.to_le_bytes()
 }
 
 /// Checks a real number against REAL limits.

@@ -98,6 +98,28 @@ pub mod tiny {
                 },
             )
         }
+        /// Stores a value given as bytes into the entry at `pos` of [`ENTRIES`], after the
+        /// runtime's checks (the shared body of `write` and `write_handle`).
+        #[inline]
+        fn write_at(
+            &mut self,
+            pos: usize,
+            data: &[u8],
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            let (real_low, real_high) = (None, None);
+            match (ENTRIES.get(pos), self.slot_mut(pos)) {
+                (Some(info), Some(slot)) => {
+                    ::od_runtime::__private_v1::write(
+                        info,
+                        slot,
+                        data,
+                        real_low,
+                        real_high,
+                    )
+                }
+                _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
+            }
+        }
         /// Reads like an SDO upload: as [`read`](::od_runtime::od::ObjectDictionary::read), but
         /// refuses write-only entries with `WRITE_ONLY`.
         pub fn bus_read(
@@ -192,19 +214,7 @@ pub mod tiny {
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             let pos = Self::position(index, sub)?;
-            let (real_low, real_high) = (None, None);
-            match (ENTRIES.get(pos), self.slot_mut(pos)) {
-                (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::write(
-                        info,
-                        slot,
-                        data,
-                        real_low,
-                        real_high,
-                    )
-                }
-                _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
-            }
+            self.write_at(pos, data)
         }
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, info) in ENTRIES.iter().enumerate() {
@@ -212,6 +222,33 @@ pub mod tiny {
                     ::od_runtime::__private_v1::set_default(info, slot, node_id);
                 }
             }
+        }
+        #[inline]
+        fn handle(&self, index: u16, sub: u8) -> Option<::od_runtime::od::Handle> {
+            Self::position(index, sub)
+                .ok()
+                .map(|pos| ::od_runtime::od::Handle::new(pos as u32))
+        }
+        #[inline]
+        fn read_handle(&self, h: ::od_runtime::od::Handle) -> [u8; 8] {
+            let pos = h.get() as usize;
+            match self.slot(pos) {
+                Some(slot) => {
+                    ::od_runtime::__private_v1::first8(
+                        || ENTRIES.get(pos).map_or(0, |e| e.bits),
+                        slot,
+                    )
+                }
+                None => [0; 8],
+            }
+        }
+        #[inline]
+        fn write_handle(
+            &mut self,
+            h: ::od_runtime::od::Handle,
+            data: &[u8],
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.write_at(h.get() as usize, data)
         }
     }
     /// Typed layouts of the device's default PDO mappings.
