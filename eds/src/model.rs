@@ -516,6 +516,296 @@ pub struct Entry {
     pub at: SourceRef,
 }
 
+/// The entries of an object by sub-index: a map with the methods of a
+/// `BTreeMap<SubIndex, Entry>` (`get`, `insert`, `values`, `keys`, `iter`, `len`, ...), iterated
+/// in sub-index order, serialised and printed exactly like one.
+///
+/// It is a vector sorted by sub-index: most objects have one to ten entries, which a search
+/// through a short vector finds faster than a tree does, and which it holds in one allocation
+/// of their own size (a B-tree node is sized for eleven).
+///
+/// ```
+/// use eds::model::*;
+/// let entry = |sub: u8| Entry { sub: SubIndex(sub), name: format!("Entry {sub}"),
+///     data_type: DataType::Unsigned8, access: Access::Ro, pdo_mapping: false, default: None,
+///     parameter_value: None, low_limit: None, high_limit: None, obj_flags: None, denotation: None,
+///     upload_file: None, download_file: None, extra: vec![], at: SourceRef::default() };
+/// let mut subs = SubMap::new();
+/// subs.insert(SubIndex(2), entry(2));
+/// subs.insert(SubIndex(0), entry(0));
+/// assert_eq!(subs.keys().map(|s| s.0).collect::<Vec<_>>(), [0, 2]);
+/// assert_eq!(subs[&SubIndex(2)].name, "Entry 2");
+/// assert!(!subs.contains_key(&SubIndex(1)));
+/// ```
+#[derive(Clone, Default, PartialEq)]
+pub struct SubMap {
+    /// Sorted by sub-index, no sub-index twice.
+    entries: Vec<(SubIndex, Entry)>,
+}
+
+impl SubMap {
+    /// An empty map (allocates nothing).
+    pub const fn new() -> Self {
+        SubMap { entries: Vec::new() }
+    }
+
+    /// An empty map with room for `n` entries.
+    pub fn with_capacity(n: usize) -> Self {
+        SubMap { entries: Vec::with_capacity(n) }
+    }
+
+    /// The number of entries.
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// Whether there are no entries.
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+
+    /// Where `key` is, or where it would go.
+    #[inline]
+    fn find(&self, key: SubIndex) -> Result<usize, usize> {
+        self.entries.binary_search_by_key(&key, |(k, _)| *k)
+    }
+
+    /// The entry at `key`.
+    #[inline]
+    pub fn get(&self, key: &SubIndex) -> Option<&Entry> {
+        self.find(*key).ok().map(|i| &self.entries[i].1)
+    }
+
+    /// The entry at `key`, to change it.
+    #[inline]
+    pub fn get_mut(&mut self, key: &SubIndex) -> Option<&mut Entry> {
+        self.find(*key).ok().map(|i| &mut self.entries[i].1)
+    }
+
+    /// The key and entry at `key`.
+    pub fn get_key_value(&self, key: &SubIndex) -> Option<(&SubIndex, &Entry)> {
+        self.find(*key).ok().map(|i| (&self.entries[i].0, &self.entries[i].1))
+    }
+
+    /// Whether there is an entry at `key`.
+    #[inline]
+    pub fn contains_key(&self, key: &SubIndex) -> bool {
+        self.find(*key).is_ok()
+    }
+
+    /// Puts `value` at `key` and returns the entry that was there. Adding entries in
+    /// sub-index order costs no search.
+    #[inline]
+    pub fn insert(&mut self, key: SubIndex, value: Entry) -> Option<Entry> {
+        if self.entries.last().is_none_or(|(last, _)| *last < key) {
+            self.entries.push((key, value));
+            return None;
+        }
+        match self.find(key) {
+            Ok(i) => Some(std::mem::replace(&mut self.entries[i].1, value)),
+            Err(i) => {
+                self.entries.insert(i, (key, value));
+                None
+            }
+        }
+    }
+
+    /// The entry at `key`, after putting `make()` there if there was none (what
+    /// `map.entry(key).or_insert_with(make)` does for a `BTreeMap`).
+    pub fn get_or_insert_with(&mut self, key: SubIndex, make: impl FnOnce() -> Entry) -> &mut Entry {
+        let i = match self.find(key) {
+            Ok(i) => i,
+            Err(i) => {
+                self.entries.insert(i, (key, make()));
+                i
+            }
+        };
+        &mut self.entries[i].1
+    }
+
+    /// Takes out the entry at `key`.
+    pub fn remove(&mut self, key: &SubIndex) -> Option<Entry> {
+        self.find(*key).ok().map(|i| self.entries.remove(i).1)
+    }
+
+    /// Keeps the entries for which `keep` says so.
+    pub fn retain(&mut self, mut keep: impl FnMut(&SubIndex, &mut Entry) -> bool) {
+        self.entries.retain_mut(|(k, v)| keep(k, v));
+    }
+
+    /// Removes every entry.
+    pub fn clear(&mut self) {
+        self.entries.clear();
+    }
+
+    /// The entry with the lowest sub-index.
+    pub fn first_key_value(&self) -> Option<(&SubIndex, &Entry)> {
+        self.entries.first().map(|(k, v)| (k, v))
+    }
+
+    /// The entry with the highest sub-index.
+    pub fn last_key_value(&self) -> Option<(&SubIndex, &Entry)> {
+        self.entries.last().map(|(k, v)| (k, v))
+    }
+
+    /// The entries in sub-index order.
+    pub fn iter(&self) -> SubIter<'_> {
+        SubIter(self.entries.iter())
+    }
+
+    /// The entries in sub-index order, to change them.
+    pub fn iter_mut(&mut self) -> impl DoubleEndedIterator<Item = (&SubIndex, &mut Entry)> + ExactSizeIterator {
+        self.entries.iter_mut().map(|(k, v)| (&*k, v))
+    }
+
+    /// The sub-indices in order.
+    pub fn keys(&self) -> impl DoubleEndedIterator<Item = &SubIndex> + ExactSizeIterator + Clone {
+        self.entries.iter().map(|(k, _)| k)
+    }
+
+    /// The entries in sub-index order.
+    pub fn values(&self) -> impl DoubleEndedIterator<Item = &Entry> + ExactSizeIterator + Clone {
+        self.entries.iter().map(|(_, v)| v)
+    }
+
+    /// The entries in sub-index order, to change them.
+    pub fn values_mut(&mut self) -> impl DoubleEndedIterator<Item = &mut Entry> + ExactSizeIterator {
+        self.entries.iter_mut().map(|(_, v)| v)
+    }
+
+    /// The entries whose sub-index lies in `range`, in order.
+    pub fn range(&self, range: impl std::ops::RangeBounds<SubIndex>) -> SubIter<'_> {
+        use std::ops::Bound;
+        let from = match range.start_bound() {
+            Bound::Included(k) => self.entries.partition_point(|(x, _)| x < k),
+            Bound::Excluded(k) => self.entries.partition_point(|(x, _)| x <= k),
+            Bound::Unbounded => 0,
+        };
+        let to = match range.end_bound() {
+            Bound::Included(k) => self.entries.partition_point(|(x, _)| x <= k),
+            Bound::Excluded(k) => self.entries.partition_point(|(x, _)| x < k),
+            Bound::Unbounded => self.entries.len(),
+        };
+        SubIter(self.entries[from..to.max(from)].iter())
+    }
+}
+
+/// The iterator of [`SubMap::iter`]: `(&SubIndex, &Entry)` in sub-index order.
+#[derive(Clone, Debug)]
+pub struct SubIter<'a>(std::slice::Iter<'a, (SubIndex, Entry)>);
+
+impl<'a> Iterator for SubIter<'a> {
+    type Item = (&'a SubIndex, &'a Entry);
+
+    #[inline]
+    fn next(&mut self) -> Option<Self::Item> {
+        self.0.next().map(|(k, v)| (k, v))
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        self.0.size_hint()
+    }
+}
+
+impl DoubleEndedIterator for SubIter<'_> {
+    fn next_back(&mut self) -> Option<Self::Item> {
+        self.0.next_back().map(|(k, v)| (k, v))
+    }
+}
+
+impl ExactSizeIterator for SubIter<'_> {}
+
+impl std::iter::FusedIterator for SubIter<'_> {}
+
+impl std::ops::Index<&SubIndex> for SubMap {
+    type Output = Entry;
+
+    /// The entry at `key`. Panics if there is none, as indexing a `BTreeMap` does; use
+    /// [`SubMap::get`] for keys that may be missing.
+    fn index(&self, key: &SubIndex) -> &Entry {
+        match self.get(key) {
+            Some(e) => e,
+            None => panic!("no entry at sub-index {key}"),
+        }
+    }
+}
+
+impl FromIterator<(SubIndex, Entry)> for SubMap {
+    /// Collects entries in any order; of entries with the same sub-index the last one is kept,
+    /// as collecting into a `BTreeMap` does.
+    fn from_iter<I: IntoIterator<Item = (SubIndex, Entry)>>(iter: I) -> Self {
+        let mut map = SubMap::new();
+        map.extend(iter);
+        map
+    }
+}
+
+impl Extend<(SubIndex, Entry)> for SubMap {
+    fn extend<I: IntoIterator<Item = (SubIndex, Entry)>>(&mut self, iter: I) {
+        let iter = iter.into_iter();
+        self.entries.reserve(iter.size_hint().0);
+        for (k, v) in iter {
+            self.insert(k, v);
+        }
+    }
+}
+
+impl<const N: usize> From<[(SubIndex, Entry); N]> for SubMap {
+    fn from(entries: [(SubIndex, Entry); N]) -> Self {
+        entries.into_iter().collect()
+    }
+}
+
+impl From<BTreeMap<SubIndex, Entry>> for SubMap {
+    fn from(map: BTreeMap<SubIndex, Entry>) -> Self {
+        SubMap { entries: map.into_iter().collect() }
+    }
+}
+
+impl From<SubMap> for BTreeMap<SubIndex, Entry> {
+    fn from(map: SubMap) -> Self {
+        map.entries.into_iter().collect()
+    }
+}
+
+impl IntoIterator for SubMap {
+    type Item = (SubIndex, Entry);
+    type IntoIter = std::vec::IntoIter<(SubIndex, Entry)>;
+
+    fn into_iter(self) -> Self::IntoIter {
+        self.entries.into_iter()
+    }
+}
+
+impl<'a> IntoIterator for &'a SubMap {
+    type Item = (&'a SubIndex, &'a Entry);
+    type IntoIter = SubIter<'a>;
+
+    fn into_iter(self) -> SubIter<'a> {
+        self.iter()
+    }
+}
+
+impl fmt::Debug for SubMap {
+    /// As a `BTreeMap` prints: `{SubIndex(0): Entry { .. }, ..}`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_map().entries(self.iter()).finish()
+    }
+}
+
+impl Serialize for SubMap {
+    /// As a map from sub-index to entry, in order, as a `BTreeMap` is serialised.
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.collect_map(self.iter())
+    }
+}
+
+impl<'de> Deserialize<'de> for SubMap {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        BTreeMap::<SubIndex, Entry>::deserialize(deserializer).map(SubMap::from)
+    }
+}
+
 /// An object: an index with one (VAR) or several (ARRAY, RECORD) entries.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Object {
@@ -528,7 +818,7 @@ pub struct Object {
     /// The object list that names it.
     pub category: Category,
     /// The entries by sub-index: one at sub 0 for VAR/DOMAIN/DEFTYPE objects.
-    pub subs: BTreeMap<SubIndex, Entry>,
+    pub subs: SubMap,
     /// `CompactSubObj=N` when the file used the compact form (the entries are expanded in
     /// `subs` all the same; this only says how to write the object back).
     pub compact_sub_obj: Option<u8>,

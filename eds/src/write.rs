@@ -676,7 +676,7 @@ pub struct ConfigureError {
 /// use eds::model::*;
 /// use eds::write::configure;
 /// # let mut model = Model::default();
-/// # let mut subs = std::collections::BTreeMap::new();
+/// # let mut subs = SubMap::new();
 /// # subs.insert(SubIndex(0), Entry { sub: SubIndex(0), name: "Modes of operation".into(),
 /// #     data_type: DataType::Integer8, access: Access::Rw, pdo_mapping: true, default: Some(Value::int(0)),
 /// #     parameter_value: None, low_limit: None, high_limit: None, obj_flags: None, denotation: None,

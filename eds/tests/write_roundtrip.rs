@@ -9,8 +9,6 @@
 
 mod write_common;
 
-use std::collections::BTreeMap;
-
 use eds::model::*;
 use proptest::collection::{btree_map, btree_set, vec};
 use proptest::option;
@@ -128,7 +126,7 @@ fn object(index: u16, dcf: bool) -> impl Strategy<Value = Object> {
     let kind = prop_oneof![4 => Just(ObjectType::Var), 1 => Just(ObjectType::Domain), 2 => Just(ObjectType::Array), 2 => Just(ObjectType::Record)];
     (kind, category, name(), vec(0x1000u16..0x6FFF, 0..3), option::of(0u32..4), extra_keys(2)).prop_flat_map(
         move |(object_type, category, name, links, obj_flags, extra)| {
-            let subs: BoxedStrategy<BTreeMap<SubIndex, Entry>> = if object_type.has_subs() {
+            let subs: BoxedStrategy<SubMap> = if object_type.has_subs() {
                 btree_set(1u8..=0x30, 0..5)
                     .prop_flat_map(move |set| {
                         let mut subs: Vec<BoxedStrategy<Entry>> = vec![entry(0, dcf).boxed()];
@@ -149,7 +147,7 @@ fn object(index: u16, dcf: bool) -> impl Strategy<Value = Object> {
                             e.low_limit = None;
                             e.high_limit = None;
                         }
-                        BTreeMap::from([(SubIndex(0), e)])
+                        SubMap::from([(SubIndex(0), e)])
                     })
                     .boxed()
             };
@@ -178,7 +176,7 @@ fn compact_object(index: u16, dcf: bool) -> impl Strategy<Value = Object> {
             let ty = proto.data_type;
             let pvs = if dcf { vec(option::of(value(ty)), 6).boxed() } else { Just(vec![None; 6]).boxed() };
             pvs.prop_map(move |pvs| {
-                let mut subs = BTreeMap::new();
+                let mut subs = SubMap::new();
                 let mut sub0 =
                     write_common::entry(0, "NrOfObjects", DataType::Unsigned8, Access::Ro, Some(Value::int(n as i128)));
                 sub0.pdo_mapping = false;

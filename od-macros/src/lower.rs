@@ -215,7 +215,7 @@ fn plain_object(index: u16, name: &str, object_type: ObjectType, subs: BTreeMap<
         name: name.to_owned(),
         object_type,
         category: category(index),
-        subs,
+        subs: subs.into(),
         compact_sub_obj: None,
         object_links: Vec::new(),
         obj_flags: None,

@@ -1,12 +1,12 @@
 //! Pass 3: object sections → [`Object`]s with typed [`Entry`]s.
 
-use std::collections::BTreeMap;
-
 use super::info::{Lists, expected_category};
 use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys};
 use super::{Crumbs, Ctx, otype};
 use crate::codes;
-use crate::model::{Access, DataType, Entry, FileKind, Index, Model, Object, ObjectType, SourceRef, SubIndex, Value};
+use crate::model::{
+    Access, DataType, Entry, FileKind, Index, Model, Object, ObjectType, SourceRef, SubIndex, SubMap, Value,
+};
 use crate::value::{self, Quirk, ValueError};
 
 const OBJ_KEYS: KeySet<15> = KeySet::new([
@@ -773,7 +773,7 @@ fn build_object(
         name: name.clone(),
         object_type,
         category: crate::model::Category::Optional,
-        subs: BTreeMap::new(),
+        subs: SubMap::with_capacity(if object_type.has_subs() { subs.len() + 1 } else { 1 }),
         compact_sub_obj: None,
         object_links: Vec::new(),
         obj_flags: None,

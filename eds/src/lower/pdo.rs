@@ -21,10 +21,9 @@
 //! at the lowest free numbers; existing communication objects gain the sub-indices the bits
 //! name when they lack them.
 
-use std::collections::BTreeMap;
-
 use crate::model::{
-    Access, Category, DataType, Entry, Index, Model, Object, ObjectType, Radix, Role, SourceRef, SubIndex, Value,
+    Access, Category, DataType, Entry, Index, Model, Object, ObjectType, Radix, Role, SourceRef, SubIndex, SubMap,
+    Value,
 };
 
 fn entry(sub: u8, name: &str, data_type: DataType, access: Access, default: Value) -> Entry {
@@ -53,7 +52,7 @@ fn record(index: u16, name: String) -> Object {
         name,
         object_type: ObjectType::Record,
         category: Category::Optional,
-        subs: BTreeMap::new(),
+        subs: SubMap::new(),
         compact_sub_obj: None,
         object_links: Vec::new(),
         obj_flags: None,
@@ -95,10 +94,9 @@ fn comm_subs(bits: u8, rx: bool, n: u16) -> Vec<Entry> {
 
 fn set_highest_sub(obj: &mut Object) {
     let highest = obj.subs.keys().map(|s| s.0).max().unwrap_or(0);
-    let e = obj
-        .subs
-        .entry(SubIndex(0))
-        .or_insert_with(|| entry(0, "Highest sub-index supported", DataType::Unsigned8, Access::Ro, Value::int(0)));
+    let e = obj.subs.get_or_insert_with(SubIndex(0), || {
+        entry(0, "Highest sub-index supported", DataType::Unsigned8, Access::Ro, Value::int(0))
+    });
     if e.default.as_ref().and_then(Value::as_int).is_none_or(|v| v < highest as i128) {
         e.default = Some(Value::int(highest as i128));
     }
@@ -127,8 +125,8 @@ pub fn expand_compact_pdo(model: &mut Model) -> Vec<Index> {
             let Some(obj) = model.objects.get_mut(idx) else { continue };
             let mut changed = false;
             for e in comm_subs(bits, rx, n) {
-                if let std::collections::btree_map::Entry::Vacant(v) = obj.subs.entry(e.sub) {
-                    v.insert(e);
+                if !obj.subs.contains_key(&e.sub) {
+                    obj.subs.insert(e.sub, e);
                     changed = true;
                 }
             }

@@ -29,7 +29,7 @@ pub fn entry(sub: u8, name: &str, data_type: DataType, access: Access, default: 
 
 /// A VAR object holding `e` (its name becomes the object's name).
 pub fn var(index: u16, category: Category, e: Entry) -> Object {
-    let mut subs = BTreeMap::new();
+    let mut subs = SubMap::new();
     let name = e.name.clone();
     subs.insert(SubIndex(0), Entry { sub: SubIndex(0), ..e });
     Object {
