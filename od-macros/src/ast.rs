@@ -263,10 +263,6 @@ impl<'a> Cur<'a> {
             _ => None,
         }
     }
-
-    fn ident_is(&self, name: &str) -> bool {
-        matches!(self.peek(), Some(TokenTree::Ident(i)) if i == name)
-    }
 }
 
 fn describe_token(t: &TokenTree) -> String {
