@@ -13,6 +13,9 @@
   `DriveSim` (or to `(host, port)`) through python-can's `socketcand` interface;
   disconnected at teardown.
 * `can_bus` (function): the same for a raw python-can bus.
+  Both use `RtrSocketcandBus`, python-can's socketcand bus that also sends remote frames (as
+  socketcand's `< sendrtr ID DLC >`; the stock interface drops the RTR bit and sends an empty
+  data frame), so python-canopen's node guarding and PDO remote requests reach the device.
 * `frames` (function): `frames(network, 0x182, 0x702)` records every frame with those ids
   that reaches a python-canopen `Network` (time received, id, data) and waits for them.
 * `wait_until(predicate, timeout)`: polls a predicate (bounded) and returns its first true
@@ -216,6 +219,20 @@ def _host_port(target):
     return target
 
 
+def rtr_socketcand_bus(channel, host, port):
+    """A python-can socketcand bus whose `send` also carries remote frames (see the module doc)."""
+    from can.interfaces.socketcand.socketcand import SocketCanDaemonBus
+
+    class RtrSocketcandBus(SocketCanDaemonBus):
+        def send(self, msg, timeout=None):
+            if not msg.is_remote_frame:
+                return super().send(msg, timeout)
+            width = 8 if msg.is_extended_id else 3
+            self._tcp_send(f"< sendrtr {msg.arbitration_id:0{width}X} {msg.dlc} >")
+
+    return RtrSocketcandBus(channel=channel, host=host, port=port)
+
+
 @pytest.fixture
 def canopen_network():
     _python_packages()
@@ -225,8 +242,8 @@ def canopen_network():
 
     def connect(target, channel="can0"):
         host, port = _host_port(target)
-        network = canopen.Network()
-        network.connect(interface="socketcand", channel=channel, host=host, port=port)
+        network = canopen.Network(rtr_socketcand_bus(channel, host, port))
+        network.connect()
         networks.append(network)
         return network
 
@@ -244,7 +261,7 @@ def can_bus():
 
     def connect(target, channel="can0"):
         host, port = _host_port(target)
-        bus = can.Bus(interface="socketcand", channel=channel, host=host, port=port)
+        bus = rtr_socketcand_bus(channel, host, port)
         buses.append(bus)
         return bus
 

@@ -3,8 +3,11 @@ period set, the heartbeat consumer (1016h) reporting a lost master by EMCY, and 
 provoked from the bus (an RPDO shorter than its mapping) with the error register, the error
 history and the EMCY inhibit time.
 
-Node guarding needs remote frames, which python-can's socketcand interface cannot send; it is
-tested end to end in Rust (drive/tests/e2e_guarding.rs) with the transport's own client."""
+Node guarding (100Ch/100Dh) is driven by python-canopen's own NMT master
+(`start_node_guarding`): its remote frames reach the hub through the fixtures'
+`RtrSocketcandBus` (python-can's stock socketcand interface drops the RTR bit). The frame-level
+details (toggle bit per state, life guarding event latched until a fault reset) are also tested
+in Rust, drive/tests/e2e_guarding.rs."""
 
 import statistics
 import time
@@ -124,3 +127,45 @@ def test_emcy_stays_silent_when_stopped(devices, frames):
     time.sleep(0.05)
     network.send_message(0x202, [0x06])  # no PDO processing when stopped
     seen.none(within=0.3)
+
+
+def test_node_guarding_by_python_canopen(devices, frames, wait_until):
+    network, drvi, _ = devices
+    seen = frames(network, 0x702, 0x082)
+    drvi.sdo[0x100C].raw = 100  # guard time, ms
+    drvi.sdo[0x100D].raw = 3  # life time factor: the life time is 300 ms
+    drvi.nmt.start_node_guarding(0.05)
+    try:
+        replies = [seen.next(0x702, timeout=2)[2] for _ in range(6)]
+        # Each reply is the NMT state (7Fh pre-operational) with bit 7 toggling, starting at 0.
+        assert [r[0] for r in replies] == [0x7F, 0xFF] * 3, replies
+        # python-canopen's NMT master reads the state from the replies.
+        drvi.nmt.state = "OPERATIONAL"
+        wait_until(lambda: seen.next(0x702, timeout=2)[2][0] & 0x7F == 0x05, timeout=2, what="operational")
+        assert drvi.nmt.state == "OPERATIONAL"
+        seen.none(0x082, within=0.4)  # guarded in time: no life guarding event
+    finally:
+        drvi.nmt.stop_node_guarding()
+    # The master goes silent: once the life time has passed, the life guarding event is an
+    # EMCY 8130h with the communication bit in the error register.
+    emcy = seen.next(0x082, timeout=2)[2]
+    assert emcy == bytes([0x30, 0x81, 0x11, 0, 0, 0, 0, 0]), emcy
+    lost = wait_until(lambda: [e for e in drvi.emcy.log if e.code == 0x8130], timeout=2, what="EMCY 8130h")
+    assert lost[0].register == 0x11
+
+
+def test_a_tpdo_answers_a_remote_request_from_python_canopen(devices, wait_until):
+    network, drvi, _ = devices
+    drvi.tpdo.read()
+    tpdo = drvi.tpdo[1]
+    tpdo.cob_id = 0x182  # RTR allowed (bit 30 clear)
+    tpdo.trans_type = 253  # on remote request only
+    tpdo.enabled = True
+    tpdo.save()
+    drvi.nmt.state = "OPERATIONAL"
+    time.sleep(0.05)
+    received = []
+    tpdo.add_callback(lambda map: received.append(bytes(map.data)))
+    tpdo.remote_request()
+    wait_until(lambda: received, timeout=2, what="the TPDO answering the remote frame")
+    assert received[0] == drvi.sdo[0x6041].raw.to_bytes(2, "little")
