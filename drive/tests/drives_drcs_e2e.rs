@@ -257,6 +257,9 @@ fn a_kill_during_save_never_leaves_a_torn_parameter_set() {
     let mut saved = [1i64; 3];
     let mut attempted = 1i64;
     let mut seen_new = 0;
+    // Every eighth round waits for the save's confirmation before the kill: then the next
+    // start must find the new set (and the test has completed saves however loaded the machine).
+    let mut confirmed = false;
     for round in 0..40u64 {
         let sim = DriveSim::start(&args);
         let mut m = Master::connect(&sim);
@@ -273,6 +276,7 @@ fn a_kill_during_save_never_leaves_a_torn_parameter_set() {
                 "round {round}: {area} generation {a}, expected {} or {attempted}",
                 saved[i]
             );
+            assert!(!confirmed || a == attempted, "round {round}: {area} lost a confirmed save ({a})");
             if a != saved[i] {
                 saved[i] = a;
                 seen_new += 1;
@@ -281,11 +285,16 @@ fn a_kill_during_save_never_leaves_a_torn_parameter_set() {
         // Write a new generation and kill the process while it saves.
         attempted += 1;
         write_generation(&mut m, attempted);
-        let [lo, hi] = 0x1010u16.to_le_bytes();
-        let s = 0x6576_6173u32.to_le_bytes();
-        let save = CanFrame::standard(0x600 + u32::from(ID), &[0x23, lo, hi, 1, s[0], s[1], s[2], s[3]]).unwrap();
-        m.bus.send(save).unwrap();
-        std::thread::sleep(Duration::from_micros(round * 97 % 3000));
+        confirmed = round % 8 == 7;
+        if confirmed {
+            m.write(0x1010, 1, 0x6576_6173, 4);
+        } else {
+            let [lo, hi] = 0x1010u16.to_le_bytes();
+            let s = 0x6576_6173u32.to_le_bytes();
+            let save = CanFrame::standard(0x600 + u32::from(ID), &[0x23, lo, hi, 1, s[0], s[1], s[2], s[3]]).unwrap();
+            m.bus.send(save).unwrap();
+            std::thread::sleep(Duration::from_micros(round * 97 % 3000));
+        }
         drop(m);
         drop(sim); // SIGKILL
     }
