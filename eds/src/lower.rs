@@ -204,21 +204,14 @@ pub(crate) fn push_hex4(s: &mut String, v: u16) {
     }
 }
 
-/// Appends `v` in decimal (`format!("{v}")` without the formatter).
+/// Appends `v` in decimal (`format!("{v}")` without the formatter). The digits are pushed as
+/// ASCII characters one by one (a few at most), which costs less than building a buffer and
+/// checking it is UTF-8.
 pub(crate) fn push_decimal(s: &mut String, v: u32) {
-    let mut digits = [0u8; 10];
-    let mut i = digits.len();
-    let mut v = v;
-    loop {
-        i -= 1;
-        digits[i] = b'0' + (v % 10) as u8;
-        v /= 10;
-        if v == 0 {
-            break;
-        }
+    if v >= 10 {
+        push_decimal(s, v / 10);
     }
-    // The digits are ASCII.
-    s.push_str(std::str::from_utf8(&digits[i..]).unwrap_or_default());
+    s.push(char::from(b'0' + (v % 10) as u8));
 }
 
 #[cfg(test)]

@@ -514,8 +514,15 @@ fn cmp_values(a: &Value, b: &Value) -> Option<std::cmp::Ordering> {
     match (a, b) {
         (Value::Int { value: x, .. }, Value::Int { value: y, .. }) => Some(x.cmp(y)),
         (Value::NodeIdPlus { offset: x, .. }, Value::NodeIdPlus { offset: y, .. }) => Some(x.cmp(y)),
-        _ => as_f64(a)?.partial_cmp(&as_f64(b)?),
+        _ => cmp_mixed(a, b),
     }
+}
+
+/// [`cmp_values`] for values of different kinds, compared as `f64` (kept out of line, so that
+/// the common integer comparison does not convert both sides to `f64` on speculation).
+#[inline(never)]
+fn cmp_mixed(a: &Value, b: &Value) -> Option<std::cmp::Ordering> {
+    as_f64(a)?.partial_cmp(&as_f64(b)?)
 }
 
 /// Checks within one entry: limits against each other and the values, PDOMapping against the
@@ -773,7 +780,13 @@ fn build_object(
         name: name.clone(),
         object_type,
         category: crate::model::Category::Optional,
-        subs: SubMap::with_capacity(if object_type.has_subs() { subs.len() + 1 } else { 1 }),
+        subs: SubMap::with_capacity(if !object_type.has_subs() {
+            1
+        } else {
+            // CompactSubObj=n adds sub-indices 0..=n (a sub-object section may override one).
+            let compact = keys.get(K_COMPACT).and_then(|kv| value::parse_plain_uint(kv.value)).map_or(0, |(n, _)| n);
+            subs.len() + 1 + compact.min(0xFF) as usize
+        }),
         compact_sub_obj: None,
         object_links: Vec::new(),
         obj_flags: None,
