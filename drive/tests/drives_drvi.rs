@@ -12,6 +12,7 @@ use drive::node::{MemoryRetain, Node, NodeStorage, ParameterSet, Sim};
 use drive::storage::FileStorage;
 use drive::trace::Trace;
 use generated::drvi::Dictionary;
+use generated::drvi::units::{Dimension, Quantity, Ratio, Unit, Units};
 use od_runtime::NodeId;
 use od_runtime::cia402::State;
 
@@ -442,6 +443,80 @@ fn actuator_type_2014h_switches_the_unit_system() {
     })
     .unwrap();
     assert_eq!(units.unit(generated::drvi::units::Dimension::Position), Some(generated::drvi::units::Unit::Millimeter));
+}
+
+/// The generated units module fed with the drive's own 2014h and 2001h, as a master would
+/// build it.
+fn units(m: &mut Master) -> Units {
+    let mut od = Dictionary::new(ID);
+    od.set_actuator_type(m.read_u8(ID, 0x2014, 0).unwrap()).unwrap();
+    od.set_feed_converter_numerator(m.read_u32(ID, 0x2001, 1).unwrap()).unwrap();
+    od.set_feed_converter_denominator(m.read_u32(ID, 0x2001, 2).unwrap()).unwrap();
+    Units::from_dictionary(&od).unwrap()
+}
+
+fn raw(m: &mut Master, d: Dimension, q: Quantity) -> i64 {
+    units(m).to_raw(d, q).unwrap()
+}
+
+fn physical(m: &mut Master, d: Dimension, index: u16) -> Quantity {
+    let value = m.read_i64(ID, index, 0).unwrap();
+    units(m).to_physical(d, value).unwrap()
+}
+
+fn quantity(n: i128, d: i128, unit: Unit) -> Quantity {
+    Quantity::new(Ratio::new(n, d).unwrap(), unit)
+}
+
+/// Issue #7 point 8 on the DRVI: absolute and relative moves given in physical units, converted
+/// by `generated::drvi::units` from the unit system the drive reports (2014h) and its feed
+/// converter (2001h), in degrees (only motor), millimetres (actuator) and inches (2001h).
+#[test]
+fn moves_in_degrees_millimetres_and_inches_through_the_generated_units() {
+    use Dimension::{Acceleration, Position, Velocity};
+    let mut m = master();
+    home(&mut m, 37, 0);
+    assert_eq!(units(&mut m).unit(Position), Some(Unit::Degree));
+    let v = raw(&mut m, Velocity, Quantity::int(60, Unit::Rpm));
+    let a = raw(&mut m, Acceleration, Quantity::int(600, Unit::RpmPerSecond));
+    profile(&mut m, v as u32, a as u32);
+    let target = raw(&mut m, Position, Quantity::int(450, Unit::Degree));
+    let t0 = m.now();
+    move_to(&mut m, target as i32, false);
+    let took = (m.now() - t0) as f64 * 1e-6;
+    assert!((1.35..1.45).contains(&took), "450 deg at 360 deg/s with 0.1 s ramps: {took} s");
+    assert_eq!(physical(&mut m, Position, 0x6064), Quantity::int(450, Unit::Degree));
+    let back = raw(&mut m, Position, quantity(-361, 4, Unit::Degree));
+    move_to(&mut m, back as i32, true);
+    assert_eq!(physical(&mut m, Position, 0x6064), quantity(1439, 4, Unit::Degree), "359.75 deg");
+
+    // A custom actuator (2014h = 7): 0.01 mm; then inches through 2001h = 100/254.
+    m.write_u8(ID, 0x2014, 0, 7).unwrap();
+    assert_eq!(units(&mut m).unit(Position), Some(Unit::Millimeter));
+    let v = raw(&mut m, Velocity, Quantity::int(100, Unit::MillimeterPerSecond));
+    let a = raw(&mut m, Acceleration, Quantity::int(1000, Unit::MillimeterPerSecond2));
+    profile(&mut m, v as u32, a as u32);
+    let target = raw(&mut m, Position, quantity(127, 10, Unit::Millimeter));
+    move_to(&mut m, target as i32, false);
+    assert_eq!(pos(&mut m), 1270);
+    assert_eq!(physical(&mut m, Position, 0x6064), quantity(127, 10, Unit::Millimeter));
+    m.write_u32(ID, 0x2001, 1, 100).unwrap();
+    m.write_u32(ID, 0x2001, 2, 254).unwrap();
+    assert_eq!(pos(&mut m), 500, "12.7 mm = 0.5 in in thousandths");
+    assert_eq!(physical(&mut m, Position, 0x6064), quantity(127, 10, Unit::Millimeter));
+    let v = raw(&mut m, Velocity, quantity(254, 10, Unit::MillimeterPerSecond));
+    let a = raw(&mut m, Acceleration, Quantity::int(254, Unit::MillimeterPerSecond2));
+    assert_eq!((v, a), (1000, 100), "1 in/s in 0.001 in/s, 10 in/s^2 in 0.1 in/s^2 (Table 6.2 × 100/254)");
+    profile(&mut m, v as u32, a as u32);
+    let back = raw(&mut m, Position, quantity(-254, 100, Unit::Millimeter));
+    move_to(&mut m, back as i32, true);
+    assert_eq!(pos(&mut m), 400);
+    assert_eq!(physical(&mut m, Position, 0x6064), quantity(1016, 100, Unit::Millimeter));
+    // Velocities too: profile velocity at 1 in/s reads 25.4 mm/s back.
+    m.set_mode(ID, 3).unwrap();
+    m.write_i32(ID, 0x60FF, 0, v as i32).unwrap();
+    m.advance(500_000);
+    assert_eq!(physical(&mut m, Velocity, 0x606C), quantity(254, 10, Unit::MillimeterPerSecond));
 }
 
 #[test]
