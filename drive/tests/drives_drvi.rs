@@ -656,6 +656,31 @@ fn leaving_the_limits_raises_6120h_and_the_check_waits_after_its_reset() {
     assert!(emcys(&mut m).is_empty());
 }
 
+/// Table 6.36 bit 7 "negative position limit reached": the lower limit, corrected by the home
+/// offset (607Dh sub 1 − 607Ch), raises 6120h like the upper one, sets bit 7 (not bit 6), and
+/// both resets clear it.
+#[test]
+fn leaving_the_lower_limit_sets_warning_bit_7_and_6120h() {
+    let mut m = master();
+    limited(&mut m);
+    home(&mut m, 37, 1_000);
+    m.set_mode(ID, 3).unwrap();
+    profile(&mut m, 0, 1_000);
+    m.write_i32(ID, 0x60FF, 0, -10_000).unwrap();
+    assert!(m.wait_until(5_000_000, 5_000, |m| m.seen().any(|s| s.frame.id() == EMCY)));
+    let e = emcys(&mut m);
+    assert_eq!(e[0], [0x20, 0x61, 0x01, 0, 0, 0, 0, 0], "EMCY 6120h");
+    assert_eq!(warnings(&mut m) & (warning::NEGATIVE_LIMIT | warning::POSITIVE_LIMIT), warning::NEGATIVE_LIMIT);
+    assert!(m.wait_until(5_000_000, 10_000, |m| m.state(ID).unwrap() == Some(State::Fault)));
+    assert!(pos(&mut m) < -10_000, "beyond −9000 − 1000");
+    assert!(pos(&mut m) > -11_500, "stopped on the ramp (10 000 at 1000/s²: 50 units)");
+    m.write_i32(ID, 0x60FF, 0, 0).unwrap();
+    m.controlword(ID, 0x00).unwrap();
+    m.controlword(ID, 0x80).unwrap();
+    assert_eq!(state(&mut m), State::SwitchOnDisabled);
+    assert_eq!(warnings(&mut m) & warning::NEGATIVE_LIMIT, 0);
+}
+
 #[test]
 fn the_ext_proxy_input_is_a_hardware_limit_under_2010h() {
     let mut m = master();
