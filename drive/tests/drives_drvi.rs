@@ -681,6 +681,40 @@ fn leaving_the_lower_limit_sets_warning_bit_7_and_6120h() {
     assert_eq!(warnings(&mut m) & warning::NEGATIVE_LIMIT, 0);
 }
 
+/// 6.3.6.2/6.3.6.3/6.12: 2002h shows IN1, IN2 (bits 0, 1) and is read-only; 2003h bit 0 sets
+/// the GPIO output (6.12 writes it, although 6.3.6.3 calls it read-only: the sidecar's
+/// decision), over SDO and over an RPDO; 2004h and 2006h are read-only.
+#[test]
+fn inputs_2002h_and_the_output_2003h() {
+    let mut m = master();
+    assert_eq!(m.read_u32(ID, 0x2002, 0).unwrap() & 0b11, 0);
+    conditions(&mut m, |c| c.in1 = true);
+    m.advance(2000);
+    assert_eq!(m.read_u32(ID, 0x2002, 0).unwrap() & 0b11, 0b01);
+    conditions(&mut m, |c| {
+        c.in1 = false;
+        c.in2 = true;
+    });
+    m.advance(2000);
+    assert_eq!(m.read_u32(ID, 0x2002, 0).unwrap() & 0b11, 0b10);
+    for index in [0x2002, 0x2004, 0x2006] {
+        assert_eq!(m.write_u32(ID, index, 0, 1).map_err(|e| e.to_string()), Err("SDO abort 0x06010002".into()));
+    }
+    m.write_u32(ID, 0x2003, 0, 1).unwrap();
+    assert_eq!(m.read_u32(ID, 0x2003, 0).unwrap(), 1, "OUT high");
+    m.write_u32(ID, 0x2003, 0, 0).unwrap();
+    assert_eq!(m.read_u32(ID, 0x2003, 0).unwrap(), 0, "OUT low");
+    // RPDO2 carrying 2003h.
+    m.write_u32(ID, 0x1401, 1, 0x8000_0300 + u32::from(ID)).unwrap();
+    m.write_u8(ID, 0x1601, 0, 0).unwrap();
+    m.write_u32(ID, 0x1601, 1, 0x2003_0020).unwrap();
+    m.write_u8(ID, 0x1601, 0, 1).unwrap();
+    m.write_u32(ID, 0x1401, 1, 0x300 + u32::from(ID)).unwrap();
+    m.send(drive::transport::CanFrame::standard(0x300 + u32::from(ID), &1u32.to_le_bytes()).unwrap());
+    m.advance(2000);
+    assert_eq!(m.read_u32(ID, 0x2003, 0).unwrap(), 1, "OUT high by RPDO");
+}
+
 #[test]
 fn the_ext_proxy_input_is_a_hardware_limit_under_2010h() {
     let mut m = master();
