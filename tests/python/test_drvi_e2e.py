@@ -6,11 +6,15 @@ profile torque, jog, a software limit violation with the manual's EMCY (6120h), 
 controlword bit 7 and by 0 written to 1003h sub 0, and parameters saved with 1010h surviving a
 restart (--state-dir).
 
-Not here: heartbeat loss. The DRVI has no heartbeat consumer (1016h) and its other error
-control, node guarding, needs remote frames, which python-can's socketcand interface cannot
-send; the DRVI's "fieldbus disconnection" on a lost guarding master is tested in Rust, over the
-same TCP hub (drive/tests/drives_drvi_e2e.rs) and on the in-memory bus (drive/tests/drives_drvi.rs).
+The loss of the master: the DRVI has no heartbeat consumer (1016h), so the master it can lose
+is the node guarding one (6.10.2.1). Guarding requests are remote frames, which python-can's
+socketcand interface cannot send: a raw socketcand connection sends them (`< sendrtr >`) while
+python-canopen watches the EMCY, the quick stop ramp and the Fault. The same in Rust over the
+hub: drive/tests/drives_drvi_e2e.rs; on the in-memory bus: drive/tests/drives_drvi.rs.
 """
+
+import socket
+import threading
 
 import time
 import tomllib
@@ -413,3 +417,93 @@ def test_a_homed_standing_position_survives_a_power_cut(start_drive_sim, canopen
     _, _, node = start(start_drive_sim, canopen_network, device_eds, "--state-dir", str(tmp_path))
     assert node.sdo[0x2004].raw == 0, "not homed"
     assert node.sdo[0x6064].raw == 0
+
+
+class RawSocketcand:
+    """A socketcand connection in raw mode for the one thing python-can's interface cannot
+    send: remote frames (`< sendrtr ID LEN >`), the master's node guarding requests."""
+
+    def __init__(self, host, port, channel="can0"):
+        self.sock = socket.create_connection((host, port), timeout=5)
+        self.buf = b""
+        assert self._message() == "< hi >"
+        for command in (f"< open {channel} >", "< rawmode >"):
+            self.sock.sendall(command.encode())
+            assert self._message() == "< ok >", command
+
+    def _message(self):
+        while b">" not in self.buf:
+            chunk = self.sock.recv(4096)
+            if not chunk:
+                raise ConnectionError("hub closed the connection")
+            self.buf += chunk
+        end = self.buf.index(b">") + 1
+        message, self.buf = self.buf[:end].decode().strip(), self.buf[end:]
+        return message
+
+    def send_rtr(self, can_id, length):
+        self.sock.sendall(f"< sendrtr {can_id:X} {length} >".encode())
+
+    def close(self):
+        self.sock.close()
+
+
+def test_a_lost_guarding_master_is_the_fieldbus_disconnection_soft_error(drvi, frames):
+    """6.9: "fieldbus disconnection" is a soft error: EMCY 8130h (the sidecar's code for it),
+    a quick stop on the ramp (the DRVI has no 6085h: 6084h), then Fault; reset by cw bit 7."""
+    import canopen
+
+    sim, network, node = drvi
+    with pytest.raises(canopen.SdoAbortedError) as no_consumer:
+        node.sdo.upload(0x1016, 1)
+    assert no_consumer.value.code == 0x06020000, "no heartbeat consumer (1016h)"
+    units = Units(node)
+    enable(node)
+    node.op_mode = "PROFILED VELOCITY"
+    node.sdo[0x6083].raw = units.to_bus("acceleration", 600)  # rpm/s
+    node.sdo[0x6084].raw = units.to_bus("acceleration", 60)  # the quick stop ramp: 1 s from 60 rpm
+    node.sdo[0x60FF].raw = units.to_bus("velocity", 60)
+    wait(lambda: node.sdo[0x606C].raw == units.to_bus("velocity", 60), 2.0, "60 rpm")
+    seen = frames(network, 0x700 + NODE)
+    node.sdo[0x100C].raw = 100  # guard time 100 ms
+    node.sdo[0x100D].raw = 3  # life time factor: 300 ms
+    guard = RawSocketcand(sim.host, sim.port)
+    stop = threading.Event()
+
+    def guarding():
+        while not stop.is_set():
+            guard.send_rtr(0x700 + NODE, 1)
+            time.sleep(0.05)
+
+    thread = threading.Thread(target=guarding)
+    thread.start()
+    try:
+        replies = [seen.next(0x700 + NODE, timeout=2)[2] for _ in range(6)]
+        assert all(r[0] & 0x7F == 5 for r in replies), "guarding answered: operational"
+        assert len({r[0] & 0x80 for r in replies}) == 2, "toggle bit"
+        assert statusword(node) & 0x6F == 0x27, "Operation enabled while guarded"
+        node.emcy.reset()
+    finally:
+        stop.set()
+        thread.join()
+        guard.close()
+    lost = node.emcy.wait(0x8130, timeout=3)
+    assert lost is not None, "EMCY 8130h"
+    assert lost.register == 0x11, "generic + communication"
+    t_lost = time.monotonic()
+    time.sleep(0.3)
+    v = node.sdo[0x606C].raw
+    assert 0 < v < units.to_bus("velocity", 60), f"ramping down, not coasting at speed: {v}"
+    assert statusword(node) & 0x4F == 0x0F, "Fault reaction active during the ramp"
+    wait(lambda: statusword(node) & 0x4F == 0x08, 3.0, "Fault")
+    assert 0.7 < time.monotonic() - t_lost < 2.0, "Fault after the 1 s ramp"
+    assert node.sdo[0x606C].raw == 0
+    assert node.sdo[0x603F].raw == 0x8130
+    assert node.sdo[0x1003][1].raw & 0xFFFF == 0x8130
+    # Fault reset by controlword bit 7; the drive runs again under a new master.
+    node.sdo[0x60FF].raw = 0
+    node.controlword = 0x00
+    node.controlword = 0x80
+    wait(lambda: statusword(node) & 0x4F == 0x40, 1.0, "Switch on disabled")
+    assert node.sdo[0x603F].raw == 0
+    enable(node)
