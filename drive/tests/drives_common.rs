@@ -735,3 +735,71 @@ fn the_statusword_follows_a_new_target_velocity_at_once() {
     m.advance(700_000);
     assert_ne!(m.statusword(ID).unwrap() & (1 << 10), 0, "at 1000");
 }
+
+/// Issue #7 point 1: the plant runs on the virtual clock. The three drives on one in-memory bus,
+/// driven through the same frames twice, produce the same frames at the same virtual times and
+/// the same traces, tick for tick; and the virtual time is exactly what the master advanced.
+#[test]
+fn every_drive_is_deterministic_on_the_virtual_clock() {
+    type Run = (Vec<(u64, u32, u8, [u8; 8])>, Vec<String>, u64);
+    fn run() -> Run {
+        let apps = DeviceApps::with_trace(0);
+        let mut sim = Sim::new();
+        let ids = [(DeviceKind::Drvi, 2u8), (DeviceKind::Drcs, 3), (DeviceKind::Akd, 4)];
+        for (kind, id) in ids {
+            sim.add(kind.build(&NodeConfig { node_id: Some(id), ..Default::default() }, &apps).unwrap());
+        }
+        let mut m = Master::new(sim);
+        m.advance(1000);
+        m.nmt_start(0);
+        // Heartbeats and the statusword TPDOs on event timers keep frames coming.
+        for (_, id) in ids {
+            m.write_u16(id, 0x1017, 0, 50).unwrap();
+        }
+        // The DRCS moves only after a homing (3.2.4 FF13h): method 37, in place.
+        m.switch_on(3).unwrap();
+        m.set_mode(3, 6).unwrap();
+        m.write_u8(3, 0x6098, 0, 37).unwrap();
+        m.controlword(3, 0x1F).unwrap();
+        m.advance(10_000);
+        m.controlword(3, 0x0F).unwrap();
+        // Profile velocity everywhere: 30 rpm (DRVI), 50 mm/s (DRCS), 5 turns/s (AKD).
+        for (id, v, a) in [(2u8, 3000i32, 600u32), (3, 50, 500), (4, 5, 50)] {
+            m.switch_on(id).unwrap();
+            m.set_mode(id, 3).unwrap();
+            m.write_u32(id, 0x6083, 0, a).unwrap();
+            m.write_u32(id, 0x6084, 0, a).unwrap();
+            m.write_i32(id, 0x60FF, 0, v).unwrap();
+        }
+        m.advance(300_000);
+        for id in [2u8, 3, 4] {
+            m.controlword(id, 0x10F).unwrap(); // halt
+        }
+        m.advance(300_000);
+        let frames = m.take_seen().iter().map(|s| (s.at, s.frame.id(), s.frame.dlc(), s.frame.raw_data())).collect();
+        let traces = apps.traces().iter().map(|(_, t)| t.lock().unwrap().to_csv()).collect();
+        (frames, traces, m.now())
+    }
+    let (a, b) = (run(), run());
+    assert_eq!(a.2, b.2, "the same virtual time");
+    assert_eq!(a.0.len(), b.0.len(), "the same number of frames");
+    for (i, (x, y)) in a.0.iter().zip(&b.0).enumerate() {
+        assert_eq!(x, y, "frame {i}");
+    }
+    assert_eq!(a.1.len(), 3, "one trace per drive");
+    for (i, (x, y)) in a.1.iter().zip(&b.1).enumerate() {
+        assert!(x == y, "trace {i} differs");
+    }
+    // Not trivially equal: every drive moved, and heartbeats went out on the virtual clock.
+    for (i, csv) in a.1.iter().enumerate() {
+        let t = Trace::from_csv(csv).unwrap();
+        assert!(t.samples().iter().any(|s| s.velocity_actual != 0), "drive {i} moved");
+        assert_eq!(t.samples().last().unwrap().velocity_actual, 0, "drive {i} halted");
+    }
+    let beats: Vec<u64> = a.0.iter().filter(|f| f.1 == 0x702).map(|f| f.0).collect();
+    assert!(beats.len() >= 10, "{beats:?}");
+    assert!(
+        beats.windows(2).skip(1).all(|w| w[1] - w[0] == 50_000),
+        "50 ms heartbeats on the virtual clock: {beats:?}"
+    );
+}
