@@ -1218,6 +1218,31 @@ fn a_missing_hardware_enable_is_f602_and_the_axis_coasts() {
     assert!(vendor(&m, 0).warnings().is_empty());
 }
 
+/// 6.2.1.4: writing 0 to 1003h sub 0 resets the error history and nothing else: the AKD stays
+/// in Fault (the DRVI's "0 to 1003h sub 0 is a fault reset" is its own manual's, 6.9.3); only
+/// controlword bit 7 resets the fault. Other values are refused (0609 0030h).
+#[test]
+fn clearing_1003h_empties_the_history_and_leaves_the_fault() {
+    let mut m = started(4);
+    m.switch_on(4).unwrap();
+    vendor_mut(&mut m, 0).conditions.hardware_enable = false;
+    m.advance(2000);
+    assert_eq!(m.state(4).unwrap(), Some(State::Fault));
+    assert_eq!(m.read_u8(4, 0x1003, 0).unwrap(), 1);
+    assert_eq!(m.read_u32(4, 0x1003, 1).unwrap() & 0xFFFF, 0xFF0B, "F602");
+    vendor_mut(&mut m, 0).conditions.hardware_enable = true;
+    assert!(m.write_u8(4, 0x1003, 0, 1).is_err(), "only 0 may be written");
+    m.write_u8(4, 0x1003, 0, 0).unwrap();
+    m.advance(2000);
+    assert_eq!(m.read_u8(4, 0x1003, 0).unwrap(), 0, "history empty");
+    assert_eq!(m.state(4).unwrap(), Some(State::Fault), "still Fault");
+    assert_ne!(m.read_u8(4, 0x1001, 0).unwrap(), 0, "1001h keeps the fault (the AKD has no 603Fh)");
+    m.controlword(4, 0x80).unwrap();
+    m.advance(2000);
+    assert_eq!(m.state(4).unwrap(), Some(State::SwitchOnDisabled));
+    assert_eq!(m.read_u8(4, 0x1001, 0).unwrap(), 0);
+}
+
 /// 5.4.8: a lost master heartbeat is F129 (8130h), the EMCY naming the node; the drive brakes
 /// to standstill with the quick stop ramp and stays in Fault until a fault reset.
 #[test]
