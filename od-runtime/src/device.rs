@@ -230,6 +230,28 @@ impl Tpdo {
         self.present && self.valid && self.ok && self.count > 0
     }
 
+    /// Whether the inhibit time since the last transmission still runs at `now`.
+    #[inline(always)]
+    fn inhibited(&self, now: Micros) -> bool {
+        self.inhibit != 0 && self.sent_once && now < self.last_tx.saturating_add(self.inhibit)
+    }
+
+    /// The loaded mapping.
+    #[inline(always)]
+    fn mapped(&self) -> &[Mapped] {
+        self.map.get(..usize::from(self.count)).unwrap_or(&[])
+    }
+
+    /// Records a transmission of `data` at `now`.
+    #[inline(always)]
+    fn sent(&mut self, data: [u8; 8], now: Micros) {
+        self.last = data;
+        self.sent_once = true;
+        self.requested = false;
+        self.last_tx = now;
+        self.next_event = now.saturating_add(self.event);
+    }
+
     fn restart(&mut self, now: Micros) {
         self.sent_once = false;
         self.has_sample = false;
@@ -332,6 +354,13 @@ struct Core<OD, A, S, const P: usize> {
     /// Numbers of the active TPDOs (`tx_active[..tx_len]`), in order.
     tx_active: [u16; P],
     tx_len: usize,
+    /// Whether an active TPDO is asynchronous (types 254, 255): `poll` visits the TPDOs every
+    /// time.
+    tx_async: bool,
+    /// Whether `poll` has TPDO work: an asynchronous TPDO, or a synchronous one due or asked
+    /// for by RTR since (set where `due` and `rtr` are set; cleared by the poll that finds
+    /// nothing left).
+    tx_poll: bool,
     /// Whether an active RPDO has deadline monitoring (an event timer).
     rx_deadlines: bool,
     /// Whether a synchronous RPDO may hold data for the next SYNC.
@@ -374,11 +403,14 @@ pub struct Device<OD, A, S = crate::NoStorage, const BUF: usize = 1024, const PD
     started: bool,
 }
 
+/// The first (up to) four bytes of `data` as a little-endian number. Assembled byte by byte:
+/// a copy of variable length would be a `memcpy` call on the RPDO path.
 fn le_u32(data: &[u8]) -> u32 {
-    let mut b = [0u8; 4];
-    let n = data.len().min(4);
-    b[..n].copy_from_slice(&data[..n]);
-    u32::from_le_bytes(b)
+    let mut v = 0u32;
+    for (i, b) in data.iter().take(4).enumerate() {
+        v |= u32::from(*b) << (8 * i);
+    }
+    v
 }
 
 /// Reads an unsigned value of up to 4 bytes.
@@ -609,6 +641,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         self.rx_len = 0;
         self.tx_len = 0;
         self.rx_deadlines = false;
+        self.tx_async = false;
         for n in 0..P {
             if self.rpdo[n].active() {
                 self.rx_active[self.rx_len] = n as u16;
@@ -618,8 +651,11 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
             if self.tpdo[n].active() {
                 self.tx_active[self.tx_len] = n as u16;
                 self.tx_len += 1;
+                self.tx_async |= self.tpdo[n].ttype >= 254;
             }
         }
+        // A reloaded TPDO may keep a pending transmission: let the next poll look.
+        self.tx_poll = true;
     }
 
     // ---- writes ---------------------------------------------------------------------------
@@ -987,6 +1023,10 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
     }
 
     fn drive_transitions(&mut self, ts: Transitions) {
+        if ts.is_empty() {
+            // Most controlwords repeat the last one: no transition, no statusword change.
+            return;
+        }
         for t in ts.iter() {
             if t.number == 15 {
                 // Fault reset: clear 603Fh and the error register bits of that fault (all bits
@@ -1000,9 +1040,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
             }
             self.event(Event::Cia402(t));
         }
-        if !ts.is_empty() {
-            self.update_statusword();
-        }
+        self.update_statusword();
     }
 
     fn update_statusword(&mut self) {
@@ -1031,39 +1069,39 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                 }
             }
         }
+        let mut due = false;
         for i in 0..self.tx_len.min(P) {
             let Some(t) = self.tpdo.get_mut(usize::from(self.tx_active[i])) else { continue };
-            match t.ttype {
-                0 => {
-                    let data = pack(&self.od, &t.map[..usize::from(t.count)]);
-                    if !t.sent_once || data != t.last || t.requested {
-                        t.sample = data;
-                        t.due = true;
-                        t.requested = false;
-                    }
+            let ttype = t.ttype;
+            if ttype == 0 {
+                let data = pack(&self.od, t.mapped());
+                if !t.sent_once || data != t.last || t.requested {
+                    t.sample = data;
+                    t.due = true;
+                    t.requested = false;
+                    due = true;
                 }
-                1..=240 => {
-                    if !t.started {
-                        if t.sync_start != 0 && counter.is_some() && counter != Some(t.sync_start) {
-                            continue;
-                        }
-                        t.started = true;
-                        t.sync_cnt = 0;
+            } else if ttype <= 240 {
+                if !t.started {
+                    if t.sync_start != 0 && counter.is_some() && counter != Some(t.sync_start) {
+                        continue;
                     }
-                    t.sync_cnt += 1;
-                    if t.sync_cnt >= t.ttype {
-                        t.sync_cnt = 0;
-                        t.sample = pack(&self.od, &t.map[..usize::from(t.count)]);
-                        t.due = true;
-                    }
+                    t.started = true;
+                    t.sync_cnt = 0;
                 }
-                252 => {
-                    t.sample = pack(&self.od, &t.map[..usize::from(t.count)]);
-                    t.has_sample = true;
+                t.sync_cnt += 1;
+                if t.sync_cnt >= ttype {
+                    t.sync_cnt = 0;
+                    t.sample = pack(&self.od, t.mapped());
+                    t.due = true;
+                    due = true;
                 }
-                _ => {}
+            } else if ttype == 252 {
+                t.sample = pack(&self.od, t.mapped());
+                t.has_sample = true;
             }
         }
+        self.tx_poll |= due;
     }
 
     /// A frame for RPDO `n`: `data` is the frame's eight bytes (zero past its length `len`).
@@ -1119,39 +1157,39 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
     }
 
     fn poll_tpdos(&mut self, now: Micros, emit: &mut impl FnMut(Frame)) {
+        if !self.tx_poll {
+            return;
+        }
+        // Whether a later poll has work left (an inhibited transmission, an asynchronous PDO).
+        let mut again = self.tx_async;
         for i in 0..self.tx_len.min(P) {
             let Some(t) = self.tpdo.get_mut(usize::from(self.tx_active[i])) else { continue };
-            let asynchronous = t.ttype >= 254;
-            if !(t.rtr || t.due || asynchronous) {
-                continue;
-            }
-            let map = &t.map[..usize::from(t.count)];
-            let inhibited = t.inhibit != 0 && t.sent_once && now < t.last_tx.saturating_add(t.inhibit);
-            let mut out = None;
-            if t.rtr {
+            let data = if t.rtr {
                 t.rtr = false;
-                out = Some(if t.ttype == 252 && t.has_sample { t.sample } else { pack(&self.od, map) });
+                again |= t.due;
+                if t.ttype == 252 && t.has_sample { t.sample } else { pack(&self.od, t.mapped()) }
             } else if t.due {
-                if !inhibited {
-                    t.due = false;
-                    out = Some(t.sample);
+                if t.inhibited(now) {
+                    again = true;
+                    continue;
                 }
-            } else if !inhibited {
-                let data = pack(&self.od, map);
+                t.due = false;
+                t.sample
+            } else if t.ttype >= 254 && !t.inhibited(now) {
+                let data = pack(&self.od, t.mapped());
                 let timer = t.event != 0 && now >= t.next_event;
-                if !t.sent_once || data != t.last || timer || t.requested {
-                    out = Some(data);
+                if !(!t.sent_once || data != t.last || timer || t.requested) {
+                    continue;
                 }
-            }
-            if let Some(data) = out {
-                emit(Frame::short(t.cob, data, usize::from(t.bytes)));
-                t.last = data;
-                t.sent_once = true;
-                t.requested = false;
-                t.last_tx = now;
-                t.next_event = now.saturating_add(t.event);
-            }
+                data
+            } else {
+                continue;
+            };
+            // The data of a packed mapping is zero past its `bytes` (at most 8).
+            emit(Frame::packed(t.cob, data, t.bytes));
+            t.sent(data, now);
         }
+        self.tx_poll = again;
     }
 
     // ---- time-driven services -------------------------------------------------------------
@@ -1248,6 +1286,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                         && t.cob == id
                     {
                         t.rtr = true;
+                        self.tx_poll = true;
                     }
                 }
             }
@@ -1370,6 +1409,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
                 rx_len: 0,
                 tx_active: [0; PDOS],
                 tx_len: 0,
+                tx_async: false,
+                tx_poll: false,
                 rx_deadlines: false,
                 rx_pending: false,
                 drive: None,
@@ -1490,6 +1531,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
     pub fn request_tpdo(&mut self, n: usize) {
         if let Some(t) = self.core.tpdo.get_mut(n) {
             t.requested = true;
+            self.core.tx_poll = true;
         }
     }
 

@@ -63,6 +63,14 @@ impl Frame {
         Self { id: id & 0x7FF, rtr: false, len: len as u8, data: d }
     }
 
+    /// A PDO of `len` bytes (at most 8 by construction; clamped all the same) whose `data` is
+    /// already zero past `len`, as the runtime packs a mapping, and an `id` already cut
+    /// to 11 bits when the PDO was loaded (runtime internal: no mask on the hot path).
+    #[inline(always)]
+    pub(crate) fn packed(id: u16, data: [u8; 8], len: u8) -> Self {
+        Self { id, rtr: false, len: if len > 8 { 8 } else { len }, data }
+    }
+
     /// The 11-bit identifier (COB-ID).
     #[inline]
     pub const fn id(&self) -> u16 {

@@ -390,6 +390,11 @@ impl EntryInfo {
     /// (0x0609_0030) for a BOOLEAN that is neither 0 nor 1.
     pub fn check_value(&self, data: &[u8]) -> Result<(), AbortCode> {
         let len = self.byte_len();
+        // The common case first (an exact length, no limits, not a BOOLEAN), which every
+        // branch below accepts: one comparison per field on the PDO path.
+        if data.len() == len && self.low.is_none() && self.high.is_none() && self.data_type != DataType::Boolean {
+            return Ok(());
+        }
         if self.data_type.is_variable_length() {
             return if data.len() > len { Err(AbortCode::LENGTH_TOO_HIGH) } else { Ok(()) };
         }

@@ -346,11 +346,11 @@ fn store(slot: SlotMut<'_>, data: &[u8]) {
         *len = n;
         return;
     }
-    let mut b = [0u8; 8];
-    for (d, s) in b.iter_mut().zip(data) {
-        *d = *s;
+    // Byte by byte into a register: a copy into a buffer would be a `memcpy` call.
+    let mut raw = 0u64;
+    for (i, b) in data.iter().take(8).enumerate() {
+        raw |= u64::from(*b) << (8 * i);
     }
-    let raw = u64::from_le_bytes(b);
     let width = data.len().min(8) as u32 * 8;
     let signed = if width == 0 || width == 64 { raw as i64 } else { ((raw << (64 - width)) as i64) >> (64 - width) };
     match slot {

@@ -157,6 +157,36 @@ fn inhibit_time_delays_changes() {
 }
 
 #[test]
+fn inhibited_synchronous_tpdo_goes_out_at_a_later_poll() {
+    // TPDO2 (281h) is synchronous (type 1); a 10 ms inhibit time holds the second SYNC's
+    // sample until polls without any SYNC or frame find the inhibit time over.
+    let mut h = operational();
+    h.sdo_write_ok(0x1801, 1, &[0x81, 0x02, 0, 0x80]);
+    h.sdo_write_ok(0x1801, 3, &[100, 0]);
+    h.sdo_write_ok(0x1801, 1, &[0x81, 0x02, 0, 0]);
+    h.dev.od_mut().set(0x6064, 0, 1);
+    assert_eq!(h.send("080"), ["281 40 02 01 00 00 00"]);
+    h.dev.od_mut().set(0x6064, 0, 2);
+    assert!(h.advance(1_000).is_empty());
+    assert!(h.send("080").is_empty(), "the sample waits for the inhibit time");
+    h.dev.od_mut().set(0x6064, 0, 3);
+    assert!(h.advance(8_000).is_empty());
+    // The sample taken at the SYNC, not the value at transmission.
+    assert_eq!(h.advance(1_000), ["281 40 02 02 00 00 00"]);
+    assert!(h.advance(20_000).is_empty(), "sent once");
+    // An RTR answers at once (no inhibit check) and a pending SYNC sample still follows.
+    h.sdo_write_ok(0x1801, 2, &[1]);
+    assert_eq!(h.send("080"), ["281 40 02 03 00 00 00"]);
+    h.dev.od_mut().set(0x6064, 0, 4);
+    assert!(h.advance(1_000).is_empty());
+    assert!(h.send("080").is_empty());
+    assert_eq!(h.send("281 R6"), ["281 40 02 04 00 00 00"]);
+    assert!(h.advance(5_000).is_empty());
+    assert_eq!(h.advance(5_000), ["281 40 02 04 00 00 00"]);
+    assert!(h.advance(20_000).is_empty());
+}
+
+#[test]
 fn remapping_procedure_with_bit_granular_entries() {
     let mut h = operational();
     // Changing a valid PDO's mapping is refused.
