@@ -13,8 +13,6 @@ restored. The Rust tests (drive/tests/drives_drcs*.rs) convert with the generate
 itself; here the conversion is the sidecar's formula, checked to be the one the sidecar states.
 """
 
-import socket
-import threading
 import time
 import tomllib
 from fractions import Fraction
@@ -289,37 +287,8 @@ def test_software_limit_violation_is_the_manuals_emcy(drcs, wait_until):
     assert node.sdo[0x1001].raw == 0
 
 
-class RawSocketcand:
-    """A minimal socketcand client for remote frames (`< sendrtr ID LEN >`), which python-can's
-    socketcand interface cannot send: the master's node guarding requests."""
-
-    def __init__(self, host, port, channel="can0"):
-        self.sock = socket.create_connection((host, port), timeout=5)
-        self.buf = b""
-        assert self._message() == "< hi >"
-        for command in (f"< open {channel} >", "< rawmode >"):
-            self.sock.sendall(command.encode())
-            assert self._message() == "< ok >", command
-
-    def _message(self):
-        while b">" not in self.buf:
-            chunk = self.sock.recv(4096)
-            if not chunk:
-                raise ConnectionError("hub closed the connection")
-            self.buf += chunk
-        end = self.buf.index(b">") + 1
-        message, self.buf = self.buf[:end].decode().strip(), self.buf[end:]
-        return message
-
-    def send_rtr(self, can_id, length):
-        self.sock.sendall(f"< sendrtr {can_id:X} {length} >".encode())
-
-    def close(self):
-        self.sock.close()
-
-
 def test_life_guarding_loss_causes_the_quick_stop(drcs, frames, wait_until):
-    sim, network, node = drcs
+    _, network, node = drcs
     import canopen
 
     with pytest.raises(canopen.SdoAbortedError) as no_consumer:
@@ -335,25 +304,14 @@ def test_life_guarding_loss_causes_the_quick_stop(drcs, frames, wait_until):
     seen = frames(network, 0x700 + NODE)
     node.sdo[0x100C].raw = 100  # guard time 100 ms
     node.sdo[0x100D].raw = 3  # life time factor: 300 ms
-    guard = RawSocketcand(sim.host, sim.port)
-    stop = threading.Event()
-
-    def guarding():
-        while not stop.is_set():
-            guard.send_rtr(0x700 + NODE, 1)
-            time.sleep(0.05)
-
-    thread = threading.Thread(target=guarding)
-    thread.start()
+    node.nmt.start_node_guarding(0.05)  # python-canopen's guarding master (RTR frames)
     try:
         replies = [seen.next(0x700 + NODE, timeout=2)[2] for _ in range(6)]
         assert all(r[0] & 0x7F == 5 for r in replies), "guarding answered: operational"
         assert len({r[0] & 0x80 for r in replies}) == 2, "toggle bit"
         node.emcy.reset()
     finally:
-        stop.set()
-        thread.join()
-        guard.close()
+        node.nmt.stop_node_guarding()
     # The master is gone: 8130h (generic + communication), a quick stop on 6084h (1 s from
     # 100 mm/s), Fault, then the communication resets (boot-up, pre-operational).
     lost_emcy = emcy(node, 0x8130, wait_until)

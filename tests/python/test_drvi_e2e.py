@@ -7,14 +7,11 @@ controlword bit 7 and by 0 written to 1003h sub 0, and parameters saved with 101
 restart (--state-dir).
 
 The loss of the master: the DRVI has no heartbeat consumer (1016h), so the master it can lose
-is the node guarding one (6.10.2.1). Guarding requests are remote frames, which python-can's
-socketcand interface cannot send: a raw socketcand connection sends them (`< sendrtr >`) while
-python-canopen watches the EMCY, the quick stop ramp and the Fault. The same in Rust over the
-hub: drive/tests/drives_drvi_e2e.rs; on the in-memory bus: drive/tests/drives_drvi.rs.
+is the node guarding one (6.10.2.1): python-canopen guards it (remote frames, which the
+fixtures' socketcand bus sends as `< sendrtr >`; python-can's stock interface cannot) and
+stops. The same in Rust over the hub: drive/tests/drives_drvi_e2e.rs; on the in-memory bus:
+drive/tests/drives_drvi.rs.
 """
-
-import socket
-import threading
 
 import time
 import tomllib
@@ -419,41 +416,12 @@ def test_a_homed_standing_position_survives_a_power_cut(start_drive_sim, canopen
     assert node.sdo[0x6064].raw == 0
 
 
-class RawSocketcand:
-    """A socketcand connection in raw mode for the one thing python-can's interface cannot
-    send: remote frames (`< sendrtr ID LEN >`), the master's node guarding requests."""
-
-    def __init__(self, host, port, channel="can0"):
-        self.sock = socket.create_connection((host, port), timeout=5)
-        self.buf = b""
-        assert self._message() == "< hi >"
-        for command in (f"< open {channel} >", "< rawmode >"):
-            self.sock.sendall(command.encode())
-            assert self._message() == "< ok >", command
-
-    def _message(self):
-        while b">" not in self.buf:
-            chunk = self.sock.recv(4096)
-            if not chunk:
-                raise ConnectionError("hub closed the connection")
-            self.buf += chunk
-        end = self.buf.index(b">") + 1
-        message, self.buf = self.buf[:end].decode().strip(), self.buf[end:]
-        return message
-
-    def send_rtr(self, can_id, length):
-        self.sock.sendall(f"< sendrtr {can_id:X} {length} >".encode())
-
-    def close(self):
-        self.sock.close()
-
-
 def test_a_lost_guarding_master_is_the_fieldbus_disconnection_soft_error(drvi, frames):
     """6.9: "fieldbus disconnection" is a soft error: EMCY 8130h (the sidecar's code for it),
     a quick stop on the ramp (the DRVI has no 6085h: 6084h), then Fault; reset by cw bit 7."""
     import canopen
 
-    sim, network, node = drvi
+    _, network, node = drvi
     with pytest.raises(canopen.SdoAbortedError) as no_consumer:
         node.sdo.upload(0x1016, 1)
     assert no_consumer.value.code == 0x06020000, "no heartbeat consumer (1016h)"
@@ -467,16 +435,7 @@ def test_a_lost_guarding_master_is_the_fieldbus_disconnection_soft_error(drvi, f
     seen = frames(network, 0x700 + NODE)
     node.sdo[0x100C].raw = 100  # guard time 100 ms
     node.sdo[0x100D].raw = 3  # life time factor: 300 ms
-    guard = RawSocketcand(sim.host, sim.port)
-    stop = threading.Event()
-
-    def guarding():
-        while not stop.is_set():
-            guard.send_rtr(0x700 + NODE, 1)
-            time.sleep(0.05)
-
-    thread = threading.Thread(target=guarding)
-    thread.start()
+    node.nmt.start_node_guarding(0.05)  # python-canopen's own guarding master (RTR frames)
     try:
         replies = [seen.next(0x700 + NODE, timeout=2)[2] for _ in range(6)]
         assert all(r[0] & 0x7F == 5 for r in replies), "guarding answered: operational"
@@ -484,9 +443,7 @@ def test_a_lost_guarding_master_is_the_fieldbus_disconnection_soft_error(drvi, f
         assert statusword(node) & 0x6F == 0x27, "Operation enabled while guarded"
         node.emcy.reset()
     finally:
-        stop.set()
-        thread.join()
-        guard.close()
+        node.nmt.stop_node_guarding()
     lost = node.emcy.wait(0x8130, timeout=3)
     assert lost is not None, "EMCY 8130h"
     assert lost.register == 0x11, "generic + communication"
