@@ -49,7 +49,12 @@ pub fn lower(doc: &Document, options: &Options) -> (Model, Vec<Diagnostic>) {
     let mut diags = cx.diags;
     // File order: by position, whole-file diagnostics last. The sort is stable, so diagnostics
     // at the same place keep the order in which they were found.
-    diags.sort_by_key(|d| d.span.map(|s| s.start).unwrap_or(u32::MAX));
+    // Most come in order already; otherwise sort positions, not the large diagnostics (this
+    // sort is stable too).
+    let place = |d: &Diagnostic| d.span.map(|s| s.start).unwrap_or(u32::MAX);
+    if !diags.is_sorted_by_key(place) {
+        diags.sort_by_cached_key(place);
+    }
     (model, diags)
 }
 

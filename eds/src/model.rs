@@ -610,6 +610,19 @@ impl SubMap {
         }
     }
 
+    /// Puts `make(k)` at every sub-index `k` of `keys`, in order (lowering builds the elements of
+    /// a `CompactSubObj` array this way). When all of `keys` lie above the map's last key, the
+    /// entries are made straight into the map's storage; otherwise each is inserted.
+    pub(crate) fn extend_with(&mut self, keys: std::ops::RangeInclusive<u8>, mut make: impl FnMut(u8) -> Entry) {
+        if self.entries.last().is_none_or(|(last, _)| last.0 < *keys.start()) {
+            self.entries.extend(keys.map(|k| (SubIndex(k), make(k))));
+        } else {
+            for k in keys {
+                self.insert(SubIndex(k), make(k));
+            }
+        }
+    }
+
     /// The entry at `key`, after putting `make()` there if there was none (what
     /// `map.entry(key).or_insert_with(make)` does for a `BTreeMap`).
     pub fn get_or_insert_with(&mut self, key: SubIndex, make: impl FnOnce() -> Entry) -> &mut Entry {

@@ -983,12 +983,13 @@ fn expand_compact(
     template.name = String::new();
     template.extra = Vec::new();
     obj.subs.insert(sub0.0, sub0.1);
-    for s in 1..=n {
-        let mut name = String::with_capacity(obj.name.len() + 3);
-        name.push_str(&obj.name);
+    let base = &obj.name;
+    obj.subs.extend_with(1..=n, |s| {
+        let mut name = String::with_capacity(base.len() + 3);
+        name.push_str(base);
         super::push_decimal(&mut name, s as u32);
-        obj.subs.insert(SubIndex(s), Entry { sub: SubIndex(s), name, ..template.clone() });
-    }
+        Entry { sub: SubIndex(s), name, ..template.clone() }
+    });
     if let Some(ns) = names {
         for (k, kv) in numbered(cx, ns, &NR_OF_ENTRIES, ctx) {
             match obj.subs.get_mut(&SubIndex(k.min(256) as u8)).filter(|_| (1..=n as u32).contains(&k)) {
