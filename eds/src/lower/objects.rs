@@ -64,7 +64,7 @@ fn keep_entry_keys(
             let what = if t == ObjectType::Null { "" } else { " without CompactSubObj" };
             let d = cx.emit(
                 codes::E0217,
-                Some(kv.key_span),
+                Some(kv.key_span()),
                 format!("{} has no meaning for object type {}{what} (kept)", kv.key, otype(t)),
             );
             d.context = ctx.to_vec();
@@ -113,7 +113,7 @@ fn uint_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u32, context: Crumbs<'_>) -> Res
 fn inline_comment(cx: &mut Ctx<'_>, kv: &Kv<'_>, head: &str, context: Crumbs<'_>) {
     let d = cx.emit(
         codes::E0008,
-        Some(kv.value_span),
+        Some(kv.value_span()),
         format!("{} `{}` carries an inline comment; read as `{head}`", kv.key, kv.value),
     );
     d.hint = Some("CiA 306 has no inline comments: put the comment on its own line, starting with `;`".to_owned());
@@ -122,7 +122,7 @@ fn inline_comment(cx: &mut Ctx<'_>, kv: &Kv<'_>, head: &str, context: Crumbs<'_>
 
 fn report_quirks(cx: &mut Ctx<'_>, kv: &Kv<'_>, quirks: &[Quirk], context: Crumbs<'_>) {
     for q in quirks {
-        let span = Some(kv.value_span);
+        let span = Some(kv.value_span());
         let text = kv.value;
         let (code, msg, hint) = match *q {
             Quirk::AmbiguousOctal { octal, decimal } => (
@@ -222,7 +222,7 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -
             if let Some(v) = &p.value
                 && let Err(why) = value::check_range(v, ty)
             {
-                let d = cx.emit(codes::E0302, Some(kv.value_span), format!("{} `{}`: {why}", kv.key, kv.value));
+                let d = cx.emit(codes::E0302, Some(kv.value_span()), format!("{} `{}`: {why}", kv.key, kv.value));
                 d.context = context.to_vec();
                 if let (Some(bits), Some(x)) = (ty.bits(), v.as_int())
                     && ty.is_unsigned()
@@ -238,7 +238,7 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -
         Err(e) => {
             let d = cx.emit(
                 codes::E0301,
-                Some(kv.value_span),
+                Some(kv.value_span()),
                 format!("{} `{}` cannot be read as {}: {e}", kv.key, kv.value, ty.name()),
             );
             d.hint = Some(value_error_hint(&e, ty));
@@ -279,7 +279,7 @@ fn access_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, context: Crumbs<'_>) -> Access {
     };
     let d = cx.emit(
         codes::E0207,
-        Some(kv.value_span),
+        Some(kv.value_span()),
         match guess {
             Some(a) => format!("AccessType `{}` is not a CiA 306 access type; read as `{}`", kv.value, a.as_str()),
             None => format!("AccessType `{}` is not a CiA 306 access type; `ro` assumed", kv.value),
@@ -339,7 +339,7 @@ impl EntryBuilder<'_> {
                 Err(()) => {
                     let d = cx.emit(
                         codes::E0205,
-                        Some(kv.value_span),
+                        Some(kv.value_span()),
                         format!("DataType `{}` is not a type index; the entry is skipped", kv.value),
                     );
                     d.hint = Some("write the index of the type, e.g. `0x0007` for UNSIGNED32".to_owned());
@@ -368,7 +368,7 @@ impl EntryBuilder<'_> {
         {
             let d = cx.emit(
                 codes::E0215,
-                Some(kv.value_span),
+                Some(kv.value_span()),
                 format!("DataType 0x{code:04X} is not a basic CiA 301 type and the file does not define it"),
             );
             d.hint = Some("values of this entry are kept as written".to_owned());
@@ -406,7 +406,7 @@ impl EntryBuilder<'_> {
                     };
                     let d = cx.emit(
                         codes::E0208,
-                        Some(kv.value_span),
+                        Some(kv.value_span()),
                         format!("PDOMapping `{v}` is not 0 or 1; read as {}", guess as u8),
                     );
                     d.hint = Some("write 0 (not mappable) or 1 (mappable)".to_owned());
@@ -436,7 +436,7 @@ impl EntryBuilder<'_> {
             {
                 let d = cx.emit(
                     codes::E0308,
-                    Some(kv.value_span),
+                    Some(kv.value_span()),
                     format!("{} of a {} is empty", kv.key, data_type.name()),
                 );
                 d.hint = Some(format!("write a value or remove the `{}=` line", kv.key));
@@ -446,7 +446,7 @@ impl EntryBuilder<'_> {
         if !self.is_dcf
             && let Some(kv) = keys.get(K_PVALUE)
         {
-            let d = cx.emit(codes::E0315, Some(kv.key_span), "ParameterValue in an EDS (it belongs in a DCF)");
+            let d = cx.emit(codes::E0315, Some(kv.key_span()), "ParameterValue in an EDS (it belongs in a DCF)");
             d.hint = Some("a device's defaults go in DefaultValue".to_owned());
             d.context = context.to_vec();
         }
@@ -455,7 +455,7 @@ impl EntryBuilder<'_> {
             Err(()) => {
                 let d = cx.emit(
                     codes::E0216,
-                    Some(kv.value_span),
+                    Some(kv.value_span()),
                     format!("ObjFlags `{}` is not a number (kept as text)", kv.value),
                 );
                 d.context = context.to_vec();
@@ -467,7 +467,7 @@ impl EntryBuilder<'_> {
             if let Some(kv) = keys.get(i).filter(|_| !self.compact_template) {
                 let d = cx.emit(
                     codes::E0217,
-                    Some(kv.key_span),
+                    Some(kv.key_span()),
                     format!("{} has no meaning on a single value (kept)", kv.key),
                 );
                 d.context = context.to_vec();
@@ -528,7 +528,7 @@ fn cmp_mixed(a: &Value, b: &Value) -> Option<std::cmp::Ordering> {
 /// Checks within one entry: limits against each other and the values, PDOMapping against the
 /// access type and the data type.
 fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &ObjKeys<'_>, context: Crumbs<'_>) {
-    let span_of = |i: usize| keys.get(i).map(|kv| kv.value_span);
+    let span_of = |i: usize| keys.get(i).map(|kv| kv.value_span());
     if (e.low_limit.is_some() || e.high_limit.is_some()) && !is_numeric(e.data_type) {
         if let DataType::Other(_) = e.data_type {
         } else {
@@ -610,7 +610,7 @@ fn numbered<'s, 'a>(
             Err(_) => {
                 let d = cx.emit(
                     codes::E0214,
-                    Some(kv.key_span),
+                    Some(kv.key_span()),
                     format!("[{}] entry `{}` is not numbered (ignored)", sec.name, kv.key),
                 );
                 d.context = context.to_vec();
@@ -623,7 +623,7 @@ fn numbered<'s, 'a>(
                 if n as usize != out.len() {
                     let d = cx.emit(
                         codes::E0214,
-                        Some(kv.value_span),
+                        Some(kv.value_span()),
                         format!("[{}] says {count_key}={n} but has {} entries", sec.name, out.len()),
                     );
                     d.hint = Some(format!("set {count_key}={}", out.len()));
@@ -631,7 +631,7 @@ fn numbered<'s, 'a>(
                 }
             } else {
                 let d =
-                    cx.emit(codes::E0214, Some(kv.value_span), format!("{count_key} `{}` is not a number", kv.value));
+                    cx.emit(codes::E0214, Some(kv.value_span()), format!("{count_key} `{}` is not a number", kv.value));
                 d.context = context.to_vec();
             }
         }
@@ -690,7 +690,7 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
                     _ => {
                         let d = cx.emit(
                             codes::E0214,
-                            Some(kv.value_span),
+                            Some(kv.value_span()),
                             format!("object link `{}` is not an index (ignored)", kv.value),
                         );
                         d.context = ctx.to_vec();
@@ -749,7 +749,7 @@ fn build_object(
                     let assumed = if looks_structured { ObjectType::Record } else { ObjectType::Var };
                     let d = cx.emit(
                         codes::E0203,
-                        Some(kv.value_span),
+                        Some(kv.value_span()),
                         format!("ObjectType `{}` is not an object code; {} assumed", kv.value, otype(assumed)),
                     );
                     d.hint = Some("object codes are 0x0 NULL, 0x2 DOMAIN, 0x5 DEFTYPE, 0x6 DEFSTRUCT, 0x7 VAR, 0x8 ARRAY, 0x9 RECORD".to_owned());
@@ -838,7 +838,7 @@ fn build_object(
         Err(()) => {
             let d = cx.emit(
                 codes::E0216,
-                Some(kv.value_span),
+                Some(kv.value_span()),
                 format!("ObjFlags `{}` is not a number (kept as text)", kv.value),
             );
             d.context = ctx.to_vec();
@@ -849,8 +849,11 @@ fn build_object(
     let sub_number = keys.get(K_SUBNUM).and_then(|kv| match uint_key(cx, kv, 0x100, ctx) {
         Ok(n) => Some(n),
         Err(()) => {
-            let d =
-                cx.emit(codes::E0209, Some(kv.value_span), format!("SubNumber `{}` is not a number 0..=256", kv.value));
+            let d = cx.emit(
+                codes::E0209,
+                Some(kv.value_span()),
+                format!("SubNumber `{}` is not a number 0..=256", kv.value),
+            );
             d.context = ctx.to_vec();
             obj.extra.push(owned(kv));
             None
@@ -859,7 +862,7 @@ fn build_object(
     let compact = keys.get(K_COMPACT).and_then(|kv| match uint_key(cx, kv, 0xFF, ctx) {
         Ok(n) => {
             if n == 0xFF {
-                let d = cx.emit(codes::E0213, Some(kv.value_span), "CompactSubObj=255 defines sub-index 0xFF");
+                let d = cx.emit(codes::E0213, Some(kv.value_span()), "CompactSubObj=255 defines sub-index 0xFF");
                 d.hint =
                     Some("CiA 301 reserves sub-index 0xFF for the structure of the object; 254 is the most".to_owned());
                 d.context = ctx.to_vec();
@@ -869,7 +872,7 @@ fn build_object(
         Err(()) => {
             let d = cx.emit(
                 codes::E0213,
-                Some(kv.value_span),
+                Some(kv.value_span()),
                 format!("CompactSubObj `{}` is not a number 0..=255", kv.value),
             );
             d.context = ctx.to_vec();
@@ -883,13 +886,13 @@ fn build_object(
         {
             let d = cx.emit(
                 codes::E0213,
-                Some(kv.key_span),
+                Some(kv.key_span()),
                 format!("CompactSubObj on object type {} (CiA 306 allows it on ARRAY only)", otype(object_type)),
             );
             d.context = ctx.to_vec();
         }
         if let (Some(_), Some(kv)) = (sub_number, keys.get(K_SUBNUM)) {
-            let d = cx.emit(codes::E0213, Some(kv.key_span), "both SubNumber and CompactSubObj are given");
+            let d = cx.emit(codes::E0213, Some(kv.key_span()), "both SubNumber and CompactSubObj are given");
             d.hint =
                 Some("use CompactSubObj alone for the compact form, or SubNumber with sub-object sections".to_owned());
             d.context = ctx.to_vec();
@@ -918,7 +921,7 @@ fn build_object(
         {
             let d = cx.emit(
                 codes::E0218,
-                Some(kv.value_span),
+                Some(kv.value_span()),
                 format!("sub-object ObjectType `{}` is not 0x7 (VAR)", kv.value),
             );
             d.context = sctx.to_vec();
@@ -997,7 +1000,7 @@ fn expand_compact(
                 None => {
                     let d = cx.emit(
                         codes::E0214,
-                        Some(kv.key_span),
+                        Some(kv.key_span()),
                         format!("[{}] names sub-index {k}, but CompactSubObj={n}", ns.name),
                     );
                     d.context = ctx.to_vec();
@@ -1010,7 +1013,7 @@ fn expand_compact(
             let Some(e) = obj.subs.get_mut(&SubIndex(k.min(256) as u8)).filter(|_| (1..=n as u32).contains(&k)) else {
                 let d = cx.emit(
                     codes::E0214,
-                    Some(kv.key_span),
+                    Some(kv.key_span()),
                     format!("[{}] sets sub-index {k}, but CompactSubObj={n}", vs.name),
                 );
                 d.context = ctx.to_vec();
@@ -1047,7 +1050,7 @@ fn check_structure(
             (Some(n), Some(kv)) if n as usize != subs.len() => {
                 let d = cx.emit(
                     codes::E0209,
-                    Some(kv.value_span),
+                    Some(kv.value_span()),
                     format!("SubNumber={n} but the file has {} sub-object sections", subs.len()),
                 );
                 d.hint = Some(format!("set SubNumber={}", subs.len()));

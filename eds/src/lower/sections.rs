@@ -10,15 +10,40 @@ use crate::codes;
 use crate::model::Category;
 use crate::source::{Encoding, LineCol, Span};
 
-/// One `key=value` entry.
+/// One `key=value` entry. Its spans are kept as the start of the key (the value's start
+/// follows from where the value lies in the same text), so that the entries of a file, which
+/// every later pass reads, take 40 bytes each rather than 56.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Kv<'a> {
     pub key: &'a str,
     pub value: &'a str,
-    pub key_span: Span,
-    pub value_span: Span,
+    /// Where `key` starts in the source text.
+    key_start: u32,
     /// Which occurrence of a duplicated section the entry came from (0 = the first).
     pub occurrence: u16,
+}
+
+impl<'a> Kv<'a> {
+    /// An entry whose key and value are `key` and `value` of `text` (spans of the same text).
+    pub fn new(text: &'a str, key: Span, value: Span, occurrence: u16) -> Self {
+        let slice = |s: Span| text.get(s.start as usize..s.end as usize).unwrap_or("");
+        Kv { key: slice(key), value: slice(value), key_start: key.start, occurrence }
+    }
+
+    /// The span of the key.
+    #[inline]
+    pub fn key_span(&self) -> Span {
+        Span::new(self.key_start, self.key_start + self.key.len() as u32)
+    }
+
+    /// The span of the value (both lie in one text, so the distance of their addresses is the
+    /// distance of their offsets).
+    #[inline]
+    pub fn value_span(&self) -> Span {
+        let gap = (self.value.as_ptr() as usize).wrapping_sub(self.key.as_ptr() as usize) as u32;
+        let start = self.key_start.wrapping_add(gap);
+        Span::new(start, start.wrapping_add(self.value.len() as u32))
+    }
 }
 
 /// What a section name means.
@@ -240,13 +265,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
     for line in &doc.lines {
         match line.kind {
             LineKind::Entry { key, value } => match current {
-                Some((_, occurrence)) => entries.push(Kv {
-                    key: src.slice(key),
-                    value: src.slice(value),
-                    key_span: key,
-                    value_span: value,
-                    occurrence,
-                }),
+                Some((_, occurrence)) => entries.push(Kv::new(&src.text, key, value, occurrence)),
                 None => {
                     let d = cx.emit(
                         codes::E0003,
@@ -546,7 +565,7 @@ pub(crate) fn match_keys<'a, const N: usize>(
             if !exact {
                 let d = cx.emit(
                     codes::E0104,
-                    Some(kv.key_span),
+                    Some(kv.key_span()),
                     format!("key `{}` is written `{}` in CiA 306", kv.key, names[i]),
                 );
                 d.hint = Some(format!("write `{}`", names[i]));
@@ -557,7 +576,7 @@ pub(crate) fn match_keys<'a, const N: usize>(
             if let Some(i) = hit {
                 let d = cx.emit(
                     codes::E0103,
-                    Some(kv.key_span),
+                    Some(kv.key_span()),
                     format!("key `{}` is spelled `{}` in CiA 306", kv.key, names[i]),
                 );
                 d.hint = Some(format!("write `{}`", names[i]));
@@ -586,7 +605,7 @@ pub(crate) fn match_keys<'a, const N: usize>(
                 if report_unknown {
                     let d = cx.emit(
                         codes::E0102,
-                        Some(kv.key_span),
+                        Some(kv.key_span()),
                         format!("key `{}` is not a CiA 306 key of [{}]; it is kept as written", kv.key, sec.name),
                     );
                     d.context = context.to_vec();
@@ -623,10 +642,10 @@ fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, context: Crumb
     if prev.occurrence != kv.occurrence {
         return;
     }
-    let first = cx.src.line_col(prev.key_span.start);
+    let first = cx.src.line_col(prev.key_span().start);
     let d = cx.emit(
         codes::E0007,
-        Some(kv.key_span),
+        Some(kv.key_span()),
         format!("key `{}` is set again (first at line {}); the later value `{}` is used", kv.key, first.line, kv.value),
     );
     d.hint = Some("remove one of the two entries".to_owned());
