@@ -338,6 +338,25 @@ fn reversed_polarity_reverses_the_homing_searches() {
     assert_eq!(home_point_with_polarity(-4, ends, 0x80), 50_000);
 }
 
+/// 6.7: the homing runs at 6099h sub 1 (search) and sub 2 (leaving the proximity), with the
+/// ramps of 609Ah: method 18 at 30 rpm, 5 rpm, 200 rpm/s.
+#[test]
+fn homing_runs_at_the_6099h_speeds_with_the_609ah_ramps() {
+    let trace: SharedTrace = Arc::new(Mutex::new(Trace::new()));
+    let mut m = master_with(NodeStorage::memory(), Some(Arc::clone(&trace)));
+    set_environment(&mut m, env((20_000, 25_000)));
+    home(&mut m, 18, 0); // homing_params: 6099h = 3000, 500 (0.01 rpm), 609Ah = 200 rpm/s
+    let t = trace.lock().unwrap();
+    let v: Vec<(u64, i32)> = t.samples().iter().map(|s| (s.time_us, s.velocity_demand)).collect();
+    assert_eq!(v.iter().map(|s| s.1).max(), Some(3000), "search at 30 rpm");
+    assert_eq!(v.iter().map(|s| s.1).min(), Some(-500), "leaving the proximity at 5 rpm");
+    // The acceleration: 200 rpm/s = 20 000 bus units per s², 1000 in the first 50 ms.
+    let start = v.iter().find(|s| s.1 > 0).unwrap().0;
+    let at = |t_us: u64| v.iter().find(|s| s.0 >= t_us).unwrap().1;
+    assert!((900..=1100).contains(&at(start + 50_000)), "{}", at(start + 50_000));
+    assert!((1900..=2100).contains(&at(start + 100_000)), "{}", at(start + 100_000));
+}
+
 #[test]
 fn homing_1_2_on_the_index_after_the_proximity() {
     // Index pulses at 1000 + k·36000.
