@@ -20,8 +20,8 @@ fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u
     let mut quirks = Vec::new();
     let v = kv.value.split(';').next().unwrap_or("").trim();
     if v.is_empty() {
-        let d = cx.emit(codes::E0503, Some(kv.value_span()), format!("[{section}] {} is empty", kv.key));
-        d.hint = Some(format!("write a number or remove the `{}=` line", kv.key));
+        let d = cx.emit(codes::E0503, Some(kv.value_span()), super::cat(["[", section, "] ", kv.key, " is empty"]));
+        d.hint = Some(super::cat(["write a number or remove the `", kv.key, "=` line"]));
         return None;
     }
     match parse_int(v, &mut quirks) {

@@ -114,7 +114,7 @@ fn inline_comment(cx: &mut Ctx<'_>, kv: &Kv<'_>, head: &str, context: Crumbs<'_>
     let d = cx.emit(
         codes::E0008,
         Some(kv.value_span()),
-        format!("{} `{}` carries an inline comment; read as `{head}`", kv.key, kv.value),
+        super::cat([kv.key, " `", kv.value, "` carries an inline comment; read as `", head, "`"]),
     );
     d.hint = Some("CiA 306 has no inline comments: put the comment on its own line, starting with `;`".to_owned());
     d.context = context.to_vec();
@@ -281,12 +281,14 @@ fn access_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, context: Crumbs<'_>) -> Access {
         codes::E0207,
         Some(kv.value_span()),
         match guess {
-            Some(a) => format!("AccessType `{}` is not a CiA 306 access type; read as `{}`", kv.value, a.as_str()),
-            None => format!("AccessType `{}` is not a CiA 306 access type; `ro` assumed", kv.value),
+            Some(a) => {
+                super::cat(["AccessType `", kv.value, "` is not a CiA 306 access type; read as `", a.as_str(), "`"])
+            }
+            None => super::cat(["AccessType `", kv.value, "` is not a CiA 306 access type; `ro` assumed"]),
         },
     );
     d.hint = Some(match guess {
-        Some(a) => format!("write `{}` (one of ro, wo, rw, rwr, rww, const)", a.as_str()),
+        Some(a) => super::cat(["write `", a.as_str(), "` (one of ro, wo, rw, rwr, rww, const)"]),
         None => "write one of ro, wo, rw, rwr, rww, const".to_owned(),
     });
     d.context = context.to_vec();
@@ -437,9 +439,9 @@ impl EntryBuilder<'_> {
                 let d = cx.emit(
                     codes::E0308,
                     Some(kv.value_span()),
-                    format!("{} of a {} is empty", kv.key, data_type.name()),
+                    super::cat([kv.key, " of a ", data_type.name(), " is empty"]),
                 );
-                d.hint = Some(format!("write a value or remove the `{}=` line", kv.key));
+                d.hint = Some(super::cat(["write a value or remove the `", kv.key, "=` line"]));
                 d.context = context.to_vec();
             }
         }
@@ -770,8 +772,12 @@ fn build_object(
             assumed
         }
         None => {
-            cx.emit(codes::E0202, Some(sec.name_span), format!("[{}] lacks ObjectType; VAR assumed", sec.name))
-                .context = ctx.to_vec();
+            cx.emit(
+                codes::E0202,
+                Some(sec.name_span),
+                super::cat(["[", sec.name, "] lacks ObjectType; VAR assumed"]),
+            )
+            .context = ctx.to_vec();
             ObjectType::Var
         }
     };
@@ -976,22 +982,39 @@ fn expand_compact(
         },
     );
     let template_builder = EntryBuilder { compact_template: true, ..*builder };
-    let Some(mut template) =
+    let Some(template) =
         template_builder.build(cx, sec, keys, 1, Some(obj.name.clone()), EntryDefaults::default(), ctx)
     else {
         obj.subs.insert(sub0.0, sub0.1);
         return;
     };
-    // Each element gets its own name and no extra keys: clear them once, not in every clone.
-    template.name = String::new();
-    template.extra = Vec::new();
     obj.subs.insert(sub0.0, sub0.1);
+    // Each element is the template with its own name and without the template's extra keys
+    // (those stay with the object): copy the other fields, and clone no name or list only to
+    // replace it.
+    let t = &template;
     let base = &obj.name;
     obj.subs.extend_with(1..=n, |s| {
         let mut name = String::with_capacity(base.len() + 3);
         name.push_str(base);
         super::push_decimal(&mut name, s as u32);
-        Entry { sub: SubIndex(s), name, ..template.clone() }
+        Entry {
+            sub: SubIndex(s),
+            name,
+            data_type: t.data_type,
+            access: t.access,
+            pdo_mapping: t.pdo_mapping,
+            default: t.default.clone(),
+            parameter_value: t.parameter_value.clone(),
+            low_limit: t.low_limit.clone(),
+            high_limit: t.high_limit.clone(),
+            obj_flags: t.obj_flags,
+            denotation: t.denotation.clone(),
+            upload_file: t.upload_file.clone(),
+            download_file: t.download_file.clone(),
+            extra: Vec::new(),
+            at: t.at,
+        }
     });
     if let Some(ns) = names {
         for (k, kv) in numbered(cx, ns, &NR_OF_ENTRIES, ctx) {

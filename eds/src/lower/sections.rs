@@ -566,9 +566,9 @@ pub(crate) fn match_keys<'a, const N: usize>(
                 let d = cx.emit(
                     codes::E0104,
                     Some(kv.key_span()),
-                    format!("key `{}` is written `{}` in CiA 306", kv.key, names[i]),
+                    super::cat(["key `", kv.key, "` is written `", names[i], "` in CiA 306"]),
                 );
-                d.hint = Some(format!("write `{}`", names[i]));
+                d.hint = Some(super::cat(["write `", names[i], "`"]));
                 d.context = context.to_vec();
             }
         } else {

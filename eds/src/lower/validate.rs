@@ -45,12 +45,12 @@ fn object_lists(secs: &Sections<'_>, lists: &Lists, model: &Model, cx: &mut Ctx<
             let d = cx.emit(
                 codes::E0402,
                 Some(obj.at.span),
-                format!("object 0x{:04X} is not named in any object list", obj.index.0),
+                super::cat(["object 0x", &super::hex4(obj.index.0), " is not named in any object list"]),
             );
             d.hint = Some(if lists.present[category_slot(cat)] {
-                format!("add it to [{}] and raise SupportedObjects", list_name(cat))
+                super::cat(["add it to [", list_name(cat), "] and raise SupportedObjects"])
             } else {
-                format!("add a [{}] section that lists it", list_name(cat))
+                super::cat(["add a [", list_name(cat), "] section that lists it"])
             });
             d.context = vec![object_context(obj.index.0, &obj.name)];
         }
