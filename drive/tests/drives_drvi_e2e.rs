@@ -1,6 +1,7 @@
 //! The DRVI through `drive-sim` as a process: a master lost by node guarding over the TCP hub
 //! (remote frames, which python-can's socketcand interface cannot send), `run --trace --plot`,
-//! the `demo` subcommand (the main job), and 1010h saves that survive a SIGKILL at any moment.
+//! the `demo` subcommand (the main job), 1010h saves that survive a SIGKILL at any moment, and
+//! moves in physical units through the generated units module.
 
 use std::io::{BufRead, BufReader, Read};
 use std::net::SocketAddr;
@@ -9,6 +10,8 @@ use std::time::{Duration, Instant};
 
 use drive::trace::Trace;
 use drive::transport::{CanFrame, Endpoint, SocketcandClient};
+use generated::drvi::Dictionary;
+use generated::drvi::units::{Dimension, Quantity, Ratio, Unit, Units};
 
 const WAIT: Duration = Duration::from_secs(10);
 
@@ -280,4 +283,96 @@ fn a_kill_during_save_never_leaves_a_torn_parameter_set() {
     }
     assert!(seen_new > 0, "some saves completed before the kill");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The generated units (`generated::drvi::units`) for the 2014h and 2001h the drive reports.
+fn units(bus: &mut SocketcandClient) -> Units {
+    let mut od = Dictionary::new(2);
+    od.set_actuator_type(read(bus, 0x2014, 0) as u8).unwrap();
+    od.set_feed_converter_numerator(read(bus, 0x2001, 1)).unwrap();
+    od.set_feed_converter_denominator(read(bus, 0x2001, 2)).unwrap();
+    Units::from_dictionary(&od).unwrap()
+}
+
+fn to_raw(bus: &mut SocketcandClient, d: Dimension, q: Quantity) -> u32 {
+    units(bus).to_raw(d, q).unwrap() as i32 as u32
+}
+
+fn position(bus: &mut SocketcandClient) -> Quantity {
+    let raw = i64::from(read(bus, 0x6064, 0) as i32);
+    units(bus).to_physical(Dimension::Position, raw).unwrap()
+}
+
+fn wait_statusword(bus: &mut SocketcandClient, mask: u16, value: u16) {
+    let deadline = Instant::now() + WAIT;
+    loop {
+        let sw = statusword(bus);
+        if sw & mask == value {
+            return;
+        }
+        assert!(Instant::now() < deadline, "statusword {sw:04X}h: {mask:04X}h never became {value:04X}h");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+fn move_to(bus: &mut SocketcandClient, target: Quantity, relative: bool) {
+    let raw = to_raw(bus, Dimension::Position, target);
+    write(bus, 0x607A, 0, raw, 4);
+    let rel = if relative { 0x40 } else { 0 };
+    for cw in [0x0F | rel, 0x1F | rel, 0x0F | rel] {
+        write(bus, 0x6040, 0, cw, 2);
+    }
+    std::thread::sleep(Duration::from_millis(20));
+    wait_statusword(bus, 0x1400, 0x0400);
+}
+
+fn q(n: i128, d: i128, unit: Unit) -> Quantity {
+    Quantity::new(Ratio::new(n, d).unwrap(), unit)
+}
+
+/// Issue #7 point 8 over the TCP hub: homing, then absolute and relative moves given in
+/// degrees (only motor), then in millimetres of a custom actuator read in thousandths of an
+/// inch (2014h = 7, 2001h = 100/254), converted by `generated::drvi::units`.
+#[test]
+fn moves_in_physical_units_through_the_generated_units_over_the_hub() {
+    use Dimension::{Acceleration, Position, Velocity};
+    let sim = DriveSim::start(&["run", "--device", "drvi", "--node-id", "2", "--listen", "127.0.0.1:0"]);
+    let mut bus = SocketcandClient::connect(sim.addr, "can0").unwrap();
+    for cw in [0x06, 0x07, 0x0F] {
+        write(&mut bus, 0x6040, 0, cw, 2);
+    }
+    write(&mut bus, 0x6098, 0, 37, 1);
+    write(&mut bus, 0x6060, 0, 6, 1);
+    write(&mut bus, 0x6040, 0, 0x1F, 2);
+    wait_statusword(&mut bus, 0x3400, 0x1400);
+    write(&mut bus, 0x6040, 0, 0x0F, 2);
+    write(&mut bus, 0x6060, 0, 1, 1);
+    assert_eq!(units(&mut bus).unit(Position), Some(Unit::Degree));
+    let v = to_raw(&mut bus, Velocity, Quantity::int(600, Unit::Rpm));
+    let a = to_raw(&mut bus, Acceleration, Quantity::int(6000, Unit::RpmPerSecond));
+    write(&mut bus, 0x6081, 0, v, 4);
+    write(&mut bus, 0x6083, 0, a, 4);
+    write(&mut bus, 0x6084, 0, a, 4);
+    move_to(&mut bus, Quantity::int(720, Unit::Degree), false);
+    assert_eq!(position(&mut bus), Quantity::int(720, Unit::Degree));
+    move_to(&mut bus, q(-721, 4, Unit::Degree), true);
+    assert_eq!(position(&mut bus), q(2159, 4, Unit::Degree), "539.75 deg");
+    // A custom actuator read in thousandths of an inch.
+    write(&mut bus, 0x2014, 0, 7, 1);
+    write(&mut bus, 0x2001, 1, 100, 4);
+    write(&mut bus, 0x2001, 2, 254, 4);
+    assert_eq!(units(&mut bus).unit(Position), Some(Unit::Millimeter));
+    let v = to_raw(&mut bus, Velocity, Quantity::int(254, Unit::MillimeterPerSecond));
+    let a = to_raw(&mut bus, Acceleration, Quantity::int(2540, Unit::MillimeterPerSecond2));
+    write(&mut bus, 0x6081, 0, v, 4);
+    write(&mut bus, 0x6083, 0, a, 4);
+    write(&mut bus, 0x6084, 0, a, 4);
+    move_to(&mut bus, q(254, 10, Unit::Millimeter), false);
+    assert_eq!(read(&mut bus, 0x6064, 0), 1000, "1 in");
+    assert_eq!(position(&mut bus), q(254, 10, Unit::Millimeter));
+    move_to(&mut bus, q(-508, 100, Unit::Millimeter), true);
+    assert_eq!(position(&mut bus), q(2032, 100, Unit::Millimeter), "0.8 in");
+    assert_eq!(read(&mut bus, 0x1001, 0) & 0xFF, 0, "no error on the way");
+    let (ok, log) = sim.stop();
+    assert!(ok, "{log}");
 }
