@@ -562,6 +562,20 @@ fn feed_converter_2001h_rescales_sdo_and_pdo_values() {
     // Targets in the new unit: 5000 = half the way back.
     move_to(&mut m, 5_000, false);
     assert_eq!(pos(&mut m), 5_000);
+    // A target by RPDO (RPDO2 = 607Ah) is in the new unit too: 7500 thousandths of an inch.
+    m.write_u32(ID, 0x1401, 1, 0x8000_0303).unwrap();
+    m.write_u8(ID, 0x1601, 0, 0).unwrap();
+    m.write_u32(ID, 0x1601, 1, 0x607A_0020).unwrap();
+    m.write_u8(ID, 0x1601, 0, 1).unwrap();
+    m.write_u32(ID, 0x1401, 1, 0x303).unwrap();
+    m.pdo(0x303, &7_500i32.to_le_bytes());
+    m.advance(2000);
+    m.controlword(ID, 0x1F).unwrap();
+    m.controlword(ID, 0x0F).unwrap();
+    m.wait_statusword(ID, 1 << 10, 1 << 10, 30_000_000, 10_000).expect("target reached");
+    assert_eq!(pos(&mut m), 7_500);
+    assert_eq!(app(&m).drive().axis().status().position_actual, 19_050, "7500 x 254 / 100 default units");
+    move_to(&mut m, 5_000, false);
     m.write_u32(ID, 0x2001, 1, 1).unwrap();
     m.write_u32(ID, 0x2001, 2, 1).unwrap();
     m.advance(2000);
