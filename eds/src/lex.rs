@@ -35,7 +35,6 @@
 //! and nothing else.
 
 use nom::bytes::complete::take_while;
-use nom::character::complete::char;
 use nom::{IResult, Parser};
 
 use crate::ast::{Document, Line, LineEnding, LineKind};
@@ -157,6 +156,16 @@ till!(
     [b']', b'[', b'\n', b'\r']
 );
 
+/// The nom parser that takes the single byte `b` (nom's `char`, for bytes: it compares one
+/// byte and splits the input, with nothing that is not inlined).
+#[inline(always)]
+fn byte(b: u8) -> impl Fn(In<'_>) -> Res<'_, u8> {
+    move |input| match input.split_first() {
+        Some((&c, rest)) if c == b => Ok((rest, c)),
+        _ => Err(nom::Err::Error(nom::error::Error::new(input, nom::error::ErrorKind::Char))),
+    }
+}
+
 /// `\r\n`, `\n`, a lone `\r`, or the end of the file (a nom parser; it fails on anything else).
 /// Once per line, so written as one match on the next two bytes rather than as
 /// `alt((tag("\r\n"), tag("\n"), tag("\r"), eof))`, which compares byte slices four times.
@@ -212,9 +221,9 @@ fn span(base: In<'_>, part: In<'_>) -> Span {
 /// name before any other `[`.
 #[inline(always)]
 fn section(input: In<'_>) -> Res<'_, (In<'_>, In<'_>)> {
-    let (input, _) = char('[').parse(input)?;
+    let (input, _) = byte(b'[')(input)?;
     let (input, name) = till_bracket(input)?;
-    let (input, _) = char(']').parse(input)?;
+    let (input, _) = byte(b']')(input)?;
     let (input, trailing) = rest_of_line(input)?;
     Ok((input, (name, trailing)))
 }
@@ -238,7 +247,7 @@ fn section_or_garbage<'a>(text: &str, base: In<'a>, body: In<'a>) -> (In<'a>, Li
 #[inline(always)]
 fn entry(input: In<'_>) -> Res<'_, (In<'_>, In<'_>)> {
     let (input, key) = till_equals(input)?;
-    let (input, _) = char('=').parse(input)?;
+    let (input, _) = byte(b'=')(input)?;
     let (input, value) = rest_of_line(input)?;
     Ok((input, (key, value)))
 }

@@ -600,8 +600,13 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                 d.hint = Some("list entries are `1=0x1000`, `2=0x1001`, ...".to_owned());
                 continue;
             };
-            let mut quirks = Vec::new();
-            let index = match parse_int(kv.value, &mut quirks) {
+            // The plain forms (`0x1000`) need neither the general number reader nor its list of
+            // remarks (which this list does not report).
+            let parsed = match crate::value::parse_plain_uint(kv.value) {
+                Some((v, radix)) => Ok(crate::value::ParsedInt { value: v as i128, radix, negative: false }),
+                None => parse_int(kv.value, &mut Vec::new()),
+            };
+            let index = match parsed {
                 Ok(p) if (0..=0xFFFF).contains(&p.value) => {
                     if p.radix != crate::model::Radix::Hex {
                         let d = cx.emit(
