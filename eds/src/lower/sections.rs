@@ -491,6 +491,17 @@ impl<const N: usize> KeySet<N> {
             let w = words(names[i].as_bytes());
             words_of[i] = w;
             lower[i] = (ascii_lower(w.0), ascii_lower(w.1));
+            // No two keys are equal ignoring case (so a key spelled exactly like one of them
+            // matches that one only, and `find` may try the exact spellings first). Checked on
+            // the two words, which for keys longer than 16 bytes is stricter than needed.
+            let mut j = 0;
+            while j < i {
+                assert!(
+                    names[j].len() != len || lower[j].0 != lower[i].0 || lower[j].1 != lower[i].1,
+                    "keys differ ignoring case"
+                );
+                j += 1;
+            }
             i += 1;
         }
         KeySet { names, by_len, words: words_of, lower }
@@ -515,6 +526,15 @@ impl<const N: usize> KeySet<N> {
             return None;
         }
         let w = key_words(key.as_bytes());
+        // Most files spell keys as CiA 306 does: try that before lower-casing.
+        let mut exact = candidates;
+        while exact != 0 {
+            let i = exact.trailing_zeros() as usize;
+            if self.words[i] == w {
+                return Some((i, true));
+            }
+            exact &= exact - 1;
+        }
         let l = (ascii_lower(w.0), ascii_lower(w.1));
         while candidates != 0 {
             let i = candidates.trailing_zeros() as usize;
