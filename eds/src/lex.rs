@@ -232,11 +232,7 @@ fn section(input: In<'_>) -> Res<'_, (In<'_>, In<'_>)> {
 fn section_or_garbage<'a>(text: &str, base: In<'a>, body: In<'a>) -> (In<'a>, LineKind) {
     match section(body) {
         Ok((after, (name, trailing))) => {
-            let name = span(base, name);
-            let kind = LineKind::Section {
-                name: trim_span(text, name.start as usize, name.end as usize),
-                trailing: span(base, trailing),
-            };
+            let kind = LineKind::Section { name: trim_part(text, base, name), trailing: span(base, trailing) };
             (after, kind)
         }
         Err(_) => (rest_of_line(body).map_or(body, |(after, _)| after), LineKind::Garbage),
@@ -258,13 +254,11 @@ fn entry(input: In<'_>) -> Res<'_, (In<'_>, In<'_>)> {
 fn entry_or_other<'a>(text: &str, base: In<'a>, content: In<'a>) -> (In<'a>, LineKind) {
     match entry(content) {
         Ok((after, (key, value))) => {
-            let key = span(base, key);
-            let key = trim_span(text, key.start as usize, key.end as usize);
+            let key = trim_part(text, base, key);
             if key.is_empty() {
                 (after, LineKind::Garbage)
             } else {
-                let value = span(base, value);
-                (after, LineKind::Entry { key, value: trim_span(text, value.start as usize, value.end as usize) })
+                (after, LineKind::Entry { key, value: trim_part(text, base, value) })
             }
         }
         Err(_) => {
@@ -301,19 +295,20 @@ pub(crate) fn trim_start(s: &str) -> &str {
     }
 }
 
-/// `text[start..end]` trimmed as [`str::trim`] trims it, as a span (`start` and `end` are char
-/// boundaries).
+/// The span of `part` (a sub-slice of `base`, the bytes of `text`, cut at char boundaries)
+/// trimmed as [`str::trim`] trims it.
 #[inline(always)]
-fn trim_span(text: &str, start: usize, end: usize) -> Span {
-    let b = text.as_bytes();
-    // Most keys and values have nothing to trim.
-    if start < end && matches!(b[start], 0x21..=0x7E) && matches!(b[end - 1], 0x21..=0x7E) {
-        return Span::new(start as u32, end as u32);
+fn trim_part(text: &str, base: In<'_>, part: In<'_>) -> Span {
+    // Most keys and values have nothing to trim (decided on the part's own first and last
+    // byte, with no index into the text to check).
+    if let (Some(0x21..=0x7E), Some(0x21..=0x7E)) = (part.first(), part.last()) {
+        return span(base, part);
     }
-    let s = &text[start..end];
+    let whole = span(base, part);
+    let s = &text[whole.start as usize..whole.end as usize];
     let t = s.trim();
     // `trim` gives the empty string at the start for white space only.
-    let off = start + (t.as_ptr() as usize - s.as_ptr() as usize);
+    let off = whole.start as usize + (t.as_ptr() as usize - s.as_ptr() as usize);
     Span::new(off as u32, (off + t.len()) as u32)
 }
 

@@ -732,7 +732,7 @@ fn build_object(
     let name = sec.entries.iter().rev().find(|kv| kv.key.eq_ignore_ascii_case("ParameterName")).map(|kv| kv.value);
     let ctx = Crumbs::object(index, name.unwrap_or(sec.name));
     let keys = match_keys(cx, sec, &OBJ_KEYS, ctx, true);
-    let name = match keys.get(K_NAME) {
+    let mut name = match keys.get(K_NAME) {
         Some(kv) => kv.value.to_owned(),
         None => {
             let d = cx.emit(codes::E0201, Some(sec.name_span), format!("[{}] lacks ParameterName", sec.name));
@@ -781,9 +781,11 @@ fn build_object(
             ObjectType::Var
         }
     };
+    // The name is copied only for a VAR or DOMAIN, whose entry at sub-index 0 bears it too.
+    let single_entry = !object_type.has_subs() && object_type != ObjectType::Null;
     let mut obj = Object {
         index: Index(index),
-        name: name.clone(),
+        name: if single_entry { name.clone() } else { std::mem::take(&mut name) },
         object_type,
         category: crate::model::Category::Optional,
         subs: SubMap::with_capacity(if !object_type.has_subs() {
@@ -806,7 +808,7 @@ fn build_object(
             } else {
                 EntryDefaults::default()
             };
-            if let Some(e) = builder.build(cx, sec, &keys, 0, Some(name.clone()), defaults, ctx) {
+            if let Some(e) = builder.build(cx, sec, &keys, 0, Some(std::mem::take(&mut name)), defaults, ctx) {
                 obj.subs.insert(SubIndex(0), e);
             }
         } else {
