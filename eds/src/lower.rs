@@ -26,7 +26,7 @@ mod validate;
 pub use pdo::expand_compact_pdo;
 
 use crate::ast::Document;
-use crate::diag::{Code, Diagnostic};
+use crate::diag::{Code, Diagnostic, Severity};
 use crate::model::{FileKind, Model};
 use crate::source::{SourceFile, Span};
 use crate::{Options, Strictness};
@@ -35,7 +35,7 @@ use crate::{Options, Strictness};
 /// far as the file allows; the diagnostics say what was wrong, in file order (problems that
 /// concern the whole file come last).
 pub fn lower(doc: &Document, options: &Options) -> (Model, Vec<Diagnostic>) {
-    let mut cx = Ctx { src: &doc.source, strictness: options.strictness, diags: Vec::with_capacity(32) };
+    let mut cx = Ctx::new(&doc.source, options.strictness);
     let collected = sections::collect(doc, &mut cx);
     let secs = collected.sections();
     let mut model = Model::default();
@@ -117,18 +117,45 @@ pub(crate) struct Ctx<'a> {
     pub src: &'a SourceFile,
     pub strictness: Strictness,
     pub diags: Vec<Diagnostic>,
+    /// The severities of recently emitted codes, by the address of the code's text: a file
+    /// emits a few codes many times, and the table of all codes, searched between megabytes of
+    /// text, is seldom in the cache.
+    severities: [(u64, Severity); 16],
 }
 
-impl Ctx<'_> {
+impl<'a> Ctx<'a> {
+    /// A context for lowering `src` at `strictness`.
+    pub fn new(src: &'a SourceFile, strictness: Strictness) -> Self {
+        Ctx { src, strictness, diags: Vec::with_capacity(32), severities: [(0, Severity::Note); 16] }
+    }
+
+    /// The severity of `code` at this context's strictness ([`crate::codes::severity`]).
+    #[inline]
+    fn severity(&mut self, code: Code) -> Severity {
+        // The address and length of a code's text identify the text, and so the code.
+        let key = code.0.as_ptr() as usize as u64 ^ (code.0.len() as u64) << 59;
+        let slot = &mut self.severities[(key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 60) as usize];
+        if slot.0 != key {
+            *slot = (key, crate::codes::severity(code, self.strictness));
+        }
+        slot.1
+    }
+
     /// Records a diagnostic at `span` (or for the whole file) and returns it for adding context
     /// and a hint.
     pub fn emit(&mut self, code: Code, span: Option<Span>, message: impl Into<String>) -> &mut Diagnostic {
-        let mut d = Diagnostic::new(code, self.strictness, &self.src.name, message);
-        if let Some(s) = span {
-            d.span = Some(s);
-            d.at = Some(self.src.line_col(s.start));
-        }
-        self.diags.push(d);
+        let severity = self.severity(code);
+        let at = span.map(|s| self.src.line_col(s.start));
+        self.diags.push(Diagnostic {
+            severity,
+            code,
+            message: message.into(),
+            file: self.src.name.clone(),
+            span,
+            at,
+            context: Vec::new(),
+            hint: None,
+        });
         let last = self.diags.len() - 1;
         &mut self.diags[last]
     }

@@ -718,7 +718,7 @@ mod tests {
     fn section_positions_are_what_line_col_says() {
         let text = "[FileInfo]\r[DeviceInfo]\r\n  [1000]\nK=v\r\r \u{e4}\u{e4}\r [1001]\n\t[2000]\n[ä]\r\n [3000]";
         let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text));
-        let mut cx = Ctx { src: &doc.source, strictness: crate::Strictness::Lenient, diags: Vec::new() };
+        let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
         let collected = collect(&doc, &mut cx);
         let secs = collected.sections();
         assert_eq!(secs.list.len(), 7);
@@ -737,7 +737,7 @@ mod tests {
             }
             text.push_str("xY=1\n2=0x2000\nXy=2\n");
             let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text));
-            let mut cx = Ctx { src: &doc.source, strictness: crate::Strictness::Lenient, diags: Vec::new() };
+            let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
             let collected = collect(&doc, &mut cx);
             let secs = collected.sections();
             let keys = match_keys(&mut cx, &secs.list[0], &KeySet::new(["SupportedObjects"]), Crumbs::default(), false);
