@@ -494,6 +494,16 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
                 #slot_mut_body
             }
 
+            /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
+            /// of `read_handle`.
+            #[inline(always)]
+            fn read_at(&self, pos: usize) -> [u8; 8] {
+                match self.slot(pos) {
+                    Some(slot) => #rt::first8(|| ENTRIES.get(pos).map_or(0, |e| e.bits), slot),
+                    None => [0; 8],
+                }
+            }
+
             /// Stores a value given as bytes into the entry at `pos` of [`ENTRIES`], after the
             /// runtime's checks (the shared body of `write` and `write_handle`).
             #[inline]
@@ -578,11 +588,19 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
 
             #[inline]
             fn read_handle(&self, h: ::od_runtime::od::Handle) -> [u8; 8] {
-                let pos = h.get() as usize;
-                match self.slot(pos) {
-                    Some(slot) => #rt::first8(|| ENTRIES.get(pos).map_or(0, |e| e.bits), slot),
+                self.read_at(h.get() as usize)
+            }
+
+            // The read inlined into the packing loop, as one jump table over the slots. It
+            // skips `read_handle`'s cut to the entry's length (which would look the entry up):
+            // the loop cuts every value to its mapped length, which a loaded mapping makes
+            // the entry's own.
+            #[inline]
+            fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
+                #rt::pack_mapped(map, |h| match self.slot(h.get() as usize) {
+                    Some(slot) => #rt::first8(|| 64, slot),
                     None => [0; 8],
-                }
+                })
             }
 
             #[inline]

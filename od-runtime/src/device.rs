@@ -5,7 +5,7 @@ use crate::cia402::{self, StateMachine, Transitions};
 use crate::emcy::{self, Queue};
 use crate::frame::{Frame, Micros, NodeId};
 use crate::nmt::{NmtCommand, NmtState};
-use crate::od::{AbortCode, Area, DataType, EntryInfo, Handle, ObjectDictionary};
+use crate::od::{AbortCode, Area, DataType, EntryInfo, Handle, MappedHandle, ObjectDictionary, low_bits};
 use crate::pdo::{self, Direction, MAX_MAPPED, MapEntry, Mappable};
 use crate::sdo::{ObjectAccess, SdoServer};
 use crate::storage::{self, LOAD_SIGNATURE, SAVE_SIGNATURE, Storage};
@@ -136,32 +136,7 @@ pub trait App<OD> {
 impl<OD> App<OD> for () {}
 
 /// One entry of a loaded PDO mapping, resolved to a [`Handle`] when the mapping was loaded.
-#[derive(Clone, Copy, PartialEq, Eq)]
-struct Mapped {
-    index: u16,
-    sub: u8,
-    /// Length in bits (1..=64).
-    bits: u8,
-    /// The entry (unused for dummy entries).
-    handle: Handle,
-}
-
-impl Mapped {
-    const EMPTY: Self = Self { index: 0, sub: 0, bits: 0, handle: Handle::new(0) };
-
-    /// Whether this is a dummy entry of an RPDO (index 0x0001..=0x0007), which only skips bits.
-    const fn is_dummy(&self) -> bool {
-        self.index >= 1 && self.index <= 7
-    }
-}
-
-/// The low `bits` bits of `v`, in two shifts. `bits` is 1..=64 in a loaded mapping; the shift
-/// count is taken modulo 64, so no value can make it overflow.
-#[inline(always)]
-fn low_bits(v: u64, bits: u32) -> u64 {
-    let s = 64u32.wrapping_sub(bits) & 63;
-    (v << s) >> s
-}
+type Mapped = MappedHandle;
 
 /// Whether a write of `index` has effects beyond the dictionary (communication objects, the
 /// CiA 402 controlword and modes of operation): such writes take [`Core::write_entry`]'s full
@@ -432,18 +407,10 @@ fn pdo_lookup<OD: ObjectDictionary>(od: &OD) -> impl FnMut(u16, u8) -> Result<Ma
 }
 
 /// The data of a TPDO: each mapped value's low `bits` bits, from bit 0 up, in one 64-bit word
-/// (a loaded mapping has at most 64 bits, so every entry fits).
+/// (a loaded mapping has at most 64 bits, so every entry fits), zero past the mapping.
+#[inline(always)]
 fn pack<OD: ObjectDictionary>(od: &OD, map: &[Mapped]) -> [u8; 8] {
-    let mut word = 0u64;
-    let mut offset = 0u32;
-    for e in map {
-        let bits = u32::from(e.bits);
-        let v = low_bits(u64::from_le_bytes(od.read_handle(e.handle)), bits);
-        // A loaded mapping has at most 64 bits, so `offset` stays below 64 for every entry.
-        word |= v << (offset & 63);
-        offset += bits;
-    }
-    word.to_le_bytes()
+    od.read_mapped(map).to_le_bytes()
 }
 
 impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S, P> {

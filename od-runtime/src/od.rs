@@ -254,6 +254,56 @@ impl Handle {
     }
 }
 
+/// One entry of a loaded PDO mapping: the mapped object, its length in the PDO and its
+/// [`Handle`]. The runtime keeps a slice of these per PDO and hands it to
+/// [`ObjectDictionary::read_mapped`] on every transmission.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct MappedHandle {
+    /// Object index (0x0001..=0x0007 for a dummy entry of an RPDO).
+    pub index: u16,
+    /// Sub-index.
+    pub sub: u8,
+    /// Length in the PDO in bits (1..=64 in a loaded mapping).
+    pub bits: u8,
+    /// The entry, resolved when the mapping was loaded (meaningless for a dummy entry).
+    pub handle: Handle,
+}
+
+impl MappedHandle {
+    /// An unused entry.
+    pub const EMPTY: Self = Self { index: 0, sub: 0, bits: 0, handle: Handle::new(0) };
+
+    /// Whether this is a dummy entry (index 0x0001..=0x0007), which only skips bits.
+    pub const fn is_dummy(&self) -> bool {
+        self.index >= 1 && self.index <= 7
+    }
+}
+
+/// The low `bits` bits of `v`, in two shifts; the shift count is taken modulo 64, so no value
+/// makes it overflow (`bits` is 1..=64 in a loaded mapping).
+#[inline(always)]
+pub(crate) fn low_bits(v: u64, bits: u32) -> u64 {
+    let s = 64u32.wrapping_sub(bits) & 63;
+    (v << s) >> s
+}
+
+/// Packs a mapping into one 64-bit word: each entry's value, as `read` gives it, cut to its
+/// low `bits` bits and placed from bit 0 up in mapping order. A loaded mapping has at most 64
+/// bits, so every entry fits and the word is zero past the mapping's length; the shift count
+/// is taken modulo 64 all the same, so no slice makes it panic. The shared body of
+/// [`ObjectDictionary::read_mapped`] and of the generated dictionaries' override.
+#[inline(always)]
+pub(crate) fn pack_mapped(map: &[MappedHandle], mut read: impl FnMut(Handle) -> [u8; 8]) -> u64 {
+    let mut word = 0u64;
+    let mut offset = 0u32;
+    for e in map {
+        let bits = u32::from(e.bits);
+        word |= low_bits(u64::from_le_bytes(read(e.handle)), bits) << (offset & 63);
+        offset = offset.wrapping_add(bits);
+    }
+    word
+}
+
 /// An object dictionary the runtime can serve.
 ///
 /// Values travel as little-endian bytes, as on the bus. Implementations check lengths and
@@ -325,6 +375,18 @@ pub trait ObjectDictionary {
     fn write_handle(&mut self, h: Handle, data: &[u8]) -> Result<(), AbortCode> {
         let (index, sub) = h.key();
         self.write(index, sub, data)
+    }
+
+    /// The data of a transmit PDO as one little-endian 64-bit word: each entry's value
+    /// ([`read_handle`](Self::read_handle)) cut to its low `bits` bits, placed from bit 0 up
+    /// in mapping order. The runtime calls it on every SYNC and every asynchronous
+    /// transmission, with a mapping whose lengths add up to at most 64 bits.
+    ///
+    /// Default: `read_handle` for each entry. Generated dictionaries override it with their
+    /// reads inlined into the loop (one call per PDO instead of one per entry); an override
+    /// must give the same word.
+    fn read_mapped(&self, map: &[MappedHandle]) -> u64 {
+        pack_mapped(map, |h| self.read_handle(h))
     }
 }
 

@@ -310,16 +310,28 @@ pub fn first8(bits: impl FnOnce() -> u32, slot: Slot<'_>) -> [u8; 8] {
         Slot::I32(v) => u64::from(*v as u32) & keep(bits()),
         Slot::U64(v) => *v & keep(bits()),
         Slot::I64(v) => *v as u64 & keep(bits()),
-        Slot::Bytes(b) => {
-            let mut out = [0u8; 8];
-            let (head, _) = b.split_at(b.len().min(8));
-            for (o, x) in out.iter_mut().zip(head) {
-                *o = *x;
-            }
-            return out;
-        }
+        Slot::Bytes(b) => return head8(b),
     };
     v.to_le_bytes()
+}
+
+/// The first 8 bytes of a buffer, zero past its end. Out of line: strings are rarely mapped,
+/// and the copy would otherwise take registers from the PDO packing loop.
+#[inline(never)]
+fn head8(b: &[u8]) -> [u8; 8] {
+    let mut out = [0u8; 8];
+    let (head, _) = b.split_at(b.len().min(8));
+    for (o, x) in out.iter_mut().zip(head) {
+        *o = *x;
+    }
+    out
+}
+
+/// The generated [`ObjectDictionary::read_mapped`]: the runtime's packing loop with the
+/// dictionary's own read (`read(handle)`, its `read_handle` body) inlined.
+#[inline(always)]
+pub fn pack_mapped(map: &[crate::od::MappedHandle], read: impl FnMut(crate::od::Handle) -> [u8; 8]) -> u64 {
+    crate::od::pack_mapped(map, read)
 }
 
 /// Checks a real number against REAL limits.

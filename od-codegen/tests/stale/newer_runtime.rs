@@ -98,6 +98,20 @@ pub mod tiny {
                 },
             )
         }
+        /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
+        /// of `read_handle`.
+        #[inline(always)]
+        fn read_at(&self, pos: usize) -> [u8; 8] {
+            match self.slot(pos) {
+                Some(slot) => {
+                    ::od_runtime::__private_v1::first8(
+                        || ENTRIES.get(pos).map_or(0, |e| e.bits),
+                        slot,
+                    )
+                }
+                None => [0; 8],
+            }
+        }
         /// Stores a value given as bytes into the entry at `pos` of [`ENTRIES`], after the
         /// runtime's checks (the shared body of `write` and `write_handle`).
         #[inline]
@@ -231,16 +245,17 @@ pub mod tiny {
         }
         #[inline]
         fn read_handle(&self, h: ::od_runtime::od::Handle) -> [u8; 8] {
-            let pos = h.get() as usize;
-            match self.slot(pos) {
-                Some(slot) => {
-                    ::od_runtime::__private_v1::first8(
-                        || ENTRIES.get(pos).map_or(0, |e| e.bits),
-                        slot,
-                    )
-                }
-                None => [0; 8],
-            }
+            self.read_at(h.get() as usize)
+        }
+        #[inline]
+        fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
+            ::od_runtime::__private_v1::pack_mapped(
+                map,
+                |h| match self.slot(h.get() as usize) {
+                    Some(slot) => ::od_runtime::__private_v1::first8(|| 64, slot),
+                    None => [0; 8],
+                },
+            )
         }
         #[inline]
         fn write_handle(
