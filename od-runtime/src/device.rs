@@ -313,6 +313,8 @@ struct Core<OD, A, S, const P: usize> {
     hb_next: Micros,
     guard_time: Micros,
     life_factor: u8,
+    /// Guard time × life time factor (0 = life guarding off), kept with the two.
+    life_time: Micros,
     guard_toggle: bool,
     guard_reply: bool,
     guard_last: Option<Micros>,
@@ -491,6 +493,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
             0x100C | 0x100D => {
                 self.guard_time = Micros::from(read_uint(&self.od, 0x100C, 0).unwrap_or(0)) * 1000;
                 self.life_factor = read_uint(&self.od, 0x100D, 0).unwrap_or(0) as u8;
+                self.life_time = self.guard_time.saturating_mul(Micros::from(self.life_factor));
             }
             0x1200 => {
                 let rx = read_uint(&self.od, 0x1200, 1).unwrap_or(0x600 + node);
@@ -1222,7 +1225,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                 self.event(Event::HeartbeatTimeout { node: c.node });
             }
         }
-        let life = self.guard_time.saturating_mul(Micros::from(self.life_factor));
+        let life = self.life_time;
         if life != 0
             && !self.guard_lost
             && let Some(last) = self.guard_last
@@ -1364,6 +1367,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
                 hb_next: 0,
                 guard_time: 0,
                 life_factor: 0,
+                life_time: 0,
                 guard_toggle: false,
                 guard_reply: false,
                 guard_last: None,

@@ -517,7 +517,16 @@ impl<const N: usize> SdoServer<N> {
     }
 
     /// Emits the queued response, a block upload's next block, or a timeout abort.
+    #[inline]
     pub fn poll(&mut self, now: Micros, emit: &mut impl FnMut([u8; 8])) {
+        // The usual poll: no response queued, no transfer under way.
+        if self.out.is_none() && matches!(self.state, State::Idle) {
+            return;
+        }
+        self.poll_busy(now, emit);
+    }
+
+    fn poll_busy(&mut self, now: Micros, emit: &mut impl FnMut([u8; 8])) {
         if let Some(d) = self.out.take() {
             emit(d);
         }
