@@ -290,9 +290,17 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                 }
                 let (kind, spelling) = classify(name_str);
                 report_spelling(cx, name, name_str, &spelling);
+                // A new section of a known kind is entered under the number it is about to get
+                // (one hash and one probe, where a look-up and an insertion took two).
                 let existing = match kind {
                     Kind::Unknown => unknown.iter().copied().find(|&i| heads[i].name.eq_ignore_ascii_case(name_str)),
-                    k => by_kind.get(&k).copied(),
+                    k => match by_kind.entry(k) {
+                        std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
+                        std::collections::hash_map::Entry::Vacant(e) => {
+                            e.insert(heads.len());
+                            None
+                        }
+                    },
                 };
                 let i = match existing {
                     Some(i) => {
@@ -314,11 +322,8 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                         let at = LineCol { line: line_no, col: col_base + char_count(before) + 1 };
                         heads.push(Head { name: name_str, name_span: name, at, kind, entries: 0..0 });
                         occurrences.push(0);
-                        match kind {
-                            Kind::Unknown => unknown.push(i),
-                            k => {
-                                by_kind.insert(k, i);
-                            }
+                        if kind == Kind::Unknown {
+                            unknown.push(i);
                         }
                         i
                     }
