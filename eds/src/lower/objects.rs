@@ -88,10 +88,23 @@ fn before_comment(v: &str) -> Option<&str> {
 
 /// Reads a plain unsigned integer key (ObjectType, DataType, SubNumber, ...). An inline comment
 /// is removed with a warning. Returns `Err(text)` when unreadable.
+#[inline]
 fn uint_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u32, context: Crumbs<'_>) -> Result<u32, ()> {
-    if let Some((v, _)) = value::parse_plain_uint(kv.value) {
-        return if v <= max as u64 { Ok(v as u32) } else { Err(()) };
+    match value::parse_plain_uint(kv.value) {
+        Some((v, _)) => {
+            if v <= max as u64 {
+                Ok(v as u32)
+            } else {
+                Err(())
+            }
+        }
+        None => uint_key_general(cx, kv, max, context),
     }
+}
+
+/// [`uint_key`] for the forms that are not plain (kept out of line: most values are plain).
+#[inline(never)]
+fn uint_key_general(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u32, context: Crumbs<'_>) -> Result<u32, ()> {
     let mut quirks = Vec::new();
     let mut parsed = value::parse_int(kv.value, &mut quirks);
     if parsed.is_err()
