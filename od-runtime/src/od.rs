@@ -450,13 +450,23 @@ impl EntryInfo {
     /// Errors: `LENGTH_TOO_HIGH` (0x0607_0012), `LENGTH_TOO_LOW` (0x0607_0013),
     /// `VALUE_TOO_HIGH` (0x0609_0031), `VALUE_TOO_LOW` (0x0609_0032), and `INVALID_VALUE`
     /// (0x0609_0030) for a BOOLEAN that is neither 0 nor 1.
+    #[inline]
     pub fn check_value(&self, data: &[u8]) -> Result<(), AbortCode> {
-        let len = self.byte_len();
-        // The common case first (an exact length, no limits, not a BOOLEAN), which every
-        // branch below accepts: one comparison per field on the PDO path.
-        if data.len() == len && self.low.is_none() && self.high.is_none() && self.data_type != DataType::Boolean {
+        // The common case first, inlined (an exact length, no limits, not a BOOLEAN), which
+        // every rule of `check_value_slow` accepts: one comparison per field on the PDO path.
+        if data.len() == self.byte_len()
+            && self.low.is_none()
+            && self.high.is_none()
+            && self.data_type != DataType::Boolean
+        {
             return Ok(());
         }
+        self.check_value_slow(data)
+    }
+
+    #[inline(never)]
+    fn check_value_slow(&self, data: &[u8]) -> Result<(), AbortCode> {
+        let len = self.byte_len();
         if self.data_type.is_variable_length() {
             return if data.len() > len { Err(AbortCode::LENGTH_TOO_HIGH) } else { Ok(()) };
         }
