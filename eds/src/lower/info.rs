@@ -396,7 +396,8 @@ fn lower_commissioning(cx: &mut Ctx<'_>, sec: &Section<'_>) -> Commissioning {
 }
 
 fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
-    let keys = match_keys(cx, sec, &KeySet::new([]), Crumbs::default(), false);
+    const NO_KEYS: KeySet<0> = KeySet::new([]);
+    let keys = match_keys(cx, sec, &NO_KEYS, Crumbs::default(), false);
     for kv in &keys.unknown {
         let ty = kv.key.get(..5).filter(|p| p.eq_ignore_ascii_case("Dummy")).and_then(|_| {
             let digits = &kv.key[5..];
@@ -438,7 +439,8 @@ fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
 }
 
 fn lower_comments(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
-    let keys = match_keys(cx, sec, &KeySet::new(["Lines"]), Crumbs::default(), false);
+    const LINES: KeySet<1> = KeySet::new(["Lines"]);
+    let keys = match_keys(cx, sec, &LINES, Crumbs::default(), false);
     let mut lines: Vec<(u32, &str)> = Vec::new();
     for kv in &keys.unknown {
         let n =
@@ -588,7 +590,9 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
         let Some(sec) = secs.get(Kind::List(cat)) else { continue };
         lists.present[category_slot(cat)] = true;
         let name = list_name(cat);
-        let keys = match_keys(cx, sec, &KeySet::new(["SupportedObjects"]), Crumbs::default(), false);
+        // A constant, so that the key set is built when compiling, not on every call.
+        const SUPPORTED_OBJECTS: KeySet<1> = KeySet::new(["SupportedObjects"]);
+        let keys = match_keys(cx, sec, &SUPPORTED_OBJECTS, Crumbs::default(), false);
         let mut numbers: Vec<u32> = Vec::new();
         for kv in &keys.unknown {
             let Ok(n) = kv.key.parse::<u32>() else {
