@@ -257,10 +257,18 @@ pub(crate) fn push_hex4(s: &mut String, v: u16) {
 /// ASCII characters one by one (a few at most), which costs less than building a buffer and
 /// checking it is UTF-8.
 pub(crate) fn push_decimal(s: &mut String, v: u32) {
-    if v >= 10 {
-        push_decimal(s, v / 10);
+    // Sub-indices (below 1000) are most of what is written here: no recursion for them.
+    if v >= 1000 {
+        push_decimal(s, v / 1000);
     }
-    s.push(char::from(b'0' + (v % 10) as u8));
+    let r = v % 1000;
+    if v >= 100 {
+        s.push(char::from(b'0' + (r / 100) as u8));
+    }
+    if v >= 10 {
+        s.push(char::from(b'0' + (r / 10 % 10) as u8));
+    }
+    s.push(char::from(b'0' + (r % 10) as u8));
 }
 
 #[cfg(test)]
@@ -274,7 +282,7 @@ mod tests {
             push_hex4(&mut s, v);
             assert_eq!(s, format!("{v:04X}"));
         }
-        for v in [0u32, 7, 10, 99, 100, 255, 65535, u32::MAX] {
+        for v in [0u32, 7, 10, 99, 100, 255, 999, 1000, 1001, 1010, 1100, 10005, 65535, 100_000, 1_000_200, u32::MAX] {
             let mut s = String::from("x");
             push_decimal(&mut s, v);
             assert_eq!(s, format!("x{v}"));
