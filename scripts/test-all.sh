@@ -34,8 +34,11 @@ step "SocketCAN transport compiles"
 cargo check -p drive --features socketcan --locked
 
 step "pytest (python-canopen against the simulated drives)"
-export DRIVE_SIM="$root/target/debug/drive-sim"
-export ODGEN="$root/target/debug/odgen"
+# Where cargo put them: $CARGO_TARGET_DIR when set (relative to the root, as cargo reads it).
+target=${CARGO_TARGET_DIR:-$root/target}
+case "$target" in /*) ;; *) target="$root/$target" ;; esac
+export DRIVE_SIM="$target/debug/drive-sim"
+export ODGEN="$target/debug/odgen"
 set +e
 "$PYTHON" -m pytest -q tests/python
 rc=$?
