@@ -207,6 +207,38 @@ fn check_json_is_machine_readable() {
 }
 
 #[test]
+fn check_on_several_threads_prints_what_one_thread_prints() {
+    let dir = TempDir::new("jobs");
+    let mut files: Vec<PathBuf> = (0..12)
+        .map(|i| {
+            let text = if i % 3 == 0 {
+                GOOD.replace("DataType=0x0002\n", "")
+            } else {
+                GOOD.replace("DefaultValue=0\nLowLimit", &format!("DefaultValue=0x{i}G\nLowLimit"))
+            };
+            dir.file(&format!("f{i:02}.eds"), &text)
+        })
+        .collect();
+    files.insert(5, dir.0.join("missing.eds"));
+    let run = |jobs: &str| {
+        let mut args = vec!["check", "--jobs", jobs];
+        args.extend(files.iter().map(|p| s(p)));
+        odgen(&args)
+    };
+    let one = run("1");
+    assert_eq!(one.status.code(), Some(2), "{}", stdout(&one));
+    assert!(stdout(&one).contains("checked 13 files: 4 errors"), "{}", stdout(&one));
+    for jobs in ["2", "8"] {
+        let many = run(jobs);
+        assert_eq!(
+            (many.status.code(), stdout(&many), stderr(&many)),
+            (one.status.code(), stdout(&one), stderr(&one)),
+            "--jobs {jobs}"
+        );
+    }
+}
+
+#[test]
 fn check_reports_unreadable_files() {
     let o = odgen(&["check", "/nonexistent/x.eds"]);
     assert_eq!(o.status.code(), Some(2));

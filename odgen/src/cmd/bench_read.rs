@@ -1,9 +1,11 @@
 //! `odgen bench-read` (hidden): read+validate throughput, for `scripts/bench-read.sh`.
 //!
 //! All files are loaded into memory first, then parsed (decode, lex, lower, validate) `N` times
-//! in a row; only the parsing is timed. Prints one JSON line:
-//! `{"files":61,"bytes":1500000,"iterations":20,"seconds":0.8,"mb_per_s":37.5,"ms_per_pass":40,
-//! "cpu_seconds":0.7,"cpu_ms_per_pass":35}` (the CPU figures are `null` where Linux's
+//! in a row; only the parsing is timed. With `--jobs J` (default 1) each pass is spread over `J`
+//! threads as `odgen check` spreads its files. Prints one JSON line:
+//! `{"files":61,"bytes":1500000,"jobs":1,"iterations":20,"seconds":0.8,"mb_per_s":37.5,
+//! "ms_per_pass":40,"cpu_seconds":0.7,"cpu_ms_per_pass":35}`: `seconds` and `ms_per_pass` are
+//! wall time, the CPU figures are summed over the threads (`null` where Linux's
 //! `/proc/thread-self/schedstat` is missing).
 
 use std::path::PathBuf;
@@ -27,6 +29,9 @@ pub struct Args {
     /// Passes over all files.
     #[arg(long, default_value_t = 20)]
     pub iterations: u32,
+    /// Threads per pass (0: one per core).
+    #[arg(long, default_value_t = 1)]
+    pub jobs: usize,
     /// Strict validation.
     #[arg(long)]
     pub strict: bool,
@@ -73,26 +78,49 @@ pub fn run(args: Args) -> ExitCode {
     let options = if args.strict { eds::Options::strict() } else { eds::Options::lenient() };
     let bytes: usize = files.iter().map(|(_, b)| b.len()).sum();
     let iterations = args.iterations.max(1);
-    let mut objects = 0usize;
-    let cpu_start = thread_cpu_seconds();
-    let start = Instant::now();
-    for _ in 0..iterations {
-        for (name, b) in &files {
-            let parsed = eds::parse(name, b, &options);
-            objects += std::hint::black_box(parsed.model.objects.len());
+    let jobs = super::jobs(if args.jobs == 0 { None } else { Some(args.jobs) }).min(files.len().max(1));
+    // The files are dealt to the threads once, largest first to the least loaded, and each
+    // thread makes every pass over its share: the threads run side by side for the whole
+    // measurement, and each measures its own CPU time once.
+    let mut order: Vec<usize> = (0..files.len()).collect();
+    order.sort_by_key(|&i| std::cmp::Reverse(files[i].1.len()));
+    let mut shares: Vec<(usize, Vec<usize>)> = vec![(0, Vec::new()); jobs];
+    for i in order {
+        if let Some(least) = shares.iter_mut().min_by_key(|(load, _)| *load) {
+            least.0 += files[i].1.len();
+            least.1.push(i);
         }
     }
-    let seconds = start.elapsed().as_secs_f64();
-    let cpu_seconds = match (cpu_start, thread_cpu_seconds()) {
-        (Some(a), Some(b)) => Some(b - a),
-        _ => None,
+    let work = |share: &[usize]| {
+        let before = thread_cpu_seconds();
+        let mut objects = 0usize;
+        for _ in 0..iterations {
+            for &i in share {
+                let (name, b) = &files[i];
+                objects += std::hint::black_box(eds::parse(name, b, &options).model.objects.len());
+            }
+        }
+        (objects, before.zip(thread_cpu_seconds()).map(|(a, b)| b - a))
     };
+    let start = Instant::now();
+    let runs: Vec<(usize, Option<f64>)> = if jobs == 1 {
+        vec![work(&shares[0].1)]
+    } else {
+        std::thread::scope(|scope| {
+            let workers: Vec<_> = shares.iter().map(|(_, share)| scope.spawn(|| work(share))).collect();
+            workers.into_iter().map(|w| w.join().unwrap_or_else(|e| std::panic::resume_unwind(e))).collect()
+        })
+    };
+    let objects: usize = runs.iter().map(|(n, _)| n).sum();
+    let cpu_seconds = runs.iter().try_fold(0.0, |sum, (_, cpu)| cpu.map(|c| sum + c));
+    let seconds = start.elapsed().as_secs_f64();
     let mb = (bytes as f64 * iterations as f64) / 1e6;
     super::outln!(
         "{}",
         serde_json::json!({
             "files": files.len(),
             "bytes": bytes,
+            "jobs": jobs,
             "objects_per_pass": objects / iterations as usize,
             "iterations": iterations,
             "seconds": seconds,

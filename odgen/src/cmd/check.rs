@@ -26,6 +26,10 @@ pub struct Args {
     /// Output format.
     #[arg(long, value_enum, default_value_t = Format::Human)]
     pub format: Format,
+    /// Threads reading files at once (default: one per core); the output is in the order of
+    /// the files whatever the number.
+    #[arg(long, short = 'j')]
+    pub jobs: Option<usize>,
     /// EDS or DCF files.
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
@@ -38,10 +42,15 @@ pub fn run(args: Args) -> ExitCode {
     let mut all: Vec<Diagnostic> = Vec::new();
     let mut json_files = Vec::new();
     let mut unreadable = 0usize;
-    for path in &args.files {
-        let Some(parsed) = super::read_or_report(path, &options) else {
-            unreadable += 1;
-            continue;
+    let read = super::par_map(&args.files, super::jobs(args.jobs), |path| eds::read_file(path, &options));
+    for (path, parsed) in args.files.iter().zip(read) {
+        let parsed = match parsed {
+            Ok(p) => p,
+            Err(e) => {
+                eprintln!("error: cannot read {}: {e}", path.display());
+                unreadable += 1;
+                continue;
+            }
         };
         match args.format {
             Format::Human => {
