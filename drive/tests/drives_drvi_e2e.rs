@@ -190,6 +190,18 @@ fn demo_runs_the_main_job() {
     ] {
         assert!(text.contains(expected), "missing {expected:?} in:\n{text}");
     }
+    // The positions the master prints while moving rise from the homed 0 to the target: none
+    // is a value from before the homing.
+    let moving: Vec<f64> = text
+        .lines()
+        .filter_map(|l| l.split("moving: position").nth(1))
+        .filter_map(|rest| rest.split("deg").next()?.trim().parse().ok())
+        .collect();
+    assert!(moving.len() >= 4, "{text}");
+    assert!(
+        moving[0].abs() < 1.0 && moving.windows(2).all(|w| w[0] <= w[1]) && moving[moving.len() - 1] <= 720.0,
+        "{moving:?}"
+    );
     let trace = Trace::from_csv(&std::fs::read_to_string(&csv).unwrap()).unwrap();
     assert_eq!(trace.samples().last().unwrap().position_actual, 72_000);
     assert!(std::fs::read_to_string(&svg).unwrap().contains("deg"));

@@ -315,6 +315,9 @@ pub fn run(options: &DemoOptions, out: &mut dyn Write) -> Result<DemoReport, Dem
         "homing completed (statusword {:#06X}, 2004h = {homed}): position {homed_at_deg:.2} deg",
         d.statusword
     ))?;
+    // One TPDO2 period (50 ms), so the position the master holds is the one after the homing.
+    d.m.advance(60_000);
+    d.pdos();
 
     // Profile position: absolute target in degrees, 60 rpm, 60 rpm/s (the manual's Figure 4.2).
     let target = d.raw(Dimension::Position, options.target_deg, Unit::Degree)?;
