@@ -119,16 +119,7 @@ impl FileRetain {
     /// [`FileStorage::open`](crate::storage::FileStorage::open): letters, digits, `-`, `_`,
     /// `.`, at most 64 bytes). A temporary file an interrupted store left behind is removed.
     pub fn open(dir: impl AsRef<Path>, tag: &str) -> io::Result<Self> {
-        let valid = !tag.is_empty()
-            && tag.len() <= 64
-            && !tag.starts_with('.')
-            && tag.bytes().all(|b| b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_' | b'.'));
-        if !valid {
-            return Err(io::Error::new(
-                io::ErrorKind::InvalidInput,
-                format!("bad retained-data tag {tag:?}: use letters, digits, '-', '_' and '.', at most 64"),
-            ));
-        }
+        crate::storage::check_tag(tag, "retained-data")?;
         let dir = dir.as_ref().to_path_buf();
         fs::create_dir_all(&dir)?;
         let path = dir.join(format!("{tag}.retained"));

@@ -346,21 +346,29 @@ impl fmt::Debug for FileStorage {
     }
 }
 
+/// Refuses a tag that cannot be part of a file name safely: letters, digits, `-`, `_` and `.`
+/// only, not starting with `.`, 1 to 64 bytes. `what` names the tag in the error.
+pub(crate) fn check_tag(tag: &str, what: &str) -> io::Result<()> {
+    let valid = !tag.is_empty()
+        && tag.len() <= 64
+        && !tag.starts_with('.')
+        && tag.bytes().all(|b| b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_' | b'.'));
+    if valid {
+        Ok(())
+    } else {
+        Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("bad {what} tag {tag:?}: use letters, digits, '-', '_' and '.', at most 64"),
+        ))
+    }
+}
+
 impl FileStorage {
     /// Uses `dir` (created if missing) for the images of the device named `tag` (letters,
     /// digits, `-`, `_` and `.`, at most 64 bytes: it becomes part of the file names). Removes
     /// temporary files an interrupted save left behind.
     pub fn open(dir: impl AsRef<Path>, tag: &str) -> io::Result<Self> {
-        let valid = !tag.is_empty()
-            && tag.len() <= 64
-            && !tag.starts_with('.')
-            && tag.bytes().all(|b| b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_' | b'.'));
-        if !valid {
-            return Err(io::Error::new(
-                io::ErrorKind::InvalidInput,
-                format!("bad storage tag {tag:?}: use letters, digits, '-', '_' and '.', at most 64"),
-            ));
-        }
+        check_tag(tag, "storage")?;
         let dir = dir.as_ref().to_path_buf();
         fs::create_dir_all(&dir)?;
         let warnings = Arc::new(Mutex::new(Vec::new()));
