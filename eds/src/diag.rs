@@ -3,6 +3,9 @@
 //! Each diagnostic has a stable [`Code`], a severity for lenient mode, and a flag saying whether
 //! it is a CiA 306 deviation (strict mode turns deviations into errors).
 
+use std::borrow::Cow;
+use std::sync::Arc;
+
 use serde::{Deserialize, Serialize};
 
 use crate::source::{LineCol, Span};
@@ -33,8 +36,10 @@ pub struct Diagnostic {
     pub code: Code,
     /// What is wrong, in one sentence.
     pub message: String,
-    /// File name as given by the user.
-    pub file: String,
+    /// File name as given by the user, shared by all the diagnostics of one file (a reader
+    /// finding thousands of problems stores the name once).
+    #[serde(serialize_with = "serialize_str")]
+    pub file: Arc<str>,
     /// Where (`None` for whole-file problems such as a missing section).
     pub span: Option<Span>,
     /// Line and column of `span.start`.
@@ -42,8 +47,14 @@ pub struct Diagnostic {
     /// Where in the dictionary, innermost last: `object 0x1018 "Identity Object"`, `sub 2
     /// "Product Code"`.
     pub context: Vec<String>,
-    /// How to fix it, where known.
-    pub hint: Option<String>,
+    /// How to fix it, where known: most hints are fixed text, which a `Cow::Borrowed` holds
+    /// without copying; `Some(text.into())` sets one from a `&'static str` or a `String`.
+    pub hint: Option<Cow<'static, str>>,
+}
+
+/// Serialises a shared string as a plain string (serde's `Arc` support needs its `rc` feature).
+fn serialize_str<S: serde::Serializer>(s: &Arc<str>, serializer: S) -> Result<S::Ok, S::Error> {
+    serializer.serialize_str(s)
 }
 
 impl Diagnostic {
@@ -53,7 +64,7 @@ impl Diagnostic {
             severity: crate::codes::severity(code, strictness),
             code,
             message: message.into(),
-            file: file.to_owned(),
+            file: file.into(),
             span: None,
             at: None,
             context: Vec::new(),

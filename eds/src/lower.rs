@@ -121,12 +121,14 @@ pub(crate) struct Ctx<'a> {
     /// emits a few codes many times, and the table of all codes, searched between megabytes of
     /// text, is seldom in the cache.
     severities: [(u64, Severity); 16],
+    /// The file name every diagnostic shares, made on the first one (most files have none).
+    file: Option<std::sync::Arc<str>>,
 }
 
 impl<'a> Ctx<'a> {
     /// A context for lowering `src` at `strictness`.
     pub fn new(src: &'a SourceFile, strictness: Strictness) -> Self {
-        Ctx { src, strictness, diags: Vec::with_capacity(32), severities: [(0, Severity::Note); 16] }
+        Ctx { src, strictness, diags: Vec::with_capacity(32), severities: [(0, Severity::Note); 16], file: None }
     }
 
     /// The severity of `code` at this context's strictness ([`crate::codes::severity`]).
@@ -150,7 +152,7 @@ impl<'a> Ctx<'a> {
             severity,
             code,
             message: message.into(),
-            file: self.src.name.clone(),
+            file: self.file.get_or_insert_with(|| self.src.name.as_str().into()).clone(),
             span,
             at,
             context: Vec::new(),

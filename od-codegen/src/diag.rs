@@ -59,13 +59,13 @@ pub const UNITS: Code = Code("G0201");
 /// Builds diagnostics for one source file.
 #[derive(Debug)]
 pub(crate) struct Sink {
-    file: String,
+    file: std::sync::Arc<str>,
     pub(crate) out: Vec<Diagnostic>,
 }
 
 impl Sink {
     pub(crate) fn new(file: &str) -> Self {
-        Sink { file: file.to_owned(), out: Vec::new() }
+        Sink { file: file.into(), out: Vec::new() }
     }
 
     /// Reports at an entry (context: object, then sub-object).
@@ -111,7 +111,7 @@ impl Sink {
     }
 
     /// Adds a hint to the last diagnostic.
-    pub(crate) fn hint(&mut self, hint: impl Into<String>) {
+    pub(crate) fn hint(&mut self, hint: impl Into<std::borrow::Cow<'static, str>>) {
         if let Some(d) = self.out.last_mut() {
             d.hint = Some(hint.into());
         }
@@ -134,7 +134,7 @@ pub fn render_plain(diags: &[Diagnostic]) -> String {
         };
         let loc = match d.at {
             Some(lc) => format!("{}:{}:{}", d.file, lc.line, lc.col),
-            None => d.file.clone(),
+            None => d.file.to_string(),
         };
         s.push_str(&format!("{loc}: {sev}[{}]: ", d.code.0));
         if !d.context.is_empty() {

@@ -85,7 +85,7 @@ fn include_args(input: ParseStream<'_>) -> syn::Result<IncludeArgs> {
 fn render_file_diagnostic(d: &Diagnostic, source: &SourceFile) -> String {
     let at = match d.at {
         Some(lc) => format!("{}:{}:{}", d.file, lc.line, lc.col),
-        None => d.file.clone(),
+        None => d.file.to_string(),
     };
     let mut out = format!("{at}: {} [{}]", d.message, d.code);
     // `render` gives "error[..]: message", "--> file:line:col", then the quoted line and notes.

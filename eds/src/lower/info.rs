@@ -21,7 +21,7 @@ fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u
     let v = kv.value.split(';').next().unwrap_or("").trim();
     if v.is_empty() {
         let d = cx.emit(codes::E0503, Some(kv.value_span()), super::cat(["[", section, "] ", kv.key, " is empty"]));
-        d.hint = Some(super::cat(["write a number or remove the `", kv.key, "=` line"]));
+        d.hint = Some(super::cat(["write a number or remove the `", kv.key, "=` line"]).into());
         return None;
     }
     match parse_int(v, &mut quirks) {
@@ -40,7 +40,7 @@ fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u
                 Some(kv.value_span()),
                 format!("[{section}] {}: `{}` is not a number (kept as text)", kv.key, kv.value),
             );
-            d.hint = Some("write a decimal number or a 0x-prefixed hexadecimal number".to_owned());
+            d.hint = Some("write a decimal number or a 0x-prefixed hexadecimal number".into());
             None
         }
     }
@@ -54,7 +54,7 @@ fn info_bool(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
         _ if v.eq_ignore_ascii_case("true") || v.eq_ignore_ascii_case("false") => {
             let b = v.eq_ignore_ascii_case("true");
             let d = cx.emit(codes::E0503, Some(kv.value_span()), format!("[{section}] {} is `{v}`", kv.key));
-            d.hint = Some(format!("CiA 306 writes booleans as 0 or 1: write `{}`", b as u8));
+            d.hint = Some(format!("CiA 306 writes booleans as 0 or 1: write `{}`", b as u8).into());
             Some(b)
         }
         _ => {
@@ -63,7 +63,7 @@ fn info_bool(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
                 Some(kv.value_span()),
                 format!("[{section}] {}: `{}` is not 0 or 1 (kept as text)", kv.key, kv.value),
             );
-            d.hint = Some("write 0 (not supported) or 1 (supported)".to_owned());
+            d.hint = Some("write 0 (not supported) or 1 (supported)".into());
             None
         }
     }
@@ -87,7 +87,7 @@ fn missing_keys<const N: usize>(
             Some(sec.name_span),
             format!("[{}] lacks {}", sec.name, missing.iter().map(|m| format!("`{m}`")).collect::<Vec<_>>().join(", ")),
         );
-        d.hint = Some("CiA 306 requires these keys".to_owned());
+        d.hint = Some("CiA 306 requires these keys".into());
     }
 }
 
@@ -170,7 +170,7 @@ fn lower_file_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> FileInfo {
                 Some(kv.value_span()),
                 format!("[FileInfo] {}=`{}` is not in the CiA 306 form {form}", kv.key, kv.value),
             );
-            d.hint = Some(format!("write it as {form}"));
+            d.hint = Some(format!("write it as {form}").into());
         }
     }
     if let Some(kv) = keys.get(3) {
@@ -186,7 +186,7 @@ fn lower_file_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> FileInfo {
                 Some(kv.value_span()),
                 format!("[FileInfo] EDSVersion=`{}` is not `major.minor`", kv.value),
             );
-            d.hint = Some("CiA 306 files are EDSVersion=4.0".to_owned());
+            d.hint = Some("CiA 306 files are EDSVersion=4.0".into());
         }
     }
     if let Some(kv) = keys.get(11) {
@@ -272,7 +272,7 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
                 "CompactPDO=0x{bits:02X}: the file leaves PDO objects implied; the model holds only those written out"
             ),
         );
-        d.hint = Some("call eds::lower::expand_compact_pdo to add the implied PDO objects".to_owned());
+        d.hint = Some("call eds::lower::expand_compact_pdo to add the implied PDO objects".into());
     }
     for i in 15..DEVICE_INFO_KEYS.names.len() {
         if let Some(kv) = keys.get(i) {
@@ -295,11 +295,11 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
                         Some(kv.key_span()),
                         format!("key `{}` is written `{canon}` in CiA 306", kv.key),
                     );
-                    d.hint = Some(format!("write `{canon}`"));
+                    d.hint = Some(format!("write `{canon}`").into());
                 }
                 if !BAUD_RATES.contains(&r) {
                     let d = cx.emit(codes::E0503, Some(kv.key_span()), format!("{r} kbit/s is not a CiA 301 bit rate"));
-                    d.hint = Some("CiA 306 knows BaudRate_10, _20, _50, _125, _250, _500, _800 and _1000".to_owned());
+                    d.hint = Some("CiA 306 knows BaudRate_10, _20, _50, _125, _250, _500, _800 and _1000".into());
                 }
                 if let Some(b) = info_bool(cx, kv, S) {
                     di.baud_rates.insert(r, b);
@@ -335,7 +335,7 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
     );
     if !di.baud_rates.values().any(|&b| b) {
         let d = cx.emit(codes::E0505, Some(sec.name_span), "[DeviceInfo] names no supported bit rate");
-        d.hint = Some("add `BaudRate_<kbit/s>=1` for each bit rate the device supports".to_owned());
+        d.hint = Some("add `BaudRate_<kbit/s>=1` for each bit rate the device supports".into());
     }
     di
 }
@@ -354,7 +354,7 @@ fn lower_commissioning(cx: &mut Ctx<'_>, sec: &Section<'_>) -> Commissioning {
             Some(n) => {
                 if !(1..=127).contains(&n) {
                     let d = cx.emit(codes::E0506, Some(kv.value_span()), format!("node id {n} is outside 1..=127"));
-                    d.hint = Some("CANopen node ids are 1..=127".to_owned());
+                    d.hint = Some("CANopen node ids are 1..=127".into());
                 }
                 c.node_id = Some(n as u8);
             }
@@ -413,7 +413,7 @@ fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
                         Some(kv.key_span()),
                         format!("`{}` names no basic data type (0001..0007)", kv.key),
                     );
-                    d.hint = Some("dummy mapping exists for the data types 0x0001..=0x0007".to_owned());
+                    d.hint = Some("dummy mapping exists for the data types 0x0001..=0x0007".into());
                 }
                 if !kv.key.starts_with("Dummy") {
                     cx.emit(
@@ -432,7 +432,7 @@ fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
                     Some(kv.key_span()),
                     format!("`{}` is not a `DummyNNNN` key (ignored)", kv.key),
                 );
-                d.hint = Some("[DummyUsage] entries are `Dummy0001=1` ... `Dummy0007=1`".to_owned());
+                d.hint = Some("[DummyUsage] entries are `Dummy0001=1` ... `Dummy0007=1`".into());
             }
         }
     }
@@ -453,8 +453,10 @@ fn lower_comments(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
                         Some(kv.key_span()),
                         format!("key `{}` is written `Line{n}` in CiA 306", kv.key),
                     );
-                    d.hint =
-                        Some(format!("write `Line{n}`; tools that match keys exactly (python-canopen) miss this line"));
+                    d.hint = Some(
+                        format!("write `Line{n}`; tools that match keys exactly (python-canopen) miss this line")
+                            .into(),
+                    );
                 }
                 lines.push((n, kv.value))
             }
@@ -464,7 +466,7 @@ fn lower_comments(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
                     Some(kv.key_span()),
                     format!("key `{}` is not a CiA 306 key of [Comments] (ignored)", kv.key),
                 )
-                .hint = Some("comment lines are `Line1=...`, `Line2=...`".to_owned());
+                .hint = Some("comment lines are `Line1=...`, `Line2=...`".into());
             }
         }
     }
@@ -484,13 +486,15 @@ fn lower_comments(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
                             describe_numbers(&lines)
                         ),
                     );
-                    d.hint = Some(format!("number the lines Line1..Line{} and set Lines={}", lines.len(), lines.len()));
+                    d.hint = Some(
+                        format!("number the lines Line1..Line{} and set Lines={}", lines.len(), lines.len()).into(),
+                    );
                 }
             }
         }
         None if !lines.is_empty() => {
             cx.emit(codes::E0505, Some(sec.name_span), "[Comments] lacks `Lines`").hint =
-                Some(format!("add `Lines={}`", lines.len()));
+                Some(format!("add `Lines={}`", lines.len()).into());
         }
         None => {}
     }
@@ -535,11 +539,11 @@ pub(crate) fn lower_info(secs: &Sections<'_>, model: &mut Model, cx: &mut Ctx<'_
     }
     if !have_file_info {
         cx.emit(codes::E0502, None, "the file has no [FileInfo] section").hint =
-            Some("add [FileInfo] with FileName, FileVersion, FileRevision and EDSVersion=4.0".to_owned());
+            Some("add [FileInfo] with FileName, FileVersion, FileRevision and EDSVersion=4.0".into());
     }
     if !have_device_info {
         cx.emit(codes::E0502, None, "the file has no [DeviceInfo] section").hint =
-            Some("add [DeviceInfo] with VendorName, ProductName, the BaudRate_ keys and the PDO counts".to_owned());
+            Some("add [DeviceInfo] with VendorName, ProductName, the BaudRate_ keys and the PDO counts".into());
     }
 }
 
@@ -601,7 +605,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                     Some(kv.key_span()),
                     format!("[{name}] entry `{}` is not numbered (ignored)", kv.key),
                 );
-                d.hint = Some("list entries are `1=0x1000`, `2=0x1001`, ...".to_owned());
+                d.hint = Some("list entries are `1=0x1000`, `2=0x1001`, ...".into());
                 continue;
             };
             // The plain forms (`0x1000`) need neither the general number reader nor its list of
@@ -621,7 +625,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                                 kv.value, p.value
                             ),
                         );
-                        d.hint = Some(format!("write `{n}=0x{:04X}`", p.value));
+                        d.hint = Some(format!("write `{n}=0x{:04X}`", p.value).into());
                     }
                     p.value as u16
                 }
@@ -631,7 +635,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                         Some(kv.value_span()),
                         format!("[{name}] entry {n}=`{}` is not an object index (ignored)", kv.value),
                     );
-                    d.hint = Some("write the index as 0x1234".to_owned());
+                    d.hint = Some("write the index as 0x1234".into());
                     continue;
                 }
             };
@@ -647,7 +651,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                         first.line
                     ),
                 );
-                d.hint = Some("list every object once".to_owned());
+                d.hint = Some("list every object once".into());
                 continue;
             }
             let want = expected_category(index);
@@ -657,7 +661,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                     Some(kv.value_span()),
                     format!("object 0x{index:04X} is listed in [{name}] but belongs in [{}]", list_name(want)),
                 );
-                d.hint = Some(format!("move it to [{}]", list_name(want)));
+                d.hint = Some(format!("move it to [{}]", list_name(want)).into());
             }
             lists.listed.insert(index, (cat, kv.value_span()));
         }
@@ -683,8 +687,9 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                                 }
                             ),
                         );
-                        d.hint =
-                            Some(format!("number the entries 1..{n} and set SupportedObjects={n}", n = numbers.len()));
+                        d.hint = Some(
+                            format!("number the entries 1..{n} and set SupportedObjects={n}", n = numbers.len()).into(),
+                        );
                     }
                     Err(_) => {
                         cx.emit(
@@ -697,7 +702,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
             }
             None => {
                 let d = cx.emit(codes::E0403, Some(sec.name_span), format!("[{name}] lacks `SupportedObjects`"));
-                d.hint = Some(format!("add `SupportedObjects={}`", numbers.len()));
+                d.hint = Some(format!("add `SupportedObjects={}`", numbers.len()).into());
             }
         }
     }

@@ -129,7 +129,7 @@ fn inline_comment(cx: &mut Ctx<'_>, kv: &Kv<'_>, head: &str, context: Crumbs<'_>
         Some(kv.value_span()),
         super::cat([kv.key, " `", kv.value, "` carries an inline comment; read as `", head, "`"]),
     );
-    d.hint = Some("CiA 306 has no inline comments: put the comment on its own line, starting with `;`".to_owned());
+    d.hint = Some("CiA 306 has no inline comments: put the comment on its own line, starting with `;`".into());
     d.context = context.to_vec();
 }
 
@@ -146,12 +146,12 @@ fn report_quirks(cx: &mut Ctx<'_>, kv: &Kv<'_>, quirks: &[Quirk], context: Crumb
                 ),
                 Some(format!(
                     "write `{decimal}` if decimal was meant, or `0x{octal:X}` if octal was meant; python-canopen cannot read `{text}` at all"
-                )),
+                ).into()),
             ),
             Quirk::LeadingZeros => (
                 codes::E0305,
                 format!("{} `{text}` has leading zeros (octal by CiA 306; the same value in decimal)", kv.key),
-                Some("drop the leading zeros; python-canopen cannot read numbers written with them".to_owned()),
+                Some("drop the leading zeros; python-canopen cannot read numbers written with them".into()),
             ),
             Quirk::DecimalWithLeadingZero => (
                 codes::E0304,
@@ -159,7 +159,7 @@ fn report_quirks(cx: &mut Ctx<'_>, kv: &Kv<'_>, quirks: &[Quirk], context: Crumb
                     "{} `{text}` has a leading zero but digits 8 or 9, so it is not octal; read as decimal",
                     kv.key
                 ),
-                Some("drop the leading zero".to_owned()),
+                Some("drop the leading zero".into()),
             ),
             Quirk::HexBitPattern => {
                 (codes::E0309, format!("{} `{text}` is read as a two's complement bit pattern", kv.key), None)
@@ -170,7 +170,7 @@ fn report_quirks(cx: &mut Ctx<'_>, kv: &Kv<'_>, quirks: &[Quirk], context: Crumb
             Quirk::BooleanWord => (
                 codes::E0311,
                 format!("{} `{text}` is a word; CiA 306 writes BOOLEAN values as 0 or 1", kv.key),
-                Some("write 0 or 1".to_owned()),
+                Some("write 0 or 1".into()),
             ),
             Quirk::DomainNotHex => {
                 (codes::E0312, format!("{} `{text}` of a DOMAIN is not hex bytes; kept as text", kv.key), None)
@@ -179,13 +179,13 @@ fn report_quirks(cx: &mut Ctx<'_>, kv: &Kv<'_>, quirks: &[Quirk], context: Crumb
             Quirk::SpacedNumber => (
                 codes::E0314,
                 format!("{} `{text}` has white space inside the number", kv.key),
-                Some("remove the space".to_owned()),
+                Some("remove the space".into()),
             ),
             Quirk::TimePair => (codes::E0316, format!("{} `{text}` is written as `days ms`", kv.key), None),
             Quirk::CSuffix => (
                 codes::E0317,
                 format!("{} `{text}` carries a C literal suffix", kv.key),
-                Some("remove the suffix (U, L, LL, f): CiA 306 numbers have none".to_owned()),
+                Some("remove the suffix (U, L, LL, f): CiA 306 numbers have none".into()),
             ),
         };
         let d = cx.emit(code, span, msg);
@@ -242,8 +242,9 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -
                     && x < 0
                     && x >= -(1i128 << (bits - 1))
                 {
-                    d.hint =
-                        Some(format!("for a negative value use a signed type, or write 0x{:X}", x + (1i128 << bits)));
+                    d.hint = Some(
+                        format!("for a negative value use a signed type, or write 0x{:X}", x + (1i128 << bits)).into(),
+                    );
                 }
             }
             Ok(p.value)
@@ -254,7 +255,7 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -
                 Some(kv.value_span()),
                 format!("{} `{}` cannot be read as {}: {e}", kv.key, kv.value, ty.name()),
             );
-            d.hint = Some(value_error_hint(&e, ty));
+            d.hint = Some(value_error_hint(&e, ty).into());
             d.context = context.to_vec();
             Err(())
         }
@@ -300,10 +301,13 @@ fn access_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, context: Crumbs<'_>) -> Access {
             None => super::cat(["AccessType `", kv.value, "` is not a CiA 306 access type; `ro` assumed"]),
         },
     );
-    d.hint = Some(match guess {
-        Some(a) => super::cat(["write `", a.as_str(), "` (one of ro, wo, rw, rwr, rww, const)"]),
-        None => "write one of ro, wo, rw, rwr, rww, const".to_owned(),
-    });
+    d.hint = Some(
+        match guess {
+            Some(a) => super::cat(["write `", a.as_str(), "` (one of ro, wo, rw, rwr, rww, const)"]),
+            None => "write one of ro, wo, rw, rwr, rww, const".to_owned(),
+        }
+        .into(),
+    );
     d.context = context.to_vec();
     guess.unwrap_or(Access::Ro)
 }
@@ -343,7 +347,7 @@ impl EntryBuilder<'_> {
             Some(n) => n,
             None => {
                 let d = cx.emit(codes::E0201, Some(sec.name_span), format!("[{}] lacks ParameterName", sec.name));
-                d.hint = Some("add `ParameterName=...`".to_owned());
+                d.hint = Some("add `ParameterName=...`".into());
                 d.context = context.to_vec();
                 sec.name.to_owned()
             }
@@ -357,7 +361,7 @@ impl EntryBuilder<'_> {
                         Some(kv.value_span()),
                         format!("DataType `{}` is not a type index; the entry is skipped", kv.value),
                     );
-                    d.hint = Some("write the index of the type, e.g. `0x0007` for UNSIGNED32".to_owned());
+                    d.hint = Some("write the index of the type, e.g. `0x0007` for UNSIGNED32".into());
                     d.context = context.to_vec();
                     return None;
                 }
@@ -370,7 +374,7 @@ impl EntryBuilder<'_> {
                         Some(sec.name_span),
                         format!("[{}] lacks DataType; the entry is skipped", sec.name),
                     );
-                    d.hint = Some("add `DataType=0x0007` (or the index of the right type)".to_owned());
+                    d.hint = Some("add `DataType=0x0007` (or the index of the right type)".into());
                     d.context = context.to_vec();
                     return None;
                 }
@@ -386,7 +390,7 @@ impl EntryBuilder<'_> {
                 Some(kv.value_span()),
                 format!("DataType 0x{code:04X} is not a basic CiA 301 type and the file does not define it"),
             );
-            d.hint = Some("values of this entry are kept as written".to_owned());
+            d.hint = Some("values of this entry are kept as written".into());
             d.context = context.to_vec();
         }
         let access = match keys.get(K_ACCESS) {
@@ -399,7 +403,7 @@ impl EntryBuilder<'_> {
                         Some(sec.name_span),
                         format!("[{}] lacks AccessType; `ro` assumed", sec.name),
                     );
-                    d.hint = Some("add `AccessType=ro` (or rw, wo, rwr, rww, const)".to_owned());
+                    d.hint = Some("add `AccessType=ro` (or rw, wo, rwr, rww, const)".into());
                     d.context = context.to_vec();
                     Access::Ro
                 }
@@ -424,7 +428,7 @@ impl EntryBuilder<'_> {
                         Some(kv.value_span()),
                         format!("PDOMapping `{v}` is not 0 or 1; read as {}", guess as u8),
                     );
-                    d.hint = Some("write 0 (not mappable) or 1 (mappable)".to_owned());
+                    d.hint = Some("write 0 (not mappable) or 1 (mappable)".into());
                     d.context = context.to_vec();
                     guess
                 }
@@ -454,7 +458,7 @@ impl EntryBuilder<'_> {
                     Some(kv.value_span()),
                     super::cat([kv.key, " of a ", data_type.name(), " is empty"]),
                 );
-                d.hint = Some(super::cat(["write a value or remove the `", kv.key, "=` line"]));
+                d.hint = Some(super::cat(["write a value or remove the `", kv.key, "=` line"]).into());
                 d.context = context.to_vec();
             }
         }
@@ -462,7 +466,7 @@ impl EntryBuilder<'_> {
             && let Some(kv) = keys.get(K_PVALUE)
         {
             let d = cx.emit(codes::E0315, Some(kv.key_span()), "ParameterValue in an EDS (it belongs in a DCF)");
-            d.hint = Some("a device's defaults go in DefaultValue".to_owned());
+            d.hint = Some("a device's defaults go in DefaultValue".into());
             d.context = context.to_vec();
         }
         let obj_flags = keys.get(K_FLAGS).and_then(|kv| match uint_key(cx, kv, u32::MAX, context) {
@@ -564,7 +568,7 @@ fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &ObjKeys<'_>, context: Crumbs<
                 value::format_value(hi, e.data_type)
             ),
         );
-        d.hint = Some("swap the limits".to_owned());
+        d.hint = Some("swap the limits".into());
         d.context = context.to_vec();
         return;
     }
@@ -598,12 +602,12 @@ fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &ObjKeys<'_>, context: Crumbs<
                 e.access.as_str()
             ),
         );
-        d.hint = Some("set PDOMapping=1, or use AccessType=rw".to_owned());
+        d.hint = Some("set PDOMapping=1, or use AccessType=rw".into());
         d.context = context.to_vec();
     }
     if e.pdo_mapping && matches!(e.data_type, DataType::Domain) {
         let d = cx.emit(codes::E0610, span, "PDOMapping=1 on a DOMAIN, which cannot be mapped into a PDO");
-        d.hint = Some("set PDOMapping=0".to_owned());
+        d.hint = Some("set PDOMapping=0".into());
         d.context = context.to_vec();
     }
 }
@@ -641,7 +645,7 @@ fn numbered<'s, 'a>(
                         Some(kv.value_span()),
                         format!("[{}] says {count_key}={n} but has {} entries", sec.name, out.len()),
                     );
-                    d.hint = Some(format!("set {count_key}={}", out.len()));
+                    d.hint = Some(format!("set {count_key}={}", out.len()).into());
                     d.context = context.to_vec();
                 }
             } else {
@@ -652,7 +656,7 @@ fn numbered<'s, 'a>(
         }
         None => {
             let d = cx.emit(codes::E0214, Some(sec.name_span), format!("[{}] lacks `{count_key}`", sec.name));
-            d.hint = Some(format!("add `{count_key}={}`", out.len()));
+            d.hint = Some(format!("add `{count_key}={}`", out.len()).into());
             d.context = context.to_vec();
         }
     }
@@ -729,7 +733,8 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
         let code = if matches!(sec.kind, Kind::Sub(..)) { codes::E0211 } else { codes::E0214 };
         let d =
             cx.emit(code, Some(sec.name_span), format!("[{}] has no object section [{index:04X}]; ignored", sec.name));
-        d.hint = Some(format!("add the object section [{index:04X}] with ParameterName, ObjectType and SubNumber"));
+        d.hint =
+            Some(format!("add the object section [{index:04X}] with ParameterName, ObjectType and SubNumber").into());
     }
 }
 
@@ -749,7 +754,7 @@ fn build_object(
         Some(kv) => kv.value.to_owned(),
         None => {
             let d = cx.emit(codes::E0201, Some(sec.name_span), format!("[{}] lacks ParameterName", sec.name));
-            d.hint = Some("add `ParameterName=...`".to_owned());
+            d.hint = Some("add `ParameterName=...`".into());
             d.context = ctx.to_vec();
             String::new()
         }
@@ -767,7 +772,7 @@ fn build_object(
                         Some(kv.value_span()),
                         format!("ObjectType `{}` is not an object code; {} assumed", kv.value, otype(assumed)),
                     );
-                    d.hint = Some("object codes are 0x0 NULL, 0x2 DOMAIN, 0x5 DEFTYPE, 0x6 DEFSTRUCT, 0x7 VAR, 0x8 ARRAY, 0x9 RECORD".to_owned());
+                    d.hint = Some("object codes are 0x0 NULL, 0x2 DOMAIN, 0x5 DEFTYPE, 0x6 DEFSTRUCT, 0x7 VAR, 0x8 ARRAY, 0x9 RECORD".into());
                     d.context = ctx.to_vec();
                     assumed
                 }
@@ -780,7 +785,7 @@ fn build_object(
                 Some(sec.name_span),
                 format!("[{}] lacks ObjectType but has sub-objects; {} assumed", sec.name, otype(assumed)),
             );
-            d.hint = Some(format!("add `ObjectType=0x{:X}`", assumed.code()));
+            d.hint = Some(format!("add `ObjectType=0x{:X}`", assumed.code()).into());
             d.context = ctx.to_vec();
             assumed
         }
@@ -838,8 +843,7 @@ fn build_object(
                     first.name
                 ),
             );
-            d.hint =
-                Some("make the object an ARRAY (0x8) or RECORD (0x9), or remove the sub-object sections".to_owned());
+            d.hint = Some("make the object an ARRAY (0x8) or RECORD (0x9), or remove the sub-object sections".into());
             d.context = ctx.to_vec();
         }
         for side in [names, values].into_iter().flatten() {
@@ -885,7 +889,7 @@ fn build_object(
             if n == 0xFF {
                 let d = cx.emit(codes::E0213, Some(kv.value_span()), "CompactSubObj=255 defines sub-index 0xFF");
                 d.hint =
-                    Some("CiA 301 reserves sub-index 0xFF for the structure of the object; 254 is the most".to_owned());
+                    Some("CiA 301 reserves sub-index 0xFF for the structure of the object; 254 is the most".into());
                 d.context = ctx.to_vec();
             }
             Some(n as u8)
@@ -914,8 +918,7 @@ fn build_object(
         }
         if let (Some(_), Some(kv)) = (sub_number, keys.get(K_SUBNUM)) {
             let d = cx.emit(codes::E0213, Some(kv.key_span()), "both SubNumber and CompactSubObj are given");
-            d.hint =
-                Some("use CompactSubObj alone for the compact form, or SubNumber with sub-object sections".to_owned());
+            d.hint = Some("use CompactSubObj alone for the compact form, or SubNumber with sub-object sections".into());
             d.context = ctx.to_vec();
         }
         obj.compact_sub_obj = Some(n);
@@ -1091,12 +1094,12 @@ fn check_structure(
                     Some(kv.value_span()),
                     format!("SubNumber={n} but the file has {} sub-object sections", subs.len()),
                 );
-                d.hint = Some(format!("set SubNumber={}", subs.len()));
+                d.hint = Some(format!("set SubNumber={}", subs.len()).into());
                 d.context = ctx.to_vec();
             }
             (None, None) => {
                 let d = cx.emit(codes::E0209, Some(sec.name_span), format!("[{}] lacks SubNumber", sec.name));
-                d.hint = Some(format!("add `SubNumber={}`", subs.len()));
+                d.hint = Some(format!("add `SubNumber={}`", subs.len()).into());
                 d.context = ctx.to_vec();
             }
             _ => {}
@@ -1113,14 +1116,16 @@ fn check_structure(
                     obj.index.0
                 ),
             );
-            d.hint = Some(format!("add [{:04X}sub0] with DataType=0x0005 (UNSIGNED8) and AccessType=ro", obj.index.0));
+            d.hint = Some(
+                format!("add [{:04X}sub0] with DataType=0x0005 (UNSIGNED8) and AccessType=ro", obj.index.0).into(),
+            );
             d.context = ctx.to_vec();
         }
         Some(e) if e.data_type != DataType::Unsigned8 => {
             let span = subs.iter().find(|(s, _)| *s == 0).map(|(_, s)| s.name_span);
             let c = ctx.sub(0, &e.name).to_vec();
             let d = cx.emit(codes::E0210, span, format!("sub-index 0 is {} but must be UNSIGNED8", e.data_type.name()));
-            d.hint = Some("write DataType=0x0005".to_owned());
+            d.hint = Some("write DataType=0x0005".into());
             d.context = c;
         }
         Some(_) => {}
@@ -1136,8 +1141,7 @@ fn check_structure(
                 span,
                 format!("ARRAY element {s} is {} while the first element is {}", other.name(), first.name()),
             );
-            d.hint =
-                Some("an ARRAY holds elements of one type; use a RECORD (ObjectType=0x9) for mixed types".to_owned());
+            d.hint = Some("an ARRAY holds elements of one type; use a RECORD (ObjectType=0x9) for mixed types".into());
             d.context = ctx.to_vec();
         }
     }

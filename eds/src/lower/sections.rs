@@ -235,13 +235,13 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
     let src = &doc.source;
     if src.encoding == Encoding::Windows1252 {
         cx.emit(codes::E0001, None, "file is not valid UTF-8; it was decoded as Windows-1252").hint =
-            Some("save the file as UTF-8 (or plain ASCII, as CiA 306 asks)".to_owned());
+            Some("save the file as UTF-8 (or plain ASCII, as CiA 306 asks)".into());
     } else if !src.text.is_ascii()
         && let Some(pos) = src.text.bytes().position(|b| b >= 0x80)
     {
         let ch_len = src.text[pos..].chars().next().map(char::len_utf8).unwrap_or(1);
         cx.emit(codes::E0009, Some(Span::new(pos as u32, (pos + ch_len) as u32)), "the file contains non-ASCII text")
-            .hint = Some("CiA 306 files are ASCII; tools that expect it may misread this text".to_owned());
+            .hint = Some("CiA 306 files are ASCII; tools that expect it may misread this text".into());
     }
     // Sized for the headers there are, so that nothing grows while lines are read.
     let headers = doc.lines.iter().filter(|l| matches!(l.kind, LineKind::Section { .. })).count();
@@ -272,7 +272,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                         Some(line.content),
                         format!("entry `{}` comes before any section header and is ignored", src.slice(key)),
                     );
-                    d.hint = Some("move it into the section it belongs to".to_owned());
+                    d.hint = Some("move it into the section it belongs to".into());
                 }
             },
             LineKind::Section { name, trailing } => {
@@ -285,7 +285,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                             Some(trailing),
                             format!("unexpected text `{trailing_str}` after section header [{name_str}]"),
                         );
-                        d.hint = Some("put comments on their own line, starting with `;`".to_owned());
+                        d.hint = Some("put comments on their own line, starting with `;`".into());
                     }
                 }
                 let (kind, spelling) = classify(name_str);
@@ -312,7 +312,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                             format!("section [{name_str}] appears again (first at line {})", heads[i].at.line),
                         );
                         d.hint = Some(
-                            "merge the two sections; where both set a key, this reader uses the later value".to_owned(),
+                            "merge the two sections; where both set a key, this reader uses the later value".into(),
                         );
                         i
                     }
@@ -335,7 +335,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                 if text.start > 0 && src.text.as_bytes().get(text.start as usize - 1) == Some(&b'#') {
                     let hash = Span::new(text.start - 1, text.start);
                     cx.emit(codes::E0004, Some(hash), "comment starts with `#`").hint =
-                        Some("CiA 306 comments start with `;`".to_owned());
+                        Some("CiA 306 comments start with `;`".into());
                 }
             }
             LineKind::Garbage => {
@@ -351,7 +351,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                     Some(line.content),
                     format!("`{shown}` is not a section header, a `key=value` entry or a comment (line ignored)"),
                 );
-                d.hint = Some(hint.to_owned());
+                d.hint = Some(hint.to_owned().into());
             }
             LineKind::Blank => {}
         }
@@ -400,20 +400,20 @@ fn report_spelling(cx: &mut Ctx<'_>, span: Span, name: &str, spelling: &Spelling
         Spelling::Exact => {}
         Spelling::Case(canon) => {
             cx.emit(codes::E0104, Some(span), format!("section [{name}] is written [{canon}] in CiA 306")).hint =
-                Some(format!("write [{canon}]"));
+                Some(format!("write [{canon}]").into());
         }
         Spelling::Misspelled(canon) => {
             let d = cx.emit(codes::E0103, Some(span), format!("section [{name}] is spelled [{canon}] in CiA 306"));
             d.hint = Some(if canon == "DeviceComissioning" {
-                "CiA 306 spells it [DeviceComissioning] (one `m`); this reader accepts both".to_owned()
+                "CiA 306 spells it [DeviceComissioning] (one `m`); this reader accepts both".into()
             } else {
-                format!("write [{canon}]")
+                format!("write [{canon}]").into()
             });
         }
         Spelling::Malformed(why) => {
             let d =
                 cx.emit(codes::E0105, Some(span), format!("section [{name}] looks like an object section, but {why}"));
-            d.hint = Some("object sections are [IIII], [IIIIsubS], [IIIIName], [IIIIValue] or [IIIIObjectLinks] with hexadecimal IIII and S".to_owned());
+            d.hint = Some("object sections are [IIII], [IIIIsubS], [IIIIName], [IIIIValue] or [IIIIObjectLinks] with hexadecimal IIII and S".into());
         }
     }
 }
@@ -593,7 +593,7 @@ pub(crate) fn match_keys<'a, const N: usize>(
                     Some(kv.key_span()),
                     super::cat(["key `", kv.key, "` is written `", names[i], "` in CiA 306"]),
                 );
-                d.hint = Some(super::cat(["write `", names[i], "`"]));
+                d.hint = Some(super::cat(["write `", names[i], "`"]).into());
                 d.context = context.to_vec();
             }
         } else {
@@ -604,7 +604,7 @@ pub(crate) fn match_keys<'a, const N: usize>(
                     Some(kv.key_span()),
                     format!("key `{}` is spelled `{}` in CiA 306", kv.key, names[i]),
                 );
-                d.hint = Some(format!("write `{}`", names[i]));
+                d.hint = Some(format!("write `{}`", names[i]).into());
                 d.context = context.to_vec();
             }
         }
@@ -673,7 +673,7 @@ fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, context: Crumb
         Some(kv.key_span()),
         format!("key `{}` is set again (first at line {}); the later value `{}` is used", kv.key, first.line, kv.value),
     );
-    d.hint = Some("remove one of the two entries".to_owned());
+    d.hint = Some("remove one of the two entries".into());
     d.context = context.to_vec();
 }
 

@@ -22,9 +22,8 @@ fn object_lists(secs: &Sections<'_>, lists: &Lists, model: &Model, cx: &mut Ctx<
             None,
             "the file has none of [MandatoryObjects], [OptionalObjects], [ManufacturerObjects]",
         );
-        d.hint = Some(
-            "list every object in the list it belongs to; this reader loaded the object sections it found".to_owned(),
-        );
+        d.hint =
+            Some("list every object in the list it belongs to; this reader loaded the object sections it found".into());
         return;
     }
     let mut listed: Vec<(&u16, &(crate::model::Category, Span))> = lists.listed.iter().collect();
@@ -36,7 +35,7 @@ fn object_lists(secs: &Sections<'_>, lists: &Lists, model: &Model, cx: &mut Ctx<
                 Some(span),
                 format!("[{}] lists 0x{index:04X}, but there is no section [{index:04X}]", list_name(cat)),
             );
-            d.hint = Some(format!("add the section [{index:04X}] or remove the list entry"));
+            d.hint = Some(format!("add the section [{index:04X}] or remove the list entry").into());
         }
     }
     for obj in model.objects.values() {
@@ -47,11 +46,14 @@ fn object_lists(secs: &Sections<'_>, lists: &Lists, model: &Model, cx: &mut Ctx<
                 Some(obj.at.span),
                 super::cat(["object 0x", &super::hex4(obj.index.0), " is not named in any object list"]),
             );
-            d.hint = Some(if lists.present[category_slot(cat)] {
-                super::cat(["add it to [", list_name(cat), "] and raise SupportedObjects"])
-            } else {
-                super::cat(["add a [", list_name(cat), "] section that lists it"])
-            });
+            d.hint = Some(
+                if lists.present[category_slot(cat)] {
+                    super::cat(["add it to [", list_name(cat), "] and raise SupportedObjects"])
+                } else {
+                    super::cat(["add a [", list_name(cat), "] section that lists it"])
+                }
+                .into(),
+            );
             d.context = vec![object_context(obj.index.0, &obj.name)];
         }
     }
@@ -72,7 +74,7 @@ fn mandatory(model: &Model, cx: &mut Ctx<'_>) {
         };
         let Some(obj) = model.object(index) else {
             let d = cx.emit(codes::E0501, None, format!("mandatory object 0x{index:04X} ({what}) is missing"));
-            d.hint = Some("CiA 301 requires 0x1000, 0x1001 and 0x1018 in every device".to_owned());
+            d.hint = Some("CiA 301 requires 0x1000, 0x1001 and 0x1018 in every device".into());
             continue;
         };
         let ctx = vec![object_context(index, &obj.name)];
@@ -101,7 +103,7 @@ fn mandatory(model: &Model, cx: &mut Ctx<'_>) {
                 Some(e.at.span),
                 format!("{what} entry is {} but CiA 301 makes it {}", e.data_type.name(), dt.name()),
             );
-            d.hint = Some(format!("write DataType=0x{:04X}", dt.code()));
+            d.hint = Some(format!("write DataType=0x{:04X}", dt.code()).into());
             d.context = c;
         }
     }
@@ -172,7 +174,7 @@ fn pdos(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
                 .and_then(|s| s.entries.iter().rev().find(|kv| kv.key.eq_ignore_ascii_case(key)))
                 .map(|kv| kv.value_span());
             let d = cx.emit(codes::E0504, span, format!("{key}={declared} but the file has {present} {what}"));
-            d.hint = Some(format!("set {key}={present}"));
+            d.hint = Some(format!("set {key}={present}").into());
         }
     }
 }
@@ -184,7 +186,7 @@ fn pair(model: &Model, obj: &Object, other: u16, other_kind: &str, cx: &mut Ctx<
             Some(obj.at.span),
             format!("0x{:04X} has no matching PDO {other_kind} object 0x{other:04X}", obj.index.0),
         );
-        d.hint = Some(format!("add object 0x{other:04X} or remove 0x{:04X}", obj.index.0));
+        d.hint = Some(format!("add object 0x{other:04X} or remove 0x{:04X}", obj.index.0).into());
         d.context = vec![object_context(obj.index.0, &obj.name)];
     }
 }
@@ -220,8 +222,7 @@ fn fixed_mapping(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
         ),
     );
     d.hint = Some(
-        "make the mapping parameters ro (or const), or set Granularity to the mapping unit in bits (usually 8)"
-            .to_owned(),
+        "make the mapping parameters ro (or const), or set Granularity to the mapping unit in bits (usually 8)".into(),
     );
 }
 
@@ -291,9 +292,12 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
                     m.bits
                 ),
             );
-            d.hint = Some(format!(
-                "this device maps in units of {g} bits ([DeviceInfo] Granularity); map whole units or change Granularity"
-            ));
+            d.hint = Some(
+                format!(
+                    "this device maps in units of {g} bits ([DeviceInfo] Granularity); map whole units or change Granularity"
+                )
+                .into(),
+            );
             d.context = c.to_vec();
         }
         if m.is_dummy() {
@@ -309,7 +313,7 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
                         m.index.0
                     ),
                 );
-                d.hint = Some(format!("add `Dummy{:04X}=1` to [DummyUsage]", m.index.0));
+                d.hint = Some(format!("add `Dummy{:04X}=1` to [DummyUsage]", m.index.0).into());
                 d.context = c.to_vec();
             }
             if let Some(bits) = ty.bits()
@@ -320,7 +324,7 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
                     Some(span()),
                     format!("dummy {} is {bits} bits long, but the mapping says {}", ty.name(), m.bits),
                 );
-                d.hint = Some(format!("write 0x{:08X}", (raw & !0xFF) | bits));
+                d.hint = Some(format!("write 0x{:08X}", (raw & !0xFF) | bits).into());
                 d.context = c.to_vec();
             }
             continue;
@@ -349,7 +353,7 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
                 Some(span()),
                 format!("{} maps {}, which has PDOMapping=0", pdo(), target_text()),
             );
-            d.hint = Some("set PDOMapping=1 on the mapped entry, or remove the mapping".to_owned());
+            d.hint = Some("set PDOMapping=1 on the mapped entry, or remove the mapping".into());
             d.context = c.to_vec();
         }
         if let Some(bits) = target.data_type.bits()
@@ -366,7 +370,7 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
                     target.data_type.name()
                 ),
             );
-            d.hint = Some(format!("write 0x{:08X}", (raw & !0xFF) | bits));
+            d.hint = Some(format!("write 0x{:08X}", (raw & !0xFF) | bits).into());
             d.context = c.to_vec();
         }
         if is_rpdo && !target.access.rpdo_ok() {
@@ -375,7 +379,7 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
                 Some(span()),
                 format!("{} writes {}, whose AccessType is {}", pdo(), target_text(), target.access.as_str()),
             );
-            d.hint = Some("an RPDO entry must be writable (wo, rw or rww)".to_owned());
+            d.hint = Some("an RPDO entry must be writable (wo, rw or rww)".into());
             d.context = c.to_vec();
         }
         if !is_rpdo && !target.access.tpdo_ok() {
@@ -384,7 +388,7 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
                 Some(span()),
                 format!("{} reads {}, whose AccessType is {}", pdo(), target_text(), target.access.as_str()),
             );
-            d.hint = Some("a TPDO entry must be readable (ro, rw, rwr or const)".to_owned());
+            d.hint = Some("a TPDO entry must be readable (ro, rw, rwr or const)".into());
             d.context = c.to_vec();
         }
     }
@@ -398,7 +402,7 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
                 missing.iter().map(u8::to_string).collect::<Vec<_>>().join(", ")
             ),
         );
-        d.hint = Some(format!("lower the count to {present} or add the mapping entries"));
+        d.hint = Some(format!("lower the count to {present} or add the mapping entries").into());
         d.context = ctx.to_vec();
     }
     if total_bits > 64 {
@@ -407,7 +411,7 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
             Some(value_span(secs, obj, count_entry)),
             format!("{} maps {total_bits} bits; a CAN PDO carries at most 64", pdo()),
         );
-        d.hint = Some("split the mapping over two PDOs".to_owned());
+        d.hint = Some("split the mapping over two PDOs".into());
         d.context = ctx.to_vec();
     }
 }
@@ -458,11 +462,14 @@ fn sub_index_zero(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
                 obj.index.0
             ),
         );
-        d.hint = Some(if e0.access.writable() {
-            format!("sub-index 0 counts the entries in use: at most {highest}")
-        } else {
-            format!("set sub-index 0 to {highest}, the highest sub-index the object supports")
-        });
+        d.hint = Some(
+            if e0.access.writable() {
+                format!("sub-index 0 counts the entries in use: at most {highest}")
+            } else {
+                format!("set sub-index 0 to {highest}, the highest sub-index the object supports")
+            }
+            .into(),
+        );
         d.context = Crumbs::object(obj.index.0, &obj.name).sub(0, &e0.name).to_vec();
     }
 }
@@ -567,7 +574,7 @@ fn cob_ids(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
                     show_cob(cob.value)
                 ),
             );
-            d.hint = Some("11-bit CAN-IDs are 0x001..0x7FF; set bit 29 (0x20000000) for a 29-bit CAN-ID".to_owned());
+            d.hint = Some("11-bit CAN-IDs are 0x001..0x7FF; set bit 29 (0x20000000) for a 29-bit CAN-ID".into());
             d.context = ctx();
         } else if let (Some(&(first, id)), Some(&(last, last_id))) = (restricted.first(), restricted.last()) {
             let which = if !cob.value.is_node_relative() || model.node_id().is_some() {
@@ -586,7 +593,7 @@ fn cob_ids(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
             );
             d.hint = Some(
                 "CiA 301 restricts 0x000, 0x001..0x07F, 0x101..0x180, 0x581..0x5FF, 0x601..0x67F, 0x6E0..0x6FF and 0x701..0x7FF; use the predefined connection set ($NODEID+0x180 .. $NODEID+0x500 for PDOs 1-4) or another free CAN-ID"
-                    .to_owned(),
+                    .into(),
             );
             d.context = ctx();
         }
@@ -621,7 +628,7 @@ fn cob_ids(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
                     show_cob(other.value)
                 ),
             );
-            d.hint = Some("give each PDO, SYNC and EMCY of the device its own CAN-ID".to_owned());
+            d.hint = Some("give each PDO, SYNC and EMCY of the device its own CAN-ID".into());
             d.context = Crumbs::object(cob.obj.index.0, &cob.obj.name).sub(cob.entry.sub.0, &cob.entry.name).to_vec();
         } else {
             seen.push((k, i));
