@@ -313,8 +313,6 @@ struct Core<OD, A, S, const P: usize> {
     hb_next: Micros,
     guard_time: Micros,
     life_factor: u8,
-    /// Guard time × life time factor (0 = life guarding off), kept with the two.
-    life_time: Micros,
     guard_toggle: bool,
     guard_reply: bool,
     guard_last: Option<Micros>,
@@ -493,7 +491,6 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
             0x100C | 0x100D => {
                 self.guard_time = Micros::from(read_uint(&self.od, 0x100C, 0).unwrap_or(0)) * 1000;
                 self.life_factor = read_uint(&self.od, 0x100D, 0).unwrap_or(0) as u8;
-                self.life_time = self.guard_time.saturating_mul(Micros::from(self.life_factor));
             }
             0x1200 => {
                 let rx = read_uint(&self.od, 0x1200, 1).unwrap_or(0x600 + node);
@@ -1093,8 +1090,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
     }
 
     /// Writes the entries of RPDO `n` from its data: each one's bits cut out of one 64-bit
-    /// word, then written through its handle (or the full write path for the objects with
-    /// side effects).
+    /// word, then written through its handle by [`Core::write_resolved`] (which applies the
+    /// rules of the objects with side effects).
     fn apply_rpdo(&mut self, n: usize, data: [u8; 8]) {
         let word = u64::from_le_bytes(data);
         let count = self.rpdo.get(n).map_or(0, |r| usize::from(r.count));
@@ -1106,24 +1103,10 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                 let v = low_bits(word >> (offset & 63), bits);
                 let bytes = v.to_le_bytes();
                 let len = (e.bits as usize).div_ceil(8).min(8);
-                let source = WriteSource::Rpdo(n as u16);
-                let _ = if has_side_effects(e.index) {
-                    self.write_resolved(e.index, e.sub, Some(e.handle), &bytes[..len], source)
-                } else {
-                    self.write_plain(e, &bytes[..len], source)
-                };
+                let _ = self.write_resolved(e.index, e.sub, Some(e.handle), &bytes[..len], WriteSource::Rpdo(n as u16));
             }
             offset += bits;
         }
-    }
-
-    /// The write of an RPDO entry without side effects: the application's veto, the
-    /// dictionary (through the handle) and the event.
-    fn write_plain(&mut self, e: Mapped, data: &[u8], source: WriteSource) -> Result<(), AbortCode> {
-        self.app.on_write(&self.od, e.index, e.sub, data, source)?;
-        self.od.write_handle(e.handle, data)?;
-        self.event(Event::Written { index: e.index, sub: e.sub, source });
-        Ok(())
     }
 
     fn poll_tpdos(&mut self, now: Micros, emit: &mut impl FnMut(Frame)) {
@@ -1225,7 +1208,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                 self.event(Event::HeartbeatTimeout { node: c.node });
             }
         }
-        let life = self.life_time;
+        let life = self.guard_time.saturating_mul(Micros::from(self.life_factor));
         if life != 0
             && !self.guard_lost
             && let Some(last) = self.guard_last
@@ -1367,7 +1350,6 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
                 hb_next: 0,
                 guard_time: 0,
                 life_factor: 0,
-                life_time: 0,
                 guard_toggle: false,
                 guard_reply: false,
                 guard_last: None,
