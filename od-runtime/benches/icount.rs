@@ -9,13 +9,15 @@
 //! (`icount sync 1000`) the binary just runs that loop, which is what valgrind is given (and
 //! what `valgrind --tool=callgrind` can be given to see where the instructions go).
 
+#[path = "support/icount.rs"]
+mod icount;
+
 #[path = "../tests/common/mod.rs"]
 mod common;
 
 use common::*;
 use od_runtime::{Device, Frame, NmtCommand, NodeId};
 use std::hint::black_box;
-use std::process::Command;
 
 type BenchDevice = Device<TestOd, (), MemStorage>;
 
@@ -91,42 +93,6 @@ fn run(op: &str, n: usize) -> Result<(), String> {
     Ok(())
 }
 
-fn instructions(exe: &str, op: &str, n: usize) -> Result<u64, String> {
-    let out = Command::new("valgrind")
-        .args(["--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null", exe, op, &n.to_string()])
-        .output()
-        .map_err(|e| format!("cannot run valgrind: {e}"))?;
-    let text = String::from_utf8_lossy(&out.stderr);
-    text.lines()
-        .find_map(|l| l.split_once("I   refs:").map(|(_, v)| v.trim().replace(',', "")))
-        .and_then(|v| v.parse().ok())
-        .ok_or_else(|| format!("no instruction count in valgrind's output:\n{text}"))
-}
-
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    if let (Some(op), Some(n)) = (args.get(1), args.get(2).and_then(|n| n.parse().ok()))
-        && !op.starts_with('-')
-    {
-        if let Err(e) = run(op, n) {
-            eprintln!("{e}");
-            std::process::exit(2);
-        }
-        return;
-    }
-    let exe = args.first().cloned().unwrap_or_default();
-    let (n1, n2) = (1_000usize, 11_000usize);
-    println!("instructions per operation (valgrind cachegrind, ({n2} - {n1}) iterations)");
-    for (op, what) in OPS {
-        match (instructions(&exe, op, n1), instructions(&exe, op, n2)) {
-            (Ok(a), Ok(b)) => {
-                let per = (b.saturating_sub(a)) as f64 / (n2 - n1) as f64;
-                println!("{op:>12}: {per:7.1}  {what}");
-            }
-            (Err(e), _) | (_, Err(e)) => {
-                println!("{op:>12}: not measured ({e})");
-                return;
-            }
-        }
-    }
+    icount::main(OPS, (1_000, 11_000), run);
 }
