@@ -24,8 +24,8 @@
 //! ```
 
 use std::fmt;
-use std::fs::{self, File, OpenOptions};
-use std::io::{self, Read, Write};
+use std::fs::{self, File};
+use std::io::{self, Read};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
@@ -200,29 +200,8 @@ impl Retain for FileRetain {
         if data.len() > MAX_LEN {
             return Err(io::Error::new(io::ErrorKind::InvalidInput, "retained data too long"));
         }
-        let result = (|| {
-            let mut file = OpenOptions::new().write(true).create(true).truncate(true).open(&self.tmp)?;
-            file.write_all(&encode(data))?;
-            file.sync_all()?;
-            drop(file);
-            fs::rename(&self.tmp, &self.path)?;
-            sync_dir(&self.dir)
-        })();
-        if result.is_err() {
-            let _ = fs::remove_file(&self.tmp);
-        }
-        result
+        crate::storage::write_atomically(&self.dir, &self.tmp, &self.path, &encode(data))
     }
-}
-
-#[cfg(unix)]
-fn sync_dir(dir: &Path) -> io::Result<()> {
-    File::open(dir)?.sync_all()
-}
-
-#[cfg(not(unix))]
-fn sync_dir(_dir: &Path) -> io::Result<()> {
-    Ok(())
 }
 
 #[cfg(test)]

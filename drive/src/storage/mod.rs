@@ -435,23 +435,29 @@ impl FileStorage {
         decode_image(&bytes, area, &self.tag).map(Some).map_err(|e| format!("{}: {e}", path.display()))
     }
 
-    /// Writes `bytes` to `path` atomically: temporary file, fsync, rename, fsync of the
-    /// directory.
+    /// Writes the image of `area` atomically (see [`write_atomically`]).
     fn write_atomically(&self, area: Area, bytes: &[u8]) -> io::Result<()> {
-        let tmp = self.temp_path(area);
-        let result = (|| {
-            let mut file = OpenOptions::new().write(true).create(true).truncate(true).open(&tmp)?;
-            file.write_all(bytes)?;
-            file.sync_all()?;
-            drop(file);
-            fs::rename(&tmp, self.path(area))?;
-            sync_dir(&self.dir)
-        })();
-        if result.is_err() {
-            let _ = fs::remove_file(&tmp);
-        }
-        result
+        write_atomically(&self.dir, &self.temp_path(area), &self.path(area), bytes)
     }
+}
+
+/// Writes `bytes` to `path` in `dir` atomically: to `tmp` first, flushed to disk (`fsync`),
+/// renamed over `path`, then the directory flushed so the rename survives a power cut. A
+/// failure removes `tmp` and leaves `path` as it was. Used for parameter images and for
+/// retained data.
+pub(crate) fn write_atomically(dir: &Path, tmp: &Path, path: &Path, bytes: &[u8]) -> io::Result<()> {
+    let result = (|| {
+        let mut file = OpenOptions::new().write(true).create(true).truncate(true).open(tmp)?;
+        file.write_all(bytes)?;
+        file.sync_all()?;
+        drop(file);
+        fs::rename(tmp, path)?;
+        sync_dir(dir)
+    })();
+    if result.is_err() {
+        let _ = fs::remove_file(tmp);
+    }
+    result
 }
 
 #[cfg(unix)]
