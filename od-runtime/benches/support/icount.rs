@@ -1,8 +1,9 @@
 //! The valgrind driver shared by the instruction-count benches (`od-runtime/benches/icount.rs`,
 //! `generated/benches/icount.rs`): each bench binary names its operations and runs one of them
-//! in a loop when given `OP N`; without arguments, it runs itself under
+//! in a loop when given `OP N`; under `cargo bench` (the `--bench` argument), it runs itself under
 //! `valgrind --tool=cachegrind` for every operation at two loop counts and prints the difference
-//! of the instruction counts per iteration (start-up cancels out).
+//! of the instruction counts per iteration (start-up cancels out); under `cargo test` (no
+//! arguments) it runs each operation ten times as a smoke test.
 
 use std::process::Command;
 
@@ -30,6 +31,18 @@ pub fn main(ops: &[(&str, &str)], (n1, n2): (usize, usize), run: fn(&str, usize)
             eprintln!("{e}");
             std::process::exit(2);
         }
+        return;
+    }
+    if !args.iter().any(|a| a == "--bench") {
+        // `cargo test` runs bench binaries without `--bench`: run every operation a few times as
+        // a smoke test (no valgrind needed), failing on the first error.
+        for (op, _) in ops {
+            if let Err(e) = run(op, 10) {
+                eprintln!("{op}: {e}");
+                std::process::exit(1);
+            }
+        }
+        println!("{} operations ran (smoke test; `cargo bench` counts instructions)", ops.len());
         return;
     }
     let exe = args.first().cloned().unwrap_or_default();
