@@ -63,12 +63,16 @@ pub struct Line {
 }
 
 /// A lexed file: its source and its lines.
+///
+/// The lines are lexed on first use ([`Document::lines`]): reading a file into the typed model
+/// runs the same lexer ([`crate::lex::Lexer`]) line by line and keeps no line, so a document that
+/// is only written back ([`Document::write_lossless`]) or used for diagnostics never pays for
+/// the list.
 #[derive(Clone, Debug)]
 pub struct Document {
     /// The decoded source text.
     pub source: SourceFile,
-    /// Every line, in order.
-    pub lines: Vec<Line>,
+    lines: std::sync::OnceLock<Vec<Line>>,
 }
 
 /// A section with the indices of its lines in [`Document::lines`].
@@ -83,11 +87,26 @@ pub struct SectionRef {
 }
 
 impl Document {
+    /// A document over `source`, lexed when its lines are first asked for.
+    pub fn new(source: SourceFile) -> Self {
+        Document { source, lines: std::sync::OnceLock::new() }
+    }
+
+    /// A document whose lines are already known (what [`crate::lex::lex`] found in `source`).
+    pub(crate) fn with_lines(source: SourceFile, lines: Vec<Line>) -> Self {
+        Document { source, lines: std::sync::OnceLock::from(lines) }
+    }
+
+    /// Every line, in order (lexed on the first call).
+    pub fn lines(&self) -> &[Line] {
+        self.lines.get_or_init(|| crate::lex::lex_lines(&self.source.text))
+    }
+
     /// Sections in file order, each with the entry lines that follow it. Entries before the
     /// first section are not part of any section (see [`Document::orphan_entries`]).
     pub fn sections(&self) -> Vec<SectionRef> {
         let mut out: Vec<SectionRef> = Vec::new();
-        for (i, line) in self.lines.iter().enumerate() {
+        for (i, line) in self.lines().iter().enumerate() {
             match &line.kind {
                 LineKind::Section { name, .. } => out.push(SectionRef { header: i, name: *name, entries: Vec::new() }),
                 LineKind::Entry { .. } => {
@@ -103,34 +122,31 @@ impl Document {
 
     /// Entry lines that come before any section header.
     pub fn orphan_entries(&self) -> Vec<usize> {
-        let first =
-            self.lines.iter().position(|l| matches!(l.kind, LineKind::Section { .. })).unwrap_or(self.lines.len());
-        (0..first).filter(|&i| matches!(self.lines[i].kind, LineKind::Entry { .. })).collect()
+        let lines = self.lines();
+        let first = lines.iter().position(|l| matches!(l.kind, LineKind::Section { .. })).unwrap_or(lines.len());
+        (0..first).filter(|&i| matches!(lines[i].kind, LineKind::Entry { .. })).collect()
     }
 
     /// The key and value text of an entry line (`None` for other lines).
     pub fn entry(&self, line: usize) -> Option<(&str, &str)> {
-        match self.lines.get(line)?.kind {
+        match self.lines().get(line)?.kind {
             LineKind::Entry { key, value } => Some((self.source.slice(key), self.source.slice(value))),
             _ => None,
         }
     }
 
-    /// Writes the document back. For a document that was lexed and not changed, the result is
-    /// byte-identical to the input (including a UTF-8 byte-order mark; a Windows-1252 input is
-    /// re-encoded to Windows-1252).
+    /// Writes the document back: byte-identical to the input it was read from (including a UTF-8
+    /// byte-order mark; a Windows-1252 input is re-encoded to Windows-1252). The lines tile the
+    /// text exactly (every byte is in one line's `raw` span), so this is the text itself.
     pub fn write_lossless(&self) -> Vec<u8> {
-        let mut out = Vec::with_capacity(self.source.text.len() + 3);
+        let text = &self.source.text;
+        let mut out = Vec::with_capacity(text.len() + 3);
         if self.source.bom {
             out.extend_from_slice(b"\xEF\xBB\xBF");
         }
-        let mut text = String::with_capacity(self.source.text.len());
-        for line in &self.lines {
-            text.push_str(self.source.slice(line.raw));
-        }
         match self.source.encoding {
             crate::source::Encoding::Utf8 => out.extend_from_slice(text.as_bytes()),
-            crate::source::Encoding::Windows1252 => out.extend(crate::encoding::encode_windows_1252(&text)),
+            crate::source::Encoding::Windows1252 => out.extend(crate::encoding::encode_windows_1252(text)),
         }
         out
     }

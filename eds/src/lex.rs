@@ -31,8 +31,8 @@
 //! looked at once. The parsers that run over the bulk of the text (`take_till` up to `=` or a
 //! line end) compare eight bytes at a time, and the line end is one match on two bytes.
 //! Trimming looks at the bytes at either end and only falls back to [`str::trim`] when it meets
-//! a non-ASCII byte there (which may be Unicode white space). It allocates the `Vec` of lines
-//! and nothing else.
+//! a non-ASCII byte there (which may be Unicode white space). [`Lexer`] allocates nothing; [`lex`]
+//! allocates the `Vec` of lines and the line index.
 
 use nom::bytes::complete::take_while;
 use nom::{IResult, Parser};
@@ -43,45 +43,69 @@ use crate::source::{SourceFile, Span};
 /// Lexes a decoded source file. Never fails: unrecognised lines become [`LineKind::Garbage`].
 pub fn lex(source: SourceFile) -> Document {
     let mut starts = Vec::with_capacity(source.text.len() / 12 + 2);
-    let lines = lex_into(&source.text, &mut starts);
+    starts.push(0);
+    // Typical EDS lines are 12-25 bytes long; a few more or less costs little either way.
+    let mut lines = Vec::with_capacity(source.text.len() / 10 + 16);
+    let mut lexer = Lexer::new(&source.text);
+    for line in &mut lexer {
+        if matches!(line.ending, LineEnding::Lf | LineEnding::CrLf) {
+            starts.push(line.raw.end);
+        }
+        lines.push(line);
+    }
     // The lexer found every `\n`: give the source its line index instead of letting it search.
     source.set_line_starts(starts);
-    Document { source, lines }
+    Document::with_lines(source, lines)
 }
 
 /// Lexes text into lines (the work behind [`lex`]).
 pub fn lex_lines(text: &str) -> Vec<Line> {
-    lex_into(text, &mut Vec::with_capacity(text.len() / 12 + 2))
+    let mut lines = Vec::with_capacity(text.len() / 10 + 16);
+    lines.extend(Lexer::new(text));
+    lines
 }
 
-/// Lexes `text`, and puts the offset of every line start that follows a `\n` (with 0 first)
-/// into `line_starts`.
-fn lex_into(text: &str, line_starts: &mut Vec<u32>) -> Vec<Line> {
-    let base = text.as_bytes();
-    // Typical EDS lines are 12-25 bytes long; a few more or less costs little either way.
-    let mut lines = Vec::with_capacity(base.len() / 10 + 16);
-    line_starts.push(0);
-    let mut input = base;
-    while !input.is_empty() {
+/// The lexer, as an iterator over the lines of a text, in order. [`lex`] collects them; the
+/// reader ([`crate::parse`]) takes them one at a time and keeps none.
+#[derive(Clone, Debug)]
+pub struct Lexer<'a> {
+    text: &'a str,
+    /// What is left to lex (a suffix of `text`'s bytes).
+    input: In<'a>,
+}
+
+impl<'a> Lexer<'a> {
+    /// A lexer at the start of `text`.
+    pub fn new(text: &'a str) -> Self {
+        Lexer { text, input: text.as_bytes() }
+    }
+}
+
+impl Iterator for Lexer<'_> {
+    type Item = Line;
+
+    #[inline]
+    fn next(&mut self) -> Option<Line> {
+        let base = self.text.as_bytes();
+        let input = self.input;
+        if input.is_empty() {
+            return None;
+        }
         let start = offset(base, input);
-        let (after, kind) = line_content(text, base, input);
+        let (after, kind) = line_content(self.text, base, input);
         let content_end = offset(base, after);
         // `line_ending` cannot fail: its last branch accepts the end of the input, and `after`
         // is either empty or starts with a line end.
-        let Ok((rest, ending)) = line_ending(after) else { break };
+        let (rest, ending) = line_ending(after).unwrap_or((&after[after.len()..], LineEnding::None));
+        self.input = rest;
         let next = offset(base, rest);
-        if matches!(ending, LineEnding::Lf | LineEnding::CrLf) {
-            line_starts.push(next as u32);
-        }
-        lines.push(Line {
+        Some(Line {
             raw: Span::new(start as u32, next as u32),
             content: Span::new(start as u32, content_end as u32),
             ending,
             kind,
-        });
-        input = rest;
+        })
     }
-    lines
 }
 
 type In<'a> = &'a [u8];

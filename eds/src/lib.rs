@@ -75,7 +75,8 @@ impl Parsed {
 /// Reads an EDS or DCF from bytes. `name` is used in diagnostics. Never panics.
 pub fn parse(name: &str, bytes: &[u8], options: &Options) -> Parsed {
     let source = source::SourceFile::decode(name, bytes);
-    let document = lex::lex(source);
+    // Lowering lexes the lines as it reads them; the document lexes them again only if asked.
+    let document = ast::Document::new(source);
     let (model, diagnostics) = lower::lower(&document, options);
     Parsed { document, model, diagnostics }
 }

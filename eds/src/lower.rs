@@ -55,6 +55,12 @@ pub fn lower(doc: &Document, options: &Options) -> (Model, Vec<Diagnostic>) {
     if !diags.is_sorted_by_key(place) {
         diags.sort_by_cached_key(place);
     }
+    // Lines and columns are found once lowering is done: by then the line index is built (pass
+    // 1 builds it while it reads the lines), and none is looked up for a diagnostic that is
+    // never rendered.
+    for d in &mut diags {
+        d.at = d.span.map(|s| doc.source.line_col(s.start));
+    }
     (model, diags)
 }
 
@@ -147,14 +153,14 @@ impl<'a> Ctx<'a> {
     /// and a hint.
     pub fn emit(&mut self, code: Code, span: Option<Span>, message: impl Into<String>) -> &mut Diagnostic {
         let severity = self.severity(code);
-        let at = span.map(|s| self.src.line_col(s.start));
         self.diags.push(Diagnostic {
             severity,
             code,
             message: message.into(),
             file: self.file.get_or_insert_with(|| self.src.name.as_str().into()).clone(),
             span,
-            at,
+            // Filled in by `lower` when all are found.
+            at: None,
             context: Vec::new(),
             hint: None,
         });

@@ -11,6 +11,10 @@ fn round_trip(bytes: &[u8]) {
     for options in [Options::lenient(), Options::strict()] {
         let p = eds::parse("input.eds", bytes, &options);
         assert_eq!(p.document.write_lossless(), bytes, "lossless for {:?}", String::from_utf8_lossy(bytes));
+        // The lines tile the text: every byte is in exactly one line, in order.
+        let text = &p.document.source.text;
+        let joined: String = p.document.lines().iter().map(|l| p.document.source.slice(l.raw)).collect();
+        assert_eq!(&joined, text, "the lines of {:?} do not tile it", String::from_utf8_lossy(bytes));
         // Rendering every diagnostic must not panic either.
         let _ = eds::diag::render_all(&p.diagnostics, &p.document.source);
         let _ = eds::diag::to_json(&p.diagnostics);
@@ -49,18 +53,18 @@ fn line_endings_bom_and_encodings() {
         round_trip(input);
     }
     let p = eds::parse("x.eds", b"[A]\r\nk=v\rj=w\nlast", &Options::lenient());
-    let endings: Vec<_> = p.document.lines.iter().map(|l| l.ending).collect();
+    let endings: Vec<_> = p.document.lines().iter().map(|l| l.ending).collect();
     assert_eq!(endings, [LineEnding::CrLf, LineEnding::Cr, LineEnding::Lf, LineEnding::None]);
-    assert_eq!(p.document.lines[3].kind, LineKind::Garbage);
+    assert_eq!(p.document.lines()[3].kind, LineKind::Garbage);
 }
 
 #[test]
 fn keys_keep_spelling_comments_and_order() {
     let src = "; head\n[deviceinfo]\n  vendorNAME = ACME  \n; between\nproductname=Thing\n";
     let p = eds::parse("x.eds", src.as_bytes(), &Options::lenient());
-    let entries: Vec<_> = (0..p.document.lines.len()).filter_map(|i| p.document.entry(i)).collect();
+    let entries: Vec<_> = (0..p.document.lines().len()).filter_map(|i| p.document.entry(i)).collect();
     assert_eq!(entries, vec![("vendorNAME", "ACME"), ("productname", "Thing")]);
-    let comments = p.document.lines.iter().filter(|l| matches!(l.kind, LineKind::Comment { .. })).count();
+    let comments = p.document.lines().iter().filter(|l| matches!(l.kind, LineKind::Comment { .. })).count();
     assert_eq!(comments, 2);
     assert_eq!(p.model.device_info.vendor_name.as_deref(), Some("ACME"));
     assert_eq!(p.document.write_lossless(), src.as_bytes());

@@ -75,8 +75,8 @@ fn classify(name: &str) -> Section {
 impl Locator {
     fn new(doc: &Document) -> Self {
         let mut section = Section::Other;
-        let mut lines = Vec::with_capacity(doc.lines.len());
-        for line in &doc.lines {
+        let mut lines = Vec::with_capacity(doc.lines().len());
+        for line in doc.lines() {
             let key = match &line.kind {
                 LineKind::Section { name, .. } => {
                     section = classify(doc.source.slice(*name));

@@ -243,17 +243,18 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
         cx.emit(codes::E0009, Some(Span::new(pos as u32, (pos + ch_len) as u32)), "the file contains non-ASCII text")
             .hint = Some("CiA 306 files are ASCII; tools that expect it may misread this text".into());
     }
-    // Sized for the headers there are, so that nothing grows while lines are read.
-    let headers = doc.lines.iter().filter(|l| matches!(l.kind, LineKind::Section { .. })).count();
-    let mut heads: Vec<Head<'a>> = Vec::with_capacity(headers);
-    let mut by_kind: FastMap<Kind, usize> = FastMap::with_capacity_and_hasher(headers, Default::default());
+    // Sized for typical files (an entry line every 20-25 bytes, a section every ~6 entries);
+    // only the largest files grow these once or twice.
+    let text = &src.text;
+    let mut heads: Vec<Head<'a>> = Vec::with_capacity(text.len() / 128 + 8);
+    let mut by_kind: FastMap<Kind, usize> = FastMap::with_capacity_and_hasher(text.len() / 128 + 8, Default::default());
     // Sections of unknown kind, matched by name (ignoring ASCII case); there are few.
     let mut unknown: Vec<usize> = Vec::new();
-    let mut occurrences: Vec<u16> = Vec::with_capacity(headers);
-    let mut entries: Vec<Kv<'a>> = Vec::with_capacity(doc.lines.len());
+    let mut occurrences: Vec<u16> = Vec::with_capacity(text.len() / 128 + 8);
+    let mut entries: Vec<Kv<'a>> = Vec::with_capacity(text.len() / 20 + 8);
     // Each section header starts a run of entries: (section, first entry). A run ends where the
     // next begins.
-    let mut runs: Vec<(usize, usize)> = Vec::with_capacity(headers);
+    let mut runs: Vec<(usize, usize)> = Vec::with_capacity(text.len() / 128 + 8);
     let mut repeated = false;
     // The section the following entries belong to, and its occurrence.
     let mut current: Option<(usize, u16)> = None;
@@ -262,7 +263,11 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
     // lines that end with a lone `\r`).
     let mut line_no = 1u32;
     let mut col_base = 0u32;
-    for line in &doc.lines {
+    // The start of every line `line_col` counts, handed to the source for its diagnostics.
+    let mut line_starts: Vec<u32> = Vec::with_capacity(text.len() / 16 + 2);
+    line_starts.push(0);
+    // The lines are taken from the lexer one at a time; none is kept.
+    for line in crate::lex::Lexer::new(text) {
         match line.kind {
             LineKind::Entry { key, value } => match current {
                 Some((_, occurrence)) => entries.push(Kv::new(&src.text, key, value, occurrence)),
@@ -359,11 +364,13 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
             LineEnding::Lf | LineEnding::CrLf => {
                 line_no += 1;
                 col_base = 0;
+                line_starts.push(line.raw.end);
             }
             LineEnding::Cr => col_base += char_count(src.slice(line.raw)),
             LineEnding::None => {}
         }
     }
+    src.set_line_starts(line_starts);
     let run_end = |r: usize| runs.get(r + 1).map_or(entries.len(), |&(_, start)| start);
     if !repeated {
         // Every section has exactly one run, in order.
@@ -747,7 +754,11 @@ mod tests {
             let secs = collected.sections();
             let keys = match_keys(&mut cx, &secs.list[0], &KeySet::new(["SupportedObjects"]), Crumbs::default(), false);
             assert_eq!(keys.unknown.len(), n + 3);
-            let repeats: Vec<_> = cx.diags.iter().map(|d| (d.code, d.at.map(|a| a.line), d.message.clone())).collect();
+            let repeats: Vec<_> = cx
+                .diags
+                .iter()
+                .map(|d| (d.code, d.span.map(|s| doc.source.line_col(s.start).line), d.message.clone()))
+                .collect();
             assert_eq!(
                 repeats,
                 vec![

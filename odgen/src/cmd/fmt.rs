@@ -82,7 +82,7 @@ fn format_one(path: &Path, check: bool) -> Outcome {
         return Outcome::NotCanonical;
     }
     let comments =
-        parsed.document.lines.iter().filter(|l| matches!(l.kind, eds::ast::LineKind::Comment { .. })).count();
+        parsed.document.lines().iter().filter(|l| matches!(l.kind, eds::ast::LineKind::Comment { .. })).count();
     if let Err(e) = write_atomically(path, text.as_bytes()) {
         eprintln!("error: cannot write {name}: {e}");
         return Outcome::Failed;

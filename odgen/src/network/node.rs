@@ -37,8 +37,8 @@ impl Device {
             .iter()
             .copied()
             .find(|&l| doc.entry(l).is_some_and(|(k, _)| k.eq_ignore_ascii_case(key)))?;
-        let start = doc.lines[line].content.start as usize;
-        let end = doc.lines[line].content.end as usize;
+        let start = doc.lines()[line].content.start as usize;
+        let end = doc.lines()[line].content.end as usize;
         let mut s = Snippet::at(&doc.source, &self.display, start..end);
         s.width = 0;
         Some(s)
