@@ -32,7 +32,7 @@ theirs=$("$python" "$root/scripts/bench_read_canopen.py" "${PY_ITERATIONS:-5}" "
 import json, sys
 ours, theirs, parallel = json.loads(sys.argv[1]), json.loads(sys.argv[2]), json.loads(sys.argv[3])
 print(f"files: {ours['files']}  bytes: {ours['bytes']}")
-print(f"odgen (eds::parse, read+validate): {ours['ms_per_pass']:9.3f} ms per pass  {ours['mb_per_s']:8.2f} MB/s  "
+print(f"odgen (eds::parse, read+validate, {ours['allocator']}): {ours['ms_per_pass']:9.3f} ms per pass  {ours['mb_per_s']:8.2f} MB/s  "
       f"({ours['iterations']} passes, {ours['seconds']:.3f} s)")
 print(f"python-canopen {theirs['canopen_version']} import_od:    {theirs['ms_per_pass']:9.3f} ms per pass  "
       f"{theirs['mb_per_s']:8.2f} MB/s  ({theirs['iterations']} passes, {theirs['seconds']:.3f} s)")

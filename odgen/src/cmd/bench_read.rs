@@ -121,6 +121,7 @@ pub fn run(args: Args) -> ExitCode {
             "files": files.len(),
             "bytes": bytes,
             "jobs": jobs,
+            "allocator": crate::ALLOCATOR,
             "objects_per_pass": objects / iterations as usize,
             "iterations": iterations,
             "seconds": seconds,
