@@ -44,7 +44,7 @@ fn default_text(m: &Model, index: u16, sub: u8) -> String {
 
 fn limits(m: &Model, index: u16, sub: u8) -> (Option<i128>, Option<i128>) {
     let e = entry(m, index, sub);
-    (e.low_limit.as_ref().and_then(Value::as_int), e.high_limit.as_ref().and_then(Value::as_int))
+    (e.low_limit().and_then(Value::as_int), e.high_limit().and_then(Value::as_int))
 }
 
 fn dtype(m: &Model, index: u16, sub: u8) -> DataType {
@@ -60,7 +60,7 @@ fn mappable(m: &Model, index: u16, sub: u8) -> bool {
 }
 
 fn denotation(m: &Model, index: u16, sub: u8) -> Option<&str> {
-    entry(m, index, sub).denotation.as_deref()
+    entry(m, index, sub).denotation()
 }
 
 /// Appendix 7.1.2: every index it lists (34).

@@ -199,7 +199,7 @@ fn cia301_values_from_table_3_1() {
     // 3.1 1019h Synchronous counter overflow value U8 RW 0; 3.2.19 range up to 240
     assert_eq!(dtype(&m, 0x1019, 0), DataType::Unsigned8);
     assert_eq!(default_int(&m, 0x1019, 0), 0);
-    assert_eq!(m.entry(0x1019, 0).unwrap().high_limit.as_ref().and_then(Value::as_int), Some(240));
+    assert_eq!(m.entry(0x1019, 0).unwrap().high_limit().and_then(Value::as_int), Some(240));
     // 3.1 1020h Highest sub-index supported 2
     assert_eq!(default_int(&m, 0x1020, 0), 2);
     // 3.1 1200h SDO COB-IDs 0x600 / 0x580 relative to the node id

@@ -36,8 +36,8 @@ fn default_text(index: u16, sub: u8) -> String {
 
 fn limits(index: u16, sub: u8) -> (i128, i128) {
     let e = entry(index, sub);
-    let lo = e.low_limit.as_ref().and_then(Value::as_int).expect("LowLimit");
-    let hi = e.high_limit.as_ref().and_then(Value::as_int).expect("HighLimit");
+    let lo = e.low_limit().and_then(Value::as_int).expect("LowLimit");
+    let hi = e.high_limit().and_then(Value::as_int).expect("HighLimit");
     (lo, hi)
 }
 

@@ -482,7 +482,14 @@ pub enum Category {
 }
 
 /// One cell of the dictionary: an `(index, sub-index)` with a type and a value.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+///
+/// The keys most entries have are fields; the ones few entries have (ParameterValue, limits,
+/// ObjFlags, Denotation, UploadFile, DownloadFile, unknown keys) are in one boxed
+/// [`EntryExtras`], read through the methods of the same names, so that an entry without them
+/// (most of the tens of thousands a large file has) is 96 bytes rather than 288. It is
+/// serialised flat, with every key, as if all were fields.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(from = "EntryRepr", into = "EntryRepr")]
 pub struct Entry {
     /// Sub-index (0 for a VAR object).
     pub sub: SubIndex,
@@ -496,6 +503,16 @@ pub struct Entry {
     pub pdo_mapping: bool,
     /// `DefaultValue` (the EDS default).
     pub default: Option<Value>,
+    /// The rarely set keys (`None`: none of them is set). Read them with
+    /// [`Entry::parameter_value`] and its siblings, set them through [`Entry::extras_mut`].
+    pub extras: Option<Box<EntryExtras>>,
+    /// Where the section was written.
+    pub at: SourceRef,
+}
+
+/// The keys of an [`Entry`] that few entries have.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct EntryExtras {
     /// `ParameterValue` (a DCF's configured value).
     pub parameter_value: Option<Value>,
     /// `LowLimit`.
@@ -512,8 +529,189 @@ pub struct Entry {
     pub download_file: Option<String>,
     /// Keys this crate does not interpret, as written, in file order.
     pub extra: Vec<(String, String)>,
-    /// Where the section was written.
-    pub at: SourceRef,
+}
+
+/// No extras at all, boxed or not.
+static NO_EXTRAS: EntryExtras = EntryExtras {
+    parameter_value: None,
+    low_limit: None,
+    high_limit: None,
+    obj_flags: None,
+    denotation: None,
+    upload_file: None,
+    download_file: None,
+    extra: Vec::new(),
+};
+
+impl EntryExtras {
+    /// Whether no key is set (the same as having no extras).
+    pub fn is_empty(&self) -> bool {
+        *self == NO_EXTRAS
+    }
+}
+
+impl Entry {
+    /// An entry with these fields, no default value, no extras and no source position.
+    pub fn new(sub: u8, name: impl Into<String>, data_type: DataType, access: Access) -> Self {
+        Entry {
+            sub: SubIndex(sub),
+            name: name.into(),
+            data_type,
+            access,
+            pdo_mapping: false,
+            default: None,
+            extras: None,
+            at: SourceRef::default(),
+        }
+    }
+
+    /// The rarely set keys, all `None` and empty when the entry has none.
+    #[inline]
+    pub fn extras(&self) -> &EntryExtras {
+        self.extras.as_deref().unwrap_or(&NO_EXTRAS)
+    }
+
+    /// The rarely set keys, to change them (made on first use).
+    pub fn extras_mut(&mut self) -> &mut EntryExtras {
+        self.extras.get_or_insert_with(Default::default)
+    }
+
+    /// `ParameterValue` (a DCF's configured value).
+    #[inline]
+    pub fn parameter_value(&self) -> Option<&Value> {
+        self.extras().parameter_value.as_ref()
+    }
+
+    /// `LowLimit`.
+    #[inline]
+    pub fn low_limit(&self) -> Option<&Value> {
+        self.extras().low_limit.as_ref()
+    }
+
+    /// `HighLimit`.
+    #[inline]
+    pub fn high_limit(&self) -> Option<&Value> {
+        self.extras().high_limit.as_ref()
+    }
+
+    /// `ObjFlags`.
+    #[inline]
+    pub fn obj_flags(&self) -> Option<u32> {
+        self.extras().obj_flags
+    }
+
+    /// `Denotation`.
+    #[inline]
+    pub fn denotation(&self) -> Option<&str> {
+        self.extras().denotation.as_deref()
+    }
+
+    /// `UploadFile`.
+    #[inline]
+    pub fn upload_file(&self) -> Option<&str> {
+        self.extras().upload_file.as_deref()
+    }
+
+    /// `DownloadFile`.
+    #[inline]
+    pub fn download_file(&self) -> Option<&str> {
+        self.extras().download_file.as_deref()
+    }
+
+    /// Keys this crate does not interpret, as written, in file order.
+    #[inline]
+    pub fn extra(&self) -> &[(String, String)] {
+        &self.extras().extra
+    }
+
+    /// Sets `ParameterValue` (`None` removes it).
+    pub fn set_parameter_value(&mut self, value: Option<Value>) {
+        if value.is_some() || self.extras.is_some() {
+            self.extras_mut().parameter_value = value;
+        }
+    }
+}
+
+/// Equal when every key is equal; no extras and empty extras are the same.
+impl PartialEq for Entry {
+    fn eq(&self, other: &Self) -> bool {
+        self.sub == other.sub
+            && self.name == other.name
+            && self.data_type == other.data_type
+            && self.access == other.access
+            && self.pdo_mapping == other.pdo_mapping
+            && self.default == other.default
+            && self.at == other.at
+            && self.extras() == other.extras()
+    }
+}
+
+/// [`Entry`] as it is serialised: every key a field, in the order of the CiA 306 keywords.
+#[derive(Clone, Serialize, Deserialize)]
+struct EntryRepr {
+    sub: SubIndex,
+    name: String,
+    data_type: DataType,
+    access: Access,
+    pdo_mapping: bool,
+    default: Option<Value>,
+    parameter_value: Option<Value>,
+    low_limit: Option<Value>,
+    high_limit: Option<Value>,
+    obj_flags: Option<u32>,
+    denotation: Option<String>,
+    upload_file: Option<String>,
+    download_file: Option<String>,
+    extra: Vec<(String, String)>,
+    at: SourceRef,
+}
+
+impl From<EntryRepr> for Entry {
+    fn from(r: EntryRepr) -> Self {
+        let extras = EntryExtras {
+            parameter_value: r.parameter_value,
+            low_limit: r.low_limit,
+            high_limit: r.high_limit,
+            obj_flags: r.obj_flags,
+            denotation: r.denotation,
+            upload_file: r.upload_file,
+            download_file: r.download_file,
+            extra: r.extra,
+        };
+        Entry {
+            sub: r.sub,
+            name: r.name,
+            data_type: r.data_type,
+            access: r.access,
+            pdo_mapping: r.pdo_mapping,
+            default: r.default,
+            extras: (!extras.is_empty()).then(|| Box::new(extras)),
+            at: r.at,
+        }
+    }
+}
+
+impl From<Entry> for EntryRepr {
+    fn from(e: Entry) -> Self {
+        let x = e.extras.map(|b| *b).unwrap_or_default();
+        EntryRepr {
+            sub: e.sub,
+            name: e.name,
+            data_type: e.data_type,
+            access: e.access,
+            pdo_mapping: e.pdo_mapping,
+            default: e.default,
+            parameter_value: x.parameter_value,
+            low_limit: x.low_limit,
+            high_limit: x.high_limit,
+            obj_flags: x.obj_flags,
+            denotation: x.denotation,
+            upload_file: x.upload_file,
+            download_file: x.download_file,
+            extra: x.extra,
+            at: e.at,
+        }
+    }
 }
 
 /// The entries of an object by sub-index: a map with the methods of a
@@ -528,8 +726,7 @@ pub struct Entry {
 /// use eds::model::*;
 /// let entry = |sub: u8| Entry { sub: SubIndex(sub), name: format!("Entry {sub}"),
 ///     data_type: DataType::Unsigned8, access: Access::Ro, pdo_mapping: false, default: None,
-///     parameter_value: None, low_limit: None, high_limit: None, obj_flags: None, denotation: None,
-///     upload_file: None, download_file: None, extra: vec![], at: SourceRef::default() };
+///     extras: None, at: SourceRef::default() };
 /// let mut subs = SubMap::new();
 /// subs.insert(SubIndex(2), entry(2));
 /// subs.insert(SubIndex(0), entry(0));
@@ -1129,5 +1326,48 @@ impl PdoMappingEntry {
     /// Whether this is a dummy entry (a data type index).
     pub const fn is_dummy(self) -> bool {
         self.index.0 >= 0x0001 && self.index.0 <= 0x0007
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Tens of thousands of entries are built, moved and dropped per large file: keep the rarely
+    /// set keys out of line.
+    #[test]
+    fn an_entry_stays_small() {
+        assert!(std::mem::size_of::<Entry>() <= 96, "Entry is {} bytes", std::mem::size_of::<Entry>());
+    }
+
+    #[test]
+    fn no_extras_equal_empty_extras_and_serialise_flat() {
+        let plain = Entry::new(1, "x", DataType::Unsigned8, Access::Rw);
+        let mut boxed = plain.clone();
+        boxed.extras = Some(Box::default());
+        assert_eq!(plain, boxed);
+        let mut set = plain.clone();
+        set.set_parameter_value(Some(Value::int(3)));
+        assert_ne!(plain, set);
+        assert_eq!(set.parameter_value(), Some(&Value::int(3)));
+        set.set_parameter_value(None);
+        assert_eq!(plain, set);
+        // Setting nothing on an entry without extras makes no box.
+        let mut none = plain.clone();
+        none.set_parameter_value(None);
+        assert!(none.extras.is_none());
+        // Serialised with every key, as before the extras were boxed; read back the same.
+        let mut full = plain.clone();
+        full.extras_mut().denotation = Some("d".into());
+        let json = serde_json::to_value(&full).unwrap();
+        let keys: Vec<&str> = json.as_object().unwrap().keys().map(String::as_str).collect();
+        for k in ["parameter_value", "low_limit", "high_limit", "obj_flags", "denotation", "extra", "at"] {
+            assert!(keys.contains(&k), "{k} missing from {keys:?}");
+        }
+        assert!(!keys.contains(&"extras"));
+        let back: Entry = serde_json::from_value(json).unwrap();
+        assert_eq!(back, full);
+        let back: Entry = serde_json::from_value(serde_json::to_value(&plain).unwrap()).unwrap();
+        assert!(back.extras.is_none(), "no box for an entry without extras");
     }
 }

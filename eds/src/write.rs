@@ -169,23 +169,23 @@ pub fn unrepresentable(model: &Model) -> Vec<Unrepresentable> {
             let ctx = || format!("object {} \"{}\", sub {} \"{}\"", obj.index, obj.name, e.sub, e.name);
             text(&ctx, "the name", &e.name);
             for (what, v) in [
-                ("DefaultValue", &e.default),
-                ("ParameterValue", &e.parameter_value),
-                ("LowLimit", &e.low_limit),
-                ("HighLimit", &e.high_limit),
+                ("DefaultValue", e.default.as_ref()),
+                ("ParameterValue", e.parameter_value()),
+                ("LowLimit", e.low_limit()),
+                ("HighLimit", e.high_limit()),
             ] {
                 if let Some(Value::Text(t)) = v {
                     text(&ctx, what, t);
                 }
             }
             for (what, v) in
-                [("Denotation", &e.denotation), ("UploadFile", &e.upload_file), ("DownloadFile", &e.download_file)]
+                [("Denotation", e.denotation()), ("UploadFile", e.upload_file()), ("DownloadFile", e.download_file())]
             {
                 if let Some(t) = v {
                     text(&ctx, what, t);
                 }
             }
-            for (k, v) in &e.extra {
+            for (k, v) in e.extra() {
                 text(&ctx, &format!("the value of `{k}`"), v);
             }
         }
@@ -206,7 +206,7 @@ pub fn unrepresentable(model: &Model) -> Vec<Unrepresentable> {
     for obj in model.objects.values() {
         keys.extend(obj.extra.iter().map(|(k, _)| (format!("object {}", obj.index), k.as_str())));
         for e in obj.subs.values() {
-            keys.extend(e.extra.iter().map(|(k, _)| (format!("object {} sub {}", obj.index, e.sub), k.as_str())));
+            keys.extend(e.extra().iter().map(|(k, _)| (format!("object {} sub {}", obj.index, e.sub), k.as_str())));
         }
     }
     for sec in &model.extra_sections {
@@ -289,7 +289,7 @@ impl<'m> Writer<'m> {
         let _ = writeln!(self.out, "{key}={value}");
     }
 
-    fn opt_str(&mut self, key: &str, value: &Option<String>) {
+    fn opt_str(&mut self, key: &str, value: Option<&str>) {
         if let Some(v) = value {
             self.key(key, format_args!("{v}"));
         }
@@ -319,7 +319,7 @@ impl<'m> Writer<'m> {
         }
     }
 
-    fn value(&mut self, key: &str, value: &Option<Value>, data_type: DataType) {
+    fn value(&mut self, key: &str, value: Option<&Value>, data_type: DataType) {
         if let Some(v) = value {
             self.out.push_str(key);
             self.out.push('=');
@@ -374,28 +374,28 @@ impl<'m> Writer<'m> {
 
     fn file_info(&mut self, fi: &FileInfo) {
         self.section(format_args!("FileInfo"));
-        self.opt_str("FileName", &fi.file_name);
+        self.opt_str("FileName", fi.file_name.as_deref());
         self.opt_dec("FileVersion", fi.file_version);
         self.opt_dec("FileRevision", fi.file_revision);
-        self.opt_str("EDSVersion", &fi.eds_version);
-        self.opt_str("Description", &fi.description);
-        self.opt_str("CreationTime", &fi.creation_time);
-        self.opt_str("CreationDate", &fi.creation_date);
-        self.opt_str("CreatedBy", &fi.created_by);
-        self.opt_str("ModificationTime", &fi.modification_time);
-        self.opt_str("ModificationDate", &fi.modification_date);
-        self.opt_str("ModifiedBy", &fi.modified_by);
+        self.opt_str("EDSVersion", fi.eds_version.as_deref());
+        self.opt_str("Description", fi.description.as_deref());
+        self.opt_str("CreationTime", fi.creation_time.as_deref());
+        self.opt_str("CreationDate", fi.creation_date.as_deref());
+        self.opt_str("CreatedBy", fi.created_by.as_deref());
+        self.opt_str("ModificationTime", fi.modification_time.as_deref());
+        self.opt_str("ModificationDate", fi.modification_date.as_deref());
+        self.opt_str("ModifiedBy", fi.modified_by.as_deref());
         self.extra(&fi.extra);
     }
 
     fn device_info(&mut self, di: &DeviceInfo) {
         self.section(format_args!("DeviceInfo"));
-        self.opt_str("VendorName", &di.vendor_name);
+        self.opt_str("VendorName", di.vendor_name.as_deref());
         self.opt_hex32("VendorNumber", di.vendor_number);
-        self.opt_str("ProductName", &di.product_name);
+        self.opt_str("ProductName", di.product_name.as_deref());
         self.opt_hex32("ProductNumber", di.product_number);
         self.opt_hex32("RevisionNumber", di.revision_number);
-        self.opt_str("OrderCode", &di.order_code);
+        self.opt_str("OrderCode", di.order_code.as_deref());
         for (&rate, &on) in &di.baud_rates {
             self.key(&format!("BaudRate_{rate}"), format_args!("{}", on as u8));
         }
@@ -414,10 +414,10 @@ impl<'m> Writer<'m> {
     fn commissioning(&mut self, c: &Commissioning) {
         self.section(format_args!("DeviceComissioning"));
         self.opt_dec("NodeID", c.node_id);
-        self.opt_str("NodeName", &c.node_name);
+        self.opt_str("NodeName", c.node_name.as_deref());
         self.opt_dec("Baudrate", c.baudrate);
         self.opt_dec("NetNumber", c.net_number);
-        self.opt_str("NetworkName", &c.network_name);
+        self.opt_str("NetworkName", c.network_name.as_deref());
         self.opt_bool("CANopenManager", c.canopen_manager);
         self.opt_hex32("LSS_SerialNumber", c.lss_serial_number);
         self.extra(&c.extra);
@@ -474,16 +474,16 @@ impl<'m> Writer<'m> {
     /// Every key of an entry after `ParameterName` and `ObjectType`.
     fn entry_keys(&mut self, e: &Entry) {
         self.entry_type_keys(e.data_type, e.access);
-        self.value("DefaultValue", &e.default, e.data_type);
-        self.value("ParameterValue", &e.parameter_value, e.data_type);
-        self.value("LowLimit", &e.low_limit, e.data_type);
-        self.value("HighLimit", &e.high_limit, e.data_type);
+        self.value("DefaultValue", e.default.as_ref(), e.data_type);
+        self.value("ParameterValue", e.parameter_value(), e.data_type);
+        self.value("LowLimit", e.low_limit(), e.data_type);
+        self.value("HighLimit", e.high_limit(), e.data_type);
         self.key("PDOMapping", format_args!("{}", e.pdo_mapping as u8));
-        self.opt_obj_flags(e.obj_flags);
-        self.opt_str("Denotation", &e.denotation);
-        self.opt_str("UploadFile", &e.upload_file);
-        self.opt_str("DownloadFile", &e.download_file);
-        self.extra(&e.extra);
+        self.opt_obj_flags(e.obj_flags());
+        self.opt_str("Denotation", e.denotation());
+        self.opt_str("UploadFile", e.upload_file());
+        self.opt_str("DownloadFile", e.download_file());
+        self.extra(e.extra());
     }
 
     fn entry_type_keys(&mut self, data_type: DataType, access: Access) {
@@ -495,15 +495,15 @@ impl<'m> Writer<'m> {
         let idx = o.index.0;
         let proto = c.proto;
         self.entry_type_keys(proto.data_type, proto.access);
-        self.value("DefaultValue", &c.default, proto.data_type);
-        self.value("LowLimit", &proto.low_limit, proto.data_type);
-        self.value("HighLimit", &proto.high_limit, proto.data_type);
+        self.value("DefaultValue", c.default.as_ref(), proto.data_type);
+        self.value("LowLimit", proto.low_limit(), proto.data_type);
+        self.value("HighLimit", proto.high_limit(), proto.data_type);
         self.key("PDOMapping", format_args!("{}", proto.pdo_mapping as u8));
         self.key("CompactSubObj", format_args!("{}", c.n));
         self.opt_obj_flags(o.obj_flags);
-        self.opt_str("Denotation", &proto.denotation);
-        self.opt_str("UploadFile", &proto.upload_file);
-        self.opt_str("DownloadFile", &proto.download_file);
+        self.opt_str("Denotation", proto.denotation());
+        self.opt_str("UploadFile", proto.upload_file());
+        self.opt_str("DownloadFile", proto.download_file());
         self.extra(&o.extra);
         // python-canopen creates the sub-objects of a compact ARRAY from `[xxxxName]` only, so
         // an ARRAY gets the section even when every name is the implied one; on a RECORD
@@ -562,14 +562,7 @@ fn compact_form(o: &Object) -> Option<Compact<'_>> {
         && sub0.access == Access::Ro
         && !sub0.pdo_mapping
         && sub0.default == Some(Value::int(n as i128))
-        && sub0.parameter_value.is_none()
-        && sub0.low_limit.is_none()
-        && sub0.high_limit.is_none()
-        && sub0.obj_flags.is_none()
-        && sub0.denotation.is_none()
-        && sub0.upload_file.is_none()
-        && sub0.download_file.is_none()
-        && sub0.extra.is_empty();
+        && sub0.extras().is_empty();
     if !sub0_ok {
         return None;
     }
@@ -582,18 +575,18 @@ fn compact_form(o: &Object) -> Option<Compact<'_>> {
             && e.access == proto.access
             && e.pdo_mapping == proto.pdo_mapping
             && e.default == proto.default
-            && e.low_limit == proto.low_limit
-            && e.high_limit == proto.high_limit
-            && e.obj_flags == o.obj_flags
-            && e.denotation == proto.denotation
-            && e.upload_file == proto.upload_file
-            && e.download_file == proto.download_file
-            && e.extra.is_empty();
+            && e.low_limit() == proto.low_limit()
+            && e.high_limit() == proto.high_limit()
+            && e.obj_flags() == o.obj_flags
+            && e.denotation() == proto.denotation()
+            && e.upload_file() == proto.upload_file()
+            && e.download_file() == proto.download_file()
+            && e.extra().is_empty();
         if !shared {
             return None;
         }
         names.push((s, e.name.as_str()));
-        if let Some(v) = &e.parameter_value {
+        if let Some(v) = e.parameter_value() {
             values.push((s, v));
         }
     }
@@ -679,14 +672,13 @@ pub struct ConfigureError {
 /// # let mut subs = SubMap::new();
 /// # subs.insert(SubIndex(0), Entry { sub: SubIndex(0), name: "Modes of operation".into(),
 /// #     data_type: DataType::Integer8, access: Access::Rw, pdo_mapping: true, default: Some(Value::int(0)),
-/// #     parameter_value: None, low_limit: None, high_limit: None, obj_flags: None, denotation: None,
-/// #     upload_file: None, download_file: None, extra: vec![], at: SourceRef::default() });
+/// #     extras: None, at: SourceRef::default() });
 /// # model.objects.insert(Index(0x6060), Object { index: Index(0x6060), name: "Modes of operation".into(),
 /// #     object_type: ObjectType::Var, category: Category::Optional, subs, compact_sub_obj: None,
 /// #     object_links: vec![], obj_flags: None, extra: vec![], at: SourceRef::default() });
 /// let dcf = configure(&model, 5, Some(500), &[(0x6060, 0, Value::int(1))]).unwrap();
 /// assert_eq!(dcf.node_id(), Some(5));
-/// assert_eq!(dcf.entry(0x6060, 0).unwrap().parameter_value, Some(Value::int(1)));
+/// assert_eq!(dcf.entry(0x6060, 0).unwrap().parameter_value(), Some(&Value::int(1)));
 /// assert!(configure(&model, 5, None, &[(0x6060, 0, Value::int(300))]).is_err());
 /// ```
 pub fn configure(
@@ -775,7 +767,7 @@ pub fn configure(
         match check_config_value(entry, value, node_id) {
             Ok(v) => {
                 if let Some(e) = out.objects.get_mut(&Index(index)).and_then(|o| o.subs.get_mut(&SubIndex(sub))) {
-                    e.parameter_value = Some(v);
+                    e.set_parameter_value(Some(v));
                 }
             }
             Err((message, hint)) => problem(message, hint),
@@ -852,8 +844,8 @@ fn check_config_value(entry: &Entry, value: &Value, node_id: u8) -> Result<Value
         if ty == DataType::Real32 && x.is_finite() && (x as f32).is_infinite() {
             return Err((format!("{x} does not fit a REAL32"), None));
         }
-        let low = entry.low_limit.as_ref().and_then(|l| numeric(l, node_id));
-        let high = entry.high_limit.as_ref().and_then(|h| numeric(h, node_id));
+        let low = entry.low_limit().and_then(|l| numeric(l, node_id));
+        let high = entry.high_limit().and_then(|h| numeric(h, node_id));
         if let Some(lo) = low.filter(|lo| x < *lo) {
             return Err((format!("{shown} is below the entry's LowLimit {lo}"), None));
         }

@@ -31,7 +31,7 @@ fn node_id_stays_symbolic() {
     }
     assert_eq!(default(&p, 0x1400, 5), Some(Value::NodeIdPlus { offset: 512, radix: Radix::Dec }));
     let e = p.model.entry(0x1400, 5).expect("entry");
-    assert_eq!(e.low_limit, Some(Value::NodeIdPlus { offset: 0x200, radix: Radix::Hex }));
+    assert_eq!(e.low_limit().cloned(), Some(Value::NodeIdPlus { offset: 0x200, radix: Radix::Hex }));
     assert!(!p.has_errors());
     insta::assert_yaml_snapshot!("model_nodeid", p.model);
 }
@@ -55,12 +55,12 @@ fn compact_sub_objects_and_dcf() {
     assert_eq!(o.sub(1).map(|e| e.name.as_str()), Some("Heartbeat of the master"));
     assert_eq!(o.sub(2).map(|e| e.name.as_str()), Some("Consumer heartbeat time2"));
     assert_eq!(o.sub(3).map(|e| e.name.as_str()), Some("Heartbeat of axis 2"));
-    assert_eq!(o.sub(1).and_then(|e| e.parameter_value.clone()), Some(Value::hex(0x007F03E8)));
-    assert_eq!(o.sub(3).and_then(|e| e.parameter_value.clone()), None);
+    assert_eq!(o.sub(1).and_then(|e| e.parameter_value().cloned()), Some(Value::hex(0x007F03E8)));
+    assert_eq!(o.sub(3).and_then(|e| e.parameter_value().cloned()), None);
     assert!(o.subs.values().skip(1).all(|e| e.data_type == DataType::Unsigned32 && e.access == Access::Rw));
     let hb = p.model.entry(0x1017, 0).expect("1017");
-    assert_eq!(hb.parameter_value.as_ref().and_then(Value::as_int), Some(100));
-    assert_eq!(hb.denotation.as_deref(), Some("heartbeat_ms"));
+    assert_eq!(hb.parameter_value().and_then(Value::as_int), Some(100));
+    assert_eq!(hb.denotation(), Some("heartbeat_ms"));
     // The English spelling of the section is reported, NodeId's case is noted.
     assert!(has(&p, codes::E0103));
     assert!(has(&p, codes::E0104));
@@ -84,14 +84,14 @@ fn every_object_type() {
     assert!(p.model.object(0x2000).is_some_and(|o| o.subs.is_empty()));
     let domain = p.model.entry(0x1F50, 0).expect("domain entry");
     assert_eq!((domain.data_type, domain.access), (DataType::Domain, Access::Rw), "DOMAIN defaults");
-    assert_eq!(domain.upload_file.as_deref(), Some("program.bin"));
+    assert_eq!(domain.upload_file(), Some("program.bin"));
     assert_eq!(default(&p, 0x2004, 0), Some(Value::Bytes(vec![0xDE, 0xAD, 0xBE, 0xEF])));
     assert_eq!(
         p.model.object(0x2001).map(|o| o.object_links.clone()),
         Some(vec![eds::Index(0x2002), eds::Index(0x2003)])
     );
     assert_eq!(p.model.object(0x2003).and_then(|o| o.obj_flags), Some(1));
-    assert_eq!(p.model.entry(0x2003, 2).and_then(|e| e.obj_flags), Some(2));
+    assert_eq!(p.model.entry(0x2003, 2).and_then(|e| e.obj_flags()), Some(2));
     assert_eq!(default(&p, 0x2002, 1), Some(Value::Real(1.5)));
     assert_eq!(p.model.object(0x2001).map(|o| o.category), Some(Category::Manufacturer));
     let errors: Vec<_> = p.errors().map(|d| d.code).collect();
@@ -117,7 +117,7 @@ fn every_data_type() {
     assert_eq!(int(1), Some(1));
     assert_eq!(int(2), Some(-128));
     assert_eq!(int(3), Some(-16));
-    assert_eq!(p.model.entry(0x2000, 3).and_then(|e| e.low_limit.as_ref()).and_then(Value::as_int), Some(-32768));
+    assert_eq!(p.model.entry(0x2000, 3).and_then(|e| e.low_limit()).and_then(Value::as_int), Some(-32768));
     assert_eq!(int(4), Some(-1));
     assert_eq!(int(6), Some(0xFFFF));
     assert_eq!(int(7), Some(u32::MAX as i128));
@@ -221,7 +221,7 @@ fn unknown_sections_and_keys_are_kept() {
     assert_eq!(p.model.extra_sections[0].name, "Tools");
     assert_eq!(p.model.extra_sections[0].entries.len(), 2);
     assert_eq!(
-        p.model.entry(0x1000, 0).map(|e| e.extra.clone()),
+        p.model.entry(0x1000, 0).map(|e| e.extra().to_vec()),
         Some(vec![("VendorKey".to_owned(), "42".to_owned())])
     );
     assert!(has(&p, codes::E0101));
@@ -233,7 +233,7 @@ fn duplicate_sections_merge_and_later_keys_win() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/diag/E0006.eds");
     let p = eds::parse("E0006.eds", &std::fs::read(path).expect("read"), &Options::lenient());
     let e = p.model.entry(0x2000, 0).expect("2000");
-    assert_eq!(e.high_limit.as_ref().and_then(Value::as_int), Some(2000), "the repeated section's HighLimit wins");
+    assert_eq!(e.high_limit().and_then(Value::as_int), Some(2000), "the repeated section's HighLimit wins");
     assert_eq!(e.name, "Target speed", "keys of the first occurrence are kept");
     assert!(!has(&p, codes::E0007), "keys repeated by a repeated section are reported once, as E0006");
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/diag/E0007.eds");

@@ -127,9 +127,9 @@ fn describe(path: &Path, m: &Model) -> Json {
                     "access": e.access.as_str(),
                     "pdo_mapping": e.pdo_mapping,
                     "default": value_json(&e.default, e.data_type),
-                    "parameter_value": value_json(&e.parameter_value, e.data_type),
-                    "low_limit": value_json(&e.low_limit, e.data_type),
-                    "high_limit": value_json(&e.high_limit, e.data_type),
+                    "parameter_value": value_json(&e.parameter_value().cloned(), e.data_type),
+                    "low_limit": value_json(&e.low_limit().cloned(), e.data_type),
+                    "high_limit": value_json(&e.high_limit().cloned(), e.data_type),
                 })).collect::<Vec<_>>(),
             })
         })

@@ -34,9 +34,9 @@ fn small() -> Model {
     );
     let mut e = entry(0, "Target", DataType::Integer32, Access::Rww, Some(Value::int(-5)));
     e.pdo_mapping = true;
-    e.low_limit = Some(Value::hex(-0x10));
-    e.high_limit = Some(Value::Int { value: 8, radix: Radix::Oct });
-    e.extra = vec![("Unit".into(), "mm".into())];
+    e.extras_mut().low_limit = Some(Value::hex(-0x10));
+    e.extras_mut().high_limit = Some(Value::Int { value: 8, radix: Radix::Oct });
+    e.extras_mut().extra = vec![("Unit".into(), "mm".into())];
     m.objects.insert(Index(0x607A), var(0x607A, Category::Optional, e));
     m
 }
@@ -236,6 +236,7 @@ fn unrepresentable_models_are_named() {
         .subs
         .get_mut(&SubIndex(0))
         .unwrap()
+        .extras_mut()
         .extra
         .push(("Bad=Key".into(), "v".into()));
     m.file_info.description = Some(" padded".into());
@@ -264,16 +265,16 @@ fn configure_records_values_and_keeps_defaults() {
     assert_eq!((c.node_id, c.baudrate), (Some(0x7F), Some(1000)));
     let cob = dcf.entry(0x1400, 1).unwrap();
     assert_eq!(cob.default, Some(Value::NodeIdPlus { offset: 0x200, radix: Radix::Hex }));
-    assert_eq!(cob.parameter_value, Some(Value::NodeIdPlus { offset: 0x300, radix: Radix::Hex }));
+    assert_eq!(cob.parameter_value().cloned(), Some(Value::NodeIdPlus { offset: 0x300, radix: Radix::Hex }));
     // An integer given for a REAL32 is recorded as a REAL.
     assert_eq!(dcf.entry(0x2000, 8).unwrap().data_type, DataType::Real32);
-    assert_eq!(dcf.entry(0x2000, 8).unwrap().parameter_value, Some(Value::Real(3.0)));
+    assert_eq!(dcf.entry(0x2000, 8).unwrap().parameter_value().cloned(), Some(Value::Real(3.0)));
     // Nothing else changed.
     let mut back = dcf.clone();
     back.kind = FileKind::Eds;
     back.commissioning = None;
     for (i, s) in [(0x1400, 1), (0x2000, 8)] {
-        back.objects.get_mut(&Index(i)).unwrap().subs.get_mut(&SubIndex(s)).unwrap().parameter_value = None;
+        back.objects.get_mut(&Index(i)).unwrap().subs.get_mut(&SubIndex(s)).unwrap().set_parameter_value(None);
     }
     assert_eq!(back, eds);
     // Without a bit rate, an existing one is kept.
@@ -292,7 +293,7 @@ fn configure_reports_every_problem_with_its_place() {
     eds.objects.get_mut(&Index(0x2001)).unwrap().subs.get_mut(&SubIndex(0)).unwrap().at =
         SourceRef { line: 812, col: 1, span: Default::default() };
     let mut limited = eds.objects[&Index(0x1600)].subs[&SubIndex(1)].clone();
-    limited.high_limit = Some(Value::NodeIdPlus { offset: 0x10, radix: Radix::Hex });
+    limited.extras_mut().high_limit = Some(Value::NodeIdPlus { offset: 0x10, radix: Radix::Hex });
     eds.objects.get_mut(&Index(0x1600)).unwrap().subs.insert(SubIndex(1), limited);
     let p = problems(
         &eds,

@@ -99,14 +99,16 @@ fn entry(sub: u8, with_parameter_value: bool) -> impl Strategy<Value = Entry> {
                     access,
                     pdo_mapping: pdo,
                     default,
-                    parameter_value,
-                    low_limit: low,
-                    high_limit: high,
-                    obj_flags,
-                    denotation,
-                    upload_file: if is_domain { up } else { None },
-                    download_file: if is_domain { down } else { None },
-                    extra,
+                    extras: Some(Box::new(EntryExtras {
+                        parameter_value,
+                        low_limit: low,
+                        high_limit: high,
+                        obj_flags,
+                        denotation,
+                        upload_file: if is_domain { up } else { None },
+                        download_file: if is_domain { down } else { None },
+                        extra,
+                    })),
                     at: SourceRef::default(),
                 }
             })
@@ -143,9 +145,9 @@ fn object(index: u16, dcf: bool) -> impl Strategy<Value = Object> {
                         if object_type == ObjectType::Domain {
                             e.data_type = DataType::Domain;
                             e.default = None;
-                            e.parameter_value = None;
-                            e.low_limit = None;
-                            e.high_limit = None;
+                            e.set_parameter_value(None);
+                            e.extras_mut().low_limit = None;
+                            e.extras_mut().high_limit = None;
                         }
                         SubMap::from([(SubIndex(0), e)])
                     })
@@ -185,9 +187,10 @@ fn compact_object(index: u16, dcf: bool) -> impl Strategy<Value = Object> {
                     let mut e = proto.clone();
                     e.sub = SubIndex(s);
                     e.name = names[s as usize - 1].clone().unwrap_or_else(|| format!("{obj_name}{s}"));
-                    e.parameter_value = pvs[s as usize - 1].clone();
-                    e.obj_flags = obj_flags;
-                    e.extra.clear();
+                    e.set_parameter_value(pvs[s as usize - 1].clone());
+                    let x = e.extras_mut();
+                    x.obj_flags = obj_flags;
+                    x.extra.clear();
                     subs.insert(SubIndex(s), e);
                 }
                 Object {

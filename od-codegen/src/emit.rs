@@ -159,7 +159,7 @@ fn entry_doc(e: &PEntry<'_>, what: &str, sidecar: Option<&devices::sidecar::Side
         facts.push_str(&format!(" Capacity {n} bytes."));
     }
     lines.push(facts);
-    if let Some(d) = e.entry.denotation.as_deref().map(str::trim).filter(|d| !d.is_empty()) {
+    if let Some(d) = e.entry.denotation().map(str::trim).filter(|d| !d.is_empty()) {
         lines.push(String::new());
         lines.push(format!("Vendor parameter: `{}`.", d.replace('`', "'")));
     }

@@ -163,7 +163,7 @@ fn description(extra: &[(String, String)]) -> Option<String> {
 
 /// The value an entry starts with: a DCF's `ParameterValue`, else the EDS `DefaultValue`.
 pub(crate) fn effective_value(e: &Entry) -> Option<&Value> {
-    e.parameter_value.as_ref().or(e.default.as_ref())
+    e.parameter_value().or(e.default.as_ref())
 }
 
 pub(crate) fn build<'m>(model: &'m Model, options: &Options, sink: &mut Sink) -> Plan<'m> {
@@ -273,7 +273,7 @@ fn plan_entry<'m>(
     let mut high = None;
     let mut real_low = None;
     let mut real_high = None;
-    for (which, v) in [("LowLimit", e.low_limit.as_ref()), ("HighLimit", e.high_limit.as_ref())] {
+    for (which, v) in [("LowLimit", e.low_limit()), ("HighLimit", e.high_limit())] {
         let Some(v) = v else { continue };
         let is_low = which == "LowLimit";
         if ty.is_real() {
@@ -358,7 +358,7 @@ fn plan_entry<'m>(
         set_high,
         real_low,
         real_high,
-        description: description(&e.extra)
+        description: description(e.extra())
             .or_else(|| if obj.object_type.has_subs() { None } else { description(&obj.extra) }),
     })
 }

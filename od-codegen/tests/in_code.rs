@@ -12,8 +12,8 @@ use od_codegen::{Options, expand, render};
 fn sample() -> eds::Model {
     let mut limited = var(0x2001, "Signed 24", D::Integer24, Access::Rw, Some(Value::int(-5)), true);
     if let Some(e) = limited.subs.values_mut().next() {
-        e.low_limit = Some(Value::int(-1000));
-        e.high_limit = Some(Value::int(1000));
+        e.extras_mut().low_limit = Some(Value::int(-1000));
+        e.extras_mut().high_limit = Some(Value::int(1000));
     }
     let mut m = model(vec![
         var(0x1000, "Device type", D::Unsigned32, Access::Ro, Some(Value::hex(0x20192)), false),
@@ -124,7 +124,7 @@ fn pdo_errors_are_located_diagnostics_and_skip_the_layout() {
 fn dcf_parameter_values_win_and_unicode_strings_are_utf16() {
     let mut configured = var(0x1017, "Producer heartbeat time", D::Unsigned16, Access::Rw, Some(Value::int(0)), false);
     if let Some(e) = configured.subs.values_mut().next() {
-        e.parameter_value = Some(Value::int(500));
+        e.set_parameter_value(Some(Value::int(500)));
     }
     let m = model(vec![
         configured,

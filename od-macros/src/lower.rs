@@ -197,14 +197,7 @@ fn plain_entry(sub: u8, name: &str, data_type: DataType, access: Access, default
         access,
         pdo_mapping: false,
         default,
-        parameter_value: None,
-        low_limit: None,
-        high_limit: None,
-        obj_flags: None,
-        denotation: None,
-        upload_file: None,
-        download_file: None,
-        extra: Vec::new(),
+        extras: None,
         at: SourceRef::default(),
     }
 }
@@ -589,8 +582,11 @@ impl Lowerer<'_> {
         }
         let mut e = plain_entry(sub, name, dt, access, default);
         e.pdo_mapping = ep.pdo.is_some();
-        e.low_limit = low;
-        e.high_limit = high;
+        if low.is_some() || high.is_some() {
+            let x = e.extras_mut();
+            x.low_limit = low;
+            x.high_limit = high;
+        }
         e
     }
 

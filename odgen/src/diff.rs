@@ -151,7 +151,7 @@ impl std::fmt::Display for Summary {
 }
 
 /// A value by meaning (radix ignored), for comparing.
-fn same_value(a: &Option<Value>, b: &Option<Value>) -> bool {
+fn same_value(a: Option<&Value>, b: Option<&Value>) -> bool {
     match (a, b) {
         (Some(Value::Int { value: x, .. }), Some(Value::Int { value: y, .. })) => x == y,
         (Some(Value::NodeIdPlus { offset: x, .. }), Some(Value::NodeIdPlus { offset: y, .. })) => x == y,
@@ -187,13 +187,13 @@ fn category_text(c: Category) -> &'static str {
     }
 }
 
-fn value_text(v: &Option<Value>, t: DataType) -> Option<String> {
-    v.as_ref().map(|v| format_value(v, t))
+fn value_text(v: Option<&Value>, t: DataType) -> Option<String> {
+    v.map(|v| format_value(v, t))
 }
 
 fn entry_summary(e: &Entry) -> String {
     let mut s = format!("{} {}", type_text(e.data_type), e.access.as_str());
-    if let Some(d) = value_text(&e.default, e.data_type) {
+    if let Some(d) = value_text(e.default.as_ref(), e.data_type) {
         let _ = write!(s, " = {d}");
     }
     if e.pdo_mapping {
@@ -332,10 +332,10 @@ fn object(o: &Object, n: &Object, changes: &mut Vec<Change>) {
                     field(changes, i, at, &name, "AccessType", t(a), t(b));
                 }
                 for (key, x, y) in [
-                    ("DefaultValue", &a.default, &b.default),
-                    ("ParameterValue", &a.parameter_value, &b.parameter_value),
-                    ("LowLimit", &a.low_limit, &b.low_limit),
-                    ("HighLimit", &a.high_limit, &b.high_limit),
+                    ("DefaultValue", a.default.as_ref(), b.default.as_ref()),
+                    ("ParameterValue", a.parameter_value(), b.parameter_value()),
+                    ("LowLimit", a.low_limit(), b.low_limit()),
+                    ("HighLimit", a.high_limit(), b.high_limit()),
                 ] {
                     if !same_value(x, y) || (x.is_some() != y.is_some()) {
                         field(changes, i, at, &name, key, value_text(x, a.data_type), value_text(y, b.data_type));

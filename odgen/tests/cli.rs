@@ -329,9 +329,9 @@ fn dcf_configures_a_node() {
     assert_eq!(m.node_id(), Some(5));
     assert_eq!(m.commissioning.as_ref().unwrap().baudrate, Some(500));
     let e = m.entry(0x6060, 0).unwrap();
-    assert_eq!((e.default.clone(), e.parameter_value.clone()), (Some(eds::Value::int(0)), Some(eds::Value::int(3))));
+    assert_eq!((e.default.clone(), e.parameter_value().cloned()), (Some(eds::Value::int(0)), Some(eds::Value::int(3))));
     assert_eq!(
-        m.entry(0x1014, 0).unwrap().parameter_value,
+        m.entry(0x1014, 0).unwrap().parameter_value().cloned(),
         Some(eds::Value::NodeIdPlus { offset: 0x81, radix: eds::Radix::Hex })
     );
 }

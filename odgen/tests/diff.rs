@@ -74,8 +74,14 @@ fn identical_descriptions_have_no_differences() {
     assert_eq!(diff::render_table(&d), "no differences\n");
     // A DCF's ParameterValue is compared too.
     let mut configured = m.clone();
-    configured.objects.get_mut(&eds::Index(0x1017)).unwrap().subs.get_mut(&eds::SubIndex(0)).unwrap().parameter_value =
-        Some(eds::Value::int(100));
+    configured
+        .objects
+        .get_mut(&eds::Index(0x1017))
+        .unwrap()
+        .subs
+        .get_mut(&eds::SubIndex(0))
+        .unwrap()
+        .set_parameter_value(Some(eds::Value::int(100)));
     let d = diff::diff(&m, &configured);
     assert_eq!(d.changes.len(), 1);
     assert_eq!(d.changes[0].field.as_deref(), Some("ParameterValue"));

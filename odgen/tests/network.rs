@@ -41,7 +41,7 @@ fn entry(m: &eds::Model, index: u16, sub: u8) -> &eds::Entry {
 }
 
 fn pv(m: &eds::Model, index: u16, sub: u8) -> Option<i128> {
-    entry(m, index, sub).parameter_value.as_ref().and_then(|v| v.as_int())
+    entry(m, index, sub).parameter_value().and_then(|v| v.as_int())
 }
 
 #[test]
@@ -99,12 +99,16 @@ fn example_network_gives_three_dcfs_that_read_back_strictly() {
         for (index, base) in [(0x1400u16, 0x200), (0x1401, 0x300), (0x1800, 0x180), (0x1801, 0x280)] {
             let e = entry(m, index, 1);
             assert!(e.default.as_ref().is_some_and(Value::is_node_relative), "0x{index:04X}: {:?}", e.default);
-            assert_eq!(e.parameter_value, Some(Value::Int { value: base + id, radix: Radix::Hex }), "0x{index:04X}");
+            assert_eq!(
+                e.parameter_value().cloned(),
+                Some(Value::Int { value: base + id, radix: Radix::Hex }),
+                "0x{index:04X}"
+            );
         }
         // No $NODEID is left unresolved in a ParameterValue, and each one resolves as the default.
         for (_, e) in m.entries() {
             if let Some(d @ Value::NodeIdPlus { .. }) = &e.default {
-                let p = e.parameter_value.as_ref().expect("node-relative entries get a ParameterValue");
+                let p = e.parameter_value().expect("node-relative entries get a ParameterValue");
                 assert!(!p.is_node_relative());
                 if p.as_int() != d.resolve(dcf.node_id) {
                     // Only PDO COB-IDs may differ, in the valid bit (31).
@@ -141,9 +145,9 @@ fn values_by_name_index_string_bool_and_float() {
     ));
     assert!(!o.has_errors(), "{}", network::render_all(&o.diagnostics));
     let m = &o.dcfs[0].model;
-    assert_eq!(entry(m, 0x6060, 0).parameter_value, Some(Value::int(-3)));
-    assert_eq!(entry(m, 0x1017, 0).parameter_value, Some(Value::hex(100)));
-    assert_eq!(entry(m, 0x1800, 1).parameter_value, Some(Value::hex(0x195)), "resolved for node 5");
+    assert_eq!(entry(m, 0x6060, 0).parameter_value().cloned(), Some(Value::int(-3)));
+    assert_eq!(entry(m, 0x1017, 0).parameter_value().cloned(), Some(Value::hex(100)));
+    assert_eq!(entry(m, 0x1800, 1).parameter_value().cloned(), Some(Value::hex(0x195)), "resolved for node 5");
     assert_eq!(entry(m, 0x1800, 1).default, Some(Value::NodeIdPlus { offset: 0x180, radix: Radix::Hex }));
 }
 

@@ -35,7 +35,7 @@ fn find_python() -> Option<PathBuf> {
 /// The value of an entry as the DCF gives it: ParameterValue, else DefaultValue, resolved.
 fn effective(m: &eds::Model, index: u16, sub: u8, node_id: u8) -> Option<i128> {
     let e = m.entry(index, sub)?;
-    e.parameter_value.as_ref().or(e.default.as_ref())?.resolve(node_id)
+    e.parameter_value().or(e.default.as_ref())?.resolve(node_id)
 }
 
 fn pdos(m: &eds::Model, node_id: u8, comm_base: u16, map_base: u16, count: u16) -> Json {
@@ -89,7 +89,7 @@ fn python_canopen_reads_the_example_network_dcfs() {
                 matches!(o.object_type, eds::ObjectType::Var | eds::ObjectType::Array | eds::ObjectType::Record)
             })
             .filter_map(|(o, e)| {
-                let v = e.parameter_value.as_ref()?.as_int()?;
+                let v = e.parameter_value()?.as_int()?;
                 Some(json!([o.index.0, e.sub.0, v]))
             })
             .collect();

@@ -776,7 +776,7 @@ fn parameter(name: &str) -> Option<Parameter> {
         let scaling = sidecar(DeviceKind::Akd).map(|s| &s.bus_scaling);
         let mut out = Vec::new();
         for (o, e) in parsed.model.entries() {
-            let Some(d) = &e.denotation else { continue };
+            let Some(d) = e.denotation() else { continue };
             if d.contains(',') || d.contains(' ') {
                 continue;
             }

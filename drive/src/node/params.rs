@@ -81,7 +81,7 @@ impl ParameterSet {
         let mut problems = Vec::new();
         let mut records = Vec::new();
         for (obj, entry) in model.entries() {
-            let Some(value) = &entry.parameter_value else { continue };
+            let Some(value) = entry.parameter_value() else { continue };
             let (index, sub) = (obj.index.0, entry.sub.0);
             let at = format!("{name}:{}:{}: 0x{index:04X}sub{sub:X} ParameterValue", entry.at.line, entry.at.col);
             let Some(info) = lookup(entries, index, sub) else {

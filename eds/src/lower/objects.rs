@@ -5,7 +5,8 @@ use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys};
 use super::{Crumbs, Ctx, otype};
 use crate::codes;
 use crate::model::{
-    Access, DataType, Entry, FileKind, Index, Model, Object, ObjectType, SourceRef, SubIndex, SubMap, Value,
+    Access, DataType, Entry, EntryExtras, FileKind, Index, Model, Object, ObjectType, SourceRef, SubIndex, SubMap,
+    Value,
 };
 use crate::value::{self, Quirk, ValueError};
 
@@ -494,13 +495,7 @@ impl EntryBuilder<'_> {
             }
         }
         extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
-        let entry = Entry {
-            sub: SubIndex(sub),
-            name,
-            data_type,
-            access,
-            pdo_mapping,
-            default,
+        let extras = EntryExtras {
             parameter_value,
             low_limit,
             high_limit,
@@ -509,6 +504,15 @@ impl EntryBuilder<'_> {
             upload_file: keys.get(K_UPLOAD).map(|kv| kv.value.to_owned()),
             download_file: keys.get(K_DOWNLOAD).map(|kv| kv.value.to_owned()),
             extra,
+        };
+        let entry = Entry {
+            sub: SubIndex(sub),
+            name,
+            data_type,
+            access,
+            pdo_mapping,
+            default,
+            extras: (!extras.is_empty()).then(|| Box::new(extras)),
             at: source_ref(sec),
         };
         check_entry(cx, &entry, keys, context);
@@ -548,7 +552,8 @@ fn cmp_mixed(a: &Value, b: &Value) -> Option<std::cmp::Ordering> {
 /// access type and the data type.
 fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &ObjKeys<'_>, context: Crumbs<'_>) {
     let span_of = |i: usize| keys.get(i).map(|kv| kv.value_span());
-    if (e.low_limit.is_some() || e.high_limit.is_some()) && !is_numeric(e.data_type) {
+    let (low_limit, high_limit) = (e.low_limit(), e.high_limit());
+    if (low_limit.is_some() || high_limit.is_some()) && !is_numeric(e.data_type) {
         if let DataType::Other(_) = e.data_type {
         } else {
             let span = span_of(K_LOW).or(span_of(K_HIGH));
@@ -556,7 +561,7 @@ fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &ObjKeys<'_>, context: Crumbs<
             d.context = context.to_vec();
         }
     }
-    if let (Some(lo), Some(hi)) = (&e.low_limit, &e.high_limit)
+    if let (Some(lo), Some(hi)) = (low_limit, high_limit)
         && cmp_values(lo, hi) == Some(std::cmp::Ordering::Greater)
     {
         let d = cx.emit(
@@ -572,10 +577,10 @@ fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &ObjKeys<'_>, context: Crumbs<
         d.context = context.to_vec();
         return;
     }
-    for (i, v) in [(K_DEFAULT, &e.default), (K_PVALUE, &e.parameter_value)] {
+    for (i, v) in [(K_DEFAULT, e.default.as_ref()), (K_PVALUE, e.parameter_value())] {
         let Some(v) = v else { continue };
-        let low = e.low_limit.as_ref().filter(|lo| cmp_values(v, lo) == Some(std::cmp::Ordering::Less));
-        let high = e.high_limit.as_ref().filter(|hi| cmp_values(v, hi) == Some(std::cmp::Ordering::Greater));
+        let low = low_limit.filter(|lo| cmp_values(v, lo) == Some(std::cmp::Ordering::Less));
+        let high = high_limit.filter(|hi| cmp_values(v, hi) == Some(std::cmp::Ordering::Greater));
         if let Some(bound) = low.or(high) {
             let key = OBJ_KEYS.names[i];
             let d = cx.emit(
@@ -988,14 +993,7 @@ fn expand_compact(
             access: Access::Ro,
             pdo_mapping: false,
             default: Some(Value::int(n as i128)),
-            parameter_value: None,
-            low_limit: None,
-            high_limit: None,
-            obj_flags: None,
-            denotation: None,
-            upload_file: None,
-            download_file: None,
-            extra: Vec::new(),
+            extras: None,
             at: obj.at,
         },
     );
@@ -1009,8 +1007,10 @@ fn expand_compact(
     obj.subs.insert(sub0.0, sub0.1);
     // Each element is the template with its own name and without the template's extra keys
     // (those stay with the object): copy the other fields, and clone no name or list only to
-    // replace it.
+    // replace it. Most templates have no extras at all, and the elements then share nothing.
     let t = &template;
+    let extras = t.extras.as_ref().map(|x| EntryExtras { extra: Vec::new(), ..EntryExtras::clone(x) });
+    let extras = extras.filter(|x| !x.is_empty()).map(Box::new);
     let base = &obj.name;
     obj.subs.extend_with(1..=n, |s| {
         let mut name = String::with_capacity(base.len() + 3);
@@ -1023,14 +1023,7 @@ fn expand_compact(
             access: t.access,
             pdo_mapping: t.pdo_mapping,
             default: t.default.clone(),
-            parameter_value: t.parameter_value.clone(),
-            low_limit: t.low_limit.clone(),
-            high_limit: t.high_limit.clone(),
-            obj_flags: t.obj_flags,
-            denotation: t.denotation.clone(),
-            upload_file: t.upload_file.clone(),
-            download_file: t.download_file.clone(),
-            extra: Vec::new(),
+            extras: extras.clone(),
             at: t.at,
         }
     });
@@ -1067,8 +1060,8 @@ fn expand_compact(
             let v = value_key(cx, kv, ty, sctx);
             if let Some(e) = obj.subs.get_mut(&SubIndex(k as u8)) {
                 match v {
-                    Ok(v) => e.parameter_value = v,
-                    Err(()) => e.extra.push(("ParameterValue".to_owned(), kv.value.to_owned())),
+                    Ok(v) => e.set_parameter_value(v),
+                    Err(()) => e.extras_mut().extra.push(("ParameterValue".to_owned(), kv.value.to_owned())),
                 }
             }
         }

@@ -27,23 +27,7 @@ use crate::model::{
 };
 
 fn entry(sub: u8, name: &str, data_type: DataType, access: Access, default: Value) -> Entry {
-    Entry {
-        sub: SubIndex(sub),
-        name: name.to_owned(),
-        data_type,
-        access,
-        pdo_mapping: false,
-        default: Some(default),
-        parameter_value: None,
-        low_limit: None,
-        high_limit: None,
-        obj_flags: None,
-        denotation: None,
-        upload_file: None,
-        download_file: None,
-        extra: Vec::new(),
-        at: SourceRef::default(),
-    }
+    Entry { default: Some(default), ..Entry::new(sub, name, data_type, access) }
 }
 
 fn record(index: u16, name: String) -> Object {

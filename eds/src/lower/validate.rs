@@ -118,7 +118,7 @@ fn value_span(secs: &Sections<'_>, obj: &Object, e: &Entry) -> Span {
             .find_map(|k| sec.entries.iter().rev().find(|kv| kv.key.eq_ignore_ascii_case(k)).map(|kv| kv.value_span()))
     };
     let explicit =
-        if e.parameter_value.is_some() { &["ParameterValue", "DefaultValue"][..] } else { &["DefaultValue"][..] };
+        if e.parameter_value().is_some() { &["ParameterValue", "DefaultValue"][..] } else { &["DefaultValue"][..] };
     if !obj.object_type.has_subs() {
         return find(Kind::Object(obj.index.0), explicit).unwrap_or(e.at.span);
     }
@@ -132,7 +132,7 @@ fn value_span(secs: &Sections<'_>, obj: &Object, e: &Entry) -> Span {
 
 /// The value an entry has on the device: ParameterValue if configured, else DefaultValue.
 fn effective(e: &Entry) -> Option<&Value> {
-    e.parameter_value.as_ref().or(e.default.as_ref())
+    e.parameter_value().or(e.default.as_ref())
 }
 
 fn pdos(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {

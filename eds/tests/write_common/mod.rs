@@ -15,14 +15,7 @@ pub fn entry(sub: u8, name: &str, data_type: DataType, access: Access, default: 
         access,
         pdo_mapping: false,
         default,
-        parameter_value: None,
-        low_limit: None,
-        high_limit: None,
-        obj_flags: None,
-        denotation: None,
-        upload_file: None,
-        download_file: None,
-        extra: Vec::new(),
+        extras: None,
         at: SourceRef::default(),
     }
 }
@@ -123,7 +116,7 @@ pub fn mandatory(m: &mut Model) {
         Category::Mandatory,
         entry(0, "Device type", DataType::Unsigned32, Access::Ro, Some(Value::hex(0x0002_0192))),
     );
-    o.subs.get_mut(&SubIndex(0)).unwrap().extra = vec![("Description".into(), "CiA 402 drive".into())];
+    o.subs.get_mut(&SubIndex(0)).unwrap().extras_mut().extra = vec![("Description".into(), "CiA 402 drive".into())];
     m.objects.insert(o.index, o);
     let mut e = entry(0, "Error register", DataType::Unsigned8, Access::Ro, Some(Value::int(0)));
     e.pdo_mapping = true;
@@ -161,7 +154,7 @@ pub fn pdos(m: &mut Model) {
     );
     m.objects.insert(o.index, o);
     let mut map1 = entry(1, "Mapped object 1", DataType::Unsigned32, Access::Rw, Some(Value::hex(0x6040_0010)));
-    map1.low_limit = Some(Value::int(0));
+    map1.extras_mut().low_limit = Some(Value::int(0));
     let o = multi(
         0x1600,
         "RPDO1 mapping parameter",
@@ -207,17 +200,17 @@ pub fn all_types(m: &mut Model) {
         let mut e = entry(sub, &format!("{} value", ty.name()), ty, Access::Rw, default);
         if ty.is_signed() {
             let (lo, hi) = ty.int_range().unwrap();
-            e.low_limit = Some(Value::int(lo));
-            e.high_limit = Some(Value::hex(hi));
+            e.extras_mut().low_limit = Some(Value::int(lo));
+            e.extras_mut().high_limit = Some(Value::hex(hi));
         }
         if ty == DataType::Unsigned16 {
-            e.low_limit = Some(Value::Int { value: 0, radix: Radix::Oct });
-            e.high_limit = Some(Value::int(1000));
+            e.extras_mut().low_limit = Some(Value::Int { value: 0, radix: Radix::Oct });
+            e.extras_mut().high_limit = Some(Value::int(1000));
             e.default = Some(Value::Int { value: 8, radix: Radix::Oct });
         }
         if ty == DataType::Real64 {
-            e.low_limit = Some(Value::Real(-10.0));
-            e.high_limit = Some(Value::Real(10.25));
+            e.extras_mut().low_limit = Some(Value::Real(-10.0));
+            e.extras_mut().high_limit = Some(Value::Real(10.25));
         }
         e.pdo_mapping = ty.bits().is_some();
         entries.push(e);
@@ -232,17 +225,17 @@ pub fn all_types(m: &mut Model) {
 /// links, unknown keys and sections, a DOMAIN object, a negative value, a sub-index above 9.
 pub fn odds_and_ends(m: &mut Model) {
     let mut e = entry(0, "Flags and denotation", DataType::Integer16, Access::Rww, Some(Value::int(-300)));
-    e.obj_flags = Some(3);
+    e.extras_mut().obj_flags = Some(3);
     e.pdo_mapping = true;
-    e.denotation = Some("my_flags".into());
-    e.extra = vec![("Unit".into(), "mm".into()), ("Factor".into(), "0.01".into())];
+    e.extras_mut().denotation = Some("my_flags".into());
+    e.extras_mut().extra = vec![("Unit".into(), "mm".into()), ("Factor".into(), "0.01".into())];
     let mut o = var(0x2001, Category::Manufacturer, e);
     o.object_links = vec![Index(0x2000), Index(0x2002)];
     m.objects.insert(o.index, o);
 
     let mut e = entry(0, "Firmware", DataType::Domain, Access::Wo, None);
-    e.upload_file = Some("fw_up.bin".into());
-    e.download_file = Some("fw_down.bin".into());
+    e.extras_mut().upload_file = Some("fw_up.bin".into());
+    e.extras_mut().download_file = Some("fw_down.bin".into());
     let mut o = var(0x2002, Category::Manufacturer, e);
     o.object_type = ObjectType::Domain;
     m.objects.insert(o.index, o);
@@ -281,7 +274,7 @@ pub fn compact_gains() -> Object {
     for s in 1..=3u8 {
         let name = if s == 2 { "Gain Y".to_owned() } else { format!("Gains{s}") };
         let mut e = entry(s, &name, DataType::Unsigned16, Access::Rw, Some(Value::hex(0x10)));
-        e.high_limit = Some(Value::int(1000));
+        e.extras_mut().high_limit = Some(Value::int(1000));
         e.pdo_mapping = true;
         entries.push(e);
     }
@@ -323,6 +316,7 @@ pub fn full_dcf() -> Model {
     c.network_name = Some("machine".into());
     c.canopen_manager = Some(false);
     c.lss_serial_number = Some(0x1234);
-    m.objects.get_mut(&Index(0x2000)).unwrap().subs.get_mut(&SubIndex(1)).unwrap().denotation = Some("enable".into());
+    m.objects.get_mut(&Index(0x2000)).unwrap().subs.get_mut(&SubIndex(1)).unwrap().extras_mut().denotation =
+        Some("enable".into());
     m
 }

@@ -14,14 +14,7 @@ pub fn entry(sub: u8, name: &str, dt: DataType, access: Access, default: Option<
         access,
         pdo_mapping: pdo,
         default,
-        parameter_value: None,
-        low_limit: None,
-        high_limit: None,
-        obj_flags: None,
-        denotation: None,
-        upload_file: None,
-        download_file: None,
-        extra: Vec::new(),
+        extras: None,
         at: SourceRef::default(),
     }
 }

@@ -353,13 +353,13 @@ pub fn build(display: &str, dir: &Path, text: &str) -> Outcome {
 fn resolve_node_id_values(model: &mut Model, node_id: u8) {
     for obj in model.objects.values_mut() {
         for e in obj.subs.values_mut() {
-            let source = match (&e.parameter_value, &e.default) {
+            let source = match (e.parameter_value(), &e.default) {
                 (Some(v @ Value::NodeIdPlus { .. }), _) => Some(v.clone()),
                 (None, Some(v @ Value::NodeIdPlus { .. })) => Some(v.clone()),
                 _ => None,
             };
             if let Some(v) = source.and_then(|v| v.resolve(node_id)) {
-                e.parameter_value = Some(Value::hex(v));
+                e.set_parameter_value(Some(Value::hex(v)));
             }
         }
     }
