@@ -363,17 +363,26 @@ impl Access {
         }
     }
 
-    /// Parses a spelling, any case, surrounding spaces ignored.
+    /// Parses a spelling, any case, surrounding white space ignored. Every entry of a file has
+    /// an AccessType, so this allocates nothing and tells the six spellings apart by their
+    /// letters rather than comparing them one after another.
     pub fn parse(s: &str) -> Option<Self> {
-        Some(match s.trim().to_ascii_lowercase().as_str() {
-            "ro" => Access::Ro,
-            "wo" => Access::Wo,
-            "rw" => Access::Rw,
-            "rwr" => Access::Rwr,
-            "rww" => Access::Rww,
-            "const" => Access::Const,
-            _ => return None,
-        })
+        let lower = |b: &u8| b.to_ascii_lowercase();
+        match crate::lex::trim(s).as_bytes() {
+            [a, b] => match (lower(a), lower(b)) {
+                (b'r', b'o') => Some(Access::Ro),
+                (b'w', b'o') => Some(Access::Wo),
+                (b'r', b'w') => Some(Access::Rw),
+                _ => None,
+            },
+            [a, b, c] => match (lower(a), lower(b), lower(c)) {
+                (b'r', b'w', b'r') => Some(Access::Rwr),
+                (b'r', b'w', b'w') => Some(Access::Rww),
+                _ => None,
+            },
+            t @ [_, _, _, _, _] if t.eq_ignore_ascii_case(b"const") => Some(Access::Const),
+            _ => None,
+        }
     }
 
     /// Whether an SDO client may read the entry.
@@ -1335,6 +1344,19 @@ mod tests {
 
     /// Tens of thousands of entries are built, moved and dropped per large file: keep the rarely
     /// set keys out of line.
+    #[test]
+    fn access_spellings() {
+        for a in [Access::Ro, Access::Wo, Access::Rw, Access::Rwr, Access::Rww, Access::Const] {
+            let s = a.as_str();
+            assert_eq!(Access::parse(s), Some(a));
+            assert_eq!(Access::parse(&format!(" {} ", s.to_ascii_uppercase())), Some(a));
+            assert_eq!(Access::parse(&format!("\u{A0}{s}\t")), Some(a));
+        }
+        for bad in ["", "r", "rx", "rwx", "ro ro", "cons", "consts", "r\u{F6}", "\u{E4}w"] {
+            assert_eq!(Access::parse(bad), None, "{bad:?}");
+        }
+    }
+
     #[test]
     fn an_entry_stays_small() {
         assert!(std::mem::size_of::<Entry>() <= 96, "Entry is {} bytes", std::mem::size_of::<Entry>());

@@ -232,7 +232,9 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -
     }
     match parsed {
         Ok(p) => {
-            report_quirks(cx, kv, &p.quirks, context);
+            if !p.quirks.is_empty() {
+                report_quirks(cx, kv, &p.quirks, context);
+            }
             if let Some(v) = &p.value
                 && let Err(why) = value::check_range(v, ty)
             {
@@ -263,23 +265,15 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -
     }
 }
 
-/// [`Access::parse`] without allocating: any case, surrounding white space ignored.
-fn parse_access(s: &str) -> Option<Access> {
-    let t = crate::lex::trim(s);
-    [Access::Ro, Access::Wo, Access::Rw, Access::Rwr, Access::Rww, Access::Const]
-        .into_iter()
-        .find(|a| t.eq_ignore_ascii_case(a.as_str()))
-}
-
 /// Parses `AccessType`, accepting common non-standard spellings with a warning.
 fn access_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, context: Crumbs<'_>) -> Access {
     let text = kv.value;
     // Upper or mixed case is common and harmless; CiA 306 is silent on case here.
-    if let Some(a) = parse_access(text) {
+    if let Some(a) = Access::parse(text) {
         return a;
     }
     if let Some(head) = before_comment(text).or_else(|| text.find('#').map(|i| text[..i].trim_end()))
-        && let Some(a) = parse_access(head)
+        && let Some(a) = Access::parse(head)
     {
         inline_comment(cx, kv, head, context);
         return a;
@@ -495,26 +489,30 @@ impl EntryBuilder<'_> {
             }
         }
         extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
-        let extras = EntryExtras {
-            parameter_value,
-            low_limit,
-            high_limit,
-            obj_flags,
-            denotation: keys.get(K_DENOT).map(|kv| kv.value.to_owned()),
-            upload_file: keys.get(K_UPLOAD).map(|kv| kv.value.to_owned()),
-            download_file: keys.get(K_DOWNLOAD).map(|kv| kv.value.to_owned()),
-            extra,
-        };
-        let entry = Entry {
-            sub: SubIndex(sub),
-            name,
-            data_type,
-            access,
-            pdo_mapping,
-            default,
-            extras: (!extras.is_empty()).then(|| Box::new(extras)),
-            at: source_ref(sec),
-        };
+        let (denotation, upload, download) = (keys.get(K_DENOT), keys.get(K_UPLOAD), keys.get(K_DOWNLOAD));
+        // Most entries have none of these: then nothing is built for them.
+        let any = parameter_value.is_some()
+            || low_limit.is_some()
+            || high_limit.is_some()
+            || obj_flags.is_some()
+            || denotation.is_some()
+            || upload.is_some()
+            || download.is_some()
+            || !extra.is_empty();
+        let extras = any.then(|| {
+            Box::new(EntryExtras {
+                parameter_value,
+                low_limit,
+                high_limit,
+                obj_flags,
+                denotation: denotation.map(|kv| kv.value.to_owned()),
+                upload_file: upload.map(|kv| kv.value.to_owned()),
+                download_file: download.map(|kv| kv.value.to_owned()),
+                extra,
+            })
+        });
+        let entry =
+            Entry { sub: SubIndex(sub), name, data_type, access, pdo_mapping, default, extras, at: source_ref(sec) };
         check_entry(cx, &entry, keys, context);
         Some(entry)
     }

@@ -437,6 +437,9 @@ pub(crate) struct KeySet<const N: usize> {
     pub names: [&'static str; N],
     /// For each length, a bit per key of that length.
     by_len: [u32; 32],
+    /// For each first letter (ASCII case folded, [`first_slot`]), a bit per key starting with it:
+    /// with the length, this leaves one candidate for almost every key.
+    by_first: [u32; 32],
     /// Each key's two words as spelled.
     words: [(u64, u64); N],
     /// Each key's two words in lower case.
@@ -444,6 +447,14 @@ pub(crate) struct KeySet<const N: usize> {
 }
 
 const LO: u64 = 0x0101_0101_0101_0101;
+
+/// The slot of [`KeySet::by_first`] for a key's first byte: its low five bits once ASCII
+/// letters are folded to lower case (other bytes share slots with letters, which only makes
+/// the filter let more candidates through).
+#[inline]
+const fn first_slot(b: u8) -> usize {
+    ((b | 0x20) & 31) as usize
+}
 
 /// Lower-cases the ASCII letters among the eight bytes of `w` (and nothing else).
 #[inline]
@@ -495,6 +506,7 @@ impl<const N: usize> KeySet<N> {
     pub const fn new(names: [&'static str; N]) -> Self {
         assert!(N <= 32, "at most 32 keys");
         let mut by_len = [0u32; 32];
+        let mut by_first = [0u32; 32];
         let mut words_of = [(0u64, 0u64); N];
         let mut lower = [(0u64, 0u64); N];
         let mut i = 0;
@@ -502,6 +514,8 @@ impl<const N: usize> KeySet<N> {
             let len = names[i].len();
             assert!(len < 32, "keys are shorter than 32 bytes");
             by_len[len] |= 1 << i;
+            assert!(len > 0, "keys are not empty");
+            by_first[first_slot(names[i].as_bytes()[0])] |= 1 << i;
             let w = words(names[i].as_bytes());
             words_of[i] = w;
             lower[i] = (ascii_lower(w.0), ascii_lower(w.1));
@@ -518,14 +532,15 @@ impl<const N: usize> KeySet<N> {
             }
             i += 1;
         }
-        KeySet { names, by_len, words: words_of, lower }
+        KeySet { names, by_len, by_first, words: words_of, lower }
     }
 
     /// The number of the key that equals `key` ignoring ASCII case, and whether `key` is
     /// spelled exactly like it.
     #[inline]
     pub fn find(&self, key: &str) -> Option<(usize, bool)> {
-        let mut candidates = *self.by_len.get(key.len())?;
+        let first = *key.as_bytes().first()?;
+        let mut candidates = *self.by_len.get(key.len())? & self.by_first[first_slot(first)];
         if candidates == 0 {
             return None;
         }
