@@ -3,7 +3,7 @@
 # python-canopen's import_od, over the same files, in one run. Prints both figures and the ratio.
 #
 #   scripts/bench-read.sh [DIR_OR_FILES...]      default: $EDS_CORPUS_DIR or ../shared/eds-corpus
-#   OURS_ITERATIONS=200 PY_ITERATIONS=5 scripts/bench-read.sh
+#   ROUNDS=5 OURS_ITERATIONS=100 PY_ITERATIONS=1 scripts/bench-read.sh   (the defaults)
 #
 # This is a benchmark, not a test: it asserts nothing; it reports. The target is >= 100x.
 # The first figures are one thread against python-canopen's one; the last line is odgen reading
@@ -25,13 +25,39 @@ target=${CARGO_TARGET_DIR:-$root/target}
 echo "building odgen (release)..." >&2
 cargo build --release -q -p odgen
 python=$(bash "$root/scripts/venv.sh")
-ours=$("$target/release/odgen" bench-read --jobs 1 --iterations "${OURS_ITERATIONS:-200}" "${inputs[@]}")
-parallel=$("$target/release/odgen" bench-read --jobs 0 --iterations "${OURS_ITERATIONS:-200}" "${inputs[@]}")
-theirs=$("$python" "$root/scripts/bench_read_canopen.py" "${PY_ITERATIONS:-5}" "${inputs[@]}")
-"$python" - "$ours" "$theirs" "$parallel" <<'PY'
+# The two sides run in alternating rounds (odgen, then python-canopen, ROUNDS times), so that a
+# change in the machine's speed during the measurement (a shared or virtual machine's speed
+# drifts by tens of percent over minutes) weighs on both alike. Each round is one JSON line per
+# side (odgen on one thread, odgen on every core, python-canopen); the figures below are totals
+# over the rounds, with the range of the per-round ratios.
+rounds=${ROUNDS:-5}
+ours_runs=() theirs_runs=() parallel_runs=()
+for _ in $(seq "$rounds"); do
+  ours_runs+=("$("$target/release/odgen" bench-read --jobs 1 --iterations "${OURS_ITERATIONS:-100}" "${inputs[@]}")")
+  parallel_runs+=("$("$target/release/odgen" bench-read --jobs 0 --iterations "${OURS_ITERATIONS:-100}" "${inputs[@]}")")
+  theirs_runs+=("$("$python" "$root/scripts/bench_read_canopen.py" "${PY_ITERATIONS:-1}" "${inputs[@]}")")
+done
+"$python" - "${#ours_runs[@]}" "${ours_runs[@]}" "${theirs_runs[@]}" "${parallel_runs[@]}" <<'PY'
 import json, sys
-ours, theirs, parallel = json.loads(sys.argv[1]), json.loads(sys.argv[2]), json.loads(sys.argv[3])
-print(f"files: {ours['files']}  bytes: {ours['bytes']}")
+n = int(sys.argv[1])
+ours_runs = [json.loads(a) for a in sys.argv[2:2 + n]]
+theirs_runs = [json.loads(a) for a in sys.argv[2 + n:2 + 2 * n]]
+parallel_runs = [json.loads(a) for a in sys.argv[2 + 2 * n:2 + 3 * n]]
+
+def total(runs):
+    """Per-pass figures over all rounds, as one run would give them."""
+    passes = sum(r["iterations"] for r in runs)
+    seconds = sum(r["seconds"] for r in runs)
+    cpu = None if any(r.get("cpu_seconds") is None for r in runs) else sum(r["cpu_seconds"] for r in runs)
+    out = dict(runs[0])
+    out.update(iterations=passes, seconds=seconds, ms_per_pass=seconds * 1e3 / passes,
+               mb_per_s=runs[0]["bytes"] * passes / 1e6 / seconds if seconds else 0.0,
+               cpu_seconds=cpu, cpu_ms_per_pass=None if cpu is None else cpu * 1e3 / passes)
+    return out
+
+ours, theirs, parallel = total(ours_runs), total(theirs_runs), total(parallel_runs)
+rounds = [t["ms_per_pass"] / o["ms_per_pass"] for o, t in zip(ours_runs, theirs_runs)]
+print(f"files: {ours['files']}  bytes: {ours['bytes']}  rounds: {n} (odgen and python-canopen alternating)")
 print(f"odgen (eds::parse, read+validate, {ours['allocator']}): {ours['ms_per_pass']:9.3f} ms per pass  {ours['mb_per_s']:8.2f} MB/s  "
       f"({ours['iterations']} passes, {ours['seconds']:.3f} s)")
 print(f"python-canopen {theirs['canopen_version']} import_od:    {theirs['ms_per_pass']:9.3f} ms per pass  "
@@ -39,8 +65,9 @@ print(f"python-canopen {theirs['canopen_version']} import_od:    {theirs['ms_per
 if theirs["failures"]:
     print(f"  python-canopen could not import {len(theirs['failures'])} file(s): {', '.join(theirs['failures'])}")
 ratio = theirs["ms_per_pass"] / ours["ms_per_pass"] if ours["ms_per_pass"] else float("inf")
-print(f"wall-time ratio: odgen is {ratio:.1f}x faster than python-canopen")
-if ours.get("cpu_ms_per_pass"):
+print(f"wall-time ratio: odgen is {ratio:.1f}x faster than python-canopen "
+      f"(rounds: {min(rounds):.1f}x to {max(rounds):.1f}x)")
+if ours.get("cpu_ms_per_pass") and theirs.get("cpu_ms_per_pass"):
     cpu = theirs["cpu_ms_per_pass"] / ours["cpu_ms_per_pass"]
     print(f"CPU time per pass: odgen {ours['cpu_ms_per_pass']:.3f} ms ({ours['bytes'] / 1e3 / ours['cpu_ms_per_pass']:.2f} MB/s), "
           f"python-canopen {theirs['cpu_ms_per_pass']:.3f} ms")
