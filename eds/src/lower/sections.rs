@@ -147,9 +147,26 @@ pub(crate) enum Spelling {
     Malformed(String),
 }
 
+/// Whether a byte counts when [`loose_eq`] compares names.
+const fn significant(c: u8) -> bool {
+    !matches!(c, b' ' | b'_' | b'-' | b'\t')
+}
+
+/// The number of bytes of `s` that [`loose_eq`] compares.
+const fn significant_len(s: &[u8]) -> usize {
+    let (mut n, mut i) = (0, 0);
+    while i < s.len() {
+        if significant(s[i]) {
+            n += 1;
+        }
+        i += 1;
+    }
+    n
+}
+
 /// Whether `a` and `b` are equal ignoring ASCII case and the characters ` `, `_` and `-`.
 pub(crate) fn loose_eq(a: &str, b: &str) -> bool {
-    let significant = |c: &u8| !matches!(c, b' ' | b'_' | b'-' | b'\t');
+    let significant = |c: &u8| significant(*c);
     let mut x = a.bytes().filter(significant);
     let mut y = b.bytes().filter(significant);
     loop {
@@ -437,6 +454,9 @@ pub(crate) struct KeySet<const N: usize> {
     pub names: [&'static str; N],
     /// For each length, a bit per key of that length.
     by_len: [u32; 32],
+    /// For each number of significant bytes ([`loose_eq`]), a bit per key with that many: a key
+    /// that matches none exactly is compared loosely only with the keys it could equal.
+    by_significant: [u32; 32],
     /// For each first letter (ASCII case folded, [`first_slot`]), a bit per key starting with it:
     /// with the length, this leaves one candidate for almost every key.
     by_first: [u32; 32],
@@ -507,6 +527,7 @@ impl<const N: usize> KeySet<N> {
         assert!(N <= 32, "at most 32 keys");
         let mut by_len = [0u32; 32];
         let mut by_first = [0u32; 32];
+        let mut by_significant = [0u32; 32];
         let mut words_of = [(0u64, 0u64); N];
         let mut lower = [(0u64, 0u64); N];
         let mut i = 0;
@@ -516,6 +537,7 @@ impl<const N: usize> KeySet<N> {
             by_len[len] |= 1 << i;
             assert!(len > 0, "keys are not empty");
             by_first[first_slot(names[i].as_bytes()[0])] |= 1 << i;
+            by_significant[significant_len(names[i].as_bytes())] |= 1 << i;
             let w = words(names[i].as_bytes());
             words_of[i] = w;
             lower[i] = (ascii_lower(w.0), ascii_lower(w.1));
@@ -532,7 +554,21 @@ impl<const N: usize> KeySet<N> {
             }
             i += 1;
         }
-        KeySet { names, by_len, by_first, words: words_of, lower }
+        KeySet { names, by_len, by_significant, by_first, words: words_of, lower }
+    }
+
+    /// The number of the key that `key` equals by [`loose_eq`] (case, spaces, `_` and `-`
+    /// ignored), for keys [`KeySet::find`] did not find.
+    pub fn find_loose(&self, key: &str) -> Option<usize> {
+        let mut candidates = *self.by_significant.get(significant_len(key.as_bytes()))?;
+        while candidates != 0 {
+            let i = candidates.trailing_zeros() as usize;
+            if loose_eq(self.names[i], key) {
+                return Some(i);
+            }
+            candidates &= candidates - 1;
+        }
+        None
     }
 
     /// The number of the key that equals `key` ignoring ASCII case, and whether `key` is
@@ -621,7 +657,7 @@ pub(crate) fn match_keys<'a, const N: usize>(
                 d.context = context.to_vec();
             }
         } else {
-            hit = names.iter().position(|k| loose_eq(k, kv.key));
+            hit = known.find_loose(kv.key);
             if let Some(i) = hit {
                 let d = cx.emit(
                     codes::E0103,
@@ -727,6 +763,12 @@ mod tests {
         assert_eq!(classify("1F80ObjectLinks"), (Kind::Links(0x1F80), Spelling::Exact));
         assert!(matches!(classify("1018sub100"), (Kind::Unknown, Spelling::Malformed(_))));
         assert!(matches!(classify("1018subx"), (Kind::Unknown, Spelling::Malformed(_))));
+        const KEYS: KeySet<4> = KeySet::new(["BaudRate_10", "VendorName", "Granularity", "NrOfRXPDO"]);
+        for key in ["baudrate10", "Baud Rate 10", "BAUD-RATE_10", "vendor_name", "Nr_Of_RX_PDO", "granularty", "", "x"]
+        {
+            let linear = KEYS.names.iter().position(|k| loose_eq(k, key));
+            assert_eq!(KEYS.find_loose(key), linear, "{key:?}");
+        }
         assert!(loose_eq("Device_Info", "deviceinfo"));
         assert!(!loose_eq("DeviceInfo", "DeviceInfos"));
         assert!(!loose_eq("", "x"));
