@@ -677,7 +677,11 @@ pub(crate) fn match_keys<'a, const N: usize>(
             }
             None => {
                 if last_unknown.is_none() && unknown.len() >= 8 {
-                    last_unknown = Some(unknown.iter().enumerate().map(|(i, u)| (Caseless(u.key), i)).collect());
+                    // Sized for every entry of the section, so that neither grows again.
+                    unknown.reserve(sec.entries.len());
+                    let mut map = FastMap::with_capacity_and_hasher(sec.entries.len(), Default::default());
+                    map.extend(unknown.iter().enumerate().map(|(i, u)| (Caseless(u.key), i)));
+                    last_unknown = Some(map);
                 }
                 let prev = match &mut last_unknown {
                     Some(map) => map.insert(Caseless(kv.key), unknown.len()).map(|i| unknown[i]),

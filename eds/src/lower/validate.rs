@@ -26,17 +26,21 @@ fn object_lists(secs: &Sections<'_>, lists: &Lists, model: &Model, cx: &mut Ctx<
             Some("list every object in the list it belongs to; this reader loaded the object sections it found".into());
         return;
     }
-    let mut listed: Vec<(&u16, &(crate::model::Category, Span))> = lists.listed.iter().collect();
-    listed.sort_by_key(|(_, (_, span))| span.start);
-    for (&index, &(cat, span)) in listed {
-        if !model.objects.contains_key(&Index(index)) && secs.get(Kind::Object(index)).is_none() {
-            let d = cx.emit(
-                codes::E0401,
-                Some(span),
-                format!("[{}] lists 0x{index:04X}, but there is no section [{index:04X}]", list_name(cat)),
-            );
-            d.hint = Some(format!("add the section [{index:04X}] or remove the list entry").into());
-        }
+    // The listed objects that have no section (few), in file order.
+    let mut missing: Vec<(u16, crate::model::Category, Span)> = lists
+        .listed
+        .iter()
+        .filter(|&(&index, _)| !model.objects.contains_key(&Index(index)) && secs.get(Kind::Object(index)).is_none())
+        .map(|(&index, &(cat, span))| (index, cat, span))
+        .collect();
+    missing.sort_by_key(|&(_, _, span)| span.start);
+    for (index, cat, span) in missing {
+        let d = cx.emit(
+            codes::E0401,
+            Some(span),
+            format!("[{}] lists 0x{index:04X}, but there is no section [{index:04X}]", list_name(cat)),
+        );
+        d.hint = Some(format!("add the section [{index:04X}] or remove the list entry").into());
     }
     for obj in model.objects.values() {
         if !lists.listed.contains_key(&obj.index.0) {
@@ -421,12 +425,28 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
 /// sub-index 0 counts the entries in use (0x1003 "number of errors") and may be lower. PDO
 /// mapping objects are checked with their mapping (E0608).
 fn sub_index_zero(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
+    // The highest sub-index with a section, per object. The sub-object sections of an object
+    // usually follow each other, so a run of them is entered into the map once.
     let mut highest_section: FastMap<u16, u8> = FastMap::default();
+    let mut enter = |(index, sub): (u16, u8)| {
+        let h = highest_section.entry(index).or_insert(sub);
+        *h = (*h).max(sub);
+    };
+    let mut run: Option<(u16, u8)> = None;
     for sec in &secs.list {
         if let Kind::Sub(index, sub) = sec.kind {
-            let h = highest_section.entry(index).or_insert(sub);
-            *h = (*h).max(sub);
+            match &mut run {
+                Some((i, highest)) if *i == index => *highest = (*highest).max(sub),
+                _ => {
+                    if let Some(r) = run.replace((index, sub)) {
+                        enter(r);
+                    }
+                }
+            }
         }
+    }
+    if let Some(r) = run {
+        enter(r);
     }
     for obj in model.objects.values() {
         if !matches!(obj.object_type, ObjectType::Array | ObjectType::Record)
