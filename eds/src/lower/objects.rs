@@ -694,9 +694,28 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
     let sub_indices: Vec<u16> = subs.iter().map(|&(i, _)| i).collect();
     let subs: Vec<(u8, &Section<'_>)> = subs.into_iter().map(|(_, s)| s).collect();
     let builder = EntryBuilder { is_dcf: model.kind == FileKind::Dcf, secs, compact_template: false };
+    // Where the sub-object sections of the previous object ended. Objects usually come in
+    // ascending order, so the next object's sub-objects are found by looking on from there (a
+    // few steps), and by a binary search only when they are not close.
+    let mut next = 0;
     for &(index, sec) in &objects {
-        let from = sub_indices.partition_point(|&i| i < index);
-        let to = from + sub_indices[from..].partition_point(|&i| i == index);
+        let mut from = next;
+        if from > 0 && sub_indices[from - 1] >= index {
+            from = sub_indices.partition_point(|&i| i < index);
+        } else {
+            let near = sub_indices.len().min(from + 8);
+            while from < near && sub_indices[from] < index {
+                from += 1;
+            }
+            if from == near && from < sub_indices.len() && sub_indices[from] < index {
+                from += sub_indices[from..].partition_point(|&i| i < index);
+            }
+        }
+        let mut to = from;
+        while to < sub_indices.len() && sub_indices[to] == index {
+            to += 1;
+        }
+        next = to;
         let side_section = |kind| if side { secs.get(kind) } else { None };
         let names = side_section(Kind::Names(index));
         let values = side_section(Kind::Values(index));
