@@ -282,7 +282,11 @@ def test_software_limit_violation_raises_the_manuals_emcy(akd, wait_until):
     error = emcy(node, 0x8580, wait_until)  # F107 software limit switch, positive
     assert error.register & 0x01
     wait_until(lambda: node.state == "FAULT", timeout=3, what="Fault")
-    assert node.sdo[0x6064].raw <= 5000
+    # The stop is planned one tick ahead of the limit. In wall-clock time a tick the host delays
+    # carries the set point further before the stop begins (20 units per millisecond of delay
+    # here; one CI run stopped at 5077). The virtual-clock test
+    # `a_profile_velocity_run_into_the_limit_is_fault_f107` checks the exact stop at 5000.
+    assert 4000 <= node.sdo[0x6064].raw <= 5000 + 1000
     assert node.sdo[0x1003][1].raw & 0xFFFF == 0x8580
     # Fault reset, back into range, then a profile position target beyond the limit: clipped,
     # warning n107 (8582h), statusword bits 7 and 11.
