@@ -232,7 +232,22 @@ impl DataType {
 
     /// The data type for a type index.
     pub fn from_code(code: u16) -> Self {
-        Self::BASIC.iter().copied().find(|t| t.code() == code).unwrap_or(DataType::Other(code))
+        // A table by code (built at compile time from `BASIC`): a file names a type for almost
+        // every entry, and a search through `BASIC` cost a jump per candidate.
+        const BY_CODE: [Option<DataType>; 0x1C] = {
+            let mut table = [None; 0x1C];
+            let mut i = 0;
+            while i < DataType::BASIC.len() {
+                let t = DataType::BASIC[i];
+                table[t.code() as usize] = Some(t);
+                i += 1;
+            }
+            table
+        };
+        match BY_CODE.get(code as usize) {
+            Some(&Some(t)) => t,
+            _ => DataType::Other(code),
+        }
     }
 
     /// The CiA 301 name (`UNSIGNED32`, ...).
@@ -1342,8 +1357,6 @@ impl PdoMappingEntry {
 mod tests {
     use super::*;
 
-    /// Tens of thousands of entries are built, moved and dropped per large file: keep the rarely
-    /// set keys out of line.
     #[test]
     fn access_spellings() {
         for a in [Access::Ro, Access::Wo, Access::Rw, Access::Rwr, Access::Rww, Access::Const] {
@@ -1357,6 +1370,21 @@ mod tests {
         }
     }
 
+    #[test]
+    fn data_type_codes_round_trip() {
+        for t in DataType::BASIC {
+            assert_eq!(DataType::from_code(t.code()), t);
+        }
+        for code in (0..=0x30u16).chain([0xFF, 0x1000, 0xFFFF]) {
+            let t = DataType::from_code(code);
+            assert_eq!(t.code(), code);
+            let basic = DataType::BASIC.iter().any(|b| b.code() == code);
+            assert_eq!(t == DataType::Other(code), !basic, "{code:#x}");
+        }
+    }
+
+    /// Tens of thousands of entries are built, moved and dropped per large file: keep the rarely
+    /// set keys out of line.
     #[test]
     fn an_entry_stays_small() {
         assert!(std::mem::size_of::<Entry>() <= 96, "Entry is {} bytes", std::mem::size_of::<Entry>());
