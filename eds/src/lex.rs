@@ -208,6 +208,11 @@ fn line_ending(input: In<'_>) -> Res<'_, LineEnding> {
 /// input after it (at the line end). The first byte usually decides.
 #[inline(always)]
 fn line_content<'a>(text: &str, base: In<'a>, input: In<'a>) -> (In<'a>, LineKind) {
+    // Most lines are entries whose key starts with a letter: one comparison sends them on (no
+    // byte from `A` up, other than `[`, starts anything else), before a jump on the rest.
+    if input[0] >= b'A' && input[0] != b'[' {
+        return entry_or_other(text, base, input);
+    }
     match input[0] {
         b'\n' | b'\r' => (input, LineKind::Blank),
         b';' | b'#' => comment(base, &input[1..]),

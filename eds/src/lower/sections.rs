@@ -287,10 +287,16 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
     line_starts.push(0);
     // The lines are taken from the lexer one at a time; none is kept.
     for line in crate::lex::Lexer::new(text) {
-        match line.kind {
-            LineKind::Entry { key, value } => match current {
-                Some((_, occurrence)) => entries.push(Kv::new(&src.text, key, value, occurrence)),
-                None => {
+        // Entries in a section are most lines: tested first, on their own, before a jump on
+        // the kind of the others.
+        if let LineKind::Entry { key, value } = line.kind
+            && let Some((_, occurrence)) = current
+        {
+            entries.push(Kv::new(&src.text, key, value, occurrence));
+        } else {
+            match line.kind {
+                // (An entry here has no section.)
+                LineKind::Entry { key, .. } => {
                     let d = cx.emit(
                         codes::E0003,
                         Some(line.content),
@@ -298,86 +304,88 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                     );
                     d.hint = Some("move it into the section it belongs to".into());
                 }
-            },
-            LineKind::Section { name, trailing } => {
-                let name_str = src.slice(name);
-                if !trailing.is_empty() {
-                    let trailing_str = src.slice(trailing).trim();
-                    if !trailing_str.is_empty() && !trailing_str.starts_with(';') {
-                        let d = cx.emit(
-                            codes::E0005,
-                            Some(trailing),
-                            format!("unexpected text `{trailing_str}` after section header [{name_str}]"),
-                        );
-                        d.hint = Some("put comments on their own line, starting with `;`".into());
+                LineKind::Section { name, trailing } => {
+                    let name_str = src.slice(name);
+                    if !trailing.is_empty() {
+                        let trailing_str = src.slice(trailing).trim();
+                        if !trailing_str.is_empty() && !trailing_str.starts_with(';') {
+                            let d = cx.emit(
+                                codes::E0005,
+                                Some(trailing),
+                                format!("unexpected text `{trailing_str}` after section header [{name_str}]"),
+                            );
+                            d.hint = Some("put comments on their own line, starting with `;`".into());
+                        }
+                    }
+                    let (kind, spelling) = classify(name_str);
+                    report_spelling(cx, name, name_str, &spelling);
+                    // A new section of a known kind is entered under the number it is about to get
+                    // (one hash and one probe, where a look-up and an insertion took two).
+                    let existing = match kind {
+                        Kind::Unknown => {
+                            unknown.iter().copied().find(|&i| heads[i].name.eq_ignore_ascii_case(name_str))
+                        }
+                        k => match by_kind.entry(k) {
+                            std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
+                            std::collections::hash_map::Entry::Vacant(e) => {
+                                e.insert(heads.len());
+                                None
+                            }
+                        },
+                    };
+                    let i = match existing {
+                        Some(i) => {
+                            occurrences[i] += 1;
+                            repeated = true;
+                            let d = cx.emit(
+                                codes::E0006,
+                                Some(name),
+                                format!("section [{name_str}] appears again (first at line {})", heads[i].at.line),
+                            );
+                            d.hint = Some(
+                                "merge the two sections; where both set a key, this reader uses the later value".into(),
+                            );
+                            i
+                        }
+                        None => {
+                            let i = heads.len();
+                            let before = src.slice(Span::new(line.raw.start, name.start));
+                            let at = LineCol { line: line_no, col: col_base + char_count(before) + 1 };
+                            heads.push(Head { name: name_str, name_span: name, at, kind, entries: 0..0 });
+                            occurrences.push(0);
+                            if kind == Kind::Unknown {
+                                unknown.push(i);
+                            }
+                            i
+                        }
+                    };
+                    current = Some((i, occurrences[i]));
+                    runs.push((i, entries.len()));
+                }
+                LineKind::Comment { text } => {
+                    if text.start > 0 && src.text.as_bytes().get(text.start as usize - 1) == Some(&b'#') {
+                        let hash = Span::new(text.start - 1, text.start);
+                        cx.emit(codes::E0004, Some(hash), "comment starts with `#`").hint =
+                            Some("CiA 306 comments start with `;`".into());
                     }
                 }
-                let (kind, spelling) = classify(name_str);
-                report_spelling(cx, name, name_str, &spelling);
-                // A new section of a known kind is entered under the number it is about to get
-                // (one hash and one probe, where a look-up and an insertion took two).
-                let existing = match kind {
-                    Kind::Unknown => unknown.iter().copied().find(|&i| heads[i].name.eq_ignore_ascii_case(name_str)),
-                    k => match by_kind.entry(k) {
-                        std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
-                        std::collections::hash_map::Entry::Vacant(e) => {
-                            e.insert(heads.len());
-                            None
-                        }
-                    },
-                };
-                let i = match existing {
-                    Some(i) => {
-                        occurrences[i] += 1;
-                        repeated = true;
-                        let d = cx.emit(
-                            codes::E0006,
-                            Some(name),
-                            format!("section [{name_str}] appears again (first at line {})", heads[i].at.line),
-                        );
-                        d.hint = Some(
-                            "merge the two sections; where both set a key, this reader uses the later value".into(),
-                        );
-                        i
-                    }
-                    None => {
-                        let i = heads.len();
-                        let before = src.slice(Span::new(line.raw.start, name.start));
-                        let at = LineCol { line: line_no, col: col_base + char_count(before) + 1 };
-                        heads.push(Head { name: name_str, name_span: name, at, kind, entries: 0..0 });
-                        occurrences.push(0);
-                        if kind == Kind::Unknown {
-                            unknown.push(i);
-                        }
-                        i
-                    }
-                };
-                current = Some((i, occurrences[i]));
-                runs.push((i, entries.len()));
-            }
-            LineKind::Comment { text } => {
-                if text.start > 0 && src.text.as_bytes().get(text.start as usize - 1) == Some(&b'#') {
-                    let hash = Span::new(text.start - 1, text.start);
-                    cx.emit(codes::E0004, Some(hash), "comment starts with `#`").hint =
-                        Some("CiA 306 comments start with `;`".into());
+                LineKind::Garbage => {
+                    let content = src.slice(line.content);
+                    let shown: String = content.trim().chars().take(60).collect();
+                    let hint = if content.trim_start().starts_with('[') {
+                        "close the section name with `]`"
+                    } else {
+                        "entries are written `Key=Value`; comments start with `;`"
+                    };
+                    let d = cx.emit(
+                        codes::E0002,
+                        Some(line.content),
+                        format!("`{shown}` is not a section header, a `key=value` entry or a comment (line ignored)"),
+                    );
+                    d.hint = Some(hint.to_owned().into());
                 }
+                LineKind::Blank => {}
             }
-            LineKind::Garbage => {
-                let content = src.slice(line.content);
-                let shown: String = content.trim().chars().take(60).collect();
-                let hint = if content.trim_start().starts_with('[') {
-                    "close the section name with `]`"
-                } else {
-                    "entries are written `Key=Value`; comments start with `;`"
-                };
-                let d = cx.emit(
-                    codes::E0002,
-                    Some(line.content),
-                    format!("`{shown}` is not a section header, a `key=value` entry or a comment (line ignored)"),
-                );
-                d.hint = Some(hint.to_owned().into());
-            }
-            LineKind::Blank => {}
         }
         match line.ending {
             LineEnding::Lf | LineEnding::CrLf => {
