@@ -29,7 +29,8 @@
 //! never uses ASCII bytes inside a multi-byte character, so byte positions are always char
 //! boundaries where the grammar cuts. The line's first byte picks the rule, so each byte is
 //! looked at once. The parsers that run over the bulk of the text (`take_till` up to `=` or a
-//! line end) compare eight bytes at a time, and the line end is one match on two bytes.
+//! line end) compare sixteen bytes at a time (SSE2 on x86_64, the crate's only `unsafe`;
+//! eight-byte words elsewhere), and the line end is one match on two bytes.
 //! Trimming looks at the bytes at either end and only falls back to [`str::trim`] when it meets
 //! a non-ASCII byte there (which may be Unicode white space). [`Lexer`] allocates nothing; [`lex`]
 //! allocates the `Vec` of lines and the line index.
@@ -129,10 +130,40 @@ const fn eq_mask(w: u64, t: u8) -> u64 {
 }
 
 /// The length of the longest prefix of `b` without any byte of `set`: what
-/// `take_till(|c| set.contains(&c))` finds, eight bytes at a time.
+/// `take_till(|c| set.contains(&c))` finds. On x86_64 sixteen bytes are compared at a time with
+/// SSE2 (one compare per byte of `set`, one mask); the last bytes, and all of them elsewhere,
+/// eight at a time in a `u64`.
 #[inline(always)]
 fn prefix_without<const N: usize>(b: In<'_>, set: [u8; N]) -> usize {
     let mut i = 0;
+    // Most keys and values are shorter than sixteen bytes: one block finds their end, where
+    // eight-byte words took two or three rounds (corpus pass: 61.2 -> 58.7 M instructions).
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    let b = {
+        use std::arch::x86_64::*;
+        let mut blocks = b.chunks_exact(16);
+        for block in &mut blocks {
+            let mut lo = [0u8; 8];
+            let mut hi = [0u8; 8];
+            lo.copy_from_slice(&block[..8]);
+            hi.copy_from_slice(&block[8..]);
+            // SAFETY: the intrinsics need SSE2, which every x86_64 processor has and the cfg
+            // above checks is enabled; they read no memory (the block is loaded as two `u64`s).
+            let bits = unsafe {
+                let v = _mm_set_epi64x(i64::from_le_bytes(hi), i64::from_le_bytes(lo));
+                let mut m = _mm_setzero_si128();
+                for t in set {
+                    m = _mm_or_si128(m, _mm_cmpeq_epi8(v, _mm_set1_epi8(t as i8)));
+                }
+                _mm_movemask_epi8(m) as u32
+            };
+            if bits != 0 {
+                return i + bits.trailing_zeros() as usize;
+            }
+            i += 16;
+        }
+        blocks.remainder()
+    };
     let mut words = b.chunks_exact(8);
     for chunk in &mut words {
         let mut w = [0u8; 8];
@@ -151,7 +182,7 @@ fn prefix_without<const N: usize>(b: In<'_>, set: [u8; N]) -> usize {
 }
 
 /// The nom parsers that take the bytes up to the first byte of a set (possibly none; they never
-/// fail): nom's `take_till`, with a word-at-a-time scan, because every byte of a file passes
+/// fail): nom's `take_till`, with a block-at-a-time scan, because every byte of a file passes
 /// through them.
 macro_rules! till {
     ($(#[$doc:meta])* $name:ident, $set:expr) => {
@@ -457,13 +488,13 @@ mod tests {
         assert!(matches!(lines[1].kind, LineKind::Section { name, .. } if name == Span::new(9, 9)));
     }
 
-    /// The word-at-a-time scan finds what a byte loop finds, at every offset of every byte in
-    /// each of the eight positions of a word, with bytes that differ from a target in one bit
-    /// around it.
+    /// The block and word scans find what a byte loop finds, for every byte of the set at every
+    /// offset of inputs up to 40 bytes long (two sixteen-byte blocks, then a word and single
+    /// bytes), with bytes that differ from a target in one bit around it.
     #[test]
     fn prefix_scan_matches_a_byte_loop() {
         let naive = |b: &[u8], set: &[u8]| b.iter().position(|c| set.contains(c)).unwrap_or(b.len());
-        for len in 0..20 {
+        for len in 0..40 {
             for pos in 0..=len {
                 for &t in &[b'=', b'\n', b'\r', b']', b'['] {
                     let mut b: Vec<u8> = (0..len).map(|i| [b'a', t ^ 1, t ^ 0x80, 0, 0xFF][i % 5]).collect();
