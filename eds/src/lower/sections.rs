@@ -222,7 +222,7 @@ fn classify_object(name: &str, index: u16) -> (Kind, Spelling) {
         if exact { (kind, Spelling::Exact) } else { (kind, Spelling::Case(canon())) }
     };
     if rest.is_empty() {
-        return spelled(Kind::Object(index), index_exact, &|| format!("{index:04X}"));
+        return spelled(Kind::Object(index), index_exact, &|| super::hex4(index));
     }
     if rest.len() >= 3 && rest.is_char_boundary(3) && rest[..3].eq_ignore_ascii_case("sub") {
         let digits = &rest[3..];
@@ -235,13 +235,20 @@ fn classify_object(name: &str, index: u16) -> (Kind, Spelling) {
         }
         let sub = trimmed.bytes().fold(0u8, |v, b| v << 4 | (b as char).to_digit(16).unwrap_or(0) as u8);
         let exact = index_exact && &rest[..3] == "sub" && upper(digits);
-        return spelled(Kind::Sub(index, sub), exact, &|| format!("{index:04X}sub{}", digits.to_ascii_uppercase()));
+        // (`digits` are ASCII hex digits.)
+        let canon = || {
+            let mut s = super::hex4(index);
+            s.push_str("sub");
+            s.extend(digits.bytes().map(|b| char::from(b.to_ascii_uppercase())));
+            s
+        };
+        return spelled(Kind::Sub(index, sub), exact, &canon);
     }
     for (suffix, kind) in
         [("Name", Kind::Names(index)), ("Value", Kind::Values(index)), ("ObjectLinks", Kind::Links(index))]
     {
         if rest.eq_ignore_ascii_case(suffix) {
-            return spelled(kind, index_exact && rest == suffix, &|| format!("{index:04X}{suffix}"));
+            return spelled(kind, index_exact && rest == suffix, &|| super::hex4(index) + suffix);
         }
     }
     (Kind::Unknown, Spelling::Exact)
@@ -433,8 +440,13 @@ fn report_spelling(cx: &mut Ctx<'_>, span: Span, name: &str, spelling: &Spelling
     match spelling {
         Spelling::Exact => {}
         Spelling::Case(canon) => {
-            cx.emit(codes::E0104, Some(span), format!("section [{name}] is written [{canon}] in CiA 306")).hint =
-                Some(format!("write [{canon}]").into());
+            // (Case differences are common: the messages are put together without the formatter.)
+            cx.emit(
+                codes::E0104,
+                Some(span),
+                super::cat(["section [", name, "] is written [", canon, "] in CiA 306"]),
+            )
+            .hint = Some(super::cat(["write [", canon, "]"]).into());
         }
         Spelling::Misspelled(canon) => {
             let d = cx.emit(codes::E0103, Some(span), format!("section [{name}] is spelled [{canon}] in CiA 306"));
