@@ -292,8 +292,22 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
     // The start of every line `line_col` counts, handed to the source for its diagnostics.
     let mut line_starts: Vec<u32> = Vec::with_capacity(text.len() / 6 + 2);
     line_starts.push(0);
-    // The lines are taken from the lexer one at a time; none is kept.
-    for line in crate::lex::Lexer::new(text) {
+    // The lines are taken from the lexer one at a time; none is kept. Most lines are plain
+    // entries inside a section: the lexer reads those on a shorter path of their own.
+    let mut lexer = crate::lex::Lexer::new(text);
+    loop {
+        if let Some((_, occurrence)) = current
+            && let Some(e) = lexer.next_plain_entry()
+        {
+            entries.push(Kv::new(&src.text, e.key, e.value, occurrence));
+            if e.newline {
+                line_no += 1;
+                col_base = 0;
+                line_starts.push(e.end);
+            }
+            continue;
+        }
+        let Some(line) = lexer.next() else { break };
         // Entries in a section are most lines: tested first, on their own, before a jump on
         // the kind of the others.
         if let LineKind::Entry { key, value } = line.kind
