@@ -58,8 +58,10 @@ pub fn lower(doc: &Document, options: &Options) -> (Model, Vec<Diagnostic>) {
     // Lines and columns are found once lowering is done: by then the line index is built (pass
     // 1 builds it while it reads the lines), and none is looked up for a diagnostic that is
     // never rendered.
+    // In file order: each line is looked for from the previous one's.
+    let mut cursor = 0;
     for d in &mut diags {
-        d.at = d.span.map(|s| doc.source.line_col(s.start));
+        d.at = d.span.map(|s| doc.source.line_col_from(s.start, &mut cursor));
     }
     (model, diags)
 }

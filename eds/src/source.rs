@@ -141,6 +141,32 @@ impl SourceFile {
             Ok(i) => i,
             Err(i) => i - 1,
         };
+        self.col_in_line(line_idx, offset)
+    }
+
+    /// [`SourceFile::line_col`] for offsets taken in ascending order: `cursor` is the index of
+    /// the line of the previous offset (start with 0), and the line is looked for from there:
+    /// up to 64 lines ahead one after another, then by a binary search of the lines that follow.
+    /// (The index is cold by the time diagnostics get their places: reading it in order lets
+    /// the processor fetch ahead, where each step of a binary search waits for its load.) An
+    /// offset before the cursor's line is searched for from the start.
+    pub(crate) fn line_col_from(&self, offset: u32, cursor: &mut usize) -> LineCol {
+        let starts = self.starts();
+        let mut i = if starts.get(*cursor).is_some_and(|&s| s <= offset) { *cursor } else { 0 };
+        let near = (i + 64).min(starts.len());
+        while i + 1 < near && starts[i + 1] <= offset {
+            i += 1;
+        }
+        if i + 1 == near && near < starts.len() && starts[near] <= offset {
+            i = near + starts[near..].partition_point(|&s| s <= offset) - 1;
+        }
+        *cursor = i;
+        self.col_in_line(i, offset)
+    }
+
+    /// Line and column of `offset`, which lies in line `line_idx` (0-based).
+    fn col_in_line(&self, line_idx: usize, offset: u32) -> LineCol {
+        let starts = self.starts();
         let start = starts[line_idx] as usize;
         let end = (offset as usize).min(self.text.len());
         let col = self.text.get(start..end).map(|s| s.chars().count()).unwrap_or(end - start);
@@ -175,6 +201,26 @@ mod tests {
                 .chain(b.iter().enumerate().filter(|(_, c)| **c == b'\n').map(|(i, _)| i as u32 + 1))
                 .collect();
             assert_eq!(line_starts(b), naive);
+        }
+    }
+
+    #[test]
+    fn line_col_from_a_cursor_agrees_with_line_col() {
+        let text: String = (0..300).map(|i| "x".repeat(i % 7) + if i % 5 == 0 { "\r\n" } else { "\n" }).collect();
+        let src = SourceFile::from_str("a", text.as_str());
+        let len = text.len() as u32;
+        for step in [1u32, 3, 17, 200, 1000] {
+            let mut cursor = 0;
+            let mut offset = 0;
+            while offset <= len {
+                assert_eq!(src.line_col_from(offset, &mut cursor), src.line_col(offset), "{offset}");
+                offset += step;
+            }
+        }
+        // Offsets out of order still get their line.
+        let mut cursor = 0;
+        for offset in [500, 10, 900, 0, len] {
+            assert_eq!(src.line_col_from(offset, &mut cursor), src.line_col(offset));
         }
     }
 
