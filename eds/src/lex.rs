@@ -73,14 +73,14 @@ pub fn lex_lines(text: &str) -> Vec<Line> {
 #[derive(Clone, Debug)]
 pub struct Lexer<'a> {
     text: &'a str,
-    /// What is left to lex (a suffix of `text`'s bytes).
-    input: In<'a>,
+    /// What is left to lex (a suffix of `text`).
+    rest: &'a str,
 }
 
 impl<'a> Lexer<'a> {
     /// A lexer at the start of `text`.
     pub fn new(text: &'a str) -> Self {
-        Lexer { text, input: text.as_bytes() }
+        Lexer { text, rest: text }
     }
 }
 
@@ -90,7 +90,7 @@ impl Iterator for Lexer<'_> {
     #[inline]
     fn next(&mut self) -> Option<Line> {
         let base = self.text.as_bytes();
-        let input = self.input;
+        let input = self.rest.as_bytes();
         if input.is_empty() {
             return None;
         }
@@ -100,8 +100,9 @@ impl Iterator for Lexer<'_> {
         // `line_ending` cannot fail: its last branch accepts the end of the input, and `after`
         // is either empty or starts with a line end.
         let (rest, ending) = line_ending(after).unwrap_or((&after[after.len()..], LineEnding::None));
-        self.input = rest;
         let next = offset(base, rest);
+        // (`next` follows a line end or is the end of the text: a char boundary.)
+        self.rest = self.text.get(next..).unwrap_or("");
         Some(Line {
             raw: Span::new(start as u32, next as u32),
             content: Span::new(start as u32, content_end as u32),
@@ -113,11 +114,13 @@ impl Iterator for Lexer<'_> {
 
 /// A line [`Lexer::next_plain_entry`] read: an entry whose key and value need no trimming.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct PlainEntry {
+pub struct PlainEntry<'a> {
     /// The key.
-    pub key: Span,
+    pub key: &'a str,
     /// The value (empty when nothing follows `=`).
-    pub value: Span,
+    pub value: &'a str,
+    /// Where the key (and the line) starts in the text.
+    pub start: u32,
     /// Where the next line starts.
     pub end: u32,
     /// Whether the line ended with `\n` or `\r\n` (otherwise it was the last line, with no
@@ -125,7 +128,20 @@ pub struct PlainEntry {
     pub newline: bool,
 }
 
-impl Lexer<'_> {
+impl PlainEntry<'_> {
+    /// The span of the key.
+    pub fn key_span(&self) -> Span {
+        Span::new(self.start, self.start + self.key.len() as u32)
+    }
+
+    /// The span of the value (after the key and its `=`).
+    pub fn value_span(&self) -> Span {
+        let start = self.start + self.key.len() as u32 + 1;
+        Span::new(start, start + self.value.len() as u32)
+    }
+}
+
+impl<'a> Lexer<'a> {
     /// Reads the next line if it is the commonest kind: `Key=Value` with no blank around the key
     /// or the value, ended by `\n`, `\r\n` or the end of the text (the key starts with a byte
     /// from `A` up, and no byte that starts or ends the key or the value is white space or non-ASCII).
@@ -133,38 +149,37 @@ impl Lexer<'_> {
     /// what `next` would have made of it (`LineKind::Entry` with the same spans), with less work:
     /// no line kind to dispatch on and no trimming to decide.
     #[inline(always)]
-    pub fn next_plain_entry(&mut self) -> Option<PlainEntry> {
-        let input = self.input;
+    pub fn next_plain_entry(&mut self) -> Option<PlainEntry<'a>> {
+        let rest = self.rest;
+        let input = rest.as_bytes();
         let &first = input.first()?;
         if !(b'A'..=b'~').contains(&first) || first == b'[' {
             return None;
         }
         let key_len = prefix_without(input, [b'=', b'\n', b'\r']);
-        let rest = &input[key_len..];
-        if rest.first() != Some(&b'=') || !is_graphic(input[key_len - 1]) {
+        if input.get(key_len) != Some(&b'=') || !is_graphic(input[key_len - 1]) {
             return None;
         }
-        let value_part = &rest[1..];
+        let value_part = &input[key_len + 1..];
         let value_len = prefix_without(value_part, [b'\n', b'\r']);
         if value_len > 0 && !(is_graphic(value_part[0]) && is_graphic(value_part[value_len - 1])) {
             return None;
         }
-        let (after, newline) = match &value_part[value_len..] {
-            [b'\n', after @ ..] | [b'\r', b'\n', after @ ..] => (after, true),
-            [] => (&value_part[value_len..], false),
+        let (ending, newline) = match &value_part[value_len..] {
+            [b'\n', ..] => (1, true),
+            [b'\r', b'\n', ..] => (2, true),
+            [] => (0, false),
             // A lone `\r`: the general path keeps count of columns after it.
             _ => return None,
         };
-        let base = self.text.as_bytes();
-        let start = offset(base, input) as u32;
-        let value_start = start + key_len as u32 + 1;
-        self.input = after;
-        Some(PlainEntry {
-            key: Span::new(start, start + key_len as u32),
-            value: Span::new(value_start, value_start + value_len as u32),
-            end: offset(base, after) as u32,
-            newline,
-        })
+        // The text is cut at `=`, at the line end and after it: ASCII bytes, so char
+        // boundaries (the checks `split_at_checked` makes cannot fail).
+        let (key, tail) = rest.split_at_checked(key_len)?;
+        let (value, tail) = tail.get(1..)?.split_at_checked(value_len)?;
+        let after = tail.get(ending..)?;
+        let start = offset(self.text.as_bytes(), input) as u32;
+        self.rest = after;
+        Some(PlainEntry { key, value, start, end: offset(self.text.as_bytes(), after.as_bytes()) as u32, newline })
     }
 }
 
@@ -588,12 +603,14 @@ mod tests {
             match lexer.next_plain_entry() {
                 Some(e) => {
                     plain += 1;
-                    assert_eq!(line.kind, LineKind::Entry { key: e.key, value: e.value }, "{text:?}");
+                    assert_eq!(line.kind, LineKind::Entry { key: e.key_span(), value: e.value_span() }, "{text:?}");
+                    let slice = |sp: Span| &text[sp.start as usize..sp.end as usize];
+                    assert_eq!((e.key, e.value), (slice(e.key_span()), slice(e.value_span())));
                     assert_eq!(line.raw.end, e.end);
                     assert_eq!(matches!(line.ending, LineEnding::Lf | LineEnding::CrLf), e.newline);
                     assert!(e.newline || line.ending == LineEnding::None);
                     // Both lexers stand at the next line.
-                    assert_eq!(lexer.input.len(), general.input.len());
+                    assert_eq!(lexer.rest.len(), general.rest.len());
                 }
                 None => {
                     // The fast path did not move; the general path reads the line.
@@ -614,7 +631,7 @@ mod tests {
         let mut lexer = Lexer::new("Last=1");
         assert_eq!(
             lexer.next_plain_entry(),
-            Some(PlainEntry { key: Span::new(0, 4), value: Span::new(5, 6), end: 6, newline: false })
+            Some(PlainEntry { key: "Last", value: "1", start: 0, end: 6, newline: false })
         );
         assert_eq!(lexer.next(), None);
         for n in 0..40 {

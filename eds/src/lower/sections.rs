@@ -324,7 +324,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
         if let Some((_, occurrence)) = current
             && let Some(e) = lexer.next_plain_entry()
         {
-            entries.push(Kv::new(&src.text, e.key, e.value, occurrence));
+            entries.push(Kv { key: e.key, value: e.value, key_start: e.start, occurrence });
             if e.newline {
                 line_no += 1;
                 col_base = 0;
