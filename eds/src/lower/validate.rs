@@ -528,6 +528,58 @@ impl CobId<'_> {
     fn in_use(&self, raw: u32) -> bool {
         !self.has_valid_bit || raw & 0x8000_0000 == 0
     }
+
+    /// Whether [`can_id_check`] finds nothing for any of `nodes` (see [`quiet_for_all`]).
+    fn quiet_for_all(&self, nodes: std::ops::RangeInclusive<u8>) -> bool {
+        quiet_for_all(self.value, self.has_valid_bit, nodes)
+    }
+}
+
+/// What the COB-ID check finds in one node's 32-bit COB-ID.
+#[derive(Debug, PartialEq, Eq)]
+enum CanIdCheck {
+    /// Nothing: not in use (bit 31 set where it means "not valid"), a 29-bit CAN-ID, or a free
+    /// 11-bit one.
+    Fine,
+    /// An 11-bit CAN-ID (bit 29 clear) with bits set above bit 10.
+    TooWide,
+    /// An 11-bit CAN-ID that CiA 301 restricts.
+    Restricted(u32),
+}
+
+fn can_id_check(raw: u32, has_valid_bit: bool) -> CanIdCheck {
+    if (has_valid_bit && raw & 0x8000_0000 != 0) || raw & 0x2000_0000 != 0 {
+        return CanIdCheck::Fine;
+    }
+    let id = raw & 0x1FFF_FFFF;
+    if id > 0x7FF {
+        CanIdCheck::TooWide
+    } else if RESTRICTED_CAN_IDS.iter().any(|&(lo, hi)| (lo..=hi).contains(&id)) {
+        CanIdCheck::Restricted(id)
+    } else {
+        CanIdCheck::Fine
+    }
+}
+
+/// Whether [`can_id_check`] is `Fine` for the value on every node of `nodes`, decided from the
+/// first and the last node's value without trying each (a `$NODEID+...` COB-ID in an EDS is
+/// judged for all 127 node ids): when both agree in every bit above the CAN-ID's 11 bits, all
+/// nodes between agree too (the value grows by one per node), and their CAN-IDs are one run.
+/// `false` means "look at each node".
+fn quiet_for_all(value: &Value, has_valid_bit: bool, nodes: std::ops::RangeInclusive<u8>) -> bool {
+    let raw = |n: u8| value.resolve(n).and_then(|v| u32::try_from(v).ok());
+    let (Some(lo), Some(hi)) = (raw(*nodes.start()), raw(*nodes.end())) else {
+        return false;
+    };
+    if lo >> 11 != hi >> 11 {
+        return false;
+    }
+    if (has_valid_bit && lo & 0x8000_0000 != 0) || lo & 0x2000_0000 != 0 {
+        // Not in use, or a 29-bit CAN-ID, on every node.
+        return true;
+    }
+    let (first, last) = (lo & 0x1FFF_FFFF, hi & 0x1FFF_FFFF);
+    last <= 0x7FF && RESTRICTED_CAN_IDS.iter().all(|&(r_lo, r_hi)| last < r_lo || first > r_hi)
 }
 
 /// The node ids a value is judged for: the configured one in a DCF, else all of 1..=127 when
@@ -570,16 +622,18 @@ fn cob_ids(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
         // one that CiA 301 restricts.
         let mut too_wide: Option<(u8, u32)> = None;
         let mut restricted: Vec<(u8, u32)> = Vec::new();
-        for node in node_ids(model, cob.value) {
+        let nodes = node_ids(model, cob.value);
+        if cob.quiet_for_all(nodes.clone()) {
+            continue;
+        }
+        for node in nodes {
             let Some(raw) = cob.resolve(node) else { continue };
-            if !cob.in_use(raw) || raw & 0x2000_0000 != 0 {
-                continue;
-            }
-            let id = raw & 0x1FFF_FFFF;
-            if id > 0x7FF {
-                too_wide.get_or_insert((node, raw));
-            } else if RESTRICTED_CAN_IDS.iter().any(|&(lo, hi)| (lo..=hi).contains(&id)) {
-                restricted.push((node, id));
+            match can_id_check(raw, cob.has_valid_bit) {
+                CanIdCheck::TooWide => {
+                    too_wide.get_or_insert((node, raw));
+                }
+                CanIdCheck::Restricted(id) => restricted.push((node, id)),
+                CanIdCheck::Fine => {}
             }
         }
         if let Some((node, raw)) = too_wide {
@@ -652,6 +706,62 @@ fn cob_ids(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
             d.context = Crumbs::object(cob.obj.index.0, &cob.obj.name).sub(cob.entry.sub.0, &cob.entry.name).to_vec();
         } else {
             seen.push((k, i));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The shortcut says "nothing to report" only where every node's check says so.
+    fn agrees(value: Value, has_valid_bit: bool, nodes: std::ops::RangeInclusive<u8>) {
+        if quiet_for_all(&value, has_valid_bit, nodes.clone()) {
+            for n in nodes {
+                let raw = u32::try_from(value.resolve(n).unwrap()).unwrap();
+                assert_eq!(can_id_check(raw, has_valid_bit), CanIdCheck::Fine, "{value:?} node {n}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_shortcut_is_taken_for_the_predefined_connection_set() {
+        let relative = |offset: i128| Value::NodeIdPlus { offset, radix: crate::model::Radix::Hex };
+        for offset in [0x180, 0x200, 0x280, 0x300, 0x380, 0x400, 0x480, 0x500, 0x80] {
+            // (EMCY's $NODEID+0x80 gives 0x081..0x0FF, between two restricted ranges.)
+            assert!(quiet_for_all(&relative(offset), true, 1..=127), "{offset:#x}");
+            agrees(relative(offset), true, 1..=127);
+        }
+        // $NODEID+0x100 reaches 0x101..0x17F (restricted), $NODEID+0x700 the heartbeat range.
+        assert!(!quiet_for_all(&relative(0x100), true, 1..=127));
+        assert!(!quiet_for_all(&relative(0x700), true, 1..=127));
+        // Not valid (bit 31) or 29-bit (bit 29): nothing to check on any node.
+        assert!(quiet_for_all(&relative(0x8000_0100), true, 1..=127));
+        assert!(quiet_for_all(&relative(0x2000_0100), false, 1..=127));
+        // CAN-ID bits above bit 10 in an 11-bit CAN-ID: each node is looked at.
+        assert!(!quiet_for_all(&relative(0x980), true, 1..=127));
+        // Values whose high bits change within the node range: each node is looked at.
+        assert!(!quiet_for_all(&relative(0x7C0), true, 1..=127));
+    }
+
+    proptest! {
+        #[test]
+        fn the_shortcut_agrees_with_each_node(
+            base in prop_oneof![0u32..0x900, 0x1FF_FF00u32..0x200_0100, 0x7FFF_FF00u32..0x8000_0900, any::<u32>()],
+            relative in any::<bool>(),
+            has_valid_bit in any::<bool>(),
+            node in 1u8..=127,
+        ) {
+            let radix = crate::model::Radix::Hex;
+            let (value, nodes) = if relative {
+                (Value::NodeIdPlus { offset: base as i128, radix }, 1..=127)
+            } else {
+                (Value::Int { value: base as i128, radix }, node..=node)
+            };
+            if value.resolve(127).is_some_and(|v| u32::try_from(v).is_ok()) {
+                agrees(value, has_valid_bit, nodes);
+            }
         }
     }
 }
