@@ -319,3 +319,28 @@ fn cob_ids_of_a_dcf_are_judged_for_its_node_id() {
     );
     assert!(dcf("10", "$NODEID+0x540").is_empty());
 }
+
+/// Sub-object sections without their object are found wherever their index falls among the
+/// objects' (before the first, between two, after the last, several per index), and reported
+/// in file order; sub-objects of objects that exist are not.
+#[test]
+fn sub_objects_without_an_object_are_all_found() {
+    let base = std::fs::read_to_string(fixtures().join("base.eds")).expect("base.eds");
+    let orphan = |name: &str| format!("\n[{name}]\nParameterName=Orphan\nDataType=0x0005\nAccessType=ro\n");
+    let names = ["0FFFsub1", "1017sub0", "1017sub2", "1019sub1", "1800sub9", "1FFFsub0", "3000sub1", "3000sub2"];
+    let mut text = base.clone();
+    for name in names {
+        text.push_str(&orphan(name));
+    }
+    let parsed = eds::parse("orphans.eds", text.as_bytes(), &Options::lenient());
+    let reported: Vec<&str> = parsed
+        .diagnostics
+        .iter()
+        .filter(|d| d.code == codes::E0211)
+        .map(|d| &text[d.span.expect("span").start as usize..d.span.expect("span").end as usize])
+        .collect();
+    // 1800sub9 belongs to object 1800, which exists.
+    let want: Vec<&str> = names.iter().copied().filter(|n| *n != "1800sub9").collect();
+    assert_eq!(reported, want);
+    assert_eq!(parsed.model.entry(0x1800, 9).map(|e| e.name.as_str()), Some("Orphan"));
+}

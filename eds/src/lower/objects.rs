@@ -743,9 +743,14 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
         model.objects.insert(Index(index), obj);
     }
     // Sub-objects and side sections without an object section.
-    orphans.extend(
-        sub_indices.iter().zip(&subs).filter(|(i, _)| object_indices.binary_search(i).is_err()).map(|(_, &(_, s))| s),
-    );
+    // Both index lists are sorted: one walk along them finds the sub-objects of no object.
+    let mut objects_at = object_indices.iter().peekable();
+    for (&i, &(_, sec)) in sub_indices.iter().zip(&subs) {
+        while objects_at.next_if(|&&o| o < i).is_some() {}
+        if objects_at.peek() != Some(&&i) {
+            orphans.push(sec);
+        }
+    }
     orphans.sort_by_key(|s| s.name_span.start);
     for sec in orphans {
         let index = match sec.kind {
