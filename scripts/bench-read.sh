@@ -3,7 +3,7 @@
 # python-canopen's import_od, over the same files, in one run. Prints both figures and the ratio.
 #
 #   scripts/bench-read.sh [DIR_OR_FILES...]      default: $EDS_CORPUS_DIR or ../shared/eds-corpus
-#   ROUNDS=5 OURS_ITERATIONS=100 PY_ITERATIONS=1 scripts/bench-read.sh   (the defaults)
+#   ROUNDS=8 OURS_ITERATIONS=100 PY_ITERATIONS=1 scripts/bench-read.sh   (the defaults)
 #
 # This is a benchmark, not a test: it asserts nothing; it reports. The target is >= 100x.
 # The first figures are one thread against python-canopen's one; the last line is odgen reading
@@ -30,7 +30,7 @@ python=$(bash "$root/scripts/venv.sh")
 # drifts by tens of percent over minutes) weighs on both alike. Each round is one JSON line per
 # side (odgen on one thread, odgen on every core, python-canopen); the figures below are totals
 # over the rounds, with the range of the per-round ratios.
-rounds=${ROUNDS:-5}
+rounds=${ROUNDS:-8}
 ours_runs=() theirs_runs=() parallel_runs=()
 for _ in $(seq "$rounds"); do
   ours_runs+=("$("$target/release/odgen" bench-read --jobs 1 --iterations "${OURS_ITERATIONS:-100}" "${inputs[@]}")")
