@@ -524,9 +524,9 @@ impl CobId<'_> {
         u32::try_from(self.value.resolve(node)?).ok()
     }
 
-    /// Whether the object is in use: bit 31 clear where it means "not valid".
+    /// Whether the object is in use (see [`in_use`]).
     fn in_use(&self, raw: u32) -> bool {
-        !self.has_valid_bit || raw & 0x8000_0000 == 0
+        in_use(raw, self.has_valid_bit)
     }
 
     /// Whether [`can_id_check`] finds nothing for any of `nodes` (see [`quiet_for_all`]).
@@ -547,8 +547,18 @@ enum CanIdCheck {
     Restricted(u32),
 }
 
+/// Whether a COB-ID is in use: bit 31 clear where it means "not valid" (`has_valid_bit`).
+fn in_use(raw: u32, has_valid_bit: bool) -> bool {
+    !has_valid_bit || raw & 0x8000_0000 == 0
+}
+
+/// Whether the CAN-ID checks apply to a COB-ID: in use, with an 11-bit CAN-ID (bit 29 clear).
+fn checked_11_bit(raw: u32, has_valid_bit: bool) -> bool {
+    in_use(raw, has_valid_bit) && raw & 0x2000_0000 == 0
+}
+
 fn can_id_check(raw: u32, has_valid_bit: bool) -> CanIdCheck {
-    if (has_valid_bit && raw & 0x8000_0000 != 0) || raw & 0x2000_0000 != 0 {
+    if !checked_11_bit(raw, has_valid_bit) {
         return CanIdCheck::Fine;
     }
     let id = raw & 0x1FFF_FFFF;
@@ -574,8 +584,8 @@ fn quiet_for_all(value: &Value, has_valid_bit: bool, nodes: std::ops::RangeInclu
     if lo >> 11 != hi >> 11 {
         return false;
     }
-    if (has_valid_bit && lo & 0x8000_0000 != 0) || lo & 0x2000_0000 != 0 {
-        // Not in use, or a 29-bit CAN-ID, on every node.
+    if !checked_11_bit(lo, has_valid_bit) {
+        // Not in use, or a 29-bit CAN-ID, on every node (bits 29 and 31 are the same for all).
         return true;
     }
     let (first, last) = (lo & 0x1FFF_FFFF, hi & 0x1FFF_FFFF);
