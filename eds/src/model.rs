@@ -738,13 +738,16 @@ impl From<Entry> for EntryRepr {
     }
 }
 
-/// The entries of an object by sub-index: a map with the methods of a
-/// `BTreeMap<SubIndex, Entry>` (`get`, `insert`, `values`, `keys`, `iter`, `len`, ...), iterated
-/// in sub-index order, serialised and printed exactly like one.
+/// A map kept as a vector sorted by key, with the methods of a `BTreeMap` (`get`, `insert`,
+/// `values`, `keys`, `iter`, `range`, `len`, ...), iterated in key order, and serialised and
+/// printed exactly like one. The model keeps its objects ([`ObjectMap`]) and the entries of each
+/// object ([`SubMap`]) in one.
 ///
-/// It is a vector sorted by sub-index: most objects have one to ten entries, which a search
-/// through a short vector finds faster than a tree does, and which it holds in one allocation
-/// of their own size (a B-tree node is sized for eleven).
+/// Files list their objects, and objects their entries, in ascending order almost always: then
+/// every insertion is a push at the end, a lookup is a binary search through one contiguous
+/// block, and dropping the map frees one allocation, where a B-tree searched from its root for
+/// each insertion, spread its values over nodes of eleven, and walked them to free them.
+/// Inserting out of order moves the later values up, as `Vec::insert` does.
 ///
 /// ```
 /// use eds::model::*;
@@ -758,21 +761,55 @@ impl From<Entry> for EntryRepr {
 /// assert_eq!(subs[&SubIndex(2)].name, "Entry 2");
 /// assert!(!subs.contains_key(&SubIndex(1)));
 /// ```
-#[derive(Clone, Default, PartialEq)]
-pub struct SubMap {
-    /// Sorted by sub-index, no sub-index twice.
-    entries: Vec<(SubIndex, Entry)>,
+#[derive(Clone, PartialEq)]
+pub struct VecMap<K, V> {
+    /// Sorted by key, no key twice.
+    entries: Vec<(K, V)>,
 }
 
-impl SubMap {
+/// The entries of an object by sub-index (see [`VecMap`]).
+pub type SubMap = VecMap<SubIndex, Entry>;
+
+/// The objects of a model by index (see [`VecMap`]).
+pub type ObjectMap = VecMap<Index, Object>;
+
+/// The iterator of [`SubMap::iter`].
+pub type SubIter<'a> = MapIter<'a, SubIndex, Entry>;
+
+impl<K, V> Default for VecMap<K, V> {
+    fn default() -> Self {
+        VecMap { entries: Vec::new() }
+    }
+}
+
+impl<K: Ord + Copy, V> VecMap<K, V> {
     /// An empty map (allocates nothing).
     pub const fn new() -> Self {
-        SubMap { entries: Vec::new() }
+        VecMap { entries: Vec::new() }
     }
 
     /// An empty map with room for `n` entries.
     pub fn with_capacity(n: usize) -> Self {
-        SubMap { entries: Vec::with_capacity(n) }
+        VecMap { entries: Vec::with_capacity(n) }
+    }
+
+    /// A map of `entries`, which may come in any order; of entries with the same key the last
+    /// one is kept, as collecting into a `BTreeMap` does. Entries that come sorted (as lowering
+    /// makes them, most of the time) are taken as they are, without moving them.
+    pub(crate) fn from_vec(mut entries: Vec<(K, V)>) -> Self {
+        if entries.is_sorted_by(|a, b| a.0 < b.0) {
+            return VecMap { entries };
+        }
+        // Stable: equal keys keep their order, so that the last of them can be kept.
+        entries.sort_by_key(|e| e.0);
+        let mut out: Vec<(K, V)> = Vec::with_capacity(entries.len());
+        for e in entries {
+            match out.last_mut() {
+                Some(last) if last.0 == e.0 => *last = e,
+                _ => out.push(e),
+            }
+        }
+        VecMap { entries: out }
     }
 
     /// The number of entries.
@@ -787,37 +824,37 @@ impl SubMap {
 
     /// Where `key` is, or where it would go.
     #[inline]
-    fn find(&self, key: SubIndex) -> Result<usize, usize> {
+    fn find(&self, key: K) -> Result<usize, usize> {
         self.entries.binary_search_by_key(&key, |(k, _)| *k)
     }
 
-    /// The entry at `key`.
+    /// The value at `key`.
     #[inline]
-    pub fn get(&self, key: &SubIndex) -> Option<&Entry> {
+    pub fn get(&self, key: &K) -> Option<&V> {
         self.find(*key).ok().map(|i| &self.entries[i].1)
     }
 
-    /// The entry at `key`, to change it.
+    /// The value at `key`, to change it.
     #[inline]
-    pub fn get_mut(&mut self, key: &SubIndex) -> Option<&mut Entry> {
+    pub fn get_mut(&mut self, key: &K) -> Option<&mut V> {
         self.find(*key).ok().map(|i| &mut self.entries[i].1)
     }
 
-    /// The key and entry at `key`.
-    pub fn get_key_value(&self, key: &SubIndex) -> Option<(&SubIndex, &Entry)> {
+    /// The key and value at `key`.
+    pub fn get_key_value(&self, key: &K) -> Option<(&K, &V)> {
         self.find(*key).ok().map(|i| (&self.entries[i].0, &self.entries[i].1))
     }
 
-    /// Whether there is an entry at `key`.
+    /// Whether there is a value at `key`.
     #[inline]
-    pub fn contains_key(&self, key: &SubIndex) -> bool {
+    pub fn contains_key(&self, key: &K) -> bool {
         self.find(*key).is_ok()
     }
 
-    /// Puts `value` at `key` and returns the entry that was there. Adding entries in
-    /// sub-index order costs no search.
+    /// Puts `value` at `key` and returns the value that was there. Adding in key order costs
+    /// no search.
     #[inline]
-    pub fn insert(&mut self, key: SubIndex, value: Entry) -> Option<Entry> {
+    pub fn insert(&mut self, key: K, value: V) -> Option<V> {
         if self.entries.last().is_none_or(|(last, _)| *last < key) {
             self.entries.push((key, value));
             return None;
@@ -831,6 +868,87 @@ impl SubMap {
         }
     }
 
+    /// The value at `key`, after putting `make()` there if there was none (what
+    /// `map.entry(key).or_insert_with(make)` does for a `BTreeMap`).
+    pub fn get_or_insert_with(&mut self, key: K, make: impl FnOnce() -> V) -> &mut V {
+        let i = match self.find(key) {
+            Ok(i) => i,
+            Err(i) => {
+                self.entries.insert(i, (key, make()));
+                i
+            }
+        };
+        &mut self.entries[i].1
+    }
+
+    /// Takes out the value at `key`.
+    pub fn remove(&mut self, key: &K) -> Option<V> {
+        self.find(*key).ok().map(|i| self.entries.remove(i).1)
+    }
+
+    /// Keeps the entries for which `keep` says so.
+    pub fn retain(&mut self, mut keep: impl FnMut(&K, &mut V) -> bool) {
+        self.entries.retain_mut(|(k, v)| keep(k, v));
+    }
+
+    /// Removes every entry.
+    pub fn clear(&mut self) {
+        self.entries.clear();
+    }
+
+    /// The entry with the lowest key.
+    pub fn first_key_value(&self) -> Option<(&K, &V)> {
+        self.entries.first().map(|(k, v)| (k, v))
+    }
+
+    /// The entry with the highest key.
+    pub fn last_key_value(&self) -> Option<(&K, &V)> {
+        self.entries.last().map(|(k, v)| (k, v))
+    }
+
+    /// The entries in key order.
+    pub fn iter(&self) -> MapIter<'_, K, V> {
+        MapIter(self.entries.iter())
+    }
+
+    /// The entries in key order, to change them.
+    pub fn iter_mut(&mut self) -> impl DoubleEndedIterator<Item = (&K, &mut V)> + ExactSizeIterator {
+        self.entries.iter_mut().map(|(k, v)| (&*k, v))
+    }
+
+    /// The keys in order.
+    pub fn keys(&self) -> impl DoubleEndedIterator<Item = &K> + ExactSizeIterator + Clone {
+        self.entries.iter().map(|(k, _)| k)
+    }
+
+    /// The values in key order.
+    pub fn values(&self) -> impl DoubleEndedIterator<Item = &V> + ExactSizeIterator + Clone {
+        self.entries.iter().map(|(_, v)| v)
+    }
+
+    /// The values in key order, to change them.
+    pub fn values_mut(&mut self) -> impl DoubleEndedIterator<Item = &mut V> + ExactSizeIterator {
+        self.entries.iter_mut().map(|(_, v)| v)
+    }
+
+    /// The entries whose key lies in `range`, in order.
+    pub fn range(&self, range: impl std::ops::RangeBounds<K>) -> MapIter<'_, K, V> {
+        use std::ops::Bound;
+        let from = match range.start_bound() {
+            Bound::Included(k) => self.entries.partition_point(|(x, _)| x < k),
+            Bound::Excluded(k) => self.entries.partition_point(|(x, _)| x <= k),
+            Bound::Unbounded => 0,
+        };
+        let to = match range.end_bound() {
+            Bound::Included(k) => self.entries.partition_point(|(x, _)| x <= k),
+            Bound::Excluded(k) => self.entries.partition_point(|(x, _)| x < k),
+            Bound::Unbounded => self.entries.len(),
+        };
+        MapIter(self.entries[from..to.max(from)].iter())
+    }
+}
+
+impl VecMap<SubIndex, Entry> {
     /// Puts `make(k)` at every sub-index `k` of `keys`, in order (lowering builds the elements of
     /// a `CompactSubObj` array this way). When all of `keys` lie above the map's last key, the
     /// entries are made straight into the map's storage; otherwise each is inserted.
@@ -843,93 +961,20 @@ impl SubMap {
             }
         }
     }
+}
 
-    /// The entry at `key`, after putting `make()` there if there was none (what
-    /// `map.entry(key).or_insert_with(make)` does for a `BTreeMap`).
-    pub fn get_or_insert_with(&mut self, key: SubIndex, make: impl FnOnce() -> Entry) -> &mut Entry {
-        let i = match self.find(key) {
-            Ok(i) => i,
-            Err(i) => {
-                self.entries.insert(i, (key, make()));
-                i
-            }
-        };
-        &mut self.entries[i].1
-    }
+/// The iterator of [`VecMap::iter`]: `(&K, &V)` in key order.
+#[derive(Debug)]
+pub struct MapIter<'a, K, V>(std::slice::Iter<'a, (K, V)>);
 
-    /// Takes out the entry at `key`.
-    pub fn remove(&mut self, key: &SubIndex) -> Option<Entry> {
-        self.find(*key).ok().map(|i| self.entries.remove(i).1)
-    }
-
-    /// Keeps the entries for which `keep` says so.
-    pub fn retain(&mut self, mut keep: impl FnMut(&SubIndex, &mut Entry) -> bool) {
-        self.entries.retain_mut(|(k, v)| keep(k, v));
-    }
-
-    /// Removes every entry.
-    pub fn clear(&mut self) {
-        self.entries.clear();
-    }
-
-    /// The entry with the lowest sub-index.
-    pub fn first_key_value(&self) -> Option<(&SubIndex, &Entry)> {
-        self.entries.first().map(|(k, v)| (k, v))
-    }
-
-    /// The entry with the highest sub-index.
-    pub fn last_key_value(&self) -> Option<(&SubIndex, &Entry)> {
-        self.entries.last().map(|(k, v)| (k, v))
-    }
-
-    /// The entries in sub-index order.
-    pub fn iter(&self) -> SubIter<'_> {
-        SubIter(self.entries.iter())
-    }
-
-    /// The entries in sub-index order, to change them.
-    pub fn iter_mut(&mut self) -> impl DoubleEndedIterator<Item = (&SubIndex, &mut Entry)> + ExactSizeIterator {
-        self.entries.iter_mut().map(|(k, v)| (&*k, v))
-    }
-
-    /// The sub-indices in order.
-    pub fn keys(&self) -> impl DoubleEndedIterator<Item = &SubIndex> + ExactSizeIterator + Clone {
-        self.entries.iter().map(|(k, _)| k)
-    }
-
-    /// The entries in sub-index order.
-    pub fn values(&self) -> impl DoubleEndedIterator<Item = &Entry> + ExactSizeIterator + Clone {
-        self.entries.iter().map(|(_, v)| v)
-    }
-
-    /// The entries in sub-index order, to change them.
-    pub fn values_mut(&mut self) -> impl DoubleEndedIterator<Item = &mut Entry> + ExactSizeIterator {
-        self.entries.iter_mut().map(|(_, v)| v)
-    }
-
-    /// The entries whose sub-index lies in `range`, in order.
-    pub fn range(&self, range: impl std::ops::RangeBounds<SubIndex>) -> SubIter<'_> {
-        use std::ops::Bound;
-        let from = match range.start_bound() {
-            Bound::Included(k) => self.entries.partition_point(|(x, _)| x < k),
-            Bound::Excluded(k) => self.entries.partition_point(|(x, _)| x <= k),
-            Bound::Unbounded => 0,
-        };
-        let to = match range.end_bound() {
-            Bound::Included(k) => self.entries.partition_point(|(x, _)| x <= k),
-            Bound::Excluded(k) => self.entries.partition_point(|(x, _)| x < k),
-            Bound::Unbounded => self.entries.len(),
-        };
-        SubIter(self.entries[from..to.max(from)].iter())
+impl<K, V> Clone for MapIter<'_, K, V> {
+    fn clone(&self) -> Self {
+        MapIter(self.0.clone())
     }
 }
 
-/// The iterator of [`SubMap::iter`]: `(&SubIndex, &Entry)` in sub-index order.
-#[derive(Clone, Debug)]
-pub struct SubIter<'a>(std::slice::Iter<'a, (SubIndex, Entry)>);
-
-impl<'a> Iterator for SubIter<'a> {
-    type Item = (&'a SubIndex, &'a Entry);
+impl<'a, K, V> Iterator for MapIter<'a, K, V> {
+    type Item = (&'a K, &'a V);
 
     #[inline]
     fn next(&mut self) -> Option<Self::Item> {
@@ -941,41 +986,39 @@ impl<'a> Iterator for SubIter<'a> {
     }
 }
 
-impl DoubleEndedIterator for SubIter<'_> {
+impl<K, V> DoubleEndedIterator for MapIter<'_, K, V> {
     fn next_back(&mut self) -> Option<Self::Item> {
         self.0.next_back().map(|(k, v)| (k, v))
     }
 }
 
-impl ExactSizeIterator for SubIter<'_> {}
+impl<K, V> ExactSizeIterator for MapIter<'_, K, V> {}
 
-impl std::iter::FusedIterator for SubIter<'_> {}
+impl<K, V> std::iter::FusedIterator for MapIter<'_, K, V> {}
 
-impl std::ops::Index<&SubIndex> for SubMap {
-    type Output = Entry;
+impl<K: Ord + Copy + fmt::Debug, V> std::ops::Index<&K> for VecMap<K, V> {
+    type Output = V;
 
-    /// The entry at `key`. Panics if there is none, as indexing a `BTreeMap` does; use
-    /// [`SubMap::get`] for keys that may be missing.
-    fn index(&self, key: &SubIndex) -> &Entry {
+    /// The value at `key`. Panics if there is none, as indexing a `BTreeMap` does; use
+    /// [`VecMap::get`] for keys that may be missing.
+    fn index(&self, key: &K) -> &V {
         match self.get(key) {
-            Some(e) => e,
-            None => panic!("no entry at sub-index {key}"),
+            Some(v) => v,
+            None => panic!("no entry at {key:?}"),
         }
     }
 }
 
-impl FromIterator<(SubIndex, Entry)> for SubMap {
-    /// Collects entries in any order; of entries with the same sub-index the last one is kept,
-    /// as collecting into a `BTreeMap` does.
-    fn from_iter<I: IntoIterator<Item = (SubIndex, Entry)>>(iter: I) -> Self {
-        let mut map = SubMap::new();
-        map.extend(iter);
-        map
+impl<K: Ord + Copy, V> FromIterator<(K, V)> for VecMap<K, V> {
+    /// Collects entries in any order; of entries with the same key the last one is kept, as
+    /// collecting into a `BTreeMap` does.
+    fn from_iter<I: IntoIterator<Item = (K, V)>>(iter: I) -> Self {
+        VecMap::from_vec(iter.into_iter().collect())
     }
 }
 
-impl Extend<(SubIndex, Entry)> for SubMap {
-    fn extend<I: IntoIterator<Item = (SubIndex, Entry)>>(&mut self, iter: I) {
+impl<K: Ord + Copy, V> Extend<(K, V)> for VecMap<K, V> {
+    fn extend<I: IntoIterator<Item = (K, V)>>(&mut self, iter: I) {
         let iter = iter.into_iter();
         self.entries.reserve(iter.size_hint().0);
         for (k, v) in iter {
@@ -984,59 +1027,59 @@ impl Extend<(SubIndex, Entry)> for SubMap {
     }
 }
 
-impl<const N: usize> From<[(SubIndex, Entry); N]> for SubMap {
-    fn from(entries: [(SubIndex, Entry); N]) -> Self {
+impl<K: Ord + Copy, V, const N: usize> From<[(K, V); N]> for VecMap<K, V> {
+    fn from(entries: [(K, V); N]) -> Self {
         entries.into_iter().collect()
     }
 }
 
-impl From<BTreeMap<SubIndex, Entry>> for SubMap {
-    fn from(map: BTreeMap<SubIndex, Entry>) -> Self {
-        SubMap { entries: map.into_iter().collect() }
+impl<K: Ord + Copy, V> From<BTreeMap<K, V>> for VecMap<K, V> {
+    fn from(map: BTreeMap<K, V>) -> Self {
+        VecMap { entries: map.into_iter().collect() }
     }
 }
 
-impl From<SubMap> for BTreeMap<SubIndex, Entry> {
-    fn from(map: SubMap) -> Self {
+impl<K: Ord + Copy, V> From<VecMap<K, V>> for BTreeMap<K, V> {
+    fn from(map: VecMap<K, V>) -> Self {
         map.entries.into_iter().collect()
     }
 }
 
-impl IntoIterator for SubMap {
-    type Item = (SubIndex, Entry);
-    type IntoIter = std::vec::IntoIter<(SubIndex, Entry)>;
+impl<K, V> IntoIterator for VecMap<K, V> {
+    type Item = (K, V);
+    type IntoIter = std::vec::IntoIter<(K, V)>;
 
     fn into_iter(self) -> Self::IntoIter {
         self.entries.into_iter()
     }
 }
 
-impl<'a> IntoIterator for &'a SubMap {
-    type Item = (&'a SubIndex, &'a Entry);
-    type IntoIter = SubIter<'a>;
+impl<'a, K, V> IntoIterator for &'a VecMap<K, V> {
+    type Item = (&'a K, &'a V);
+    type IntoIter = MapIter<'a, K, V>;
 
-    fn into_iter(self) -> SubIter<'a> {
-        self.iter()
+    fn into_iter(self) -> MapIter<'a, K, V> {
+        MapIter(self.entries.iter())
     }
 }
 
-impl fmt::Debug for SubMap {
+impl<K: fmt::Debug, V: fmt::Debug> fmt::Debug for VecMap<K, V> {
     /// As a `BTreeMap` prints: `{SubIndex(0): Entry { .. }, ..}`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_map().entries(self.iter()).finish()
+        f.debug_map().entries(self.entries.iter().map(|(k, v)| (k, v))).finish()
     }
 }
 
-impl Serialize for SubMap {
-    /// As a map from sub-index to entry, in order, as a `BTreeMap` is serialised.
+impl<K: Serialize, V: Serialize> Serialize for VecMap<K, V> {
+    /// As a map from key to value, in order, as a `BTreeMap` is serialised.
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        serializer.collect_map(self.iter())
+        serializer.collect_map(self.entries.iter().map(|(k, v)| (k, v)))
     }
 }
 
-impl<'de> Deserialize<'de> for SubMap {
+impl<'de, K: Deserialize<'de> + Ord + Copy, V: Deserialize<'de>> Deserialize<'de> for VecMap<K, V> {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        BTreeMap::<SubIndex, Entry>::deserialize(deserializer).map(SubMap::from)
+        BTreeMap::<K, V>::deserialize(deserializer).map(VecMap::from)
     }
 }
 
@@ -1202,7 +1245,7 @@ pub struct Model {
     /// `[DeviceComissioning]` (DCF).
     pub commissioning: Option<Commissioning>,
     /// Every object, sorted by index.
-    pub objects: BTreeMap<Index, Object>,
+    pub objects: ObjectMap,
     /// Sections this crate does not interpret, in file order.
     pub extra_sections: Vec<ExtraSection>,
 }
@@ -1356,6 +1399,43 @@ impl PdoMappingEntry {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A `VecMap` made from entries in any order, with repeated keys, or by inserting them one by
+    /// one, is the `BTreeMap` the same entries make.
+    #[test]
+    fn vec_map_agrees_with_btree_map() {
+        let orders: [&[(u16, u32)]; 5] = [
+            &[],
+            &[(1, 10), (2, 20), (3, 30)],
+            &[(3, 30), (1, 10), (2, 20)],
+            &[(5, 1), (2, 2), (5, 3), (0, 4), (2, 5), (9, 6), (5, 7)],
+            &[(4, 0), (3, 0), (2, 0), (1, 0), (0, 0)],
+        ];
+        for pairs in orders {
+            let want: BTreeMap<u16, u32> = pairs.iter().copied().collect();
+            let collected: VecMap<u16, u32> = pairs.iter().copied().collect();
+            let mut inserted = VecMap::new();
+            for &(k, v) in pairs {
+                inserted.insert(k, v);
+            }
+            for map in [&collected, &inserted] {
+                assert_eq!(
+                    map.iter().map(|(k, v)| (*k, *v)).collect::<Vec<_>>(),
+                    want.clone().into_iter().collect::<Vec<_>>()
+                );
+                assert_eq!(map.len(), want.len());
+                for k in 0..12 {
+                    assert_eq!(map.get(&k), want.get(&k), "{pairs:?} {k}");
+                }
+                assert_eq!(
+                    map.range(2..=5).map(|(k, _)| *k).collect::<Vec<_>>(),
+                    want.range(2..=5).map(|(k, _)| *k).collect::<Vec<_>>()
+                );
+            }
+            assert!(collected == inserted);
+            assert_eq!(serde_json::to_string(&collected).unwrap(), serde_json::to_string(&want).unwrap());
+        }
+    }
 
     #[test]
     fn access_spellings() {

@@ -5,8 +5,8 @@ use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys};
 use super::{Crumbs, Ctx, otype};
 use crate::codes;
 use crate::model::{
-    Access, DataType, Entry, EntryExtras, FileKind, Index, Model, Object, ObjectType, SourceRef, SubIndex, SubMap,
-    Value,
+    Access, DataType, Entry, EntryExtras, FileKind, Index, Model, Object, ObjectMap, ObjectType, SourceRef, SubIndex,
+    SubMap, Value,
 };
 use crate::value::{self, Quirk, ValueError};
 
@@ -698,6 +698,9 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
     // ascending order, so the next object's sub-objects are found by looking on from there (a
     // few steps), and by a binary search only when they are not close.
     let mut next = 0;
+    // The objects in file order: sorted once at the end if the file did not list them in
+    // ascending order (inserting each into the sorted map would move the later ones every time).
+    let mut built: Vec<(Index, Object)> = Vec::with_capacity(objects.len());
     for &(index, sec) in &objects {
         let mut from = next;
         if from > 0 && sub_indices[from - 1] >= index {
@@ -740,7 +743,12 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
             }
         }
         obj.category = lists.listed.get(&index).map(|&(c, _)| c).unwrap_or_else(|| expected_category(index));
-        model.objects.insert(Index(index), obj);
+        built.push((Index(index), obj));
+    }
+    if model.objects.is_empty() {
+        model.objects = ObjectMap::from_vec(built);
+    } else {
+        model.objects.extend(built);
     }
     // Sub-objects and side sections without an object section.
     // Both index lists are sorted: one walk along them finds the sub-objects of no object.

@@ -137,7 +137,7 @@ pub fn expand_compact_pdo(model: &mut Model) -> Vec<Index> {
             model.objects.insert(comm, obj);
             touched.push(comm);
             let map = Index(comm.0 + 0x200);
-            if let std::collections::btree_map::Entry::Vacant(slot) = model.objects.entry(map) {
+            if !model.objects.contains_key(&map) {
                 let mut m = record(map.0, format!("{kind} mapping parameter {}", n + 1));
                 m.subs.insert(
                     SubIndex(0),
@@ -149,7 +149,7 @@ pub fn expand_compact_pdo(model: &mut Model) -> Vec<Index> {
                         entry(s, &format!("Mapped object {s}"), DataType::Unsigned32, mapping_access, Value::hex(0)),
                     );
                 }
-                slot.insert(m);
+                model.objects.insert(map, m);
                 touched.push(map);
             }
             missing -= 1;

@@ -1,8 +1,6 @@
 //! Models built in code, for tests that must not depend on the EDS reader.
 #![allow(dead_code)]
 
-use std::collections::BTreeMap;
-
 use eds::model::*;
 
 /// An entry with the given properties and no limits.
@@ -69,6 +67,6 @@ pub fn model(objects: Vec<Object>) -> Model {
     m.device_info.product_name = Some("Test device".into());
     m.device_info.vendor_name = Some("Tests".into());
     m.device_info.granularity = Some(8);
-    m.objects = objects.into_iter().map(|o| (o.index, o)).collect::<BTreeMap<_, _>>();
+    m.objects = objects.into_iter().map(|o| (o.index, o)).collect();
     m
 }
