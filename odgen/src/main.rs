@@ -8,17 +8,13 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod alloc;
 mod cmd;
 mod yaml;
 
-/// The allocator of the `odgen` binary. Reading a file builds a model of many small parts (a
-/// `String` per entry name, the entries of CompactSubObj arrays, diagnostics): about 47,000
-/// allocations per pass over the 61-file corpus. glibc's malloc and free took about 190
-/// instructions per pair there, a fifth of the time; mimalloc takes a fraction of that
-/// (callgrind: 83.2 -> 70.5 M instructions per corpus pass). Only the binary is affected:
-/// programs that use the `eds` library keep their own allocator.
+/// The allocator of the `odgen` binary: mimalloc (see [`alloc`]).
 #[global_allocator]
-static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+static GLOBAL: alloc::Mimalloc = alloc::Mimalloc;
 
 /// The name of [`GLOBAL`]'s allocator, as `odgen bench-read` reports it beside its figures.
 pub(crate) const ALLOCATOR: &str = "mimalloc";

@@ -1,0 +1,116 @@
+//! The allocator of the `odgen` binary: mimalloc, called the way each allocation needs.
+//!
+//! Reading a file builds a model of many small parts (a `String` per entry name, the entries of
+//! CompactSubObj arrays, diagnostics): about 45,000 allocations per pass over the 61-file
+//! corpus. glibc's malloc and free took about 190 instructions per pair there, a fifth of the
+//! time; mimalloc takes a fraction of that (callgrind: 83.2 -> 70.5 M instructions per corpus
+//! pass). Only the binary is affected: programs that use the `eds` library keep their own
+//! allocator.
+//!
+//! The `mimalloc` crate's allocator sends every request through mimalloc's aligned entry points,
+//! which test the alignment and look for a block that happens to be aligned before they take
+//! the ordinary path. Every block mimalloc hands out is aligned to a machine word, so requests
+//! that ask no more than that (strings, and vectors of bytes, integers and pointers: most of
+//! them) go straight to `mi_malloc`, `mi_zalloc` and `mi_realloc` here; only the others take the
+//! aligned entry points. Corpus pass: 50.9 -> 50.2 M instructions, 1.3 % less time.
+
+use std::alloc::{GlobalAlloc, Layout};
+use std::ffi::c_void;
+
+use libmimalloc_sys as mi;
+
+/// The alignment every mimalloc block has (`MI_INTPTR_SIZE`: its size classes are whole
+/// machine words, and its pages start at least that aligned).
+const WORD: usize = std::mem::size_of::<usize>();
+
+/// mimalloc as the global allocator.
+pub(crate) struct Mimalloc;
+
+// SAFETY: each method forwards to the mimalloc function with the same contract as the
+// `GlobalAlloc` method (a block of at least `size` bytes, or null on failure; `mi_free` and
+// `mi_realloc*` accept any block from these functions). Blocks from `mi_malloc`, `mi_zalloc` and
+// `mi_realloc` are aligned to `WORD`, so those are only used when the layout asks no more;
+// larger alignments go to the `_aligned` functions, which honour any power of two.
+unsafe impl GlobalAlloc for Mimalloc {
+    #[inline]
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        // SAFETY: see the impl.
+        unsafe {
+            if layout.align() <= WORD {
+                mi::mi_malloc(layout.size()) as *mut u8
+            } else {
+                mi::mi_malloc_aligned(layout.size(), layout.align()) as *mut u8
+            }
+        }
+    }
+
+    #[inline]
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        // SAFETY: see the impl.
+        unsafe {
+            if layout.align() <= WORD {
+                mi::mi_zalloc(layout.size()) as *mut u8
+            } else {
+                mi::mi_zalloc_aligned(layout.size(), layout.align()) as *mut u8
+            }
+        }
+    }
+
+    #[inline]
+    unsafe fn dealloc(&self, ptr: *mut u8, _layout: Layout) {
+        // SAFETY: `ptr` came from one of the functions above (the caller's contract).
+        unsafe { mi::mi_free(ptr as *mut c_void) }
+    }
+
+    #[inline]
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        // SAFETY: see the impl; `ptr` came from one of the functions above with `layout`.
+        unsafe {
+            if layout.align() <= WORD {
+                mi::mi_realloc(ptr as *mut c_void, new_size) as *mut u8
+            } else {
+                mi::mi_realloc_aligned(ptr as *mut c_void, new_size, layout.align()) as *mut u8
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every size and alignment gets a block that is aligned, writable over its whole size, and
+    /// keeps its bytes when it grows and shrinks.
+    #[test]
+    fn blocks_are_aligned_and_keep_their_bytes() {
+        let a = Mimalloc;
+        for align in [1usize, 2, 4, 8, 16, 32, 64, 4096] {
+            for size in [1usize, 3, 7, 8, 9, 15, 16, 17, 24, 40, 100, 1000, 70_000] {
+                let layout = Layout::from_size_align(size, align).expect("layout");
+                // SAFETY: the layouts have non-zero sizes; each block is used within its size
+                // and freed once, with the layout it was made with.
+                unsafe {
+                    let zeroed = a.alloc_zeroed(layout);
+                    assert!(!zeroed.is_null());
+                    assert_eq!(zeroed as usize % align, 0, "zeroed {size} {align}");
+                    assert!(std::slice::from_raw_parts(zeroed, size).iter().all(|&b| b == 0));
+                    a.dealloc(zeroed, layout);
+                    let p = a.alloc(layout);
+                    assert!(!p.is_null());
+                    assert_eq!(p as usize % align, 0, "{size} {align}");
+                    for i in 0..size {
+                        p.add(i).write(i as u8);
+                    }
+                    let grown = a.realloc(p, layout, size * 3);
+                    assert_eq!(grown as usize % align, 0, "grown {size} {align}");
+                    assert!((0..size).all(|i| grown.add(i).read() == i as u8));
+                    let big = Layout::from_size_align(size * 3, align).expect("layout");
+                    let shrunk = a.realloc(grown, big, size.div_ceil(2));
+                    assert_eq!(shrunk as usize % align, 0, "shrunk {size} {align}");
+                    assert!((0..size.div_ceil(2)).all(|i| shrunk.add(i).read() == i as u8));
+                    a.dealloc(shrunk, Layout::from_size_align(size.div_ceil(2), align).expect("layout"));
+                }
+            }
+        }
+    }
+}
