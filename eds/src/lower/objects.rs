@@ -1052,9 +1052,10 @@ fn expand_compact(
     let extras = extras.filter(|x| !x.is_empty()).map(Box::new);
     let base = &obj.name;
     obj.subs.extend_with(1..=n, |s| {
-        let mut name = String::with_capacity(base.len() + 3);
+        let digits = super::decimal_u8(s);
+        let mut name = String::with_capacity(base.len() + digits.len());
         name.push_str(base);
-        super::push_decimal(&mut name, s as u32);
+        name.push_str(digits);
         Entry {
             sub: SubIndex(s),
             name,
