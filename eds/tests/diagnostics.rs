@@ -344,3 +344,27 @@ fn sub_objects_without_an_object_are_all_found() {
     assert_eq!(reported, want);
     assert_eq!(parsed.model.entry(0x1800, 9).map(|e| e.name.as_str()), Some("Orphan"));
 }
+
+/// A `BaudRate_` key is reported when it is not spelled as CiA 306 writes it (prefix case, a
+/// sign or leading zeros), and read as the rate it names either way.
+#[test]
+fn baud_rate_keys_in_canonical_and_other_spellings() {
+    for (key, rate, reported) in [
+        ("BaudRate_500", 500u16, false),
+        ("BaudRate_0", 0, false),
+        ("baudrate_500", 500, true),
+        ("BAUDRATE_125", 125, true),
+        ("BaudRate_0500", 500, true),
+        ("BaudRate_+250", 250, true),
+        ("BaudRate_00", 0, true),
+    ] {
+        let text = format!("[DeviceInfo]\nVendorName=x\n{key}=1\n");
+        let parsed = eds::parse("baud.eds", text.as_bytes(), &Options::lenient());
+        let spelling: Vec<_> = parsed.diagnostics.iter().filter(|d| d.code == codes::E0104).collect();
+        assert_eq!(!spelling.is_empty(), reported, "{key}: {spelling:?}");
+        if reported {
+            assert_eq!(spelling[0].hint.as_deref(), Some(format!("write `BaudRate_{rate}`").as_str()), "{key}");
+        }
+        assert_eq!(parsed.model.device_info.baud_rates.get(&rate), Some(&true), "{key}");
+    }
+}

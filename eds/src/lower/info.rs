@@ -288,8 +288,14 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
             .and_then(|_| kv.key[9..].parse::<u16>().ok());
         match rate {
             Some(r) => {
-                let canon = format!("BaudRate_{r}");
-                if kv.key != canon {
+                // As CiA 306 writes it: `BaudRate_` and the number without a sign or leading
+                // zeros (every file has several of these keys: no string is built to compare).
+                let digits = &kv.key[9..];
+                let canonical = kv.key.starts_with("BaudRate_")
+                    && digits.bytes().all(|b| b.is_ascii_digit())
+                    && (digits == "0" || !digits.starts_with('0'));
+                if !canonical {
+                    let canon = format!("BaudRate_{r}");
                     let d = cx.emit(
                         codes::E0104,
                         Some(kv.key_span()),
