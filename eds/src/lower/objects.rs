@@ -1007,6 +1007,8 @@ fn build_object(
         }
     }
     check_structure(cx, &obj, sec, &keys, sub_number, compact, subs, ctx);
+    let highest_section = subs.iter().map(|&(sub, _)| sub).max();
+    super::validate::sub_index_zero(builder.secs, &obj, highest_section, cx);
     obj
 }
 
