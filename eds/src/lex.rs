@@ -32,7 +32,10 @@
 //! line end) compare sixteen bytes at a time (SSE2 on x86_64, the crate's only `unsafe`;
 //! eight-byte words elsewhere), and the line end is one match on two bytes. The commonest line,
 //! `Key=Value` with nothing to trim, has a shorter path of its own
-//! ([`Lexer::next_plain_entry`], tested to agree with the general one).
+//! ([`Lexer::next_plain_entry`], tested to agree with the general one): on x86_64 it reads the
+//! line in sixteen-byte blocks from its start, each compared once with `=` and the line ends, so
+//! the block that holds the `=` gives the end of a short value too (lines within sixteen bytes
+//! of the end of the text take the byte-wise scan).
 //! Trimming looks at the bytes at either end and only falls back to [`str::trim`] when it meets
 //! a non-ASCII byte there (which may be Unicode white space). [`Lexer`] allocates nothing; [`lex`]
 //! allocates the `Vec` of lines and the line index.
@@ -150,6 +153,118 @@ impl<'a> Lexer<'a> {
     /// no line kind to dispatch on and no trimming to decide.
     #[inline(always)]
     pub fn next_plain_entry(&mut self) -> Option<PlainEntry<'a>> {
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+        if let Some(read) = self.plain_entry_in_blocks() {
+            return read;
+        }
+        self.plain_entry_bytes()
+    }
+
+    /// [`Lexer::next_plain_entry`] for a line whose end lies at least sixteen bytes before the
+    /// end of the text (`None` otherwise: then [`Lexer::plain_entry_bytes`] reads it). The line
+    /// is read in sixteen-byte blocks from its start, each compared once with `=` and the two
+    /// line-end bytes: the block that holds the `=` also gives the end of a short value, where
+    /// looking for the key's end and then for the value's end loaded and compared the bytes
+    /// after the `=` a second time.
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    #[inline(always)]
+    fn plain_entry_in_blocks(&mut self) -> Option<Option<PlainEntry<'a>>> {
+        use std::arch::x86_64::*;
+        let rest = self.rest;
+        let input = rest.as_bytes();
+        let Some(&first) = input.first() else { return Some(None) };
+        if !(b'A'..=b'~').contains(&first) || first == b'[' {
+            return Some(None);
+        }
+        // The masks of `=` and of line-end bytes in the block at `at` (bit i: byte at + i).
+        let masks = |at: usize| -> Option<(u32, u32)> {
+            let block: &[u8; 16] = input.get(at..at + 16)?.try_into().ok()?;
+            // SAFETY: the intrinsics need SSE2, which every x86_64 processor has and the cfg
+            // above checks is enabled; the load reads the sixteen bytes of `block`, which it
+            // borrows (an unaligned load, as `_mm_loadu_si128` allows).
+            Some(unsafe {
+                let v = _mm_loadu_si128(block.as_ptr().cast());
+                let eq = _mm_movemask_epi8(_mm_cmpeq_epi8(v, _mm_set1_epi8(b'=' as i8))) as u32;
+                let ends = _mm_or_si128(
+                    _mm_cmpeq_epi8(v, _mm_set1_epi8(b'\n' as i8)),
+                    _mm_cmpeq_epi8(v, _mm_set1_epi8(b'\r' as i8)),
+                );
+                (eq, _mm_movemask_epi8(ends) as u32)
+            })
+        };
+        // The key ends at the first `=` or line end (the line is an entry only if it is `=`),
+        // the value at the first line end after it.
+        let mut at = 0;
+        let key_len = loop {
+            let (eq, ends) = masks(at)?;
+            let stop = eq | ends;
+            if stop != 0 {
+                let i = stop.trailing_zeros();
+                if eq & (1 << i) == 0 {
+                    return Some(None);
+                }
+                let ends_after = ends & !((2u32 << i) - 1);
+                if ends_after != 0 {
+                    break (at + i as usize, at + ends_after.trailing_zeros() as usize);
+                }
+                let key_len = at + i as usize;
+                at += 16;
+                break loop {
+                    let (_, ends) = masks(at)?;
+                    if ends != 0 {
+                        break (key_len, at + ends.trailing_zeros() as usize);
+                    }
+                    at += 16;
+                };
+            }
+            at += 16;
+        };
+        let (key_len, line_len) = key_len;
+        Some(self.plain_entry_at(key_len, line_len))
+    }
+
+    /// The plain entry of the line at the start of what is left, whose key is `key_len` bytes
+    /// long (an `=` follows) and whose content ends at `line_len`, at a line-end byte; `None`
+    /// if it is no plain entry.
+    #[inline(always)]
+    fn plain_entry_at(&mut self, key_len: usize, line_len: usize) -> Option<PlainEntry<'a>> {
+        let rest = self.rest;
+        let input = rest.as_bytes();
+        if !is_graphic(*input.get(key_len.checked_sub(1)?)?) {
+            return None;
+        }
+        let value_part = input.get(key_len + 1..line_len)?;
+        if let (Some(&a), Some(&b)) = (value_part.first(), value_part.last())
+            && !(is_graphic(a) && is_graphic(b))
+        {
+            return None;
+        }
+        let ending = match input.get(line_len..)? {
+            [b'\n', ..] => 1,
+            [b'\r', b'\n', ..] => 2,
+            // A lone `\r`: the general path keeps count of columns after it.
+            _ => return None,
+        };
+        // The text is cut at `=`, at the line end and after it: ASCII bytes, so char
+        // boundaries (the checks `split_at_checked` makes cannot fail).
+        let (key, tail) = rest.split_at_checked(key_len)?;
+        let (value, tail) = tail.get(1..)?.split_at_checked(line_len - key_len - 1)?;
+        let after = tail.get(ending..)?;
+        let start = offset(self.text.as_bytes(), input) as u32;
+        self.rest = after;
+        Some(PlainEntry {
+            key,
+            value,
+            start,
+            end: offset(self.text.as_bytes(), after.as_bytes()) as u32,
+            newline: true,
+        })
+    }
+
+    /// [`Lexer::next_plain_entry`] on any line, the last one included (scanning for the key's
+    /// end, then for the value's).
+    #[inline(always)]
+    fn plain_entry_bytes(&mut self) -> Option<PlainEntry<'a>> {
         let rest = self.rest;
         let input = rest.as_bytes();
         let &first = input.first()?;
@@ -659,6 +774,17 @@ mod tests {
             check_plain_entries(&text);
         }
 
+        /// The same, with every line at least sixteen bytes before the end of the text, where
+        /// the fast path reads whole blocks (and lines that run into the padding).
+        #[test]
+        fn plain_entries_agree_with_the_general_path_in_blocks(
+            text in "([ \t\x0B\x0C\u{A0}\u{85}\u{3000}]|\\PC|\r|\n|\\[|\\]|=|;|#|[a-zA-Z]){0,200}",
+            pad in "(=|\r|\n|[a-z ]){16,40}",
+        ) {
+            check_plain_entries(&format!("{text}{pad}"));
+            check_plain_entries(&format!("{text}\n{pad}"));
+        }
+
         #[test]
         fn agrees_with_the_reference_on_eds_like_lines(
             lines in proptest::collection::vec("[ \t\u{A0}]{0,2}(\\[[0-9A-Fa-fsub ]{0,10}\\]|[A-Za-z]{1,14}[ \t]?=[ \t]?[0-9a-zA-Z$+ ;#]{0,12}|;.{0,5}|#.{0,3})[ \t\u{A0}]{0,2}", 0..40),
@@ -666,6 +792,7 @@ mod tests {
         ) {
             check_against_reference(&lines.join(&ending));
             check_plain_entries(&lines.join(&ending));
+            check_plain_entries(&format!("{}{ending}{}", lines.join(&ending), "Pad=1\n".repeat(4)));
         }
     }
 }
