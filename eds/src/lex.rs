@@ -160,6 +160,20 @@ impl<'a> Lexer<'a> {
         self.plain_entry_bytes()
     }
 
+    /// Reads the next line if it is empty, ended by `\n` or `\r\n` (what [`Iterator::next`]
+    /// makes a [`LineKind::Blank`] line with no content), and returns where the line after it
+    /// starts. Any other line is left; the lexer does not move.
+    #[inline(always)]
+    pub fn next_empty_line(&mut self) -> Option<u32> {
+        let ending = match self.rest.as_bytes() {
+            [b'\n', ..] => 1,
+            [b'\r', b'\n', ..] => 2,
+            _ => return None,
+        };
+        self.rest = self.rest.get(ending..)?;
+        Some(offset(self.text.as_bytes(), self.rest.as_bytes()) as u32)
+    }
+
     /// [`Lexer::next_plain_entry`] for a line whose end lies at least sixteen bytes before the
     /// end of the text (`None` otherwise: then [`Lexer::plain_entry_bytes`] reads it). The line
     /// is read in sixteen-byte blocks from its start, each compared once with `=` and the two
@@ -734,6 +748,28 @@ mod tests {
             }
         }
         plain
+    }
+
+    #[test]
+    fn empty_lines_are_read_as_the_general_path_reads_them() {
+        for text in ["\n", "\r\n", "\r", "\r\r\n", " \n", "\nK=v", "\r\n\n[a]", "", "x\n"] {
+            let mut fast = Lexer::new(text);
+            let mut general = fast.clone();
+            let line = general.next();
+            match fast.next_empty_line() {
+                Some(end) => {
+                    let line = line.expect("a line");
+                    assert_eq!(line.kind, LineKind::Blank, "{text:?}");
+                    assert!(line.content.is_empty() && matches!(line.ending, LineEnding::Lf | LineEnding::CrLf));
+                    assert_eq!(line.raw.end, end);
+                    assert_eq!(fast.rest, general.rest);
+                }
+                None => {
+                    assert!(line.is_none_or(|l| !l.content.is_empty() || l.ending == LineEnding::Cr), "{text:?}");
+                    assert_eq!(fast.rest, text, "the lexer did not move");
+                }
+            }
+        }
     }
 
     #[test]

@@ -330,6 +330,13 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
             }
             continue;
         }
+        // Empty lines (one between sections, as most files write them) need no more than
+        // their end.
+        if let Some(end) = lexer.next_empty_line() {
+            col_base = 0;
+            line_starts.push(end);
+            continue;
+        }
         let Some(line) = lexer.next() else { break };
         // Entries in a section are most lines: tested first, on their own, before a jump on
         // the kind of the others.
