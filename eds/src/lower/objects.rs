@@ -453,7 +453,12 @@ impl EntryBuilder<'_> {
                     Some(kv.value_span()),
                     super::cat([kv.key, " of a ", data_type.name(), " is empty"]),
                 );
-                d.hint = Some(super::cat(["write a value or remove the `", kv.key, "=` line"]).into());
+                d.hint = Some(match kv.key {
+                    // (As CiA 306 spells the keys, which nearly every file does: no string to build.)
+                    "DefaultValue" => "write a value or remove the `DefaultValue=` line".into(),
+                    "ParameterValue" => "write a value or remove the `ParameterValue=` line".into(),
+                    key => super::cat(["write a value or remove the `", key, "=` line"]).into(),
+                });
                 d.context = context.to_vec();
             }
         }
