@@ -169,7 +169,13 @@ impl SourceFile {
         let starts = self.starts();
         let start = starts[line_idx] as usize;
         let end = (offset as usize).min(self.text.len());
-        let col = self.text.get(start..end).map(|s| s.chars().count()).unwrap_or(end - start);
+        // Columns count characters; most lines are ASCII, where that is the length in bytes
+        // (`chars().count()` looked at each byte of short strings one at a time).
+        let col = self
+            .text
+            .get(start..end)
+            .map(|s| if s.is_ascii() { s.len() } else { s.chars().count() })
+            .unwrap_or(end - start);
         LineCol { line: line_idx as u32 + 1, col: col as u32 + 1 }
     }
 
