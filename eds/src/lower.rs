@@ -232,7 +232,7 @@ pub(crate) fn object_context(index: u16, name: &str) -> String {
 pub(crate) fn sub_context(sub: u8, name: &str) -> String {
     let mut s = String::with_capacity(name.len() + 10);
     s.push_str("sub ");
-    push_decimal(&mut s, sub as u32);
+    s.push_str(decimal_u8(sub));
     s.push_str(" \"");
     s.push_str(name);
     s.push('"');
@@ -290,7 +290,8 @@ const DECIMALS: &str = {
 };
 
 /// `v` in decimal (`format!("{v}")`), as a slice of a table: no formatting and no arithmetic
-/// beyond finding the place.
+/// beyond finding the place. Sub-indices, the numbers lowering writes into names and messages,
+/// are bytes.
 pub(crate) fn decimal_u8(v: u8) -> &'static str {
     let v = v as usize;
     let (start, len) = if v < 10 {
@@ -303,24 +304,6 @@ pub(crate) fn decimal_u8(v: u8) -> &'static str {
     DECIMALS.get(start..start + len).unwrap_or("")
 }
 
-/// Appends `v` in decimal (`format!("{v}")` without the formatter). The digits are pushed as
-/// ASCII characters one by one (a few at most), which costs less than building a buffer and
-/// checking it is UTF-8.
-pub(crate) fn push_decimal(s: &mut String, v: u32) {
-    // Sub-indices (below 1000) are most of what is written here: no recursion for them.
-    if v >= 1000 {
-        push_decimal(s, v / 1000);
-    }
-    let r = v % 1000;
-    if v >= 100 {
-        s.push(char::from(b'0' + (r / 100) as u8));
-    }
-    if v >= 10 {
-        s.push(char::from(b'0' + (r / 10 % 10) as u8));
-    }
-    s.push(char::from(b'0' + (r % 10) as u8));
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -331,11 +314,6 @@ mod tests {
             let mut s = String::new();
             push_hex4(&mut s, v);
             assert_eq!(s, format!("{v:04X}"));
-        }
-        for v in [0u32, 7, 10, 99, 100, 255, 999, 1000, 1001, 1010, 1100, 10005, 65535, 100_000, 1_000_200, u32::MAX] {
-            let mut s = String::from("x");
-            push_decimal(&mut s, v);
-            assert_eq!(s, format!("x{v}"));
         }
         assert_eq!(object_context(0x1018, "Identity"), "object 0x1018 \"Identity\"");
         assert_eq!(sub_context(12, "Ä"), "sub 12 \"Ä\"");

@@ -126,10 +126,8 @@ fn value_span(secs: &Sections<'_>, obj: &Object, e: &Entry) -> Span {
     if !obj.object_type.has_subs() {
         return find(Kind::Object(obj.index.0), explicit).unwrap_or(e.at.span);
     }
-    let mut digits = String::with_capacity(3);
-    super::push_decimal(&mut digits, e.sub.0 as u32);
     find(Kind::Sub(obj.index.0, e.sub.0), explicit)
-        .or_else(|| find(Kind::Values(obj.index.0), &[digits.as_str()]))
+        .or_else(|| find(Kind::Values(obj.index.0), &[super::decimal_u8(e.sub.0)]))
         .or_else(|| if obj.compact_sub_obj.is_some() { find(Kind::Object(obj.index.0), explicit) } else { None })
         .unwrap_or(e.at.span)
 }
