@@ -422,10 +422,10 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
 /// supports (CiA 301), which for an ARRAY is also the number of its elements. A writable
 /// sub-index 0 counts the entries in use (0x1003 "number of errors") and may be lower. PDO
 /// mapping objects are checked with their mapping (E0608).
-/// Sub-index 0 of an ARRAY or RECORD (other than a PDO mapping, checked with the PDOs) against
-/// the sub-indices the object has: the highest one in the model, or `highest_section`, the
-/// highest with a sub-object section (sections count even when their entry could not be read;
-/// that is reported on its own).
+///
+/// The highest sub-index is the highest in the model or `highest_section`, the highest with a
+/// sub-object section (sections count even when their entry could not be read; that is
+/// reported on its own).
 ///
 /// Lowering calls this as it finishes each object, while the object and its sections are still
 /// in the cache: a pass of its own over the whole model and the section list, which has run
