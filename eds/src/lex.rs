@@ -153,6 +153,11 @@ impl<'a> Lexer<'a> {
     /// no line kind to dispatch on and no trimming to decide.
     #[inline(always)]
     pub fn next_plain_entry(&mut self) -> Option<PlainEntry<'a>> {
+        // A key starts with a byte from `A` up; no byte there but `[` starts anything else.
+        let &first = self.rest.as_bytes().first()?;
+        if !(b'A'..=b'~').contains(&first) || first == b'[' {
+            return None;
+        }
         #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
         if let Some(read) = self.plain_entry_in_blocks() {
             return read;
@@ -184,12 +189,7 @@ impl<'a> Lexer<'a> {
     #[inline(always)]
     fn plain_entry_in_blocks(&mut self) -> Option<Option<PlainEntry<'a>>> {
         use std::arch::x86_64::*;
-        let rest = self.rest;
-        let input = rest.as_bytes();
-        let Some(&first) = input.first() else { return Some(None) };
-        if !(b'A'..=b'~').contains(&first) || first == b'[' {
-            return Some(None);
-        }
+        let input = self.rest.as_bytes();
         // The masks of `=` and of line-end bytes in the block at `at` (bit i: byte at + i).
         let masks = |at: usize| -> Option<(u32, u32)> {
             let block: &[u8; 16] = input.get(at..at + 16)?.try_into().ok()?;
@@ -238,8 +238,8 @@ impl<'a> Lexer<'a> {
     }
 
     /// The plain entry of the line at the start of what is left, whose key is `key_len` bytes
-    /// long (an `=` follows) and whose content ends at `line_len`, at a line-end byte; `None`
-    /// if it is no plain entry.
+    /// long (an `=` follows) and whose content ends at `line_len`, at a line-end byte or the end
+    /// of the text; `None` if it is no plain entry. Both scans end here.
     #[inline(always)]
     fn plain_entry_at(&mut self, key_len: usize, line_len: usize) -> Option<PlainEntry<'a>> {
         let rest = self.rest;
@@ -253,9 +253,10 @@ impl<'a> Lexer<'a> {
         {
             return None;
         }
-        let ending = match input.get(line_len..)? {
-            [b'\n', ..] => 1,
-            [b'\r', b'\n', ..] => 2,
+        let (ending, newline) = match input.get(line_len..)? {
+            [b'\n', ..] => (1, true),
+            [b'\r', b'\n', ..] => (2, true),
+            [] => (0, false),
             // A lone `\r`: the general path keeps count of columns after it.
             _ => return None,
         };
@@ -266,49 +267,20 @@ impl<'a> Lexer<'a> {
         let after = tail.get(ending..)?;
         let start = offset(self.text.as_bytes(), input) as u32;
         self.rest = after;
-        Some(PlainEntry {
-            key,
-            value,
-            start,
-            end: offset(self.text.as_bytes(), after.as_bytes()) as u32,
-            newline: true,
-        })
+        Some(PlainEntry { key, value, start, end: offset(self.text.as_bytes(), after.as_bytes()) as u32, newline })
     }
 
     /// [`Lexer::next_plain_entry`] on any line, the last one included (scanning for the key's
     /// end, then for the value's).
     #[inline(always)]
     fn plain_entry_bytes(&mut self) -> Option<PlainEntry<'a>> {
-        let rest = self.rest;
-        let input = rest.as_bytes();
-        let &first = input.first()?;
-        if !(b'A'..=b'~').contains(&first) || first == b'[' {
-            return None;
-        }
+        let input = self.rest.as_bytes();
         let key_len = prefix_without(input, [b'=', b'\n', b'\r']);
-        if input.get(key_len) != Some(&b'=') || !is_graphic(input[key_len - 1]) {
+        if input.get(key_len) != Some(&b'=') {
             return None;
         }
-        let value_part = &input[key_len + 1..];
-        let value_len = prefix_without(value_part, [b'\n', b'\r']);
-        if value_len > 0 && !(is_graphic(value_part[0]) && is_graphic(value_part[value_len - 1])) {
-            return None;
-        }
-        let (ending, newline) = match &value_part[value_len..] {
-            [b'\n', ..] => (1, true),
-            [b'\r', b'\n', ..] => (2, true),
-            [] => (0, false),
-            // A lone `\r`: the general path keeps count of columns after it.
-            _ => return None,
-        };
-        // The text is cut at `=`, at the line end and after it: ASCII bytes, so char
-        // boundaries (the checks `split_at_checked` makes cannot fail).
-        let (key, tail) = rest.split_at_checked(key_len)?;
-        let (value, tail) = tail.get(1..)?.split_at_checked(value_len)?;
-        let after = tail.get(ending..)?;
-        let start = offset(self.text.as_bytes(), input) as u32;
-        self.rest = after;
-        Some(PlainEntry { key, value, start, end: offset(self.text.as_bytes(), after.as_bytes()) as u32, newline })
+        let line_len = key_len + 1 + prefix_without(&input[key_len + 1..], [b'\n', b'\r']);
+        self.plain_entry_at(key_len, line_len)
     }
 }
 
