@@ -6,7 +6,8 @@
 //! simulated drives follow from them.
 #![deny(missing_docs)]
 
-pub mod sidecar;
+/// The sidecar schema (the `od-sidecar` crate, part of the generator's input).
+pub use od_sidecar as sidecar;
 
 use std::path::{Path, PathBuf};
 

@@ -5,7 +5,11 @@
 //! the checked-in `generated/src/drvi.rs` (tested in `tests/same_as_xtask.rs`).
 
 fn main() {
-    let result = od_codegen::Builder::new().root("../..").device("drvi", "devices/camozzi-drvi.eds").compile();
+    let result = od_codegen::Builder::new()
+        .root("../..")
+        .embed_eds(true) // as `cargo xtask gen` does, so the two files are the same
+        .device("drvi", "devices/camozzi-drvi.eds")
+        .compile();
     if let Err(e) = result {
         // The error holds every diagnostic, rendered with file:line:col; fail the build.
         eprintln!("{e}");

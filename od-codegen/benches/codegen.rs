@@ -12,7 +12,7 @@ fn generation(c: &mut Criterion) {
         let parsed = eds::parse(file, &bytes, &eds::Options::lenient());
         let mut options = od_codegen::Options::new(module, file);
         options.eds_text = Some(String::from_utf8_lossy(&bytes).into_owned());
-        if let Ok(sc) = devices::sidecar::Sidecar::read(&root.join(file).with_extension("toml")) {
+        if let Ok(sc) = od_codegen::sidecar::Sidecar::read(&root.join(file).with_extension("toml")) {
             options.sidecar = Some(sc);
         }
         let n = parsed.model.entries().count();

@@ -63,6 +63,8 @@ pub struct Builder {
     root: Option<PathBuf>,
     cargo_metadata: Option<bool>,
     min_capacity: Option<usize>,
+    strict: bool,
+    embed_eds: bool,
 }
 
 /// What went wrong in [`Builder::compile`].
@@ -75,8 +77,18 @@ pub enum Error {
         /// The cause.
         source: std::io::Error,
     },
-    /// A device file (or its sidecar) has errors; the text is every diagnostic, rendered.
-    Diagnostics(String),
+    /// One device's description (or its sidecar) has errors.
+    Device {
+        /// The device's module name.
+        module: String,
+        /// Its description, as given to [`Builder::device`].
+        path: String,
+        /// Every error, rendered rustc-style with file:line:col and the offending line.
+        rendered: String,
+    },
+    /// Several devices failed (each an [`Error::Device`] or [`Error::Io`]); the others'
+    /// files were still written by [`Builder::compile`].
+    Devices(Vec<Error>),
     /// Neither [`Builder::out_dir`] nor `OUT_DIR` is set.
     NoOutDir,
     /// The generator produced tokens that do not parse (a generator bug).
@@ -87,7 +99,24 @@ impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Error::Io { path, source } => write!(f, "{}: {source}", path.display()),
-            Error::Diagnostics(s) => write!(f, "device description has errors:\n{s}"),
+            Error::Device { module, path, rendered } => {
+                write!(f, "device `{module}` ({path}) has errors:\n{rendered}")
+            }
+            Error::Devices(all) => {
+                let names: Vec<String> = all
+                    .iter()
+                    .map(|e| match e {
+                        Error::Device { module, .. } => format!("`{module}`"),
+                        Error::Io { path, .. } => path.display().to_string(),
+                        other => other.to_string(),
+                    })
+                    .collect();
+                write!(f, "{} devices failed ({}):", all.len(), names.join(", "))?;
+                for e in all {
+                    write!(f, "\n\n{e}")?;
+                }
+                Ok(())
+            }
             Error::NoOutDir => write!(f, "no output directory: set Builder::out_dir or run from a build script"),
             Error::Render(s) => write!(f, "od-codegen produced invalid code (a bug, please report): {s}"),
         }
@@ -114,8 +143,31 @@ pub struct Output {
     pub text: String,
     /// Every file read to produce it.
     pub inputs: Vec<PathBuf>,
-    /// Diagnostics (warnings and notes; errors make [`Builder::generate`] fail), rendered.
-    pub warnings: String,
+    /// The description's text, as the diagnostics' locations refer to it.
+    pub source: eds::source::SourceFile,
+    /// Every diagnostic worth showing: the reader's errors, the generator's warnings and
+    /// errors, in file order. [`Builder::generate`] fails when one is an error.
+    pub diagnostics: Vec<eds::Diagnostic>,
+}
+
+impl Output {
+    /// Whether a diagnostic is an error.
+    pub fn has_errors(&self) -> bool {
+        self.diagnostics.iter().any(|d| d.severity == Severity::Error)
+    }
+
+    /// The diagnostics rendered rustc-style (file:line:col, the offending line, hints).
+    pub fn rendered(&self, min: Severity) -> String {
+        let shown: Vec<eds::Diagnostic> = self.diagnostics.iter().filter(|d| d.severity >= min).cloned().collect();
+        eds::diag::render_all(&shown, &self.source)
+    }
+
+    /// One line per diagnostic: `file:line:col: warning[G0104]: in …: message (hint: …)`, the
+    /// form of a `cargo:warning=` line.
+    pub fn headlines(&self, min: Severity) -> Vec<String> {
+        let shown: Vec<eds::Diagnostic> = self.diagnostics.iter().filter(|d| d.severity >= min).cloned().collect();
+        crate::diag::render_plain(&shown).lines().map(str::to_owned).collect()
+    }
 }
 
 impl Builder {
@@ -171,6 +223,21 @@ impl Builder {
         self
     }
 
+    /// Strict mode: every deviation of a description (see [`crate::diag`]: a default PDO
+    /// mapping that breaks a mapping rule, a limit outside the entry's type, …) is an error that
+    /// fails the build, instead of a warning. For authors who own their file.
+    pub fn strict(mut self) -> Self {
+        self.strict = true;
+        self
+    }
+
+    /// Whether each module gets `pub const EDS: &str`, the description's text (line ends
+    /// normalised to `\n`, as a raw string). Default: off.
+    pub fn embed_eds(mut self, on: bool) -> Self {
+        self.embed_eds = on;
+        self
+    }
+
     /// Smallest capacity of string and byte buffers (default [`crate::DEFAULT_MIN_CAPACITY`]).
     pub fn min_capacity(mut self, bytes: usize) -> Self {
         self.min_capacity = Some(bytes);
@@ -188,61 +255,112 @@ impl Builder {
         self.cargo_metadata.unwrap_or_else(|| std::env::var_os("OUT_DIR").is_some())
     }
 
-    /// Generates every device without writing anything.
-    pub fn generate(&self) -> Result<Vec<Output>, Error> {
-        let mut outputs = Vec::new();
-        let mut errors = String::new();
-        for d in &self.devices {
-            let shown = d.path.to_string_lossy().replace('\\', "/");
-            let path = self.resolve(&d.path);
-            let bytes = std::fs::read(&path).map_err(|source| Error::Io { path: path.clone(), source })?;
-            let mut inputs = vec![path.clone()];
-            let source = eds::source::SourceFile::decode(shown.clone(), &bytes);
-            let parsed = eds::parse(&shown, &bytes, &eds::Options::lenient());
-
-            let mut options = Options::new(d.module.clone(), shown.clone());
-            options.eds_text = Some(source.text.clone());
-            if let Some(n) = self.min_capacity {
-                options.min_capacity = n;
-            }
-            let sidecar_path = match &d.sidecar {
-                SidecarSource::Beside => Some(path.with_extension("toml")).filter(|p| p.is_file()),
-                SidecarSource::Path(p) => Some(self.resolve(p)),
-                SidecarSource::None => None,
+    /// The name a file is shown by in headers and diagnostics: the path as given when it is
+    /// relative; an absolute one relative to [`Builder::root`] (else the working directory,
+    /// a build script's package), so no absolute path ends up in generated code.
+    fn shown(&self, p: &Path) -> String {
+        let shown = if p.is_absolute() {
+            let base = match &self.root {
+                Some(r) if r.is_absolute() => Some(r.clone()),
+                Some(r) => std::env::current_dir().ok().map(|d| d.join(r)),
+                None => std::env::current_dir().ok(),
             };
-            if let Some(sp) = sidecar_path {
-                inputs.push(sp.clone());
-                match devices::sidecar::Sidecar::read(&sp) {
-                    Ok(sc) => options.sidecar = Some(sc),
-                    Err(e) => errors.push_str(&format!("error: {e}\n")),
-                }
-            }
-
-            let generated = expand(&parsed.model, &options);
-            let mut diags: Vec<eds::Diagnostic> =
-                parsed.diagnostics.iter().filter(|d| d.severity == Severity::Error).cloned().collect();
-            diags.extend(generated.diagnostics.iter().filter(|d| d.severity >= Severity::Warning).cloned());
-            let (errs, warns): (Vec<_>, Vec<_>) = diags.into_iter().partition(|d| d.severity == Severity::Error);
-            if !errs.is_empty() {
-                errors.push_str(&eds::diag::render_all(&errs, &source));
-            }
-            let warnings = warns.iter().map(|w| eds::diag::render(w, &source)).collect::<Vec<_>>().join("\n");
-            let text = render(&generated.tokens, &shown).map_err(|e| Error::Render(e.to_string()))?;
-            outputs.push(Output {
-                module: d.module.clone(),
-                file_name: format!("{}.rs", d.module),
-                text,
-                inputs,
-                warnings,
-            });
-        }
-        if !errors.is_empty() {
-            return Err(Error::Diagnostics(errors));
-        }
-        Ok(outputs)
+            base.and_then(|b| relative_path(&b, p))
+                .unwrap_or_else(|| p.file_name().map(PathBuf::from).unwrap_or_default())
+        } else {
+            p.to_path_buf()
+        };
+        shown.to_string_lossy().replace('\\', "/")
     }
 
-    /// Generates every device and writes the files that changed (see the type's docs).
+    /// Generates one device; `Err` only when a file cannot be read or the tokens do not parse
+    /// (diagnostics, errors included, are in the output).
+    fn generate_device(&self, d: &DeviceSpec) -> Result<Output, Error> {
+        let shown = self.shown(&d.path);
+        let path = self.resolve(&d.path);
+        let bytes = std::fs::read(&path).map_err(|source| Error::Io { path: path.clone(), source })?;
+        let mut inputs = vec![path.clone()];
+        let parsed = eds::parse(&shown, &bytes, &eds::Options::lenient());
+        let source = parsed.document.source.clone();
+        let mut diagnostics: Vec<eds::Diagnostic> =
+            parsed.diagnostics.iter().filter(|d| d.severity == Severity::Error).cloned().collect();
+
+        let mut options = Options::new(d.module.clone(), shown.clone());
+        options.strict = self.strict;
+        if self.embed_eds {
+            options.eds_text = Some(source.text.clone());
+        }
+        if let Some(n) = self.min_capacity {
+            options.min_capacity = n;
+        }
+        let sidecar_path = match &d.sidecar {
+            SidecarSource::Beside => Some(path.with_extension("toml")).filter(|p| p.is_file()),
+            SidecarSource::Path(p) => Some(self.resolve(p)),
+            SidecarSource::None => None,
+        };
+        if let Some(sp) = sidecar_path {
+            inputs.push(sp.clone());
+            match crate::sidecar::Sidecar::read(&sp) {
+                Ok(sc) => options.sidecar = Some(sc),
+                Err(e) => diagnostics.push(eds::Diagnostic {
+                    severity: Severity::Error,
+                    code: crate::diag::SIDECAR,
+                    message: e.to_string(),
+                    file: shown.as_str().into(),
+                    span: None,
+                    at: None,
+                    context: Vec::new(),
+                    hint: None,
+                }),
+            }
+        }
+
+        let generated = expand(&parsed.model, &options);
+        diagnostics.extend(generated.diagnostics.into_iter().filter(|d| d.severity >= Severity::Warning));
+        let text = render(&generated.tokens, &shown).map_err(|e| Error::Render(e.to_string()))?;
+        Ok(Output {
+            module: d.module.clone(),
+            file_name: format!("{}.rs", d.module),
+            text,
+            inputs,
+            source,
+            diagnostics,
+        })
+    }
+
+    /// Generates every device without writing anything: one result per device, in the order
+    /// they were added. A device's errors never hide another's output.
+    pub fn generate_each(&self) -> Vec<Result<Output, Error>> {
+        self.devices
+            .iter()
+            .map(|d| {
+                let o = self.generate_device(d)?;
+                if o.has_errors() {
+                    return Err(Error::Device {
+                        module: o.module.clone(),
+                        path: self.shown(&d.path),
+                        rendered: o.rendered(Severity::Error),
+                    });
+                }
+                Ok(o)
+            })
+            .collect()
+    }
+
+    /// Generates every device without writing anything; fails if any device fails (with every
+    /// failing device's errors).
+    pub fn generate(&self) -> Result<Vec<Output>, Error> {
+        let (ok, failed): (Vec<_>, Vec<_>) = self.generate_each().into_iter().partition(Result::is_ok);
+        let mut failed: Vec<Error> = failed.into_iter().filter_map(Result::err).collect();
+        match failed.len() {
+            0 => Ok(ok.into_iter().filter_map(Result::ok).collect()),
+            1 => Err(failed.remove(0)),
+            _ => Err(Error::Devices(failed)),
+        }
+    }
+
+    /// Generates every device and writes the files that changed (see the type's docs). A device
+    /// with errors fails the build, naming it, but every other device's file is still written.
     pub fn compile(&self) -> Result<(), Error> {
         let metadata = self.metadata();
         if metadata {
@@ -261,28 +379,69 @@ impl Builder {
                 }
             }
         }
-        let outputs = self.generate();
-        if metadata && let Err(Error::Diagnostics(text)) = &outputs {
-            for line in text.lines() {
-                println!("cargo:warning={line}");
-            }
-        }
-        let outputs = outputs?;
         let out_dir = match &self.out_dir {
             Some(d) => d.clone(),
             None => std::env::var_os("OUT_DIR").map(PathBuf::from).ok_or(Error::NoOutDir)?,
         };
         std::fs::create_dir_all(&out_dir).map_err(|source| Error::Io { path: out_dir.clone(), source })?;
-        for o in &outputs {
+        let mut failed = Vec::new();
+        for d in &self.devices {
+            let o = match self.generate_device(d) {
+                Ok(o) => o,
+                Err(e) => {
+                    failed.push(e);
+                    continue;
+                }
+            };
+            // Each warning once, as one line with its location; errors go into the returned
+            // error, rendered in full, which the build script prints.
             if metadata {
-                for line in o.warnings.lines() {
-                    println!("cargo:warning={line}");
+                let warnings: Vec<eds::Diagnostic> =
+                    o.diagnostics.iter().filter(|d| d.severity == Severity::Warning).cloned().collect();
+                for w in crate::diag::render_plain(&warnings).lines() {
+                    println!("cargo:warning={w}");
                 }
             }
-            write_if_changed(&out_dir.join(&o.file_name), &o.text)?;
+            if o.has_errors() {
+                failed.push(Error::Device {
+                    module: o.module.clone(),
+                    path: self.shown(&d.path),
+                    rendered: o.rendered(Severity::Error),
+                });
+                continue;
+            }
+            if let Err(e) = write_if_changed(&out_dir.join(&o.file_name), &o.text) {
+                failed.push(e);
+            }
         }
-        Ok(())
+        match failed.len() {
+            0 => Ok(()),
+            1 => Err(failed.remove(0)),
+            _ => Err(Error::Devices(failed)),
+        }
     }
+}
+
+/// `path` relative to `base` (both absolute), with `..` where needed; `None` when they share
+/// no root (another drive).
+fn relative_path(base: &Path, path: &Path) -> Option<PathBuf> {
+    use std::path::Component;
+    fn norm(p: &Path) -> Vec<Component<'_>> {
+        p.components().filter(|c| *c != Component::CurDir).collect()
+    }
+    let (b, p) = (norm(base), norm(path));
+    if b.first() != p.first() {
+        return None;
+    }
+    let common = b.iter().zip(&p).take_while(|(x, y)| x == y).count();
+    let mut out = PathBuf::new();
+    for _ in common..b.len() {
+        out.push("..");
+    }
+    for c in &p[common..] {
+        out.push(c.as_os_str());
+    }
+    Some(out)
 }
 
 /// Writes `text` to `path` unless the file already holds exactly that; returns whether it wrote.

@@ -3,23 +3,39 @@
 //! They are [`eds::Diagnostic`]s, located at the entry of the device description they are about,
 //! so they render exactly like the reader's own diagnostics.
 //!
+//! # Deviations: lenient and strict
+//!
+//! Real vendor files break rules the generator relies on (a default PDO mapping of an object
+//! that does not exist, a limit outside the entry's type, …). Such a *deviation* never stops
+//! generation: what it concerns is left out or repaired, everything else is generated, and the
+//! tokens compile. In lenient mode (the default) a deviation is a **warning**; in strict mode
+//! ([`crate::Options::strict`], `Builder::strict()`, `odgen gen --strict`) it is an **error**,
+//! for authors who own their file. The table's "deviation" rows are those; the others have one
+//! severity in both modes.
+//!
 //! | code  | severity | meaning |
 //! |-------|----------|---------|
 //! | G0001 | warning  | two entries derive the same Rust name; the later one gets a suffix |
 //! | G0002 | warning  | an entry has a data type the generator cannot store; it is left out |
-//! | G0003 | error    | a default value does not fit the entry's type |
+//! | G0003 | deviation | a default value does not fit the entry's type; the entry starts at zero |
 //! | G0004 | warning  | a limit the runtime cannot enforce (`$NODEID` limit) is ignored |
 //! | G0005 | note     | an object of a kind that holds no value (DEFTYPE, DEFSTRUCT, NULL) is left out |
 //! | G0006 | error    | the module name is not a Rust identifier |
 //! | G0007 | error    | more than 65535 objects: the lookup table cannot number them |
-//! | G0101 | error    | a default PDO mapping carries more than 64 bits |
-//! | G0102 | error    | a mapped entry does not have `PDOMapping=1` |
-//! | G0103 | error    | a mapped entry's access type does not allow this PDO direction |
-//! | G0104 | error    | a mapped object does not exist (or a dummy type the device does not support) |
-//! | G0105 | error    | a mapping length does not match the mapped entry |
-//! | G0106 | error    | a mapping object is malformed (count or entry missing, not a number) |
+//! | G0008 | deviation | a limit lies outside the entry's type; it is clipped to the type |
+//! | G0101 | deviation | a default PDO mapping carries more than 64 bits |
+//! | G0102 | deviation | a mapped entry does not have `PDOMapping=1` |
+//! | G0103 | deviation | a mapped entry's access type does not allow this PDO direction |
+//! | G0104 | deviation | a mapped object does not exist (or a dummy type the device does not support) |
+//! | G0105 | deviation | a mapping length does not match the mapped entry |
+//! | G0106 | deviation | a mapping object is malformed (count or entry missing, not a number) |
 //! | G0107 | warning  | a mapping has a variable-length entry; no typed layout is generated |
+//! | G0108 | deviation | a counted mapping entry is `0x00000000` (a placeholder: nothing mapped) |
 //! | G0201 | error    | the sidecar's unit description is inconsistent with the device description |
+//! | G0202 | error    | the sidecar cannot be read (TOML or schema error, with its own location) |
+//!
+//! A default PDO mapping with a deviation gets no typed layout (`pdo::Rpdo1`, …); its mapping
+//! parameters stay in the dictionary as data, served over SDO and remappable by a master.
 
 use eds::diag::{Code, Diagnostic, Severity};
 use eds::model::{Entry, Object, SourceRef};
@@ -39,6 +55,8 @@ pub const NO_VALUE_OBJECT: Code = Code("G0005");
 pub const BAD_MODULE_NAME: Code = Code("G0006");
 /// Too many objects for the lookup table.
 pub const TOO_MANY_OBJECTS: Code = Code("G0007");
+/// Limit outside the entry's type, clipped.
+pub const LIMIT_CLIPPED: Code = Code("G0008");
 /// PDO longer than 64 bits.
 pub const PDO_TOO_LONG: Code = Code("G0101");
 /// Mapped entry lacks `PDOMapping=1`.
@@ -53,19 +71,29 @@ pub const PDO_LENGTH: Code = Code("G0105");
 pub const PDO_MALFORMED: Code = Code("G0106");
 /// Variable-length entry in a mapping.
 pub const PDO_VARIABLE: Code = Code("G0107");
+/// Placeholder mapping entry `0x00000000` inside the counted range.
+pub const PDO_PLACEHOLDER: Code = Code("G0108");
 /// Unit description inconsistent.
 pub const UNITS: Code = Code("G0201");
+/// Sidecar unreadable.
+pub const SIDECAR: Code = Code("G0202");
 
 /// Builds diagnostics for one source file.
 #[derive(Debug)]
 pub(crate) struct Sink {
     file: std::sync::Arc<str>,
+    strict: bool,
     pub(crate) out: Vec<Diagnostic>,
 }
 
 impl Sink {
-    pub(crate) fn new(file: &str) -> Self {
-        Sink { file: file.into(), out: Vec::new() }
+    pub(crate) fn new(file: &str, strict: bool) -> Self {
+        Sink { file: file.into(), strict, out: Vec::new() }
+    }
+
+    /// The severity of a deviation: a warning when lenient, an error when strict.
+    pub(crate) fn deviation(&self) -> Severity {
+        if self.strict { Severity::Error } else { Severity::Warning }
     }
 
     /// Reports at an entry (context: object, then sub-object).
@@ -148,3 +176,17 @@ pub fn render_plain(diags: &[Diagnostic]) -> String {
     }
     s
 }
+
+/// The codes of deviations: warnings in lenient mode, errors in strict mode (see the module
+/// docs).
+pub const DEVIATIONS: &[Code] = &[
+    BAD_DEFAULT,
+    LIMIT_CLIPPED,
+    PDO_TOO_LONG,
+    PDO_NOT_MAPPABLE,
+    PDO_ACCESS,
+    PDO_NO_OBJECT,
+    PDO_LENGTH,
+    PDO_MALFORMED,
+    PDO_PLACEHOLDER,
+];

@@ -135,7 +135,7 @@ fn default_text(e: &PEntry<'_>) -> String {
     }
 }
 
-fn entry_doc(e: &PEntry<'_>, what: &str, sidecar: Option<&devices::sidecar::Sidecar>) -> Vec<String> {
+fn entry_doc(e: &PEntry<'_>, what: &str, sidecar: Option<&crate::sidecar::Sidecar>) -> Vec<String> {
     let mut lines = vec![format!("{what} {} {}.", location(e), lit::doc_escape(&display_name(e)))];
     if let Some(d) = &e.description {
         lines.push(String::new());
@@ -168,16 +168,14 @@ fn entry_doc(e: &PEntry<'_>, what: &str, sidecar: Option<&devices::sidecar::Side
             lines.push(String::new());
             lines.push(format!("Dimension: {dim:?} (typed conversion: `units::Units::{}`).", e.field));
         }
-        let r = |sub| devices::sidecar::ObjRef { index: e.index, sub };
+        let r = |sub| crate::sidecar::ObjRef { index: e.index, sub };
         if let Some(b) = sc.bus_scaling.get(&r(Some(e.sub))).or_else(|| sc.bus_scaling.get(&r(None))) {
             lines.push(String::new());
             lines.push(match b {
-                devices::sidecar::BusScaling::Factor(f) => {
+                crate::sidecar::BusScaling::Factor(f) => {
                     format!("Bus scaling {f}:1 (bus value = vendor tool value × {f}).")
                 }
-                devices::sidecar::BusScaling::Variable => {
-                    "Bus scaling: variable (depends on other settings).".to_owned()
-                }
+                crate::sidecar::BusScaling::Variable => "Bus scaling: variable (depends on other settings).".to_owned(),
             });
         }
     }
@@ -357,7 +355,7 @@ fn setter(e: &PEntry<'_>) -> TokenStream {
     }
 }
 
-fn getter(e: &PEntry<'_>, sidecar: Option<&devices::sidecar::Sidecar>) -> TokenStream {
+fn getter(e: &PEntry<'_>, sidecar: Option<&crate::sidecar::Sidecar>) -> TokenStream {
     let field = format_ident!("{}", e.field);
     let doc = lit::doc(&entry_doc(e, "Reads", sidecar));
     match e.ty {
@@ -382,7 +380,7 @@ fn getter(e: &PEntry<'_>, sidecar: Option<&devices::sidecar::Sidecar>) -> TokenS
 }
 
 /// The storage struct, its inherent methods and the trait implementation.
-pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&devices::sidecar::Sidecar>) -> TokenStream {
+pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&crate::sidecar::Sidecar>) -> TokenStream {
     let product = model.device_info.product_name.as_deref().unwrap_or("device");
     let vendor = model.device_info.vendor_name.as_deref().unwrap_or("unknown vendor");
     let struct_doc = lit::doc(&[

@@ -48,9 +48,11 @@ pub(crate) fn int_of(v: i128, ty: Ty) -> TokenStream {
     }
 }
 
-/// A float literal; NaN and infinities as the associated constants.
+/// A float literal; NaN and infinities (also a finite `f64` beyond the `f32` range, for
+/// `is32`) as the associated constants. Total: never panics.
 pub(crate) fn real(f: f64, is32: bool) -> TokenStream {
     let t = if is32 { quote!(f32) } else { quote!(f64) };
+    let f = if is32 && !f.is_nan() { (f as f32) as f64 } else { f };
     if f.is_nan() {
         return quote!(#t::NAN);
     }

@@ -170,7 +170,7 @@ pub struct MappingChecker<'m> {
 impl<'m> MappingChecker<'m> {
     /// Plans the dictionary of `model` (as [`crate::generate`] would, diagnostics dropped).
     pub fn new(model: &'m Model, options: &Options) -> Self {
-        let mut sink = Sink::new(&options.source_name);
+        let mut sink = Sink::new(&options.source_name, options.strict);
         MappingChecker { plan: crate::plan::build(model, options, &mut sink) }
     }
 
@@ -225,20 +225,49 @@ struct Layout<'p> {
     bits: u32,
 }
 
-/// Reads the default mapping of a mapping object, reporting malformed ones.
-fn read_mapping<'o>(obj: &'o Object, sink: &mut Sink) -> Option<Vec<(PdoMappingEntry, u32, &'o Entry)>> {
+/// What a deviation in a default mapping costs: said once, as the hint of its diagnostic.
+fn no_layout_hint(dir: Direction, n: u16, abort: Option<u32>) -> String {
+    let kind = match dir {
+        Direction::Receive => "Rpdo",
+        Direction::Transmit => "Tpdo",
+    };
+    let mut h = format!(
+        "no typed layout `pdo::{kind}{}` is generated; the mapping parameters stay in the dictionary as data \
+         (served over SDO, remappable by a master)",
+        n + 1
+    );
+    if let Some(code) = abort {
+        h.push_str(&format!("; a master writing this mapping over SDO gets abort code 0x{code:08X}"));
+    }
+    h
+}
+
+/// Reads the default mapping of a mapping object; a malformed one is a deviation (reported,
+/// `None`).
+fn read_mapping<'o>(
+    obj: &'o Object,
+    dir: Direction,
+    n: u16,
+    sink: &mut Sink,
+) -> Option<Vec<(PdoMappingEntry, u32, &'o Entry)>> {
     let count_entry = obj.sub(0)?;
+    let sev = sink.deviation();
     let count = match effective_value(count_entry) {
         None => return None,
         Some(Value::Int { value, .. }) if (0..=64).contains(value) => *value as u8,
-        Some(_) => {
+        Some(v) => {
+            let shown = match v {
+                Value::Int { value, .. } => format!(" (it is {value})"),
+                _ => String::new(),
+            };
             sink.at_entry(
-                Severity::Error,
+                sev,
                 diag::PDO_MALFORMED,
                 obj,
                 count_entry,
-                "the number of mapped objects must be an integer in 0..=64".into(),
+                format!("the number of mapped objects must be an integer in 0..=64{shown}"),
             );
+            sink.hint(no_layout_hint(dir, n, None));
             return None;
         }
     };
@@ -246,12 +275,13 @@ fn read_mapping<'o>(obj: &'o Object, sink: &mut Sink) -> Option<Vec<(PdoMappingE
     for s in 1..=count {
         let Some(e) = obj.sub(s) else {
             sink.at_entry(
-                Severity::Error,
+                sev,
                 diag::PDO_MALFORMED,
                 obj,
                 count_entry,
                 format!("sub 0 says {count} objects are mapped, but sub {s} does not exist"),
             );
+            sink.hint(no_layout_hint(dir, n, None));
             return None;
         };
         match effective_value(e) {
@@ -260,15 +290,42 @@ fn read_mapping<'o>(obj: &'o Object, sink: &mut Sink) -> Option<Vec<(PdoMappingE
             }
             _ => {
                 sink.at_entry(
-                    Severity::Error,
+                    sev,
                     diag::PDO_MALFORMED,
                     obj,
                     e,
                     "a mapping entry must be an UNSIGNED32 0xIIIISSLL (index, sub-index, bit length)".into(),
                 );
+                sink.hint(no_layout_hint(dir, n, None));
                 return None;
             }
         }
+    }
+    // Vendors write `0x00000000` for "nothing mapped by default" while sub 0 still counts the
+    // entries: one diagnostic for the object when all are placeholders, else at the first one.
+    if !out.is_empty() && out.iter().all(|(_, raw, _)| *raw == 0) {
+        sink.at_entry(
+            sev,
+            diag::PDO_PLACEHOLDER,
+            obj,
+            count_entry,
+            format!(
+                "sub 0 counts {count} mapped objects, but every one is 0x00000000 (a placeholder: nothing is mapped)"
+            ),
+        );
+        sink.hint(no_layout_hint(dir, n, None));
+        return None;
+    }
+    if let Some((_, _, e)) = out.iter().find(|(_, raw, _)| *raw == 0) {
+        sink.at_entry(
+            sev,
+            diag::PDO_PLACEHOLDER,
+            obj,
+            e,
+            format!("mapped object {} is 0x00000000 (nothing) inside the {count} entries sub 0 counts", e.sub.0),
+        );
+        sink.hint(no_layout_hint(dir, n, None));
+        return None;
     }
     Some(out)
 }
@@ -282,7 +339,7 @@ fn layouts<'p>(model: &Model, plan: &'p Plan<'p>, sink: &mut Sink) -> Vec<Layout
             Role::TpdoMapping(n) => (Direction::Transmit, n),
             _ => continue,
         };
-        let Some(entries) = read_mapping(obj, sink) else { continue };
+        let Some(entries) = read_mapping(obj, dir, n, sink) else { continue };
         if entries.is_empty() {
             continue;
         }
@@ -297,8 +354,8 @@ fn layouts<'p>(model: &Model, plan: &'p Plan<'p>, sink: &mut Sink) -> Vec<Layout
             let mut upto = before.clone();
             upto.push(*raw);
             if let Err(me) = check_with_plan(plan, dir, &upto) {
-                sink.at_entry(Severity::Error, me.code, obj, e, me.message);
-                sink.hint(format!("a master writing this mapping over SDO gets abort code 0x{:08X}", me.abort_code));
+                sink.at_entry(sink.deviation(), me.code, obj, e, me.message);
+                sink.hint(no_layout_hint(dir, n, Some(me.abort_code)));
                 ok = false;
                 break;
             }
@@ -343,12 +400,12 @@ fn layouts<'p>(model: &Model, plan: &'p Plan<'p>, sink: &mut Sink) -> Vec<Layout
         }
         if total > 64 {
             sink.at_object(
-                Severity::Error,
+                sink.deviation(),
                 diag::PDO_TOO_LONG,
                 obj,
                 format!("the default mapping carries {total} bits; a PDO carries at most 64"),
             );
-            sink.hint("a master remapping like this over SDO gets abort code 0x06040042");
+            sink.hint(no_layout_hint(dir, n, Some(AbortCode::PDO_LENGTH_EXCEEDED.0)));
             ok = false;
         }
         if ok {

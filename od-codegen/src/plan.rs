@@ -319,14 +319,50 @@ fn plan_entry<'m>(
             }
         }
     }
-    // Limits wider than the type say nothing: drop them so the table stays minimal.
+    // A limit outside the type is clipped to it (the setter compares in the storage type, so an
+    // unclipped one would not compile); a limit at the type's edge says nothing and is dropped,
+    // so the table stays minimal.
     let range = type_range(dt);
     if let Some((lo, hi)) = range {
+        for (which, limit) in [("LowLimit", &mut low), ("HighLimit", &mut high)] {
+            let Some(l) = *limit else { continue };
+            if !(lo..=hi).contains(&l) {
+                let clipped = l.clamp(lo, hi);
+                sink.at_entry(
+                    sink.deviation(),
+                    diag::LIMIT_CLIPPED,
+                    obj,
+                    e,
+                    format!("{which} {l} lies outside the {} range {lo}..={hi}; clipped to {clipped}", dt.name()),
+                );
+                *limit = Some(clipped);
+            }
+        }
         if low.is_some_and(|l| l <= lo) {
             low = None;
         }
         if high.is_some_and(|h| h >= hi) {
             high = None;
+        }
+    }
+    if dt == DataType::Real32 {
+        let max = f32::MAX as f64;
+        for (which, limit) in [("LowLimit", &mut real_low), ("HighLimit", &mut real_high)] {
+            let Some(l) = *limit else { continue };
+            if l.is_nan() {
+                sink.at_entry(Severity::Warning, diag::LIMIT_IGNORED, obj, e, format!("{which} is NaN; ignored"));
+                *limit = None;
+            } else if l.is_finite() && !(-max..=max).contains(&l) {
+                let clipped = l.clamp(-max, max);
+                sink.at_entry(
+                    sink.deviation(),
+                    diag::LIMIT_CLIPPED,
+                    obj,
+                    e,
+                    format!("{which} {l} lies outside the REAL32 range; clipped to {clipped}"),
+                );
+                *limit = Some(clipped);
+            }
         }
     }
     let (mut set_low, mut set_high) = (low, high);
@@ -382,8 +418,10 @@ pub(crate) fn storage_range(ty: Ty) -> (i128, i128) {
 fn resolve_default(obj: &Object, e: &Entry, value: Option<&Value>, sink: &mut Sink) -> (Def, usize) {
     let dt = e.data_type;
     let Some(v) = value else { return (Def::None, 0) };
+    let sev = sink.deviation();
     let mut bad = |msg: String| {
-        sink.at_entry(Severity::Error, diag::BAD_DEFAULT, obj, e, msg);
+        sink.at_entry(sev, diag::BAD_DEFAULT, obj, e, msg);
+        sink.hint("the generated entry starts at zero (empty)");
         (Def::None, 0)
     };
     match dt {
@@ -407,11 +445,18 @@ fn resolve_default(obj: &Object, e: &Entry, value: Option<&Value>, sink: &mut Si
             Value::Text(_) if dt == DataType::Domain => (Def::None, 0),
             _ => bad(format!("the default of a {} entry must be hex bytes", dt.name())),
         },
-        DataType::Real32 | DataType::Real64 => match v {
-            Value::Real(f) => (Def::Real(*f), 0),
-            Value::Int { value, .. } => (Def::Real(*value as f64), 0),
-            _ => bad(format!("the default of a {} entry must be a number", dt.name())),
-        },
+        DataType::Real32 | DataType::Real64 => {
+            let f = match v {
+                Value::Real(f) => *f,
+                Value::Int { value, .. } => *value as f64,
+                _ => return bad(format!("the default of a {} entry must be a number", dt.name())),
+            };
+            if dt == DataType::Real32 && f.is_finite() && (f as f32).is_infinite() {
+                bad(format!("default {f} is outside the REAL32 range"))
+            } else {
+                (Def::Real(f), 0)
+            }
+        }
         _ => {
             let Some((lo, hi)) = type_range(dt) else { return (Def::None, 0) };
             match v {

@@ -40,7 +40,7 @@
 
 use std::collections::BTreeMap;
 
-use devices::sidecar::{BusScaling, Dimension, ScalingKind, Sidecar, Unit, UnitSystem};
+use crate::sidecar::{BusScaling, Dimension, ScalingKind, Sidecar, Unit, UnitSystem};
 use eds::diag::Severity;
 use eds::model::Model;
 use proc_macro2::{Ident, Literal, TokenStream};

@@ -30,7 +30,7 @@ fn device_models() {
 
 #[test]
 fn device_code() {
-    let mut builder = od_codegen::Builder::new().root(root()).cargo_metadata(false);
+    let mut builder = od_codegen::Builder::new().root(root()).cargo_metadata(false).strict().embed_eds(true);
     for (module, rel) in DEVICES {
         builder = builder.device(*module, *rel);
     }

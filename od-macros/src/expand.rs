@@ -34,6 +34,9 @@ pub(crate) fn dictionary(input: TokenStream) -> Result<Expansion, syn::Error> {
     let checked = validate::check(&lowered, &mut cx);
     let mut options = od_codegen::Options::new(lowered.module.clone(), checked.file_name.clone());
     options.eds_text = Some(checked.eds_text.clone());
+    // The declaration is the author's own: every deviation (a PDO that breaks a mapping rule)
+    // is an error, located at the declaration.
+    options.strict = true;
     let generated = od_codegen::expand(&checked.model, &options);
     validate::report_codegen(&lowered, &checked, &generated.diagnostics, &mut cx);
     cx.finish()?;
@@ -153,10 +156,11 @@ pub(crate) fn include(input: TokenStream, manifest_dir: Option<&Path>) -> syn::R
     }
     let mut options = od_codegen::Options::new(module, shown.clone());
     options.eds_text = Some(source.text.clone());
+    options.strict = args.strict;
     let mut tracked = vec![abs.clone()];
     let sidecar = abs.with_extension("toml");
     if sidecar.is_file() {
-        match devices::sidecar::Sidecar::read(&sidecar) {
+        match od_codegen::sidecar::Sidecar::read(&sidecar) {
             Ok(sc) => options.sidecar = Some(sc),
             Err(e) => cx.syn_error(err(format!("sidecar `{}`: {e}", sidecar.display()))),
         }

@@ -387,6 +387,7 @@ fn include_eds_is_what_the_build_script_builder_writes() {
     let outputs = od_codegen::Builder::new()
         .root(&root)
         .cargo_metadata(false)
+        .embed_eds(true)
         .device("drvi", "devices/camozzi-drvi.eds")
         .generate()
         .unwrap();

@@ -94,15 +94,17 @@ pub fn present_sources(root: &Path) -> Vec<Source> {
 /// Every file of `generated/src` with the contents it should have, paths relative to `root`.
 pub fn expected_files(root: &Path) -> Result<Vec<(PathBuf, String)>, String> {
     let sources = present_sources(root);
-    let mut builder = od_codegen::Builder::new().root(root).cargo_metadata(false);
+    // Our own device files: strict (every deviation is an error), with the description embedded
+    // (`EDS`, which the simulated drives serve and parse).
+    let mut builder = od_codegen::Builder::new().root(root).cargo_metadata(false).strict().embed_eds(true);
     for s in &sources {
         builder = builder.device(s.module, s.path);
     }
     let outputs = builder.generate().map_err(|e| e.to_string())?;
     let mut files = Vec::new();
     for o in outputs {
-        if !o.warnings.is_empty() {
-            eprintln!("{}", o.warnings);
+        if !o.diagnostics.is_empty() {
+            eprintln!("{}", o.rendered(od_codegen::Severity::Warning));
         }
         files.push((PathBuf::from("generated/src").join(&o.file_name), o.text));
     }

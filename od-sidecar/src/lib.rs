@@ -1,5 +1,9 @@
 //! The device sidecar: what an EDS cannot say about a drive.
 //!
+//! The schema is an input of the code generator (`od-codegen` re-exports it as
+//! `od_codegen::sidecar`), kept in a crate of its own so that a user of the generator does not
+//! depend on the crate holding the project's bundled devices (`devices` re-exports it too).
+//!
 //! Each device file `devices/<name>.eds` has a sidecar `devices/<name>.toml` beside it. The EDS
 //! says what objects exist and how they are typed; the sidecar says what the numbers *mean*:
 //! physical dimensions and units, which objects rescale them and by which formula, the modes and
@@ -95,6 +99,7 @@
 //! source = "Table 6.19"
 //! text = "Table is column-shifted; rebuilt from 6.3.6.1"
 //! ```
+#![deny(missing_docs)]
 
 use std::collections::BTreeMap;
 use std::fmt;
