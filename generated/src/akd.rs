@@ -13780,7 +13780,7 @@ Denotation=MOTOR.BRAKEIMM
         restore_default_parameters_restore_all_default_parameters: u32,
         cob_id_emcy: u32,
         consumer_heartbeat_time_number_of_entries: u8,
-        consumer_heartbeat_time_consumer_heartbeat_time_1: u32,
+        consumer_heartbeat_time_1: u32,
         producer_heartbeat_time: u16,
         identity_object_number_of_entries: u8,
         identity_object_vendor_id: u32,
@@ -13899,17 +13899,17 @@ Denotation=MOTOR.BRAKEIMM
         transmit_pdo_4_mapping_parameter_mapped_object_7: u32,
         transmit_pdo_4_mapping_parameter_mapped_object_8: u32,
         transmit_pdo_1_mask_number_of_entries: u8,
-        transmit_pdo_1_mask_mask_bytes_0_to_3: u32,
-        transmit_pdo_1_mask_mask_bytes_4_to_7: u32,
+        transmit_pdo_1_mask_bytes_0_to_3: u32,
+        transmit_pdo_1_mask_bytes_4_to_7: u32,
         transmit_pdo_2_mask_number_of_entries: u8,
-        transmit_pdo_2_mask_mask_bytes_0_to_3: u32,
-        transmit_pdo_2_mask_mask_bytes_4_to_7: u32,
+        transmit_pdo_2_mask_bytes_0_to_3: u32,
+        transmit_pdo_2_mask_bytes_4_to_7: u32,
         transmit_pdo_3_mask_number_of_entries: u8,
-        transmit_pdo_3_mask_mask_bytes_0_to_3: u32,
-        transmit_pdo_3_mask_mask_bytes_4_to_7: u32,
+        transmit_pdo_3_mask_bytes_0_to_3: u32,
+        transmit_pdo_3_mask_bytes_4_to_7: u32,
         transmit_pdo_4_mask_number_of_entries: u8,
-        transmit_pdo_4_mask_mask_bytes_0_to_3: u32,
-        transmit_pdo_4_mask_mask_bytes_4_to_7: u32,
+        transmit_pdo_4_mask_bytes_0_to_3: u32,
+        transmit_pdo_4_mask_bytes_4_to_7: u32,
         firmware_version_number_of_entries: u8,
         firmware_version_major_version: u16,
         firmware_version_minor_version: u16,
@@ -13919,8 +13919,8 @@ Denotation=MOTOR.BRAKEIMM
         ascii_channel_command: ::od_runtime::__private_v1::Bytes<32>,
         ascii_channel_response: ::od_runtime::__private_v1::Bytes<32>,
         pv_scaling_factor_number_of_entries: u8,
-        pv_scaling_factor_pv_scaling_factor_numerator: i32,
-        pv_scaling_factor_pv_scaling_factor_denominator: i32,
+        pv_scaling_factor_numerator: i32,
+        pv_scaling_factor_denominator: i32,
         secondary_feedback_position: i32,
         target_current: i32,
         current_actual_value: i32,
@@ -13934,31 +13934,31 @@ Denotation=MOTOR.BRAKEIMM
         reset_of_changed_input_information: u16,
         dummy_entry_4_bytes: u32,
         velocity_loop_bi_quad_filter_types_number_of_entries: u8,
-        velocity_loop_bi_quad_filter_types_bi_quad_filter_1_calculation_method: u8,
-        velocity_loop_bi_quad_filter_types_bi_quad_filter_2_calculation_method: u8,
-        velocity_loop_bi_quad_filter_types_bi_quad_filter_3_calculation_method: u8,
-        velocity_loop_bi_quad_filter_types_bi_quad_filter_4_calculation_method: u8,
+        velocity_loop_bi_quad_filter_types_1_calculation_method: u8,
+        velocity_loop_bi_quad_filter_types_2_calculation_method: u8,
+        velocity_loop_bi_quad_filter_types_3_calculation_method: u8,
+        velocity_loop_bi_quad_filter_types_4_calculation_method: u8,
         velocity_loop_bi_quad_filters_number_of_entries: u8,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_natural_frequency: u32,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_natural_frequency: u32,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_natural_frequency: u32,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_natural_frequency: u32,
+        vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency: u32,
+        vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency: u32,
+        vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency: u32,
+        vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency: u32,
         velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q: u32,
         velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q: u32,
         velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q: u32,
         velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q: u32,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_natural_frequency: u32,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_natural_frequency: u32,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_natural_frequency: u32,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_natural_frequency: u32,
+        vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency: u32,
+        vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency: u32,
+        vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency: u32,
+        vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency: u32,
         velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q: u32,
         velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q: u32,
         velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q: u32,
         velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q: u32,
         velocity_loop_filter_and_feedforward_number_of_entries: u8,
-        velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz: i32,
+        velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz: i32,
         velocity_loop_filter_and_feedforward_velocity_feedforward_gain: u32,
-        velocity_loop_filter_and_feedforward_acceleration_feedforward_gain: u32,
+        velocity_loop_filter_and_feedforward_acceleration_gain: u32,
         velocity_loop_filter_and_feedforward_velocity_error: u32,
         regen_resistor_type: i8,
         regen_resistor_fault_level: u8,
@@ -13980,7 +13980,7 @@ Denotation=MOTOR.BRAKEIMM
         controlled_stop_parameters_number_of_entries: u8,
         controlled_stop_parameters_controlled_stop_deceleration: u32,
         controlled_stop_parameters_controlled_stop_velocity_threshold: u32,
-        controlled_stop_parameters_controlled_stop_velocity_threshold_time: u32,
+        controlled_stop_parameters_velocity_threshold_time: u32,
         controlled_stop_state: u8,
         drive_disable_cause: u16,
         dynamic_braking_maximum_current: u16,
@@ -14010,9 +14010,9 @@ Denotation=MOTOR.BRAKEIMM
         analog_input_and_output_parameters_number_of_entries: u8,
         analog_input_and_output_parameters_analog_output_mode: i8,
         analog_input_and_output_parameters_analog_output_value: i16,
-        analog_input_and_output_parameters_analog_output_value_user_units: i16,
+        analog_input_and_output_parameters_value_user_units: i16,
         analog_input_and_output_parameters_analog_input_value: i16,
-        analog_input_and_output_parameters_analog_output_velocity_scale_factor: u32,
+        analog_input_and_output_parameters_velocity_scale_factor: u32,
         analog_output_position_scale_factor: u32,
         analog_input_position_scale_factor: u32,
         digital_input_parameters_number_of_entries: u8,
@@ -14031,14 +14031,14 @@ Denotation=MOTOR.BRAKEIMM
         digital_input_parameters_digital_input_6_parameter_high_32_bits: u32,
         digital_input_parameters_digital_input_7_parameter_high_32_bits: u32,
         digital_output_parameters_number_of_entries: u8,
-        digital_output_parameters_digital_output_1_parameter_low_32_bits: u32,
-        digital_output_parameters_digital_output_2_parameter_low_32_bits: u32,
-        digital_output_parameters_digital_output_1_parameter_high_32_bits: u32,
-        digital_output_parameters_digital_output_2_parameter_high_32_bits: u32,
+        digital_output_parameters_1_parameter_low_32_bits: u32,
+        digital_output_parameters_2_parameter_low_32_bits: u32,
+        digital_output_parameters_1_parameter_high_32_bits: u32,
+        digital_output_parameters_2_parameter_high_32_bits: u32,
         position_loop_integral_gain: u32,
         position_loop_integrator_saturation_number_of_entries: u8,
         position_loop_integrator_saturation_integrator_input_saturation: u32,
-        position_loop_integrator_saturation_integrator_output_saturation: u32,
+        position_loop_integrator_saturation_output: u32,
         homing_maximum_following_error: i32,
         position_error_warning_level: i32,
         homing_additional_move_distance: i32,
@@ -14049,24 +14049,24 @@ Denotation=MOTOR.BRAKEIMM
         wake_and_shake_parameters_number_of_entries: u8,
         wake_and_shake_parameters_wake_and_shake_maximum_current: i16,
         wake_and_shake_parameters_wake_and_shake_maximum_movement: i32,
-        wake_and_shake_parameters_wake_and_shake_delay_between_loops_in_mode_0: u16,
+        wake_and_shake_parameters_delay_between_loops_in_mode_0: u16,
         wake_and_shake_parameters_wake_and_shake_maximum_velocity: i32,
         wake_and_shake_parameters_wake_and_shake_state: u8,
         wake_and_shake_parameters_wake_and_shake_arm: u8,
         fieldbus_synchronization_parameters_number_of_entries: u8,
-        fieldbus_synchronization_parameters_expected_synchronization_distance: u32,
-        fieldbus_synchronization_parameters_actual_synchronization_distance: u32,
+        fieldbus_synchronization_parameters_expected_distance: u32,
+        fieldbus_synchronization_parameters_actual_distance: u32,
         fieldbus_synchronization_parameters_synchronization_window: u32,
         fieldbus_synchronization_parameters_compensation_time: u32,
         programmable_limit_switch_positions_number_of_entries: u8,
-        programmable_limit_switch_positions_limit_switch_1_compare_position: i32,
-        programmable_limit_switch_positions_limit_switch_2_compare_position: i32,
-        programmable_limit_switch_positions_limit_switch_3_compare_position: i32,
-        programmable_limit_switch_positions_limit_switch_4_compare_position: i32,
-        programmable_limit_switch_positions_limit_switch_5_compare_position: i32,
-        programmable_limit_switch_positions_limit_switch_6_compare_position: i32,
-        programmable_limit_switch_positions_limit_switch_7_compare_position: i32,
-        programmable_limit_switch_positions_limit_switch_8_compare_position: i32,
+        programmable_limit_switch_positions_1_compare_position: i32,
+        programmable_limit_switch_positions_2_compare_position: i32,
+        programmable_limit_switch_positions_3_compare_position: i32,
+        programmable_limit_switch_positions_4_compare_position: i32,
+        programmable_limit_switch_positions_5_compare_position: i32,
+        programmable_limit_switch_positions_6_compare_position: i32,
+        programmable_limit_switch_positions_7_compare_position: i32,
+        programmable_limit_switch_positions_8_compare_position: i32,
         programmable_limit_switch_widths_number_of_entries: u8,
         programmable_limit_switch_widths_limit_switch_1_width: i32,
         programmable_limit_switch_widths_limit_switch_2_width: i32,
@@ -14325,7 +14325,7 @@ Denotation=MOTOR.BRAKEIMM
         interpolation_data_record_interpolation_time: u32,
         interpolation_data_record_interpolation_target_velocity: i32,
         interpolation_time_period_number_of_entries: u8,
-        interpolation_time_period_interpolation_time_period_value: u8,
+        interpolation_time_period_value: u8,
         interpolation_time_period_interpolation_time_index: i16,
         interpolation_data_configuration_number_of_entries: u8,
         interpolation_data_configuration_maximum_buffer_size: u32,
@@ -14382,7 +14382,7 @@ Denotation=MOTOR.BRAKEIMM
                 restore_default_parameters_restore_all_default_parameters: 0x1,
                 cob_id_emcy: (0x80 + node_id as i128) as u32,
                 consumer_heartbeat_time_number_of_entries: 1,
-                consumer_heartbeat_time_consumer_heartbeat_time_1: 0x0,
+                consumer_heartbeat_time_1: 0x0,
                 producer_heartbeat_time: 0,
                 identity_object_number_of_entries: 4,
                 identity_object_vendor_id: 0x6A,
@@ -14509,17 +14509,17 @@ Denotation=MOTOR.BRAKEIMM
                 transmit_pdo_4_mapping_parameter_mapped_object_7: 0x0,
                 transmit_pdo_4_mapping_parameter_mapped_object_8: 0x0,
                 transmit_pdo_1_mask_number_of_entries: 2,
-                transmit_pdo_1_mask_mask_bytes_0_to_3: 0xFFFFFFFF,
-                transmit_pdo_1_mask_mask_bytes_4_to_7: 0xFFFFFFFF,
+                transmit_pdo_1_mask_bytes_0_to_3: 0xFFFFFFFF,
+                transmit_pdo_1_mask_bytes_4_to_7: 0xFFFFFFFF,
                 transmit_pdo_2_mask_number_of_entries: 2,
-                transmit_pdo_2_mask_mask_bytes_0_to_3: 0xFFFFFFFF,
-                transmit_pdo_2_mask_mask_bytes_4_to_7: 0xFFFFFFFF,
+                transmit_pdo_2_mask_bytes_0_to_3: 0xFFFFFFFF,
+                transmit_pdo_2_mask_bytes_4_to_7: 0xFFFFFFFF,
                 transmit_pdo_3_mask_number_of_entries: 2,
-                transmit_pdo_3_mask_mask_bytes_0_to_3: 0xFFFFFFFF,
-                transmit_pdo_3_mask_mask_bytes_4_to_7: 0xFFFFFFFF,
+                transmit_pdo_3_mask_bytes_0_to_3: 0xFFFFFFFF,
+                transmit_pdo_3_mask_bytes_4_to_7: 0xFFFFFFFF,
                 transmit_pdo_4_mask_number_of_entries: 2,
-                transmit_pdo_4_mask_mask_bytes_0_to_3: 0xFFFFFFFF,
-                transmit_pdo_4_mask_mask_bytes_4_to_7: 0xFFFFFFFF,
+                transmit_pdo_4_mask_bytes_0_to_3: 0xFFFFFFFF,
+                transmit_pdo_4_mask_bytes_4_to_7: 0xFFFFFFFF,
                 firmware_version_number_of_entries: 4,
                 firmware_version_major_version: 0,
                 firmware_version_minor_version: 0,
@@ -14533,8 +14533,8 @@ Denotation=MOTOR.BRAKEIMM
                     b"",
                 ),
                 pv_scaling_factor_number_of_entries: 2,
-                pv_scaling_factor_pv_scaling_factor_numerator: 1,
-                pv_scaling_factor_pv_scaling_factor_denominator: 1,
+                pv_scaling_factor_numerator: 1,
+                pv_scaling_factor_denominator: 1,
                 secondary_feedback_position: 0,
                 target_current: 0,
                 current_actual_value: 0,
@@ -14548,31 +14548,31 @@ Denotation=MOTOR.BRAKEIMM
                 reset_of_changed_input_information: 0x0,
                 dummy_entry_4_bytes: 0,
                 velocity_loop_bi_quad_filter_types_number_of_entries: 4,
-                velocity_loop_bi_quad_filter_types_bi_quad_filter_1_calculation_method: 0,
-                velocity_loop_bi_quad_filter_types_bi_quad_filter_2_calculation_method: 0,
-                velocity_loop_bi_quad_filter_types_bi_quad_filter_3_calculation_method: 0,
-                velocity_loop_bi_quad_filter_types_bi_quad_filter_4_calculation_method: 0,
+                velocity_loop_bi_quad_filter_types_1_calculation_method: 0,
+                velocity_loop_bi_quad_filter_types_2_calculation_method: 0,
+                velocity_loop_bi_quad_filter_types_3_calculation_method: 0,
+                velocity_loop_bi_quad_filter_types_4_calculation_method: 0,
                 velocity_loop_bi_quad_filters_number_of_entries: 16,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_natural_frequency: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_natural_frequency: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_natural_frequency: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_natural_frequency: 0,
+                vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency: 0,
+                vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency: 0,
+                vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency: 0,
+                vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency: 0,
                 velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q: 0,
                 velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q: 0,
                 velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q: 0,
                 velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_natural_frequency: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_natural_frequency: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_natural_frequency: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_natural_frequency: 0,
+                vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency: 0,
+                vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency: 0,
+                vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency: 0,
+                vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency: 0,
                 velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q: 0,
                 velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q: 0,
                 velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q: 0,
                 velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q: 0,
                 velocity_loop_filter_and_feedforward_number_of_entries: 4,
-                velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz: 0,
+                velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz: 0,
                 velocity_loop_filter_and_feedforward_velocity_feedforward_gain: 0,
-                velocity_loop_filter_and_feedforward_acceleration_feedforward_gain: 0,
+                velocity_loop_filter_and_feedforward_acceleration_gain: 0,
                 velocity_loop_filter_and_feedforward_velocity_error: 0,
                 regen_resistor_type: 0,
                 regen_resistor_fault_level: 0,
@@ -14594,7 +14594,7 @@ Denotation=MOTOR.BRAKEIMM
                 controlled_stop_parameters_number_of_entries: 3,
                 controlled_stop_parameters_controlled_stop_deceleration: 0,
                 controlled_stop_parameters_controlled_stop_velocity_threshold: 0,
-                controlled_stop_parameters_controlled_stop_velocity_threshold_time: 0,
+                controlled_stop_parameters_velocity_threshold_time: 0,
                 controlled_stop_state: 0,
                 drive_disable_cause: 0,
                 dynamic_braking_maximum_current: 0,
@@ -14624,9 +14624,9 @@ Denotation=MOTOR.BRAKEIMM
                 analog_input_and_output_parameters_number_of_entries: 5,
                 analog_input_and_output_parameters_analog_output_mode: 0,
                 analog_input_and_output_parameters_analog_output_value: 0,
-                analog_input_and_output_parameters_analog_output_value_user_units: 0,
+                analog_input_and_output_parameters_value_user_units: 0,
                 analog_input_and_output_parameters_analog_input_value: 0,
-                analog_input_and_output_parameters_analog_output_velocity_scale_factor: 0,
+                analog_input_and_output_parameters_velocity_scale_factor: 0,
                 analog_output_position_scale_factor: 0,
                 analog_input_position_scale_factor: 0,
                 digital_input_parameters_number_of_entries: 14,
@@ -14645,14 +14645,14 @@ Denotation=MOTOR.BRAKEIMM
                 digital_input_parameters_digital_input_6_parameter_high_32_bits: 0,
                 digital_input_parameters_digital_input_7_parameter_high_32_bits: 0,
                 digital_output_parameters_number_of_entries: 4,
-                digital_output_parameters_digital_output_1_parameter_low_32_bits: 0,
-                digital_output_parameters_digital_output_2_parameter_low_32_bits: 0,
-                digital_output_parameters_digital_output_1_parameter_high_32_bits: 0,
-                digital_output_parameters_digital_output_2_parameter_high_32_bits: 0,
+                digital_output_parameters_1_parameter_low_32_bits: 0,
+                digital_output_parameters_2_parameter_low_32_bits: 0,
+                digital_output_parameters_1_parameter_high_32_bits: 0,
+                digital_output_parameters_2_parameter_high_32_bits: 0,
                 position_loop_integral_gain: 0,
                 position_loop_integrator_saturation_number_of_entries: 2,
                 position_loop_integrator_saturation_integrator_input_saturation: 0,
-                position_loop_integrator_saturation_integrator_output_saturation: 0,
+                position_loop_integrator_saturation_output: 0,
                 homing_maximum_following_error: 0,
                 position_error_warning_level: 0,
                 homing_additional_move_distance: 0,
@@ -14663,24 +14663,24 @@ Denotation=MOTOR.BRAKEIMM
                 wake_and_shake_parameters_number_of_entries: 6,
                 wake_and_shake_parameters_wake_and_shake_maximum_current: 0,
                 wake_and_shake_parameters_wake_and_shake_maximum_movement: 0,
-                wake_and_shake_parameters_wake_and_shake_delay_between_loops_in_mode_0: 0,
+                wake_and_shake_parameters_delay_between_loops_in_mode_0: 0,
                 wake_and_shake_parameters_wake_and_shake_maximum_velocity: 0,
                 wake_and_shake_parameters_wake_and_shake_state: 0,
                 wake_and_shake_parameters_wake_and_shake_arm: 0,
                 fieldbus_synchronization_parameters_number_of_entries: 4,
-                fieldbus_synchronization_parameters_expected_synchronization_distance: 320000,
-                fieldbus_synchronization_parameters_actual_synchronization_distance: 320000,
+                fieldbus_synchronization_parameters_expected_distance: 320000,
+                fieldbus_synchronization_parameters_actual_distance: 320000,
                 fieldbus_synchronization_parameters_synchronization_window: 70000,
                 fieldbus_synchronization_parameters_compensation_time: 150,
                 programmable_limit_switch_positions_number_of_entries: 8,
-                programmable_limit_switch_positions_limit_switch_1_compare_position: 0,
-                programmable_limit_switch_positions_limit_switch_2_compare_position: 0,
-                programmable_limit_switch_positions_limit_switch_3_compare_position: 0,
-                programmable_limit_switch_positions_limit_switch_4_compare_position: 0,
-                programmable_limit_switch_positions_limit_switch_5_compare_position: 0,
-                programmable_limit_switch_positions_limit_switch_6_compare_position: 0,
-                programmable_limit_switch_positions_limit_switch_7_compare_position: 0,
-                programmable_limit_switch_positions_limit_switch_8_compare_position: 0,
+                programmable_limit_switch_positions_1_compare_position: 0,
+                programmable_limit_switch_positions_2_compare_position: 0,
+                programmable_limit_switch_positions_3_compare_position: 0,
+                programmable_limit_switch_positions_4_compare_position: 0,
+                programmable_limit_switch_positions_5_compare_position: 0,
+                programmable_limit_switch_positions_6_compare_position: 0,
+                programmable_limit_switch_positions_7_compare_position: 0,
+                programmable_limit_switch_positions_8_compare_position: 0,
                 programmable_limit_switch_widths_number_of_entries: 8,
                 programmable_limit_switch_widths_limit_switch_1_width: 0,
                 programmable_limit_switch_widths_limit_switch_2_width: 0,
@@ -14939,7 +14939,7 @@ Denotation=MOTOR.BRAKEIMM
                 interpolation_data_record_interpolation_time: 0,
                 interpolation_data_record_interpolation_target_velocity: 0,
                 interpolation_time_period_number_of_entries: 2,
-                interpolation_time_period_interpolation_time_period_value: 1,
+                interpolation_time_period_value: 1,
                 interpolation_time_period_interpolation_time_index: -3,
                 interpolation_data_configuration_number_of_entries: 6,
                 interpolation_data_configuration_maximum_buffer_size: 10,
@@ -15089,7 +15089,7 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     27 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.consumer_heartbeat_time_consumer_heartbeat_time_1,
+                            &self.consumer_heartbeat_time_1,
                         )
                     }
                     28 => {
@@ -15700,12 +15700,12 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     146 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_1_mask_mask_bytes_0_to_3,
+                            &self.transmit_pdo_1_mask_bytes_0_to_3,
                         )
                     }
                     147 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_1_mask_mask_bytes_4_to_7,
+                            &self.transmit_pdo_1_mask_bytes_4_to_7,
                         )
                     }
                     148 => {
@@ -15715,12 +15715,12 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     149 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_2_mask_mask_bytes_0_to_3,
+                            &self.transmit_pdo_2_mask_bytes_0_to_3,
                         )
                     }
                     150 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_2_mask_mask_bytes_4_to_7,
+                            &self.transmit_pdo_2_mask_bytes_4_to_7,
                         )
                     }
                     151 => {
@@ -15730,12 +15730,12 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     152 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_3_mask_mask_bytes_0_to_3,
+                            &self.transmit_pdo_3_mask_bytes_0_to_3,
                         )
                     }
                     153 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_3_mask_mask_bytes_4_to_7,
+                            &self.transmit_pdo_3_mask_bytes_4_to_7,
                         )
                     }
                     154 => {
@@ -15745,12 +15745,12 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     155 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_4_mask_mask_bytes_0_to_3,
+                            &self.transmit_pdo_4_mask_bytes_0_to_3,
                         )
                     }
                     156 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_4_mask_mask_bytes_4_to_7,
+                            &self.transmit_pdo_4_mask_bytes_4_to_7,
                         )
                     }
                     157 => {
@@ -15800,12 +15800,12 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     166 => {
                         ::od_runtime::__private_v1::Slot::I32(
-                            &self.pv_scaling_factor_pv_scaling_factor_numerator,
+                            &self.pv_scaling_factor_numerator,
                         )
                     }
                     167 => {
                         ::od_runtime::__private_v1::Slot::I32(
-                            &self.pv_scaling_factor_pv_scaling_factor_denominator,
+                            &self.pv_scaling_factor_denominator,
                         )
                     }
                     168 => {
@@ -15867,26 +15867,22 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     181 => {
                         ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .velocity_loop_bi_quad_filter_types_bi_quad_filter_1_calculation_method,
+                            &self.velocity_loop_bi_quad_filter_types_1_calculation_method,
                         )
                     }
                     182 => {
                         ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .velocity_loop_bi_quad_filter_types_bi_quad_filter_2_calculation_method,
+                            &self.velocity_loop_bi_quad_filter_types_2_calculation_method,
                         )
                     }
                     183 => {
                         ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .velocity_loop_bi_quad_filter_types_bi_quad_filter_3_calculation_method,
+                            &self.velocity_loop_bi_quad_filter_types_3_calculation_method,
                         )
                     }
                     184 => {
                         ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .velocity_loop_bi_quad_filter_types_bi_quad_filter_4_calculation_method,
+                            &self.velocity_loop_bi_quad_filter_types_4_calculation_method,
                         )
                     }
                     185 => {
@@ -15897,25 +15893,25 @@ Denotation=MOTOR.BRAKEIMM
                     186 => {
                         ::od_runtime::__private_v1::Slot::U32(
                             &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency,
                         )
                     }
                     187 => {
                         ::od_runtime::__private_v1::Slot::U32(
                             &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency,
                         )
                     }
                     188 => {
                         ::od_runtime::__private_v1::Slot::U32(
                             &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency,
                         )
                     }
                     189 => {
                         ::od_runtime::__private_v1::Slot::U32(
                             &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency,
                         )
                     }
                     190 => {
@@ -15945,25 +15941,25 @@ Denotation=MOTOR.BRAKEIMM
                     194 => {
                         ::od_runtime::__private_v1::Slot::U32(
                             &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency,
                         )
                     }
                     195 => {
                         ::od_runtime::__private_v1::Slot::U32(
                             &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency,
                         )
                     }
                     196 => {
                         ::od_runtime::__private_v1::Slot::U32(
                             &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency,
                         )
                     }
                     197 => {
                         ::od_runtime::__private_v1::Slot::U32(
                             &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency,
                         )
                     }
                     198 => {
@@ -15998,7 +15994,7 @@ Denotation=MOTOR.BRAKEIMM
                     203 => {
                         ::od_runtime::__private_v1::Slot::I32(
                             &self
-                                .velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz,
+                                .velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz,
                         )
                     }
                     204 => {
@@ -16009,8 +16005,7 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     205 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .velocity_loop_filter_and_feedforward_acceleration_feedforward_gain,
+                            &self.velocity_loop_filter_and_feedforward_acceleration_gain,
                         )
                     }
                     206 => {
@@ -16115,8 +16110,7 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     227 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .controlled_stop_parameters_controlled_stop_velocity_threshold_time,
+                            &self.controlled_stop_parameters_velocity_threshold_time,
                         )
                     }
                     228 => {
@@ -16265,8 +16259,7 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     257 => {
                         ::od_runtime::__private_v1::Slot::I16(
-                            &self
-                                .analog_input_and_output_parameters_analog_output_value_user_units,
+                            &self.analog_input_and_output_parameters_value_user_units,
                         )
                     }
                     258 => {
@@ -16277,7 +16270,7 @@ Denotation=MOTOR.BRAKEIMM
                     259 => {
                         ::od_runtime::__private_v1::Slot::U32(
                             &self
-                                .analog_input_and_output_parameters_analog_output_velocity_scale_factor,
+                                .analog_input_and_output_parameters_velocity_scale_factor,
                         )
                     }
                     260 => {
@@ -16386,26 +16379,22 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     278 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_output_parameters_digital_output_1_parameter_low_32_bits,
+                            &self.digital_output_parameters_1_parameter_low_32_bits,
                         )
                     }
                     279 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_output_parameters_digital_output_2_parameter_low_32_bits,
+                            &self.digital_output_parameters_2_parameter_low_32_bits,
                         )
                     }
                     280 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_output_parameters_digital_output_1_parameter_high_32_bits,
+                            &self.digital_output_parameters_1_parameter_high_32_bits,
                         )
                     }
                     281 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_output_parameters_digital_output_2_parameter_high_32_bits,
+                            &self.digital_output_parameters_2_parameter_high_32_bits,
                         )
                     }
                     282 => {
@@ -16426,8 +16415,7 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     285 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .position_loop_integrator_saturation_integrator_output_saturation,
+                            &self.position_loop_integrator_saturation_output,
                         )
                     }
                     286 => {
@@ -16482,8 +16470,7 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     296 => {
                         ::od_runtime::__private_v1::Slot::U16(
-                            &self
-                                .wake_and_shake_parameters_wake_and_shake_delay_between_loops_in_mode_0,
+                            &self.wake_and_shake_parameters_delay_between_loops_in_mode_0,
                         )
                     }
                     297 => {
@@ -16509,14 +16496,12 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     301 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .fieldbus_synchronization_parameters_expected_synchronization_distance,
+                            &self.fieldbus_synchronization_parameters_expected_distance,
                         )
                     }
                     302 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .fieldbus_synchronization_parameters_actual_synchronization_distance,
+                            &self.fieldbus_synchronization_parameters_actual_distance,
                         )
                     }
                     303 => {
@@ -16537,50 +16522,42 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     306 => {
                         ::od_runtime::__private_v1::Slot::I32(
-                            &self
-                                .programmable_limit_switch_positions_limit_switch_1_compare_position,
+                            &self.programmable_limit_switch_positions_1_compare_position,
                         )
                     }
                     307 => {
                         ::od_runtime::__private_v1::Slot::I32(
-                            &self
-                                .programmable_limit_switch_positions_limit_switch_2_compare_position,
+                            &self.programmable_limit_switch_positions_2_compare_position,
                         )
                     }
                     308 => {
                         ::od_runtime::__private_v1::Slot::I32(
-                            &self
-                                .programmable_limit_switch_positions_limit_switch_3_compare_position,
+                            &self.programmable_limit_switch_positions_3_compare_position,
                         )
                     }
                     309 => {
                         ::od_runtime::__private_v1::Slot::I32(
-                            &self
-                                .programmable_limit_switch_positions_limit_switch_4_compare_position,
+                            &self.programmable_limit_switch_positions_4_compare_position,
                         )
                     }
                     310 => {
                         ::od_runtime::__private_v1::Slot::I32(
-                            &self
-                                .programmable_limit_switch_positions_limit_switch_5_compare_position,
+                            &self.programmable_limit_switch_positions_5_compare_position,
                         )
                     }
                     311 => {
                         ::od_runtime::__private_v1::Slot::I32(
-                            &self
-                                .programmable_limit_switch_positions_limit_switch_6_compare_position,
+                            &self.programmable_limit_switch_positions_6_compare_position,
                         )
                     }
                     312 => {
                         ::od_runtime::__private_v1::Slot::I32(
-                            &self
-                                .programmable_limit_switch_positions_limit_switch_7_compare_position,
+                            &self.programmable_limit_switch_positions_7_compare_position,
                         )
                     }
                     313 => {
                         ::od_runtime::__private_v1::Slot::I32(
-                            &self
-                                .programmable_limit_switch_positions_limit_switch_8_compare_position,
+                            &self.programmable_limit_switch_positions_8_compare_position,
                         )
                     }
                     314 => {
@@ -17614,8 +17591,7 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     572 => {
                         ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .interpolation_time_period_interpolation_time_period_value,
+                            &self.interpolation_time_period_value,
                         )
                     }
                     573 => {
@@ -17823,7 +17799,7 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     27 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.consumer_heartbeat_time_consumer_heartbeat_time_1,
+                            &mut self.consumer_heartbeat_time_1,
                         )
                     }
                     28 => {
@@ -18450,12 +18426,12 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     146 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_1_mask_mask_bytes_0_to_3,
+                            &mut self.transmit_pdo_1_mask_bytes_0_to_3,
                         )
                     }
                     147 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_1_mask_mask_bytes_4_to_7,
+                            &mut self.transmit_pdo_1_mask_bytes_4_to_7,
                         )
                     }
                     148 => {
@@ -18465,12 +18441,12 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     149 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_2_mask_mask_bytes_0_to_3,
+                            &mut self.transmit_pdo_2_mask_bytes_0_to_3,
                         )
                     }
                     150 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_2_mask_mask_bytes_4_to_7,
+                            &mut self.transmit_pdo_2_mask_bytes_4_to_7,
                         )
                     }
                     151 => {
@@ -18480,12 +18456,12 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     152 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_3_mask_mask_bytes_0_to_3,
+                            &mut self.transmit_pdo_3_mask_bytes_0_to_3,
                         )
                     }
                     153 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_3_mask_mask_bytes_4_to_7,
+                            &mut self.transmit_pdo_3_mask_bytes_4_to_7,
                         )
                     }
                     154 => {
@@ -18495,12 +18471,12 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     155 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_4_mask_mask_bytes_0_to_3,
+                            &mut self.transmit_pdo_4_mask_bytes_0_to_3,
                         )
                     }
                     156 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_4_mask_mask_bytes_4_to_7,
+                            &mut self.transmit_pdo_4_mask_bytes_4_to_7,
                         )
                     }
                     157 => {
@@ -18542,12 +18518,12 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     166 => {
                         ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.pv_scaling_factor_pv_scaling_factor_numerator,
+                            &mut self.pv_scaling_factor_numerator,
                         )
                     }
                     167 => {
                         ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.pv_scaling_factor_pv_scaling_factor_denominator,
+                            &mut self.pv_scaling_factor_denominator,
                         )
                     }
                     168 => {
@@ -18619,25 +18595,25 @@ Denotation=MOTOR.BRAKEIMM
                     181 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .velocity_loop_bi_quad_filter_types_bi_quad_filter_1_calculation_method,
+                                .velocity_loop_bi_quad_filter_types_1_calculation_method,
                         )
                     }
                     182 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .velocity_loop_bi_quad_filter_types_bi_quad_filter_2_calculation_method,
+                                .velocity_loop_bi_quad_filter_types_2_calculation_method,
                         )
                     }
                     183 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .velocity_loop_bi_quad_filter_types_bi_quad_filter_3_calculation_method,
+                                .velocity_loop_bi_quad_filter_types_3_calculation_method,
                         )
                     }
                     184 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .velocity_loop_bi_quad_filter_types_bi_quad_filter_4_calculation_method,
+                                .velocity_loop_bi_quad_filter_types_4_calculation_method,
                         )
                     }
                     185 => {
@@ -18648,25 +18624,25 @@ Denotation=MOTOR.BRAKEIMM
                     186 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency,
                         )
                     }
                     187 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency,
                         )
                     }
                     188 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency,
                         )
                     }
                     189 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency,
                         )
                     }
                     190 => {
@@ -18696,25 +18672,25 @@ Denotation=MOTOR.BRAKEIMM
                     194 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency,
                         )
                     }
                     195 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency,
                         )
                     }
                     196 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency,
                         )
                     }
                     197 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_natural_frequency,
+                                .vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency,
                         )
                     }
                     198 => {
@@ -18750,7 +18726,7 @@ Denotation=MOTOR.BRAKEIMM
                     203 => {
                         ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
-                                .velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz,
+                                .velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz,
                         )
                     }
                     204 => {
@@ -18762,7 +18738,7 @@ Denotation=MOTOR.BRAKEIMM
                     205 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
-                                .velocity_loop_filter_and_feedforward_acceleration_feedforward_gain,
+                                .velocity_loop_filter_and_feedforward_acceleration_gain,
                         )
                     }
                     206 => {
@@ -18875,8 +18851,7 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     227 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .controlled_stop_parameters_controlled_stop_velocity_threshold_time,
+                            &mut self.controlled_stop_parameters_velocity_threshold_time,
                         )
                     }
                     228 => {
@@ -19038,8 +19013,7 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     257 => {
                         ::od_runtime::__private_v1::SlotMut::I16(
-                            &mut self
-                                .analog_input_and_output_parameters_analog_output_value_user_units,
+                            &mut self.analog_input_and_output_parameters_value_user_units,
                         )
                     }
                     258 => {
@@ -19051,7 +19025,7 @@ Denotation=MOTOR.BRAKEIMM
                     259 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
-                                .analog_input_and_output_parameters_analog_output_velocity_scale_factor,
+                                .analog_input_and_output_parameters_velocity_scale_factor,
                         )
                     }
                     260 => {
@@ -19160,26 +19134,22 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     278 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_output_parameters_digital_output_1_parameter_low_32_bits,
+                            &mut self.digital_output_parameters_1_parameter_low_32_bits,
                         )
                     }
                     279 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_output_parameters_digital_output_2_parameter_low_32_bits,
+                            &mut self.digital_output_parameters_2_parameter_low_32_bits,
                         )
                     }
                     280 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_output_parameters_digital_output_1_parameter_high_32_bits,
+                            &mut self.digital_output_parameters_1_parameter_high_32_bits,
                         )
                     }
                     281 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_output_parameters_digital_output_2_parameter_high_32_bits,
+                            &mut self.digital_output_parameters_2_parameter_high_32_bits,
                         )
                     }
                     282 => {
@@ -19201,8 +19171,7 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     285 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .position_loop_integrator_saturation_integrator_output_saturation,
+                            &mut self.position_loop_integrator_saturation_output,
                         )
                     }
                     286 => {
@@ -19260,7 +19229,7 @@ Denotation=MOTOR.BRAKEIMM
                     296 => {
                         ::od_runtime::__private_v1::SlotMut::U16(
                             &mut self
-                                .wake_and_shake_parameters_wake_and_shake_delay_between_loops_in_mode_0,
+                                .wake_and_shake_parameters_delay_between_loops_in_mode_0,
                         )
                     }
                     297 => {
@@ -19288,13 +19257,12 @@ Denotation=MOTOR.BRAKEIMM
                     301 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self
-                                .fieldbus_synchronization_parameters_expected_synchronization_distance,
+                                .fieldbus_synchronization_parameters_expected_distance,
                         )
                     }
                     302 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .fieldbus_synchronization_parameters_actual_synchronization_distance,
+                            &mut self.fieldbus_synchronization_parameters_actual_distance,
                         )
                     }
                     303 => {
@@ -19318,49 +19286,49 @@ Denotation=MOTOR.BRAKEIMM
                     306 => {
                         ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
-                                .programmable_limit_switch_positions_limit_switch_1_compare_position,
+                                .programmable_limit_switch_positions_1_compare_position,
                         )
                     }
                     307 => {
                         ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
-                                .programmable_limit_switch_positions_limit_switch_2_compare_position,
+                                .programmable_limit_switch_positions_2_compare_position,
                         )
                     }
                     308 => {
                         ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
-                                .programmable_limit_switch_positions_limit_switch_3_compare_position,
+                                .programmable_limit_switch_positions_3_compare_position,
                         )
                     }
                     309 => {
                         ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
-                                .programmable_limit_switch_positions_limit_switch_4_compare_position,
+                                .programmable_limit_switch_positions_4_compare_position,
                         )
                     }
                     310 => {
                         ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
-                                .programmable_limit_switch_positions_limit_switch_5_compare_position,
+                                .programmable_limit_switch_positions_5_compare_position,
                         )
                     }
                     311 => {
                         ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
-                                .programmable_limit_switch_positions_limit_switch_6_compare_position,
+                                .programmable_limit_switch_positions_6_compare_position,
                         )
                     }
                     312 => {
                         ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
-                                .programmable_limit_switch_positions_limit_switch_7_compare_position,
+                                .programmable_limit_switch_positions_7_compare_position,
                         )
                     }
                     313 => {
                         ::od_runtime::__private_v1::SlotMut::I32(
                             &mut self
-                                .programmable_limit_switch_positions_limit_switch_8_compare_position,
+                                .programmable_limit_switch_positions_8_compare_position,
                         )
                     }
                     314 => {
@@ -20630,8 +20598,7 @@ Denotation=MOTOR.BRAKEIMM
                     }
                     572 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .interpolation_time_period_interpolation_time_period_value,
+                            &mut self.interpolation_time_period_value,
                         )
                     }
                     573 => {
@@ -21252,16 +21219,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn consumer_heartbeat_time_consumer_heartbeat_time_1(&self) -> u32 {
-            self.consumer_heartbeat_time_consumer_heartbeat_time_1
+        pub const fn consumer_heartbeat_time_1(&self) -> u32 {
+            self.consumer_heartbeat_time_1
         }
-        /// Sets `0x1016` sub 1 Consumer heartbeat time: Consumer heartbeat time 1 (see [`Self::consumer_heartbeat_time_consumer_heartbeat_time_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1016` sub 1 Consumer heartbeat time: Consumer heartbeat time 1 (see [`Self::consumer_heartbeat_time_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_consumer_heartbeat_time_consumer_heartbeat_time_1(
+        pub fn set_consumer_heartbeat_time_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.consumer_heartbeat_time_consumer_heartbeat_time_1 = v;
+            self.consumer_heartbeat_time_1 = v;
             Ok(())
         }
         /// Reads `0x1017` Producer heartbeat time.
@@ -23244,32 +23211,32 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
         #[inline]
-        pub const fn transmit_pdo_1_mask_mask_bytes_0_to_3(&self) -> u32 {
-            self.transmit_pdo_1_mask_mask_bytes_0_to_3
+        pub const fn transmit_pdo_1_mask_bytes_0_to_3(&self) -> u32 {
+            self.transmit_pdo_1_mask_bytes_0_to_3
         }
-        /// Sets `0x2014` sub 1 Transmit PDO 1 mask: Mask (bytes 0 to 3) (see [`Self::transmit_pdo_1_mask_mask_bytes_0_to_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2014` sub 1 Transmit PDO 1 mask: Mask (bytes 0 to 3) (see [`Self::transmit_pdo_1_mask_bytes_0_to_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_1_mask_mask_bytes_0_to_3(
+        pub fn set_transmit_pdo_1_mask_bytes_0_to_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_1_mask_mask_bytes_0_to_3 = v;
+            self.transmit_pdo_1_mask_bytes_0_to_3 = v;
             Ok(())
         }
         /// Reads `0x2014` sub 2 Transmit PDO 1 mask: Mask (bytes 4 to 7).
         ///
         /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
         #[inline]
-        pub const fn transmit_pdo_1_mask_mask_bytes_4_to_7(&self) -> u32 {
-            self.transmit_pdo_1_mask_mask_bytes_4_to_7
+        pub const fn transmit_pdo_1_mask_bytes_4_to_7(&self) -> u32 {
+            self.transmit_pdo_1_mask_bytes_4_to_7
         }
-        /// Sets `0x2014` sub 2 Transmit PDO 1 mask: Mask (bytes 4 to 7) (see [`Self::transmit_pdo_1_mask_mask_bytes_4_to_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2014` sub 2 Transmit PDO 1 mask: Mask (bytes 4 to 7) (see [`Self::transmit_pdo_1_mask_bytes_4_to_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_1_mask_mask_bytes_4_to_7(
+        pub fn set_transmit_pdo_1_mask_bytes_4_to_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_1_mask_mask_bytes_4_to_7 = v;
+            self.transmit_pdo_1_mask_bytes_4_to_7 = v;
             Ok(())
         }
         /// Reads `0x2015` sub 0 Transmit PDO 2 mask: Number of entries.
@@ -23292,32 +23259,32 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
         #[inline]
-        pub const fn transmit_pdo_2_mask_mask_bytes_0_to_3(&self) -> u32 {
-            self.transmit_pdo_2_mask_mask_bytes_0_to_3
+        pub const fn transmit_pdo_2_mask_bytes_0_to_3(&self) -> u32 {
+            self.transmit_pdo_2_mask_bytes_0_to_3
         }
-        /// Sets `0x2015` sub 1 Transmit PDO 2 mask: Mask (bytes 0 to 3) (see [`Self::transmit_pdo_2_mask_mask_bytes_0_to_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2015` sub 1 Transmit PDO 2 mask: Mask (bytes 0 to 3) (see [`Self::transmit_pdo_2_mask_bytes_0_to_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_2_mask_mask_bytes_0_to_3(
+        pub fn set_transmit_pdo_2_mask_bytes_0_to_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_2_mask_mask_bytes_0_to_3 = v;
+            self.transmit_pdo_2_mask_bytes_0_to_3 = v;
             Ok(())
         }
         /// Reads `0x2015` sub 2 Transmit PDO 2 mask: Mask (bytes 4 to 7).
         ///
         /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
         #[inline]
-        pub const fn transmit_pdo_2_mask_mask_bytes_4_to_7(&self) -> u32 {
-            self.transmit_pdo_2_mask_mask_bytes_4_to_7
+        pub const fn transmit_pdo_2_mask_bytes_4_to_7(&self) -> u32 {
+            self.transmit_pdo_2_mask_bytes_4_to_7
         }
-        /// Sets `0x2015` sub 2 Transmit PDO 2 mask: Mask (bytes 4 to 7) (see [`Self::transmit_pdo_2_mask_mask_bytes_4_to_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2015` sub 2 Transmit PDO 2 mask: Mask (bytes 4 to 7) (see [`Self::transmit_pdo_2_mask_bytes_4_to_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_2_mask_mask_bytes_4_to_7(
+        pub fn set_transmit_pdo_2_mask_bytes_4_to_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_2_mask_mask_bytes_4_to_7 = v;
+            self.transmit_pdo_2_mask_bytes_4_to_7 = v;
             Ok(())
         }
         /// Reads `0x2016` sub 0 Transmit PDO 3 mask: Number of entries.
@@ -23340,32 +23307,32 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
         #[inline]
-        pub const fn transmit_pdo_3_mask_mask_bytes_0_to_3(&self) -> u32 {
-            self.transmit_pdo_3_mask_mask_bytes_0_to_3
+        pub const fn transmit_pdo_3_mask_bytes_0_to_3(&self) -> u32 {
+            self.transmit_pdo_3_mask_bytes_0_to_3
         }
-        /// Sets `0x2016` sub 1 Transmit PDO 3 mask: Mask (bytes 0 to 3) (see [`Self::transmit_pdo_3_mask_mask_bytes_0_to_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2016` sub 1 Transmit PDO 3 mask: Mask (bytes 0 to 3) (see [`Self::transmit_pdo_3_mask_bytes_0_to_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_3_mask_mask_bytes_0_to_3(
+        pub fn set_transmit_pdo_3_mask_bytes_0_to_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_3_mask_mask_bytes_0_to_3 = v;
+            self.transmit_pdo_3_mask_bytes_0_to_3 = v;
             Ok(())
         }
         /// Reads `0x2016` sub 2 Transmit PDO 3 mask: Mask (bytes 4 to 7).
         ///
         /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
         #[inline]
-        pub const fn transmit_pdo_3_mask_mask_bytes_4_to_7(&self) -> u32 {
-            self.transmit_pdo_3_mask_mask_bytes_4_to_7
+        pub const fn transmit_pdo_3_mask_bytes_4_to_7(&self) -> u32 {
+            self.transmit_pdo_3_mask_bytes_4_to_7
         }
-        /// Sets `0x2016` sub 2 Transmit PDO 3 mask: Mask (bytes 4 to 7) (see [`Self::transmit_pdo_3_mask_mask_bytes_4_to_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2016` sub 2 Transmit PDO 3 mask: Mask (bytes 4 to 7) (see [`Self::transmit_pdo_3_mask_bytes_4_to_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_3_mask_mask_bytes_4_to_7(
+        pub fn set_transmit_pdo_3_mask_bytes_4_to_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_3_mask_mask_bytes_4_to_7 = v;
+            self.transmit_pdo_3_mask_bytes_4_to_7 = v;
             Ok(())
         }
         /// Reads `0x2017` sub 0 Transmit PDO 4 mask: Number of entries.
@@ -23388,32 +23355,32 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
         #[inline]
-        pub const fn transmit_pdo_4_mask_mask_bytes_0_to_3(&self) -> u32 {
-            self.transmit_pdo_4_mask_mask_bytes_0_to_3
+        pub const fn transmit_pdo_4_mask_bytes_0_to_3(&self) -> u32 {
+            self.transmit_pdo_4_mask_bytes_0_to_3
         }
-        /// Sets `0x2017` sub 1 Transmit PDO 4 mask: Mask (bytes 0 to 3) (see [`Self::transmit_pdo_4_mask_mask_bytes_0_to_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2017` sub 1 Transmit PDO 4 mask: Mask (bytes 0 to 3) (see [`Self::transmit_pdo_4_mask_bytes_0_to_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_4_mask_mask_bytes_0_to_3(
+        pub fn set_transmit_pdo_4_mask_bytes_0_to_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_4_mask_mask_bytes_0_to_3 = v;
+            self.transmit_pdo_4_mask_bytes_0_to_3 = v;
             Ok(())
         }
         /// Reads `0x2017` sub 2 Transmit PDO 4 mask: Mask (bytes 4 to 7).
         ///
         /// UNSIGNED32, access `rw`. Default: 4294967295 (0xFFFFFFFF).
         #[inline]
-        pub const fn transmit_pdo_4_mask_mask_bytes_4_to_7(&self) -> u32 {
-            self.transmit_pdo_4_mask_mask_bytes_4_to_7
+        pub const fn transmit_pdo_4_mask_bytes_4_to_7(&self) -> u32 {
+            self.transmit_pdo_4_mask_bytes_4_to_7
         }
-        /// Sets `0x2017` sub 2 Transmit PDO 4 mask: Mask (bytes 4 to 7) (see [`Self::transmit_pdo_4_mask_mask_bytes_4_to_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2017` sub 2 Transmit PDO 4 mask: Mask (bytes 4 to 7) (see [`Self::transmit_pdo_4_mask_bytes_4_to_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_4_mask_mask_bytes_4_to_7(
+        pub fn set_transmit_pdo_4_mask_bytes_4_to_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_4_mask_mask_bytes_4_to_7 = v;
+            self.transmit_pdo_4_mask_bytes_4_to_7 = v;
             Ok(())
         }
         /// Reads `0x2018` sub 0 Firmware version: Number of entries.
@@ -23560,12 +23527,12 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// INTEGER32, access `rw`. Default: 1. Range -32768..=32767.
         #[inline]
-        pub const fn pv_scaling_factor_pv_scaling_factor_numerator(&self) -> i32 {
-            self.pv_scaling_factor_pv_scaling_factor_numerator
+        pub const fn pv_scaling_factor_numerator(&self) -> i32 {
+            self.pv_scaling_factor_numerator
         }
-        /// Sets `0x204C` sub 1 pv scaling factor: pv scaling factor numerator (see [`Self::pv_scaling_factor_pv_scaling_factor_numerator`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x204C` sub 1 pv scaling factor: pv scaling factor numerator (see [`Self::pv_scaling_factor_numerator`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pv_scaling_factor_pv_scaling_factor_numerator(
+        pub fn set_pv_scaling_factor_numerator(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
@@ -23575,19 +23542,19 @@ Denotation=MOTOR.BRAKEIMM
             if v > 32767 {
                 return Err(::od_runtime::od::AbortCode::VALUE_TOO_HIGH);
             }
-            self.pv_scaling_factor_pv_scaling_factor_numerator = v;
+            self.pv_scaling_factor_numerator = v;
             Ok(())
         }
         /// Reads `0x204C` sub 2 pv scaling factor: pv scaling factor denominator.
         ///
         /// INTEGER32, access `rw`. Default: 1. Range -32768..=32767.
         #[inline]
-        pub const fn pv_scaling_factor_pv_scaling_factor_denominator(&self) -> i32 {
-            self.pv_scaling_factor_pv_scaling_factor_denominator
+        pub const fn pv_scaling_factor_denominator(&self) -> i32 {
+            self.pv_scaling_factor_denominator
         }
-        /// Sets `0x204C` sub 2 pv scaling factor: pv scaling factor denominator (see [`Self::pv_scaling_factor_pv_scaling_factor_denominator`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x204C` sub 2 pv scaling factor: pv scaling factor denominator (see [`Self::pv_scaling_factor_denominator`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pv_scaling_factor_pv_scaling_factor_denominator(
+        pub fn set_pv_scaling_factor_denominator(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
@@ -23597,7 +23564,7 @@ Denotation=MOTOR.BRAKEIMM
             if v > 32767 {
                 return Err(::od_runtime::od::AbortCode::VALUE_TOO_HIGH);
             }
-            self.pv_scaling_factor_pv_scaling_factor_denominator = v;
+            self.pv_scaling_factor_denominator = v;
             Ok(())
         }
         /// Reads `0x2050` Secondary feedback position.
@@ -23844,19 +23811,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `VL.ARTYPE1`.
         #[inline]
-        pub const fn velocity_loop_bi_quad_filter_types_bi_quad_filter_1_calculation_method(
+        pub const fn velocity_loop_bi_quad_filter_types_1_calculation_method(
             &self,
         ) -> u8 {
-            self.velocity_loop_bi_quad_filter_types_bi_quad_filter_1_calculation_method
+            self.velocity_loop_bi_quad_filter_types_1_calculation_method
         }
-        /// Sets `0x3405` sub 1 Velocity loop BiQuad filter types: BiQuad filter 1 calculation method (see [`Self::velocity_loop_bi_quad_filter_types_bi_quad_filter_1_calculation_method`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3405` sub 1 Velocity loop BiQuad filter types: BiQuad filter 1 calculation method (see [`Self::velocity_loop_bi_quad_filter_types_1_calculation_method`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filter_types_bi_quad_filter_1_calculation_method(
+        pub fn set_velocity_loop_bi_quad_filter_types_1_calculation_method(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self
-                .velocity_loop_bi_quad_filter_types_bi_quad_filter_1_calculation_method = v;
+            self.velocity_loop_bi_quad_filter_types_1_calculation_method = v;
             Ok(())
         }
         /// Reads `0x3405` sub 2 Velocity loop BiQuad filter types: BiQuad filter 2 calculation method.
@@ -23865,19 +23831,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `VL.ARTYPE2`.
         #[inline]
-        pub const fn velocity_loop_bi_quad_filter_types_bi_quad_filter_2_calculation_method(
+        pub const fn velocity_loop_bi_quad_filter_types_2_calculation_method(
             &self,
         ) -> u8 {
-            self.velocity_loop_bi_quad_filter_types_bi_quad_filter_2_calculation_method
+            self.velocity_loop_bi_quad_filter_types_2_calculation_method
         }
-        /// Sets `0x3405` sub 2 Velocity loop BiQuad filter types: BiQuad filter 2 calculation method (see [`Self::velocity_loop_bi_quad_filter_types_bi_quad_filter_2_calculation_method`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3405` sub 2 Velocity loop BiQuad filter types: BiQuad filter 2 calculation method (see [`Self::velocity_loop_bi_quad_filter_types_2_calculation_method`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filter_types_bi_quad_filter_2_calculation_method(
+        pub fn set_velocity_loop_bi_quad_filter_types_2_calculation_method(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self
-                .velocity_loop_bi_quad_filter_types_bi_quad_filter_2_calculation_method = v;
+            self.velocity_loop_bi_quad_filter_types_2_calculation_method = v;
             Ok(())
         }
         /// Reads `0x3405` sub 3 Velocity loop BiQuad filter types: BiQuad filter 3 calculation method.
@@ -23886,19 +23851,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `VL.ARTYPE3`.
         #[inline]
-        pub const fn velocity_loop_bi_quad_filter_types_bi_quad_filter_3_calculation_method(
+        pub const fn velocity_loop_bi_quad_filter_types_3_calculation_method(
             &self,
         ) -> u8 {
-            self.velocity_loop_bi_quad_filter_types_bi_quad_filter_3_calculation_method
+            self.velocity_loop_bi_quad_filter_types_3_calculation_method
         }
-        /// Sets `0x3405` sub 3 Velocity loop BiQuad filter types: BiQuad filter 3 calculation method (see [`Self::velocity_loop_bi_quad_filter_types_bi_quad_filter_3_calculation_method`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3405` sub 3 Velocity loop BiQuad filter types: BiQuad filter 3 calculation method (see [`Self::velocity_loop_bi_quad_filter_types_3_calculation_method`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filter_types_bi_quad_filter_3_calculation_method(
+        pub fn set_velocity_loop_bi_quad_filter_types_3_calculation_method(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self
-                .velocity_loop_bi_quad_filter_types_bi_quad_filter_3_calculation_method = v;
+            self.velocity_loop_bi_quad_filter_types_3_calculation_method = v;
             Ok(())
         }
         /// Reads `0x3405` sub 4 Velocity loop BiQuad filter types: BiQuad filter 4 calculation method.
@@ -23907,19 +23871,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `VL.ARTYPE4`.
         #[inline]
-        pub const fn velocity_loop_bi_quad_filter_types_bi_quad_filter_4_calculation_method(
+        pub const fn velocity_loop_bi_quad_filter_types_4_calculation_method(
             &self,
         ) -> u8 {
-            self.velocity_loop_bi_quad_filter_types_bi_quad_filter_4_calculation_method
+            self.velocity_loop_bi_quad_filter_types_4_calculation_method
         }
-        /// Sets `0x3405` sub 4 Velocity loop BiQuad filter types: BiQuad filter 4 calculation method (see [`Self::velocity_loop_bi_quad_filter_types_bi_quad_filter_4_calculation_method`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3405` sub 4 Velocity loop BiQuad filter types: BiQuad filter 4 calculation method (see [`Self::velocity_loop_bi_quad_filter_types_4_calculation_method`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filter_types_bi_quad_filter_4_calculation_method(
+        pub fn set_velocity_loop_bi_quad_filter_types_4_calculation_method(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self
-                .velocity_loop_bi_quad_filter_types_bi_quad_filter_4_calculation_method = v;
+            self.velocity_loop_bi_quad_filter_types_4_calculation_method = v;
             Ok(())
         }
         /// Reads `0x3406` sub 0 Velocity loop BiQuad filters: Number of entries.
@@ -23946,19 +23909,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_natural_frequency(
+        pub const fn vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_natural_frequency
+            self.vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency
         }
-        /// Sets `0x3406` sub 1 Velocity loop BiQuad filters: Anti-resonance filter 1 pole natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 1 Velocity loop BiQuad filters: Anti-resonance filter 1 pole natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_natural_frequency(
+        pub fn set_vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self
-                .velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_natural_frequency = v;
+            self.vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 2 Velocity loop BiQuad filters: Anti-resonance filter 2 pole natural frequency.
@@ -23969,19 +23931,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_natural_frequency(
+        pub const fn vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_natural_frequency
+            self.vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency
         }
-        /// Sets `0x3406` sub 2 Velocity loop BiQuad filters: Anti-resonance filter 2 pole natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 2 Velocity loop BiQuad filters: Anti-resonance filter 2 pole natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_natural_frequency(
+        pub fn set_vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self
-                .velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_natural_frequency = v;
+            self.vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 3 Velocity loop BiQuad filters: Anti-resonance filter 3 pole natural frequency.
@@ -23992,19 +23953,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_natural_frequency(
+        pub const fn vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_natural_frequency
+            self.vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency
         }
-        /// Sets `0x3406` sub 3 Velocity loop BiQuad filters: Anti-resonance filter 3 pole natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 3 Velocity loop BiQuad filters: Anti-resonance filter 3 pole natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_natural_frequency(
+        pub fn set_vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self
-                .velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_natural_frequency = v;
+            self.vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 4 Velocity loop BiQuad filters: Anti-resonance filter 4 pole natural frequency.
@@ -24015,19 +23975,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_natural_frequency(
+        pub const fn vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_natural_frequency
+            self.vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency
         }
-        /// Sets `0x3406` sub 4 Velocity loop BiQuad filters: Anti-resonance filter 4 pole natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 4 Velocity loop BiQuad filters: Anti-resonance filter 4 pole natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_natural_frequency(
+        pub fn set_vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self
-                .velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_natural_frequency = v;
+            self.vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 5 Velocity loop BiQuad filters: Anti-resonance filter 1 pole Q.
@@ -24126,19 +24085,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_natural_frequency(
+        pub const fn vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_natural_frequency
+            self.vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency
         }
-        /// Sets `0x3406` sub 9 Velocity loop BiQuad filters: Anti-resonance filter 1 zero natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 9 Velocity loop BiQuad filters: Anti-resonance filter 1 zero natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_natural_frequency(
+        pub fn set_vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self
-                .velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_natural_frequency = v;
+            self.vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 10 Velocity loop BiQuad filters: Anti-resonance filter 2 zero natural frequency.
@@ -24149,19 +24107,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_natural_frequency(
+        pub const fn vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_natural_frequency
+            self.vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency
         }
-        /// Sets `0x3406` sub 10 Velocity loop BiQuad filters: Anti-resonance filter 2 zero natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 10 Velocity loop BiQuad filters: Anti-resonance filter 2 zero natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_natural_frequency(
+        pub fn set_vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self
-                .velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_natural_frequency = v;
+            self.vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 11 Velocity loop BiQuad filters: Anti-resonance filter 3 zero natural frequency.
@@ -24172,19 +24129,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_natural_frequency(
+        pub const fn vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_natural_frequency
+            self.vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency
         }
-        /// Sets `0x3406` sub 11 Velocity loop BiQuad filters: Anti-resonance filter 3 zero natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 11 Velocity loop BiQuad filters: Anti-resonance filter 3 zero natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_natural_frequency(
+        pub fn set_vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self
-                .velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_natural_frequency = v;
+            self.vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 12 Velocity loop BiQuad filters: Anti-resonance filter 4 zero natural frequency.
@@ -24195,19 +24151,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_natural_frequency(
+        pub const fn vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_natural_frequency
+            self.vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency
         }
-        /// Sets `0x3406` sub 12 Velocity loop BiQuad filters: Anti-resonance filter 4 zero natural frequency (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 12 Velocity loop BiQuad filters: Anti-resonance filter 4 zero natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_natural_frequency(
+        pub fn set_vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self
-                .velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_natural_frequency = v;
+            self.vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 13 Velocity loop BiQuad filters: Anti-resonance filter 1 zero Q.
@@ -24322,23 +24277,22 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `VL.FBFILTER`.
         ///
-        /// Dimension: Velocity (typed conversion: `units::Units::velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz`).
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz`).
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz(
+        pub const fn velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz(
             &self,
         ) -> i32 {
-            self.velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz
+            self.velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz
         }
-        /// Sets `0x3407` sub 1 Velocity loop filter and feedforward: Velocity feedback filtered at 10 Hz (see [`Self::velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3407` sub 1 Velocity loop filter and feedforward: Velocity feedback filtered at 10 Hz (see [`Self::velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz(
+        pub fn set_velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self
-                .velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz = v;
+            self.velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz = v;
             Ok(())
         }
         /// Reads `0x3407` sub 2 Velocity loop filter and feedforward: Velocity feedforward gain.
@@ -24369,18 +24323,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `VL.KBUSFF`.
         #[inline]
-        pub const fn velocity_loop_filter_and_feedforward_acceleration_feedforward_gain(
+        pub const fn velocity_loop_filter_and_feedforward_acceleration_gain(
             &self,
         ) -> u32 {
-            self.velocity_loop_filter_and_feedforward_acceleration_feedforward_gain
+            self.velocity_loop_filter_and_feedforward_acceleration_gain
         }
-        /// Sets `0x3407` sub 3 Velocity loop filter and feedforward: Acceleration feedforward gain (see [`Self::velocity_loop_filter_and_feedforward_acceleration_feedforward_gain`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3407` sub 3 Velocity loop filter and feedforward: Acceleration feedforward gain (see [`Self::velocity_loop_filter_and_feedforward_acceleration_gain`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_filter_and_feedforward_acceleration_feedforward_gain(
+        pub fn set_velocity_loop_filter_and_feedforward_acceleration_gain(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.velocity_loop_filter_and_feedforward_acceleration_feedforward_gain = v;
+            self.velocity_loop_filter_and_feedforward_acceleration_gain = v;
             Ok(())
         }
         /// Reads `0x3407` sub 4 Velocity loop filter and feedforward: Velocity error.
@@ -24795,18 +24749,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `CS.TO`.
         #[inline]
-        pub const fn controlled_stop_parameters_controlled_stop_velocity_threshold_time(
-            &self,
-        ) -> u32 {
-            self.controlled_stop_parameters_controlled_stop_velocity_threshold_time
+        pub const fn controlled_stop_parameters_velocity_threshold_time(&self) -> u32 {
+            self.controlled_stop_parameters_velocity_threshold_time
         }
-        /// Sets `0x3440` sub 3 Controlled stop parameters: Controlled stop velocity threshold time (see [`Self::controlled_stop_parameters_controlled_stop_velocity_threshold_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3440` sub 3 Controlled stop parameters: Controlled stop velocity threshold time (see [`Self::controlled_stop_parameters_velocity_threshold_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_controlled_stop_parameters_controlled_stop_velocity_threshold_time(
+        pub fn set_controlled_stop_parameters_velocity_threshold_time(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.controlled_stop_parameters_controlled_stop_velocity_threshold_time = v;
+            self.controlled_stop_parameters_velocity_threshold_time = v;
             Ok(())
         }
         /// Reads `0x3441` Controlled stop state.
@@ -25361,18 +25313,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn analog_input_and_output_parameters_analog_output_value_user_units(
-            &self,
-        ) -> i16 {
-            self.analog_input_and_output_parameters_analog_output_value_user_units
+        pub const fn analog_input_and_output_parameters_value_user_units(&self) -> i16 {
+            self.analog_input_and_output_parameters_value_user_units
         }
-        /// Sets `0x3470` sub 3 Analog input and output parameters: Analog output value, user units (see [`Self::analog_input_and_output_parameters_analog_output_value_user_units`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3470` sub 3 Analog input and output parameters: Analog output value, user units (see [`Self::analog_input_and_output_parameters_value_user_units`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_analog_input_and_output_parameters_analog_output_value_user_units(
+        pub fn set_analog_input_and_output_parameters_value_user_units(
             &mut self,
             v: i16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.analog_input_and_output_parameters_analog_output_value_user_units = v;
+            self.analog_input_and_output_parameters_value_user_units = v;
             Ok(())
         }
         /// Reads `0x3470` sub 4 Analog input and output parameters: Analog input value.
@@ -25405,19 +25355,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn analog_input_and_output_parameters_analog_output_velocity_scale_factor(
+        pub const fn analog_input_and_output_parameters_velocity_scale_factor(
             &self,
         ) -> u32 {
-            self.analog_input_and_output_parameters_analog_output_velocity_scale_factor
+            self.analog_input_and_output_parameters_velocity_scale_factor
         }
-        /// Sets `0x3470` sub 5 Analog input and output parameters: Analog output velocity scale factor (see [`Self::analog_input_and_output_parameters_analog_output_velocity_scale_factor`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3470` sub 5 Analog input and output parameters: Analog output velocity scale factor (see [`Self::analog_input_and_output_parameters_velocity_scale_factor`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_analog_input_and_output_parameters_analog_output_velocity_scale_factor(
+        pub fn set_analog_input_and_output_parameters_velocity_scale_factor(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self
-                .analog_input_and_output_parameters_analog_output_velocity_scale_factor = v;
+            self.analog_input_and_output_parameters_velocity_scale_factor = v;
             Ok(())
         }
         /// Reads `0x3471` Analog output position scale factor.
@@ -25778,18 +25727,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DOUT1.PARAM`.
         #[inline]
-        pub const fn digital_output_parameters_digital_output_1_parameter_low_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_output_parameters_digital_output_1_parameter_low_32_bits
+        pub const fn digital_output_parameters_1_parameter_low_32_bits(&self) -> u32 {
+            self.digital_output_parameters_1_parameter_low_32_bits
         }
-        /// Sets `0x3475` sub 1 Digital output parameters: Digital output 1 parameter, low 32 bits (see [`Self::digital_output_parameters_digital_output_1_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3475` sub 1 Digital output parameters: Digital output 1 parameter, low 32 bits (see [`Self::digital_output_parameters_1_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_output_parameters_digital_output_1_parameter_low_32_bits(
+        pub fn set_digital_output_parameters_1_parameter_low_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_output_parameters_digital_output_1_parameter_low_32_bits = v;
+            self.digital_output_parameters_1_parameter_low_32_bits = v;
             Ok(())
         }
         /// Reads `0x3475` sub 2 Digital output parameters: Digital output 2 parameter, low 32 bits.
@@ -25798,18 +25745,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DOUT2.PARAM`.
         #[inline]
-        pub const fn digital_output_parameters_digital_output_2_parameter_low_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_output_parameters_digital_output_2_parameter_low_32_bits
+        pub const fn digital_output_parameters_2_parameter_low_32_bits(&self) -> u32 {
+            self.digital_output_parameters_2_parameter_low_32_bits
         }
-        /// Sets `0x3475` sub 2 Digital output parameters: Digital output 2 parameter, low 32 bits (see [`Self::digital_output_parameters_digital_output_2_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3475` sub 2 Digital output parameters: Digital output 2 parameter, low 32 bits (see [`Self::digital_output_parameters_2_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_output_parameters_digital_output_2_parameter_low_32_bits(
+        pub fn set_digital_output_parameters_2_parameter_low_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_output_parameters_digital_output_2_parameter_low_32_bits = v;
+            self.digital_output_parameters_2_parameter_low_32_bits = v;
             Ok(())
         }
         /// Reads `0x3475` sub 3 Digital output parameters: Digital output 1 parameter, high 32 bits.
@@ -25818,18 +25763,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DOUT1.PARAM`.
         #[inline]
-        pub const fn digital_output_parameters_digital_output_1_parameter_high_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_output_parameters_digital_output_1_parameter_high_32_bits
+        pub const fn digital_output_parameters_1_parameter_high_32_bits(&self) -> u32 {
+            self.digital_output_parameters_1_parameter_high_32_bits
         }
-        /// Sets `0x3475` sub 3 Digital output parameters: Digital output 1 parameter, high 32 bits (see [`Self::digital_output_parameters_digital_output_1_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3475` sub 3 Digital output parameters: Digital output 1 parameter, high 32 bits (see [`Self::digital_output_parameters_1_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_output_parameters_digital_output_1_parameter_high_32_bits(
+        pub fn set_digital_output_parameters_1_parameter_high_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_output_parameters_digital_output_1_parameter_high_32_bits = v;
+            self.digital_output_parameters_1_parameter_high_32_bits = v;
             Ok(())
         }
         /// Reads `0x3475` sub 4 Digital output parameters: Digital output 2 parameter, high 32 bits.
@@ -25838,18 +25781,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DOUT2.PARAM`.
         #[inline]
-        pub const fn digital_output_parameters_digital_output_2_parameter_high_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_output_parameters_digital_output_2_parameter_high_32_bits
+        pub const fn digital_output_parameters_2_parameter_high_32_bits(&self) -> u32 {
+            self.digital_output_parameters_2_parameter_high_32_bits
         }
-        /// Sets `0x3475` sub 4 Digital output parameters: Digital output 2 parameter, high 32 bits (see [`Self::digital_output_parameters_digital_output_2_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3475` sub 4 Digital output parameters: Digital output 2 parameter, high 32 bits (see [`Self::digital_output_parameters_2_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_output_parameters_digital_output_2_parameter_high_32_bits(
+        pub fn set_digital_output_parameters_2_parameter_high_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_output_parameters_digital_output_2_parameter_high_32_bits = v;
+            self.digital_output_parameters_2_parameter_high_32_bits = v;
             Ok(())
         }
         /// Reads `0x3480` Position loop integral gain.
@@ -25918,18 +25859,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn position_loop_integrator_saturation_integrator_output_saturation(
-            &self,
-        ) -> u32 {
-            self.position_loop_integrator_saturation_integrator_output_saturation
+        pub const fn position_loop_integrator_saturation_output(&self) -> u32 {
+            self.position_loop_integrator_saturation_output
         }
-        /// Sets `0x3481` sub 2 Position loop integrator saturation: Integrator output saturation (see [`Self::position_loop_integrator_saturation_integrator_output_saturation`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3481` sub 2 Position loop integrator saturation: Integrator output saturation (see [`Self::position_loop_integrator_saturation_output`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_position_loop_integrator_saturation_integrator_output_saturation(
+        pub fn set_position_loop_integrator_saturation_output(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.position_loop_integrator_saturation_integrator_output_saturation = v;
+            self.position_loop_integrator_saturation_output = v;
             Ok(())
         }
         /// Reads `0x3482` Homing maximum following error.
@@ -26142,19 +26081,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `WS.TDELAY3`.
         #[inline]
-        pub const fn wake_and_shake_parameters_wake_and_shake_delay_between_loops_in_mode_0(
+        pub const fn wake_and_shake_parameters_delay_between_loops_in_mode_0(
             &self,
         ) -> u16 {
-            self.wake_and_shake_parameters_wake_and_shake_delay_between_loops_in_mode_0
+            self.wake_and_shake_parameters_delay_between_loops_in_mode_0
         }
-        /// Sets `0x3494` sub 3 Wake and shake parameters: Wake and shake delay between loops in mode 0 (see [`Self::wake_and_shake_parameters_wake_and_shake_delay_between_loops_in_mode_0`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3494` sub 3 Wake and shake parameters: Wake and shake delay between loops in mode 0 (see [`Self::wake_and_shake_parameters_delay_between_loops_in_mode_0`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_wake_and_shake_parameters_wake_and_shake_delay_between_loops_in_mode_0(
+        pub fn set_wake_and_shake_parameters_delay_between_loops_in_mode_0(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self
-                .wake_and_shake_parameters_wake_and_shake_delay_between_loops_in_mode_0 = v;
+            self.wake_and_shake_parameters_delay_between_loops_in_mode_0 = v;
             Ok(())
         }
         /// Reads `0x3494` sub 4 Wake and shake parameters: Wake and shake maximum velocity.
@@ -26239,18 +26177,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `FBUS.SYNCDIST`.
         #[inline]
-        pub const fn fieldbus_synchronization_parameters_expected_synchronization_distance(
+        pub const fn fieldbus_synchronization_parameters_expected_distance(
             &self,
         ) -> u32 {
-            self.fieldbus_synchronization_parameters_expected_synchronization_distance
+            self.fieldbus_synchronization_parameters_expected_distance
         }
-        /// Sets `0x3496` sub 1 Fieldbus synchronization parameters: Expected synchronization distance (see [`Self::fieldbus_synchronization_parameters_expected_synchronization_distance`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3496` sub 1 Fieldbus synchronization parameters: Expected synchronization distance (see [`Self::fieldbus_synchronization_parameters_expected_distance`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_fieldbus_synchronization_parameters_expected_synchronization_distance(
+        pub fn set_fieldbus_synchronization_parameters_expected_distance(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.fieldbus_synchronization_parameters_expected_synchronization_distance = v;
+            self.fieldbus_synchronization_parameters_expected_distance = v;
             Ok(())
         }
         /// Reads `0x3496` sub 2 Fieldbus synchronization parameters: Actual synchronization distance.
@@ -26259,18 +26197,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `FBUS.SYNCACT`.
         #[inline]
-        pub const fn fieldbus_synchronization_parameters_actual_synchronization_distance(
-            &self,
-        ) -> u32 {
-            self.fieldbus_synchronization_parameters_actual_synchronization_distance
+        pub const fn fieldbus_synchronization_parameters_actual_distance(&self) -> u32 {
+            self.fieldbus_synchronization_parameters_actual_distance
         }
-        /// Sets `0x3496` sub 2 Fieldbus synchronization parameters: Actual synchronization distance (see [`Self::fieldbus_synchronization_parameters_actual_synchronization_distance`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3496` sub 2 Fieldbus synchronization parameters: Actual synchronization distance (see [`Self::fieldbus_synchronization_parameters_actual_distance`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_fieldbus_synchronization_parameters_actual_synchronization_distance(
+        pub fn set_fieldbus_synchronization_parameters_actual_distance(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.fieldbus_synchronization_parameters_actual_synchronization_distance = v;
+            self.fieldbus_synchronization_parameters_actual_distance = v;
             Ok(())
         }
         /// Reads `0x3496` sub 3 Fieldbus synchronization parameters: Synchronization window.
@@ -26335,22 +26271,22 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P1`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_1_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_1_compare_position`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_limit_switch_1_compare_position(
+        pub const fn programmable_limit_switch_positions_1_compare_position(
             &self,
         ) -> i32 {
-            self.programmable_limit_switch_positions_limit_switch_1_compare_position
+            self.programmable_limit_switch_positions_1_compare_position
         }
-        /// Sets `0x34A0` sub 1 Programmable limit switch positions: Limit switch 1 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_1_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 1 Programmable limit switch positions: Limit switch 1 compare position (see [`Self::programmable_limit_switch_positions_1_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_limit_switch_1_compare_position(
+        pub fn set_programmable_limit_switch_positions_1_compare_position(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_limit_switch_1_compare_position = v;
+            self.programmable_limit_switch_positions_1_compare_position = v;
             Ok(())
         }
         /// Reads `0x34A0` sub 2 Programmable limit switch positions: Limit switch 2 compare position.
@@ -26359,22 +26295,22 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P2`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_2_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_2_compare_position`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_limit_switch_2_compare_position(
+        pub const fn programmable_limit_switch_positions_2_compare_position(
             &self,
         ) -> i32 {
-            self.programmable_limit_switch_positions_limit_switch_2_compare_position
+            self.programmable_limit_switch_positions_2_compare_position
         }
-        /// Sets `0x34A0` sub 2 Programmable limit switch positions: Limit switch 2 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_2_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 2 Programmable limit switch positions: Limit switch 2 compare position (see [`Self::programmable_limit_switch_positions_2_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_limit_switch_2_compare_position(
+        pub fn set_programmable_limit_switch_positions_2_compare_position(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_limit_switch_2_compare_position = v;
+            self.programmable_limit_switch_positions_2_compare_position = v;
             Ok(())
         }
         /// Reads `0x34A0` sub 3 Programmable limit switch positions: Limit switch 3 compare position.
@@ -26383,22 +26319,22 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P3`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_3_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_3_compare_position`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_limit_switch_3_compare_position(
+        pub const fn programmable_limit_switch_positions_3_compare_position(
             &self,
         ) -> i32 {
-            self.programmable_limit_switch_positions_limit_switch_3_compare_position
+            self.programmable_limit_switch_positions_3_compare_position
         }
-        /// Sets `0x34A0` sub 3 Programmable limit switch positions: Limit switch 3 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_3_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 3 Programmable limit switch positions: Limit switch 3 compare position (see [`Self::programmable_limit_switch_positions_3_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_limit_switch_3_compare_position(
+        pub fn set_programmable_limit_switch_positions_3_compare_position(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_limit_switch_3_compare_position = v;
+            self.programmable_limit_switch_positions_3_compare_position = v;
             Ok(())
         }
         /// Reads `0x34A0` sub 4 Programmable limit switch positions: Limit switch 4 compare position.
@@ -26407,22 +26343,22 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P4`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_4_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_4_compare_position`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_limit_switch_4_compare_position(
+        pub const fn programmable_limit_switch_positions_4_compare_position(
             &self,
         ) -> i32 {
-            self.programmable_limit_switch_positions_limit_switch_4_compare_position
+            self.programmable_limit_switch_positions_4_compare_position
         }
-        /// Sets `0x34A0` sub 4 Programmable limit switch positions: Limit switch 4 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_4_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 4 Programmable limit switch positions: Limit switch 4 compare position (see [`Self::programmable_limit_switch_positions_4_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_limit_switch_4_compare_position(
+        pub fn set_programmable_limit_switch_positions_4_compare_position(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_limit_switch_4_compare_position = v;
+            self.programmable_limit_switch_positions_4_compare_position = v;
             Ok(())
         }
         /// Reads `0x34A0` sub 5 Programmable limit switch positions: Limit switch 5 compare position.
@@ -26431,22 +26367,22 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P5`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_5_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_5_compare_position`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_limit_switch_5_compare_position(
+        pub const fn programmable_limit_switch_positions_5_compare_position(
             &self,
         ) -> i32 {
-            self.programmable_limit_switch_positions_limit_switch_5_compare_position
+            self.programmable_limit_switch_positions_5_compare_position
         }
-        /// Sets `0x34A0` sub 5 Programmable limit switch positions: Limit switch 5 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_5_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 5 Programmable limit switch positions: Limit switch 5 compare position (see [`Self::programmable_limit_switch_positions_5_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_limit_switch_5_compare_position(
+        pub fn set_programmable_limit_switch_positions_5_compare_position(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_limit_switch_5_compare_position = v;
+            self.programmable_limit_switch_positions_5_compare_position = v;
             Ok(())
         }
         /// Reads `0x34A0` sub 6 Programmable limit switch positions: Limit switch 6 compare position.
@@ -26455,22 +26391,22 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P6`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_6_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_6_compare_position`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_limit_switch_6_compare_position(
+        pub const fn programmable_limit_switch_positions_6_compare_position(
             &self,
         ) -> i32 {
-            self.programmable_limit_switch_positions_limit_switch_6_compare_position
+            self.programmable_limit_switch_positions_6_compare_position
         }
-        /// Sets `0x34A0` sub 6 Programmable limit switch positions: Limit switch 6 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_6_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 6 Programmable limit switch positions: Limit switch 6 compare position (see [`Self::programmable_limit_switch_positions_6_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_limit_switch_6_compare_position(
+        pub fn set_programmable_limit_switch_positions_6_compare_position(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_limit_switch_6_compare_position = v;
+            self.programmable_limit_switch_positions_6_compare_position = v;
             Ok(())
         }
         /// Reads `0x34A0` sub 7 Programmable limit switch positions: Limit switch 7 compare position.
@@ -26479,22 +26415,22 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P7`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_7_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_7_compare_position`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_limit_switch_7_compare_position(
+        pub const fn programmable_limit_switch_positions_7_compare_position(
             &self,
         ) -> i32 {
-            self.programmable_limit_switch_positions_limit_switch_7_compare_position
+            self.programmable_limit_switch_positions_7_compare_position
         }
-        /// Sets `0x34A0` sub 7 Programmable limit switch positions: Limit switch 7 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_7_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 7 Programmable limit switch positions: Limit switch 7 compare position (see [`Self::programmable_limit_switch_positions_7_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_limit_switch_7_compare_position(
+        pub fn set_programmable_limit_switch_positions_7_compare_position(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_limit_switch_7_compare_position = v;
+            self.programmable_limit_switch_positions_7_compare_position = v;
             Ok(())
         }
         /// Reads `0x34A0` sub 8 Programmable limit switch positions: Limit switch 8 compare position.
@@ -26503,22 +26439,22 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P8`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_limit_switch_8_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_8_compare_position`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_limit_switch_8_compare_position(
+        pub const fn programmable_limit_switch_positions_8_compare_position(
             &self,
         ) -> i32 {
-            self.programmable_limit_switch_positions_limit_switch_8_compare_position
+            self.programmable_limit_switch_positions_8_compare_position
         }
-        /// Sets `0x34A0` sub 8 Programmable limit switch positions: Limit switch 8 compare position (see [`Self::programmable_limit_switch_positions_limit_switch_8_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 8 Programmable limit switch positions: Limit switch 8 compare position (see [`Self::programmable_limit_switch_positions_8_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_limit_switch_8_compare_position(
+        pub fn set_programmable_limit_switch_positions_8_compare_position(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_limit_switch_8_compare_position = v;
+            self.programmable_limit_switch_positions_8_compare_position = v;
             Ok(())
         }
         /// Reads `0x34A1` sub 0 Programmable limit switch widths: Number of entries.
@@ -31348,18 +31284,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED8, access `rw`. Default: 1.
         #[inline]
-        pub const fn interpolation_time_period_interpolation_time_period_value(
-            &self,
-        ) -> u8 {
-            self.interpolation_time_period_interpolation_time_period_value
+        pub const fn interpolation_time_period_value(&self) -> u8 {
+            self.interpolation_time_period_value
         }
-        /// Sets `0x60C2` sub 1 Interpolation time period: Interpolation time period value (see [`Self::interpolation_time_period_interpolation_time_period_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x60C2` sub 1 Interpolation time period: Interpolation time period value (see [`Self::interpolation_time_period_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_interpolation_time_period_interpolation_time_period_value(
+        pub fn set_interpolation_time_period_value(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.interpolation_time_period_interpolation_time_period_value = v;
+            self.interpolation_time_period_value = v;
             Ok(())
         }
         /// Reads `0x60C2` sub 2 Interpolation time period: Interpolation time index.
@@ -32648,8 +32582,8 @@ Denotation=MOTOR.BRAKEIMM
             /// velocity\_internal = velocity\_bus \* numerator / denominator (after the position factors: velocity\_inc\_per\_s = velocity\_user\_per\_s \* encoder\_resolution \* gear\_ratio / feed\_constant)
             pub fn velocity_factor(od: &super::Dictionary) -> Result<Ratio, UnitError> {
                 let (t, b) = (
-                    (od.pv_scaling_factor_pv_scaling_factor_numerator() as i128),
-                    (od.pv_scaling_factor_pv_scaling_factor_denominator() as i128),
+                    (od.pv_scaling_factor_numerator() as i128),
+                    (od.pv_scaling_factor_denominator() as i128),
                 );
                 if t == 0 || b == 0 {
                     return Err(UnitError::ZeroFactor {
@@ -32713,28 +32647,25 @@ Denotation=MOTOR.BRAKEIMM
                 od.set_current_actual_value(v).map_err(UnitError::Rejected)
             }
             /// `0x3407` sub 1 Velocity loop filter and feedforward: Velocity feedback filtered at 10 Hz as a Velocity quantity.
-            pub fn velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz(
+            pub fn velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Velocity,
-                    od
-                        .velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz()
+                    od.velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz()
                         as i64,
                 )
             }
             /// Sets `0x3407` sub 1 Velocity loop filter and feedforward: Velocity feedback filtered at 10 Hz from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz(
+            pub fn set_velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Velocity, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_velocity_loop_filter_and_feedforward_velocity_feedback_filtered_at_10_hz(
-                        v,
-                    )
+                od.set_velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x3407` sub 4 Velocity loop filter and feedforward: Velocity error as a Velocity quantity.
@@ -32924,203 +32855,171 @@ Denotation=MOTOR.BRAKEIMM
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 1 Programmable limit switch positions: Limit switch 1 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_limit_switch_1_compare_position(
+            pub fn programmable_limit_switch_positions_1_compare_position(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od
-                        .programmable_limit_switch_positions_limit_switch_1_compare_position()
-                        as i64,
+                    od.programmable_limit_switch_positions_1_compare_position() as i64,
                 )
             }
             /// Sets `0x34A0` sub 1 Programmable limit switch positions: Limit switch 1 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_limit_switch_1_compare_position(
+            pub fn set_programmable_limit_switch_positions_1_compare_position(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_limit_switch_1_compare_position(
-                        v,
-                    )
+                od.set_programmable_limit_switch_positions_1_compare_position(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 2 Programmable limit switch positions: Limit switch 2 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_limit_switch_2_compare_position(
+            pub fn programmable_limit_switch_positions_2_compare_position(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od
-                        .programmable_limit_switch_positions_limit_switch_2_compare_position()
-                        as i64,
+                    od.programmable_limit_switch_positions_2_compare_position() as i64,
                 )
             }
             /// Sets `0x34A0` sub 2 Programmable limit switch positions: Limit switch 2 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_limit_switch_2_compare_position(
+            pub fn set_programmable_limit_switch_positions_2_compare_position(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_limit_switch_2_compare_position(
-                        v,
-                    )
+                od.set_programmable_limit_switch_positions_2_compare_position(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 3 Programmable limit switch positions: Limit switch 3 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_limit_switch_3_compare_position(
+            pub fn programmable_limit_switch_positions_3_compare_position(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od
-                        .programmable_limit_switch_positions_limit_switch_3_compare_position()
-                        as i64,
+                    od.programmable_limit_switch_positions_3_compare_position() as i64,
                 )
             }
             /// Sets `0x34A0` sub 3 Programmable limit switch positions: Limit switch 3 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_limit_switch_3_compare_position(
+            pub fn set_programmable_limit_switch_positions_3_compare_position(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_limit_switch_3_compare_position(
-                        v,
-                    )
+                od.set_programmable_limit_switch_positions_3_compare_position(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 4 Programmable limit switch positions: Limit switch 4 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_limit_switch_4_compare_position(
+            pub fn programmable_limit_switch_positions_4_compare_position(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od
-                        .programmable_limit_switch_positions_limit_switch_4_compare_position()
-                        as i64,
+                    od.programmable_limit_switch_positions_4_compare_position() as i64,
                 )
             }
             /// Sets `0x34A0` sub 4 Programmable limit switch positions: Limit switch 4 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_limit_switch_4_compare_position(
+            pub fn set_programmable_limit_switch_positions_4_compare_position(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_limit_switch_4_compare_position(
-                        v,
-                    )
+                od.set_programmable_limit_switch_positions_4_compare_position(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 5 Programmable limit switch positions: Limit switch 5 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_limit_switch_5_compare_position(
+            pub fn programmable_limit_switch_positions_5_compare_position(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od
-                        .programmable_limit_switch_positions_limit_switch_5_compare_position()
-                        as i64,
+                    od.programmable_limit_switch_positions_5_compare_position() as i64,
                 )
             }
             /// Sets `0x34A0` sub 5 Programmable limit switch positions: Limit switch 5 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_limit_switch_5_compare_position(
+            pub fn set_programmable_limit_switch_positions_5_compare_position(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_limit_switch_5_compare_position(
-                        v,
-                    )
+                od.set_programmable_limit_switch_positions_5_compare_position(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 6 Programmable limit switch positions: Limit switch 6 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_limit_switch_6_compare_position(
+            pub fn programmable_limit_switch_positions_6_compare_position(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od
-                        .programmable_limit_switch_positions_limit_switch_6_compare_position()
-                        as i64,
+                    od.programmable_limit_switch_positions_6_compare_position() as i64,
                 )
             }
             /// Sets `0x34A0` sub 6 Programmable limit switch positions: Limit switch 6 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_limit_switch_6_compare_position(
+            pub fn set_programmable_limit_switch_positions_6_compare_position(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_limit_switch_6_compare_position(
-                        v,
-                    )
+                od.set_programmable_limit_switch_positions_6_compare_position(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 7 Programmable limit switch positions: Limit switch 7 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_limit_switch_7_compare_position(
+            pub fn programmable_limit_switch_positions_7_compare_position(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od
-                        .programmable_limit_switch_positions_limit_switch_7_compare_position()
-                        as i64,
+                    od.programmable_limit_switch_positions_7_compare_position() as i64,
                 )
             }
             /// Sets `0x34A0` sub 7 Programmable limit switch positions: Limit switch 7 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_limit_switch_7_compare_position(
+            pub fn set_programmable_limit_switch_positions_7_compare_position(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_limit_switch_7_compare_position(
-                        v,
-                    )
+                od.set_programmable_limit_switch_positions_7_compare_position(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 8 Programmable limit switch positions: Limit switch 8 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_limit_switch_8_compare_position(
+            pub fn programmable_limit_switch_positions_8_compare_position(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od
-                        .programmable_limit_switch_positions_limit_switch_8_compare_position()
-                        as i64,
+                    od.programmable_limit_switch_positions_8_compare_position() as i64,
                 )
             }
             /// Sets `0x34A0` sub 8 Programmable limit switch positions: Limit switch 8 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_limit_switch_8_compare_position(
+            pub fn set_programmable_limit_switch_positions_8_compare_position(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_limit_switch_8_compare_position(
-                        v,
-                    )
+                od.set_programmable_limit_switch_positions_8_compare_position(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A1` sub 1 Programmable limit switch widths: Limit switch 1 width as a Position quantity.

@@ -6873,8 +6873,8 @@ PDOMapping=0
         identity_object_serial_number: u32,
         synchronous_counter_overflow_value: u8,
         verify_configuration_highest_sub_index_supported: u8,
-        verify_configuration_configuration_date: u32,
-        verify_configuration_configuration_time: u32,
+        verify_configuration_date: u32,
+        verify_configuration_time: u32,
         server_sdo_parameter_highest_sub_index_supported: u8,
         server_sdo_parameter_cob_id_client_to_server: u32,
         server_sdo_parameter_cob_id_server_to_client: u32,
@@ -7192,8 +7192,8 @@ PDOMapping=0
                 identity_object_serial_number: 0x0,
                 synchronous_counter_overflow_value: 0,
                 verify_configuration_highest_sub_index_supported: 2,
-                verify_configuration_configuration_date: 0,
-                verify_configuration_configuration_time: 0,
+                verify_configuration_date: 0,
+                verify_configuration_time: 0,
                 server_sdo_parameter_highest_sub_index_supported: 2,
                 server_sdo_parameter_cob_id_client_to_server: (0x600 + node_id as i128)
                     as u32,
@@ -7642,12 +7642,12 @@ PDOMapping=0
                     }
                     35 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.verify_configuration_configuration_date,
+                            &self.verify_configuration_date,
                         )
                     }
                     36 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.verify_configuration_configuration_time,
+                            &self.verify_configuration_time,
                         )
                     }
                     37 => {
@@ -9089,12 +9089,12 @@ PDOMapping=0
                     }
                     35 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.verify_configuration_configuration_date,
+                            &mut self.verify_configuration_date,
                         )
                     }
                     36 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.verify_configuration_configuration_time,
+                            &mut self.verify_configuration_time,
                         )
                     }
                     37 => {
@@ -11086,32 +11086,32 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn verify_configuration_configuration_date(&self) -> u32 {
-            self.verify_configuration_configuration_date
+        pub const fn verify_configuration_date(&self) -> u32 {
+            self.verify_configuration_date
         }
-        /// Sets `0x1020` sub 1 Verify configuration: Configuration date (see [`Self::verify_configuration_configuration_date`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1020` sub 1 Verify configuration: Configuration date (see [`Self::verify_configuration_date`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_verify_configuration_configuration_date(
+        pub fn set_verify_configuration_date(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.verify_configuration_configuration_date = v;
+            self.verify_configuration_date = v;
             Ok(())
         }
         /// Reads `0x1020` sub 2 Verify configuration: Configuration time.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn verify_configuration_configuration_time(&self) -> u32 {
-            self.verify_configuration_configuration_time
+        pub const fn verify_configuration_time(&self) -> u32 {
+            self.verify_configuration_time
         }
-        /// Sets `0x1020` sub 2 Verify configuration: Configuration time (see [`Self::verify_configuration_configuration_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1020` sub 2 Verify configuration: Configuration time (see [`Self::verify_configuration_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_verify_configuration_configuration_time(
+        pub fn set_verify_configuration_time(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.verify_configuration_configuration_time = v;
+            self.verify_configuration_time = v;
             Ok(())
         }
         /// Reads `0x1200` sub 0 Server SDO parameter: Highest sub-index supported.

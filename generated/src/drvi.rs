@@ -6878,28 +6878,28 @@ PDOMapping=0
         identity_object_product_code: u32,
         identity_object_revision_number: u32,
         identity_object_serial_number: u32,
-        receive_pdo_communication_parameter_1_highest_sub_index_supported: u8,
+        receive_pdo_communication_param_1_highest_sub_index_supported: u8,
         receive_pdo_communication_parameter_1_cob_id_used_by_rpdo: u32,
         receive_pdo_communication_parameter_1_transmission_type: u8,
-        receive_pdo_communication_parameter_2_highest_sub_index_supported: u8,
+        receive_pdo_communication_param_2_highest_sub_index_supported: u8,
         receive_pdo_communication_parameter_2_cob_id_used_by_rpdo: u32,
         receive_pdo_communication_parameter_2_transmission_type: u8,
-        receive_pdo_communication_parameter_3_highest_sub_index_supported: u8,
+        receive_pdo_communication_param_3_highest_sub_index_supported: u8,
         receive_pdo_communication_parameter_3_cob_id_used_by_rpdo: u32,
         receive_pdo_communication_parameter_3_transmission_type: u8,
-        receive_pdo_communication_parameter_4_highest_sub_index_supported: u8,
+        receive_pdo_communication_param_4_highest_sub_index_supported: u8,
         receive_pdo_communication_parameter_4_cob_id_used_by_rpdo: u32,
         receive_pdo_communication_parameter_4_transmission_type: u8,
-        receive_pdo_communication_parameter_5_highest_sub_index_supported: u8,
+        receive_pdo_communication_param_5_highest_sub_index_supported: u8,
         receive_pdo_communication_parameter_5_cob_id_used_by_rpdo: u32,
         receive_pdo_communication_parameter_5_transmission_type: u8,
-        receive_pdo_communication_parameter_6_highest_sub_index_supported: u8,
+        receive_pdo_communication_param_6_highest_sub_index_supported: u8,
         receive_pdo_communication_parameter_6_cob_id_used_by_rpdo: u32,
         receive_pdo_communication_parameter_6_transmission_type: u8,
-        receive_pdo_communication_parameter_7_highest_sub_index_supported: u8,
+        receive_pdo_communication_param_7_highest_sub_index_supported: u8,
         receive_pdo_communication_parameter_7_cob_id_used_by_rpdo: u32,
         receive_pdo_communication_parameter_7_transmission_type: u8,
-        receive_pdo_communication_parameter_8_highest_sub_index_supported: u8,
+        receive_pdo_communication_param_8_highest_sub_index_supported: u8,
         receive_pdo_communication_parameter_8_cob_id_used_by_rpdo: u32,
         receive_pdo_communication_parameter_8_transmission_type: u8,
         receive_pdo_mapping_parameter_1_number_of_mapped_objects: u8,
@@ -6974,49 +6974,49 @@ PDOMapping=0
         receive_pdo_mapping_parameter_8_mapping_entry_6: u32,
         receive_pdo_mapping_parameter_8_mapping_entry_7: u32,
         receive_pdo_mapping_parameter_8_mapping_entry_8: u32,
-        transmit_pdo_communication_parameter_1_highest_sub_index_supported: u8,
+        transmit_pdo_communication_param_1_highest_sub_index_supported: u8,
         transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo: u32,
         transmit_pdo_communication_parameter_1_transmission_type: u8,
         transmit_pdo_communication_parameter_1_inhibit_time: u16,
         transmit_pdo_communication_parameter_1_compatibility_entry: u8,
         transmit_pdo_communication_parameter_1_event_timer: u16,
-        transmit_pdo_communication_parameter_2_highest_sub_index_supported: u8,
+        transmit_pdo_communication_param_2_highest_sub_index_supported: u8,
         transmit_pdo_communication_parameter_2_cob_id_used_by_tpdo: u32,
         transmit_pdo_communication_parameter_2_transmission_type: u8,
         transmit_pdo_communication_parameter_2_inhibit_time: u16,
         transmit_pdo_communication_parameter_2_compatibility_entry: u8,
         transmit_pdo_communication_parameter_2_event_timer: u16,
-        transmit_pdo_communication_parameter_3_highest_sub_index_supported: u8,
+        transmit_pdo_communication_param_3_highest_sub_index_supported: u8,
         transmit_pdo_communication_parameter_3_cob_id_used_by_tpdo: u32,
         transmit_pdo_communication_parameter_3_transmission_type: u8,
         transmit_pdo_communication_parameter_3_inhibit_time: u16,
         transmit_pdo_communication_parameter_3_compatibility_entry: u8,
         transmit_pdo_communication_parameter_3_event_timer: u16,
-        transmit_pdo_communication_parameter_4_highest_sub_index_supported: u8,
+        transmit_pdo_communication_param_4_highest_sub_index_supported: u8,
         transmit_pdo_communication_parameter_4_cob_id_used_by_tpdo: u32,
         transmit_pdo_communication_parameter_4_transmission_type: u8,
         transmit_pdo_communication_parameter_4_inhibit_time: u16,
         transmit_pdo_communication_parameter_4_compatibility_entry: u8,
         transmit_pdo_communication_parameter_4_event_timer: u16,
-        transmit_pdo_communication_parameter_5_highest_sub_index_supported: u8,
+        transmit_pdo_communication_param_5_highest_sub_index_supported: u8,
         transmit_pdo_communication_parameter_5_cob_id_used_by_tpdo: u32,
         transmit_pdo_communication_parameter_5_transmission_type: u8,
         transmit_pdo_communication_parameter_5_inhibit_time: u16,
         transmit_pdo_communication_parameter_5_compatibility_entry: u8,
         transmit_pdo_communication_parameter_5_event_timer: u16,
-        transmit_pdo_communication_parameter_6_highest_sub_index_supported: u8,
+        transmit_pdo_communication_param_6_highest_sub_index_supported: u8,
         transmit_pdo_communication_parameter_6_cob_id_used_by_tpdo: u32,
         transmit_pdo_communication_parameter_6_transmission_type: u8,
         transmit_pdo_communication_parameter_6_inhibit_time: u16,
         transmit_pdo_communication_parameter_6_compatibility_entry: u8,
         transmit_pdo_communication_parameter_6_event_timer: u16,
-        transmit_pdo_communication_parameter_7_highest_sub_index_supported: u8,
+        transmit_pdo_communication_param_7_highest_sub_index_supported: u8,
         transmit_pdo_communication_parameter_7_cob_id_used_by_tpdo: u32,
         transmit_pdo_communication_parameter_7_transmission_type: u8,
         transmit_pdo_communication_parameter_7_inhibit_time: u16,
         transmit_pdo_communication_parameter_7_compatibility_entry: u8,
         transmit_pdo_communication_parameter_7_event_timer: u16,
-        transmit_pdo_communication_parameter_8_highest_sub_index_supported: u8,
+        transmit_pdo_communication_param_8_highest_sub_index_supported: u8,
         transmit_pdo_communication_parameter_8_cob_id_used_by_tpdo: u32,
         transmit_pdo_communication_parameter_8_transmission_type: u8,
         transmit_pdo_communication_parameter_8_inhibit_time: u16,
@@ -7197,33 +7197,33 @@ PDOMapping=0
                 identity_object_product_code: 0x5A,
                 identity_object_revision_number: 0x1,
                 identity_object_serial_number: 0,
-                receive_pdo_communication_parameter_1_highest_sub_index_supported: 2,
+                receive_pdo_communication_param_1_highest_sub_index_supported: 2,
                 receive_pdo_communication_parameter_1_cob_id_used_by_rpdo: (0x200
                     + node_id as i128) as u32,
                 receive_pdo_communication_parameter_1_transmission_type: 0xFF,
-                receive_pdo_communication_parameter_2_highest_sub_index_supported: 2,
+                receive_pdo_communication_param_2_highest_sub_index_supported: 2,
                 receive_pdo_communication_parameter_2_cob_id_used_by_rpdo: (0x80000300
                     + node_id as i128) as u32,
                 receive_pdo_communication_parameter_2_transmission_type: 0xFF,
-                receive_pdo_communication_parameter_3_highest_sub_index_supported: 2,
+                receive_pdo_communication_param_3_highest_sub_index_supported: 2,
                 receive_pdo_communication_parameter_3_cob_id_used_by_rpdo: (0x80000400
                     + node_id as i128) as u32,
                 receive_pdo_communication_parameter_3_transmission_type: 0xFF,
-                receive_pdo_communication_parameter_4_highest_sub_index_supported: 2,
+                receive_pdo_communication_param_4_highest_sub_index_supported: 2,
                 receive_pdo_communication_parameter_4_cob_id_used_by_rpdo: (0x80000500
                     + node_id as i128) as u32,
                 receive_pdo_communication_parameter_4_transmission_type: 0xFF,
-                receive_pdo_communication_parameter_5_highest_sub_index_supported: 2,
+                receive_pdo_communication_param_5_highest_sub_index_supported: 2,
                 receive_pdo_communication_parameter_5_cob_id_used_by_rpdo: (0x80000680
                     + node_id as i128) as u32,
                 receive_pdo_communication_parameter_5_transmission_type: 0xFF,
-                receive_pdo_communication_parameter_6_highest_sub_index_supported: 2,
+                receive_pdo_communication_param_6_highest_sub_index_supported: 2,
                 receive_pdo_communication_parameter_6_cob_id_used_by_rpdo: 0x80000000,
                 receive_pdo_communication_parameter_6_transmission_type: 0xFF,
-                receive_pdo_communication_parameter_7_highest_sub_index_supported: 2,
+                receive_pdo_communication_param_7_highest_sub_index_supported: 2,
                 receive_pdo_communication_parameter_7_cob_id_used_by_rpdo: 0x80000000,
                 receive_pdo_communication_parameter_7_transmission_type: 0xFF,
-                receive_pdo_communication_parameter_8_highest_sub_index_supported: 2,
+                receive_pdo_communication_param_8_highest_sub_index_supported: 2,
                 receive_pdo_communication_parameter_8_cob_id_used_by_rpdo: 0x80000000,
                 receive_pdo_communication_parameter_8_transmission_type: 0xFF,
                 receive_pdo_mapping_parameter_1_number_of_mapped_objects: 1,
@@ -7298,53 +7298,53 @@ PDOMapping=0
                 receive_pdo_mapping_parameter_8_mapping_entry_6: 0x0,
                 receive_pdo_mapping_parameter_8_mapping_entry_7: 0x0,
                 receive_pdo_mapping_parameter_8_mapping_entry_8: 0x0,
-                transmit_pdo_communication_parameter_1_highest_sub_index_supported: 5,
+                transmit_pdo_communication_param_1_highest_sub_index_supported: 5,
                 transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo: (0x180
                     + node_id as i128) as u32,
                 transmit_pdo_communication_parameter_1_transmission_type: 0xFF,
                 transmit_pdo_communication_parameter_1_inhibit_time: 0,
                 transmit_pdo_communication_parameter_1_compatibility_entry: 0,
                 transmit_pdo_communication_parameter_1_event_timer: 100,
-                transmit_pdo_communication_parameter_2_highest_sub_index_supported: 5,
+                transmit_pdo_communication_param_2_highest_sub_index_supported: 5,
                 transmit_pdo_communication_parameter_2_cob_id_used_by_tpdo: (0x80000280
                     + node_id as i128) as u32,
                 transmit_pdo_communication_parameter_2_transmission_type: 0xFF,
                 transmit_pdo_communication_parameter_2_inhibit_time: 0,
                 transmit_pdo_communication_parameter_2_compatibility_entry: 0,
                 transmit_pdo_communication_parameter_2_event_timer: 0,
-                transmit_pdo_communication_parameter_3_highest_sub_index_supported: 5,
+                transmit_pdo_communication_param_3_highest_sub_index_supported: 5,
                 transmit_pdo_communication_parameter_3_cob_id_used_by_tpdo: (0x80000380
                     + node_id as i128) as u32,
                 transmit_pdo_communication_parameter_3_transmission_type: 0xFF,
                 transmit_pdo_communication_parameter_3_inhibit_time: 0,
                 transmit_pdo_communication_parameter_3_compatibility_entry: 0,
                 transmit_pdo_communication_parameter_3_event_timer: 0,
-                transmit_pdo_communication_parameter_4_highest_sub_index_supported: 5,
+                transmit_pdo_communication_param_4_highest_sub_index_supported: 5,
                 transmit_pdo_communication_parameter_4_cob_id_used_by_tpdo: (0x80000480
                     + node_id as i128) as u32,
                 transmit_pdo_communication_parameter_4_transmission_type: 0xFF,
                 transmit_pdo_communication_parameter_4_inhibit_time: 0,
                 transmit_pdo_communication_parameter_4_compatibility_entry: 0,
                 transmit_pdo_communication_parameter_4_event_timer: 0,
-                transmit_pdo_communication_parameter_5_highest_sub_index_supported: 5,
+                transmit_pdo_communication_param_5_highest_sub_index_supported: 5,
                 transmit_pdo_communication_parameter_5_cob_id_used_by_tpdo: 0x80000000,
                 transmit_pdo_communication_parameter_5_transmission_type: 0xFF,
                 transmit_pdo_communication_parameter_5_inhibit_time: 0,
                 transmit_pdo_communication_parameter_5_compatibility_entry: 0,
                 transmit_pdo_communication_parameter_5_event_timer: 0,
-                transmit_pdo_communication_parameter_6_highest_sub_index_supported: 5,
+                transmit_pdo_communication_param_6_highest_sub_index_supported: 5,
                 transmit_pdo_communication_parameter_6_cob_id_used_by_tpdo: 0x80000000,
                 transmit_pdo_communication_parameter_6_transmission_type: 0xFF,
                 transmit_pdo_communication_parameter_6_inhibit_time: 0,
                 transmit_pdo_communication_parameter_6_compatibility_entry: 0,
                 transmit_pdo_communication_parameter_6_event_timer: 0,
-                transmit_pdo_communication_parameter_7_highest_sub_index_supported: 5,
+                transmit_pdo_communication_param_7_highest_sub_index_supported: 5,
                 transmit_pdo_communication_parameter_7_cob_id_used_by_tpdo: 0x80000000,
                 transmit_pdo_communication_parameter_7_transmission_type: 0xFF,
                 transmit_pdo_communication_parameter_7_inhibit_time: 0,
                 transmit_pdo_communication_parameter_7_compatibility_entry: 0,
                 transmit_pdo_communication_parameter_7_event_timer: 0,
-                transmit_pdo_communication_parameter_8_highest_sub_index_supported: 5,
+                transmit_pdo_communication_param_8_highest_sub_index_supported: 5,
                 transmit_pdo_communication_parameter_8_cob_id_used_by_tpdo: 0x80000000,
                 transmit_pdo_communication_parameter_8_transmission_type: 0xFF,
                 transmit_pdo_communication_parameter_8_inhibit_time: 0,
@@ -7633,7 +7633,7 @@ PDOMapping=0
                     32 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .receive_pdo_communication_parameter_1_highest_sub_index_supported,
+                                .receive_pdo_communication_param_1_highest_sub_index_supported,
                         )
                     }
                     33 => {
@@ -7650,7 +7650,7 @@ PDOMapping=0
                     35 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .receive_pdo_communication_parameter_2_highest_sub_index_supported,
+                                .receive_pdo_communication_param_2_highest_sub_index_supported,
                         )
                     }
                     36 => {
@@ -7667,7 +7667,7 @@ PDOMapping=0
                     38 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .receive_pdo_communication_parameter_3_highest_sub_index_supported,
+                                .receive_pdo_communication_param_3_highest_sub_index_supported,
                         )
                     }
                     39 => {
@@ -7684,7 +7684,7 @@ PDOMapping=0
                     41 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .receive_pdo_communication_parameter_4_highest_sub_index_supported,
+                                .receive_pdo_communication_param_4_highest_sub_index_supported,
                         )
                     }
                     42 => {
@@ -7701,7 +7701,7 @@ PDOMapping=0
                     44 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .receive_pdo_communication_parameter_5_highest_sub_index_supported,
+                                .receive_pdo_communication_param_5_highest_sub_index_supported,
                         )
                     }
                     45 => {
@@ -7718,7 +7718,7 @@ PDOMapping=0
                     47 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .receive_pdo_communication_parameter_6_highest_sub_index_supported,
+                                .receive_pdo_communication_param_6_highest_sub_index_supported,
                         )
                     }
                     48 => {
@@ -7735,7 +7735,7 @@ PDOMapping=0
                     50 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .receive_pdo_communication_parameter_7_highest_sub_index_supported,
+                                .receive_pdo_communication_param_7_highest_sub_index_supported,
                         )
                     }
                     51 => {
@@ -7752,7 +7752,7 @@ PDOMapping=0
                     53 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .receive_pdo_communication_parameter_8_highest_sub_index_supported,
+                                .receive_pdo_communication_param_8_highest_sub_index_supported,
                         )
                     }
                     54 => {
@@ -8137,7 +8137,7 @@ PDOMapping=0
                     128 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .transmit_pdo_communication_parameter_1_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_1_highest_sub_index_supported,
                         )
                     }
                     129 => {
@@ -8171,7 +8171,7 @@ PDOMapping=0
                     134 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .transmit_pdo_communication_parameter_2_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_2_highest_sub_index_supported,
                         )
                     }
                     135 => {
@@ -8205,7 +8205,7 @@ PDOMapping=0
                     140 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .transmit_pdo_communication_parameter_3_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_3_highest_sub_index_supported,
                         )
                     }
                     141 => {
@@ -8239,7 +8239,7 @@ PDOMapping=0
                     146 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .transmit_pdo_communication_parameter_4_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_4_highest_sub_index_supported,
                         )
                     }
                     147 => {
@@ -8273,7 +8273,7 @@ PDOMapping=0
                     152 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .transmit_pdo_communication_parameter_5_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_5_highest_sub_index_supported,
                         )
                     }
                     153 => {
@@ -8307,7 +8307,7 @@ PDOMapping=0
                     158 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .transmit_pdo_communication_parameter_6_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_6_highest_sub_index_supported,
                         )
                     }
                     159 => {
@@ -8341,7 +8341,7 @@ PDOMapping=0
                     164 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .transmit_pdo_communication_parameter_7_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_7_highest_sub_index_supported,
                         )
                     }
                     165 => {
@@ -8375,7 +8375,7 @@ PDOMapping=0
                     170 => {
                         ::od_runtime::__private_v1::Slot::U8(
                             &self
-                                .transmit_pdo_communication_parameter_8_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_8_highest_sub_index_supported,
                         )
                     }
                     171 => {
@@ -9124,7 +9124,7 @@ PDOMapping=0
                     32 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .receive_pdo_communication_parameter_1_highest_sub_index_supported,
+                                .receive_pdo_communication_param_1_highest_sub_index_supported,
                         )
                     }
                     33 => {
@@ -9142,7 +9142,7 @@ PDOMapping=0
                     35 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .receive_pdo_communication_parameter_2_highest_sub_index_supported,
+                                .receive_pdo_communication_param_2_highest_sub_index_supported,
                         )
                     }
                     36 => {
@@ -9160,7 +9160,7 @@ PDOMapping=0
                     38 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .receive_pdo_communication_parameter_3_highest_sub_index_supported,
+                                .receive_pdo_communication_param_3_highest_sub_index_supported,
                         )
                     }
                     39 => {
@@ -9178,7 +9178,7 @@ PDOMapping=0
                     41 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .receive_pdo_communication_parameter_4_highest_sub_index_supported,
+                                .receive_pdo_communication_param_4_highest_sub_index_supported,
                         )
                     }
                     42 => {
@@ -9196,7 +9196,7 @@ PDOMapping=0
                     44 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .receive_pdo_communication_parameter_5_highest_sub_index_supported,
+                                .receive_pdo_communication_param_5_highest_sub_index_supported,
                         )
                     }
                     45 => {
@@ -9214,7 +9214,7 @@ PDOMapping=0
                     47 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .receive_pdo_communication_parameter_6_highest_sub_index_supported,
+                                .receive_pdo_communication_param_6_highest_sub_index_supported,
                         )
                     }
                     48 => {
@@ -9232,7 +9232,7 @@ PDOMapping=0
                     50 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .receive_pdo_communication_parameter_7_highest_sub_index_supported,
+                                .receive_pdo_communication_param_7_highest_sub_index_supported,
                         )
                     }
                     51 => {
@@ -9250,7 +9250,7 @@ PDOMapping=0
                     53 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .receive_pdo_communication_parameter_8_highest_sub_index_supported,
+                                .receive_pdo_communication_param_8_highest_sub_index_supported,
                         )
                     }
                     54 => {
@@ -9636,7 +9636,7 @@ PDOMapping=0
                     128 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .transmit_pdo_communication_parameter_1_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_1_highest_sub_index_supported,
                         )
                     }
                     129 => {
@@ -9670,7 +9670,7 @@ PDOMapping=0
                     134 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .transmit_pdo_communication_parameter_2_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_2_highest_sub_index_supported,
                         )
                     }
                     135 => {
@@ -9704,7 +9704,7 @@ PDOMapping=0
                     140 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .transmit_pdo_communication_parameter_3_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_3_highest_sub_index_supported,
                         )
                     }
                     141 => {
@@ -9738,7 +9738,7 @@ PDOMapping=0
                     146 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .transmit_pdo_communication_parameter_4_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_4_highest_sub_index_supported,
                         )
                     }
                     147 => {
@@ -9772,7 +9772,7 @@ PDOMapping=0
                     152 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .transmit_pdo_communication_parameter_5_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_5_highest_sub_index_supported,
                         )
                     }
                     153 => {
@@ -9806,7 +9806,7 @@ PDOMapping=0
                     158 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .transmit_pdo_communication_parameter_6_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_6_highest_sub_index_supported,
                         )
                     }
                     159 => {
@@ -9840,7 +9840,7 @@ PDOMapping=0
                     164 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .transmit_pdo_communication_parameter_7_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_7_highest_sub_index_supported,
                         )
                     }
                     165 => {
@@ -9874,7 +9874,7 @@ PDOMapping=0
                     170 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
                             &mut self
-                                .transmit_pdo_communication_parameter_8_highest_sub_index_supported,
+                                .transmit_pdo_communication_param_8_highest_sub_index_supported,
                         )
                     }
                     171 => {
@@ -11133,18 +11133,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 2.
         #[inline]
-        pub const fn receive_pdo_communication_parameter_1_highest_sub_index_supported(
+        pub const fn receive_pdo_communication_param_1_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.receive_pdo_communication_parameter_1_highest_sub_index_supported
+            self.receive_pdo_communication_param_1_highest_sub_index_supported
         }
-        /// Sets `0x1400` sub 0 Receive PDO communication parameter 1: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_1_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1400` sub 0 Receive PDO communication parameter 1: Highest sub-index supported (see [`Self::receive_pdo_communication_param_1_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_communication_parameter_1_highest_sub_index_supported(
+        pub fn set_receive_pdo_communication_param_1_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_communication_parameter_1_highest_sub_index_supported = v;
+            self.receive_pdo_communication_param_1_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1400` sub 1 Receive PDO communication parameter 1: COB-ID used by RPDO.
@@ -11187,18 +11187,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 2.
         #[inline]
-        pub const fn receive_pdo_communication_parameter_2_highest_sub_index_supported(
+        pub const fn receive_pdo_communication_param_2_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.receive_pdo_communication_parameter_2_highest_sub_index_supported
+            self.receive_pdo_communication_param_2_highest_sub_index_supported
         }
-        /// Sets `0x1401` sub 0 Receive PDO communication parameter 2: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_2_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1401` sub 0 Receive PDO communication parameter 2: Highest sub-index supported (see [`Self::receive_pdo_communication_param_2_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_communication_parameter_2_highest_sub_index_supported(
+        pub fn set_receive_pdo_communication_param_2_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_communication_parameter_2_highest_sub_index_supported = v;
+            self.receive_pdo_communication_param_2_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1401` sub 1 Receive PDO communication parameter 2: COB-ID used by RPDO.
@@ -11241,18 +11241,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 2.
         #[inline]
-        pub const fn receive_pdo_communication_parameter_3_highest_sub_index_supported(
+        pub const fn receive_pdo_communication_param_3_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.receive_pdo_communication_parameter_3_highest_sub_index_supported
+            self.receive_pdo_communication_param_3_highest_sub_index_supported
         }
-        /// Sets `0x1402` sub 0 Receive PDO communication parameter 3: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_3_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1402` sub 0 Receive PDO communication parameter 3: Highest sub-index supported (see [`Self::receive_pdo_communication_param_3_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_communication_parameter_3_highest_sub_index_supported(
+        pub fn set_receive_pdo_communication_param_3_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_communication_parameter_3_highest_sub_index_supported = v;
+            self.receive_pdo_communication_param_3_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1402` sub 1 Receive PDO communication parameter 3: COB-ID used by RPDO.
@@ -11295,18 +11295,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 2.
         #[inline]
-        pub const fn receive_pdo_communication_parameter_4_highest_sub_index_supported(
+        pub const fn receive_pdo_communication_param_4_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.receive_pdo_communication_parameter_4_highest_sub_index_supported
+            self.receive_pdo_communication_param_4_highest_sub_index_supported
         }
-        /// Sets `0x1403` sub 0 Receive PDO communication parameter 4: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_4_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1403` sub 0 Receive PDO communication parameter 4: Highest sub-index supported (see [`Self::receive_pdo_communication_param_4_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_communication_parameter_4_highest_sub_index_supported(
+        pub fn set_receive_pdo_communication_param_4_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_communication_parameter_4_highest_sub_index_supported = v;
+            self.receive_pdo_communication_param_4_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1403` sub 1 Receive PDO communication parameter 4: COB-ID used by RPDO.
@@ -11349,18 +11349,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 2.
         #[inline]
-        pub const fn receive_pdo_communication_parameter_5_highest_sub_index_supported(
+        pub const fn receive_pdo_communication_param_5_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.receive_pdo_communication_parameter_5_highest_sub_index_supported
+            self.receive_pdo_communication_param_5_highest_sub_index_supported
         }
-        /// Sets `0x1404` sub 0 Receive PDO communication parameter 5: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_5_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1404` sub 0 Receive PDO communication parameter 5: Highest sub-index supported (see [`Self::receive_pdo_communication_param_5_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_communication_parameter_5_highest_sub_index_supported(
+        pub fn set_receive_pdo_communication_param_5_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_communication_parameter_5_highest_sub_index_supported = v;
+            self.receive_pdo_communication_param_5_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1404` sub 1 Receive PDO communication parameter 5: COB-ID used by RPDO.
@@ -11403,18 +11403,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 2.
         #[inline]
-        pub const fn receive_pdo_communication_parameter_6_highest_sub_index_supported(
+        pub const fn receive_pdo_communication_param_6_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.receive_pdo_communication_parameter_6_highest_sub_index_supported
+            self.receive_pdo_communication_param_6_highest_sub_index_supported
         }
-        /// Sets `0x1405` sub 0 Receive PDO communication parameter 6: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_6_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1405` sub 0 Receive PDO communication parameter 6: Highest sub-index supported (see [`Self::receive_pdo_communication_param_6_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_communication_parameter_6_highest_sub_index_supported(
+        pub fn set_receive_pdo_communication_param_6_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_communication_parameter_6_highest_sub_index_supported = v;
+            self.receive_pdo_communication_param_6_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1405` sub 1 Receive PDO communication parameter 6: COB-ID used by RPDO.
@@ -11457,18 +11457,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 2.
         #[inline]
-        pub const fn receive_pdo_communication_parameter_7_highest_sub_index_supported(
+        pub const fn receive_pdo_communication_param_7_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.receive_pdo_communication_parameter_7_highest_sub_index_supported
+            self.receive_pdo_communication_param_7_highest_sub_index_supported
         }
-        /// Sets `0x1406` sub 0 Receive PDO communication parameter 7: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_7_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1406` sub 0 Receive PDO communication parameter 7: Highest sub-index supported (see [`Self::receive_pdo_communication_param_7_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_communication_parameter_7_highest_sub_index_supported(
+        pub fn set_receive_pdo_communication_param_7_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_communication_parameter_7_highest_sub_index_supported = v;
+            self.receive_pdo_communication_param_7_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1406` sub 1 Receive PDO communication parameter 7: COB-ID used by RPDO.
@@ -11511,18 +11511,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 2.
         #[inline]
-        pub const fn receive_pdo_communication_parameter_8_highest_sub_index_supported(
+        pub const fn receive_pdo_communication_param_8_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.receive_pdo_communication_parameter_8_highest_sub_index_supported
+            self.receive_pdo_communication_param_8_highest_sub_index_supported
         }
-        /// Sets `0x1407` sub 0 Receive PDO communication parameter 8: Highest sub-index supported (see [`Self::receive_pdo_communication_parameter_8_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1407` sub 0 Receive PDO communication parameter 8: Highest sub-index supported (see [`Self::receive_pdo_communication_param_8_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_communication_parameter_8_highest_sub_index_supported(
+        pub fn set_receive_pdo_communication_param_8_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_communication_parameter_8_highest_sub_index_supported = v;
+            self.receive_pdo_communication_param_8_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1407` sub 1 Receive PDO communication parameter 8: COB-ID used by RPDO.
@@ -12733,18 +12733,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 5.
         #[inline]
-        pub const fn transmit_pdo_communication_parameter_1_highest_sub_index_supported(
+        pub const fn transmit_pdo_communication_param_1_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.transmit_pdo_communication_parameter_1_highest_sub_index_supported
+            self.transmit_pdo_communication_param_1_highest_sub_index_supported
         }
-        /// Sets `0x1800` sub 0 Transmit PDO communication parameter 1: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_1_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1800` sub 0 Transmit PDO communication parameter 1: Highest sub-index supported (see [`Self::transmit_pdo_communication_param_1_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_communication_parameter_1_highest_sub_index_supported(
+        pub fn set_transmit_pdo_communication_param_1_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_communication_parameter_1_highest_sub_index_supported = v;
+            self.transmit_pdo_communication_param_1_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1800` sub 1 Transmit PDO communication parameter 1: COB-ID used by TPDO.
@@ -12837,18 +12837,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 5.
         #[inline]
-        pub const fn transmit_pdo_communication_parameter_2_highest_sub_index_supported(
+        pub const fn transmit_pdo_communication_param_2_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.transmit_pdo_communication_parameter_2_highest_sub_index_supported
+            self.transmit_pdo_communication_param_2_highest_sub_index_supported
         }
-        /// Sets `0x1801` sub 0 Transmit PDO communication parameter 2: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_2_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1801` sub 0 Transmit PDO communication parameter 2: Highest sub-index supported (see [`Self::transmit_pdo_communication_param_2_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_communication_parameter_2_highest_sub_index_supported(
+        pub fn set_transmit_pdo_communication_param_2_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_communication_parameter_2_highest_sub_index_supported = v;
+            self.transmit_pdo_communication_param_2_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1801` sub 1 Transmit PDO communication parameter 2: COB-ID used by TPDO.
@@ -12941,18 +12941,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 5.
         #[inline]
-        pub const fn transmit_pdo_communication_parameter_3_highest_sub_index_supported(
+        pub const fn transmit_pdo_communication_param_3_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.transmit_pdo_communication_parameter_3_highest_sub_index_supported
+            self.transmit_pdo_communication_param_3_highest_sub_index_supported
         }
-        /// Sets `0x1802` sub 0 Transmit PDO communication parameter 3: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_3_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1802` sub 0 Transmit PDO communication parameter 3: Highest sub-index supported (see [`Self::transmit_pdo_communication_param_3_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_communication_parameter_3_highest_sub_index_supported(
+        pub fn set_transmit_pdo_communication_param_3_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_communication_parameter_3_highest_sub_index_supported = v;
+            self.transmit_pdo_communication_param_3_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1802` sub 1 Transmit PDO communication parameter 3: COB-ID used by TPDO.
@@ -13045,18 +13045,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 5.
         #[inline]
-        pub const fn transmit_pdo_communication_parameter_4_highest_sub_index_supported(
+        pub const fn transmit_pdo_communication_param_4_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.transmit_pdo_communication_parameter_4_highest_sub_index_supported
+            self.transmit_pdo_communication_param_4_highest_sub_index_supported
         }
-        /// Sets `0x1803` sub 0 Transmit PDO communication parameter 4: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_4_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1803` sub 0 Transmit PDO communication parameter 4: Highest sub-index supported (see [`Self::transmit_pdo_communication_param_4_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_communication_parameter_4_highest_sub_index_supported(
+        pub fn set_transmit_pdo_communication_param_4_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_communication_parameter_4_highest_sub_index_supported = v;
+            self.transmit_pdo_communication_param_4_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1803` sub 1 Transmit PDO communication parameter 4: COB-ID used by TPDO.
@@ -13149,18 +13149,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 5.
         #[inline]
-        pub const fn transmit_pdo_communication_parameter_5_highest_sub_index_supported(
+        pub const fn transmit_pdo_communication_param_5_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.transmit_pdo_communication_parameter_5_highest_sub_index_supported
+            self.transmit_pdo_communication_param_5_highest_sub_index_supported
         }
-        /// Sets `0x1804` sub 0 Transmit PDO communication parameter 5: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_5_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1804` sub 0 Transmit PDO communication parameter 5: Highest sub-index supported (see [`Self::transmit_pdo_communication_param_5_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_communication_parameter_5_highest_sub_index_supported(
+        pub fn set_transmit_pdo_communication_param_5_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_communication_parameter_5_highest_sub_index_supported = v;
+            self.transmit_pdo_communication_param_5_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1804` sub 1 Transmit PDO communication parameter 5: COB-ID used by TPDO.
@@ -13253,18 +13253,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 5.
         #[inline]
-        pub const fn transmit_pdo_communication_parameter_6_highest_sub_index_supported(
+        pub const fn transmit_pdo_communication_param_6_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.transmit_pdo_communication_parameter_6_highest_sub_index_supported
+            self.transmit_pdo_communication_param_6_highest_sub_index_supported
         }
-        /// Sets `0x1805` sub 0 Transmit PDO communication parameter 6: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_6_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1805` sub 0 Transmit PDO communication parameter 6: Highest sub-index supported (see [`Self::transmit_pdo_communication_param_6_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_communication_parameter_6_highest_sub_index_supported(
+        pub fn set_transmit_pdo_communication_param_6_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_communication_parameter_6_highest_sub_index_supported = v;
+            self.transmit_pdo_communication_param_6_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1805` sub 1 Transmit PDO communication parameter 6: COB-ID used by TPDO.
@@ -13357,18 +13357,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 5.
         #[inline]
-        pub const fn transmit_pdo_communication_parameter_7_highest_sub_index_supported(
+        pub const fn transmit_pdo_communication_param_7_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.transmit_pdo_communication_parameter_7_highest_sub_index_supported
+            self.transmit_pdo_communication_param_7_highest_sub_index_supported
         }
-        /// Sets `0x1806` sub 0 Transmit PDO communication parameter 7: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_7_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1806` sub 0 Transmit PDO communication parameter 7: Highest sub-index supported (see [`Self::transmit_pdo_communication_param_7_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_communication_parameter_7_highest_sub_index_supported(
+        pub fn set_transmit_pdo_communication_param_7_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_communication_parameter_7_highest_sub_index_supported = v;
+            self.transmit_pdo_communication_param_7_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1806` sub 1 Transmit PDO communication parameter 7: COB-ID used by TPDO.
@@ -13461,18 +13461,18 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `ro`. Default: 5.
         #[inline]
-        pub const fn transmit_pdo_communication_parameter_8_highest_sub_index_supported(
+        pub const fn transmit_pdo_communication_param_8_highest_sub_index_supported(
             &self,
         ) -> u8 {
-            self.transmit_pdo_communication_parameter_8_highest_sub_index_supported
+            self.transmit_pdo_communication_param_8_highest_sub_index_supported
         }
-        /// Sets `0x1807` sub 0 Transmit PDO communication parameter 8: Highest sub-index supported (see [`Self::transmit_pdo_communication_parameter_8_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1807` sub 0 Transmit PDO communication parameter 8: Highest sub-index supported (see [`Self::transmit_pdo_communication_param_8_highest_sub_index_supported`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_communication_parameter_8_highest_sub_index_supported(
+        pub fn set_transmit_pdo_communication_param_8_highest_sub_index_supported(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_communication_parameter_8_highest_sub_index_supported = v;
+            self.transmit_pdo_communication_param_8_highest_sub_index_supported = v;
             Ok(())
         }
         /// Reads `0x1807` sub 1 Transmit PDO communication parameter 8: COB-ID used by TPDO.

@@ -1197,8 +1197,8 @@ PDOMapping=0
         counter: u64,
         gains_number_of_entries: u8,
         gains_type: u16,
-        gains_gain_2: u16,
-        gains_gain_2_2006_3: u16,
+        gains_gain_2_2: u16,
+        gains_gain_2_3: u16,
         position_window: u32,
         controlword: u16,
         statusword: u16,
@@ -1253,8 +1253,8 @@ PDOMapping=0
                 counter: 0x123456789,
                 gains_number_of_entries: 3,
                 gains_type: 1,
-                gains_gain_2: 2,
-                gains_gain_2_2006_3: 3,
+                gains_gain_2_2: 2,
+                gains_gain_2_3: 3,
                 position_window: (0x10 + node_id as i128) as u32,
                 controlword: 0,
                 statusword: 0,
@@ -1421,10 +1421,8 @@ PDOMapping=0
                         )
                     }
                     33 => ::od_runtime::__private_v1::Slot::U16(&self.gains_type),
-                    34 => ::od_runtime::__private_v1::Slot::U16(&self.gains_gain_2),
-                    35 => {
-                        ::od_runtime::__private_v1::Slot::U16(&self.gains_gain_2_2006_3)
-                    }
+                    34 => ::od_runtime::__private_v1::Slot::U16(&self.gains_gain_2_2),
+                    35 => ::od_runtime::__private_v1::Slot::U16(&self.gains_gain_2_3),
                     36 => ::od_runtime::__private_v1::Slot::U32(&self.position_window),
                     37 => ::od_runtime::__private_v1::Slot::U16(&self.controlword),
                     38 => ::od_runtime::__private_v1::Slot::U16(&self.statusword),
@@ -1610,11 +1608,13 @@ PDOMapping=0
                     }
                     33 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.gains_type),
                     34 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(&mut self.gains_gain_2)
+                        ::od_runtime::__private_v1::SlotMut::U16(
+                            &mut self.gains_gain_2_2,
+                        )
                     }
                     35 => {
                         ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.gains_gain_2_2006_3,
+                            &mut self.gains_gain_2_3,
                         )
                     }
                     36 => {
@@ -2309,35 +2309,35 @@ PDOMapping=0
         ///
         /// UNSIGNED16, access `rw`. Default: 2. At most 500.
         #[inline]
-        pub const fn gains_gain_2(&self) -> u16 {
-            self.gains_gain_2
+        pub const fn gains_gain_2_2(&self) -> u16 {
+            self.gains_gain_2_2
         }
-        /// Sets `0x2006` sub 2 Gains: Gain 2 (see [`Self::gains_gain_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2006` sub 2 Gains: Gain 2 (see [`Self::gains_gain_2_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_gains_gain_2(
+        pub fn set_gains_gain_2_2(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             if v > 500 {
                 return Err(::od_runtime::od::AbortCode::VALUE_TOO_HIGH);
             }
-            self.gains_gain_2 = v;
+            self.gains_gain_2_2 = v;
             Ok(())
         }
         /// Reads `0x2006` sub 3 Gains: Gain 2.
         ///
         /// UNSIGNED16, access `rw`. Default: 3.
         #[inline]
-        pub const fn gains_gain_2_2006_3(&self) -> u16 {
-            self.gains_gain_2_2006_3
+        pub const fn gains_gain_2_3(&self) -> u16 {
+            self.gains_gain_2_3
         }
-        /// Sets `0x2006` sub 3 Gains: Gain 2 (see [`Self::gains_gain_2_2006_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2006` sub 3 Gains: Gain 2 (see [`Self::gains_gain_2_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_gains_gain_2_2006_3(
+        pub fn set_gains_gain_2_3(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.gains_gain_2_2006_3 = v;
+            self.gains_gain_2_3 = v;
             Ok(())
         }
         /// Reads `0x2007` Position window.

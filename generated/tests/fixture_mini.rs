@@ -92,7 +92,7 @@ fn typed_setters_enforce_limits_and_type_ranges() {
     assert_eq!(od.set_signed_24(1001), Err(AbortCode::VALUE_TOO_HIGH));
     assert_eq!(od.set_counter(1 << 40), Err(AbortCode::VALUE_TOO_HIGH)); // UNSIGNED40 in a u64
     od.set_counter((1 << 40) - 1).unwrap();
-    assert_eq!(od.set_gains_gain_2(501), Err(AbortCode::VALUE_TOO_HIGH));
+    assert_eq!(od.set_gains_gain_2_2(501), Err(AbortCode::VALUE_TOO_HIGH));
     assert_eq!(od.set_gain(f32::INFINITY), Err(AbortCode::VALUE_TOO_HIGH));
     assert_eq!(od.set_blob(&[0; 33]), Err(AbortCode::LENGTH_TOO_HIGH));
     od.set_blob(&[9; 32]).unwrap();

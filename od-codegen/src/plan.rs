@@ -166,6 +166,109 @@ pub(crate) fn effective_value(e: &Entry) -> Option<&Value> {
     e.parameter_value().or(e.default.as_ref())
 }
 
+/// The number a PDO or SDO parameter object carries by its role (1-based), for naming objects
+/// that share one name.
+fn role_number(obj: &Object) -> Option<u32> {
+    use eds::model::Role;
+    match obj.index.role() {
+        Role::SdoServer(n) | Role::SdoClient(n) => Some(n as u32 + 1),
+        Role::RpdoCommunication(n) | Role::RpdoMapping(n) | Role::TpdoCommunication(n) | Role::TpdoMapping(n) => {
+            Some(n as u32 + 1)
+        }
+        _ => None,
+    }
+}
+
+fn holds_values(obj: &Object) -> bool {
+    !matches!(obj.object_type, ObjectType::DefType | ObjectType::DefStruct | ObjectType::Null)
+}
+
+/// The words of every value-holding object's name. Objects that share one name (sixteen
+/// "RPDO communication parameter"s, a vendor's repeated "Trace config") all take a number at
+/// the end: their PDO/SDO number when each has a distinct one, else their place among the
+/// objects of that name, by index. A name depends only on its own object and the objects it
+/// really collides with.
+fn object_words(model: &Model) -> std::collections::BTreeMap<u16, Vec<String>> {
+    use std::collections::BTreeMap;
+    let mut words: BTreeMap<u16, Vec<String>> = BTreeMap::new();
+    let mut groups: BTreeMap<Vec<String>, Vec<&Object>> = BTreeMap::new();
+    for obj in model.objects.values().filter(|o| holds_values(o)) {
+        let mut w = ident::words(&obj.name);
+        if w.is_empty() {
+            w.push(format!("x{:04x}", obj.index.0));
+        }
+        groups.entry(w.clone()).or_default().push(obj);
+        words.insert(obj.index.0, w);
+    }
+    for members in groups.values().filter(|m| m.len() > 1) {
+        let numbers: Vec<Option<u32>> = members.iter().map(|o| role_number(o)).collect();
+        let distinct = numbers.iter().all(Option::is_some)
+            && numbers.iter().collect::<std::collections::BTreeSet<_>>().len() == numbers.len();
+        for (pos, obj) in members.iter().enumerate() {
+            let n = if distinct { numbers[pos].unwrap_or(0) } else { pos as u32 + 1 };
+            if let Some(w) = words.get_mut(&obj.index.0) {
+                w.push(n.to_string());
+            }
+        }
+    }
+    words
+}
+
+/// The sub-entry's own words: its name without the words it repeats from its object: the
+/// object's whole name in front (`Error history` / `Error history 3` → `3`; `Remote TPDO
+/// mapping parameter` / `Remote TPDO mapping parameter2` → `2`), or the object's last words
+/// (`Receive file` / `File name` → `name`; `Variable Int32` / `int32` → nothing).
+fn strip_object_words(sub: &[String], obj: &[String]) -> Vec<String> {
+    if obj.is_empty() || sub.is_empty() {
+        return sub.to_vec();
+    }
+    // The whole object name, its last word glued to a number.
+    if sub.len() >= obj.len() && sub[..obj.len() - 1] == obj[..obj.len() - 1] {
+        let (o, w) = (&obj[obj.len() - 1], &sub[obj.len() - 1]);
+        if let Some(d) = w.strip_prefix(o.as_str())
+            && !d.is_empty()
+            && d.bytes().all(|b| b.is_ascii_digit())
+        {
+            let mut rest = vec![d.to_owned()];
+            rest.extend_from_slice(&sub[obj.len()..]);
+            return rest;
+        }
+    }
+    // The longest run of the object's last words that the sub-entry's name starts with.
+    let k = (1..=obj.len().min(sub.len())).rev().find(|&k| obj[obj.len() - k..] == sub[..k]).unwrap_or(0);
+    sub[k..].to_vec()
+}
+
+/// The words of each sub-entry's name within its object: the object's words, then the
+/// sub-entry's own; sub-entries whose own words are empty or shared with a sibling (array and
+/// record elements named alike) take their sub-index as a plain number at the end.
+fn sub_words(obj: &Object, obj_words: &[String]) -> std::collections::BTreeMap<u8, Vec<String>> {
+    use std::collections::BTreeMap;
+    let plain = ident::words(&obj.name);
+    let own: BTreeMap<u8, Vec<String>> =
+        obj.subs.values().map(|e| (e.sub.0, strip_object_words(&ident::words(&e.name), &plain))).collect();
+    let mut count: BTreeMap<&Vec<String>, usize> = BTreeMap::new();
+    for w in own.values() {
+        *count.entry(w).or_default() += 1;
+    }
+    own.iter()
+        .map(|(sub, w)| {
+            let mut full = obj_words.to_vec();
+            full.extend(w.iter().cloned());
+            if w.is_empty() || count.get(w).copied().unwrap_or(0) > 1 {
+                full.push(sub.to_string());
+            }
+            (*sub, full)
+        })
+        .collect()
+}
+
+/// `snake_case` of words, at most [`ident::MAX_LEN`] characters.
+fn snake_name(words: Vec<String>, reserve: usize) -> String {
+    let w = ident::shorten(words, ident::MAX_LEN - 1 - reserve);
+    ident::snake(&w.join(" ")).unwrap_or_else(|| "entry".to_owned())
+}
+
 pub(crate) fn build<'m>(model: &'m Model, options: &Options, sink: &mut Sink) -> Plan<'m> {
     let mut entries = Vec::new();
     let mut objects = Vec::new();
@@ -174,9 +277,10 @@ pub(crate) fn build<'m>(model: &'m Model, options: &Options, sink: &mut Sink) ->
         methods.insert(format!("set_{r}"));
     }
     let mut consts = Names::default();
+    let words = object_words(model);
 
     for obj in model.objects.values() {
-        if matches!(obj.object_type, ObjectType::DefType | ObjectType::DefStruct | ObjectType::Null) {
+        if !holds_values(obj) {
             sink.at_object(
                 Severity::Note,
                 diag::NO_VALUE_OBJECT,
@@ -185,15 +289,36 @@ pub(crate) fn build<'m>(model: &'m Model, options: &Options, sink: &mut Sink) ->
             );
             continue;
         }
-        let obj_base = ident::snake(&obj.name).unwrap_or_else(|| format!("x{:04x}", obj.index.0));
+        let obj_words = words.get(&obj.index.0).cloned().unwrap_or_default();
+        let subs = if obj.object_type.has_subs() { sub_words(obj, &obj_words) } else { Default::default() };
         let mut kept_any = false;
+        let mut renamed = Vec::new();
         for e in obj.subs.values() {
-            let Some(p) = plan_entry(obj, e, &obj_base, options, sink, &mut methods) else { continue };
+            let w = subs.get(&e.sub.0).cloned().unwrap_or_else(|| obj_words.clone());
+            let Some((p, rename)) = plan_entry(obj, e, w, options, sink, &mut methods) else { continue };
+            renamed.extend(rename);
             entries.push(p);
             kept_any = true;
         }
+        // One warning per object, however many of its names were taken.
+        if let Some((first, first_field)) = renamed.first() {
+            let more = match renamed.len() {
+                1 => String::new(),
+                n => format!(" (and {} more of its entries)", n - 1),
+            };
+            sink.at_object(
+                Severity::Warning,
+                diag::NAME_COLLISION,
+                obj,
+                format!(
+                    "the name `{first}` is already taken by another object's entry; this entry's accessors are \
+                     `{first_field}` / `set_{first_field}`{more}"
+                ),
+            );
+        }
         if kept_any {
-            let base = ident::screaming(&obj.name).unwrap_or_else(|| format!("X{:04X}", obj.index.0));
+            let base = snake_name(obj_words.clone(), 0).trim_end_matches('_').to_ascii_uppercase();
+            let base = ident::screaming(&base).unwrap_or(base);
             let (konst, renamed) = consts.claim(&base, &[format!("{base}_{:04X}", obj.index.0)]);
             if renamed {
                 sink.at_object(
@@ -209,14 +334,16 @@ pub(crate) fn build<'m>(model: &'m Model, options: &Options, sink: &mut Sink) ->
     Plan { entries, objects }
 }
 
+/// Plans one entry named by `words`; also gives `(wanted, given)` when the wanted name was
+/// taken.
 fn plan_entry<'m>(
     obj: &'m Object,
     e: &'m Entry,
-    obj_base: &str,
+    words: Vec<String>,
     options: &Options,
     sink: &mut Sink,
     methods: &mut Names,
-) -> Option<PEntry<'m>> {
+) -> Option<(PEntry<'m>, Option<(String, String)>)> {
     let dt = e.data_type;
     if let DataType::Other(code) = dt {
         sink.at_entry(
@@ -231,32 +358,27 @@ fn plan_entry<'m>(
         return None;
     }
 
-    // Name.
-    let (base, fallback) = if obj.object_type.has_subs() {
-        let sub = ident::snake(&e.name).unwrap_or_else(|| format!("sub{}", e.sub.0));
-        let base = format!("{obj_base}_{}", sub.trim_end_matches('_'));
-        let fb = format!("{base}_{:04x}_{}", obj.index.0, e.sub.0);
-        (base, fb)
+    // Name: the planned words; when taken, the index (and sub-index) as a last resort.
+    let base = snake_name(words.clone(), 0);
+    let fallback = if obj.object_type.has_subs() {
+        let mut w = ident::shorten(words, ident::MAX_LEN - 1 - 9);
+        w.push(format!("{:04x}", obj.index.0));
+        w.push(e.sub.0.to_string());
+        w.join("_")
     } else {
-        (obj_base.to_owned(), format!("{}_{:04x}", obj_base.trim_end_matches('_'), obj.index.0))
+        let mut w = ident::shorten(words, ident::MAX_LEN - 1 - 5);
+        w.push(format!("{:04x}", obj.index.0));
+        w.join("_")
     };
+    let fallback = ident::snake(&fallback).unwrap_or(fallback);
     let free = |m: &Names, c: &str| m.is_free(c) && m.is_free(&format!("set_{c}"));
     let field = match [&base, &fallback].into_iter().find(|c| free(methods, c)) {
         Some(c) => c.clone(),
         None => (2u32..).map(|n| format!("{fallback}_{n}")).find(|c| free(methods, c)).unwrap_or(fallback.clone()),
     };
-    let renamed = field != base;
+    let rename = (field != base).then(|| (base.clone(), field.clone()));
     methods.insert(field.clone());
     methods.insert(format!("set_{field}"));
-    if renamed {
-        sink.at_entry(
-            Severity::Warning,
-            diag::NAME_COLLISION,
-            obj,
-            e,
-            format!("the name `{base}` is already taken by another entry; this entry's accessors are `{field}` / `set_{field}`"),
-        );
-    }
 
     // Default.
     let value = effective_value(e);
@@ -378,25 +500,28 @@ fn plan_entry<'m>(
         }
     }
 
-    Some(PEntry {
-        obj,
-        entry: e,
-        index: obj.index.0,
-        sub: e.sub.0,
-        dt,
-        ty,
-        bits,
-        field,
-        default,
-        low,
-        high,
-        set_low,
-        set_high,
-        real_low,
-        real_high,
-        description: description(e.extra())
-            .or_else(|| if obj.object_type.has_subs() { None } else { description(&obj.extra) }),
-    })
+    Some((
+        PEntry {
+            obj,
+            entry: e,
+            index: obj.index.0,
+            sub: e.sub.0,
+            dt,
+            ty,
+            bits,
+            field,
+            default,
+            low,
+            high,
+            set_low,
+            set_high,
+            real_low,
+            real_high,
+            description: description(e.extra())
+                .or_else(|| if obj.object_type.has_subs() { None } else { description(&obj.extra) }),
+        },
+        rename,
+    ))
 }
 
 pub(crate) fn storage_range(ty: Ty) -> (i128, i128) {

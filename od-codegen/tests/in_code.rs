@@ -74,20 +74,54 @@ fn no_diagnostics_for_a_clean_model() {
 #[test]
 fn name_collisions_are_resolved_and_reported() {
     let m = model(vec![
+        // Objects sharing one name all take their place among them: no warning.
         var(0x2001, "Speed", D::Unsigned16, Access::Rw, None, false),
         var(0x2002, "speed", D::Unsigned16, Access::Rw, None, false),
-        var(0x2003, "Set speed", D::Unsigned16, Access::Rw, None, false),
-        var(0x2004, "new", D::Unsigned16, Access::Rw, None, false),
+        // A getter that is another entry's setter: the later one takes its index.
+        var(0x2003, "Set point", D::Unsigned16, Access::Rw, None, false),
+        var(0x2004, "Point", D::Unsigned16, Access::Rw, None, false),
+        // A name the generated type uses itself.
+        var(0x2005, "new", D::Unsigned16, Access::Rw, None, false),
     ]);
     let g = expand(&m, &Options::new("x", "x.eds"));
     let text = render(&g.tokens, "x.eds").unwrap();
-    for f in
-        ["fn speed(", "fn set_speed(", "fn speed_2002(", "fn set_speed_2002(", "fn set_speed_2003(", "fn new_2004("]
-    {
+    for f in ["fn speed_1(", "fn speed_2(", "fn set_point(", "fn point_2004(", "fn set_point_2004(", "fn new_2005("] {
         assert!(text.contains(f), "missing {f}");
     }
     let warnings: Vec<_> = g.diagnostics.iter().filter(|d| d.code.0 == "G0001").collect();
-    assert_eq!(warnings.len(), 4, "{warnings:#?}"); // 3 accessors + 1 index constant
+    assert_eq!(warnings.len(), 2, "{warnings:#?}"); // 0x2004 and 0x2005, once each
+}
+
+#[test]
+fn elements_named_alike_take_their_sub_index_and_drop_the_object_name() {
+    let rec = |index, name: &str, subs: &[&str]| {
+        let mut entries = vec![entry(0, "Highest sub-index supported", D::Unsigned8, Access::Ro, None, false)];
+        for (i, s) in subs.iter().enumerate() {
+            entries.push(entry(i as u8 + 1, s, D::Unsigned32, Access::Rw, None, false));
+        }
+        object(index, name, eds::model::ObjectType::Array, entries)
+    };
+    let m = model(vec![
+        rec(0x1003, "Error history", &["Error history 1", "Error history 2"]),
+        rec(0x1016, "Consumer heartbeat time", &["Consumer heartbeat time", "Consumer heartbeat time"]),
+        rec(0x2000, "Receive file", &["File name", "File data"]),
+        rec(0x2001, "1st receive PDO parameter", &["COB-IDs"]),
+    ]);
+    let g = expand(&m, &Options::new("x", "x.eds"));
+    assert!(g.diagnostics.iter().all(|d| d.code.0 != "G0001"), "{:#?}", g.diagnostics);
+    let text = render(&g.tokens, "x.eds").unwrap();
+    for f in [
+        "fn error_history_1(",
+        "fn error_history_2(",
+        "fn consumer_heartbeat_time_1(",
+        "fn consumer_heartbeat_time_2(",
+        "fn receive_file_name(",
+        "fn receive_file_data(",
+        "fn receive_pdo_parameter_1_cob_ids(",
+        "fn error_history_highest_sub_index_supported(",
+    ] {
+        assert!(text.contains(f), "missing {f}");
+    }
 }
 
 #[test]

@@ -1,0 +1,116 @@
+//! Names a person would write, measured over the corpus (`$EDS_CORPUS_DIR`; skipped with a
+//! message when unset) and this crate's fixtures: the test prints the figures and holds them to
+//! the limits.
+//!
+//! * at most 1% of accessor names carry the `_IIII` / `_IIII_S` index suffix (the last resort
+//!   of collision handling);
+//! * no accessor name is longer than 64 characters;
+//! * at most one name-collision warning (G0001) per object;
+//! * no name starts with an `x` before an ordinal (`x1st_…`), none splits a plural acronym
+//!   (`cob_i_ds`), none repeats a word right after itself (`error_history_error_history`).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+fn files() -> Vec<PathBuf> {
+    let mut dirs = vec![Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures")];
+    match std::env::var_os("EDS_CORPUS_DIR") {
+        Some(d) => {
+            let d = PathBuf::from(d);
+            let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
+            dirs.push(if d.is_absolute() { d } else { root.join(d) });
+        }
+        None => println!("SKIPPED the corpus part: EDS_CORPUS_DIR is not set (only the fixtures are measured)"),
+    }
+    let mut v = Vec::new();
+    for dir in dirs {
+        let mut here: Vec<PathBuf> = std::fs::read_dir(&dir)
+            .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| matches!(p.extension().and_then(|e| e.to_str()), Some("eds" | "dcf")))
+            .collect();
+        here.sort();
+        v.extend(here);
+    }
+    v
+}
+
+/// `(name, index, sub)` of every getter, read from the generated text: the doc line
+/// ``/// Reads `0x1018` sub 1 …`` precedes each.
+fn getters(text: &str) -> Vec<(String, u16, Option<u8>)> {
+    let mut out = Vec::new();
+    let mut at: Option<(u16, Option<u8>)> = None;
+    for line in text.lines().map(str::trim) {
+        if let Some(rest) = line.strip_prefix("/// Reads `0x") {
+            let index = u16::from_str_radix(&rest[..4], 16).ok();
+            let sub = rest[5..].strip_prefix(" sub ").and_then(|r| r.split(' ').next()).and_then(|s| s.parse().ok());
+            at = index.map(|i| (i, sub));
+        } else if let Some(rest) = line.strip_prefix("pub const fn ").or_else(|| line.strip_prefix("pub fn ")) {
+            if let (Some((i, s)), Some(name)) = (at.take(), rest.split_once("(&self)").map(|(n, _)| n)) {
+                out.push((name.to_owned(), i, s));
+            }
+        }
+    }
+    out
+}
+
+fn has_index_suffix(name: &str, index: u16, sub: Option<u8>) -> bool {
+    let i = format!("_{index:04x}");
+    name.ends_with(&i) || sub.is_some_and(|s| name.ends_with(&format!("{i}_{s}"))) || name.contains(&format!("{i}_"))
+}
+
+#[test]
+fn corpus_names_are_short_plain_and_rarely_suffixed() {
+    let (mut total, mut suffixed, mut longest) = (0usize, 0usize, (0usize, String::new()));
+    let mut worst_g0001 = (0usize, String::new());
+    let mut g0001_total = 0usize;
+    let mut bad = Vec::new();
+    for f in files() {
+        let bytes = std::fs::read(&f).unwrap();
+        let name = f.file_name().unwrap().to_string_lossy().into_owned();
+        let parsed = eds::parse(&name, &bytes, &eds::Options::lenient());
+        let g = od_codegen::expand(&parsed.model, &od_codegen::Options::new("m", name.clone()));
+        let mut per_object: BTreeMap<String, usize> = BTreeMap::new();
+        for d in g.diagnostics.iter().filter(|d| d.code.0 == "G0001") {
+            *per_object.entry(d.context.first().cloned().unwrap_or_default()).or_default() += 1;
+            g0001_total += 1;
+        }
+        for (obj, n) in per_object {
+            if n > worst_g0001.0 {
+                worst_g0001 = (n, format!("{name}: {obj}"));
+            }
+        }
+        let text = od_codegen::render(&g.tokens, &name).unwrap();
+        for (n, index, sub) in getters(&text) {
+            total += 1;
+            if has_index_suffix(&n, index, sub) {
+                suffixed += 1;
+            }
+            if n.len() > longest.0 {
+                longest = (n.len(), n.clone());
+            }
+            let words: Vec<&str> = n.split('_').collect();
+            let repeated =
+                words.windows(2).any(|w| w[0] == w[1] && !w[0].is_empty() && !w[0].bytes().all(|b| b.is_ascii_digit()));
+            if n.starts_with("x1st")
+                || n.starts_with("x2nd")
+                || n.contains("_i_ds")
+                || n.starts_with("i_ds")
+                || repeated
+            {
+                bad.push(format!("{name}: {n}"));
+            }
+        }
+    }
+    let share = 100.0 * suffixed as f64 / total.max(1) as f64;
+    println!("accessor names: {total}");
+    println!("with an index suffix: {suffixed} ({share:.2}%)");
+    println!("longest: {} characters ({})", longest.0, longest.1);
+    println!("G0001 warnings: {g0001_total}; most for one object: {} ({})", worst_g0001.0, worst_g0001.1);
+    println!("names breaking the word rules: {}", bad.len());
+    assert!(share <= 1.0, "{share:.2}% of names carry an index suffix");
+    assert!(longest.0 <= od_codegen::ident::MAX_LEN, "longest name: {}", longest.1);
+    assert!(worst_g0001.0 <= 1, "several G0001 for one object: {}", worst_g0001.1);
+    assert!(bad.is_empty(), "{bad:#?}");
+}
