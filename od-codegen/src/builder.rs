@@ -328,8 +328,16 @@ impl Builder {
         })
     }
 
+    /// Generates every device without writing anything, with every diagnostic, errors
+    /// included ([`Output::has_errors`]): `Err` only when a file cannot be read or the tokens
+    /// do not parse. For tools that print the diagnostics themselves (`odgen gen`).
+    pub fn generate_all(&self) -> Vec<Result<Output, Error>> {
+        self.devices.iter().map(|d| self.generate_device(d)).collect()
+    }
+
     /// Generates every device without writing anything: one result per device, in the order
-    /// they were added. A device's errors never hide another's output.
+    /// they were added; a device with errors is an [`Error::Device`]. A device's errors never
+    /// hide another's output.
     pub fn generate_each(&self) -> Vec<Result<Output, Error>> {
         self.devices
             .iter()

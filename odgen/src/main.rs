@@ -39,6 +39,8 @@ enum Command {
     Dcf(cmd::dcf::Args),
     /// Show what changed between two descriptions (exit 0: same, 1: different, 2: error).
     Diff(cmd::diff::Args),
+    /// Generate the typed Rust object dictionary of a file, as od_codegen::Builder does.
+    Gen(cmd::generate::Args),
     /// Measure read+validate throughput (used by scripts/bench-read.sh).
     #[command(hide = true)]
     BenchRead(cmd::bench_read::Args),
@@ -52,6 +54,7 @@ fn main() -> ExitCode {
         Command::Dump(args) => cmd::dump::run(args),
         Command::Dcf(args) => cmd::dcf::run(args),
         Command::Diff(args) => cmd::diff::run(args),
+        Command::Gen(args) => cmd::generate::run(args),
         Command::BenchRead(args) => cmd::bench_read::run(args),
     }
 }

@@ -6,6 +6,7 @@ pub mod dcf;
 pub mod diff;
 pub mod dump;
 pub mod fmt;
+pub mod generate;
 
 use std::path::Path;
 
