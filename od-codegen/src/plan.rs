@@ -467,8 +467,10 @@ fn plan_entry<'m>(
             high = None;
         }
     }
-    if dt == DataType::Real32 {
-        let max = f32::MAX as f64;
+    // A NaN limit says nothing (and `v < NaN` is a lint error); a REAL32 limit beyond `f32` is
+    // clipped to it.
+    if ty.is_real() {
+        let max = if dt == DataType::Real32 { f32::MAX as f64 } else { f64::MAX };
         for (which, limit) in [("LowLimit", &mut real_low), ("HighLimit", &mut real_high)] {
             let Some(l) = *limit else { continue };
             if l.is_nan() {
@@ -481,7 +483,7 @@ fn plan_entry<'m>(
                     diag::LIMIT_CLIPPED,
                     obj,
                     e,
-                    format!("{which} {l} lies outside the REAL32 range; clipped to {clipped}"),
+                    format!("{which} {l} lies outside the {} range; clipped to {clipped}", dt.name()),
                 );
                 *limit = Some(clipped);
             }
