@@ -13,10 +13,25 @@
 //! assert_eq!(od.read(0x6040, 0, &mut buf), Ok(2));
 //! assert_eq!(pdo::Rpdo1::from_dictionary(&od).pack(), [0x0F, 0x00]);
 //! ```
+//!
+//! A vendor's file builds too, with a warning where its default PDO mapping is a placeholder:
+//!
+//! ```
+//! use build_rs_user::vendor_io::Dictionary;
+//! use od_runtime::od::ObjectDictionary;
+//!
+//! let od = Dictionary::new(5);
+//! assert_eq!(od.tpdo_communication_parameter_cob_id_used_by_tpdo(), 0x185);
+//! // The placeholder mapping is data a master can read and rewrite.
+//! let mut buf = [0u8; 4];
+//! assert_eq!(od.read(0x1A00, 0, &mut buf), Ok(1));
+//! assert_eq!(buf[0], 2);
+//! ```
 #![no_std]
 #![deny(warnings, missing_docs)]
 
 include!(concat!(env!("OUT_DIR"), "/drvi.rs"));
+include!(concat!(env!("OUT_DIR"), "/vendor_io.rs"));
 
 /// Applies a received RPDO 1 to the dictionary and returns the statusword to send back.
 pub fn on_rpdo1(od: &mut drvi::Dictionary, data: &[u8]) -> Option<u16> {
