@@ -50,9 +50,13 @@ struct DeviceSpec {
 ///   once a build script prints one `rerun-if-changed`, Cargo reruns it only when one of the
 ///   listed files changes, no longer on every change in the package. A build script that also
 ///   depends on other files must list them itself;
-/// * renders every diagnostic rustc-style (`cargo:warning=` lines under Cargo) and fails with
-///   [`Error::Diagnostics`] if any is an error, so a broken device file fails the build with
-///   `file:line:col` locations.
+/// * prints each warning once, as one `cargo:warning=` line with its `file:line:col`, and
+///   fails with [`Error::Device`] (naming the device, every error rendered rustc-style) when a
+///   description has errors; the other devices' files are still written;
+/// * generates leniently unless [`Builder::strict`]: a deviation of a vendor's file (see
+///   [`crate::diag`]) is a warning and the device still builds;
+/// * emits `pub const EDS` only with [`Builder::embed_eds`]; the header names the generator
+///   and the description's path relative to the crate.
 ///
 /// The output directory is `OUT_DIR` unless [`Builder::out_dir`] overrides it; `cargo xtask
 /// gen` uses that to write the checked-in crate `generated/`.

@@ -1,17 +1,23 @@
 //! The one identifier policy of the generator.
 //!
-//! Every Rust name in generated code comes from a CANopen `ParameterName` through this module:
+//! Every Rust name in generated code comes from a CANopen `ParameterName` through this module
+//! (the planner, `plan.rs`, combines an object's and a sub-entry's words):
 //!
 //! * Words are split at anything that is not an ASCII letter or digit, and at case changes
-//!   (`TPDOMapping` → `tpdo`, `mapping`; `homeOffset` → `home`, `offset`). Other characters
-//!   (including non-ASCII letters) separate words and are dropped.
+//!   (`TPDOMapping` → `tpdo`, `mapping`; `homeOffset` → `home`, `offset`), never between a
+//!   letter and a digit (`RxPDO1` → `rx`, `pdo1`). A run of capitals with a plural `s` is one
+//!   word (`COB-IDs` → `cob`, `ids`). Letters outside ASCII are spelt in ASCII (`ü` → `ue`,
+//!   `é` → `e`, `°` → `deg`); other characters separate words and are dropped.
+//! * A leading ordinal moves to the end as a number (`1st receive PDO parameter` →
+//!   `receive_pdo_parameter_1`).
 //! * `snake_case` for fields and methods, `SCREAMING_SNAKE_CASE` for constants, `CamelCase` for
 //!   types.
 //! * A name that would start with a digit gets an `x`/`X` prefix (`24V supply` → `x24v_supply`).
 //! * A name that is a Rust keyword gets a trailing underscore (`type` → `type_`).
 //! * An empty name (no letters or digits at all) falls back to the index: `x2001`, `sub3`.
-//! * Collisions are resolved by [`Names`]: the second claimant of a name gets a suffix made of its
-//!   index (and sub-index), and a warning says so.
+//! * A name longer than [`MAX_LEN`] is shortened by [`shorten`], never cut inside a word.
+//! * Collisions the planner's rules do not resolve are settled by [`Names`]: the later
+//!   claimant gets a suffix made of its index (and sub-index), and a warning says so.
 
 use std::collections::BTreeSet;
 

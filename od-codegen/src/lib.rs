@@ -79,8 +79,18 @@
 //!
 //! Names come from `ParameterName` through one policy (see the `ident` module docs): a VAR's
 //! accessor is its name in `snake_case` (`Controlword` → `controlword`), a sub-entry's is the
-//! object's name and the sub-entry's joined (`Identity object` / `Vendor-ID` →
-//! `identity_object_vendor_id`). Collisions are resolved with an index suffix and a warning.
+//! object's name and the sub-entry's own words joined, without the words it repeats from its
+//! object (`Identity object` / `Vendor-ID` → `identity_object_vendor_id`; `Error history` /
+//! `Error history 1` → `error_history_1`). Objects sharing one name take their PDO/SDO number
+//! or their place among them (`rpdo_mapping_parameter_2_mapped_object_1`), elements sharing one
+//! name their sub-index. A clash the rules do not resolve gets the index suffix and one warning
+//! per object.
+//!
+//! # Lenient and strict
+//!
+//! What a description gets wrong for the generator (a default PDO mapping that breaks a mapping
+//! rule, a limit outside the entry's type, …) is a *deviation*: left out or repaired, reported
+//! as a warning, or as an error with [`Options::strict`]. See [`diag`].
 //!
 //! # Values
 //!
