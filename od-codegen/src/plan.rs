@@ -269,6 +269,12 @@ fn snake_name(words: Vec<String>, reserve: usize) -> String {
     ident::snake(&w.join(" ")).unwrap_or_else(|| "entry".to_owned())
 }
 
+/// The name each value-holding object's entries start with (`snake_case`, its group number
+/// included), by index.
+pub(crate) fn object_names(model: &Model) -> Vec<(u16, String)> {
+    object_words(model).into_iter().map(|(i, w)| (i, snake_name(w, 0))).collect()
+}
+
 pub(crate) fn build<'m>(model: &'m Model, options: &Options, sink: &mut Sink) -> Plan<'m> {
     let mut entries = Vec::new();
     let mut objects = Vec::new();

@@ -172,3 +172,69 @@ fn vendor_quirks_are_warnings_when_lenient_and_errors_when_strict() {
     // The clipped limit: 0x80000000 on an UNSIGNED16 is the type's maximum.
     assert!(text.contains("if v < 65535"), "the limit is not clipped to the type");
 }
+
+/// One device's errors never hide another's file, and the error names the failing device.
+#[test]
+fn builder_errors_are_per_device() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let out = std::env::temp_dir().join(format!("od-codegen-per-device-{}", std::process::id()));
+    let err = Builder::new()
+        .root(dir)
+        .strict()
+        .device("bad", "tests/fixtures/bad-pdo.eds")
+        .device("good", "tests/fixtures/mini.eds")
+        .out_dir(&out)
+        .cargo_metadata(false)
+        .compile()
+        .unwrap_err();
+    match &err {
+        od_codegen::Error::Device { module, path, .. } => {
+            assert_eq!((module.as_str(), path.as_str()), ("bad", "tests/fixtures/bad-pdo.eds"))
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(err.to_string().starts_with("device `bad` (tests/fixtures/bad-pdo.eds) has errors:"), "{err}");
+    assert!(out.join("good.rs").is_file(), "the good device's file was not written");
+    assert!(!out.join("bad.rs").exists());
+
+    // Two failing devices: both named.
+    let err = Builder::new()
+        .root(dir)
+        .strict()
+        .device("bad1", "tests/fixtures/bad-pdo.eds")
+        .device("bad2", "tests/fixtures/vendor-quirks.eds")
+        .out_dir(&out)
+        .cargo_metadata(false)
+        .compile()
+        .unwrap_err();
+    assert!(err.to_string().starts_with("2 devices failed (`bad1`, `bad2`):"), "{err}");
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+/// What a build script prints: one headline per warning, each with its location.
+#[test]
+fn builder_warnings_are_one_located_line_each() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let outputs = Builder::new().root(dir).device("io", "tests/fixtures/vendor-quirks.eds").generate().unwrap();
+    let o = &outputs[0];
+    let warnings = o.diagnostics.iter().filter(|d| d.severity == eds::Severity::Warning).count();
+    let lines = o.headlines(eds::Severity::Warning);
+    assert_eq!(lines.len(), warnings);
+    for l in &lines {
+        assert!(l.starts_with("tests/fixtures/vendor-quirks.eds:") && l.contains(": warning[G"), "{l}");
+    }
+    assert!(!o.text.contains("pub const EDS"), "EDS embedded without embed_eds(true)");
+}
+
+/// The header names the description relative to the crate, also when given an absolute path.
+#[test]
+fn the_header_never_holds_an_absolute_path() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let abs = dir.join("tests/fixtures/mini.eds");
+    let outputs = Builder::new().root(dir).device("mini", &abs).generate().unwrap();
+    let first = outputs[0].text.lines().next().unwrap();
+    assert_eq!(first, od_codegen::header("tests/fixtures/mini.eds"));
+    assert!(!first.contains("xtask"));
+    let outputs = Builder::new().root(dir.join("src")).device("mini", &abs).generate().unwrap();
+    assert_eq!(outputs[0].text.lines().next().unwrap(), od_codegen::header("../tests/fixtures/mini.eds"));
+}

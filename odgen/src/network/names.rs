@@ -1,45 +1,20 @@
 //! Names of dictionary entries, as the generated code spells them.
 //!
-//! A network description names objects the way the generated Rust does: the `snake_case`
-//! identifier of `ParameterName` (`Position actual value` → `position_actual_value`), and for an
-//! entry of an ARRAY or RECORD the object's and the entry's names joined
-//! (`Identity object` / `Vendor-ID` → `identity_object_vendor_id`). Case conversion and keyword
-//! handling come from [`od_codegen::ident`]; how collisions are settled is mirrored from the
-//! generator's planner, which keeps that part private: entries claim names in (index, sub-index)
-//! order, the first claimant keeps the plain name, a later one gets `{name}_{index:04x}` (sub
-//! entries `{name}_{index:04x}_{sub}`), and names the generated `Dictionary` already uses
-//! (`new`, `read`, `position`, ...) are never given to entries. Objects that hold no value
-//! (DEFTYPE, DEFSTRUCT, NULL) and entries of complex data types are not in the generated code and
-//! have no name here either; they can still be named by index (`0x2001sub1`).
+//! A network description names objects the way the generated Rust does: each entry by its
+//! accessor in the code `od-codegen` generates for the device (`Position actual value` →
+//! `position_actual_value`; `Identity object` / `Vendor-ID` → `identity_object_vendor_id`),
+//! taken from [`od_codegen::accessor_names`] so the two never disagree, and an ARRAY or RECORD
+//! by the name its entries' accessors start with ([`od_codegen::object_names`]). Objects that
+//! hold no value (DEFTYPE, DEFSTRUCT, NULL) and entries of complex data types are not in the
+//! generated code and have no name here either; they can still be named by index
+//! (`0x2001sub1`).
 //!
 //! A test in `odgen/tests/network.rs` checks every name of the three devices against the code
-//! `od-codegen` generates for them, so a change of policy there shows up here.
+//! `od-codegen` generates for them.
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 
-use eds::model::{DataType, Model, ObjectType};
-use od_codegen::ident;
-
-/// Method names of the generated `Dictionary` (mirrors `od-codegen`'s `RESERVED_METHODS`).
-const RESERVED_METHODS: &[&str] = &[
-    "new",
-    "position",
-    "info",
-    "entries",
-    "read",
-    "write",
-    "restore_defaults",
-    "bus_read",
-    "bus_write",
-    "slot",
-    "slot_mut",
-    "check_rpdo_mapping",
-    "check_tpdo_mapping",
-    "clone",
-    "fmt",
-    "eq",
-    "ne",
-];
+use eds::model::Model;
 
 /// What a name stands for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -61,46 +36,15 @@ pub struct NameIndex {
 impl NameIndex {
     /// Names the entries of `model` as the generated code does.
     pub fn new(model: &Model) -> Self {
-        let mut taken: BTreeSet<String> = BTreeSet::new();
-        for r in RESERVED_METHODS {
-            taken.insert((*r).to_owned());
-            taken.insert(format!("set_{r}"));
-        }
         let mut out = NameIndex::default();
-        for obj in model.objects.values() {
-            if matches!(obj.object_type, ObjectType::DefType | ObjectType::DefStruct | ObjectType::Null) {
-                continue;
+        for (index, name) in od_codegen::object_names(model) {
+            if model.objects.get(&eds::model::Index(index)).is_some_and(|o| o.object_type.has_subs()) {
+                out.objects.entry(name).or_insert(index);
             }
-            let index = obj.index.0;
-            let obj_base = ident::snake(&obj.name).unwrap_or_else(|| format!("x{index:04x}"));
-            if obj.object_type.has_subs() {
-                out.objects.entry(obj_base.clone()).or_insert(index);
-            }
-            for e in obj.subs.values() {
-                if matches!(e.data_type, DataType::Other(_)) {
-                    continue;
-                }
-                let (base, fallback) = if obj.object_type.has_subs() {
-                    let sub = ident::snake(&e.name).unwrap_or_else(|| format!("sub{}", e.sub.0));
-                    let base = format!("{obj_base}_{}", sub.trim_end_matches('_'));
-                    let fallback = format!("{base}_{index:04x}_{}", e.sub.0);
-                    (base, fallback)
-                } else {
-                    (obj_base.clone(), format!("{}_{index:04x}", obj_base.trim_end_matches('_')))
-                };
-                let free = |c: &str| !taken.contains(c) && !taken.contains(&format!("set_{c}"));
-                let name = if free(&base) {
-                    base
-                } else if free(&fallback) {
-                    fallback
-                } else {
-                    (2u32..).map(|n| format!("{fallback}_{n}")).find(|c| free(c)).unwrap_or(fallback)
-                };
-                taken.insert(format!("set_{name}"));
-                taken.insert(name.clone());
-                out.by_entry.insert((index, e.sub.0), name.clone());
-                out.entries.insert(name, (index, e.sub.0));
-            }
+        }
+        for (index, sub, name) in od_codegen::accessor_names(model) {
+            out.by_entry.insert((index, sub), name.clone());
+            out.entries.insert(name, (index, sub));
         }
         out
     }
