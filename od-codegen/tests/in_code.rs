@@ -213,3 +213,20 @@ fn invalid_module_names_are_an_error_not_a_panic() {
     assert!(g.has_errors());
     assert!(render(&g.tokens, "x.eds").unwrap().contains("pub mod device {"));
 }
+
+#[test]
+fn the_eds_constant_is_optional_and_a_readable_raw_string() {
+    let m = sample();
+    let without = render(&expand(&m, &Options::new("x", "x.eds")).tokens, "x.eds").unwrap();
+    assert!(!without.contains("pub const EDS"));
+    let mut opts = Options::new("x", "x.eds");
+    opts.eds_text = Some("[FileInfo]\r\nFileName=x.eds\r\n\r\n[1000]\r\nParameterName=\"quoted\"#\r\n".into());
+    let with = render(&expand(&m, &opts).tokens, "x.eds").unwrap();
+    assert!(
+        with.contains(
+            "pub const EDS: &str = r##\"[FileInfo]\nFileName=x.eds\n\n[1000]\nParameterName=\"quoted\"#\n\"##;"
+        ),
+        "{}",
+        &with[..with.find("pub mod index").unwrap_or(with.len())]
+    );
+}
