@@ -317,8 +317,9 @@ pub(crate) fn build<'m>(model: &'m Model, options: &Options, sink: &mut Sink) ->
                 diag::NAME_COLLISION,
                 obj,
                 format!(
-                    "the name `{first}` is already taken by another object's entry; this entry's accessors are \
-                     `{first_field}` / `set_{first_field}`{more}"
+                    "the name `{first}` is already taken (by another object's accessor or setter, or by a \
+                     method of `Dictionary`); this entry's accessors are `{first_field}` / \
+                     `set_{first_field}`{more}"
                 ),
             );
         }
