@@ -949,7 +949,8 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
                 }
             }
             Mode::Homing => {
-                if rose && enabled {
+                let assigned = Self::int(ctx.od(), 0x6098, 0) != Some(0);
+                if rose && enabled && assigned {
                     self.command(ctx, Command::StartHoming);
                 } else if fell && self.vendor.homing_abort_on_release() {
                     self.command(ctx, Command::AbortHoming);
@@ -1204,7 +1205,9 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> DriveApp<OD> for Cia402App<OD, V> {
     fn on_write(&mut self, od: &OD, write: &WriteRequest<'_>) -> Result<(), AbortCode> {
         match (write.index, write.sub, write.data) {
             (0x6060, 0, &[code]) if !self.vendor.supports_mode(code as i8) => return Err(AbortCode::INVALID_VALUE),
-            (0x6098, 0, &[code]) if self.vendor.homing_method(code as i8).is_none() => {
+            // 0 is CiA 402's "no homing method assigned": the default a drive reports (AKD
+            // 6.10.2.2) can be written back; a homing started with it starts nothing.
+            (0x6098, 0, &[code]) if code != 0 && self.vendor.homing_method(code as i8).is_none() => {
                 return Err(AbortCode::INVALID_VALUE);
             }
             _ => {}

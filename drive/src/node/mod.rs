@@ -103,10 +103,15 @@ struct Hooks<A> {
     dropped: u64,
 }
 
-impl<OD, A: DriveApp<OD>> od_runtime::App<OD> for Hooks<A> {
+impl<OD: ObjectDictionary, A: DriveApp<OD>> od_runtime::App<OD> for Hooks<A> {
     fn on_write(&mut self, od: &OD, index: u16, sub: u8, data: &[u8], source: WriteSource) -> Result<(), AbortCode> {
         match (&mut self.app, source) {
             (Some(app), WriteSource::Sdo | WriteSource::Rpdo(_)) => {
+                // The dictionary's own checks (length first, then its limits) come before the
+                // application's: a value of the wrong size is a length error whatever it is.
+                if let Ok(info) = od.info(index, sub) {
+                    info.check_value(data)?;
+                }
                 app.on_write(od, &WriteRequest { index, sub, data, source })
             }
             _ => Ok(()),

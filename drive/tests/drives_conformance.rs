@@ -1,0 +1,146 @@
+//! The findings of an outside conformance run (issue 17): each test drives a simulated drive
+//! through real frames on the in-memory bus and the virtual clock, as a master would.
+
+use drive::drives::akd::{self, Akd};
+use drive::drives::master::{Master, SdoError};
+use drive::drives::{Cia402App, DeviceApps};
+use drive::node::{DeviceKind, Node, NodeConfig, NodeStorage, Sim};
+use drive::transport::CanFrame;
+use od_runtime::NodeId;
+
+type AkdNode = Node<generated::akd::Dictionary, Cia402App<generated::akd::Dictionary, Akd>>;
+
+/// One drive of `kind` with node id `id`, booted and started (operational).
+fn started(kind: DeviceKind, id: u8) -> Master {
+    let mut sim = Sim::new();
+    sim.add(kind.build(&NodeConfig { node_id: Some(id), ..Default::default() }, &DeviceApps::new()).unwrap());
+    let mut m = Master::new(sim);
+    m.advance(1000);
+    m.nmt_start(id);
+    m.advance(1000);
+    m.take_seen();
+    m
+}
+
+/// `"603 2B 40 60 00 06 00 00 00"` as a frame.
+fn frame(text: &str) -> CanFrame {
+    let mut words = text.split_whitespace();
+    let id = u32::from_str_radix(words.next().unwrap(), 16).unwrap();
+    let data: Vec<u8> = words.map(|w| u8::from_str_radix(w, 16).unwrap()).collect();
+    CanFrame::standard(id, &data).unwrap()
+}
+
+fn text(f: &CanFrame) -> String {
+    let mut s = format!("{:03X}", f.id());
+    for b in f.data() {
+        s.push_str(&format!(" {b:02X}"));
+    }
+    s
+}
+
+/// Sends an SDO request and returns the answer as text.
+fn sdo(m: &mut Master, request: &str) -> String {
+    let f = frame(request);
+    let answer_id = f.id() - 0x600 + 0x580;
+    m.take_id(answer_id);
+    m.send(f);
+    for _ in 0..1000 {
+        if let Some(s) = m.take_id(answer_id).first() {
+            return text(&s.frame);
+        }
+        m.advance(100);
+    }
+    panic!("no answer to {request}");
+}
+
+fn got(m: &mut Master, id: u32) -> Vec<String> {
+    m.take_id(id).iter().map(|s| text(&s.frame)).collect()
+}
+
+/// An AKD with node id `id` built as [`akd::app`] builds it, started, reachable by `akd_node`.
+fn akd(id: u8) -> Master {
+    let mut sim = Sim::new();
+    let dict = generated::akd::Dictionary::new(id);
+    sim.add(Box::new(Node::new(dict, akd::app(), NodeStorage::memory(), NodeId::new(id).unwrap())));
+    let mut m = Master::new(sim);
+    m.advance(1000);
+    m.nmt_start(id);
+    m.advance(1000);
+    m.take_seen();
+    m
+}
+
+fn akd_node(m: &Master) -> &AkdNode {
+    m.sim().downcast::<AkdNode>(0).unwrap()
+}
+
+// ---- AKD --------------------------------------------------------------------------------------
+
+/// Finding 3: 6099h reads its manual default (60 rpm) and a homing with the defaults ends.
+#[test]
+fn akd_homing_with_the_default_speeds_completes() {
+    let mut m = started(DeviceKind::Akd, 3);
+    m.switch_on(3).unwrap();
+    m.set_mode(3, 6).unwrap();
+    m.write(3, 0x6098, 0, &[12]).unwrap();
+    m.controlword(3, 0x1F).unwrap();
+    let sw = m.wait_statusword(3, 0x3400, 0x1400, 40_000_000, 1000);
+    eprintln!("t={}", m.now());
+    assert!(sw.is_some(), "statusword {:04X}", m.statusword(3).unwrap());
+}
+/// Finding 4: 6098h reads 0 (the manual's default, "no method assigned" in CiA 402) and 0 can be
+/// written back; a homing started with it starts nothing.
+#[test]
+fn akd_homing_method_0_is_the_default_and_can_be_written_back() {
+    let mut m = akd(3);
+    assert_eq!(m.read_u8(3, 0x6098, 0).unwrap(), 0);
+    assert_eq!(m.write(3, 0x6098, 0, &[0]), Ok(()));
+    for reserved in [3u8, 36, 0x80] {
+        assert_eq!(m.write(3, 0x6098, 0, &[reserved]), Err(SdoError::Abort(0x0609_0030)), "{reserved}");
+    }
+    m.switch_on(3).unwrap();
+    m.set_mode(3, 6).unwrap();
+    m.controlword(3, 0x1F).unwrap();
+    m.advance(500_000);
+    let a = akd_node(&m).app().unwrap().drive().axis().status();
+    assert_eq!(a.position_actual, 0, "nothing moved");
+    assert!(!a.homed);
+    assert_eq!(m.statusword(3).unwrap() & 0x3400, 0, "homing not started (AKD: bit 10 only once homed)");
+}
+
+/// Finding 10: a download of the wrong size is a length error whatever its value, also where the
+/// drive would refuse the value (608Fh sub 1 = 0 divides by zero).
+#[test]
+fn a_length_error_wins_over_the_drives_value_check() {
+    for kind in [DeviceKind::Akd, DeviceKind::Drvi, DeviceKind::Drcs] {
+        let mut m = started(kind, 3);
+        // AKD 608Fh sub 1, the Camozzi feed converter 2001h sub 2 (both refuse 0).
+        let index = if kind == DeviceKind::Akd { "8F 60 01" } else { "01 20 02" };
+        // Two bytes to an UNSIGNED32 / INTEGER32, value 0 and value 16.
+        for data in ["00 00", "10 00"] {
+            let answer = sdo(&mut m, &format!("603 2B {index} {data} 00 00"));
+            assert_eq!(answer, format!("583 80 {index} 13 00 07 06"), "{kind:?} {data}");
+        }
+    }
+}
+
+/// Finding 11: the EMCY's error register has the communication bit for communication errors
+/// only; a following error or a software limit is a device profile error (1001h bit 5).
+#[test]
+fn akd_error_register_bits_follow_the_error_class() {
+    let table = drive::drives::error_table(DeviceKind::Akd);
+    for (code, bits) in [(0x8130u16, 0x11u8), (0x8611, 0x21), (0x8580, 0x21), (0x8582, 0x21), (0x86A1, 0x21)] {
+        assert_eq!(table.resolve(code, None).register_bits(), bits, "{code:04X}");
+    }
+    // On the bus: a following error's EMCY (running into the end stop of the preset machine at
+    // 5 turns/s with a window of one turn).
+    let mut m = akd(3);
+    m.switch_on(3).unwrap();
+    m.write_u32(3, 0x6065, 0, 1).unwrap();
+    m.set_mode(3, 3).unwrap();
+    m.write_i32(3, 0x60FF, 0, 5).unwrap();
+    m.advance(2_000_000);
+    let emcy = got(&mut m, 0x083);
+    assert!(emcy.iter().any(|e| e.starts_with("083 11 86 21")), "{emcy:?}");
+    assert_eq!(m.read_u8(3, 0x1001, 0).unwrap(), 0x21);
+}
