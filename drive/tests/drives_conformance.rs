@@ -79,13 +79,17 @@ fn akd_node(m: &Master) -> &AkdNode {
 /// Finding 3: 6099h reads its manual default (60 rpm) and a homing with the defaults ends.
 #[test]
 fn akd_homing_with_the_default_speeds_completes() {
-    let mut m = started(DeviceKind::Akd, 3);
+    let mut m = akd(3);
     m.switch_on(3).unwrap();
     m.set_mode(3, 6).unwrap();
     m.write(3, 0x6098, 0, &[12]).unwrap();
     m.controlword(3, 0x1F).unwrap();
-    let sw = m.wait_statusword(3, 0x3400, 0x1400, 40_000_000, 1000);
-    eprintln!("t={}", m.now());
+    assert_eq!(m.read_u32(3, 0x6099, 1).unwrap(), 1, "60 rpm: one motor turn per second");
+    let speed = akd_node(&m).app().unwrap().drive().axis().config().homing.search_speed;
+    assert_eq!(i64::from(speed), akd::COUNTS_PER_TURN, "the drive homes at the speed it reports");
+    // Method 12 on the preset machine: to the negative limit switch, back to the reference
+    // switch, onto the index: about 5.8 s at 60 rpm.
+    let sw = m.wait_statusword(3, 0x3400, 0x1400, 8_000_000, 1000);
     assert!(sw.is_some(), "statusword {:04X}", m.statusword(3).unwrap());
 }
 /// Finding 4: 6098h reads 0 (the manual's default, "no method assigned" in CiA 402) and 0 can be
@@ -143,4 +147,45 @@ fn akd_error_register_bits_follow_the_error_class() {
     let emcy = got(&mut m, 0x083);
     assert!(emcy.iter().any(|e| e.starts_with("083 11 86 21")), "{emcy:?}");
     assert_eq!(m.read_u8(3, 0x1001, 0).unwrap(), 0x21);
+}
+
+// ---- every drive --------------------------------------------------------------------------
+
+/// The entries whose power-on value differs from the EDS default, for a drive built by `app`.
+fn power_on_differences<OD, A>(od: OD, app: A, id: u8) -> Vec<String>
+where
+    OD: od_runtime::od::ObjectDictionary + Clone + Send + 'static,
+    A: drive::node::DriveApp<OD> + Send + 'static,
+{
+    use od_runtime::od::ObjectDictionary;
+    let fresh = od.clone();
+    let mut sim = Sim::new();
+    sim.add(Box::new(Node::new(od, app, NodeStorage::memory(), NodeId::new(id).unwrap())));
+    sim.advance(20_000);
+    let node = sim.downcast::<Node<OD, A>>(0).unwrap();
+    let mut out = Vec::new();
+    for e in fresh.entries() {
+        let (mut a, mut b) = ([0u8; 256], [0u8; 256]);
+        let (Ok(n), Ok(k)) = (fresh.read(e.index, e.sub, &mut a), node.od().read(e.index, e.sub, &mut b)) else {
+            continue;
+        };
+        if a[..n] != b[..k] {
+            out.push(format!("{:04X}sub{}", e.index, e.sub));
+        }
+    }
+    out
+}
+
+/// Finding 12: what a drive reports at power-on is its EDS default, except the values the
+/// drive measures or computes (states, actual values, status registers).
+#[test]
+fn power_on_values_are_the_eds_defaults() {
+    let drcs = power_on_differences(generated::drcs::Dictionary::new(3), drive::drives::drcs::app(), 3);
+    let drvi = power_on_differences(generated::drvi::Dictionary::new(3), drive::drives::drvi::app(), 3);
+    let akd = power_on_differences(generated::akd::Dictionary::new(3), akd::app(), 3);
+    // Measured: the statusword (6041h), the DRCS's inputs (2002h: the enable input is on) and
+    // brake (2005h: engaged without torque), the AKD's status register (1002h).
+    assert_eq!(drcs, ["2002sub0", "2005sub0", "6041sub0"], "DRCS");
+    assert_eq!(drvi, ["6041sub0"], "DRVI");
+    assert_eq!(akd, ["1002sub0", "6041sub0"], "AKD");
 }
