@@ -189,3 +189,94 @@ fn power_on_values_are_the_eds_defaults() {
     assert_eq!(drvi, ["6041sub0"], "DRVI");
     assert_eq!(akd, ["1002sub0", "6041sub0"], "AKD");
 }
+
+// ---- the AKD's ASCII channel (issue 16, point 3) -------------------------------------------
+
+/// Sends a WorkBench command through 2026h sub 1 (four characters per write) and reads the
+/// answer from sub 2 until its end (`\n\r\n`).
+fn ascii(m: &mut Master, id: u8, command: &str) -> String {
+    let bytes = format!("{command}\r\n").into_bytes();
+    for chunk in bytes.chunks(4) {
+        m.write(id, 0x2026, 1, chunk).unwrap();
+    }
+    let mut answer = Vec::new();
+    for _ in 0..16 {
+        let piece = m.read(id, 0x2026, 2).unwrap();
+        answer.extend_from_slice(&piece);
+        if piece.is_empty() || answer.ends_with(b"\n\r\n") {
+            break;
+        }
+    }
+    String::from_utf8(answer).unwrap()
+}
+
+/// Numbers from the bus never wrap: a value beyond the parameter's type (or beyond any
+/// number) is the drive's error text and leaves the parameter as it was.
+#[test]
+fn akd_ascii_values_out_of_range_are_refused_not_wrapped() {
+    let mut m = akd(3);
+    // VL.ARPF1 is 3406h sub 1, UNSIGNED32 at 1000:1.
+    assert_eq!(ascii(&mut m, 3, "VL.ARPF1 7.5"), ">\n\r\n");
+    assert_eq!(m.read_u32(3, 0x3406, 1).unwrap(), 7500);
+    let out = ">Error: value out of range\n\r\n";
+    for text in [
+        "42535295865117307932921825928971026.437", // milli × 1000 wraps an i128 to 5
+        "-1",                                      // -1000 into an UNSIGNED32
+        "4294967.296",                             // one past the type
+        &"9".repeat(60),
+    ] {
+        assert_eq!(ascii(&mut m, 3, &format!("VL.ARPF1 {text}")), out, "{text}");
+        assert_eq!(m.read_u32(3, 0x3406, 1).unwrap(), 7500, "{text} changed nothing");
+    }
+    assert_eq!(ascii(&mut m, 3, "VL.ARPF1 4294967.295"), ">\n\r\n");
+    assert_eq!(m.read_u32(3, 0x3406, 1).unwrap(), u32::MAX);
+    // A signed parameter (MT.P, 607Ah INTEGER32 at 1:1 with the EDS limits ±2147483647)
+    // takes its limits and no more.
+    assert_eq!(ascii(&mut m, 3, "MT.P -2147483647"), ">\n\r\n");
+    assert_eq!(m.read_i64(3, 0x607A, 0).unwrap(), -2_147_483_647);
+    for text in ["-2147483648", "2147483648", "-99999999999"] {
+        assert_eq!(ascii(&mut m, 3, &format!("MT.P {text}")), out, "{text}");
+    }
+    assert_eq!(m.read_i64(3, 0x607A, 0).unwrap(), -2_147_483_647);
+}
+
+/// The rule over many values: whatever number is written, the parameter either holds exactly
+/// its value (× the bus factor, cut to thousandths) or is unchanged and the answer is an error.
+#[test]
+fn akd_ascii_writes_store_the_exact_value_or_nothing() {
+    let mut m = akd(3);
+    let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+    let mut next = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        seed
+    };
+    for i in 0..300 {
+        let digits = (next() % 45) as usize + 1;
+        let mut int: String = (0..digits).map(|_| char::from(b'0' + (next() % 10) as u8)).collect();
+        if i % 3 == 0 {
+            int.insert(0, '-');
+        }
+        let frac: String = (0..(next() % 5)).map(|_| char::from(b'0' + (next() % 10) as u8)).collect();
+        let text = if frac.is_empty() { int.clone() } else { format!("{int}.{frac}") };
+        let before = m.read_u32(3, 0x3406, 1).unwrap();
+        let answer = ascii(&mut m, 3, &format!("VL.ARPF1 {text}"));
+        let after = m.read_u32(3, 0x3406, 1).unwrap();
+        // The exact value in thousandths, by decimal string arithmetic (no integer type).
+        let neg = text.starts_with('-');
+        let f3: String = frac.chars().chain("000".chars()).take(3).collect();
+        let milli = format!("{}{f3}", int.trim_start_matches('-')).trim_start_matches('0').to_owned();
+        let expected = if milli.is_empty() {
+            Some(0u32)
+        } else if neg || milli.len() > 10 {
+            None
+        } else {
+            milli.parse::<u64>().ok().and_then(|v| u32::try_from(v).ok())
+        };
+        match expected {
+            Some(v) => assert_eq!((answer.as_str(), after), (">\n\r\n", v), "{text}"),
+            None => assert_eq!((answer.as_str(), after), (">Error: value out of range\n\r\n", before), "{text}"),
+        }
+    }
+}

@@ -821,34 +821,94 @@ fn write_parameter(ctx: &mut Ctx<'_, Dictionary>, p: Parameter, text: &str) -> S
     if !info.access.writable() {
         return "Error: read only".into();
     }
-    let Some(milli) = parse_milli(text) else { return "Error: not a number".into() };
-    let raw = match p.factor {
-        0 => milli / 1000,
-        f => milli * i128::from(f) / 1000,
+    let raw = match parse_milli(text) {
+        Err(NumberError::NotANumber) => return "Error: not a number".into(),
+        Err(NumberError::OutOfRange) => return OUT_OF_RANGE.into(),
+        Ok(milli) => match p.factor {
+            0 => Some(milli / 1000),
+            f => milli.checked_mul(i128::from(f)).map(|v| v / 1000),
+        },
     };
-    let Ok(raw) = i64::try_from(raw) else { return "Error: out of range".into() };
-    let len = info.byte_len().min(8);
-    match ctx.write(p.index, p.sub, &raw.to_le_bytes()[..len]) {
+    // The value must fit the entry's type and limits: nothing wraps into the dictionary.
+    let Some((raw, len)) = raw.and_then(|raw| fits(&info, raw).then_some((raw, info.byte_len()))) else {
+        return OUT_OF_RANGE.into();
+    };
+    let Ok(raw) = i64::try_from(raw) else { return OUT_OF_RANGE.into() };
+    match ctx.write(p.index, p.sub, &raw.to_le_bytes()[..len.min(8)]) {
         Ok(()) => String::new(),
         Err(e) => format!("Error: {:08X}", e.0),
     }
 }
 
-/// A decimal number × 1000 (`-12.5` → -12500).
-fn parse_milli(text: &str) -> Option<i128> {
+/// The answer to a value the parameter cannot take (beyond its type or its limits).
+const OUT_OF_RANGE: &str = "Error: value out of range";
+
+/// Whether `raw` fits integer entry `info`: its type's range (at most 64 bits) and its
+/// `low`/`high` limits.
+fn fits(info: &od_runtime::od::EntryInfo, raw: i128) -> bool {
+    let bits = info.bits;
+    if !info.data_type.is_integer() || bits == 0 || bits > 64 {
+        return false;
+    }
+    let (lo, hi) = if info.data_type.is_signed() {
+        (-(1i128 << (bits - 1)), (1i128 << (bits - 1)) - 1)
+    } else {
+        (0, (1i128 << bits) - 1)
+    };
+    (lo..=hi).contains(&raw) && info.low.is_none_or(|l| raw >= l) && info.high.is_none_or(|h| raw <= h)
+}
+
+/// Why a parameter value was not taken.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum NumberError {
+    /// Not a decimal number.
+    NotANumber,
+    /// A decimal number too large for any parameter.
+    OutOfRange,
+}
+
+/// A decimal number × 1000 (`-12.5` → -12500), with checked arithmetic: digits beyond what an
+/// `i128` holds are out of range, not wrapped.
+fn parse_milli(text: &str) -> Result<i128, NumberError> {
     let (neg, digits) = match text.strip_prefix('-') {
         Some(rest) => (true, rest),
         None => (false, text),
     };
     let (int, frac) = digits.split_once('.').unwrap_or((digits, ""));
     if int.is_empty() && frac.is_empty() || !int.chars().chain(frac.chars()).all(|c| c.is_ascii_digit()) {
-        return None;
+        return Err(NumberError::NotANumber);
     }
-    let mut v: i128 = if int.is_empty() { 0 } else { int.parse().ok()? };
-    v = v.checked_mul(1000)?;
-    let f: String = frac.chars().chain("000".chars()).take(3).collect();
-    v = v.checked_add(f.parse::<i128>().ok()?)?;
-    Some(if neg { -v } else { v })
+    let mut v: i128 = 0;
+    for d in int.bytes() {
+        v = v.checked_mul(10).and_then(|v| v.checked_add(i128::from(d - b'0'))).ok_or(NumberError::OutOfRange)?;
+    }
+    v = v.checked_mul(1000).ok_or(NumberError::OutOfRange)?;
+    // Thousandths; further decimals are cut off as WorkBench shows three.
+    let mut scale = 100;
+    for d in frac.bytes().take(3) {
+        v += i128::from(d - b'0') * scale;
+        scale /= 10;
+    }
+    Ok(if neg { -v } else { v })
+}
+
+#[cfg(test)]
+mod ascii_tests {
+    use super::*;
+
+    #[test]
+    fn numbers_parse_with_checked_arithmetic() {
+        assert_eq!(parse_milli("-12.5"), Ok(-12_500));
+        assert_eq!(parse_milli("0.0019"), Ok(1));
+        assert_eq!(parse_milli("42"), Ok(42_000));
+        assert_eq!(parse_milli("x1"), Err(NumberError::NotANumber));
+        assert_eq!(parse_milli("-"), Err(NumberError::NotANumber));
+        assert_eq!(parse_milli("1.2.3"), Err(NumberError::NotANumber));
+        // i128::MAX / 1000 has 36 digits: 37 are out of range, whatever they are.
+        assert_eq!(parse_milli(&"9".repeat(37)), Err(NumberError::OutOfRange));
+        assert_eq!(parse_milli(&"1".repeat(80)), Err(NumberError::OutOfRange));
+        assert!(parse_milli("170141183460469231731687303715884105").is_ok());
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
