@@ -280,3 +280,57 @@ fn akd_ascii_writes_store_the_exact_value_or_nothing() {
         }
     }
 }
+
+// ---- homing attained (DRVI, DRCS) -----------------------------------------------------------
+
+/// Finding 1: homing method 37; the master switches to profile position the moment the
+/// statusword says "homing attained" (bit 12 set, bit 10 clear: DRVI table 6.27), as
+/// python-canopen's `homing()` returns then. The homing must be complete: 2004h = 1, the
+/// position set, and a move accepted.
+fn homing_attained_is_committed(kind: DeviceKind) {
+    let mut m = started(kind, 3);
+    m.switch_on(3).unwrap();
+    m.write_i32(3, 0x607C, 0, 0).unwrap();
+    m.set_mode(3, 6).unwrap();
+    m.write(3, 0x6098, 0, &[37]).unwrap();
+    m.controlword(3, 0x1F).unwrap();
+    let mut caught = false;
+    for _ in 0..2000 {
+        let sw = m.statusword(3).unwrap();
+        if sw & 0x1400 == 0x1000 {
+            m.set_mode(3, 1).unwrap();
+            caught = true;
+            break;
+        }
+        assert_eq!(sw & 0x1400, 0, "{kind:?}: completed before attained was seen: {sw:04X}");
+        m.advance(100);
+    }
+    assert!(caught, "{kind:?}: the statusword never showed homing attained");
+    m.controlword(3, 0x0F).unwrap();
+    m.advance(10_000);
+    assert_eq!(m.read_u8(3, 0x2004, 0).unwrap(), 1, "{kind:?}: 2004h homing done");
+    assert_eq!(m.read_i64(3, 0x6064, 0).unwrap(), 0, "{kind:?}: the home position");
+    // A move is accepted (the DRCS refuses moves without a homing with FF13h).
+    m.take_seen();
+    m.write_u32(3, 0x6081, 0, 10).unwrap();
+    m.write_u32(3, 0x6083, 0, 100).unwrap();
+    m.write_u32(3, 0x6084, 0, 100).unwrap();
+    m.write_i32(3, 0x607A, 0, 5).unwrap();
+    m.controlword(3, 0x1F).unwrap();
+    m.advance(5_000);
+    m.controlword(3, 0x0F).unwrap();
+    let emcy = got(&mut m, 0x083);
+    assert!(emcy.is_empty(), "{kind:?}: {emcy:?}");
+    assert!(m.wait_statusword(3, 0x0400, 0x0400, 5_000_000, 1000).is_some(), "{kind:?}: target reached");
+    assert_eq!(m.read_i64(3, 0x6064, 0).unwrap(), 5, "{kind:?}");
+}
+
+#[test]
+fn drcs_homing_attained_is_a_completed_homing() {
+    homing_attained_is_committed(DeviceKind::Drcs);
+}
+
+#[test]
+fn drvi_homing_attained_is_a_completed_homing() {
+    homing_attained_is_committed(DeviceKind::Drvi);
+}
