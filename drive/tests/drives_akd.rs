@@ -261,9 +261,11 @@ fn example_7_2_1_5_velocity_by_pdo() {
     let answer = wait_frame(&mut m, 0x183, 10);
     let data = bytes(&answer);
     assert_eq!(data.len(), 8, "{answer}: 6064h + 606Ch");
-    // 606Ch: 1000 × 16 384 µm/s at speed; 6064h: where the axis is (the manual's values were
-    // measured on a real axis: FE 45 01 00 A6 AB 1A 00).
-    about(i64::from(i32_of(&data[4..])), 16_384_000);
+    // 606Ch in a PDO is in rpm at 1000:1 (6.6.2.1): 16 384 µm/s at 10 000 µm per turn is
+    // 98.304 rpm; 6064h: where the axis is (the manual's values were measured on a real axis:
+    // FE 45 01 00 A6 AB 1A 00).
+    about(i64::from(i32_of(&data[4..])), 98_304);
+    about(m.read_i64(3, 0x606C, 0).unwrap(), 16_384_000); // SDO: user units × 1000
     let sampled = i64::from(i32_of(&data[..4]));
     assert!(sampled > 0 && sampled <= m.read_i64(3, 0x6064, 0).unwrap(), "{sampled}");
     x(&mut m, "603 2B 40 60 00 0F 01 00 00", "583 60 40 60 00 00 00 00 00");
@@ -421,20 +423,14 @@ fn example_7_2_1_9_ascii_channel() {
     x(&mut m, "601 23 26 20 01 44 52 56 2E", "581 60 26 20 01 00 00 00 00");
     x(&mut m, "601 23 26 20 01 46 41 55 4C", "581 60 26 20 01 00 00 00 00");
     x(&mut m, "601 23 26 20 01 54 53 0D 0A", "581 60 26 20 01 00 00 00 00");
-    // The manual reads the answer 4 characters per expedited upload: ">No " "faul" "ts a"
-    // "ctiv" "e\n\r\n" (printed with the typos 63 64 69 76 for "ctiv" and 66 0A 0D 0A for
-    // "e\n\r\n"). od-runtime has no read hook to hand out the next 4 characters per read, so
-    // sub 2 holds the whole answer and is read in one (segmented) upload.
-    let answer = m.read(1, 0x2026, 2).unwrap();
-    let chunks: [[u8; 4]; 5] = [
-        [0x3E, 0x4E, 0x6F, 0x20],
-        [0x66, 0x61, 0x75, 0x6C],
-        [0x74, 0x73, 0x20, 0x61],
-        *b"ctiv",
-        [0x65, 0x0A, 0x0D, 0x0A],
-    ];
-    assert_eq!(answer, chunks.concat());
-    assert_eq!(answer, b">No faults active\n\r\n");
+    // Each upload of sub 2 is expedited and hands out the next four characters: ">No "
+    // "faul" "ts a" "ctiv" "e\n\r\n". The listing prints two typos, 63 64 69 76 for "ctiv"
+    // and 66 0A 0D 0A for "e\n\r\n" (sidecar decisions): the corrected bytes are sent.
+    x(&mut m, "601 40 26 20 02 00 00 00 00", "581 43 26 20 02 3E 4E 6F 20");
+    x(&mut m, "601 40 26 20 02 00 00 00 00", "581 43 26 20 02 66 61 75 6C");
+    x(&mut m, "601 40 26 20 02 00 00 00 00", "581 43 26 20 02 74 73 20 61");
+    x(&mut m, "601 40 26 20 02 00 00 00 00", "581 43 26 20 02 63 74 69 76");
+    x(&mut m, "601 40 26 20 02 00 00 00 00", "581 43 26 20 02 65 0A 0D 0A");
 }
 
 /// 7.2.1.10: TPDO1 (6064h) every 2nd SYNC, TPDO2 (6041h + 1002h) every 3rd; the EMCY of an
@@ -1439,7 +1435,16 @@ fn ascii(m: &mut Master, id: u8, command: &str) -> String {
     for chunk in bytes.chunks(4) {
         m.write(id, 0x2026, 1, chunk).unwrap();
     }
-    String::from_utf8(m.read(id, 0x2026, 2).unwrap()).unwrap()
+    // Four characters per upload (7.2.1.9), until the answer's end.
+    let mut answer = Vec::new();
+    loop {
+        let piece = m.read(id, 0x2026, 2).unwrap();
+        answer.extend_from_slice(&piece);
+        if piece.is_empty() || answer.ends_with(b"\n\r\n") {
+            break;
+        }
+    }
+    String::from_utf8(answer).unwrap()
 }
 
 #[test]
@@ -1461,7 +1466,7 @@ fn the_ascii_channel_reads_and_writes_workbench_parameters() {
     // A fault shows in DRV.FAULTS.
     vendor_mut(&mut m, 0).conditions.heat_sink_c = 90.0;
     m.advance(2000);
-    assert_eq!(ascii(&mut m, 4, "DRV.FAULTS"), ">235: Excess temperature, dri\n\r\n");
+    assert_eq!(ascii(&mut m, 4, "DRV.FAULTS"), ">235: Excess temperature, drive (heat sink)\n\r\n");
     assert_eq!(ascii(&mut m, 4, "DRV.WARNINGS"), ">No warnings active\n\r\n");
 }
 

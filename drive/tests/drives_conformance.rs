@@ -70,6 +70,10 @@ fn akd(id: u8) -> Master {
     m
 }
 
+fn akd_node_mut(m: &mut Master) -> &mut AkdNode {
+    m.sim_mut().downcast_mut::<AkdNode>(0).unwrap()
+}
+
 fn akd_node(m: &Master) -> &AkdNode {
     m.sim().downcast::<AkdNode>(0).unwrap()
 }
@@ -333,4 +337,78 @@ fn drcs_homing_attained_is_a_completed_homing() {
 #[test]
 fn drvi_homing_attained_is_a_completed_homing() {
     homing_attained_is_committed(DeviceKind::Drvi);
+}
+
+/// Finding 6 (7.2.1.9): the answer of the ASCII channel is read four characters per expedited
+/// upload; once read, sub 2 is empty until the next answer.
+#[test]
+fn akd_ascii_answers_are_read_four_characters_per_upload() {
+    let mut m = akd(1);
+    for (request, answer) in [
+        ("601 23 26 20 01 44 52 56 2E", "581 60 26 20 01 00 00 00 00"),
+        ("601 23 26 20 01 46 41 55 4C", "581 60 26 20 01 00 00 00 00"),
+        ("601 23 26 20 01 54 53 0D 0A", "581 60 26 20 01 00 00 00 00"),
+        ("601 40 26 20 02 00 00 00 00", "581 43 26 20 02 3E 4E 6F 20"),
+        ("601 40 26 20 02 00 00 00 00", "581 43 26 20 02 66 61 75 6C"),
+    ] {
+        assert_eq!(sdo(&mut m, request), answer, "{request}");
+    }
+    assert_eq!(m.read(1, 0x2026, 2).unwrap(), b"ts a");
+    assert_eq!(m.read(1, 0x2026, 2).unwrap(), b"ctiv");
+    assert_eq!(m.read(1, 0x2026, 2).unwrap(), b"e\n\r\n");
+    assert_eq!(m.read(1, 0x2026, 2).unwrap(), b"");
+    // A longer answer than the entry's 32 characters is read whole, four at a time.
+    akd_node_mut(&mut m).app_mut().unwrap().vendor_mut().conditions.heat_sink_c = 90.0;
+    m.advance(2000);
+    assert_eq!(ascii(&mut m, 1, "DRV.FAULTS"), ">235: Excess temperature, drive (heat sink)\n\r\n");
+}
+
+/// Finding 5 (6.6.2.1): 606Ch over SDO in user units, in a PDO in rpm (both at the object's
+/// 1000:1 bus factor): at -1 turn/s, SDO -1000 (one user unit is one turn), PDO -60 000.
+#[test]
+fn akd_velocity_actual_is_rpm_in_a_pdo() {
+    let mut m = akd(3);
+    // TPDO2: 606Ch only, on every SYNC.
+    let cob = m.read_u32(3, 0x1801, 1).unwrap();
+    m.write_u32(3, 0x1801, 1, cob | 0x8000_0000).unwrap();
+    m.write_u8(3, 0x1A01, 0, 0).unwrap();
+    m.write_u32(3, 0x1A01, 1, 0x606C_0020).unwrap();
+    m.write_u8(3, 0x1A01, 0, 1).unwrap();
+    m.write_u8(3, 0x1801, 2, 1).unwrap();
+    m.write_u32(3, 0x1801, 1, cob & 0x7FFF_FFFF).unwrap();
+    m.switch_on(3).unwrap();
+    m.set_mode(3, 3).unwrap();
+    m.write_i32(3, 0x60FF, 0, -1).unwrap();
+    m.advance(500_000);
+    assert_eq!(m.read_i64(3, 0x606C, 0).unwrap(), -1000, "SDO: user units × 1000");
+    m.take_id(0x283);
+    m.sync();
+    m.advance(1000);
+    let pdo = m.take_id(0x283);
+    let data = pdo.first().expect("TPDO2").frame.data().to_vec();
+    assert_eq!(i32::from_le_bytes(data[..4].try_into().unwrap()), -60_000, "PDO: rpm × 1000");
+}
+
+// ---- DRVI -----------------------------------------------------------------------------------
+
+/// Finding 8 (table 6.34): an RPDO longer than its mapping is EMCY 8220h (and is processed,
+/// CiA 301); a shorter one is 8210h and is not.
+#[test]
+fn drvi_rpdo_of_the_wrong_length_is_an_emcy() {
+    let mut m = started(DeviceKind::Drvi, 2);
+    // RPDO1 maps the 2-byte controlword (the DRVI's default set).
+    m.pdo(0x202, &[0x06, 0x00, 0x00]);
+    m.advance(2000);
+    let emcy = got(&mut m, 0x082);
+    assert_eq!(emcy, ["082 20 82 11 00 00 00 00 00"]);
+    assert_eq!(m.read_u16(2, 0x6040, 0).unwrap(), 0x06, "processed");
+    m.pdo(0x202, &[0x07]);
+    m.advance(2000);
+    assert_eq!(got(&mut m, 0x082), ["082 10 82 11 00 00 00 00 00"]);
+    assert_eq!(m.read_u16(2, 0x6040, 0).unwrap(), 0x06, "not processed");
+    // The AKD's table has no 8220h: its overlong RPDOs are processed without an EMCY.
+    let mut a = started(DeviceKind::Akd, 3);
+    a.pdo(0x203, &[0x06, 0x00, 0x00]);
+    a.advance(2000);
+    assert!(got(&mut a, 0x083).is_empty());
 }

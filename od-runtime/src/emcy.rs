@@ -40,6 +40,10 @@ pub const fn register_bits(code: u16) -> u8 {
 /// EMCY error code: RPDO not processed because its length was too short (8210h).
 pub const PDO_LENGTH_ERROR: u16 = 0x8210;
 
+/// EMCY error code: RPDO longer than its mapping (8220h), sent when the application asks
+/// ([`crate::App::rpdo_length_exceeded`]).
+pub const PDO_LENGTH_EXCEEDED: u16 = 0x8220;
+
 const QUEUE: usize = 8;
 
 /// A bounded FIFO of EMCY payloads waiting for the inhibit time or a state that allows them.

@@ -18,7 +18,8 @@
 //! | 6.1, 5.4.4 | EMCY codes from the sidecar table; faults stop with the quick stop ramp (F702, F602 switch the power stage off); warnings set statusword bit 7 and are reset by an EMCY 0000h when their cause is gone | the sidecar table through [`super::Drive::raise`] |
 //! | 5.4.7, 5.4.8 | heartbeat or guarding loss: F129 (8130h), braked to standstill | [`Vendor::pre_event`] (the EMCY names the lost node) |
 //! | 6.2.1.12, 5.4.1 | 1010h saves the parameters (the sidecar's `[store]` list: process values and commands are not saved); reset node reloads them | the sidecar's `[store]` list through [`super::store`] |
-//! | 6.2.2.3, 7.2.1.9 | ASCII channel 2026h: WorkBench commands written 4 characters at a time, answered in sub 2 | [`Vendor::on_event`] |
+//! | 6.2.2.3, 7.2.1.9 | ASCII channel 2026h: WorkBench commands written 4 characters at a time, the answer read 4 characters per (expedited) upload of sub 2 | [`Vendor::on_event`], [`Vendor::on_upload`] |
+//! | 6.6.2.1 | 606Ch: user units over SDO, rpm in a PDO (both 1000:1) | [`Vendor::actual_values`], [`Vendor::on_tpdo`] |
 //!
 //! Decisions where the manual is silent (recorded here and tested in `drive/tests/drives_akd.rs`):
 //! * the axis counts 2^20 increments per motor turn internally ([`COUNTS_PER_TURN`]), whatever
@@ -38,10 +39,12 @@
 //! * the heat sink faults at 85 °C (F235, 4310h, the 7.2.1.10 example) and warns above 75 °C
 //!   (n235, 4391h); a missing hardware enable (STO) is fault F602 while the power stage is on,
 //!   warning n602 otherwise.
-//! * 2026h sub 2 holds the whole answer (at most 32 characters): od-runtime has no read hook,
-//!   so the answer cannot be handed out 4 characters per read as 7.2.1.9 shows.
-//! * 606Ch carries user units × 1000 on SDO and PDO alike (the manual's "PDO in rpm" would need
-//!   a per-transport value).
+//! * each SDO upload of 2026h sub 2 takes the next 4 characters of the answer (7.2.1.9); the
+//!   entry itself holds its first 32 characters; an answer is cut at 125 characters.
+//! * 606Ch carries user units × 1000 over SDO and rpm × 1000 in a PDO (6.6.2.1 "PDO in rpm",
+//!   the 1000:1 bus factor of the object kept).
+//! * numbers written over the ASCII channel are read with checked arithmetic and must fit the
+//!   parameter's type and limits after the bus factor ("Error: value out of range").
 
 use std::collections::VecDeque;
 use std::sync::OnceLock;
@@ -49,7 +52,7 @@ use std::sync::OnceLock;
 use generated::akd::Dictionary;
 use generated::akd::units::{self, Dimension, System, Units as AkdUnits};
 use od_runtime::cia402::State;
-use od_runtime::od::{AbortCode, ObjectDictionary};
+use od_runtime::od::{AbortCode, MappedHandle, ObjectDictionary};
 use od_runtime::{Event, Micros};
 
 use super::cia402::{BusScale, Cia402App, Command, DisableReaction, Vendor, read_int, scale_i64, write_int};
@@ -403,6 +406,8 @@ pub struct Akd {
     pvt_underflow: bool,
     /// ASCII channel input not yet terminated by CR/LF.
     ascii_input: Vec<u8>,
+    /// The answer not yet read from 2026h sub 2, handed out four characters per upload.
+    ascii_output: VecDeque<u8>,
     last_now: Option<Micros>,
 }
 
@@ -710,9 +715,14 @@ impl Akd {
                     let line = String::from_utf8_lossy(&std::mem::take(&mut self.ascii_input)).into_owned();
                     let answer = self.ascii_execute(drive, ctx, line.trim());
                     let mut text = format!(">{answer}").into_bytes();
-                    text.truncate(29);
+                    text.truncate(ASCII_ANSWER_MAX);
                     text.extend_from_slice(b"\n\r\n");
-                    let _ = ctx.od_mut().set_ascii_channel_response(&text);
+                    // 7.2.1.9: each upload of sub 2 takes the next four characters; the
+                    // dictionary holds the beginning of the answer (its capacity) for reads
+                    // that do not go through an SDO upload.
+                    let capacity = text.len().min(32);
+                    let _ = ctx.od_mut().set_ascii_channel_response(&text[..capacity]);
+                    self.ascii_output = text.into();
                 }
             } else if self.ascii_input.len() < 256 {
                 self.ascii_input.push(b);
@@ -757,6 +767,12 @@ impl Akd {
         }
     }
 }
+
+/// The longest ASCII answer (before its `\n\r\n`): a long fault text is cut here.
+const ASCII_ANSWER_MAX: usize = 125;
+
+/// Characters of the ASCII answer per upload of 2026h sub 2 (7.2.1.9).
+const ASCII_CHUNK: usize = 4;
 
 /// A WorkBench parameter reachable by name over the ASCII channel.
 #[derive(Clone, Copy, Debug)]
@@ -1025,6 +1041,7 @@ impl Vendor<Dictionary> for Akd {
         self.pvt_queue.clear();
         self.pvt_run = None;
         self.ascii_input.clear();
+        self.ascii_output.clear();
         drive.axis_mut().set_brake(false);
         drive.mark_dirty();
     }
@@ -1069,6 +1086,38 @@ impl Vendor<Dictionary> for Akd {
                 }
             }
             _ => false,
+        }
+    }
+
+    /// 7.2.1.9: an upload of 2026h sub 2 hands out the next four characters of the answer
+    /// (an expedited transfer), nothing once it is read.
+    fn on_upload(&mut self, _drive: &Drive, _od: &Dictionary, index: u16, sub: u8, buf: &mut [u8]) -> Option<usize> {
+        if (index, sub) != (0x2026, 2) {
+            return None;
+        }
+        let n = self.ascii_output.len().min(ASCII_CHUNK).min(buf.len());
+        for (slot, b) in buf.iter_mut().zip(self.ascii_output.drain(..n)) {
+            *slot = b;
+        }
+        Some(n)
+    }
+
+    /// 6.6.2.1: 606Ch in a PDO is the velocity in rpm (at the object's 1000:1 bus factor),
+    /// where an SDO read gives user units.
+    fn on_tpdo(&mut self, drive: &Drive, _od: &Dictionary, map: &[MappedHandle], data: &mut [u8; 8]) {
+        let mut offset = 0u32;
+        for e in map {
+            let bits = u32::from(e.bits);
+            if (e.index, e.sub, bits) == (0x606C, 0, 32) && offset + bits <= 64 {
+                let counts = i64::from(drive.status().velocity_actual);
+                let rpm_milli = scale_i64(counts, Ratio::new(60_000, COUNTS_PER_TURN));
+                let rpm_milli = if drive.scale().reverse_velocity { -rpm_milli } else { rpm_milli };
+                let value = u64::from(sat_i32(rpm_milli) as u32);
+                let mut word = u64::from_le_bytes(*data);
+                word = (word & !(0xFFFF_FFFFu64 << offset)) | (value << offset);
+                *data = word.to_le_bytes();
+            }
+            offset += bits;
         }
     }
 

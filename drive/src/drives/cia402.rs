@@ -38,7 +38,7 @@ use std::marker::PhantomData;
 use std::sync::Arc;
 
 use od_runtime::cia402::State;
-use od_runtime::od::{AbortCode, ObjectDictionary, decode_int};
+use od_runtime::od::{AbortCode, MappedHandle, ObjectDictionary, decode_int};
 use od_runtime::{Event, Micros, ResetKind, WriteSource};
 
 use super::{ErrorSpec, ErrorTable, Reaction, SharedTrace};
@@ -382,6 +382,16 @@ pub trait Vendor<OD>: Send + 'static {
     /// Adjusts the statusword bits the drive owns ([`STATUSWORD_APP_BITS`]): `bits` holds the
     /// common ones (10, 11, 12, 13 per mode) on entry.
     fn statusword(&self, drive: &Drive, od: &OD, status: &Status, bits: &mut u16) {}
+
+    /// An SDO upload of `index`/`sub`: `Some` answers it with `buf` instead of the dictionary
+    /// (a value a read consumes). Default: `None`.
+    fn on_upload(&mut self, drive: &Drive, od: &OD, index: u16, sub: u8, buf: &mut [u8]) -> Option<usize> {
+        None
+    }
+
+    /// A TPDO's data as packed by `map`: change a value whose PDO form differs from its SDO
+    /// form. Default: nothing.
+    fn on_tpdo(&mut self, drive: &Drive, od: &OD, map: &[MappedHandle], data: &mut [u8; 8]) {}
 
     /// The drive left Fault (transition 15, by controlword bit 7 or [`Ctx::fault_reset`]);
     /// [`Drive::fault`] still holds the fault being reset.
@@ -1233,6 +1243,19 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> DriveApp<OD> for Cia402App<OD, V> {
 
     fn tick(&mut self, ctx: &mut Ctx<'_, OD>) {
         self.run_tick(ctx);
+    }
+
+    fn on_upload(&mut self, od: &OD, index: u16, sub: u8, buf: &mut [u8]) -> Option<Result<usize, AbortCode>> {
+        self.vendor.on_upload(&self.drive, od, index, sub, buf).map(Ok)
+    }
+
+    fn on_tpdo(&mut self, od: &OD, map: &[MappedHandle], data: &mut [u8; 8]) {
+        self.vendor.on_tpdo(&self.drive, od, map, data);
+    }
+
+    /// EMCY 8220h when the device's error table lists it (DRVI table 6.34).
+    fn rpdo_length_exceeded(&mut self, _pdo: u16) -> bool {
+        self.drive.errors.find(od_runtime::emcy::PDO_LENGTH_EXCEEDED, None).is_some()
     }
 }
 

@@ -118,6 +118,20 @@ impl<OD: ObjectDictionary, A: DriveApp<OD>> od_runtime::App<OD> for Hooks<A> {
         }
     }
 
+    fn on_upload(&mut self, od: &OD, index: u16, sub: u8, buf: &mut [u8]) -> Option<Result<usize, AbortCode>> {
+        self.app.as_mut()?.on_upload(od, index, sub, buf)
+    }
+
+    fn on_tpdo(&mut self, od: &OD, map: &[od_runtime::od::MappedHandle], data: &mut [u8; 8]) {
+        if let Some(app) = &mut self.app {
+            app.on_tpdo(od, map, data);
+        }
+    }
+
+    fn rpdo_length_exceeded(&mut self, pdo: u16) -> bool {
+        self.app.as_mut().is_some_and(|app| app.rpdo_length_exceeded(pdo))
+    }
+
     fn on_event(&mut self, _od: &mut OD, event: Event) {
         if self.events.len() < EVENT_QUEUE {
             self.events.push_back(event);
