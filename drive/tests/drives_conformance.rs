@@ -412,3 +412,39 @@ fn drvi_rpdo_of_the_wrong_length_is_an_emcy() {
     a.advance(2000);
     assert!(got(&mut a, 0x083).is_empty());
 }
+
+// ---- life guarding lost (DRVI 6.3.2.12, DRCS 3.2.12) -----------------------------------------
+
+/// Finding 9: both Camozzi drives treat a lost guarding master as "an error and reset the
+/// communication": EMCY 8130h, Fault, then a communication reset (boot-up, pre-operational),
+/// after which 1001h and 1003h still name the cause of the Fault.
+fn guarding_loss_resets_the_communication_and_keeps_the_cause(kind: DeviceKind) {
+    let mut m = started(kind, 3);
+    m.switch_on(3).unwrap();
+    m.write(3, 0x100C, 0, &100u16.to_le_bytes()).unwrap();
+    m.write_u8(3, 0x100D, 0, 2).unwrap();
+    // Guard a few times (RTR on 703h), then stop.
+    for _ in 0..3 {
+        m.send(CanFrame::remote(0x703, false, 1).unwrap());
+        m.advance(100_000);
+    }
+    m.take_seen();
+    m.advance(1_000_000);
+    let emcy = got(&mut m, 0x083);
+    assert!(emcy.iter().any(|e| e.starts_with("083 30 81 11")), "{kind:?}: {emcy:?}");
+    assert_eq!(got(&mut m, 0x703), ["703 00"], "{kind:?}: boot-up after the communication reset");
+    assert_eq!(m.state(3).unwrap(), Some(od_runtime::cia402::State::Fault), "{kind:?}");
+    assert_eq!(m.read_u8(3, 0x1001, 0).unwrap() & 0x11, 0x11, "{kind:?}: 1001h keeps the cause");
+    assert_eq!(m.read_u8(3, 0x1003, 0).unwrap(), 1, "{kind:?}");
+    assert_eq!(m.read_u32(3, 0x1003, 1).unwrap() & 0xFFFF, 0x8130, "{kind:?}: 1003h keeps the cause");
+}
+
+#[test]
+fn drvi_guarding_loss_resets_the_communication_and_keeps_the_cause() {
+    guarding_loss_resets_the_communication_and_keeps_the_cause(DeviceKind::Drvi);
+}
+
+#[test]
+fn drcs_guarding_loss_resets_the_communication_and_keeps_the_cause() {
+    guarding_loss_resets_the_communication_and_keeps_the_cause(DeviceKind::Drcs);
+}

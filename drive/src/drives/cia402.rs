@@ -302,6 +302,14 @@ pub trait Vendor<OD>: Send + 'static {
         (0x8130, None)
     }
 
+    /// Whether a lost master (heartbeat or guarding, [`Vendor::fieldbus_error`]) also resets
+    /// the communication once the drive is in Fault (DRVI 6.3.2.12, DRCS 3.2.12: "error and
+    /// reset the communication"). The error register 1001h and the history 1003h survive the
+    /// reset, so the master finds the cause of the Fault. Default: false.
+    fn reset_communication_on_link_loss(&self) -> bool {
+        false
+    }
+
     /// How the drive stops and what its power stage does on entering a state without
     /// operation (`to`: Switched on, Ready to switch on, Switch on disabled, from `from`).
     /// Default: CiA 402 ([`DisableReaction::cia402`]): 605Ch for disable operation (transition
@@ -522,6 +530,36 @@ pub struct Drive {
     target_torque: i32,
     ticks: u64,
     link_lost: LossRecord,
+    /// A lost master asked for a communication reset, done once the drive is in Fault.
+    comm_reset_pending: bool,
+    /// 1001h and 1003h as they were before that reset, written back after it.
+    kept_errors: Option<KeptErrors>,
+}
+
+/// The error register and the error history, kept over a communication reset (which restores
+/// the communication area, these included, to its power-on values).
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct KeptErrors {
+    register: i64,
+    history: Vec<i64>,
+}
+
+impl KeptErrors {
+    fn read<OD: ObjectDictionary + ?Sized>(od: &OD) -> Self {
+        let count = read_int(od, 0x1003, 0).unwrap_or(0).clamp(0, 254) as u8;
+        Self {
+            register: read_int(od, 0x1001, 0).unwrap_or(0),
+            history: (1..=count).map_while(|k| read_int(od, 0x1003, k)).collect(),
+        }
+    }
+
+    fn write<OD: ObjectDictionary + ?Sized>(&self, od: &mut OD) {
+        write_int(od, 0x1001, 0, self.register);
+        for (k, v) in self.history.iter().enumerate() {
+            write_int(od, 0x1003, (k + 1) as u8, *v);
+        }
+        write_int(od, 0x1003, 0, self.history.len() as i64);
+    }
 }
 
 impl Drive {
@@ -548,6 +586,8 @@ impl Drive {
             target_torque: 0,
             ticks: 0,
             link_lost: LossRecord::default(),
+            comm_reset_pending: false,
+            kept_errors: None,
         }
     }
 
@@ -1016,6 +1056,8 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
                 d.dirty = true;
                 d.fault = None;
                 d.link_lost = LossRecord::default();
+                d.comm_reset_pending = false;
+                d.kept_errors = None;
                 d.stopping = Stopping::No;
                 d.controlword = 0;
                 d.axis.set_power(false);
@@ -1062,6 +1104,9 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
             Event::Reset(ResetKind::Communication) => {
                 self.drive.dirty = true;
                 self.drive.link_lost = LossRecord::default();
+                if let Some(kept) = self.drive.kept_errors.take() {
+                    kept.write(ctx.od_mut());
+                }
             }
             Event::Sync { .. } if self.drive.mode == Mode::InterpolatedPosition => {
                 if let Some(p) = Self::int(ctx.od(), 0x60C1, 1) {
@@ -1079,6 +1124,7 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
     fn link_lost(&mut self, ctx: &mut Ctx<'_, OD>) {
         let (code, m) = self.vendor.fieldbus_error();
         self.drive.raise(ctx, code, m);
+        self.drive.comm_reset_pending |= self.vendor.reset_communication_on_link_loss();
         self.follow_state(ctx);
     }
 
@@ -1201,6 +1247,11 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
         let status = self.status_now();
         self.write_actuals(ctx, &status);
         self.vendor.after_step(&mut self.drive, ctx, &status);
+        if self.drive.comm_reset_pending && self.drive.state == State::Fault {
+            self.drive.comm_reset_pending = false;
+            self.drive.kept_errors = Some(KeptErrors::read(ctx.od()));
+            ctx.nmt_command(od_runtime::NmtCommand::ResetCommunication);
+        }
         self.publish(ctx, &status);
         if let Some(trace) = &self.drive.trace {
             let sample = self.drive.bus_sample(&status);

@@ -325,7 +325,6 @@ pub struct Drcs {
     manual_release: bool,
     last_power: bool,
     last_cw: u16,
-    comm_reset_pending: bool,
     start_pending: bool,
     flash_check_pending: bool,
 }
@@ -345,7 +344,6 @@ impl Drcs {
             manual_release: false,
             last_power: false,
             last_cw: 0,
-            comm_reset_pending: false,
             start_pending: false,
             flash_check_pending: true,
         }
@@ -555,7 +553,6 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drcs {
         self.homing_failed = matches!(drive.axis().status().homing, HomingState::Error(_));
         self.was_homed = false;
         self.last_cw = 0;
-        self.comm_reset_pending = false;
         self.manual_release = false;
         self.last_power = drive.axis().status().power;
         self.sync_brake(drive);
@@ -592,7 +589,6 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drcs {
                 }
                 self.last_cw = cw;
             }
-            Event::LifeGuardingLost => self.comm_reset_pending = true,
             _ => {}
         }
         self.sync_brake(drive);
@@ -678,10 +674,6 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drcs {
         }
         self.was_homed = status.homed;
         self.check_conditions(drive, ctx, status);
-        if self.comm_reset_pending && drive.state() == State::Fault {
-            self.comm_reset_pending = false;
-            ctx.nmt_command(NmtCommand::ResetCommunication);
-        }
         self.write_objects(drive, ctx, status);
     }
 
@@ -698,6 +690,11 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drcs {
             // Chapter 5: high while the positioning runs, low when a new command is accepted.
             set(bits, 12, status.set_point_acknowledge || (status.power && !status.target_reached));
         }
+    }
+
+    /// 3.2.12: a lost guarding master is "an error and reset the communication".
+    fn reset_communication_on_link_loss(&self) -> bool {
+        true
     }
 
     fn on_fault_reset(&mut self, _drive: &mut Drive, ctx: &mut Ctx<'_, OD>) {

@@ -545,6 +545,12 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drvi {
         matches!(code, 0 | 1 | 3 | 4 | 6 | -1)
     }
 
+    /// 6.3.2.12: the guarding messages must arrive "to avoid an error and reset the
+    /// communication": the fieldbus disconnection error, then a communication reset.
+    fn reset_communication_on_link_loss(&self) -> bool {
+        true
+    }
+
     /// Table 6.29.
     fn homing_method(&self, code: i8) -> Option<HomingMethod> {
         HomingMethod::camozzi(code)
