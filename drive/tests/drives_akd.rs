@@ -1050,12 +1050,15 @@ fn digital_inputs_show_the_switches_and_latch_changes() {
     m.write_u16(4, 0x20B8, 0, 0b1000).unwrap();
     m.advance(2000);
     assert_eq!(inputs(&mut m) >> 24, 0b0001);
-    // The positive limit switch at 2 turns.
+    // The positive limit switch at 2 turns: the move stops there with the limit switch
+    // warning and internal limit active (the sidecar's decision on 60FDh).
     m.write_i32(4, 0x607A, 0, 21_000).unwrap();
     m.controlword(4, 0x1F).unwrap();
     m.controlword(4, 0x0F).unwrap();
-    wait_sw(&mut m, 4, 0x0400, 0x0400, 5000);
+    wait_sw(&mut m, 4, 0x0800, 0x0800, 5000);
+    m.advance(500_000);
     assert_eq!(inputs(&mut m) & 0x7, 0b010);
+    assert!(vendor(&m, 0).warnings().contains(&code::LIMIT_SWITCH));
     assert_eq!(vendor(&m, 0).inputs() & 0b10, 0b10, "DIN2");
 }
 
@@ -1183,7 +1186,9 @@ fn a_following_error_beyond_6065h_is_fault_f439() {
     m.switch_on(4).unwrap();
     m.set_mode(4, 3).unwrap();
     got(&mut m, 0x084);
-    // Running into the positive end stop at 3 turns.
+    // Running into the positive end stop at 3 turns (the limit switch before it taken away,
+    // or it would stop the axis first).
+    node_mut(&mut m, 0).app_mut().unwrap().drive_mut().axis_mut().environment_mut().positive_limit = None;
     m.write_i32(4, 0x60FF, 0, 50_000).unwrap();
     m.advance(2_000_000);
     assert_eq!(m.state(4).unwrap(), Some(State::Fault));
@@ -1476,7 +1481,7 @@ fn the_ascii_channel_reads_and_writes_workbench_parameters() {
 fn every_error_of_chapter_6_1_is_raised_as_its_reaction_says() {
     use drive::drives::{Reaction, error_table};
     let table = error_table(DeviceKind::Akd);
-    assert_eq!(table.entries().len(), 171);
+    assert_eq!(table.entries().len(), 172, "6.1's 171 and the limit switch warning 8612h");
     let mut m = started(4);
     for e in table.entries().iter().filter(|e| e.code != 0) {
         got(&mut m, 0x084);

@@ -141,8 +141,9 @@ fn akd_error_register_bits_follow_the_error_class() {
         assert_eq!(table.resolve(code, None).register_bits(), bits, "{code:04X}");
     }
     // On the bus: a following error's EMCY (running into the end stop of the preset machine at
-    // 5 turns/s with a window of one turn).
+    // 5 turns/s with a window of one turn; the limit switch before it taken away).
     let mut m = akd(3);
+    akd_node_mut(&mut m).app_mut().unwrap().drive_mut().axis_mut().environment_mut().positive_limit = None;
     m.switch_on(3).unwrap();
     m.write_u32(3, 0x6065, 0, 1).unwrap();
     m.set_mode(3, 3).unwrap();
@@ -447,4 +448,44 @@ fn drvi_guarding_loss_resets_the_communication_and_keeps_the_cause() {
 #[test]
 fn drcs_guarding_loss_resets_the_communication_and_keeps_the_cause() {
     guarding_loss_resets_the_communication_and_keeps_the_cause(DeviceKind::Drcs);
+}
+
+/// Finding 2: a profile position move beyond the positive limit switch (at 2 turns on the
+/// preset machine) stops the trajectory at the switch: warning 8612h, statusword bits 11 and 7
+/// with bit 10 clear, no demand winding up; a velocity away from the switch moves at once.
+#[test]
+fn akd_limit_switches_stop_the_trajectory() {
+    let mut m = akd(3);
+    m.write_u32(3, 0x6092, 1, 10).unwrap(); // 10 units per turn
+    m.write_u32(3, 0x6081, 0, 10).unwrap(); // 1 turn/s
+    m.switch_on(3).unwrap();
+    m.set_mode(3, 1).unwrap();
+    m.write_i32(3, 0x607A, 0, 25).unwrap();
+    m.controlword(3, 0x1F).unwrap();
+    m.controlword(3, 0x0F).unwrap();
+    m.advance(4_000_000);
+    let emcy = got(&mut m, 0x083);
+    assert_eq!(emcy, ["083 12 86 21 00 00 00 00 00"]);
+    let sw = m.statusword(3).unwrap();
+    assert_eq!(sw & 0x0C80, 0x0880, "warning, internal limit, target not reached: {sw:04X}");
+    let s = akd_node(&m).app().unwrap().drive().axis().status();
+    let turn = akd::COUNTS_PER_TURN as i32;
+    assert!(s.position_actual >= 2 * turn && s.position_actual < 2 * turn + turn / 10, "{}", s.position_actual);
+    assert_eq!(s.position_demand, s.position_actual, "the demand stopped with the axis");
+    assert_eq!(s.velocity_demand, 0);
+    // A move further in is not taken.
+    m.write_i32(3, 0x607A, 0, 28).unwrap();
+    m.controlword(3, 0x1F).unwrap();
+    m.controlword(3, 0x0F).unwrap();
+    m.advance(200_000);
+    assert_eq!(akd_node(&m).app().unwrap().drive().axis().status().velocity_demand, 0);
+    // Profile velocity away from the switch: moving within 100 ms.
+    m.set_mode(3, 3).unwrap();
+    m.write_i32(3, 0x60FF, 0, -1).unwrap();
+    m.advance(100_000);
+    assert!(m.read_i64(3, 0x606C, 0).unwrap() < 0, "moving away at once");
+    m.advance(2_000_000);
+    // Off the switch: the warning is gone (EMCY 0000h).
+    assert_eq!(got(&mut m, 0x083), ["083 00 00 00 00 00 00 00 00"]);
+    assert_eq!(m.statusword(3).unwrap() & 0x0880, 0);
 }

@@ -148,6 +148,9 @@ pub mod code {
     pub const N704_PVT_OVERFLOW: u16 = 0x8584;
     /// n705: PVT buffer underflow.
     pub const N705_PVT_UNDERFLOW: u16 = 0x8585;
+    /// Hardware limit switch reached (CiA 402 8612h "reference limit"; table 6.1 has no code
+    /// for it: see the sidecar's decision on 60FDh).
+    pub const LIMIT_SWITCH: u16 = 0x8612;
     /// F439: following error.
     pub const F439_FOLLOWING_ERROR: u16 = 0x8611;
     /// F157: homing index pulse not found.
@@ -384,6 +387,8 @@ pub struct Akd {
     clip_warning: Option<u16>,
     /// A software-limit fault was raised and the axis has not left the limit since.
     limit_fault: bool,
+    /// The trajectory was stopped on a hardware limit switch: +1 positive, -1 negative.
+    switch_stop: Option<i8>,
     following_fault: bool,
     homing_failed: bool,
     /// Ticks since the homing completed (the AKD shows bit 10 one tick before bit 12).
@@ -521,6 +526,51 @@ impl Akd {
         self.set_warning(drive, ctx, code::N602_SAFE_TORQUE_OFF, sto && !self.sto_fault);
         if sto && powered {
             drive.axis_mut().set_power(false);
+        }
+    }
+
+    /// Which limit switch the axis' motion heads into (+1 positive, -1 negative), in the
+    /// mechanical frame the switches live in.
+    fn switch_ahead(drive: &Drive, status: &Status) -> Option<i8> {
+        let reversed = drive.axis().config().reverse_polarity;
+        let v = i64::from(status.velocity_demand) * if reversed { -1 } else { 1 };
+        let t = i64::from(status.torque_demand) * if reversed { -1 } else { 1 };
+        let push = if v != 0 { v } else { t };
+        let i = status.inputs;
+        if i.positive_limit && push > 0 {
+            Some(1)
+        } else if i.negative_limit && push < 0 {
+            Some(-1)
+        } else {
+            None
+        }
+    }
+
+    /// A limit switch reached while moving towards it: the trajectory stops on the quick stop
+    /// ramp and holds (no demand winds up behind the switch), warning 8612h. The stop ends
+    /// with a command away from the switch or a mode change ([`Vendor::before_command`]).
+    fn check_switches(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, Dictionary>, status: &Status) {
+        let moving = drive.state() == State::OperationEnabled && drive.mode() != Mode::Homing && status.power;
+        if self.switch_stop.is_none()
+            && moving
+            && let Some(side) = Self::switch_ahead(drive, status)
+        {
+            self.switch_stop = Some(side);
+            drive.axis_mut().quick_stop(StopRamp::QuickStopDeceleration);
+            self.warn(drive, ctx, code::LIMIT_SWITCH);
+        }
+        let i = status.inputs;
+        if self.warnings.contains(&code::LIMIT_SWITCH) && !i.positive_limit && !i.negative_limit {
+            self.unwarn(drive, ctx, code::LIMIT_SWITCH);
+        }
+        if self.switch_stop.is_some() && !moving {
+            self.release_switch_stop(drive);
+        }
+    }
+
+    fn release_switch_stop(&mut self, drive: &mut Drive) {
+        if self.switch_stop.take().is_some() {
+            drive.axis_mut().release_quick_stop();
         }
     }
 
@@ -1029,6 +1079,7 @@ impl Vendor<Dictionary> for Akd {
         self.warnings.clear();
         self.clip_warning = None;
         self.limit_fault = false;
+        self.switch_stop = None;
         self.following_fault = false;
         self.homing_failed = false;
         self.heat_fault = false;
@@ -1140,6 +1191,12 @@ impl Vendor<Dictionary> for Akd {
                 drive.axis_mut().clear_interpolation_buffer();
                 self.pvt_queue.clear();
             }
+            Event::Written { index: 0x6060, .. } if self.switch_stop.is_some() => {
+                self.release_switch_stop(drive);
+                if Self::csp(drive) {
+                    drive.axis_mut().set_mode(Mode::InterpolatedPosition);
+                }
+            }
             Event::Written { index: 0x6060, .. } | Event::Reset(od_runtime::ResetKind::Node) if Self::csp(drive) => {
                 drive.axis_mut().set_mode(Mode::InterpolatedPosition);
             }
@@ -1148,6 +1205,26 @@ impl Vendor<Dictionary> for Akd {
     }
 
     fn before_command(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, Dictionary>, cmd: &mut Command) -> bool {
+        // Stopped on a limit switch: a command away from it releases the stop, one towards it
+        // is not taken (the sidecar's decision on 60FDh).
+        if let Some(side) = self.switch_stop {
+            let reversed = if drive.axis().config().reverse_polarity { -1 } else { 1 };
+            let here = i64::from(drive.axis().status().position_actual);
+            let heading = match *cmd {
+                Command::SetPoint(sp) => {
+                    let target = i64::from(sp.target) + if sp.relative { here } else { 0 };
+                    Some((target - here).signum())
+                }
+                Command::TargetVelocity(v) => Some(i64::from(v).signum()),
+                Command::TargetTorque(t) => Some(i64::from(t).signum()),
+                _ => None,
+            };
+            match heading.map(|h| h * reversed) {
+                Some(h) if h == i64::from(side) => return false,
+                Some(_) => self.release_switch_stop(drive),
+                None => {}
+            }
+        }
         if let Command::SetPoint(sp) = cmd
             && let Some((lo, hi)) = self.limits
         {
@@ -1206,6 +1283,7 @@ impl Vendor<Dictionary> for Akd {
             self.following_fault = false;
         }
         self.check_limits(drive, ctx, status);
+        self.check_switches(drive, ctx, status);
         // Inputs (60FDh): switches, DIN1..7, change latches.
         let din = self.din(status);
         self.din_changed |= din ^ self.din_last;
@@ -1246,6 +1324,11 @@ impl Vendor<Dictionary> for Akd {
             }
         };
         set(bits, 7, !self.warnings.is_empty());
+        if self.switch_stop.is_some() {
+            // Stopped on a limit switch: the target is not reached, the motion was limited.
+            set(bits, 10, false);
+            set(bits, 11, true);
+        }
         // 7.2.1.2, 7.2.1.8: 0x0233 in Switched on whatever the axis does; the homing result
         // stays visible.
         if drive.state() != State::OperationEnabled && drive.mode() != Mode::Homing {
