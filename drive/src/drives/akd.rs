@@ -58,7 +58,7 @@ use od_runtime::{Event, Micros};
 use super::cia402::{BusScale, Cia402App, Command, DisableReaction, Vendor, read_int, scale_i64, write_int};
 use super::{Drive, ErrorSpec, error_table, sidecar};
 use crate::motion::{
-    AxisConfig, Cam, Environment, HomeOffsetMode, HomingError, HomingKind, HomingMethod, HomingSignal, HomingState,
+    AxisConfig, Environment, HomeOffsetMode, HomingError, HomingKind, HomingMethod, HomingSignal, HomingState, Machine,
     Mode, PlantConfig, Ratio, SoftwareLimits, Status, StopRamp, Units,
 };
 use crate::node::{Ctx, DeviceKind, WriteRequest};
@@ -284,20 +284,11 @@ fn sat_i32(v: i64) -> i32 {
 // ---------------------------------------------------------------------------------------------
 // The mechanics.
 
-/// The machine an AKD app starts with, in counts (2^20 per motor turn): a reference switch
-/// from 0.25 to 0.5 turn, limit switches at -1 and +2 turns, hard end stops one turn beyond
-/// them (-2 and +3 turns), the encoder index every turn at 0.1 turn.
+/// The machine an AKD app starts with (the `akd-linear` preset), in counts (2^20 per motor
+/// turn): a reference switch from 0.25 to 0.5 turn, limit switches at -1 and +2 turns, hard
+/// end stops one turn beyond them (-2 and +3 turns), the encoder index every turn at 0.1 turn.
 pub fn default_environment() -> Environment {
-    let turn = COUNTS_PER_TURN;
-    Environment {
-        home_switch: Some(Cam { low: turn / 4, high: turn / 2 }),
-        negative_limit: Some(-turn),
-        positive_limit: Some(2 * turn),
-        negative_end_stop: Some(-2 * turn),
-        positive_end_stop: Some(3 * turn),
-        index_period: turn as u64,
-        index_phase: turn / 10,
-    }
+    super::machine::default_machine(DeviceKind::Akd).environment(COUNTS_PER_TURN as f64, 1.0)
 }
 
 /// The motor and load in counts and per mille of rated torque: 1000 ‰ accelerates the axis at
@@ -313,11 +304,17 @@ pub fn plant() -> PlantConfig {
     }
 }
 
+/// An AKD application on `machine` (positions in motor turns).
+pub fn app_with(machine: &Machine) -> Cia402App<Dictionary, Akd> {
+    let akd = Akd { inertia_factor: machine.inertia_factor(), ..Akd::default() };
+    let mut app = Cia402App::new(akd, error_table(DeviceKind::Akd));
+    *app.drive_mut().axis_mut().environment_mut() = machine.environment(COUNTS_PER_TURN as f64, 1.0);
+    app
+}
+
 /// An AKD application with the default mechanics ([`default_environment`]).
 pub fn app() -> Cia402App<Dictionary, Akd> {
-    let mut app = Cia402App::new(Akd::default(), error_table(DeviceKind::Akd));
-    *app.drive_mut().axis_mut().environment_mut() = default_environment();
-    app
+    app_with(&super::machine::default_machine(DeviceKind::Akd))
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -375,10 +372,12 @@ impl PvtRun {
 }
 
 /// The AKD's behaviour on top of the common CiA 402 drive.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Akd {
     /// What the drive measures.
     pub conditions: Conditions,
+    /// The machine's inertia on the built-in one ([`Machine::inertia_factor`]).
+    inertia_factor: f64,
     /// The software limits in force (607Dh at the last reset node, bus units).
     limits: Option<(i64, i64)>,
     /// Active warnings (codes), oldest first.
@@ -414,6 +413,37 @@ pub struct Akd {
     /// The answer not yet read from 2026h sub 2, handed out four characters per upload.
     ascii_output: VecDeque<u8>,
     last_now: Option<Micros>,
+}
+
+impl Default for Akd {
+    fn default() -> Self {
+        Self {
+            conditions: Conditions::default(),
+            inertia_factor: 1.0,
+            limits: None,
+            warnings: Vec::new(),
+            clip_warning: None,
+            limit_fault: false,
+            switch_stop: None,
+            following_fault: false,
+            homing_failed: false,
+            homing_done_ticks: 0,
+            heat_fault: false,
+            sto_fault: false,
+            din_last: 0,
+            din_changed: 0,
+            outputs: 0,
+            last_sync: None,
+            sync_period: None,
+            sync_lost: false,
+            pvt_queue: VecDeque::new(),
+            pvt_run: None,
+            pvt_underflow: false,
+            ascii_input: Vec::new(),
+            ascii_output: VecDeque::new(),
+            last_now: None,
+        }
+    }
 }
 
 /// The homing methods of the sidecar (6.10.2.2).
@@ -1068,6 +1098,7 @@ impl Vendor<Dictionary> for Akd {
             cfg.interpolation.buffer_capacity = 2;
         }
         cfg.plant = plant();
+        cfg.plant.inertia *= self.inertia_factor;
     }
 
     fn init(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, Dictionary>) {
