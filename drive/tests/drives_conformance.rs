@@ -489,3 +489,28 @@ fn akd_limit_switches_stop_the_trajectory() {
     assert_eq!(got(&mut m, 0x083), ["083 00 00 00 00 00 00 00 00"]);
     assert_eq!(m.statusword(3).unwrap() & 0x0880, 0);
 }
+
+/// A disable while stopped on a limit switch: the AKD holds the axis in Switched on (6.4.1.1),
+/// and enabling again does not run into the switch.
+#[test]
+fn akd_limit_switch_stop_then_disable_holds_the_axis() {
+    let mut m = akd(3);
+    m.switch_on(3).unwrap();
+    m.set_mode(3, 3).unwrap();
+    m.write_i32(3, 0x60FF, 0, 2).unwrap();
+    m.advance(2_500_000);
+    let at = akd_node(&m).app().unwrap().drive().axis().status().position_actual;
+    assert!(at >= 2 * akd::COUNTS_PER_TURN as i32, "{at}");
+    m.controlword(3, 0x07).unwrap(); // disable operation: Switched on, the axis held
+    m.advance(500_000);
+    let s = akd_node(&m).app().unwrap().drive().axis().status();
+    assert_eq!((s.velocity_demand, s.position_actual), (0, at), "held where it stopped");
+    m.controlword(3, 0x0F).unwrap();
+    m.advance(500_000);
+    let s = akd_node(&m).app().unwrap().drive().axis().status();
+    assert!(
+        s.position_actual <= at + akd::COUNTS_PER_TURN as i32 / 50,
+        "stopped again at the switch: {}",
+        s.position_actual
+    );
+}

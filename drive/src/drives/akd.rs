@@ -593,8 +593,10 @@ impl Akd {
         if self.warnings.contains(&code::LIMIT_SWITCH) && !i.positive_limit && !i.negative_limit {
             self.unwarn(drive, ctx, code::LIMIT_SWITCH);
         }
-        if self.switch_stop.is_some() && !moving {
-            self.release_switch_stop(drive);
+        if !moving {
+            // Another stop (a disable, quick stop or fault reaction of the state machine, or
+            // the homing) has taken over the axis: it is not released here.
+            self.switch_stop = None;
         }
     }
 
