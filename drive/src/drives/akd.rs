@@ -43,6 +43,10 @@
 //!   entry itself holds its first 32 characters; an answer is cut at 125 characters.
 //! * 606Ch carries user units × 1000 over SDO and rpm × 1000 in a PDO (6.6.2.1 "PDO in rpm",
 //!   the 1000:1 bus factor of the object kept).
+//! * the machine: limit switches, end stops and a reference switch by default (the homings of
+//!   7.2.1.7 and 7.2.1.8 need them; [`default_environment`]), a free motor with `--machine
+//!   free`. A limit switch reached while moving towards it stops the trajectory (warning
+//!   8612h, bit 11): table 6.1 has no code for it.
 //! * numbers written over the ASCII channel are read with checked arithmetic and must fit the
 //!   parameter's type and limits after the bus factor ("Error: value out of range").
 

@@ -22,6 +22,13 @@
 //! | 5.0.3 | the position survives a reset node, and a power cycle (a restart of the process), when homed and stopped | [`SavedPosition`] kept as the node's retained data ([`Ctx::retain`]: the state directory's `drvi-node<id>.retained`), restored in [`Vendor::init`] |
 //!
 //! Decisions where the manual is silent or unclear:
+//! * the machine: the DRVI starts as a bare motor turning freely ([`app`], the `free` machine
+//!   of [`super::machine`]), as its default 2014h = 0 ("only motor", 6.3.6.10) says; a
+//!   Camozzi actuator with the PROXY INPUT proximity and end stops is the `drvi-actuator`
+//!   preset ([`actuator_app`]).
+//! * a lost guarding master is the fieldbus disconnection error, then a communication reset
+//!   (6.3.2.12) that keeps 1001h and 1003h; an RPDO longer than its mapping is EMCY 8220h
+//!   (table 6.34) and is processed.
 //! * profile velocity applies 60FFh when it is written (CiA 402); the manual's "bit 4 starts the
 //!   movement" is also honoured: a rising bit 4 re-applies 60FFh.
 //! * statusword bit 11 "ila = internal limits active (software limits enabled)" is set while

@@ -140,7 +140,7 @@ impl Machine {
         Machine::parse(&file, &text)
     }
 
-    /// The rules a description must follow: finite numbers within ±[`POSITION_LIMIT`],
+    /// The rules a description must follow: finite numbers within ±1e9 machine units,
     /// ordered pairs, nothing with ends on a rotary machine.
     pub fn check(&self) -> Result<(), String> {
         let positions = [
