@@ -162,7 +162,6 @@ where
     OD: od_runtime::od::ObjectDictionary + Clone + Send + 'static,
     A: drive::node::DriveApp<OD> + Send + 'static,
 {
-    use od_runtime::od::ObjectDictionary;
     let fresh = od.clone();
     let mut sim = Sim::new();
     sim.add(Box::new(Node::new(od, app, NodeStorage::memory(), NodeId::new(id).unwrap())));
