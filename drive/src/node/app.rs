@@ -16,9 +16,10 @@ pub struct WriteRequest<'a> {
     pub index: u16,
     /// Sub-index.
     pub sub: u8,
-    /// The value, little-endian, exactly as received; for an SDO or RPDO write its length and
-    /// the entry's limits have been checked (the dictionary's checks come first, so a value
-    /// of the wrong size is a length error whatever the application would say of it).
+    /// The value, little-endian, exactly as received; for an SDO download its length and the
+    /// entry's limits have been checked (the dictionary's checks come first, so a value of
+    /// the wrong size is a length error whatever the application would say of it); an RPDO
+    /// entry has its entry's size by construction.
     pub data: &'a [u8],
     /// An SDO download, an RPDO, or a local write.
     pub source: WriteSource,
@@ -94,7 +95,8 @@ impl WriteRequest<'_> {
 pub trait DriveApp<OD> {
     /// Called before a write from a master (SDO download or RPDO) reaches the dictionary.
     /// Returning an error refuses it: the SDO transfer aborts with that code, an RPDO entry
-    /// is skipped. Access rights, length and the entry's limits have been checked. Writes the
+    /// is skipped. Access rights have been checked, and for an SDO download the length and the
+    /// entry's limits too. Writes the
     /// application makes itself through [`Ctx::write`] are not shown here.
     fn on_write(&mut self, od: &OD, write: &WriteRequest<'_>) -> Result<(), AbortCode> {
         let _ = (od, write);

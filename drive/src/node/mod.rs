@@ -109,7 +109,11 @@ impl<OD: ObjectDictionary, A: DriveApp<OD>> od_runtime::App<OD> for Hooks<A> {
             (Some(app), WriteSource::Sdo | WriteSource::Rpdo(_)) => {
                 // The dictionary's own checks (length first, then its limits) come before the
                 // application's: a value of the wrong size is a length error whatever it is.
-                if let Ok(info) = od.info(index, sub) {
+                // An RPDO entry has its entry's size by construction (the mapping was checked
+                // when loaded), so the PDO path keeps its handle-only speed.
+                if matches!(source, WriteSource::Sdo)
+                    && let Ok(info) = od.info(index, sub)
+                {
                     info.check_value(data)?;
                 }
                 app.on_write(od, &WriteRequest { index, sub, data, source })
