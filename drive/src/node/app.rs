@@ -96,8 +96,8 @@ pub trait DriveApp<OD> {
     /// Called before a write from a master (SDO download or RPDO) reaches the dictionary.
     /// Returning an error refuses it: the SDO transfer aborts with that code, an RPDO entry
     /// is skipped. Access rights have been checked, and for an SDO download the length and the
-    /// entry's limits too. Writes the
-    /// application makes itself through [`Ctx::write`] are not shown here.
+    /// entry's limits too. Writes the application makes itself through [`Ctx::write`] are not
+    /// shown here.
     fn on_write(&mut self, od: &OD, write: &WriteRequest<'_>) -> Result<(), AbortCode> {
         let _ = (od, write);
         Ok(())
