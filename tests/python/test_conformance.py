@@ -158,10 +158,12 @@ def test_akd_velocity_actual_is_rpm_in_a_pdo(start_drive_sim, canopen_network, d
     tpdo.save()
     set_mode(node, "PROFILED VELOCITY")
     node.sdo[0x60FF].raw = -1
-    time.sleep(0.3)
-    assert node.sdo[0x606C].raw == -1000
+    wait_for(lambda: node.sdo[0x606C].raw == -1000, 2, "606Ch over SDO: -1000")
+    # The answer to a SYNC may arrive before a wait_for_reception() would start waiting:
+    # watch the PDO's reception time instead.
+    before = tpdo.timestamp
     network.sync.transmit()
-    assert tpdo.wait_for_reception(timeout=1) is not None
+    wait_for(lambda: tpdo.timestamp != before, 2, "the TPDO after the SYNC")
     assert tpdo[0].raw == -60000
 
 
