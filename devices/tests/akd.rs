@@ -934,8 +934,11 @@ fn modes_and_homing_chapters_6_4_and_6_10() {
 #[test]
 fn emergency_codes_chapter_6_1() {
     let s = sidecar();
-    assert_eq!(s.errors.len(), 171);
+    // The 171 rows of 6.1 and the hardware limit switch warning (CiA 402 8612h, see the
+    // decision on 60FDh), which has no vendor code.
+    assert_eq!(s.errors.len(), 172);
     let find = |code: i64| s.errors.iter().find(|e| e.code.0 == code).unwrap_or_else(|| panic!("0x{code:04X}"));
+    assert_eq!((find(0x8612).vendor_code.as_deref(), find(0x8612).reaction), (None, Reaction::Warning));
     // 6.1 rows
     assert_eq!(find(0x0000).reaction, Reaction::None);
     assert_eq!((find(0x3110).vendor_code.as_deref(), find(0x3110).text.as_str()), (Some("F523"), "Bus over voltage"));

@@ -261,9 +261,11 @@ fn example_7_2_1_5_velocity_by_pdo() {
     let answer = wait_frame(&mut m, 0x183, 10);
     let data = bytes(&answer);
     assert_eq!(data.len(), 8, "{answer}: 6064h + 606Ch");
-    // 606Ch: 1000 × 16 384 µm/s at speed; 6064h: where the axis is (the manual's values were
-    // measured on a real axis: FE 45 01 00 A6 AB 1A 00).
-    about(i64::from(i32_of(&data[4..])), 16_384_000);
+    // 606Ch in a PDO is in rpm at 1000:1 (6.6.2.1): 16 384 µm/s at 10 000 µm per turn is
+    // 98.304 rpm; 6064h: where the axis is (the manual's values were measured on a real axis:
+    // FE 45 01 00 A6 AB 1A 00).
+    about(i64::from(i32_of(&data[4..])), 98_304);
+    about(m.read_i64(3, 0x606C, 0).unwrap(), 16_384_000); // SDO: user units × 1000
     let sampled = i64::from(i32_of(&data[..4]));
     assert!(sampled > 0 && sampled <= m.read_i64(3, 0x6064, 0).unwrap(), "{sampled}");
     x(&mut m, "603 2B 40 60 00 0F 01 00 00", "583 60 40 60 00 00 00 00 00");
@@ -421,20 +423,14 @@ fn example_7_2_1_9_ascii_channel() {
     x(&mut m, "601 23 26 20 01 44 52 56 2E", "581 60 26 20 01 00 00 00 00");
     x(&mut m, "601 23 26 20 01 46 41 55 4C", "581 60 26 20 01 00 00 00 00");
     x(&mut m, "601 23 26 20 01 54 53 0D 0A", "581 60 26 20 01 00 00 00 00");
-    // The manual reads the answer 4 characters per expedited upload: ">No " "faul" "ts a"
-    // "ctiv" "e\n\r\n" (printed with the typos 63 64 69 76 for "ctiv" and 66 0A 0D 0A for
-    // "e\n\r\n"). od-runtime has no read hook to hand out the next 4 characters per read, so
-    // sub 2 holds the whole answer and is read in one (segmented) upload.
-    let answer = m.read(1, 0x2026, 2).unwrap();
-    let chunks: [[u8; 4]; 5] = [
-        [0x3E, 0x4E, 0x6F, 0x20],
-        [0x66, 0x61, 0x75, 0x6C],
-        [0x74, 0x73, 0x20, 0x61],
-        *b"ctiv",
-        [0x65, 0x0A, 0x0D, 0x0A],
-    ];
-    assert_eq!(answer, chunks.concat());
-    assert_eq!(answer, b">No faults active\n\r\n");
+    // Each upload of sub 2 is expedited and hands out the next four characters: ">No "
+    // "faul" "ts a" "ctiv" "e\n\r\n". The listing prints two typos, 63 64 69 76 for "ctiv"
+    // and 66 0A 0D 0A for "e\n\r\n" (sidecar decisions): the corrected bytes are sent.
+    x(&mut m, "601 40 26 20 02 00 00 00 00", "581 43 26 20 02 3E 4E 6F 20");
+    x(&mut m, "601 40 26 20 02 00 00 00 00", "581 43 26 20 02 66 61 75 6C");
+    x(&mut m, "601 40 26 20 02 00 00 00 00", "581 43 26 20 02 74 73 20 61");
+    x(&mut m, "601 40 26 20 02 00 00 00 00", "581 43 26 20 02 63 74 69 76");
+    x(&mut m, "601 40 26 20 02 00 00 00 00", "581 43 26 20 02 65 0A 0D 0A");
 }
 
 /// 7.2.1.10: TPDO1 (6064h) every 2nd SYNC, TPDO2 (6041h + 1002h) every 3rd; the EMCY of an
@@ -863,7 +859,7 @@ fn every_homing_method_of_the_sidecar_completes() {
 #[test]
 fn homing_methods_outside_the_list_are_refused() {
     let mut m = started(4);
-    for method in [0i8, 3, 4, 7, 19, 37, -1] {
+    for method in [3i8, 4, 7, 19, 37, -1] {
         assert_eq!(m.write(4, 0x6098, 0, &[method as u8]), Err(SdoError::Abort(0x0609_0030)), "method {method}");
     }
 }
@@ -945,7 +941,7 @@ fn interpolation_targets_beyond_the_software_limits_are_clipped_with_warning_n10
     assert_eq!(m.read_i64(4, 0x6064, 0).unwrap(), 1, "stopped on the limit");
     let sw = m.statusword(4).unwrap();
     assert_eq!(sw & 0x0880, 0x0880, "warning and internal limit: {sw:04X}");
-    assert_eq!(got(&mut m, 0x084), ["084 82 85 11 00 00 00 00 00"]);
+    assert_eq!(got(&mut m, 0x084), ["084 82 85 21 00 00 00 00 00"]);
     // Back within the limits: the warning goes, with the EMCY 0000h.
     m.write_i32(4, 0x60C1, 1, 0).unwrap();
     m.sync();
@@ -1024,7 +1020,7 @@ fn sync_supervision_raises_f125_after_three_missing_syncs() {
     got(&mut m, 0x084);
     m.advance(10_000);
     assert_eq!(m.state(4).unwrap(), Some(State::Fault));
-    assert_eq!(got(&mut m, 0x084), ["084 80 87 11 00 00 00 00 00"]);
+    assert_eq!(got(&mut m, 0x084), ["084 80 87 21 00 00 00 00 00"]);
 }
 
 // ---- inputs and outputs (6.2.3.8, 6.2.3.9, 6.2.2.11) --------------------------------------
@@ -1054,12 +1050,15 @@ fn digital_inputs_show_the_switches_and_latch_changes() {
     m.write_u16(4, 0x20B8, 0, 0b1000).unwrap();
     m.advance(2000);
     assert_eq!(inputs(&mut m) >> 24, 0b0001);
-    // The positive limit switch at 2 turns.
+    // The positive limit switch at 2 turns: the move stops there with the limit switch
+    // warning and internal limit active (the sidecar's decision on 60FDh).
     m.write_i32(4, 0x607A, 0, 21_000).unwrap();
     m.controlword(4, 0x1F).unwrap();
     m.controlword(4, 0x0F).unwrap();
-    wait_sw(&mut m, 4, 0x0400, 0x0400, 5000);
+    wait_sw(&mut m, 4, 0x0800, 0x0800, 5000);
+    m.advance(500_000);
     assert_eq!(inputs(&mut m) & 0x7, 0b010);
+    assert!(vendor(&m, 0).warnings().contains(&code::LIMIT_SWITCH));
     assert_eq!(vendor(&m, 0).inputs() & 0b10, 0b10, "DIN2");
 }
 
@@ -1125,9 +1124,9 @@ fn a_profile_position_target_beyond_the_limit_is_warning_n107() {
     wait_sw(&mut m, 4, 0x0400, 0x0400, 5000);
     assert_eq!(m.read_i64(4, 0x6064, 0).unwrap(), 5000);
     assert_eq!(m.statusword(4).unwrap(), 0x0EB7, "warning, target reached, internal limit");
-    // EMCY 8582h, register: generic + communication (od-runtime's bits for 8xxxh; the manual
-    // gives no per-code mapping), history 1003h.
-    assert_eq!(got(&mut m, 0x084), ["084 82 85 11 00 00 00 00 00"]);
+    // EMCY 8582h, register: generic + device profile (a CiA 402 monitoring code, not a
+    // communication error: see the sidecar's decision on 1001h), history 1003h.
+    assert_eq!(got(&mut m, 0x084), ["084 82 85 21 00 00 00 00 00"]);
     assert_eq!(m.read_u32(4, 0x1003, 1).unwrap() & 0xFFFF, 0x8582);
     assert_eq!(vendor(&m, 0).warnings(), [code::N107_POSITIVE_LIMIT]);
     // A target within the limits: the warning goes (EMCY 0000h, 5.4.4.1 transition 4).
@@ -1161,7 +1160,7 @@ fn a_profile_velocity_run_into_the_limit_is_fault_f107() {
     m.write_i32(4, 0x60FF, 0, 10_000).unwrap();
     m.advance(1_000_000);
     assert_eq!(m.state(4).unwrap(), Some(State::Fault));
-    assert_eq!(got(&mut m, 0x084), ["084 80 85 11 00 00 00 00 00"]);
+    assert_eq!(got(&mut m, 0x084), ["084 80 85 21 00 00 00 00 00"]);
     let p = m.read_i64(4, 0x6064, 0).unwrap();
     assert!(p <= 5000, "{p}");
     // 603Fh does not exist in the AKD: the code is in 1003h and the EMCY.
@@ -1187,7 +1186,9 @@ fn a_following_error_beyond_6065h_is_fault_f439() {
     m.switch_on(4).unwrap();
     m.set_mode(4, 3).unwrap();
     got(&mut m, 0x084);
-    // Running into the positive end stop at 3 turns.
+    // Running into the positive end stop at 3 turns (the limit switch before it taken away,
+    // or it would stop the axis first).
+    node_mut(&mut m, 0).app_mut().unwrap().drive_mut().axis_mut().environment_mut().positive_limit = None;
     m.write_i32(4, 0x60FF, 0, 50_000).unwrap();
     m.advance(2_000_000);
     assert_eq!(m.state(4).unwrap(), Some(State::Fault));
@@ -1439,7 +1440,16 @@ fn ascii(m: &mut Master, id: u8, command: &str) -> String {
     for chunk in bytes.chunks(4) {
         m.write(id, 0x2026, 1, chunk).unwrap();
     }
-    String::from_utf8(m.read(id, 0x2026, 2).unwrap()).unwrap()
+    // Four characters per upload (7.2.1.9), until the answer's end.
+    let mut answer = Vec::new();
+    loop {
+        let piece = m.read(id, 0x2026, 2).unwrap();
+        answer.extend_from_slice(&piece);
+        if piece.is_empty() || answer.ends_with(b"\n\r\n") {
+            break;
+        }
+    }
+    String::from_utf8(answer).unwrap()
 }
 
 #[test]
@@ -1461,7 +1471,7 @@ fn the_ascii_channel_reads_and_writes_workbench_parameters() {
     // A fault shows in DRV.FAULTS.
     vendor_mut(&mut m, 0).conditions.heat_sink_c = 90.0;
     m.advance(2000);
-    assert_eq!(ascii(&mut m, 4, "DRV.FAULTS"), ">235: Excess temperature, dri\n\r\n");
+    assert_eq!(ascii(&mut m, 4, "DRV.FAULTS"), ">235: Excess temperature, drive (heat sink)\n\r\n");
     assert_eq!(ascii(&mut m, 4, "DRV.WARNINGS"), ">No warnings active\n\r\n");
 }
 
@@ -1471,7 +1481,7 @@ fn the_ascii_channel_reads_and_writes_workbench_parameters() {
 fn every_error_of_chapter_6_1_is_raised_as_its_reaction_says() {
     use drive::drives::{Reaction, error_table};
     let table = error_table(DeviceKind::Akd);
-    assert_eq!(table.entries().len(), 171);
+    assert_eq!(table.entries().len(), 172, "6.1's 171 and the limit switch warning 8612h");
     let mut m = started(4);
     for e in table.entries().iter().filter(|e| e.code != 0) {
         got(&mut m, 0x084);

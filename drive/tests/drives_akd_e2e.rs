@@ -163,9 +163,10 @@ fn remove(dir: &Path) {
 /// 6.5 over the hub: a shaft behind a 10:1 gearbox in degrees (6092h = 360 per shaft turn) with
 /// the DS402 factors, positions converted by the generated units module from the factor group
 /// the drive reports; 6063h counts 608Fh = 4096 increments per motor turn.
+/// On the `free` machine: 2.5 motor turns would reach the limit switch of the default one.
 #[test]
 fn moves_in_degrees_through_the_generated_units() {
-    let sim = Sim::start(&[]);
+    let sim = Sim::start(&["--machine", "free"]);
     let mut m = Master::connect(&sim);
     m.write(0x36E9, 0, 0x10, 4);
     m.write(0x6092, 1, 360, 4);

@@ -896,9 +896,12 @@ fn life_guarding_loss_quick_stops_then_resets_the_communication() {
     let boot: Vec<_> = m.take_id(guard).iter().map(|s| s.frame.raw_data()[0]).collect();
     assert_eq!(boot, vec![0], "boot-up message after the communication reset");
     // Pre-operational, SDO works; the communication reset restored 1000h..1FFFh (guarding
-    // off, the 1003h history empty); 603Fh keeps the error until a fault reset.
+    // off) except the error register and the history, which still name the cause of the
+    // Fault (issue 17); 603Fh keeps the error until a fault reset.
     assert_eq!(m.read_u16(ID, 0x100C, 0).unwrap(), 0);
-    assert_eq!(m.read_u32(ID, 0x1003, 0).unwrap(), 0);
+    assert_eq!(m.read_u32(ID, 0x1003, 0).unwrap(), 1);
+    assert_eq!(m.read_u32(ID, 0x1003, 1).unwrap() & 0xFFFF, 0x8130);
+    assert_eq!(m.read_u8(ID, 0x1001, 0).unwrap(), 0x11);
     assert_eq!(m.read_u64(ID, 0x603F, 0).unwrap(), 0x8130);
     m.controlword(ID, 0x80).unwrap();
     m.advance(2000);

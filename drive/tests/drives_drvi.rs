@@ -23,7 +23,7 @@ type DrviNode = Node<Dictionary, Cia402App<Dictionary, Drvi>>;
 
 fn master_with(storage: NodeStorage, trace: Option<SharedTrace>) -> Master {
     let mut sim = Sim::new();
-    let mut app = drvi::app();
+    let mut app = drvi::actuator_app();
     if let Some(t) = trace {
         app = app.with_trace(t);
     }
@@ -1078,7 +1078,7 @@ fn saved_parameters_survive_a_restart() {
 /// master, "on" is a new one with the same `retain`.
 fn master_retaining(retain: &MemoryRetain) -> Master {
     let mut sim = Sim::new();
-    let node = Node::new(Dictionary::new(ID), drvi::app(), NodeStorage::memory(), NodeId::new(ID).unwrap())
+    let node = Node::new(Dictionary::new(ID), drvi::actuator_app(), NodeStorage::memory(), NodeId::new(ID).unwrap())
         .with_retain(Box::new(retain.clone()));
     sim.add(Box::new(node));
     let mut m = Master::new(sim);

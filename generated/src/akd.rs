@@ -1807,7 +1807,7 @@ ParameterName=Speed during search for switch
 ObjectType=0x7
 DataType=0x0007
 AccessType=rw
-DefaultValue=0
+DefaultValue=1
 PDOMapping=0
 Denotation=HOME.V
 
@@ -13324,7 +13324,7 @@ Denotation=MOTOR.BRAKEIMM
             bits: 32,
             low: None,
             high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
+            default: ::od_runtime::od::DefaultValue::Int(1),
             name: "Homing speeds: Speed during search for switch",
         },
         ::od_runtime::od::EntryInfo {
@@ -14922,7 +14922,7 @@ Denotation=MOTOR.BRAKEIMM
                 feed_constant_shaft_revolutions: 1,
                 homing_method: 0,
                 homing_speeds_number_of_entries: 2,
-                homing_speeds_speed_during_search_for_switch: 0,
+                homing_speeds_speed_during_search_for_switch: 1,
                 homing_speeds_speed_during_search_for_zero: 0,
                 homing_acceleration: 0,
                 velocity_offset: 0,
@@ -30966,7 +30966,7 @@ Denotation=MOTOR.BRAKEIMM
         }
         /// Reads `0x6099` sub 1 Homing speeds: Speed during search for switch.
         ///
-        /// UNSIGNED32, access `rw`. Default: 0.
+        /// UNSIGNED32, access `rw`. Default: 1.
         ///
         /// Vendor parameter: `HOME.V`.
         ///

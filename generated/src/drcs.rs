@@ -2586,7 +2586,7 @@ ParameterName=Max software position limit
 ObjectType=0x7
 DataType=0x0004
 AccessType=ro
-DefaultValue=0
+DefaultValue=1000
 PDOMapping=0
 
 [607E]
@@ -2697,7 +2697,7 @@ ParameterName=Feed
 ObjectType=0x7
 DataType=0x0007
 AccessType=ro
-DefaultValue=1
+DefaultValue=70
 PDOMapping=0
 
 [6092sub2]
@@ -6565,7 +6565,7 @@ PDOMapping=0
             bits: 32,
             low: None,
             high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
+            default: ::od_runtime::od::DefaultValue::Int(1000),
             name: "Software position limit: Max software position limit",
         },
         ::od_runtime::od::EntryInfo {
@@ -6709,7 +6709,7 @@ PDOMapping=0
             bits: 32,
             low: None,
             high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
+            default: ::od_runtime::od::DefaultValue::Int(70),
             name: "Feed constant: Feed",
         },
         ::od_runtime::od::EntryInfo {
@@ -7452,7 +7452,7 @@ PDOMapping=0
                 home_offset: 0,
                 software_position_limit_highest_sub_index_supported: 2,
                 software_position_limit_min_software_position_limit: 0,
-                software_position_limit_max_software_position_limit: 0,
+                software_position_limit_max_software_position_limit: 1000,
                 polarity: 0x0,
                 profile_velocity_in_pp_mode: 0,
                 profile_acceleration: 0,
@@ -7464,7 +7464,7 @@ PDOMapping=0
                 gear_ratio_motor_revolutions: 1,
                 gear_ratio_shaft_revolutions: 1,
                 feed_constant_highest_sub_index_supported: 2,
-                feed_constant_feed: 1,
+                feed_constant_feed: 70,
                 feed_constant_shaft_revolutions: 1,
                 homing_method: 17,
                 homing_speed_highest_sub_index_supported: 2,
@@ -15135,7 +15135,7 @@ PDOMapping=0
         }
         /// Reads `0x607D` sub 2 Software position limit: Max software position limit.
         ///
-        /// INTEGER32, access `ro`. Default: 0.
+        /// INTEGER32, access `ro`. Default: 1000.
         ///
         /// Dimension: Position (typed conversion: `units::Units::software_position_limit_max_software_position_limit`).
         #[inline]
@@ -15337,7 +15337,7 @@ PDOMapping=0
         }
         /// Reads `0x6092` sub 1 Feed constant: Feed.
         ///
-        /// UNSIGNED32, access `ro`. Default: 1.
+        /// UNSIGNED32, access `ro`. Default: 70.
         #[inline]
         pub const fn feed_constant_feed(&self) -> u32 {
             self.feed_constant_feed

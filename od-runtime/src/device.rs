@@ -131,6 +131,30 @@ pub trait App<OD> {
     fn on_event(&mut self, od: &mut OD, event: Event) {
         let _ = (od, event);
     }
+
+    /// Called when an SDO upload reads an entry, before the dictionary is read. `Some` answers
+    /// the upload with what the application puts in `buf` (an entry a read consumes, such as
+    /// a channel handing out its answer a few characters per upload); `None`, the default,
+    /// reads the dictionary.
+    fn on_upload(&mut self, od: &OD, index: u16, sub: u8, buf: &mut [u8]) -> Option<Result<usize, AbortCode>> {
+        let _ = (od, index, sub, buf);
+        None
+    }
+
+    /// Called with a TPDO's data as packed from the dictionary by the mapping `map`, before
+    /// it is sent or sampled: the application may change the bits of a value whose PDO form
+    /// differs from its SDO form. Default: nothing changes.
+    fn on_tpdo(&mut self, od: &OD, map: &[MappedHandle], data: &mut [u8; 8]) {
+        let _ = (od, map, data);
+    }
+
+    /// Called when RPDO `pdo` (0-based) arrives with more bytes than its mapping takes. The
+    /// PDO is processed either way (CiA 301); `true` also sends EMCY 8220h "PDO length
+    /// exceeded", which CiA 301 leaves optional. Default: `false`.
+    fn rpdo_length_exceeded(&mut self, pdo: u16) -> bool {
+        let _ = pdo;
+        false
+    }
 }
 
 impl<OD> App<OD> for () {}
@@ -409,8 +433,10 @@ fn pdo_lookup<OD: ObjectDictionary>(od: &OD) -> impl FnMut(u16, u8) -> Result<Ma
 /// The data of a TPDO: each mapped value's low `bits` bits, from bit 0 up, in one 64-bit word
 /// (a loaded mapping has at most 64 bits, so every entry fits), zero past the mapping.
 #[inline(always)]
-fn pack<OD: ObjectDictionary>(od: &OD, map: &[Mapped]) -> [u8; 8] {
-    od.read_mapped(map).to_le_bytes()
+fn pack<OD: ObjectDictionary, A: App<OD>>(od: &OD, app: &mut A, map: &[Mapped]) -> [u8; 8] {
+    let mut data = od.read_mapped(map).to_le_bytes();
+    app.on_tpdo(od, map, &mut data);
+    data
 }
 
 impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S, P> {
@@ -1041,7 +1067,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
             let Some(t) = self.tpdo.get_mut(usize::from(self.tx_active[i])) else { continue };
             let ttype = t.ttype;
             if ttype == 0 {
-                let data = pack(&self.od, t.mapped());
+                let data = pack(&self.od, &mut self.app, t.mapped());
                 if !t.sent_once || data != t.last || t.requested {
                     t.sample = data;
                     t.due = true;
@@ -1059,12 +1085,12 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                 t.sync_cnt += 1;
                 if t.sync_cnt >= ttype {
                     t.sync_cnt = 0;
-                    t.sample = pack(&self.od, t.mapped());
+                    t.sample = pack(&self.od, &mut self.app, t.mapped());
                     t.due = true;
                     due = true;
                 }
             } else if ttype == 252 {
-                t.sample = pack(&self.od, t.mapped());
+                t.sample = pack(&self.od, &mut self.app, t.mapped());
                 t.has_sample = true;
             }
         }
@@ -1081,7 +1107,12 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
             self.emcy(emcy::PDO_LENGTH_ERROR, emcy::REG_COMMUNICATION, [0; 5]);
             return;
         }
-        if r.ttype <= 240 {
+        let ttype = r.ttype;
+        if len > usize::from(r.bytes) && self.app.rpdo_length_exceeded(n as u16) {
+            self.emcy(emcy::PDO_LENGTH_EXCEEDED, emcy::REG_COMMUNICATION, [0; 5]);
+        }
+        let Some(r) = self.rpdo.get_mut(n) else { return };
+        if ttype <= 240 {
             r.pending = Some(*data);
             self.rx_pending = true;
         } else {
@@ -1120,7 +1151,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
             let data = if t.rtr {
                 t.rtr = false;
                 again |= t.due;
-                if t.ttype == 252 && t.has_sample { t.sample } else { pack(&self.od, t.mapped()) }
+                if t.ttype == 252 && t.has_sample { t.sample } else { pack(&self.od, &mut self.app, t.mapped()) }
             } else if t.due {
                 if t.inhibited(now) {
                     again = true;
@@ -1129,7 +1160,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                 t.due = false;
                 t.sample
             } else if t.ttype >= 254 && !t.inhibited(now) {
-                let data = pack(&self.od, t.mapped());
+                let data = pack(&self.od, &mut self.app, t.mapped());
                 let timer = t.event != 0 && now >= t.next_event;
                 if !(!t.sent_once || data != t.last || timer || t.requested) {
                     continue;
@@ -1295,6 +1326,9 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> ObjectAccess 
     }
 
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, AbortCode> {
+        if let Some(answer) = self.app.on_upload(&self.od, index, sub, buf) {
+            return answer;
+        }
         self.od.read(index, sub, buf)
     }
 

@@ -27,7 +27,11 @@ pub const fn register_bits(code: u16) -> u8 {
             0x2 => REG_CURRENT,
             0x3 => REG_VOLTAGE,
             0x4 => REG_TEMPERATURE,
-            0x8 => REG_COMMUNICATION,
+            // CiA 301: 81xx communication, 82xx protocol errors; 83xx..8Fxx are the device
+            // profile's monitoring codes (CiA 402: 8400h velocity, 8500h position, 8600h
+            // positioning, 8700h sync controller), not communication errors.
+            0x8 if (code >> 8) & 0xF <= 2 => REG_COMMUNICATION,
+            0x8 => REG_PROFILE,
             0xF if code >> 8 == 0xFF => REG_MANUFACTURER,
             _ => 0,
         }
@@ -35,6 +39,10 @@ pub const fn register_bits(code: u16) -> u8 {
 
 /// EMCY error code: RPDO not processed because its length was too short (8210h).
 pub const PDO_LENGTH_ERROR: u16 = 0x8210;
+
+/// EMCY error code: RPDO longer than its mapping (8220h), sent when the application asks
+/// ([`crate::App::rpdo_length_exceeded`]).
+pub const PDO_LENGTH_EXCEEDED: u16 = 0x8220;
 
 const QUEUE: usize = 8;
 
@@ -90,6 +98,9 @@ mod tests {
         assert_eq!(register_bits(0x3210), 0x05);
         assert_eq!(register_bits(0x4210), 0x09);
         assert_eq!(register_bits(0x8130), 0x11);
+        assert_eq!(register_bits(0x8210), 0x11);
+        assert_eq!(register_bits(0x8611), 0x21, "following error: device profile");
+        assert_eq!(register_bits(0x8580), 0x21);
         assert_eq!(register_bits(0xFF01), 0x81);
         assert_eq!(register_bits(0x5000), 0x01);
         assert_eq!(register_bits(0), 0);

@@ -173,8 +173,20 @@ def test_homing_method_outside_the_list_is_refused(akd):
     assert err.value.code == 0x06090030
 
 
-def test_absolute_and_relative_moves_in_degrees(akd, wait_until):
-    _, _, node = akd
+@pytest.fixture
+def free_akd(start_drive_sim, canopen_network, device_eds):
+    """An AKD on the `free` machine (no switches, no end stops)."""
+    sim = start(start_drive_sim, "--machine", "free")
+    network = canopen_network(sim)
+    node = akd_node(network, device_eds)
+    setup(node)
+    return sim, network, node
+
+
+def test_absolute_and_relative_moves_in_degrees(free_akd, wait_until):
+    # 90 degrees of the shaft behind 10:1 are 2.5 motor turns: beyond the default machine's
+    # limit switch at 2 turns.
+    _, _, node = free_akd
     node.sdo[0x36E9].raw = 0x10  # FBUS.PARAM05 bit 4: the DS402 factors
     node.sdo[0x6092][1].raw = 360  # one user unit is one degree of the driving shaft
     node.sdo[0x6091][1].raw = 10  # a 10:1 gearbox

@@ -72,11 +72,15 @@ def drvi(start_drive_sim, canopen_network, device_eds):
     return start(start_drive_sim, canopen_network, device_eds)
 
 
-def start(start_drive_sim, canopen_network, device_eds, *extra):
+def start(start_drive_sim, canopen_network, device_eds, *extra, machine="drvi-actuator"):
+    """A DRVI on `machine`: these tests home on the proximity and run into the end stops of
+    the actuator preset (the DRVI alone starts as a bare motor, `free`)."""
     import canopen
     from canopen.profiles.p402 import BaseNode402
 
-    sim = start_drive_sim("run", "--device", "drvi", "--node-id", NODE, *extra, "--listen", "127.0.0.1:0")
+    sim = start_drive_sim(
+        "run", "--device", "drvi", "--node-id", NODE, "--machine", machine, *extra, "--listen", "127.0.0.1:0"
+    )
     network = canopen_network(sim)
     node = BaseNode402(NODE, str(device_eds["drvi"]))
     network.add_node(node)
@@ -418,7 +422,9 @@ def test_a_homed_standing_position_survives_a_power_cut(start_drive_sim, canopen
 
 def test_a_lost_guarding_master_is_the_fieldbus_disconnection_soft_error(drvi, frames):
     """6.9: "fieldbus disconnection" is a soft error: EMCY 8130h (the sidecar's code for it),
-    a quick stop on the ramp (the DRVI has no 6085h: 6084h), then Fault; reset by cw bit 7."""
+    a quick stop on the ramp (the DRVI has no 6085h: 6084h), then Fault and, as 6.3.2.12 says,
+    a communication reset (boot-up, pre-operational) that keeps 1001h and 1003h; reset by cw
+    bit 7 once the master has started the node again."""
     import canopen
 
     _, network, node = drvi
@@ -456,8 +462,16 @@ def test_a_lost_guarding_master_is_the_fieldbus_disconnection_soft_error(drvi, f
     assert 0.7 < time.monotonic() - t_lost < 2.0, "Fault after the 1 s ramp"
     assert node.sdo[0x606C].raw == 0
     assert node.sdo[0x603F].raw == 0x8130
+    # The communication reset: a boot-up message, and the cause still in 1001h and 1003h.
+    # (guarding answers sent before the loss may still be queued before it)
+    while bytes(seen.next(0x700 + NODE, timeout=3)[2]) != b"\x00":
+        pass
+    assert node.sdo[0x1001].raw == 0x11
+    assert node.sdo[0x1003][0].raw == 1
     assert node.sdo[0x1003][1].raw & 0xFFFF == 0x8130
-    # Fault reset by controlword bit 7; the drive runs again under a new master.
+    # Fault reset by controlword bit 7 once the node runs again (its RPDOs carry the
+    # controlword); the drive runs again under a new master.
+    node.nmt.state = "OPERATIONAL"
     node.sdo[0x60FF].raw = 0
     node.controlword = 0x00
     node.controlword = 0x80

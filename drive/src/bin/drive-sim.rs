@@ -1,7 +1,7 @@
 //! `drive-sim`: the command-line front end of the simulated drives.
 //!
 //! ```text
-//! drive-sim run --device drvi --node-id 2 [--dcf FILE] [--device akd --node-id 3 ...]
+//! drive-sim run --device drvi --node-id 2 [--dcf FILE] [--machine PRESET|FILE] [--device akd --node-id 3 ...]
 //!               [--state-dir DIR] (--listen 127.0.0.1:0 | --bus tcp://127.0.0.1:29536/can0)
 //!               [--trace FILE.csv] [--plot FILE.svg] [--trace-interval-ms 5]
 //! drive-sim demo [--device drvi] [--plot demo.svg] [--trace demo.csv]   the main job, in process
@@ -10,8 +10,11 @@
 //! drive-sim send --bus tcp://127.0.0.1:29536/can0 601#4041600000000000 000#0100 ...
 //! ```
 //!
-//! `run` simulates devices: each `--device` starts a group that the following `--node-id` and
-//! `--dcf` belong to. With `--listen` it starts a hub there, puts the devices on its channel
+//! `run` simulates devices: each `--device` starts a group that the following `--node-id`,
+//! `--dcf` and `--machine` belong to. `--machine` names a preset or a TOML machine file
+//! (`drive::motion::Machine`); without it the DRVI is a bare motor turning freely, the DRCS the
+//! belt axis of its EDS defaults, the AKD an axis with limit and reference switches
+//! (`drive::drives::machine`). With `--listen` it starts a hub there, puts the devices on its channel
 //! (`--channel`, default `can0`) and prints `listening on ADDRESS`; with `--bus` every device
 //! joins that bus (one connection each) and it prints `running on BUS`. Each device runs on its
 //! own thread (`drive::node::run`, 1 ms timer resolution).
@@ -36,8 +39,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Parser, Subcommand};
-use drive::drives::DeviceApps;
 use drive::drives::demo::{self, DemoOptions};
+use drive::drives::{DeviceApps, machine};
 use drive::node::{AnyNode, DeviceKind, MonotonicClock, NodeConfig};
 use drive::transport::{BusSpec, CanFrame, DEFAULT_CHANNEL, Endpoint, Hub, HubConfig, TransportError};
 
@@ -111,6 +114,10 @@ struct RunArgs {
     /// DCF whose ParameterValues the preceding --device applies at start and at every reset.
     #[arg(long)]
     dcf: Vec<PathBuf>,
+    /// The machine around the preceding --device's motor: a preset or a TOML file (see
+    /// --help for each device's default and presets).
+    #[arg(long, value_name = "PRESET|FILE", long_help = drive::drives::machine::help())]
+    machine: Vec<String>,
     /// Directory where parameters saved with 1010h are kept across runs (one file per device,
     /// node and area). Without it, saved parameters last until the process ends.
     #[arg(long)]
@@ -216,6 +223,8 @@ fn run_hub(args: &HubArgs) -> Result<(), String> {
 struct DeviceGroup {
     kind: DeviceKind,
     config: NodeConfig,
+    /// `--machine`: a preset's name or a file; `None` for the device's default.
+    machine: Option<String>,
 }
 
 /// Pairs every --node-id and --dcf with the --device before it on the command line.
@@ -232,6 +241,7 @@ fn device_groups(args: &RunArgs, m: &ArgMatches) -> Result<Vec<DeviceGroup>, Str
                 sdo_timeout: Some(args.sdo_timeout_ms.saturating_mul(1000)),
                 ..NodeConfig::default()
             },
+            machine: None,
         })
         .collect();
     let owner = |at: usize, option: &str| -> Result<usize, String> {
@@ -244,6 +254,12 @@ fn device_groups(args: &RunArgs, m: &ArgMatches) -> Result<Vec<DeviceGroup>, Str
         let g = owner(*at, "node-id")?;
         if groups[g].config.node_id.replace(id).is_some() {
             return Err(format!("device {} ({}) has two --node-id", g + 1, groups[g].kind));
+        }
+    }
+    for (at, machine) in positions("machine").iter().zip(&args.machine) {
+        let g = owner(*at, "machine")?;
+        if groups[g].machine.replace(machine.clone()).is_some() {
+            return Err(format!("device {} ({}) has two --machine", g + 1, groups[g].kind));
         }
     }
     for (at, dcf) in positions("dcf").iter().zip(&args.dcf) {
@@ -312,6 +328,11 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
     let mut nodes: Vec<(String, Box<dyn AnyNode>)> = Vec::new();
     let kinds: Vec<DeviceKind> = groups.iter().map(|g| g.kind).collect();
     for g in &groups {
+        let machine = match &g.machine {
+            Some(spec) => Some(machine::resolve(g.kind, spec).map_err(|e| format!("{}: --machine {e}", g.kind))?),
+            None => None,
+        };
+        apps.set_machine(machine);
         let node = g.kind.build(&g.config, &apps).map_err(|e| format!("{}: {e}", g.kind))?;
         let name = format!("{} node {}", g.kind, node.node_id().get());
         if nodes.iter().any(|(_, n)| n.node_id() == node.node_id()) {

@@ -18,7 +18,8 @@
 //! | 6.1, 5.4.4 | EMCY codes from the sidecar table; faults stop with the quick stop ramp (F702, F602 switch the power stage off); warnings set statusword bit 7 and are reset by an EMCY 0000h when their cause is gone | the sidecar table through [`super::Drive::raise`] |
 //! | 5.4.7, 5.4.8 | heartbeat or guarding loss: F129 (8130h), braked to standstill | [`Vendor::pre_event`] (the EMCY names the lost node) |
 //! | 6.2.1.12, 5.4.1 | 1010h saves the parameters (the sidecar's `[store]` list: process values and commands are not saved); reset node reloads them | the sidecar's `[store]` list through [`super::store`] |
-//! | 6.2.2.3, 7.2.1.9 | ASCII channel 2026h: WorkBench commands written 4 characters at a time, answered in sub 2 | [`Vendor::on_event`] |
+//! | 6.2.2.3, 7.2.1.9 | ASCII channel 2026h: WorkBench commands written 4 characters at a time, the answer read 4 characters per (expedited) upload of sub 2 | [`Vendor::on_event`], [`Vendor::on_upload`] |
+//! | 6.6.2.1 | 606Ch: user units over SDO, rpm in a PDO (both 1000:1) | [`Vendor::actual_values`], [`Vendor::on_tpdo`] |
 //!
 //! Decisions where the manual is silent (recorded here and tested in `drive/tests/drives_akd.rs`):
 //! * the axis counts 2^20 increments per motor turn internally ([`COUNTS_PER_TURN`]), whatever
@@ -38,10 +39,16 @@
 //! * the heat sink faults at 85 °C (F235, 4310h, the 7.2.1.10 example) and warns above 75 °C
 //!   (n235, 4391h); a missing hardware enable (STO) is fault F602 while the power stage is on,
 //!   warning n602 otherwise.
-//! * 2026h sub 2 holds the whole answer (at most 32 characters): od-runtime has no read hook,
-//!   so the answer cannot be handed out 4 characters per read as 7.2.1.9 shows.
-//! * 606Ch carries user units × 1000 on SDO and PDO alike (the manual's "PDO in rpm" would need
-//!   a per-transport value).
+//! * each SDO upload of 2026h sub 2 takes the next 4 characters of the answer (7.2.1.9); the
+//!   entry itself holds its first 32 characters; an answer is cut at 125 characters.
+//! * 606Ch carries user units × 1000 over SDO and rpm × 1000 in a PDO (6.6.2.1 "PDO in rpm",
+//!   the 1000:1 bus factor of the object kept).
+//! * the machine: limit switches, end stops and a reference switch by default (the homings of
+//!   7.2.1.7 and 7.2.1.8 need them; [`default_environment`]), a free motor with `--machine
+//!   free`. A limit switch reached while moving towards it stops the trajectory (warning
+//!   8612h, bit 11): table 6.1 has no code for it.
+//! * numbers written over the ASCII channel are read with checked arithmetic and must fit the
+//!   parameter's type and limits after the bus factor ("Error: value out of range").
 
 use std::collections::VecDeque;
 use std::sync::OnceLock;
@@ -49,13 +56,13 @@ use std::sync::OnceLock;
 use generated::akd::Dictionary;
 use generated::akd::units::{self, Dimension, System, Units as AkdUnits};
 use od_runtime::cia402::State;
-use od_runtime::od::{AbortCode, ObjectDictionary};
+use od_runtime::od::{AbortCode, MappedHandle, ObjectDictionary};
 use od_runtime::{Event, Micros};
 
 use super::cia402::{BusScale, Cia402App, Command, DisableReaction, Vendor, read_int, scale_i64, write_int};
 use super::{Drive, ErrorSpec, error_table, sidecar};
 use crate::motion::{
-    AxisConfig, Cam, Environment, HomeOffsetMode, HomingError, HomingKind, HomingMethod, HomingSignal, HomingState,
+    AxisConfig, Environment, HomeOffsetMode, HomingError, HomingKind, HomingMethod, HomingSignal, HomingState, Machine,
     Mode, PlantConfig, Ratio, SoftwareLimits, Status, StopRamp, Units,
 };
 use crate::node::{Ctx, DeviceKind, WriteRequest};
@@ -145,6 +152,9 @@ pub mod code {
     pub const N704_PVT_OVERFLOW: u16 = 0x8584;
     /// n705: PVT buffer underflow.
     pub const N705_PVT_UNDERFLOW: u16 = 0x8585;
+    /// Hardware limit switch reached (CiA 402 8612h "reference limit"; table 6.1 has no code
+    /// for it: see the sidecar's decision on 60FDh).
+    pub const LIMIT_SWITCH: u16 = 0x8612;
     /// F439: following error.
     pub const F439_FOLLOWING_ERROR: u16 = 0x8611;
     /// F157: homing index pulse not found.
@@ -278,20 +288,11 @@ fn sat_i32(v: i64) -> i32 {
 // ---------------------------------------------------------------------------------------------
 // The mechanics.
 
-/// The machine an AKD app starts with, in counts (2^20 per motor turn): a reference switch
-/// from 0.25 to 0.5 turn, limit switches at -1 and +2 turns, hard end stops one turn beyond
-/// them (-2 and +3 turns), the encoder index every turn at 0.1 turn.
+/// The machine an AKD app starts with (the `akd-linear` preset), in counts (2^20 per motor
+/// turn): a reference switch from 0.25 to 0.5 turn, limit switches at -1 and +2 turns, hard
+/// end stops one turn beyond them (-2 and +3 turns), the encoder index every turn at 0.1 turn.
 pub fn default_environment() -> Environment {
-    let turn = COUNTS_PER_TURN;
-    Environment {
-        home_switch: Some(Cam { low: turn / 4, high: turn / 2 }),
-        negative_limit: Some(-turn),
-        positive_limit: Some(2 * turn),
-        negative_end_stop: Some(-2 * turn),
-        positive_end_stop: Some(3 * turn),
-        index_period: turn as u64,
-        index_phase: turn / 10,
-    }
+    super::machine::default_machine(DeviceKind::Akd).environment(COUNTS_PER_TURN as f64, 1.0)
 }
 
 /// The motor and load in counts and per mille of rated torque: 1000 ‰ accelerates the axis at
@@ -307,11 +308,17 @@ pub fn plant() -> PlantConfig {
     }
 }
 
+/// An AKD application on `machine` (positions in motor turns).
+pub fn app_with(machine: &Machine) -> Cia402App<Dictionary, Akd> {
+    let akd = Akd { inertia_factor: machine.inertia_factor(), ..Akd::default() };
+    let mut app = Cia402App::new(akd, error_table(DeviceKind::Akd));
+    *app.drive_mut().axis_mut().environment_mut() = machine.environment(COUNTS_PER_TURN as f64, 1.0);
+    app
+}
+
 /// An AKD application with the default mechanics ([`default_environment`]).
 pub fn app() -> Cia402App<Dictionary, Akd> {
-    let mut app = Cia402App::new(Akd::default(), error_table(DeviceKind::Akd));
-    *app.drive_mut().axis_mut().environment_mut() = default_environment();
-    app
+    app_with(&super::machine::default_machine(DeviceKind::Akd))
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -369,10 +376,12 @@ impl PvtRun {
 }
 
 /// The AKD's behaviour on top of the common CiA 402 drive.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Akd {
     /// What the drive measures.
     pub conditions: Conditions,
+    /// The machine's inertia on the built-in one ([`Machine::inertia_factor`]).
+    inertia_factor: f64,
     /// The software limits in force (607Dh at the last reset node, bus units).
     limits: Option<(i64, i64)>,
     /// Active warnings (codes), oldest first.
@@ -381,6 +390,8 @@ pub struct Akd {
     clip_warning: Option<u16>,
     /// A software-limit fault was raised and the axis has not left the limit since.
     limit_fault: bool,
+    /// The trajectory was stopped on a hardware limit switch: +1 positive, -1 negative.
+    switch_stop: Option<i8>,
     following_fault: bool,
     homing_failed: bool,
     /// Ticks since the homing completed (the AKD shows bit 10 one tick before bit 12).
@@ -403,7 +414,40 @@ pub struct Akd {
     pvt_underflow: bool,
     /// ASCII channel input not yet terminated by CR/LF.
     ascii_input: Vec<u8>,
+    /// The answer not yet read from 2026h sub 2, handed out four characters per upload.
+    ascii_output: VecDeque<u8>,
     last_now: Option<Micros>,
+}
+
+impl Default for Akd {
+    fn default() -> Self {
+        Self {
+            conditions: Conditions::default(),
+            inertia_factor: 1.0,
+            limits: None,
+            warnings: Vec::new(),
+            clip_warning: None,
+            limit_fault: false,
+            switch_stop: None,
+            following_fault: false,
+            homing_failed: false,
+            homing_done_ticks: 0,
+            heat_fault: false,
+            sto_fault: false,
+            din_last: 0,
+            din_changed: 0,
+            outputs: 0,
+            last_sync: None,
+            sync_period: None,
+            sync_lost: false,
+            pvt_queue: VecDeque::new(),
+            pvt_run: None,
+            pvt_underflow: false,
+            ascii_input: Vec::new(),
+            ascii_output: VecDeque::new(),
+            last_now: None,
+        }
+    }
 }
 
 /// The homing methods of the sidecar (6.10.2.2).
@@ -516,6 +560,53 @@ impl Akd {
         self.set_warning(drive, ctx, code::N602_SAFE_TORQUE_OFF, sto && !self.sto_fault);
         if sto && powered {
             drive.axis_mut().set_power(false);
+        }
+    }
+
+    /// Which limit switch the axis' motion heads into (+1 positive, -1 negative), in the
+    /// mechanical frame the switches live in.
+    fn switch_ahead(drive: &Drive, status: &Status) -> Option<i8> {
+        let reversed = drive.axis().config().reverse_polarity;
+        let v = i64::from(status.velocity_demand) * if reversed { -1 } else { 1 };
+        let t = i64::from(status.torque_demand) * if reversed { -1 } else { 1 };
+        let push = if v != 0 { v } else { t };
+        let i = status.inputs;
+        if i.positive_limit && push > 0 {
+            Some(1)
+        } else if i.negative_limit && push < 0 {
+            Some(-1)
+        } else {
+            None
+        }
+    }
+
+    /// A limit switch reached while moving towards it: the trajectory stops on the quick stop
+    /// ramp and holds (no demand winds up behind the switch), warning 8612h. The stop ends
+    /// with a command away from the switch or a mode change ([`Vendor::before_command`]).
+    fn check_switches(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, Dictionary>, status: &Status) {
+        let moving = drive.state() == State::OperationEnabled && drive.mode() != Mode::Homing && status.power;
+        if self.switch_stop.is_none()
+            && moving
+            && let Some(side) = Self::switch_ahead(drive, status)
+        {
+            self.switch_stop = Some(side);
+            drive.axis_mut().quick_stop(StopRamp::QuickStopDeceleration);
+            self.warn(drive, ctx, code::LIMIT_SWITCH);
+        }
+        let i = status.inputs;
+        if self.warnings.contains(&code::LIMIT_SWITCH) && !i.positive_limit && !i.negative_limit {
+            self.unwarn(drive, ctx, code::LIMIT_SWITCH);
+        }
+        if !moving {
+            // Another stop (a disable, quick stop or fault reaction of the state machine, or
+            // the homing) has taken over the axis: it is not released here.
+            self.switch_stop = None;
+        }
+    }
+
+    fn release_switch_stop(&mut self, drive: &mut Drive) {
+        if self.switch_stop.take().is_some() {
+            drive.axis_mut().release_quick_stop();
         }
     }
 
@@ -710,9 +801,14 @@ impl Akd {
                     let line = String::from_utf8_lossy(&std::mem::take(&mut self.ascii_input)).into_owned();
                     let answer = self.ascii_execute(drive, ctx, line.trim());
                     let mut text = format!(">{answer}").into_bytes();
-                    text.truncate(29);
+                    text.truncate(ASCII_ANSWER_MAX);
                     text.extend_from_slice(b"\n\r\n");
-                    let _ = ctx.od_mut().set_ascii_channel_response(&text);
+                    // 7.2.1.9: each upload of sub 2 takes the next four characters; the
+                    // dictionary holds the beginning of the answer (its capacity) for reads
+                    // that do not go through an SDO upload.
+                    let capacity = text.len().min(32);
+                    let _ = ctx.od_mut().set_ascii_channel_response(&text[..capacity]);
+                    self.ascii_output = text.into();
                 }
             } else if self.ascii_input.len() < 256 {
                 self.ascii_input.push(b);
@@ -757,6 +853,12 @@ impl Akd {
         }
     }
 }
+
+/// The longest ASCII answer (before its `\n\r\n`): a long fault text is cut here.
+const ASCII_ANSWER_MAX: usize = 125;
+
+/// Characters of the ASCII answer per upload of 2026h sub 2 (7.2.1.9).
+const ASCII_CHUNK: usize = 4;
 
 /// A WorkBench parameter reachable by name over the ASCII channel.
 #[derive(Clone, Copy, Debug)]
@@ -821,34 +923,94 @@ fn write_parameter(ctx: &mut Ctx<'_, Dictionary>, p: Parameter, text: &str) -> S
     if !info.access.writable() {
         return "Error: read only".into();
     }
-    let Some(milli) = parse_milli(text) else { return "Error: not a number".into() };
-    let raw = match p.factor {
-        0 => milli / 1000,
-        f => milli * i128::from(f) / 1000,
+    let raw = match parse_milli(text) {
+        Err(NumberError::NotANumber) => return "Error: not a number".into(),
+        Err(NumberError::OutOfRange) => return OUT_OF_RANGE.into(),
+        Ok(milli) => match p.factor {
+            0 => Some(milli / 1000),
+            f => milli.checked_mul(i128::from(f)).map(|v| v / 1000),
+        },
     };
-    let Ok(raw) = i64::try_from(raw) else { return "Error: out of range".into() };
-    let len = info.byte_len().min(8);
-    match ctx.write(p.index, p.sub, &raw.to_le_bytes()[..len]) {
+    // The value must fit the entry's type and limits: nothing wraps into the dictionary.
+    let Some((raw, len)) = raw.and_then(|raw| fits(&info, raw).then_some((raw, info.byte_len()))) else {
+        return OUT_OF_RANGE.into();
+    };
+    let Ok(raw) = i64::try_from(raw) else { return OUT_OF_RANGE.into() };
+    match ctx.write(p.index, p.sub, &raw.to_le_bytes()[..len.min(8)]) {
         Ok(()) => String::new(),
         Err(e) => format!("Error: {:08X}", e.0),
     }
 }
 
-/// A decimal number × 1000 (`-12.5` → -12500).
-fn parse_milli(text: &str) -> Option<i128> {
+/// The answer to a value the parameter cannot take (beyond its type or its limits).
+const OUT_OF_RANGE: &str = "Error: value out of range";
+
+/// Whether `raw` fits integer entry `info`: its type's range (at most 64 bits) and its
+/// `low`/`high` limits.
+fn fits(info: &od_runtime::od::EntryInfo, raw: i128) -> bool {
+    let bits = info.bits;
+    if !info.data_type.is_integer() || bits == 0 || bits > 64 {
+        return false;
+    }
+    let (lo, hi) = if info.data_type.is_signed() {
+        (-(1i128 << (bits - 1)), (1i128 << (bits - 1)) - 1)
+    } else {
+        (0, (1i128 << bits) - 1)
+    };
+    (lo..=hi).contains(&raw) && info.low.is_none_or(|l| raw >= l) && info.high.is_none_or(|h| raw <= h)
+}
+
+/// Why a parameter value was not taken.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum NumberError {
+    /// Not a decimal number.
+    NotANumber,
+    /// A decimal number too large for any parameter.
+    OutOfRange,
+}
+
+/// A decimal number × 1000 (`-12.5` → -12500), with checked arithmetic: digits beyond what an
+/// `i128` holds are out of range, not wrapped.
+fn parse_milli(text: &str) -> Result<i128, NumberError> {
     let (neg, digits) = match text.strip_prefix('-') {
         Some(rest) => (true, rest),
         None => (false, text),
     };
     let (int, frac) = digits.split_once('.').unwrap_or((digits, ""));
     if int.is_empty() && frac.is_empty() || !int.chars().chain(frac.chars()).all(|c| c.is_ascii_digit()) {
-        return None;
+        return Err(NumberError::NotANumber);
     }
-    let mut v: i128 = if int.is_empty() { 0 } else { int.parse().ok()? };
-    v = v.checked_mul(1000)?;
-    let f: String = frac.chars().chain("000".chars()).take(3).collect();
-    v = v.checked_add(f.parse::<i128>().ok()?)?;
-    Some(if neg { -v } else { v })
+    let mut v: i128 = 0;
+    for d in int.bytes() {
+        v = v.checked_mul(10).and_then(|v| v.checked_add(i128::from(d - b'0'))).ok_or(NumberError::OutOfRange)?;
+    }
+    v = v.checked_mul(1000).ok_or(NumberError::OutOfRange)?;
+    // Thousandths; further decimals are cut off as WorkBench shows three.
+    let mut scale = 100;
+    for d in frac.bytes().take(3) {
+        v += i128::from(d - b'0') * scale;
+        scale /= 10;
+    }
+    Ok(if neg { -v } else { v })
+}
+
+#[cfg(test)]
+mod ascii_tests {
+    use super::*;
+
+    #[test]
+    fn numbers_parse_with_checked_arithmetic() {
+        assert_eq!(parse_milli("-12.5"), Ok(-12_500));
+        assert_eq!(parse_milli("0.0019"), Ok(1));
+        assert_eq!(parse_milli("42"), Ok(42_000));
+        assert_eq!(parse_milli("x1"), Err(NumberError::NotANumber));
+        assert_eq!(parse_milli("-"), Err(NumberError::NotANumber));
+        assert_eq!(parse_milli("1.2.3"), Err(NumberError::NotANumber));
+        // i128::MAX / 1000 has 36 digits: 37 are out of range, whatever they are.
+        assert_eq!(parse_milli(&"9".repeat(37)), Err(NumberError::OutOfRange));
+        assert_eq!(parse_milli(&"1".repeat(80)), Err(NumberError::OutOfRange));
+        assert!(parse_milli("170141183460469231731687303715884105").is_ok());
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -942,6 +1104,7 @@ impl Vendor<Dictionary> for Akd {
             cfg.interpolation.buffer_capacity = 2;
         }
         cfg.plant = plant();
+        cfg.plant.inertia *= self.inertia_factor;
     }
 
     fn init(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, Dictionary>) {
@@ -953,6 +1116,7 @@ impl Vendor<Dictionary> for Akd {
         self.warnings.clear();
         self.clip_warning = None;
         self.limit_fault = false;
+        self.switch_stop = None;
         self.following_fault = false;
         self.homing_failed = false;
         self.heat_fault = false;
@@ -965,6 +1129,7 @@ impl Vendor<Dictionary> for Akd {
         self.pvt_queue.clear();
         self.pvt_run = None;
         self.ascii_input.clear();
+        self.ascii_output.clear();
         drive.axis_mut().set_brake(false);
         drive.mark_dirty();
     }
@@ -1012,6 +1177,38 @@ impl Vendor<Dictionary> for Akd {
         }
     }
 
+    /// 7.2.1.9: an upload of 2026h sub 2 hands out the next four characters of the answer
+    /// (an expedited transfer), nothing once it is read.
+    fn on_upload(&mut self, _drive: &Drive, _od: &Dictionary, index: u16, sub: u8, buf: &mut [u8]) -> Option<usize> {
+        if (index, sub) != (0x2026, 2) {
+            return None;
+        }
+        let n = self.ascii_output.len().min(ASCII_CHUNK).min(buf.len());
+        for (slot, b) in buf.iter_mut().zip(self.ascii_output.drain(..n)) {
+            *slot = b;
+        }
+        Some(n)
+    }
+
+    /// 6.6.2.1: 606Ch in a PDO is the velocity in rpm (at the object's 1000:1 bus factor),
+    /// where an SDO read gives user units.
+    fn on_tpdo(&mut self, drive: &Drive, _od: &Dictionary, map: &[MappedHandle], data: &mut [u8; 8]) {
+        let mut offset = 0u32;
+        for e in map {
+            let bits = u32::from(e.bits);
+            if (e.index, e.sub, bits) == (0x606C, 0, 32) && offset + bits <= 64 {
+                let counts = i64::from(drive.status().velocity_actual);
+                let rpm_milli = scale_i64(counts, Ratio::new(60_000, COUNTS_PER_TURN));
+                let rpm_milli = if drive.scale().reverse_velocity { -rpm_milli } else { rpm_milli };
+                let value = u64::from(sat_i32(rpm_milli) as u32);
+                let mut word = u64::from_le_bytes(*data);
+                word = (word & !(0xFFFF_FFFFu64 << offset)) | (value << offset);
+                *data = word.to_le_bytes();
+            }
+            offset += bits;
+        }
+    }
+
     fn on_event(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, Dictionary>, event: &Event) {
         match *event {
             Event::Written { index: 0x20B8, .. } => {
@@ -1031,6 +1228,12 @@ impl Vendor<Dictionary> for Akd {
                 drive.axis_mut().clear_interpolation_buffer();
                 self.pvt_queue.clear();
             }
+            Event::Written { index: 0x6060, .. } if self.switch_stop.is_some() => {
+                self.release_switch_stop(drive);
+                if Self::csp(drive) {
+                    drive.axis_mut().set_mode(Mode::InterpolatedPosition);
+                }
+            }
             Event::Written { index: 0x6060, .. } | Event::Reset(od_runtime::ResetKind::Node) if Self::csp(drive) => {
                 drive.axis_mut().set_mode(Mode::InterpolatedPosition);
             }
@@ -1039,6 +1242,26 @@ impl Vendor<Dictionary> for Akd {
     }
 
     fn before_command(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, Dictionary>, cmd: &mut Command) -> bool {
+        // Stopped on a limit switch: a command away from it releases the stop, one towards it
+        // is not taken (the sidecar's decision on 60FDh).
+        if let Some(side) = self.switch_stop {
+            let reversed = if drive.axis().config().reverse_polarity { -1 } else { 1 };
+            let here = i64::from(drive.axis().status().position_actual);
+            let heading = match *cmd {
+                Command::SetPoint(sp) => {
+                    let target = i64::from(sp.target) + if sp.relative { here } else { 0 };
+                    Some((target - here).signum())
+                }
+                Command::TargetVelocity(v) => Some(i64::from(v).signum()),
+                Command::TargetTorque(t) => Some(i64::from(t).signum()),
+                _ => None,
+            };
+            match heading.map(|h| h * reversed) {
+                Some(h) if h == i64::from(side) => return false,
+                Some(_) => self.release_switch_stop(drive),
+                None => {}
+            }
+        }
         if let Command::SetPoint(sp) = cmd
             && let Some((lo, hi)) = self.limits
         {
@@ -1097,6 +1320,7 @@ impl Vendor<Dictionary> for Akd {
             self.following_fault = false;
         }
         self.check_limits(drive, ctx, status);
+        self.check_switches(drive, ctx, status);
         // Inputs (60FDh): switches, DIN1..7, change latches.
         let din = self.din(status);
         self.din_changed |= din ^ self.din_last;
@@ -1137,6 +1361,11 @@ impl Vendor<Dictionary> for Akd {
             }
         };
         set(bits, 7, !self.warnings.is_empty());
+        if self.switch_stop.is_some() {
+            // Stopped on a limit switch: the target is not reached, the motion was limited.
+            set(bits, 10, false);
+            set(bits, 11, true);
+        }
         // 7.2.1.2, 7.2.1.8: 0x0233 in Switched on whatever the axis does; the homing result
         // stays visible.
         if drive.state() != State::OperationEnabled && drive.mode() != Mode::Homing {

@@ -38,7 +38,7 @@ use std::marker::PhantomData;
 use std::sync::Arc;
 
 use od_runtime::cia402::State;
-use od_runtime::od::{AbortCode, ObjectDictionary, decode_int};
+use od_runtime::od::{AbortCode, MappedHandle, ObjectDictionary, decode_int};
 use od_runtime::{Event, Micros, ResetKind, WriteSource};
 
 use super::{ErrorSpec, ErrorTable, Reaction, SharedTrace};
@@ -302,6 +302,14 @@ pub trait Vendor<OD>: Send + 'static {
         (0x8130, None)
     }
 
+    /// Whether a lost master (heartbeat or guarding, [`Vendor::fieldbus_error`]) also resets
+    /// the communication once the drive is in Fault (DRVI 6.3.2.12, DRCS 3.2.12: "error and
+    /// reset the communication"). The error register 1001h and the history 1003h survive the
+    /// reset, so the master finds the cause of the Fault. Default: false.
+    fn reset_communication_on_link_loss(&self) -> bool {
+        false
+    }
+
     /// How the drive stops and what its power stage does on entering a state without
     /// operation (`to`: Switched on, Ready to switch on, Switch on disabled, from `from`).
     /// Default: CiA 402 ([`DisableReaction::cia402`]): 605Ch for disable operation (transition
@@ -382,6 +390,16 @@ pub trait Vendor<OD>: Send + 'static {
     /// Adjusts the statusword bits the drive owns ([`STATUSWORD_APP_BITS`]): `bits` holds the
     /// common ones (10, 11, 12, 13 per mode) on entry.
     fn statusword(&self, drive: &Drive, od: &OD, status: &Status, bits: &mut u16) {}
+
+    /// An SDO upload of `index`/`sub`: `Some` answers it with `buf` instead of the dictionary
+    /// (a value a read consumes). Default: `None`.
+    fn on_upload(&mut self, drive: &Drive, od: &OD, index: u16, sub: u8, buf: &mut [u8]) -> Option<usize> {
+        None
+    }
+
+    /// A TPDO's data as packed by `map`: change a value whose PDO form differs from its SDO
+    /// form. Default: nothing.
+    fn on_tpdo(&mut self, drive: &Drive, od: &OD, map: &[MappedHandle], data: &mut [u8; 8]) {}
 
     /// The drive left Fault (transition 15, by controlword bit 7 or [`Ctx::fault_reset`]);
     /// [`Drive::fault`] still holds the fault being reset.
@@ -512,6 +530,36 @@ pub struct Drive {
     target_torque: i32,
     ticks: u64,
     link_lost: LossRecord,
+    /// A lost master asked for a communication reset, done once the drive is in Fault.
+    comm_reset_pending: bool,
+    /// 1001h and 1003h as they were before that reset, written back after it.
+    kept_errors: Option<KeptErrors>,
+}
+
+/// The error register and the error history, kept over a communication reset (which restores
+/// the communication area, these included, to its power-on values).
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct KeptErrors {
+    register: i64,
+    history: Vec<i64>,
+}
+
+impl KeptErrors {
+    fn read<OD: ObjectDictionary + ?Sized>(od: &OD) -> Self {
+        let count = read_int(od, 0x1003, 0).unwrap_or(0).clamp(0, 254) as u8;
+        Self {
+            register: read_int(od, 0x1001, 0).unwrap_or(0),
+            history: (1..=count).map_while(|k| read_int(od, 0x1003, k)).collect(),
+        }
+    }
+
+    fn write<OD: ObjectDictionary + ?Sized>(&self, od: &mut OD) {
+        write_int(od, 0x1001, 0, self.register);
+        for (k, v) in self.history.iter().enumerate() {
+            write_int(od, 0x1003, (k + 1) as u8, *v);
+        }
+        write_int(od, 0x1003, 0, self.history.len() as i64);
+    }
 }
 
 impl Drive {
@@ -538,6 +586,8 @@ impl Drive {
             target_torque: 0,
             ticks: 0,
             link_lost: LossRecord::default(),
+            comm_reset_pending: false,
+            kept_errors: None,
         }
     }
 
@@ -949,7 +999,8 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
                 }
             }
             Mode::Homing => {
-                if rose && enabled {
+                let assigned = Self::int(ctx.od(), 0x6098, 0) != Some(0);
+                if rose && enabled && assigned {
                     self.command(ctx, Command::StartHoming);
                 } else if fell && self.vendor.homing_abort_on_release() {
                     self.command(ctx, Command::AbortHoming);
@@ -1005,6 +1056,8 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
                 d.dirty = true;
                 d.fault = None;
                 d.link_lost = LossRecord::default();
+                d.comm_reset_pending = false;
+                d.kept_errors = None;
                 d.stopping = Stopping::No;
                 d.controlword = 0;
                 d.axis.set_power(false);
@@ -1051,6 +1104,9 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
             Event::Reset(ResetKind::Communication) => {
                 self.drive.dirty = true;
                 self.drive.link_lost = LossRecord::default();
+                if let Some(kept) = self.drive.kept_errors.take() {
+                    kept.write(ctx.od_mut());
+                }
             }
             Event::Sync { .. } if self.drive.mode == Mode::InterpolatedPosition => {
                 if let Some(p) = Self::int(ctx.od(), 0x60C1, 1) {
@@ -1068,6 +1124,7 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
     fn link_lost(&mut self, ctx: &mut Ctx<'_, OD>) {
         let (code, m) = self.vendor.fieldbus_error();
         self.drive.raise(ctx, code, m);
+        self.drive.comm_reset_pending |= self.vendor.reset_communication_on_link_loss();
         self.follow_state(ctx);
     }
 
@@ -1190,6 +1247,11 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> Cia402App<OD, V> {
         let status = self.status_now();
         self.write_actuals(ctx, &status);
         self.vendor.after_step(&mut self.drive, ctx, &status);
+        if self.drive.comm_reset_pending && self.drive.state == State::Fault {
+            self.drive.comm_reset_pending = false;
+            self.drive.kept_errors = Some(KeptErrors::read(ctx.od()));
+            ctx.nmt_command(od_runtime::NmtCommand::ResetCommunication);
+        }
         self.publish(ctx, &status);
         if let Some(trace) = &self.drive.trace {
             let sample = self.drive.bus_sample(&status);
@@ -1204,7 +1266,9 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> DriveApp<OD> for Cia402App<OD, V> {
     fn on_write(&mut self, od: &OD, write: &WriteRequest<'_>) -> Result<(), AbortCode> {
         match (write.index, write.sub, write.data) {
             (0x6060, 0, &[code]) if !self.vendor.supports_mode(code as i8) => return Err(AbortCode::INVALID_VALUE),
-            (0x6098, 0, &[code]) if self.vendor.homing_method(code as i8).is_none() => {
+            // 0 is CiA 402's "no homing method assigned": the default a drive reports (AKD
+            // 6.10.2.2) can be written back; a homing started with it starts nothing.
+            (0x6098, 0, &[code]) if code != 0 && self.vendor.homing_method(code as i8).is_none() => {
                 return Err(AbortCode::INVALID_VALUE);
             }
             _ => {}
@@ -1230,6 +1294,19 @@ impl<OD: ObjectDictionary, V: Vendor<OD>> DriveApp<OD> for Cia402App<OD, V> {
 
     fn tick(&mut self, ctx: &mut Ctx<'_, OD>) {
         self.run_tick(ctx);
+    }
+
+    fn on_upload(&mut self, od: &OD, index: u16, sub: u8, buf: &mut [u8]) -> Option<Result<usize, AbortCode>> {
+        self.vendor.on_upload(&self.drive, od, index, sub, buf).map(Ok)
+    }
+
+    fn on_tpdo(&mut self, od: &OD, map: &[MappedHandle], data: &mut [u8; 8]) {
+        self.vendor.on_tpdo(&self.drive, od, map, data);
+    }
+
+    /// EMCY 8220h when the device's error table lists it (DRVI table 6.34).
+    fn rpdo_length_exceeded(&mut self, _pdo: u16) -> bool {
+        self.drive.errors.find(od_runtime::emcy::PDO_LENGTH_EXCEEDED, None).is_some()
     }
 }
 

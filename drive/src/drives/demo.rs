@@ -199,6 +199,9 @@ pub fn run(options: &DemoOptions, out: &mut dyn Write) -> Result<DemoReport, Dem
     let wall = Instant::now();
     let id = options.node_id;
     let apps = DeviceApps::with_trace(2000);
+    // The demo homes on the proximity: the DRVI on an actuator, not the bare motor it starts
+    // with.
+    apps.set_machine(super::machine::preset(DeviceKind::Drvi, "drvi-actuator"));
     let mut sim = Sim::new();
     let node = DeviceKind::Drvi
         .build(&NodeConfig { node_id: Some(id), ..NodeConfig::default() }, &apps)

@@ -52,8 +52,8 @@ use od_runtime::{Event, Micros, NmtCommand};
 use super::cia402::{BusScale, Cia402App, Command, Vendor, read_int, write_int};
 use super::{Drive, Reaction, error_table};
 use crate::motion::{
-    AxisConfig, Cam, Environment, HomeOffsetMode, HomingMethod, HomingState, Mode, PlantConfig, Ratio, RelativeBase,
-    SoftwareLimits, Status, Units,
+    AxisConfig, Cam, Environment, HomeOffsetMode, HomingMethod, HomingState, Machine, Mode, PlantConfig, Ratio,
+    RelativeBase, SoftwareLimits, Status, Travel, Units,
 };
 use crate::node::{Ctx, DeviceKind, WriteRequest};
 
@@ -138,6 +138,8 @@ pub struct Mechanics {
     pub environment: Environment,
     /// The longest travel a homing search may need (internal units): sets its timeout.
     pub homing_stroke: i64,
+    /// The machine's inertia on the built-in one ([`Machine::inertia_factor`]).
+    pub inertia_factor: f64,
 }
 
 impl Mechanics {
@@ -162,6 +164,7 @@ impl Mechanics {
                 index_phase: 0,
             },
             homing_stroke: 1_060_000,
+            inertia_factor: 1.0,
         }
     }
 
@@ -183,6 +186,33 @@ impl Mechanics {
                 index_phase: 0,
             },
             homing_stroke: 3_600_000,
+            inertia_factor: 1.0,
+        }
+    }
+
+    /// What QSet configures for `machine` (positions in mm, or ° for a rotary one): a linear
+    /// machine is an actuator of the belt's ratios (70 mm per turn, direct drive) with its
+    /// stroke as the full scale; a rotary one is "only motor".
+    pub fn from_machine(machine: &Machine) -> Self {
+        let unit = INTERNAL_PER_UNIT as f64;
+        let inertia_factor = machine.inertia_factor();
+        match machine.travel {
+            Travel::Rotary => {
+                Self { environment: machine.environment(unit, 360.0), inertia_factor, ..Self::only_motor() }
+            }
+            Travel::Linear => {
+                let belt = Self::actuator();
+                let mm_per_turn = f64::from(belt.feed_constant.0) / f64::from(belt.feed_constant.1);
+                let environment = machine.environment(unit, mm_per_turn);
+                let full_scale = machine.stroke.map(|s| (s * unit).round() as i64);
+                // A search may have to cross the whole travel: between the end stops, else the
+                // stroke, else the belt's.
+                let travel = match (environment.negative_end_stop, environment.positive_end_stop) {
+                    (Some(lo), Some(hi)) => hi.saturating_sub(lo),
+                    _ => full_scale.map_or(belt.homing_stroke, |f| f.saturating_add(60_000)),
+                };
+                Self { full_scale, environment, homing_stroke: travel, inertia_factor, ..belt }
+            }
         }
     }
 
@@ -209,7 +239,7 @@ impl Mechanics {
             System::OnlyMotor => (3.6e6, 3.6e6),
         };
         PlantConfig {
-            inertia: 1000.0 / acc,
+            inertia: 1000.0 / acc * self.inertia_factor,
             viscous: 1000.0 / speed,
             coulomb: 50.0,
             bandwidth: 300.0,
@@ -325,7 +355,6 @@ pub struct Drcs {
     manual_release: bool,
     last_power: bool,
     last_cw: u16,
-    comm_reset_pending: bool,
     start_pending: bool,
     flash_check_pending: bool,
 }
@@ -345,7 +374,6 @@ impl Drcs {
             manual_release: false,
             last_power: false,
             last_cw: 0,
-            comm_reset_pending: false,
             start_pending: false,
             flash_check_pending: true,
         }
@@ -555,7 +583,6 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drcs {
         self.homing_failed = matches!(drive.axis().status().homing, HomingState::Error(_));
         self.was_homed = false;
         self.last_cw = 0;
-        self.comm_reset_pending = false;
         self.manual_release = false;
         self.last_power = drive.axis().status().power;
         self.sync_brake(drive);
@@ -592,7 +619,6 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drcs {
                 }
                 self.last_cw = cw;
             }
-            Event::LifeGuardingLost => self.comm_reset_pending = true,
             _ => {}
         }
         self.sync_brake(drive);
@@ -678,10 +704,6 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drcs {
         }
         self.was_homed = status.homed;
         self.check_conditions(drive, ctx, status);
-        if self.comm_reset_pending && drive.state() == State::Fault {
-            self.comm_reset_pending = false;
-            ctx.nmt_command(NmtCommand::ResetCommunication);
-        }
         self.write_objects(drive, ctx, status);
     }
 
@@ -698,6 +720,11 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drcs {
             // Chapter 5: high while the positioning runs, low when a new command is accepted.
             set(bits, 12, status.set_point_acknowledge || (status.power && !status.target_reached));
         }
+    }
+
+    /// 3.2.12: a lost guarding master is "an error and reset the communication".
+    fn reset_communication_on_link_loss(&self) -> bool {
+        true
     }
 
     fn on_fault_reset(&mut self, _drive: &mut Drive, ctx: &mut Ctx<'_, OD>) {
@@ -718,7 +745,13 @@ pub fn app_with(mechanics: Mechanics) -> Cia402App<Dictionary, Drcs> {
     app
 }
 
-/// A DRCS on the default actuator ([`Mechanics::actuator`]): what `drive-sim` runs.
+/// A DRCS on `machine` (positions in mm, or ° for a rotary one).
+pub fn app_on(machine: &Machine) -> Cia402App<Dictionary, Drcs> {
+    app_with(Mechanics::from_machine(machine))
+}
+
+/// A DRCS on its default machine, the belt axis of [`Mechanics::actuator`]: what `drive-sim`
+/// runs.
 pub fn app() -> Cia402App<Dictionary, Drcs> {
-    app_with(Mechanics::actuator())
+    app_on(&super::machine::default_machine(DeviceKind::Drcs))
 }

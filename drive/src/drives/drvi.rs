@@ -22,6 +22,13 @@
 //! | 5.0.3 | the position survives a reset node, and a power cycle (a restart of the process), when homed and stopped | [`SavedPosition`] kept as the node's retained data ([`Ctx::retain`]: the state directory's `drvi-node<id>.retained`), restored in [`Vendor::init`] |
 //!
 //! Decisions where the manual is silent or unclear:
+//! * the machine: the DRVI starts as a bare motor turning freely ([`app`], the `free` machine
+//!   of [`super::machine`]), as its default 2014h = 0 ("only motor", 6.3.6.10) says; a
+//!   Camozzi actuator with the PROXY INPUT proximity and end stops is the `drvi-actuator`
+//!   preset ([`actuator_app`]).
+//! * a lost guarding master is the fieldbus disconnection error, then a communication reset
+//!   (6.3.2.12) that keeps 1001h and 1003h; an RPDO longer than its mapping is EMCY 8220h
+//!   (table 6.34) and is processed.
 //! * profile velocity applies 60FFh when it is written (CiA 402); the manual's "bit 4 starts the
 //!   movement" is also honoured: a rising bit 4 re-applies 60FFh.
 //! * statusword bit 11 "ila = internal limits active (software limits enabled)" is set while
@@ -37,7 +44,7 @@ use od_runtime::od::ObjectDictionary;
 use super::cia402::{BusScale, Cia402App, Command, Vendor, read_int, write_int};
 use super::{Drive, error_table};
 use crate::motion::{
-    Axis, AxisConfig, Cam, CommandError, Environment, HomingMethod, HomingState, Mode, PlantConfig, Ratio,
+    Axis, AxisConfig, Cam, CommandError, Environment, HomingMethod, HomingState, Machine, Mode, PlantConfig, Ratio,
     RelativeBase, SoftwareLimits, Status, Units,
 };
 use crate::node::{Ctx, DeviceKind};
@@ -206,6 +213,8 @@ enum LimitCheck {
 pub struct Drvi {
     /// Supplies, temperatures and inputs the drive sees.
     pub conditions: Conditions,
+    /// The machine's inertia on the built-in one ([`Machine::inertia_factor`]).
+    inertia_factor: f64,
     /// Motor winding temperature, °C.
     pub motor_c: f64,
     /// Drive (power stage) temperature, °C.
@@ -300,6 +309,7 @@ impl Default for Drvi {
     fn default() -> Self {
         Self {
             conditions: Conditions::default(),
+            inertia_factor: 1.0,
             motor_c: 25.0,
             drive_c: 25.0,
             i2t: 0.0,
@@ -321,19 +331,23 @@ impl Default for Drvi {
     }
 }
 
-/// The mechanics a DRVI app starts with, in the default units (0.01° or 0.01 mm): a home
-/// proximity (PROXY INPUT) from 20 000 to 25 000, hard end stops at −50 000 and 150 000, an
-/// encoder index every 36 000 (one turn) at 1 000, no EXT PROXY.
+/// Internal position counts per machine unit: the DRVI counts in its bus unit (0.01° or
+/// 0.01 mm).
+pub const COUNTS_PER_MACHINE_UNIT: f64 = 1.0;
+
+/// Machine units per motor turn (36 000 × 0.01°): the default index period.
+pub const MACHINE_UNITS_PER_TURN: f64 = 36_000.0;
+
+/// The mechanics of the `drvi-actuator` preset, in the default units (0.01° or 0.01 mm): a
+/// home proximity (PROXY INPUT) from 20 000 to 25 000, hard end stops at −50 000 and 150 000,
+/// an encoder index every 36 000 (one turn) at 1 000, no EXT PROXY. The DRVI starts with a
+/// free motor ([`super::machine`]); tests that need the proximity or the end stops take this.
 pub fn default_environment() -> Environment {
-    Environment {
-        home_switch: Some(Cam { low: 20_000, high: 25_000 }),
-        negative_limit: None,
-        positive_limit: None,
-        negative_end_stop: Some(-50_000),
-        positive_end_stop: Some(150_000),
-        index_period: 36_000,
-        index_phase: 1_000,
-    }
+    actuator_machine().environment(COUNTS_PER_MACHINE_UNIT, MACHINE_UNITS_PER_TURN)
+}
+
+fn actuator_machine() -> Machine {
+    super::machine::preset(DeviceKind::Drvi, "drvi-actuator").unwrap_or_else(Machine::free)
 }
 
 /// The mechanics' constants (torque in mA, positions in 0.01 units): 1 A accelerates the
@@ -343,11 +357,25 @@ pub fn plant(bandwidth: f64) -> PlantConfig {
     PlantConfig { inertia: 1000.0 / 3.6e6, viscous: 1000.0 / 1.8e6, coulomb: 20.0, bandwidth, max_speed: 1.8e6 }
 }
 
-/// A DRVI application with the default mechanics ([`default_environment`]).
-pub fn app() -> Cia402App<generated::drvi::Dictionary, Drvi> {
-    let mut app = Cia402App::new(Drvi::default(), error_table(DeviceKind::Drvi));
-    *app.drive_mut().axis_mut().environment_mut() = default_environment();
+/// A DRVI application on `machine` (positions in 0.01° or 0.01 mm).
+pub fn app_with(machine: &Machine) -> Cia402App<generated::drvi::Dictionary, Drvi> {
+    let drvi = Drvi { inertia_factor: machine.inertia_factor(), ..Drvi::default() };
+    let mut app = Cia402App::new(drvi, error_table(DeviceKind::Drvi));
+    *app.drive_mut().axis_mut().environment_mut() =
+        machine.environment(COUNTS_PER_MACHINE_UNIT, MACHINE_UNITS_PER_TURN);
     app
+}
+
+/// A DRVI application on the `drvi-actuator` preset (proximity and end stops): what the
+/// tests of homings and limits use.
+pub fn actuator_app() -> Cia402App<generated::drvi::Dictionary, Drvi> {
+    app_with(&actuator_machine())
+}
+
+/// A DRVI application on its default machine: a bare motor turning freely, as its default
+/// "only motor" configuration (2014h = 0) says.
+pub fn app() -> Cia402App<generated::drvi::Dictionary, Drvi> {
+    app_with(&super::machine::default_machine(DeviceKind::Drvi))
 }
 
 impl Drvi {
@@ -545,6 +573,12 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drvi {
         matches!(code, 0 | 1 | 3 | 4 | 6 | -1)
     }
 
+    /// 6.3.2.12: the guarding messages must arrive "to avoid an error and reset the
+    /// communication": the fieldbus disconnection error, then a communication reset.
+    fn reset_communication_on_link_loss(&self) -> bool {
+        true
+    }
+
     /// Table 6.29.
     fn homing_method(&self, code: i8) -> Option<HomingMethod> {
         HomingMethod::camozzi(code)
@@ -594,6 +628,7 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drvi {
             _ => (read_int(od, 0x2011, 2).unwrap_or(1) as f64 * 30.0).clamp(10.0, 2000.0),
         };
         cfg.plant = plant(self.pid_bandwidth);
+        cfg.plant.inertia *= self.inertia_factor;
     }
 
     fn init(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, OD>) {

@@ -122,6 +122,7 @@ pub mod cia402;
 pub mod demo;
 pub mod drcs;
 pub mod drvi;
+pub mod machine;
 pub mod master;
 pub mod store;
 
@@ -129,6 +130,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 
 use devices::sidecar::{Reaction as SidecarReaction, Sidecar};
 
+use crate::motion::Machine;
 use crate::node::{Apps, DeviceKind, DriveApp};
 use crate::trace::Trace;
 
@@ -302,6 +304,7 @@ pub type SharedTrace = Arc<Mutex<Trace>>;
 pub struct DeviceApps {
     trace_interval: Option<u64>,
     traces: Mutex<Vec<(DeviceKind, SharedTrace)>>,
+    machine: Mutex<Option<Machine>>,
 }
 
 impl DeviceApps {
@@ -312,7 +315,19 @@ impl DeviceApps {
 
     /// Apps recording a trace with one sample per `interval_us` (0: every tick).
     pub fn with_trace(interval_us: u64) -> Self {
-        Self { trace_interval: Some(interval_us), traces: Mutex::new(Vec::new()) }
+        Self { trace_interval: Some(interval_us), ..Self::default() }
+    }
+
+    /// The machine of the apps built from now on (`None`: each device's default, see
+    /// [`machine`]); `drive-sim run --machine` sets it before building each device.
+    pub fn set_machine(&self, machine: Option<Machine>) {
+        if let Ok(mut m) = self.machine.lock() {
+            *m = machine;
+        }
+    }
+
+    fn machine_for(&self, kind: DeviceKind) -> Machine {
+        self.machine.lock().ok().and_then(|m| m.clone()).unwrap_or_else(|| machine::default_machine(kind))
     }
 
     /// The traces of the apps built so far, in build order, with their device kind.
@@ -336,14 +351,14 @@ impl DeviceApps {
 
 impl Apps for DeviceApps {
     fn drvi(&self) -> Box<dyn DriveApp<generated::drvi::Dictionary> + Send> {
-        Box::new(self.attach(DeviceKind::Drvi, drvi::app()))
+        Box::new(self.attach(DeviceKind::Drvi, drvi::app_with(&self.machine_for(DeviceKind::Drvi))))
     }
 
     fn akd(&self) -> Box<dyn DriveApp<generated::akd::Dictionary> + Send> {
-        Box::new(self.attach(DeviceKind::Akd, akd::app()))
+        Box::new(self.attach(DeviceKind::Akd, akd::app_with(&self.machine_for(DeviceKind::Akd))))
     }
 
     fn drcs(&self) -> Box<dyn DriveApp<generated::drcs::Dictionary> + Send> {
-        Box::new(self.attach(DeviceKind::Drcs, drcs::app()))
+        Box::new(self.attach(DeviceKind::Drcs, drcs::app_on(&self.machine_for(DeviceKind::Drcs))))
     }
 }

@@ -831,12 +831,48 @@ impl Axis {
         Plan::position(self.demand_p, self.demand_v, self.target, vmax, acc, dec, vf)
     }
 
+    /// Ends a homing in progress early (halt, mode change, power off, quick stop, abort).
+    ///
+    /// Searching, the homing is interrupted. Once the home point is known the drive has
+    /// reported "homing attained" (statusword bit 12), and a master may act on it at once
+    /// (switch the mode, as python-canopen's `homing()` does): the reference is then committed
+    /// as the completed homing would set it, and the homing counts as completed.
     fn interrupt_homing(&mut self) -> bool {
-        if self.sequence.take().is_some() && matches!(self.homing, HomingState::InProgress | HomingState::Attained) {
-            self.homing = HomingState::Interrupted;
-            return true;
+        let Some(seq) = self.sequence.take() else { return false };
+        match (self.homing, seq.home) {
+            (HomingState::Attained, Some(home)) => {
+                self.commit_home(home);
+                self.homing = HomingState::Completed;
+                true
+            }
+            (HomingState::InProgress | HomingState::Attained, _) => {
+                self.homing = HomingState::Interrupted;
+                true
+            }
+            _ => false,
         }
-        false
+    }
+
+    /// Sets the drive frame as a homing onto mechanical home point `home` sets it (the
+    /// offset move of [`HomeOffsetMode::MoveByOffset`] counted as done), keeping the demand,
+    /// the target and the buffer where they are mechanically; marks the axis homed.
+    fn commit_home(&mut self, home: f64) {
+        let h = self.cfg.homing;
+        let (s, offset) = (self.sign(), f64::from(h.offset));
+        let shift = match h.offset_mode {
+            HomeOffsetMode::AssignOffset => offset - s * home,
+            HomeOffsetMode::AssignNegatedOffset => -offset - s * home,
+            // The move by the offset ends at home + s × offset, and that point becomes zero.
+            HomeOffsetMode::MoveByOffset => -s * (home + s * offset),
+        };
+        let delta = shift - self.shift;
+        self.shift = shift;
+        self.demand_p += delta;
+        self.target += delta;
+        if let Some(b) = &mut self.buffered {
+            b.0 += delta;
+        }
+        self.homed = true;
     }
 
     fn apply_homing(&mut self, cmd: Cmd) {

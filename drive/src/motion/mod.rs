@@ -68,6 +68,7 @@ mod axis;
 mod config;
 mod homing;
 mod interp;
+mod machine;
 mod plant;
 mod profile;
 mod units;
@@ -77,5 +78,6 @@ pub use config::{AxisConfig, InterpolationConfig, Mode, QuickStopOption, Relativ
 pub use homing::{
     Direction, Edge, HomeOffsetMode, HomingConfig, HomingError, HomingKind, HomingMethod, HomingSignal, HomingState,
 };
+pub use machine::{Machine, MachineError, Travel};
 pub use plant::{Cam, Environment, PlantConfig};
 pub use units::{Ratio, Units};

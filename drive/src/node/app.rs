@@ -4,7 +4,7 @@
 
 use od_runtime::cia402::{self, State};
 use od_runtime::emcy;
-use od_runtime::od::{AbortCode, ObjectDictionary};
+use od_runtime::od::{AbortCode, MappedHandle, ObjectDictionary};
 use od_runtime::{Event, Micros, NmtCommand, NmtState, NodeId, WriteSource};
 
 use super::Retain;
@@ -16,8 +16,10 @@ pub struct WriteRequest<'a> {
     pub index: u16,
     /// Sub-index.
     pub sub: u8,
-    /// The value, little-endian, exactly as received (length not yet checked against the
-    /// entry's type).
+    /// The value, little-endian, exactly as received; for an SDO download its length and the
+    /// entry's limits have been checked (the dictionary's checks come first, so a value of
+    /// the wrong size is a length error whatever the application would say of it); an RPDO
+    /// entry has its entry's size by construction.
     pub data: &'a [u8],
     /// An SDO download, an RPDO, or a local write.
     pub source: WriteSource,
@@ -51,7 +53,7 @@ impl WriteRequest<'_> {
 ///
 /// ```
 /// use drive::node::{Ctx, DefaultApp, DriveApp, WriteRequest};
-/// use od_runtime::od::{AbortCode, ObjectDictionary};
+/// use od_runtime::od::{AbortCode, MappedHandle, ObjectDictionary};
 /// use od_runtime::Event;
 ///
 /// /// A drive whose actual position follows the target position, one step per millisecond.
@@ -93,8 +95,9 @@ impl WriteRequest<'_> {
 pub trait DriveApp<OD> {
     /// Called before a write from a master (SDO download or RPDO) reaches the dictionary.
     /// Returning an error refuses it: the SDO transfer aborts with that code, an RPDO entry
-    /// is skipped. Access rights have been checked; length and limits not yet. Writes the
-    /// application makes itself through [`Ctx::write`] are not shown here.
+    /// is skipped. Access rights have been checked, and for an SDO download the length and the
+    /// entry's limits too. Writes the application makes itself through [`Ctx::write`] are not
+    /// shown here.
     fn on_write(&mut self, od: &OD, write: &WriteRequest<'_>) -> Result<(), AbortCode> {
         let _ = (od, write);
         Ok(())
@@ -121,6 +124,27 @@ pub trait DriveApp<OD> {
     fn tick_period(&self) -> Micros {
         1000
     }
+
+    /// An SDO upload is about to read `index`/`sub`: `Some` answers it with what is put in
+    /// `buf` instead of the dictionary's value (od-runtime's [`od_runtime::App::on_upload`]).
+    /// Default: `None`.
+    fn on_upload(&mut self, od: &OD, index: u16, sub: u8, buf: &mut [u8]) -> Option<Result<usize, AbortCode>> {
+        let _ = (od, index, sub, buf);
+        None
+    }
+
+    /// A TPDO's data, packed from the dictionary by `map`, before it is sent: change the bits
+    /// of a value whose PDO form differs from its SDO form. Default: nothing.
+    fn on_tpdo(&mut self, od: &OD, map: &[MappedHandle], data: &mut [u8; 8]) {
+        let _ = (od, map, data);
+    }
+
+    /// RPDO `pdo` (0-based) arrived longer than its mapping (it is processed anyway): `true`
+    /// sends EMCY 8220h. Default: `false`.
+    fn rpdo_length_exceeded(&mut self, pdo: u16) -> bool {
+        let _ = pdo;
+        false
+    }
 }
 
 impl<OD, A: DriveApp<OD> + ?Sized> DriveApp<OD> for Box<A> {
@@ -138,6 +162,18 @@ impl<OD, A: DriveApp<OD> + ?Sized> DriveApp<OD> for Box<A> {
 
     fn tick_period(&self) -> Micros {
         (**self).tick_period()
+    }
+
+    fn on_upload(&mut self, od: &OD, index: u16, sub: u8, buf: &mut [u8]) -> Option<Result<usize, AbortCode>> {
+        (**self).on_upload(od, index, sub, buf)
+    }
+
+    fn on_tpdo(&mut self, od: &OD, map: &[MappedHandle], data: &mut [u8; 8]) {
+        (**self).on_tpdo(od, map, data)
+    }
+
+    fn rpdo_length_exceeded(&mut self, pdo: u16) -> bool {
+        (**self).rpdo_length_exceeded(pdo)
     }
 }
 

@@ -103,14 +103,37 @@ struct Hooks<A> {
     dropped: u64,
 }
 
-impl<OD, A: DriveApp<OD>> od_runtime::App<OD> for Hooks<A> {
+impl<OD: ObjectDictionary, A: DriveApp<OD>> od_runtime::App<OD> for Hooks<A> {
     fn on_write(&mut self, od: &OD, index: u16, sub: u8, data: &[u8], source: WriteSource) -> Result<(), AbortCode> {
         match (&mut self.app, source) {
             (Some(app), WriteSource::Sdo | WriteSource::Rpdo(_)) => {
+                // The dictionary's own checks (length first, then its limits) come before the
+                // application's: a value of the wrong size is a length error whatever it is.
+                // An RPDO entry has its entry's size by construction (the mapping was checked
+                // when loaded), so the PDO path keeps its handle-only speed.
+                if matches!(source, WriteSource::Sdo)
+                    && let Ok(info) = od.info(index, sub)
+                {
+                    info.check_value(data)?;
+                }
                 app.on_write(od, &WriteRequest { index, sub, data, source })
             }
             _ => Ok(()),
         }
+    }
+
+    fn on_upload(&mut self, od: &OD, index: u16, sub: u8, buf: &mut [u8]) -> Option<Result<usize, AbortCode>> {
+        self.app.as_mut()?.on_upload(od, index, sub, buf)
+    }
+
+    fn on_tpdo(&mut self, od: &OD, map: &[od_runtime::od::MappedHandle], data: &mut [u8; 8]) {
+        if let Some(app) = &mut self.app {
+            app.on_tpdo(od, map, data);
+        }
+    }
+
+    fn rpdo_length_exceeded(&mut self, pdo: u16) -> bool {
+        self.app.as_mut().is_some_and(|app| app.rpdo_length_exceeded(pdo))
     }
 
     fn on_event(&mut self, _od: &mut OD, event: Event) {
