@@ -118,16 +118,31 @@ pub fn render(d: &Diagnostic, source: &crate::source::SourceFile) -> String {
         Some((span, lc)) => {
             let _ = writeln!(out, "{pad}--> {}:{}:{}", d.file, lc.line, lc.col);
             let line = source.line_text(lc.line);
-            let shown: String = line.chars().map(|c| if c == '\t' { ' ' } else { c }).collect();
-            let _ = writeln!(out, "{pad} |");
-            let _ = writeln!(out, "{} | {}", lc.line, shown.trim_end());
-            // Underline the part of the span that lies on this line (at least one caret).
             let line_chars = line.chars().count() as u32;
             let start_col = lc.col.saturating_sub(1).min(line_chars);
             let span_text = source.slice(span);
             let span_chars = span_text.split(['\n', '\r']).next().unwrap_or("").chars().count() as u32;
             let width = span_chars.min(line_chars.saturating_sub(start_col)).max(1);
-            let _ = writeln!(out, "{pad} | {}{}", " ".repeat(start_col as usize), "^".repeat(width as usize));
+            // A long line is cut to a window around the span's start, marked with `…`.
+            let (from, to) = quote_window(line_chars, start_col);
+            let mut shown = String::with_capacity((to - from) as usize + 8);
+            if from > 0 {
+                shown.push('…');
+            }
+            shown.extend(
+                line.chars().skip(from as usize).take((to - from) as usize).map(|c| if c == '\t' { ' ' } else { c }),
+            );
+            let cut_end = to < line_chars;
+            if cut_end {
+                shown.push('…');
+            }
+            let _ = writeln!(out, "{pad} |");
+            let _ = writeln!(out, "{} | {}", lc.line, if cut_end { shown.as_str() } else { shown.trim_end() });
+            // Underline the part of the span that lies on this line and in the window (at
+            // least one caret).
+            let lead = start_col - from + u32::from(from > 0);
+            let width = width.min(to.saturating_sub(start_col)).max(1);
+            let _ = writeln!(out, "{pad} | {}{}", " ".repeat(lead as usize), "^".repeat(width as usize));
         }
         None => {
             let _ = writeln!(out, "{pad}--> {}", d.file);
@@ -140,6 +155,54 @@ pub fn render(d: &Diagnostic, source: &crate::source::SourceFile) -> String {
         let _ = writeln!(out, "{pad} = help: {h}");
     }
     out
+}
+
+/// The longest text from the file a diagnostic's message or context quotes, in characters.
+pub const MAX_QUOTED_TEXT: usize = 80;
+
+/// `text` when it is at most [`MAX_QUOTED_TEXT`] characters long, otherwise its first
+/// [`MAX_QUOTED_TEXT`] characters and `…`: what a message or breadcrumb quotes of a file's text
+/// (a value or name may be megabytes long; its diagnostics stay a few lines).
+pub fn shorten(text: &str) -> Cow<'_, str> {
+    if text.len() <= MAX_QUOTED_TEXT {
+        return Cow::Borrowed(text);
+    }
+    match text.char_indices().nth(MAX_QUOTED_TEXT) {
+        None => Cow::Borrowed(text),
+        Some((cut, _)) => Cow::Owned(format!("{}…", &text[..cut])),
+    }
+}
+
+/// A message with every backtick-quoted part longer than [`MAX_QUOTED_TEXT`] characters cut
+/// with `…` (see [`shorten`]); short messages are returned as they are.
+pub fn shorten_message(message: String) -> String {
+    if message.len() <= 2 * MAX_QUOTED_TEXT {
+        return message;
+    }
+    let mut out = String::with_capacity(4 * MAX_QUOTED_TEXT);
+    for (i, part) in message.split('`').enumerate() {
+        if i > 0 {
+            out.push('`');
+        }
+        // Odd parts are inside backticks; an unquoted part longer than a page is cut too.
+        if i % 2 == 1 || part.len() > 8 * MAX_QUOTED_TEXT { out.push_str(&shorten(part)) } else { out.push_str(part) }
+    }
+    out
+}
+
+/// The longest part of a source line a rendered diagnostic quotes, in characters.
+pub const MAX_QUOTED: u32 = 200;
+
+/// Which characters `from..to` of a line of `len` characters are quoted for a span starting at
+/// character `col`: the whole line when it is at most [`MAX_QUOTED`] long, otherwise
+/// [`MAX_QUOTED`] characters from the line start, or from a little before `col` when `col` lies
+/// further in.
+fn quote_window(len: u32, col: u32) -> (u32, u32) {
+    if len <= MAX_QUOTED {
+        return (0, len);
+    }
+    let from = if col < MAX_QUOTED - 40 { 0 } else { (col - 40).min(len - MAX_QUOTED) };
+    (from, from + MAX_QUOTED)
 }
 
 /// Renders every diagnostic (in the order given, one blank line between them) followed by a

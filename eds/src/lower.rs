@@ -158,7 +158,7 @@ impl<'a> Ctx<'a> {
         self.diags.push(Diagnostic {
             severity,
             code,
-            message: message.into(),
+            message: crate::diag::shorten_message(message.into()),
             file: self.file.get_or_insert_with(|| self.src.name.as_str().into()).clone(),
             span,
             // Filled in by `lower` when all are found.
@@ -219,6 +219,7 @@ pub(crate) fn otype(t: crate::model::ObjectType) -> &'static str {
 
 /// `object 0x1018 "Identity Object"`
 pub(crate) fn object_context(index: u16, name: &str) -> String {
+    let name = &*crate::diag::shorten(name);
     let mut s = String::with_capacity(name.len() + 16);
     s.push_str("object 0x");
     push_hex4(&mut s, index);
@@ -230,6 +231,7 @@ pub(crate) fn object_context(index: u16, name: &str) -> String {
 
 /// `sub 2 "Product Code"`
 pub(crate) fn sub_context(sub: u8, name: &str) -> String {
+    let name = &*crate::diag::shorten(name);
     let mut s = String::with_capacity(name.len() + 10);
     s.push_str("sub ");
     s.push_str(decimal_u8(sub));

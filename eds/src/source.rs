@@ -46,11 +46,19 @@ pub struct LineCol {
     pub col: u32,
 }
 
-/// The offset of every line start: 0 and each offset after a `\n`. Looks at eight bytes at a
-/// time, because every byte of every file passes through here.
+/// The offset of every line start: 0 and each offset after a line end (`\n`, `\r\n` or a lone
+/// `\r`, as the lexer splits lines). Looks at eight bytes at a time, because every byte of every
+/// file passes through here.
 fn line_starts(b: &[u8]) -> Vec<u32> {
     const LO7: u64 = 0x7F7F_7F7F_7F7F_7F7F;
     const NL: u64 = 0x0101_0101_0101_0101 * b'\n' as u64;
+    const CR: u64 = 0x0101_0101_0101_0101 * b'\r' as u64;
+    // The high bit of each byte of `w` that equals the byte repeated in `pattern` (exact: no
+    // carries between bytes).
+    let matches = |w: u64, pattern: u64| {
+        let x = w ^ pattern;
+        !(((x & LO7) + LO7) | x | LO7)
+    };
     // Typical EDS lines are 15-25 bytes long.
     let mut out = Vec::with_capacity(b.len() / 16 + 2);
     out.push(0u32);
@@ -59,18 +67,22 @@ fn line_starts(b: &[u8]) -> Vec<u32> {
     for c in &mut chunks {
         let mut w = [0u8; 8];
         w.copy_from_slice(c);
-        let x = u64::from_le_bytes(w) ^ NL;
-        // The high bit of each byte that is zero in `x` (exact: no carries between bytes).
-        let mut z = !(((x & LO7) + LO7) | x | LO7);
+        let w = u64::from_le_bytes(w);
+        let mut z = matches(w, NL) | matches(w, CR);
         while z != 0 {
-            out.push((base + (z.trailing_zeros() / 8) as usize + 1) as u32);
+            let i = base + (z.trailing_zeros() / 8) as usize;
+            // A `\r` followed by `\n` ends its line at the `\n`.
+            if !(b[i] == b'\r' && b.get(i + 1) == Some(&b'\n')) {
+                out.push((i + 1) as u32);
+            }
             z &= z - 1;
         }
         base += 8;
     }
     for (i, &c) in chunks.remainder().iter().enumerate() {
-        if c == b'\n' {
-            out.push((base + i + 1) as u32);
+        let i = base + i;
+        if c == b'\n' || (c == b'\r' && b.get(i + 1) != Some(&b'\n')) {
+            out.push((i + 1) as u32);
         }
     }
     out
@@ -116,7 +128,7 @@ impl SourceFile {
         SourceFile { name, text, encoding, bom, line_starts: std::sync::OnceLock::new() }
     }
 
-    /// The offset of every line start (0 and each offset after a `\n`).
+    /// The offset of every line start (0 and each offset after a line end).
     fn starts(&self) -> &[u32] {
         self.line_starts.get_or_init(|| line_starts(self.text.as_bytes()))
     }
@@ -200,12 +212,12 @@ mod tests {
 
     #[test]
     fn line_starts_match_a_byte_loop() {
-        let text: Vec<u8> = b"a\nbb\n\n\x0B\n\x0B\x0Bccc\r\n\n\n\n\n\n\n\n\nxyz\x8A\x0A\xFF\n".repeat(3);
+        let text: Vec<u8> = b"a\nbb\n\n\x0B\n\x0B\x0Bccc\r\n\n\n\r\r\n\n\n\n\n\nxyz\x8A\x0A\r\xFF\n\r".repeat(3);
         for end in 0..text.len() {
             let b = &text[..end];
-            let naive: Vec<u32> = std::iter::once(0)
-                .chain(b.iter().enumerate().filter(|(_, c)| **c == b'\n').map(|(i, _)| i as u32 + 1))
-                .collect();
+            let ends = |i: usize| b[i] == b'\n' || (b[i] == b'\r' && b.get(i + 1) != Some(&b'\n'));
+            let naive: Vec<u32> =
+                std::iter::once(0).chain((0..b.len()).filter(|&i| ends(i)).map(|i| i as u32 + 1)).collect();
             assert_eq!(line_starts(b), naive);
         }
     }

@@ -309,13 +309,11 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
     let mut repeated = false;
     // The section the following entries belong to, and its occurrence.
     let mut current: Option<(usize, u16)> = None;
-    // The start of every line `line_col` counts (lines end at `\n`), handed to the source for its
-    // diagnostics; its length is the number of the current line. And the number of characters
-    // between the start of that line and the start of the current lexer line (not 0 only after
-    // lines that end with a lone `\r`).
+    // The start of every line (lines end at `\n`, `\r\n` or a lone `\r`, for positions as for
+    // the lexer), handed to the source for its diagnostics; its length is the number of the
+    // current line.
     let mut line_starts: Vec<u32> = Vec::with_capacity(text.len() / 6 + 2);
     line_starts.push(0);
-    let mut col_base = 0u32;
     // The lines are taken from the lexer one at a time; none is kept. Most lines are plain
     // entries inside a section: the lexer reads those on a shorter path of their own.
     let mut lexer = crate::lex::Lexer::new(text);
@@ -325,7 +323,6 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
         {
             entries.push(Kv { key: e.key, value: e.value, key_start: e.start, occurrence });
             if e.newline {
-                col_base = 0;
                 line_starts.push(e.end);
             }
             continue;
@@ -333,7 +330,6 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
         // Empty lines (one between sections, as most files write them) need no more than
         // their end.
         if let Some(end) = lexer.next_empty_line() {
-            col_base = 0;
             line_starts.push(end);
             continue;
         }
@@ -402,7 +398,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                             let i = heads.len();
                             let before = src.slice(Span::new(line.raw.start, name.start));
                             let line_no = line_starts.len() as u32;
-                            let at = LineCol { line: line_no, col: col_base + char_count(before) + 1 };
+                            let at = LineCol { line: line_no, col: char_count(before) + 1 };
                             heads.push(Head { name: name_str, name_span: name, at, kind, entries: 0..0 });
                             occurrences.push(0);
                             if kind == Kind::Unknown {
@@ -440,11 +436,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
             }
         }
         match line.ending {
-            LineEnding::Lf | LineEnding::CrLf => {
-                col_base = 0;
-                line_starts.push(line.raw.end);
-            }
-            LineEnding::Cr => col_base += char_count(src.slice(line.raw)),
+            LineEnding::Lf | LineEnding::CrLf | LineEnding::Cr => line_starts.push(line.raw.end),
             LineEnding::None => {}
         }
     }

@@ -1,0 +1,113 @@
+//! Hostile input: files shaped to make a reader slow, large or wrong (an outside robustness run
+//! found each of these). The rules tested here hold for every input of the kind, so the inputs
+//! are built in the tests.
+
+use std::path::{Path, PathBuf};
+
+use eds::{Options, Severity};
+
+fn fixtures() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures")
+}
+
+/// Every fixture (the base file and one per diagnostic code) as text.
+fn fixture_texts() -> Vec<(String, String)> {
+    let mut out = vec![("base.eds".to_owned(), std::fs::read_to_string(fixtures().join("base.eds")).unwrap())];
+    let mut diag: Vec<_> = std::fs::read_dir(fixtures().join("diag")).unwrap().map(|e| e.unwrap().path()).collect();
+    diag.sort();
+    for p in diag {
+        let bytes = std::fs::read(&p).unwrap();
+        // (E0001 is not UTF-8 on purpose; it is about the encoding, not the line ends.)
+        if let Ok(text) = String::from_utf8(bytes) {
+            out.push((p.file_name().unwrap().to_string_lossy().into_owned(), text));
+        }
+    }
+    out
+}
+
+/// Diagnostics as (code, severity, line, column, message).
+fn located(p: &eds::Parsed) -> Vec<(eds::Code, Severity, u32, u32, String)> {
+    p.diagnostics
+        .iter()
+        .map(|d| (d.code, d.severity, d.at.map_or(0, |a| a.line), d.at.map_or(0, |a| a.col), d.message.clone()))
+        .collect()
+}
+
+/// A lone `\r` ends a line for positions as it does for the lexer: a file with its `\n`s
+/// replaced by `\r` or `\r\n` gets every diagnostic at the same line and column.
+#[test]
+fn every_line_end_gives_the_same_positions() {
+    for (name, text) in fixture_texts() {
+        let lf = text.replace("\r\n", "\n");
+        let want = located(&eds::parse(&name, lf.as_bytes(), &Options::strict()));
+        for ending in ["\r", "\r\n"] {
+            let other = lf.replace('\n', ending);
+            let got = located(&eds::parse(&name, other.as_bytes(), &Options::strict()));
+            assert_eq!(got, want, "{name} with {ending:?} line ends");
+        }
+    }
+}
+
+/// The longest line of a rendered diagnostic, in characters.
+fn longest_line(text: &str) -> usize {
+    text.lines().map(|l| l.chars().count()).max().unwrap_or(0)
+}
+
+/// A rendered diagnostic quotes at most a window of its line, however long the line (a file
+/// with one 120 KB line used to be quoted whole for every diagnostic on it).
+#[test]
+fn quoted_lines_are_cut() {
+    // One very long line, with problems at its start, middle and end.
+    let mut text = String::from("[FileInfo]\n");
+    text.push_str(&"Junk without an equals sign ".repeat(2000));
+    text.push_str("\n[1000]\nParameterName=Device type\nObjectType=0x7\nDataType=0x0007\nAccessType=ro\nDefaultValue=");
+    text.push_str(&"9".repeat(5000));
+    text.push('\n');
+    let parsed = eds::parse("long.eds", text.as_bytes(), &Options::strict());
+    assert!(!parsed.diagnostics.is_empty());
+    for d in &parsed.diagnostics {
+        let out = eds::diag::render(d, &parsed.document.source);
+        assert!(longest_line(&out) <= eds::diag::MAX_QUOTED as usize + 300, "{out}");
+        if d.span.is_some() && out.contains("DefaultValue=999") {
+            assert!(out.contains('…'), "{out}");
+        }
+    }
+}
+
+/// A window cut out of a long line still has its caret under the span.
+#[test]
+fn caret_under_the_span_in_a_cut_line() {
+    let line = format!("K={}BAD{}", "x".repeat(1000), "y".repeat(1000));
+    let src = eds::source::SourceFile::from_str("a.eds", format!("{line}\n"));
+    let start = line.find("BAD").unwrap() as u32;
+    let mut d = eds::Diagnostic::new(eds::codes::E0301, eds::Strictness::Strict, "a.eds", "bad");
+    d.span = Some(eds::source::Span::new(start, start + 3));
+    d.at = Some(src.line_col(start));
+    let out = eds::diag::render(&d, &src);
+    let lines: Vec<&str> = out.lines().collect();
+    let quoted = lines[3].split_once(" | ").unwrap().1;
+    let carets = lines[4].split_once(" | ").unwrap().1;
+    let at = carets.find('^').unwrap();
+    let chars: Vec<char> = quoted.chars().collect();
+    assert_eq!(chars[at..at + 3].iter().collect::<String>(), "BAD", "{out}");
+    assert!(quoted.starts_with('…') && quoted.ends_with('…'), "{out}");
+    assert!(chars.len() <= eds::diag::MAX_QUOTED as usize + 2);
+}
+
+/// A CR-only file of many problems renders in output proportional to its problems, not to
+/// the file size times the problems.
+#[test]
+fn cr_only_file_renders_small() {
+    let mut text = String::from("[FileInfo]\r");
+    for i in 0..3000 {
+        text.push_str(&format!("junk line {i}\r"));
+    }
+    let parsed = eds::parse("cr.eds", text.as_bytes(), &Options::lenient());
+    let junk: Vec<_> = parsed.diagnostics.iter().filter(|d| d.code == eds::codes::E0002).collect();
+    assert_eq!(junk.len(), 3000);
+    for (i, d) in junk.iter().enumerate() {
+        assert_eq!(d.at.map(|a| a.line), Some(i as u32 + 2));
+    }
+    let rendered: usize = parsed.diagnostics.iter().map(|d| eds::diag::render(d, &parsed.document.source).len()).sum();
+    assert!(rendered < 3000 * 400, "{rendered} bytes of diagnostics");
+}
