@@ -24,6 +24,8 @@ mod sections;
 mod validate;
 
 pub use pdo::expand_compact_pdo;
+#[doc(hidden)]
+pub use sections::name_comparisons;
 
 use crate::ast::Document;
 use crate::diag::{Code, Diagnostic, Severity};

@@ -111,3 +111,38 @@ fn cr_only_file_renders_small() {
     let rendered: usize = parsed.diagnostics.iter().map(|d| eds::diag::render(d, &parsed.document.source).len()).sum();
     assert!(rendered < 3000 * 400, "{rendered} bytes of diagnostics");
 }
+
+/// `n` sections of distinct unknown names (`[Foo0]`, `[Foo1]`, …; every tenth spelled again in
+/// other case later, which merges it into the first).
+fn unknown_sections(n: usize) -> String {
+    let mut text = std::fs::read_to_string(fixtures().join("base.eds")).unwrap();
+    for i in 0..n {
+        text.push_str(&format!("[Foo{i}]\nKey{i}=v\n"));
+    }
+    for i in (0..n).step_by(10) {
+        text.push_str(&format!("[FOO{i}]\nOther=w\n"));
+    }
+    text
+}
+
+/// Grouping sections costs a bounded number of name comparisons per section header, however
+/// many distinct unknown sections there are (each header was compared with every unknown
+/// section before it: 20k sections took 0.7 s, 80k 15 s). Counted, not timed.
+#[test]
+fn unknown_sections_are_grouped_in_linear_work() {
+    if cfg!(not(debug_assertions)) {
+        return; // release builds do not count
+    }
+    for n in [5_000, 20_000, 80_000] {
+        let text = unknown_sections(n);
+        let before = eds::lower::name_comparisons();
+        let parsed = eds::parse("unknown.eds", text.as_bytes(), &Options::lenient());
+        let comparisons = eds::lower::name_comparisons() - before;
+        assert_eq!(parsed.model.extra_sections.len(), n);
+        let repeated = parsed.diagnostics.iter().filter(|d| d.code == eds::codes::E0006).count();
+        assert_eq!(repeated, n / 10);
+        // A few per header at most (a scan of the sections before it made n²/2).
+        let headers = (n + n / 10) as u64;
+        assert!(comparisons <= 3 * headers, "{n} sections: {comparisons} comparisons");
+    }
+}

@@ -279,6 +279,35 @@ fn classify_object(name: &str, index: u16) -> (Kind, Spelling) {
     (Kind::Unknown, Spelling::Exact)
 }
 
+/// The name of a section of unknown kind in ASCII lower case, as a map key. Debug builds count
+/// the comparisons of two keys ([`name_comparisons`]), so that a test can hold the grouping of
+/// sections to a bounded number per section, whatever the file.
+#[derive(Hash, Eq)]
+struct NameKey(String);
+
+impl PartialEq for NameKey {
+    fn eq(&self, other: &Self) -> bool {
+        #[cfg(debug_assertions)]
+        NAME_COMPARISONS.with(|c| c.set(c.get() + 1));
+        self.0 == other.0
+    }
+}
+
+#[cfg(debug_assertions)]
+thread_local! {
+    static NAME_COMPARISONS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// How many times this thread compared two names of unknown sections while grouping sections
+/// (debug builds; 0 in release builds, which do not count).
+#[doc(hidden)]
+pub fn name_comparisons() -> u64 {
+    #[cfg(debug_assertions)]
+    return NAME_COMPARISONS.with(|c| c.get());
+    #[cfg(not(debug_assertions))]
+    0
+}
+
 /// Groups the document's lines into sections and reports line-level problems.
 pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> {
     let src = &doc.source;
@@ -299,8 +328,10 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
     let sections = text.len() / 48 + 8;
     let mut heads: Vec<Head<'a>> = Vec::with_capacity(sections);
     let mut by_kind: FastMap<u32, usize> = FastMap::with_capacity_and_hasher(sections, Default::default());
-    // Sections of unknown kind, matched by name (ignoring ASCII case); there are few.
-    let mut unknown: Vec<usize> = Vec::new();
+    // Sections of unknown kind, by name in ASCII lower case (names are matched ignoring ASCII
+    // case). Real files have few; a file of many must not cost a scan of all the others each,
+    // and the names are the file's choice: the standard (keyed) hasher, not `FastMap`'s.
+    let mut unknown: std::collections::HashMap<NameKey, usize> = std::collections::HashMap::new();
     let mut occurrences: Vec<u16> = Vec::with_capacity(sections);
     let mut entries: Vec<Kv<'a>> = Vec::with_capacity(text.len() / 10 + 8);
     // Each section header starts a run of entries: (section, first entry). A run ends where the
@@ -369,9 +400,13 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                     // A new section of a known kind is entered under the number it is about to get
                     // (one hash and one probe, where a look-up and an insertion took two).
                     let existing = match kind {
-                        Kind::Unknown => {
-                            unknown.iter().copied().find(|&i| heads[i].name.eq_ignore_ascii_case(name_str))
-                        }
+                        Kind::Unknown => match unknown.entry(NameKey(name_str.to_ascii_lowercase())) {
+                            std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
+                            std::collections::hash_map::Entry::Vacant(e) => {
+                                e.insert(heads.len());
+                                None
+                            }
+                        },
                         k => match by_kind.entry(k.key()) {
                             std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
                             std::collections::hash_map::Entry::Vacant(e) => {
@@ -401,9 +436,6 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                             let at = LineCol { line: line_no, col: char_count(before) + 1 };
                             heads.push(Head { name: name_str, name_span: name, at, kind, entries: 0..0 });
                             occurrences.push(0);
-                            if kind == Kind::Unknown {
-                                unknown.push(i);
-                            }
                             i
                         }
                     };
