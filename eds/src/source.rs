@@ -35,6 +35,10 @@ pub enum Encoding {
     Utf8,
     /// Not UTF-8: decoded as Windows-1252 (reported as a warning).
     Windows1252,
+    /// UTF-16, little-endian, with its byte-order mark (`FF FE`; reported as a warning).
+    Utf16Le,
+    /// UTF-16, big-endian, with its byte-order mark (`FE FF`; reported as a warning).
+    Utf16Be,
 }
 
 /// A 1-based line and column (column counted in characters).
@@ -98,16 +102,44 @@ pub struct SourceFile {
     /// The encoding the bytes were decoded from.
     pub encoding: Encoding,
     /// Whether the input started with a UTF-8 byte-order mark (kept for lossless writing; the
-    /// mark itself is not part of `text`).
+    /// mark itself is not part of `text`). UTF-16 text always has its mark, which `encoding`
+    /// implies.
     pub bom: bool,
+    /// For UTF-16: the number of code units that were not valid UTF-16 (unpaired surrogates, an
+    /// odd last byte), each decoded as U+FFFD. Reported as an error: the text is not what the
+    /// file says.
+    pub invalid_units: usize,
     /// Offsets of the line starts; found by the lexer, which looks at every byte anyway, or
     /// computed on first use.
     line_starts: std::sync::OnceLock<Vec<u32>>,
 }
 
 impl SourceFile {
-    /// Decodes `bytes` (UTF-8, falling back to Windows-1252) and indexes its lines.
+    /// Decodes `bytes` (UTF-16 when it starts with a UTF-16 byte-order mark, otherwise UTF-8,
+    /// falling back to Windows-1252) and indexes its lines.
     pub fn decode(name: impl Into<String>, bytes: &[u8]) -> Self {
+        let utf16 = match bytes {
+            [0xFF, 0xFE, rest @ ..] => Some((Encoding::Utf16Le, rest, u16::from_le_bytes as fn([u8; 2]) -> u16)),
+            [0xFE, 0xFF, rest @ ..] => Some((Encoding::Utf16Be, rest, u16::from_be_bytes as fn([u8; 2]) -> u16)),
+            _ => None,
+        };
+        if let Some((encoding, body, unit)) = utf16 {
+            let units = body.chunks_exact(2).map(|c| unit([c[0], c[1]]));
+            let mut invalid = body.len() % 2;
+            let mut text = String::with_capacity(body.len() / 2);
+            for c in char::decode_utf16(units) {
+                text.push(c.unwrap_or_else(|_| {
+                    invalid += 1;
+                    char::REPLACEMENT_CHARACTER
+                }));
+            }
+            if body.len() % 2 == 1 {
+                text.push(char::REPLACEMENT_CHARACTER);
+            }
+            let mut src = Self::from_parts(name.into(), text, encoding, false);
+            src.invalid_units = invalid;
+            return src;
+        }
         let (bom, body) = match bytes.strip_prefix(b"\xEF\xBB\xBF") {
             Some(rest) => (true, rest),
             None => (false, bytes),
@@ -125,7 +157,7 @@ impl SourceFile {
     }
 
     fn from_parts(name: String, text: String, encoding: Encoding, bom: bool) -> Self {
-        SourceFile { name, text, encoding, bom, line_starts: std::sync::OnceLock::new() }
+        SourceFile { name, text, encoding, bom, invalid_units: 0, line_starts: std::sync::OnceLock::new() }
     }
 
     /// The offset of every line start (0 and each offset after a line end).

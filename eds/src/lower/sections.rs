@@ -311,7 +311,23 @@ pub fn name_comparisons() -> u64 {
 /// Groups the document's lines into sections and reports line-level problems.
 pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> {
     let src = &doc.source;
-    if src.encoding == Encoding::Windows1252 {
+    if matches!(src.encoding, Encoding::Utf16Le | Encoding::Utf16Be) {
+        let order = if src.encoding == Encoding::Utf16Le { "little" } else { "big" };
+        cx.emit(
+            codes::E0010,
+            None,
+            format!("file is UTF-16 ({order}-endian, with a byte-order mark); it was decoded as such"),
+        )
+        .hint = Some("save the file as UTF-8 (or plain ASCII, as CiA 306 asks); `odgen fmt` writes it so".into());
+        if src.invalid_units > 0 {
+            cx.emit(
+                codes::E0011,
+                None,
+                format!("{} code unit(s) are not valid UTF-16; each was read as U+FFFD", src.invalid_units),
+            )
+            .hint = Some("the file is damaged or not UTF-16: check how it was saved".into());
+        }
+    } else if src.encoding == Encoding::Windows1252 {
         cx.emit(codes::E0001, None, "file is not valid UTF-8; it was decoded as Windows-1252").hint =
             Some("save the file as UTF-8 (or plain ASCII, as CiA 306 asks)".into());
     } else if !src.text.is_ascii()
