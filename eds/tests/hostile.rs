@@ -173,3 +173,44 @@ fn utf16_reads_as_its_utf8_twin() {
         }
     }
 }
+
+/// The sections of a text: (header line, body).
+fn sections_of(text: &str) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for line in text.lines() {
+        if line.starts_with('[') || out.is_empty() {
+            out.push(String::new());
+        }
+        let last = out.last_mut().unwrap();
+        last.push_str(line);
+        last.push('\n');
+    }
+    out
+}
+
+/// A section given twice (every key set in both, some to other values, plus a key only the
+/// repeat has) is one section in the model, each key once with its later value: the canonical
+/// text written from it has no repeated section or key, and reads back as the same model.
+/// (`fmt` turned each repeated section into repeated keys: 37 warnings became 396.)
+#[test]
+fn repeated_sections_are_written_once() {
+    for (name, text) in fixture_texts() {
+        let sections = sections_of(&text);
+        let mut doubled = text.clone();
+        for (i, sec) in sections.iter().enumerate().filter(|(_, s)| s.starts_with('[')) {
+            let changed = sec.replace("=0\n", "=1\n");
+            doubled.push_str(&format!("\n{changed}ExtraKeyOfRepeat{i}=x\n"));
+        }
+        let parsed = eds::parse(&name, doubled.as_bytes(), &Options::lenient());
+        let written = eds::write::write(&parsed.model);
+        let back = eds::parse(&name, written.as_bytes(), &Options::lenient());
+        let repeats: Vec<_> = back
+            .diagnostics
+            .iter()
+            .filter(|d| d.code == eds::codes::E0006 || d.code == eds::codes::E0007)
+            .map(|d| d.message.clone())
+            .collect();
+        assert!(repeats.is_empty(), "{name}: {repeats:#?}");
+        assert_eq!(back.model, parsed.model, "{name}");
+    }
+}

@@ -720,7 +720,8 @@ impl<const N: usize> KeySet<N> {
 pub(crate) struct Keys<'a, const N: usize> {
     /// For each known key, the entry that sets it (the last one if repeated).
     pub found: [Option<&'a Kv<'a>>; N],
-    /// Entries whose key is not known, in file order.
+    /// Entries whose key is not known, in file order of each key's first entry, with the value
+    /// of its last.
     pub unknown: Vec<&'a Kv<'a>>,
 }
 
@@ -788,13 +789,24 @@ pub(crate) fn match_keys<'a, const N: usize>(
                     last_unknown = Some(map);
                 }
                 let prev = match &mut last_unknown {
-                    Some(map) => map.insert(Caseless(kv.key), unknown.len()).map(|i| unknown[i]),
-                    None => unknown.iter().rev().find(|u| u.key.eq_ignore_ascii_case(kv.key)).copied(),
+                    Some(map) => match map.entry(Caseless(kv.key)) {
+                        std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
+                        std::collections::hash_map::Entry::Vacant(e) => {
+                            e.insert(unknown.len());
+                            None
+                        }
+                    },
+                    None => unknown.iter().position(|u| u.key.eq_ignore_ascii_case(kv.key)),
                 };
-                if let Some(prev) = prev {
-                    report_duplicate(cx, prev, kv, context);
+                // A repeated key keeps its first place with the later value, as a known key
+                // does: the model (and a file written from it) has each key once.
+                match prev {
+                    Some(i) => {
+                        report_duplicate(cx, unknown[i], kv, context);
+                        unknown[i] = kv;
+                    }
+                    None => unknown.push(kv),
                 }
-                unknown.push(kv);
                 if report_unknown {
                     let d = cx.emit(
                         codes::E0102,
@@ -830,7 +842,8 @@ impl std::hash::Hash for Caseless<'_> {
     }
 }
 
-fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, context: Crumbs<'_>) {
+/// Reports `kv` as a repeat of `prev` (E0007), unless the repeat comes from a repeated section.
+pub(crate) fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, context: Crumbs<'_>) {
     // Repeats that come from a repeated section were already reported with the section.
     if prev.occurrence != kv.occurrence {
         return;
@@ -941,7 +954,10 @@ mod tests {
             let collected = collect(&doc, &mut cx);
             let secs = collected.sections();
             let keys = match_keys(&mut cx, &secs.list[0], &KeySet::new(["SupportedObjects"]), Crumbs::default(), false);
-            assert_eq!(keys.unknown.len(), n + 3);
+            // Each key once: `2` and `xY` keep their first place with their later values.
+            assert_eq!(keys.unknown.len(), n + 1);
+            assert_eq!(keys.unknown[1].value, "0x2000");
+            assert_eq!(keys.unknown[n].value, "2");
             let repeats: Vec<_> = cx
                 .diags
                 .iter()
