@@ -108,8 +108,14 @@ impl std::fmt::Display for Code {
 ///
 /// `source` supplies the quoted line; a diagnostic without a span shows only its file name.
 pub fn render(d: &Diagnostic, source: &crate::source::SourceFile) -> String {
-    use std::fmt::Write as _;
     let mut out = String::new();
+    render_to(&mut out, d, source);
+    out
+}
+
+/// [`render`], appended to `out` (a caller rendering many diagnostics reuses one buffer).
+pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::SourceFile) {
+    use std::fmt::Write as _;
     let _ = writeln!(out, "{}[{}]: {}", d.severity, d.code, d.message);
     let at = d.span.map(|s| (s, d.at.unwrap_or_else(|| source.line_col(s.start))));
     let gutter = at.map(|(_, lc)| lc.line.to_string().len()).unwrap_or(1);
@@ -154,7 +160,6 @@ pub fn render(d: &Diagnostic, source: &crate::source::SourceFile) -> String {
     if let Some(h) = &d.hint {
         let _ = writeln!(out, "{pad} = help: {h}");
     }
-    out
 }
 
 /// The longest text from the file a diagnostic's message or context quotes, in characters.
@@ -237,6 +242,65 @@ pub fn summary(diagnostics: &[Diagnostic]) -> String {
         parts.push(part(n, "note"));
     }
     parts.join(", ")
+}
+
+/// Appends `text` to `out` as a JSON string (quoted and escaped).
+pub fn push_json_str(out: &mut String, text: &str) {
+    out.push('"');
+    let bytes = text.as_bytes();
+    let mut from = 0;
+    for (i, &b) in bytes.iter().enumerate() {
+        let esc: &str = match b {
+            b'"' => "\\\"",
+            b'\\' => "\\\\",
+            b'\n' => "\\n",
+            b'\r' => "\\r",
+            b'\t' => "\\t",
+            0..=0x1F => "",
+            _ => continue,
+        };
+        out.push_str(&text[from..i]);
+        if esc.is_empty() {
+            use std::fmt::Write as _;
+            let _ = write!(out, "\\u{b:04x}");
+        } else {
+            out.push_str(esc);
+        }
+        from = i + 1;
+    }
+    out.push_str(&text[from..]);
+    out.push('"');
+}
+
+/// Appends one diagnostic as a JSON object, written directly (no value tree): the fields of
+/// [`Diagnostic`] in order, then `deviation`, exactly what [`to_json`] gives for each element.
+pub fn push_json(out: &mut String, d: &Diagnostic) {
+    use std::fmt::Write as _;
+    let _ = write!(out, "{{\"severity\":\"{}\",\"code\":\"{}\",\"message\":", d.severity, d.code);
+    push_json_str(out, &d.message);
+    out.push_str(",\"file\":");
+    push_json_str(out, &d.file);
+    match d.span {
+        Some(s) => _ = write!(out, ",\"span\":{{\"start\":{},\"end\":{}}}", s.start, s.end),
+        None => out.push_str(",\"span\":null"),
+    }
+    match d.at {
+        Some(a) => _ = write!(out, ",\"at\":{{\"line\":{},\"col\":{}}}", a.line, a.col),
+        None => out.push_str(",\"at\":null"),
+    }
+    out.push_str(",\"context\":[");
+    for (i, c) in d.context.iter().enumerate() {
+        if i > 0 {
+            out.push(',');
+        }
+        push_json_str(out, c);
+    }
+    out.push_str("],\"hint\":");
+    match &d.hint {
+        Some(h) => push_json_str(out, h),
+        None => out.push_str("null"),
+    }
+    let _ = write!(out, ",\"deviation\":{}}}", d.is_deviation());
 }
 
 /// The diagnostics as a JSON array for tools. Each element has the [`Diagnostic`] fields plus

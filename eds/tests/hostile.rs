@@ -214,3 +214,26 @@ fn repeated_sections_are_written_once() {
         assert_eq!(back.model, parsed.model, "{name}");
     }
 }
+
+/// The JSON written directly for each diagnostic is what serde makes of it (`to_json`), for
+/// every diagnostic of every fixture, and for text with every control character and quotes.
+#[test]
+fn direct_json_equals_serde_json() {
+    let mut texts = fixture_texts();
+    let odd: String = (0u8..0x80).map(char::from).chain("\"\\ äß€ \u{1F600}".chars()).collect();
+    texts.push(("odd.eds".into(), format!("[FileInfo]\n{odd}\nKey{odd}=1\n[Section{odd}]\n")));
+    for (name, text) in texts {
+        let parsed = eds::parse(&name, text.as_bytes(), &Options::strict());
+        let want: serde_json::Value = serde_json::from_str(&eds::diag::to_json(&parsed.diagnostics)).unwrap();
+        let mut direct = String::from("[");
+        for (i, d) in parsed.diagnostics.iter().enumerate() {
+            if i > 0 {
+                direct.push(',');
+            }
+            eds::diag::push_json(&mut direct, d);
+        }
+        direct.push(']');
+        let got: serde_json::Value = serde_json::from_str(&direct).unwrap_or_else(|e| panic!("{name}: {e}: {direct}"));
+        assert_eq!(got, want, "{name}");
+    }
+}

@@ -6,6 +6,7 @@ pub mod dcf;
 pub mod diff;
 pub mod dump;
 pub mod fmt;
+pub mod sarif;
 
 use std::path::Path;
 
@@ -83,6 +84,47 @@ pub fn write_stdout(text: &str) {
         }
         eprintln!("error: cannot write to standard output: {e}");
         std::process::exit(i32::from(EXIT_TROUBLE));
+    }
+}
+
+/// Output to standard output, written in blocks of 64 KiB through [`write_stdout`] as it is
+/// made: a command printing a great deal never holds it all.
+pub struct Stream {
+    buf: String,
+}
+
+impl Stream {
+    /// The size at which the buffer is written out.
+    const BLOCK: usize = 1 << 16;
+
+    /// A stream to standard output.
+    pub fn stdout() -> Self {
+        Stream { buf: String::with_capacity(Self::BLOCK + 4096) }
+    }
+
+    /// Appends text.
+    pub fn push(&mut self, text: &str) {
+        self.buf.push_str(text);
+        self.write_if_full();
+    }
+
+    /// Lets `f` append to the buffer.
+    pub fn with(&mut self, f: impl FnOnce(&mut String)) {
+        f(&mut self.buf);
+        self.write_if_full();
+    }
+
+    fn write_if_full(&mut self) {
+        if self.buf.len() >= Self::BLOCK {
+            write_stdout(&self.buf);
+            self.buf.clear();
+        }
+    }
+
+    /// Writes what is left.
+    pub fn finish(mut self) {
+        write_stdout(&self.buf);
+        self.buf.clear();
     }
 }
 
