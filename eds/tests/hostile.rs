@@ -237,3 +237,37 @@ fn direct_json_equals_serde_json() {
         assert_eq!(got, want, "{name}");
     }
 }
+
+/// E0219 (ARRAY elements of different types; an error under --strict) is located in every
+/// shape of ARRAY: elements in sections, CompactSubObj elements with sub 1 or a later one
+/// overridden. (With sub 1 overridden the differing element had no section, and the
+/// diagnostic no line.)
+#[test]
+fn mixed_array_types_are_located() {
+    let base = std::fs::read_to_string(fixtures().join("base.eds")).unwrap();
+    let sub = |n: u8, dt: &str| {
+        format!(
+            "[2100sub{n:X}]\nParameterName=e{n}\nObjectType=0x7\nDataType={dt}\nAccessType=rw\nDefaultValue=0\nPDOMapping=0\n\n"
+        )
+    };
+    let head = "[2100]\nParameterName=Mixed\nObjectType=0x8\n";
+    let compact = "DataType=0x0006\nAccessType=rw\nCompactSubObj=4\nPDOMapping=0\n\n";
+    let shapes = [
+        format!("{head}SubNumber=3\n\n{}{}{}", sub(0, "0x0005"), sub(1, "0x0006"), sub(2, "0x0007")),
+        format!("{head}{compact}{}", sub(1, "0x0007")),
+        format!("{head}{compact}{}", sub(3, "0x0007")),
+    ];
+    for shape in shapes {
+        let text = base
+            .replace("SupportedObjects=2\n1=0x2000\n2=0x2001\n", "SupportedObjects=3\n1=0x2000\n2=0x2001\n3=0x2100\n")
+            + "\n"
+            + &shape;
+        let parsed = eds::parse("mixed.eds", text.as_bytes(), &Options::strict());
+        let mixed: Vec<_> = parsed.diagnostics.iter().filter(|d| d.code == eds::codes::E0219).collect();
+        assert_eq!(mixed.len(), 1, "{shape}\n{:#?}", parsed.diagnostics);
+        assert_eq!(mixed[0].severity, Severity::Error);
+        let at = mixed[0].at.unwrap_or_else(|| panic!("E0219 without a place:\n{shape}"));
+        let line = parsed.document.source.line_text(at.line);
+        assert!(line.starts_with("[2100"), "{line}");
+    }
+}
