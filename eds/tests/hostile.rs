@@ -271,3 +271,27 @@ fn mixed_array_types_are_located() {
         assert!(line.starts_with("[2100"), "{line}");
     }
 }
+
+/// A file of a great many problems keeps at most `MAX_PER_CODE` diagnostics of a code (and
+/// says how many more there were): memory for diagnostics stays bounded whatever the file (700k
+/// junk lines kept 700k diagnostics, a hundred times the input).
+#[test]
+fn diagnostics_of_one_code_are_bounded() {
+    let n = 3 * eds::lower::MAX_PER_CODE as usize;
+    let mut text = std::fs::read_to_string(fixtures().join("base.eds")).unwrap();
+    text.push_str("[Tools]\n");
+    for i in 0..n {
+        text.push_str(&format!("junk{i}\n"));
+    }
+    let parsed = eds::parse("junk.eds", text.as_bytes(), &Options::lenient());
+    let junk: Vec<_> = parsed.diagnostics.iter().filter(|d| d.code == eds::codes::E0002).collect();
+    assert_eq!(junk.len(), eds::lower::MAX_PER_CODE as usize + 1);
+    let last = junk.last().unwrap();
+    assert!(last.span.is_none());
+    let left = n - eds::lower::MAX_PER_CODE as usize;
+    assert!(last.message.starts_with(&format!("{left} more E0002 diagnostics")), "{}", last.message);
+    // The kept ones are the first, in order.
+    assert_eq!(junk[0].at.map(|a| a.line), Some(text.lines().position(|l| l == "junk0").unwrap() as u32 + 1));
+    // Other codes are still reported.
+    assert!(parsed.diagnostics.iter().any(|d| d.code == eds::codes::E0101));
+}

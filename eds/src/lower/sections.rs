@@ -478,7 +478,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                         Some(line.content),
                         format!("`{shown}` is not a section header, a `key=value` entry or a comment (line ignored)"),
                     );
-                    d.hint = Some(hint.to_owned().into());
+                    d.hint = Some(hint.into());
                 }
                 LineKind::Blank => {}
             }

@@ -128,6 +128,26 @@ impl Stream {
     }
 }
 
+impl crate::yaml::Sink for Stream {
+    fn push(&mut self, text: &str) {
+        Stream::push(self, text);
+    }
+}
+
+/// Bytes written to a [`Stream`] (serde_json's output, which is UTF-8).
+impl std::io::Write for Stream {
+    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+        // serde_json writes whole UTF-8 sequences; anything else is a bug to hear about.
+        let text = std::str::from_utf8(bytes).map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))?;
+        self.push(text);
+        Ok(bytes.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
 /// `println!` through [`write_stdout`].
 macro_rules! outln {
     ($($arg:tt)*) => {{
