@@ -93,6 +93,17 @@ fn format_one(path: &Path, check: bool) -> Outcome {
         eprintln!("  (make each a `;` comment, move it into its section, or remove it; `odgen check` says why)");
         return Outcome::Failed;
     }
+    let unrepresentable = eds::write::unrepresentable(&parsed.model);
+    if !unrepresentable.is_empty() {
+        eprintln!("error: not formatting {name}: the canonical form cannot say what the file says:");
+        for u in unrepresentable.iter().take(LISTED) {
+            eprintln!("  {u}");
+        }
+        if unrepresentable.len() > LISTED {
+            eprintln!("  … and {} more", unrepresentable.len() - LISTED);
+        }
+        return Outcome::Failed;
+    }
     let text = eds::write::write(&parsed.model);
     // Safety net: never replace a file with text that means something else.
     let back = eds::parse(&name, text.as_bytes(), &eds::Options::lenient());
