@@ -14,7 +14,7 @@ would redirect it. Prints one line per run and exits 1 when a run is over budget
 times out (120 s).
 """
 import os
-import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -66,8 +66,7 @@ def run(odgen, args, path, out_dir):
     if args[0] == "fmt" and "--check" not in args:
         # fmt rewrites its input: give it a copy.
         target = os.path.join(out_dir, "copy-" + os.path.basename(path))
-        with open(path, "rb") as src, open(target, "wb") as dst:
-            dst.write(src.read())
+        shutil.copyfile(path, target)  # (streamed: this process must stay small, see main)
     with open(os.path.join(out_dir, "stdout"), "wb") as out, open(os.path.join(out_dir, "stderr"), "wb") as err:
         start = time.monotonic()
         p = subprocess.Popen([odgen] + args + [target], stdout=out, stderr=err)
