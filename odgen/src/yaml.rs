@@ -252,10 +252,14 @@ impl<R: BufRead, S: Sink> Converter<'_, R, S> {
             if buf.is_empty() {
                 return Err("unterminated string".to_owned());
             }
-            let run = buf.iter().position(|&b| b == b'"' || b == b'\\').unwrap_or(buf.len());
+            let len = buf.len();
+            let run = buf.iter().position(|&b| b == b'"' || b == b'\\').unwrap_or(len);
             raw.extend_from_slice(&buf[..run]);
             self.r.consume(run);
             self.pos += run;
+            if run == len {
+                continue; // the string goes on in the next block
+            }
             match self.next()? {
                 Some(b'"') => break,
                 Some(b'\\') => {
@@ -307,6 +311,19 @@ mod tests {
     fn nested_sequences_and_maps_in_sequences() {
         let y = from_json(r#"[[1, [2, 3]], {"a": [{"b": {}}, []]}, [], {}]"#).unwrap();
         assert_eq!(y, "-\n  - 1\n  -\n    - 2\n    - 3\n- a:\n    - b: {}\n    - []\n- []\n- {}\n");
+    }
+
+    /// Strings longer than the reader's block, with escapes at every place relative to the
+    /// block's end, come through whole.
+    #[test]
+    fn strings_across_blocks() {
+        for len in [7, 8, 9, 15, 16, 17, 100] {
+            let long: String = (0..len).map(|i| if i % 5 == 0 { '"' } else { 'x' }).collect();
+            let json = serde_json::to_string(&vec![long.clone(), "b".repeat(len)]).unwrap();
+            let mut out = String::new();
+            convert(std::io::BufReader::with_capacity(8, json.as_bytes()), &mut out).unwrap();
+            assert_eq!(out, format!("- {}\n- {}\n", string_text(&long), "b".repeat(len)), "{len}");
+        }
     }
 
     #[test]
