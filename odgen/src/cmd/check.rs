@@ -1,8 +1,9 @@
 //! `odgen check`: read and validate files, print their diagnostics and a summary.
 //!
-//! Output goes out as it is made, file by file, through one buffer ([`super::Stream`]): no
-//! output is built whole in memory, and JSON and SARIF are written directly, not through a
-//! value tree per diagnostic.
+//! Each file's part of the output is rendered by the thread that read it (which then drops the
+//! file's text and model, so its memory serves the next file), and the parts go out in the
+//! order of the files through one buffer ([`super::Stream`]). JSON and SARIF are written
+//! directly, not through a value tree per diagnostic.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -70,11 +71,12 @@ pub struct Args {
     pub files: Vec<PathBuf>,
 }
 
-/// What is kept of a file once it is read: its text (for quoting) and its diagnostics. The
-/// model is dropped as soon as the file is read.
-struct Checked {
-    source: eds::source::SourceFile,
-    diagnostics: Vec<Diagnostic>,
+/// What is kept of a file once it is read: its part of the output, rendered by the thread that
+/// read it, and its counts. The file's text, model and diagnostics are dropped there and then,
+/// so that the thread's next file reuses their memory, and rendering runs on every thread.
+struct Report {
+    text: String,
+    counts: Counts,
 }
 
 /// Counts by severity.
@@ -107,24 +109,57 @@ pub fn run(args: Args) -> ExitCode {
         (None, false, Format::Human) => Level::Warning,
         (None, false, _) => Level::Note,
     };
-    let read = super::par_map(&args.files, super::jobs(args.jobs), |path| {
-        eds::read_file(path, &options).map(|p| Checked { source: p.document.source, diagnostics: p.diagnostics })
+    let format = args.format;
+    let reports = super::par_map(&args.files, super::jobs(args.jobs), |path| {
+        let parsed = eds::read_file(path, &options)?;
+        let mut counts = Counts::default();
+        counts.add(&parsed.diagnostics);
+        let source = &parsed.document.source;
+        let shown = parsed.diagnostics.iter().filter(|d| level.shows(d.severity));
+        let mut text = String::new();
+        match format {
+            Format::Human => {
+                for d in shown {
+                    eds::diag::render_to(&mut text, d, source);
+                    text.push('\n');
+                }
+            }
+            Format::Json => {
+                text.push_str("{\"file\":");
+                eds::diag::push_json_str(&mut text, &path.display().to_string());
+                text.push_str(",\"diagnostics\":[");
+                for (i, d) in shown.enumerate() {
+                    text.push_str(if i == 0 { "\n" } else { ",\n" });
+                    eds::diag::push_json(&mut text, d);
+                }
+                text.push_str("]}");
+            }
+            Format::Sarif => {
+                for (i, d) in shown.enumerate() {
+                    if i > 0 {
+                        text.push_str(",\n");
+                    }
+                    super::sarif::push_result(&mut text, d, source);
+                }
+            }
+        }
+        Ok::<_, std::io::Error>(Report { text, counts })
     });
     let mut out = Stream::stdout();
     let mut counts = Counts::default();
     let mut unreadable: Vec<(String, String)> = Vec::new();
-    let mut sarif = None;
     match args.format {
         Format::Human => {}
         Format::Json => out.push("{\"files\":["),
-        Format::Sarif => sarif = Some(super::sarif::Writer::start(&mut out)),
+        Format::Sarif => super::sarif::start(&mut out),
     }
-    let mut first = true;
-    for (path, checked) in args.files.iter().zip(read) {
-        let name = path.display().to_string();
-        let checked = match checked {
-            Ok(c) => c,
+    // Whether a JSON file object or a SARIF result was written (the next one needs a comma).
+    let mut any = false;
+    for (path, report) in args.files.iter().zip(reports) {
+        let report = match report {
+            Ok(r) => r,
             Err(e) => {
+                let name = path.display().to_string();
                 if args.format == Format::Human {
                     eprintln!("error: cannot read {name}: {e}");
                 }
@@ -132,40 +167,14 @@ pub fn run(args: Args) -> ExitCode {
                 continue;
             }
         };
-        counts.add(&checked.diagnostics);
-        let shown = checked.diagnostics.iter().filter(|d| level.shows(d.severity));
-        match args.format {
-            Format::Human => {
-                for d in shown {
-                    out.with(|buf| {
-                        eds::diag::render_to(buf, d, &checked.source);
-                        buf.push('\n');
-                    });
-                }
-            }
-            Format::Json => {
-                out.with(|buf| {
-                    buf.push_str(if first { "\n{\"file\":" } else { ",\n{\"file\":" });
-                    eds::diag::push_json_str(buf, &name);
-                    buf.push_str(",\"diagnostics\":[");
-                });
-                for (i, d) in shown.enumerate() {
-                    out.with(|buf| {
-                        buf.push_str(if i == 0 { "\n" } else { ",\n" });
-                        eds::diag::push_json(buf, d);
-                    });
-                }
-                out.push("]}");
-            }
-            Format::Sarif => {
-                if let Some(w) = &mut sarif {
-                    for d in shown {
-                        w.result(&mut out, d, &checked.source);
-                    }
-                }
-            }
+        counts.errors += report.counts.errors;
+        counts.warnings += report.counts.warnings;
+        counts.notes += report.counts.notes;
+        if args.format != Format::Human && !report.text.is_empty() {
+            out.push(if any { ",\n" } else { "\n" });
+            any = true;
         }
-        first = false;
+        out.push(&report.text);
     }
     match args.format {
         Format::Human => {
@@ -197,11 +206,7 @@ pub fn run(args: Args) -> ExitCode {
             }
             buf.push_str("]}\n");
         }),
-        Format::Sarif => {
-            if let Some(w) = sarif {
-                w.finish(&mut out, &unreadable);
-            }
-        }
+        Format::Sarif => super::sarif::finish(&mut out, &unreadable),
     }
     out.finish();
     if !unreadable.is_empty() {
