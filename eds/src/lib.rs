@@ -85,7 +85,15 @@ pub fn parse(name: &str, bytes: &[u8], options: &Options) -> Parsed {
 pub fn read_file(path: impl AsRef<std::path::Path>, options: &Options) -> std::io::Result<Parsed> {
     let path = path.as_ref();
     let bytes = read_bytes(path)?;
-    Ok(parse(&path.display().to_string(), &bytes, options))
+    Ok(parse_owned(&path.display().to_string(), bytes, options))
+}
+
+/// [`parse`] of bytes the caller gives away (no copy of a UTF-8 file's text).
+pub fn parse_owned(name: &str, bytes: Vec<u8>, options: &Options) -> Parsed {
+    let source = source::SourceFile::decode_owned(name, bytes);
+    let document = ast::Document::new(source);
+    let (model, diagnostics) = lower::lower(&document, options);
+    Parsed { document, model, diagnostics }
 }
 
 /// The bytes of a regular file (through symbolic links). Anything else, such as a FIFO (whose

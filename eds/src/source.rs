@@ -151,6 +151,18 @@ impl SourceFile {
         Self::from_parts(name.into(), text, encoding, bom)
     }
 
+    /// [`SourceFile::decode`] of bytes the caller gives away: UTF-8 without a byte-order mark,
+    /// the commonest case, becomes the text without a copy.
+    pub fn decode_owned(name: impl Into<String>, bytes: Vec<u8>) -> Self {
+        if bytes.starts_with(b"\xEF\xBB\xBF") || bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
+            return Self::decode(name, &bytes);
+        }
+        match String::from_utf8(bytes) {
+            Ok(text) => Self::from_parts(name.into(), text, Encoding::Utf8, false),
+            Err(e) => Self::decode(name, e.as_bytes()),
+        }
+    }
+
     /// Wraps already decoded text.
     pub fn from_str(name: impl Into<String>, text: impl Into<String>) -> Self {
         Self::from_parts(name.into(), text.into(), Encoding::Utf8, false)

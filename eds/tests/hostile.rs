@@ -295,3 +295,21 @@ fn diagnostics_of_one_code_are_bounded() {
     // Other codes are still reported.
     assert!(parsed.diagnostics.iter().any(|d| d.code == eds::codes::E0101));
 }
+
+/// `parse_owned` (what `read_file` uses) reads every input as `parse` does: UTF-8 with and
+/// without a mark, UTF-16, Windows-1252.
+#[test]
+fn parse_owned_agrees_with_parse() {
+    for (name, text) in fixture_texts() {
+        let utf16: Vec<u8> = [0xFF, 0xFE].into_iter().chain(text.encode_utf16().flat_map(u16::to_le_bytes)).collect();
+        let marked: Vec<u8> = b"\xEF\xBB\xBF".iter().copied().chain(text.bytes()).collect();
+        let cp1252: Vec<u8> = text.bytes().chain([0x94, b'\n']).collect();
+        for bytes in [text.clone().into_bytes(), utf16, marked, cp1252] {
+            let a = eds::parse(&name, &bytes, &Options::strict());
+            let b = eds::parse_owned(&name, bytes.clone(), &Options::strict());
+            assert_eq!(a.model, b.model, "{name}");
+            assert_eq!(a.diagnostics, b.diagnostics, "{name}");
+            assert_eq!(b.document.write_lossless(), bytes, "{name}");
+        }
+    }
+}
