@@ -487,7 +487,7 @@ mod hex_bytes {
         }
 
         fn visit_str<E: de::Error>(self, v: &str) -> Result<Vec<u8>, E> {
-            if v.len() % 2 != 0 {
+            if !v.len().is_multiple_of(2) {
                 return Err(E::custom("an odd number of hex digits"));
             }
             v.as_bytes()

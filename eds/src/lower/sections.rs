@@ -282,8 +282,14 @@ fn classify_object(name: &str, index: u16) -> (Kind, Spelling) {
 /// The name of a section of unknown kind in ASCII lower case, as a map key. Debug builds count
 /// the comparisons of two keys ([`name_comparisons`]), so that a test can hold the grouping of
 /// sections to a bounded number per section, whatever the file.
-#[derive(Hash, Eq)]
+#[derive(Eq)]
 struct NameKey(String);
+
+impl std::hash::Hash for NameKey {
+    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
+        self.0.hash(state);
+    }
+}
 
 impl PartialEq for NameKey {
     fn eq(&self, other: &Self) -> bool {
