@@ -136,7 +136,8 @@ impl Document {
     }
 
     /// Writes the document back: byte-identical to the input it was read from (including a UTF-8
-    /// byte-order mark; a Windows-1252 input is re-encoded to Windows-1252). The lines tile the
+    /// byte-order mark; a Windows-1252 or UTF-16 input is re-encoded as it was, which gives the input
+    /// back unless it had invalid UTF-16). The lines tile the
     /// text exactly (every byte is in one line's `raw` span), so this is the text itself.
     pub fn write_lossless(&self) -> Vec<u8> {
         let text = &self.source.text;
@@ -147,6 +148,14 @@ impl Document {
         match self.source.encoding {
             crate::source::Encoding::Utf8 => out.extend_from_slice(text.as_bytes()),
             crate::source::Encoding::Windows1252 => out.extend(crate::encoding::encode_windows_1252(text)),
+            crate::source::Encoding::Utf16Le => {
+                out.extend_from_slice(&[0xFF, 0xFE]);
+                out.extend(text.encode_utf16().flat_map(u16::to_le_bytes));
+            }
+            crate::source::Encoding::Utf16Be => {
+                out.extend_from_slice(&[0xFE, 0xFF]);
+                out.extend(text.encode_utf16().flat_map(u16::to_be_bytes));
+            }
         }
         out
     }

@@ -58,6 +58,10 @@ codes! {
     E0008 = Warning, true, "value carries an inline comment";
     /// A non-ASCII character (CiA 306 files are ASCII).
     E0009 = Note, false, "non-ASCII text";
+    /// The file is UTF-16 (with a byte-order mark); it was decoded as such.
+    E0010 = Warning, true, "file is UTF-16";
+    /// UTF-16 text with code units that are not valid UTF-16 (decoded as U+FFFD).
+    E0011 = Error, true, "invalid UTF-16";
 
     // ---- E01xx: section and key names ----
     /// A section this crate does not interpret; it is kept in `Model::extra_sections`.

@@ -108,8 +108,14 @@ impl std::fmt::Display for Code {
 ///
 /// `source` supplies the quoted line; a diagnostic without a span shows only its file name.
 pub fn render(d: &Diagnostic, source: &crate::source::SourceFile) -> String {
-    use std::fmt::Write as _;
     let mut out = String::new();
+    render_to(&mut out, d, source);
+    out
+}
+
+/// [`render`], appended to `out` (a caller rendering many diagnostics reuses one buffer).
+pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::SourceFile) {
+    use std::fmt::Write as _;
     let _ = writeln!(out, "{}[{}]: {}", d.severity, d.code, d.message);
     let at = d.span.map(|s| (s, d.at.unwrap_or_else(|| source.line_col(s.start))));
     let gutter = at.map(|(_, lc)| lc.line.to_string().len()).unwrap_or(1);
@@ -118,16 +124,31 @@ pub fn render(d: &Diagnostic, source: &crate::source::SourceFile) -> String {
         Some((span, lc)) => {
             let _ = writeln!(out, "{pad}--> {}:{}:{}", d.file, lc.line, lc.col);
             let line = source.line_text(lc.line);
-            let shown: String = line.chars().map(|c| if c == '\t' { ' ' } else { c }).collect();
-            let _ = writeln!(out, "{pad} |");
-            let _ = writeln!(out, "{} | {}", lc.line, shown.trim_end());
-            // Underline the part of the span that lies on this line (at least one caret).
             let line_chars = line.chars().count() as u32;
             let start_col = lc.col.saturating_sub(1).min(line_chars);
             let span_text = source.slice(span);
             let span_chars = span_text.split(['\n', '\r']).next().unwrap_or("").chars().count() as u32;
             let width = span_chars.min(line_chars.saturating_sub(start_col)).max(1);
-            let _ = writeln!(out, "{pad} | {}{}", " ".repeat(start_col as usize), "^".repeat(width as usize));
+            // A long line is cut to a window around the span's start, marked with `…`.
+            let (from, to) = quote_window(line_chars, start_col);
+            let mut shown = String::with_capacity((to - from) as usize + 8);
+            if from > 0 {
+                shown.push('…');
+            }
+            shown.extend(
+                line.chars().skip(from as usize).take((to - from) as usize).map(|c| if c == '\t' { ' ' } else { c }),
+            );
+            let cut_end = to < line_chars;
+            if cut_end {
+                shown.push('…');
+            }
+            let _ = writeln!(out, "{pad} |");
+            let _ = writeln!(out, "{} | {}", lc.line, if cut_end { shown.as_str() } else { shown.trim_end() });
+            // Underline the part of the span that lies on this line and in the window (at
+            // least one caret).
+            let lead = start_col - from + u32::from(from > 0);
+            let width = width.min(to.saturating_sub(start_col)).max(1);
+            let _ = writeln!(out, "{pad} | {}{}", " ".repeat(lead as usize), "^".repeat(width as usize));
         }
         None => {
             let _ = writeln!(out, "{pad}--> {}", d.file);
@@ -139,7 +160,54 @@ pub fn render(d: &Diagnostic, source: &crate::source::SourceFile) -> String {
     if let Some(h) = &d.hint {
         let _ = writeln!(out, "{pad} = help: {h}");
     }
+}
+
+/// The longest text from the file a diagnostic's message or context quotes, in characters.
+pub const MAX_QUOTED_TEXT: usize = 80;
+
+/// `text` when it is at most [`MAX_QUOTED_TEXT`] characters long, otherwise its first
+/// [`MAX_QUOTED_TEXT`] characters and `…`: what a message or breadcrumb quotes of a file's text
+/// (a value or name may be megabytes long; its diagnostics stay a few lines).
+pub fn shorten(text: &str) -> Cow<'_, str> {
+    if text.len() <= MAX_QUOTED_TEXT {
+        return Cow::Borrowed(text);
+    }
+    match text.char_indices().nth(MAX_QUOTED_TEXT) {
+        None => Cow::Borrowed(text),
+        Some((cut, _)) => Cow::Owned(format!("{}…", &text[..cut])),
+    }
+}
+
+/// A message with every backtick-quoted part longer than [`MAX_QUOTED_TEXT`] characters cut
+/// with `…` (see [`shorten`]); short messages are returned as they are.
+pub fn shorten_message(message: String) -> String {
+    if message.len() <= 2 * MAX_QUOTED_TEXT {
+        return message;
+    }
+    let mut out = String::with_capacity(4 * MAX_QUOTED_TEXT);
+    for (i, part) in message.split('`').enumerate() {
+        if i > 0 {
+            out.push('`');
+        }
+        // Odd parts are inside backticks; an unquoted part longer than a page is cut too.
+        if i % 2 == 1 || part.len() > 8 * MAX_QUOTED_TEXT { out.push_str(&shorten(part)) } else { out.push_str(part) }
+    }
     out
+}
+
+/// The longest part of a source line a rendered diagnostic quotes, in characters.
+pub const MAX_QUOTED: u32 = 200;
+
+/// Which characters `from..to` of a line of `len` characters are quoted for a span starting at
+/// character `col`: the whole line when it is at most [`MAX_QUOTED`] long, otherwise
+/// [`MAX_QUOTED`] characters from the line start, or from a little before `col` when `col` lies
+/// further in.
+fn quote_window(len: u32, col: u32) -> (u32, u32) {
+    if len <= MAX_QUOTED {
+        return (0, len);
+    }
+    let from = if col < MAX_QUOTED - 40 { 0 } else { (col - 40).min(len - MAX_QUOTED) };
+    (from, from + MAX_QUOTED)
 }
 
 /// Renders every diagnostic (in the order given, one blank line between them) followed by a
@@ -174,6 +242,65 @@ pub fn summary(diagnostics: &[Diagnostic]) -> String {
         parts.push(part(n, "note"));
     }
     parts.join(", ")
+}
+
+/// Appends `text` to `out` as a JSON string (quoted and escaped).
+pub fn push_json_str(out: &mut String, text: &str) {
+    out.push('"');
+    let bytes = text.as_bytes();
+    let mut from = 0;
+    for (i, &b) in bytes.iter().enumerate() {
+        let esc: &str = match b {
+            b'"' => "\\\"",
+            b'\\' => "\\\\",
+            b'\n' => "\\n",
+            b'\r' => "\\r",
+            b'\t' => "\\t",
+            0..=0x1F => "",
+            _ => continue,
+        };
+        out.push_str(&text[from..i]);
+        if esc.is_empty() {
+            use std::fmt::Write as _;
+            let _ = write!(out, "\\u{b:04x}");
+        } else {
+            out.push_str(esc);
+        }
+        from = i + 1;
+    }
+    out.push_str(&text[from..]);
+    out.push('"');
+}
+
+/// Appends one diagnostic as a JSON object, written directly (no value tree): the fields of
+/// [`Diagnostic`] in order, then `deviation`, exactly what [`to_json`] gives for each element.
+pub fn push_json(out: &mut String, d: &Diagnostic) {
+    use std::fmt::Write as _;
+    let _ = write!(out, "{{\"severity\":\"{}\",\"code\":\"{}\",\"message\":", d.severity, d.code);
+    push_json_str(out, &d.message);
+    out.push_str(",\"file\":");
+    push_json_str(out, &d.file);
+    match d.span {
+        Some(s) => _ = write!(out, ",\"span\":{{\"start\":{},\"end\":{}}}", s.start, s.end),
+        None => out.push_str(",\"span\":null"),
+    }
+    match d.at {
+        Some(a) => _ = write!(out, ",\"at\":{{\"line\":{},\"col\":{}}}", a.line, a.col),
+        None => out.push_str(",\"at\":null"),
+    }
+    out.push_str(",\"context\":[");
+    for (i, c) in d.context.iter().enumerate() {
+        if i > 0 {
+            out.push(',');
+        }
+        push_json_str(out, c);
+    }
+    out.push_str("],\"hint\":");
+    match &d.hint {
+        Some(h) => push_json_str(out, h),
+        None => out.push_str("null"),
+    }
+    let _ = write!(out, ",\"deviation\":{}}}", d.is_deviation());
 }
 
 /// The diagnostics as a JSON array for tools. Each element has the [`Diagnostic`] fields plus

@@ -54,12 +54,12 @@ pub fn lex(source: SourceFile) -> Document {
     let mut lines = Vec::with_capacity(source.text.len() / 10 + 16);
     let mut lexer = Lexer::new(&source.text);
     for line in &mut lexer {
-        if matches!(line.ending, LineEnding::Lf | LineEnding::CrLf) {
+        if line.ending != LineEnding::None {
             starts.push(line.raw.end);
         }
         lines.push(line);
     }
-    // The lexer found every `\n`: give the source its line index instead of letting it search.
+    // The lexer found every line end: give the source its line index instead of letting it search.
     source.set_line_starts(starts);
     Document::with_lines(source, lines)
 }

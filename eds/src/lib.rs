@@ -81,9 +81,41 @@ pub fn parse(name: &str, bytes: &[u8], options: &Options) -> Parsed {
     Parsed { document, model, diagnostics }
 }
 
-/// Reads an EDS or DCF file from disk.
+/// Reads an EDS or DCF file from disk (see [`read_bytes`] for what is refused).
 pub fn read_file(path: impl AsRef<std::path::Path>, options: &Options) -> std::io::Result<Parsed> {
     let path = path.as_ref();
-    let bytes = std::fs::read(path)?;
-    Ok(parse(&path.display().to_string(), &bytes, options))
+    let bytes = read_bytes(path)?;
+    Ok(parse_owned(&path.display().to_string(), bytes, options))
+}
+
+/// [`parse`] of bytes the caller gives away (no copy of a UTF-8 file's text).
+pub fn parse_owned(name: &str, bytes: Vec<u8>, options: &Options) -> Parsed {
+    let source = source::SourceFile::decode_owned(name, bytes);
+    let document = ast::Document::new(source);
+    let (model, diagnostics) = lower::lower(&document, options);
+    Parsed { document, model, diagnostics }
+}
+
+/// The bytes of a regular file (through symbolic links). Anything else, such as a FIFO (whose
+/// read would wait for a writer), a device (`/dev/urandom` never ends) or a directory, is refused
+/// with an [`std::io::ErrorKind::InvalidInput`] error naming what it is, before it is opened.
+pub fn read_bytes(path: &std::path::Path) -> std::io::Result<Vec<u8>> {
+    use std::io::Read as _;
+    let not_regular = |m: &std::fs::Metadata| {
+        let what = if m.is_dir() { "a directory" } else { "not a regular file (a FIFO, device or socket)" };
+        std::io::Error::new(std::io::ErrorKind::InvalidInput, format!("it is {what}"))
+    };
+    let m = std::fs::metadata(path)?;
+    if !m.is_file() {
+        return Err(not_regular(&m));
+    }
+    let mut file = std::fs::File::open(path)?;
+    // (Checked again on the open file, in case the path changed in between.)
+    let m = file.metadata()?;
+    if !m.is_file() {
+        return Err(not_regular(&m));
+    }
+    let mut bytes = Vec::with_capacity(usize::try_from(m.len()).unwrap_or(0).saturating_add(1));
+    file.read_to_end(&mut bytes)?;
+    Ok(bytes)
 }

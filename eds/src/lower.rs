@@ -24,6 +24,8 @@ mod sections;
 mod validate;
 
 pub use pdo::expand_compact_pdo;
+#[doc(hidden)]
+pub use sections::name_comparisons;
 
 use crate::ast::Document;
 use crate::diag::{Code, Diagnostic, Severity};
@@ -46,6 +48,7 @@ pub fn lower(doc: &Document, options: &Options) -> (Model, Vec<Diagnostic>) {
     let lists = info::lower_object_lists(&secs, &mut cx);
     objects::lower_objects(&secs, &lists, &mut model, &mut cx);
     validate::validate(&secs, &lists, &model, &mut cx);
+    cx.report_left_out();
     let mut diags = cx.diags;
     // File order: by position, whole-file diagnostics last. The sort is stable, so diagnostics
     // at the same place keep the order in which they were found.
@@ -131,12 +134,33 @@ pub(crate) struct Ctx<'a> {
     severities: [(u64, Severity); 16],
     /// The file name every diagnostic shares, made on the first one (most files have none).
     file: Option<std::sync::Arc<str>>,
+    /// Once [`MAX_PER_CODE`] diagnostics are kept: how many of each code were found, and how
+    /// many of those were not kept.
+    counts: Vec<(Code, u32, u32)>,
+    /// What [`Ctx::emit`] hands out for a diagnostic that is not kept.
+    scratch: Diagnostic,
 }
+
+/// At most this many diagnostics of one code are kept for a file; the rest are counted, and
+/// one diagnostic per code says how many were left out. A file of a million bad lines would
+/// otherwise hold a million diagnostics (about 300 bytes each, a hundred times the line).
+pub const MAX_PER_CODE: u32 = 10_000;
+
+/// At most this many diagnostics are kept for a file in all.
+pub const MAX_KEPT: usize = 100_000;
 
 impl<'a> Ctx<'a> {
     /// A context for lowering `src` at `strictness`.
     pub fn new(src: &'a SourceFile, strictness: Strictness) -> Self {
-        Ctx { src, strictness, diags: Vec::with_capacity(32), severities: [(0, Severity::Note); 16], file: None }
+        Ctx {
+            src,
+            strictness,
+            diags: Vec::with_capacity(32),
+            severities: [(0, Severity::Note); 16],
+            file: None,
+            counts: Vec::new(),
+            scratch: Diagnostic::new(crate::codes::E0002, strictness, "", ""),
+        }
     }
 
     /// The severity of `code` at this context's strictness ([`crate::codes::severity`]).
@@ -155,10 +179,17 @@ impl<'a> Ctx<'a> {
     /// and a hint.
     pub fn emit(&mut self, code: Code, span: Option<Span>, message: impl Into<String>) -> &mut Diagnostic {
         let severity = self.severity(code);
+        // Counting starts when a file has as many diagnostics as one code may keep.
+        if self.diags.len() >= MAX_PER_CODE as usize && !self.keep(code) {
+            self.scratch.message.clear();
+            self.scratch.context.clear();
+            self.scratch.hint = None;
+            return &mut self.scratch;
+        }
         self.diags.push(Diagnostic {
             severity,
             code,
-            message: message.into(),
+            message: crate::diag::shorten_message(message.into()),
             file: self.file.get_or_insert_with(|| self.src.name.as_str().into()).clone(),
             span,
             // Filled in by `lower` when all are found.
@@ -168,6 +199,57 @@ impl<'a> Ctx<'a> {
         });
         let last = self.diags.len() - 1;
         &mut self.diags[last]
+    }
+}
+
+impl Ctx<'_> {
+    /// Counts a diagnostic of `code` and says whether it is kept.
+    #[cold]
+    fn keep(&mut self, code: Code) -> bool {
+        if self.counts.is_empty() {
+            for d in &self.diags {
+                match self.counts.iter_mut().find(|c| c.0 == d.code) {
+                    Some(c) => c.1 += 1,
+                    None => self.counts.push((d.code, 1, 0)),
+                }
+            }
+        }
+        let total = self.diags.len();
+        let i = match self.counts.iter().position(|c| c.0 == code) {
+            Some(i) => i,
+            None => {
+                self.counts.push((code, 0, 0));
+                self.counts.len() - 1
+            }
+        };
+        let c = &mut self.counts[i];
+        c.1 += 1;
+        let keep = c.1 <= MAX_PER_CODE && total < MAX_KEPT;
+        if !keep {
+            c.2 += 1;
+        }
+        keep
+    }
+
+    /// One diagnostic for each code some of whose diagnostics were not kept.
+    fn report_left_out(&mut self) {
+        let left_out: Vec<(Code, u32)> = self.counts.iter().filter(|c| c.2 > 0).map(|c| (c.0, c.2)).collect();
+        for (code, n) in left_out {
+            let severity = self.severity(code);
+            let mut d = Diagnostic::new(
+                code,
+                self.strictness,
+                &self.src.name,
+                format!(
+                    "{n} more {code} diagnostic{} in this file are not listed (at most {MAX_PER_CODE} of a code, \
+                     {MAX_KEPT} in all, are kept)",
+                    if n == 1 { "" } else { "s" }
+                ),
+            );
+            d.severity = severity;
+            d.hint = Some("fix the ones listed and check again".into());
+            self.diags.push(d);
+        }
     }
 }
 
@@ -219,6 +301,7 @@ pub(crate) fn otype(t: crate::model::ObjectType) -> &'static str {
 
 /// `object 0x1018 "Identity Object"`
 pub(crate) fn object_context(index: u16, name: &str) -> String {
+    let name = &*crate::diag::shorten(name);
     let mut s = String::with_capacity(name.len() + 16);
     s.push_str("object 0x");
     push_hex4(&mut s, index);
@@ -230,6 +313,7 @@ pub(crate) fn object_context(index: u16, name: &str) -> String {
 
 /// `sub 2 "Product Code"`
 pub(crate) fn sub_context(sub: u8, name: &str) -> String {
+    let name = &*crate::diag::shorten(name);
     let mut s = String::with_capacity(name.len() + 10);
     s.push_str("sub ");
     s.push_str(decimal_u8(sub));

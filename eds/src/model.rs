@@ -456,8 +456,63 @@ pub enum Value {
     Real(f64),
     /// A VISIBLE_STRING or UNICODE_STRING value.
     Text(String),
-    /// An OCTET_STRING or DOMAIN value (written as hex digits).
-    Bytes(Vec<u8>),
+    /// An OCTET_STRING or DOMAIN value (written as hex digits; serialised as one string of
+    /// upper-case hex digits, two per byte, not as a list of numbers: a 50 MB value made a
+    /// gigabyte of JSON that way).
+    Bytes(#[serde(with = "hex_bytes")] Vec<u8>),
+}
+
+/// Serde form of [`Value::Bytes`]: a string of hex digits (a list of numbers is read too).
+mod hex_bytes {
+    use serde::de::{self, Deserializer, SeqAccess, Visitor};
+    use serde::ser::Serializer;
+
+    pub fn serialize<S: Serializer>(bytes: &[u8], serializer: S) -> Result<S::Ok, S::Error> {
+        const HEX: &[u8; 16] = b"0123456789ABCDEF";
+        let mut text = String::with_capacity(bytes.len() * 2);
+        for &b in bytes {
+            text.push(HEX[(b >> 4) as usize] as char);
+            text.push(HEX[(b & 15) as usize] as char);
+        }
+        serializer.serialize_str(&text)
+    }
+
+    struct Hex;
+
+    impl<'de> Visitor<'de> for Hex {
+        type Value = Vec<u8>;
+
+        fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str("a string of hex digits, two per byte")
+        }
+
+        fn visit_str<E: de::Error>(self, v: &str) -> Result<Vec<u8>, E> {
+            if !v.len().is_multiple_of(2) {
+                return Err(E::custom("an odd number of hex digits"));
+            }
+            v.as_bytes()
+                .chunks_exact(2)
+                .map(|p| {
+                    std::str::from_utf8(p)
+                        .ok()
+                        .and_then(|p| u8::from_str_radix(p, 16).ok())
+                        .ok_or_else(|| E::custom("not a hex digit"))
+                })
+                .collect()
+        }
+
+        fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Vec<u8>, A::Error> {
+            let mut out = Vec::with_capacity(seq.size_hint().unwrap_or(0).min(1 << 16));
+            while let Some(b) = seq.next_element::<u8>()? {
+                out.push(b);
+            }
+            Ok(out)
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Vec<u8>, D::Error> {
+        deserializer.deserialize_any(Hex)
+    }
 }
 
 impl Value {

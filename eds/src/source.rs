@@ -35,6 +35,10 @@ pub enum Encoding {
     Utf8,
     /// Not UTF-8: decoded as Windows-1252 (reported as a warning).
     Windows1252,
+    /// UTF-16, little-endian, with its byte-order mark (`FF FE`; reported as a warning).
+    Utf16Le,
+    /// UTF-16, big-endian, with its byte-order mark (`FE FF`; reported as a warning).
+    Utf16Be,
 }
 
 /// A 1-based line and column (column counted in characters).
@@ -46,11 +50,19 @@ pub struct LineCol {
     pub col: u32,
 }
 
-/// The offset of every line start: 0 and each offset after a `\n`. Looks at eight bytes at a
-/// time, because every byte of every file passes through here.
+/// The offset of every line start: 0 and each offset after a line end (`\n`, `\r\n` or a lone
+/// `\r`, as the lexer splits lines). Looks at eight bytes at a time, because every byte of every
+/// file passes through here.
 fn line_starts(b: &[u8]) -> Vec<u32> {
     const LO7: u64 = 0x7F7F_7F7F_7F7F_7F7F;
     const NL: u64 = 0x0101_0101_0101_0101 * b'\n' as u64;
+    const CR: u64 = 0x0101_0101_0101_0101 * b'\r' as u64;
+    // The high bit of each byte of `w` that equals the byte repeated in `pattern` (exact: no
+    // carries between bytes).
+    let matches = |w: u64, pattern: u64| {
+        let x = w ^ pattern;
+        !(((x & LO7) + LO7) | x | LO7)
+    };
     // Typical EDS lines are 15-25 bytes long.
     let mut out = Vec::with_capacity(b.len() / 16 + 2);
     out.push(0u32);
@@ -59,18 +71,22 @@ fn line_starts(b: &[u8]) -> Vec<u32> {
     for c in &mut chunks {
         let mut w = [0u8; 8];
         w.copy_from_slice(c);
-        let x = u64::from_le_bytes(w) ^ NL;
-        // The high bit of each byte that is zero in `x` (exact: no carries between bytes).
-        let mut z = !(((x & LO7) + LO7) | x | LO7);
+        let w = u64::from_le_bytes(w);
+        let mut z = matches(w, NL) | matches(w, CR);
         while z != 0 {
-            out.push((base + (z.trailing_zeros() / 8) as usize + 1) as u32);
+            let i = base + (z.trailing_zeros() / 8) as usize;
+            // A `\r` followed by `\n` ends its line at the `\n`.
+            if !(b[i] == b'\r' && b.get(i + 1) == Some(&b'\n')) {
+                out.push((i + 1) as u32);
+            }
             z &= z - 1;
         }
         base += 8;
     }
     for (i, &c) in chunks.remainder().iter().enumerate() {
-        if c == b'\n' {
-            out.push((base + i + 1) as u32);
+        let i = base + i;
+        if c == b'\n' || (c == b'\r' && b.get(i + 1) != Some(&b'\n')) {
+            out.push((i + 1) as u32);
         }
     }
     out
@@ -86,16 +102,44 @@ pub struct SourceFile {
     /// The encoding the bytes were decoded from.
     pub encoding: Encoding,
     /// Whether the input started with a UTF-8 byte-order mark (kept for lossless writing; the
-    /// mark itself is not part of `text`).
+    /// mark itself is not part of `text`). UTF-16 text always has its mark, which `encoding`
+    /// implies.
     pub bom: bool,
+    /// For UTF-16: the number of code units that were not valid UTF-16 (unpaired surrogates, an
+    /// odd last byte), each decoded as U+FFFD. Reported as an error: the text is not what the
+    /// file says.
+    pub invalid_units: usize,
     /// Offsets of the line starts; found by the lexer, which looks at every byte anyway, or
     /// computed on first use.
     line_starts: std::sync::OnceLock<Vec<u32>>,
 }
 
 impl SourceFile {
-    /// Decodes `bytes` (UTF-8, falling back to Windows-1252) and indexes its lines.
+    /// Decodes `bytes` (UTF-16 when it starts with a UTF-16 byte-order mark, otherwise UTF-8,
+    /// falling back to Windows-1252) and indexes its lines.
     pub fn decode(name: impl Into<String>, bytes: &[u8]) -> Self {
+        let utf16 = match bytes {
+            [0xFF, 0xFE, rest @ ..] => Some((Encoding::Utf16Le, rest, u16::from_le_bytes as fn([u8; 2]) -> u16)),
+            [0xFE, 0xFF, rest @ ..] => Some((Encoding::Utf16Be, rest, u16::from_be_bytes as fn([u8; 2]) -> u16)),
+            _ => None,
+        };
+        if let Some((encoding, body, unit)) = utf16 {
+            let units = body.chunks_exact(2).map(|c| unit([c[0], c[1]]));
+            let mut invalid = body.len() % 2;
+            let mut text = String::with_capacity(body.len() / 2);
+            for c in char::decode_utf16(units) {
+                text.push(c.unwrap_or_else(|_| {
+                    invalid += 1;
+                    char::REPLACEMENT_CHARACTER
+                }));
+            }
+            if body.len() % 2 == 1 {
+                text.push(char::REPLACEMENT_CHARACTER);
+            }
+            let mut src = Self::from_parts(name.into(), text, encoding, false);
+            src.invalid_units = invalid;
+            return src;
+        }
         let (bom, body) = match bytes.strip_prefix(b"\xEF\xBB\xBF") {
             Some(rest) => (true, rest),
             None => (false, bytes),
@@ -107,16 +151,28 @@ impl SourceFile {
         Self::from_parts(name.into(), text, encoding, bom)
     }
 
+    /// [`SourceFile::decode`] of bytes the caller gives away: UTF-8 without a byte-order mark,
+    /// the commonest case, becomes the text without a copy.
+    pub fn decode_owned(name: impl Into<String>, bytes: Vec<u8>) -> Self {
+        if bytes.starts_with(b"\xEF\xBB\xBF") || bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
+            return Self::decode(name, &bytes);
+        }
+        match String::from_utf8(bytes) {
+            Ok(text) => Self::from_parts(name.into(), text, Encoding::Utf8, false),
+            Err(e) => Self::decode(name, e.as_bytes()),
+        }
+    }
+
     /// Wraps already decoded text.
     pub fn from_str(name: impl Into<String>, text: impl Into<String>) -> Self {
         Self::from_parts(name.into(), text.into(), Encoding::Utf8, false)
     }
 
     fn from_parts(name: String, text: String, encoding: Encoding, bom: bool) -> Self {
-        SourceFile { name, text, encoding, bom, line_starts: std::sync::OnceLock::new() }
+        SourceFile { name, text, encoding, bom, invalid_units: 0, line_starts: std::sync::OnceLock::new() }
     }
 
-    /// The offset of every line start (0 and each offset after a `\n`).
+    /// The offset of every line start (0 and each offset after a line end).
     fn starts(&self) -> &[u32] {
         self.line_starts.get_or_init(|| line_starts(self.text.as_bytes()))
     }
@@ -200,12 +256,12 @@ mod tests {
 
     #[test]
     fn line_starts_match_a_byte_loop() {
-        let text: Vec<u8> = b"a\nbb\n\n\x0B\n\x0B\x0Bccc\r\n\n\n\n\n\n\n\n\nxyz\x8A\x0A\xFF\n".repeat(3);
+        let text: Vec<u8> = b"a\nbb\n\n\x0B\n\x0B\x0Bccc\r\n\n\n\r\r\n\n\n\n\n\nxyz\x8A\x0A\r\xFF\n\r".repeat(3);
         for end in 0..text.len() {
             let b = &text[..end];
-            let naive: Vec<u32> = std::iter::once(0)
-                .chain(b.iter().enumerate().filter(|(_, c)| **c == b'\n').map(|(i, _)| i as u32 + 1))
-                .collect();
+            let ends = |i: usize| b[i] == b'\n' || (b[i] == b'\r' && b.get(i + 1) != Some(&b'\n'));
+            let naive: Vec<u32> =
+                std::iter::once(0).chain((0..b.len()).filter(|&i| ends(i)).map(|i| i as u32 + 1)).collect();
             assert_eq!(line_starts(b), naive);
         }
     }

@@ -123,10 +123,44 @@ impl std::fmt::Display for Unrepresentable {
     }
 }
 
+/// The keys of an object or sub-object section the writer writes from the model's typed fields.
+const TYPED_OBJECT_KEYS: [&str; 15] = [
+    "ParameterName",
+    "ObjectType",
+    "DataType",
+    "AccessType",
+    "DefaultValue",
+    "PDOMapping",
+    "SubNumber",
+    "CompactSubObj",
+    "LowLimit",
+    "HighLimit",
+    "ObjFlags",
+    "ParameterValue",
+    "Denotation",
+    "UploadFile",
+    "DownloadFile",
+];
+
+/// An unknown key kept with the name of a key the writer writes from the model (the reader keeps
+/// a value it cannot read that way): written, it would be the key's second line.
+fn written_key(out: &mut Vec<Unrepresentable>, ctx: &dyn Fn() -> String, key: &str, value: &str) {
+    if TYPED_OBJECT_KEYS.iter().any(|k| k.eq_ignore_ascii_case(key)) {
+        out.push(Unrepresentable {
+            context: ctx(),
+            message: format!(
+                "`{key}={}` could not be read and is kept as text; written beside the `{key}` odgen writes, it would be a repeated key",
+                crate::diag::shorten(value).escape_debug()
+            ),
+        });
+    }
+}
+
 /// Lists what in `model` would not survive being written and read back: text with a line
 /// break, text with white space at either end (readers trim values), keys that are empty or
-/// contain `=` or start with `[` or `;`, section names with `]`, and a `compact_sub_obj` on an
-/// object whose entries are not the compact shape (see [`compact_info`]).
+/// contain `=` or start with `[` or `;`, section names with `]`, a `compact_sub_obj` on an
+/// object whose entries are not the compact shape (see [`compact_info`]), and unreadable values
+/// of typed keys kept as text (they would be written as a second line of the key).
 pub fn unrepresentable(model: &Model) -> Vec<Unrepresentable> {
     let mut out = Vec::new();
     let mut compact_problems = Vec::new();
@@ -164,6 +198,7 @@ pub fn unrepresentable(model: &Model) -> Vec<Unrepresentable> {
         text(&ctx, "the name", &obj.name);
         for (k, v) in &obj.extra {
             text(&ctx, &format!("the value of `{k}`"), v);
+            written_key(&mut compact_problems, &ctx, k, v);
         }
         for e in obj.subs.values() {
             let ctx = || format!("object {} \"{}\", sub {} \"{}\"", obj.index, obj.name, e.sub, e.name);
@@ -187,6 +222,7 @@ pub fn unrepresentable(model: &Model) -> Vec<Unrepresentable> {
             }
             for (k, v) in e.extra() {
                 text(&ctx, &format!("the value of `{k}`"), v);
+                written_key(&mut compact_problems, &ctx, k, v);
             }
         }
     }

@@ -219,7 +219,9 @@ fn unknown_sections_and_keys_are_kept() {
     let p = eds::parse("x.eds", src.as_bytes(), &Options::lenient());
     assert_eq!(p.model.extra_sections.len(), 1);
     assert_eq!(p.model.extra_sections[0].name, "Tools");
-    assert_eq!(p.model.extra_sections[0].entries.len(), 2);
+    // A repeated key is reported (E0007) and, as in every section, its later value is used.
+    assert_eq!(p.model.extra_sections[0].entries, vec![("Editor".to_owned(), "emacs".to_owned())]);
+    assert!(has(&p, codes::E0007));
     assert_eq!(
         p.model.entry(0x1000, 0).map(|e| e.extra().to_vec()),
         Some(vec![("VendorKey".to_owned(), "42".to_owned())])

@@ -3,7 +3,10 @@
 //! * [`network`]: DCFs for a whole network from one TOML description (`odgen dcf --network`).
 //! * [`diff`]: what changed between two device descriptions (`odgen diff`, and `cargo xtask gen`
 //!   to report what a regeneration is about).
+//! * [`safe_write`]: writing a file the user named (through symbolic links, keeping mode and
+//!   owner, refusing devices and read-only files; `-` for standard output).
 #![deny(missing_docs)]
 
 pub mod diff;
 pub mod network;
+pub mod safe_write;

@@ -1,238 +1,280 @@
-//! A small JSON-text → YAML converter for `odgen dump`.
+//! A small streaming JSON → YAML converter for `odgen dump`.
 //!
 //! Why not a YAML library: `serde_yaml` is deprecated and unmaintained, and its forks are young;
 //! the model is plain serde data whose JSON form already exists, so converting JSON *text*
-//! (which keeps the model's field order, unlike `serde_json::Value` without `preserve_order`)
-//! to block-style YAML takes one small module and no dependency. Every JSON document is valid
-//! YAML 1.2 in flow style; this emits block style for readability: mappings as `key: value`,
-//! sequences as `- item`, empty ones as `{}`/`[]`, and strings double-quoted (JSON escapes are
-//! valid YAML escapes) unless they are plain scalars YAML cannot mistake for something else.
+//! (which keeps the model's field order) to block-style YAML takes one small module and no
+//! dependency. Every JSON document is valid YAML 1.2 in flow style; this emits block style for
+//! readability: mappings as `key: value`, sequences as `- item`, empty ones as `{}`/`[]`, and
+//! strings double-quoted (JSON escapes are valid YAML escapes) unless they are plain scalars
+//! YAML cannot mistake for something else.
+//!
+//! The converter reads the JSON as a stream of bytes and writes YAML as it goes, with one byte
+//! of look-ahead: it builds no tree, so `odgen dump` holds the model and a few buffers, not the
+//! whole document twice over (see [`convert`]).
 
-use std::fmt::Write as _;
+use std::io::BufRead;
 
-/// A parsed JSON value that keeps object keys in document order.
-#[derive(Debug, PartialEq)]
-enum Node {
-    Null,
-    Bool(bool),
-    /// A number, as written (JSON and YAML number syntax agree for what serde_json writes).
-    Number(String),
-    String(String),
-    Array(Vec<Node>),
-    Object(Vec<(String, Node)>),
+/// Where YAML text goes: `push` appends, and the sink may write out what it has.
+pub trait Sink {
+    /// Appends text.
+    fn push(&mut self, text: &str);
+}
+
+impl Sink for String {
+    fn push(&mut self, text: &str) {
+        self.push_str(text);
+    }
 }
 
 /// Converts a JSON document to block-style YAML.
+#[cfg(test)]
 pub fn from_json(json: &str) -> Result<String, String> {
-    let mut p = Parser { s: json.as_bytes(), i: 0 };
-    let node = p.value()?;
-    p.ws();
-    if p.i != p.s.len() {
-        return Err(format!("trailing characters at byte {}", p.i));
-    }
     let mut out = String::new();
-    match &node {
-        Node::Array(items) if !items.is_empty() => emit_seq(&mut out, items, 0),
-        Node::Object(fields) if !fields.is_empty() => emit_map(&mut out, fields, 0),
-        scalar => {
-            out.push_str(&scalar_text(scalar));
-            out.push('\n');
-        }
-    }
+    convert(json.as_bytes(), &mut out)?;
     Ok(out)
 }
 
-struct Parser<'a> {
-    s: &'a [u8],
-    i: usize,
+/// Converts the JSON document `input` yields to block-style YAML in `out`, as it reads.
+pub fn convert(input: impl BufRead, out: &mut impl Sink) -> Result<(), String> {
+    let mut c = Converter { r: input, pos: 0, out };
+    c.ws()?;
+    match c.peek()? {
+        Some(b'{') | Some(b'[') => {
+            let open = c.next()?.unwrap_or(b'{');
+            let close = if open == b'{' { b'}' } else { b']' };
+            c.ws()?;
+            if c.peek()? == Some(close) {
+                c.next()?;
+                c.out.push(if open == b'{' { "{}\n" } else { "[]\n" });
+            } else if open == b'{' {
+                c.map_body(0)?;
+            } else {
+                c.seq_body(0)?;
+            }
+        }
+        _ => {
+            let s = c.scalar()?;
+            c.out.push(&s);
+            c.out.push("\n");
+        }
+    }
+    c.ws()?;
+    if c.peek()?.is_some() {
+        return Err(format!("trailing characters at byte {}", c.pos));
+    }
+    Ok(())
 }
 
-impl Parser<'_> {
-    fn ws(&mut self) {
-        while self.i < self.s.len() && matches!(self.s[self.i], b' ' | b'\t' | b'\n' | b'\r') {
-            self.i += 1;
+struct Converter<'o, R, S> {
+    r: R,
+    pos: usize,
+    out: &'o mut S,
+}
+
+fn indent(out: &mut impl Sink, level: usize) {
+    const SPACES: &str = "                                                                ";
+    let mut n = level * 2;
+    while n > 0 {
+        let k = n.min(SPACES.len());
+        out.push(&SPACES[..k]);
+        n -= k;
+    }
+}
+
+impl<R: BufRead, S: Sink> Converter<'_, R, S> {
+    fn peek(&mut self) -> Result<Option<u8>, String> {
+        let buf = self.r.fill_buf().map_err(|e| e.to_string())?;
+        Ok(buf.first().copied())
+    }
+
+    fn next(&mut self) -> Result<Option<u8>, String> {
+        let b = self.peek()?;
+        if b.is_some() {
+            self.r.consume(1);
+            self.pos += 1;
         }
+        Ok(b)
+    }
+
+    fn ws(&mut self) -> Result<(), String> {
+        while matches!(self.peek()?, Some(b' ' | b'\t' | b'\n' | b'\r')) {
+            self.next()?;
+        }
+        Ok(())
     }
 
     fn eat(&mut self, c: u8) -> Result<(), String> {
-        self.ws();
-        if self.s.get(self.i) == Some(&c) {
-            self.i += 1;
-            Ok(())
-        } else {
-            Err(format!("expected `{}` at byte {}", c as char, self.i))
+        self.ws()?;
+        if self.next()? == Some(c) { Ok(()) } else { Err(format!("expected `{}` at byte {}", c as char, self.pos)) }
+    }
+
+    /// The fields of a non-empty object whose `{` was read, at `level`; reads the `}`.
+    fn map_body(&mut self, level: usize) -> Result<(), String> {
+        let mut first = true;
+        loop {
+            if !first {
+                indent(self.out, level);
+            }
+            self.field(level)?;
+            first = false;
+            self.ws()?;
+            match self.next()? {
+                Some(b',') => {}
+                Some(b'}') => return Ok(()),
+                _ => return Err(format!("expected `,` or `}}` at byte {}", self.pos)),
+            }
         }
     }
 
-    fn value(&mut self) -> Result<Node, String> {
-        self.ws();
-        match self.s.get(self.i) {
+    /// One `key: value` whose indentation is written.
+    fn field(&mut self, level: usize) -> Result<(), String> {
+        self.ws()?;
+        let key = self.string()?;
+        self.out.push(&string_text(&key));
+        self.out.push(":");
+        self.eat(b':')?;
+        self.after_key(level)
+    }
+
+    /// A value after `key:` (or `-`), at `level` for its block content.
+    fn after_key(&mut self, level: usize) -> Result<(), String> {
+        self.ws()?;
+        match self.peek()? {
+            Some(open @ (b'{' | b'[')) => {
+                self.next()?;
+                let close = if open == b'{' { b'}' } else { b']' };
+                self.ws()?;
+                if self.peek()? == Some(close) {
+                    self.next()?;
+                    self.out.push(if open == b'{' { " {}\n" } else { " []\n" });
+                    return Ok(());
+                }
+                self.out.push("\n");
+                indent(self.out, level + 1);
+                if open == b'{' { self.map_body(level + 1) } else { self.seq_body(level + 1) }
+            }
+            _ => {
+                let s = self.scalar()?;
+                self.out.push(" ");
+                self.out.push(&s);
+                self.out.push("\n");
+                Ok(())
+            }
+        }
+    }
+
+    /// The items of a non-empty array whose `[` was read, at `level` (the first item's
+    /// indentation is written); reads the `]`.
+    fn seq_body(&mut self, level: usize) -> Result<(), String> {
+        let mut first = true;
+        loop {
+            if !first {
+                indent(self.out, level);
+            }
+            first = false;
+            self.out.push("-");
+            self.ws()?;
+            match self.peek()? {
+                Some(open @ (b'{' | b'[')) => {
+                    self.next()?;
+                    let close = if open == b'{' { b'}' } else { b']' };
+                    self.ws()?;
+                    if self.peek()? == Some(close) {
+                        self.next()?;
+                        self.out.push(if open == b'{' { " {}\n" } else { " []\n" });
+                    } else if open == b'{' {
+                        // First field on the dash line, the rest aligned under it.
+                        self.out.push(" ");
+                        self.map_body(level + 1)?;
+                    } else {
+                        self.out.push("\n");
+                        indent(self.out, level + 1);
+                        self.seq_body(level + 1)?;
+                    }
+                }
+                _ => {
+                    let s = self.scalar()?;
+                    self.out.push(" ");
+                    self.out.push(&s);
+                    self.out.push("\n");
+                }
+            }
+            self.ws()?;
+            match self.next()? {
+                Some(b',') => {}
+                Some(b']') => return Ok(()),
+                _ => return Err(format!("expected `,` or `]` at byte {}", self.pos)),
+            }
+        }
+    }
+
+    /// A string, number, `true`, `false` or `null`, as YAML text.
+    fn scalar(&mut self) -> Result<String, String> {
+        self.ws()?;
+        match self.peek()? {
             None => Err("unexpected end of JSON".to_owned()),
-            Some(b'{') => {
-                self.i += 1;
-                let mut fields = Vec::new();
-                self.ws();
-                if self.s.get(self.i) == Some(&b'}') {
-                    self.i += 1;
-                    return Ok(Node::Object(fields));
-                }
-                loop {
-                    self.ws();
-                    let key = self.string()?;
-                    self.eat(b':')?;
-                    let v = self.value()?;
-                    fields.push((key, v));
-                    self.ws();
-                    match self.s.get(self.i) {
-                        Some(b',') => self.i += 1,
-                        Some(b'}') => {
-                            self.i += 1;
-                            return Ok(Node::Object(fields));
-                        }
-                        _ => return Err(format!("expected `,` or `}}` at byte {}", self.i)),
-                    }
-                }
-            }
-            Some(b'[') => {
-                self.i += 1;
-                let mut items = Vec::new();
-                self.ws();
-                if self.s.get(self.i) == Some(&b']') {
-                    self.i += 1;
-                    return Ok(Node::Array(items));
-                }
-                loop {
-                    items.push(self.value()?);
-                    self.ws();
-                    match self.s.get(self.i) {
-                        Some(b',') => self.i += 1,
-                        Some(b']') => {
-                            self.i += 1;
-                            return Ok(Node::Array(items));
-                        }
-                        _ => return Err(format!("expected `,` or `]` at byte {}", self.i)),
-                    }
-                }
-            }
-            Some(b'"') => Ok(Node::String(self.string()?)),
-            Some(b't') => self.word("true", Node::Bool(true)),
-            Some(b'f') => self.word("false", Node::Bool(false)),
-            Some(b'n') => self.word("null", Node::Null),
+            Some(b'"') => Ok(string_text(&self.string()?)),
+            Some(b't') => self.word("true"),
+            Some(b'f') => self.word("false"),
+            Some(b'n') => self.word("null"),
             Some(_) => {
-                let start = self.i;
-                while self.i < self.s.len() && matches!(self.s[self.i], b'-' | b'+' | b'.' | b'e' | b'E' | b'0'..=b'9')
-                {
-                    self.i += 1;
+                let mut n = String::new();
+                while let Some(b @ (b'-' | b'+' | b'.' | b'e' | b'E' | b'0'..=b'9')) = self.peek()? {
+                    n.push(b as char);
+                    self.next()?;
                 }
-                if start == self.i {
-                    return Err(format!("unexpected character at byte {start}"));
+                if n.is_empty() {
+                    return Err(format!("unexpected character at byte {}", self.pos));
                 }
-                Ok(Node::Number(String::from_utf8_lossy(&self.s[start..self.i]).into_owned()))
+                Ok(n)
             }
         }
     }
 
-    fn word(&mut self, w: &str, node: Node) -> Result<Node, String> {
-        if self.s[self.i..].starts_with(w.as_bytes()) {
-            self.i += w.len();
-            Ok(node)
-        } else {
-            Err(format!("unexpected word at byte {}", self.i))
+    fn word(&mut self, w: &str) -> Result<String, String> {
+        for &b in w.as_bytes() {
+            if self.next()? != Some(b) {
+                return Err(format!("unexpected word at byte {}", self.pos));
+            }
         }
+        Ok(w.to_owned())
     }
 
+    /// A JSON string, decoded.
     fn string(&mut self) -> Result<String, String> {
-        if self.s.get(self.i) != Some(&b'"') {
-            return Err(format!("expected a string at byte {}", self.i));
+        if self.next()? != Some(b'"') {
+            return Err(format!("expected a string at byte {}", self.pos));
         }
-        let start = self.i;
-        self.i += 1;
-        while self.i < self.s.len() {
-            match self.s[self.i] {
-                b'\\' => self.i += 2,
-                b'"' => {
-                    self.i += 1;
-                    let raw = std::str::from_utf8(&self.s[start..self.i]).map_err(|e| e.to_string())?;
-                    return serde_json::from_str::<String>(raw).map_err(|e| e.to_string());
+        let mut raw = vec![b'"'];
+        loop {
+            // Whole runs without `"` or `\` at a time.
+            let buf = self.r.fill_buf().map_err(|e| e.to_string())?;
+            if buf.is_empty() {
+                return Err("unterminated string".to_owned());
+            }
+            let len = buf.len();
+            let run = buf.iter().position(|&b| b == b'"' || b == b'\\').unwrap_or(len);
+            raw.extend_from_slice(&buf[..run]);
+            self.r.consume(run);
+            self.pos += run;
+            if run == len {
+                continue; // the string goes on in the next block
+            }
+            match self.next()? {
+                Some(b'"') => break,
+                Some(b'\\') => {
+                    raw.push(b'\\');
+                    let e = self.next()?.ok_or("unterminated string")?;
+                    raw.push(e);
                 }
-                _ => self.i += 1,
+                _ => {}
             }
         }
-        Err("unterminated string".to_owned())
-    }
-}
-
-fn indent(out: &mut String, level: usize) {
-    for _ in 0..level {
-        out.push_str("  ");
-    }
-}
-
-fn is_block(node: &Node) -> bool {
-    matches!(node, Node::Array(a) if !a.is_empty()) || matches!(node, Node::Object(o) if !o.is_empty())
-}
-
-fn emit_map(out: &mut String, fields: &[(String, Node)], level: usize) {
-    for (k, v) in fields {
-        indent(out, level);
-        out.push_str(&string_text(k));
-        out.push(':');
-        emit_after_key(out, v, level);
-    }
-}
-
-fn emit_after_key(out: &mut String, v: &Node, level: usize) {
-    match v {
-        Node::Object(f) if !f.is_empty() => {
-            out.push('\n');
-            emit_map(out, f, level + 1);
+        raw.push(b'"');
+        if !raw.contains(&b'\\') {
+            return String::from_utf8(raw[1..raw.len() - 1].to_vec()).map_err(|e| e.to_string());
         }
-        Node::Array(items) if !items.is_empty() => {
-            out.push('\n');
-            emit_seq(out, items, level + 1);
-        }
-        scalar => {
-            out.push(' ');
-            out.push_str(&scalar_text(scalar));
-            out.push('\n');
-        }
-    }
-}
-
-fn emit_seq(out: &mut String, items: &[Node], level: usize) {
-    for item in items {
-        indent(out, level);
-        out.push('-');
-        match item {
-            Node::Object(f) if !f.is_empty() => {
-                // First field on the dash line, the rest aligned under it.
-                let (k, v) = &f[0];
-                let _ = write!(out, " {}:", string_text(k));
-                emit_after_key(out, v, level + 1);
-                emit_map(out, &f[1..], level + 1);
-            }
-            Node::Array(inner) if !inner.is_empty() => {
-                out.push('\n');
-                emit_seq(out, inner, level + 1);
-            }
-            scalar => {
-                debug_assert!(!is_block(scalar));
-                out.push(' ');
-                out.push_str(&scalar_text(scalar));
-                out.push('\n');
-            }
-        }
-    }
-}
-
-fn scalar_text(node: &Node) -> String {
-    match node {
-        Node::Null => "null".to_owned(),
-        Node::Bool(b) => b.to_string(),
-        Node::Number(n) => n.clone(),
-        Node::String(s) => string_text(s),
-        Node::Array(_) => "[]".to_owned(),
-        Node::Object(_) => "{}".to_owned(),
+        serde_json::from_slice::<String>(&raw).map_err(|e| e.to_string())
     }
 }
 
@@ -266,11 +308,31 @@ mod tests {
     }
 
     #[test]
+    fn nested_sequences_and_maps_in_sequences() {
+        let y = from_json(r#"[[1, [2, 3]], {"a": [{"b": {}}, []]}, [], {}]"#).unwrap();
+        assert_eq!(y, "-\n  - 1\n  -\n    - 2\n    - 3\n- a:\n    - b: {}\n    - []\n- []\n- {}\n");
+    }
+
+    /// Strings longer than the reader's block, with escapes at every place relative to the
+    /// block's end, come through whole.
+    #[test]
+    fn strings_across_blocks() {
+        for len in [7, 8, 9, 15, 16, 17, 100] {
+            let long: String = (0..len).map(|i| if i % 5 == 0 { '"' } else { 'x' }).collect();
+            let json = serde_json::to_string(&vec![long.clone(), "b".repeat(len)]).unwrap();
+            let mut out = String::new();
+            convert(std::io::BufReader::with_capacity(8, json.as_bytes()), &mut out).unwrap();
+            assert_eq!(out, format!("- {}\n- {}\n", string_text(&long), "b".repeat(len)), "{len}");
+        }
+    }
+
+    #[test]
     fn escapes_survive() {
         let y = from_json(r#"{"a": "line\nbreak \"q\" \u00e9"}"#).unwrap();
         assert_eq!(y, "a: \"line\\nbreak \\\"q\\\" é\"\n");
         assert!(from_json("{").is_err());
         assert!(from_json(r#"{"a": 1} x"#).is_err());
         assert_eq!(from_json("[]").unwrap(), "[]\n");
+        assert_eq!(from_json("5").unwrap(), "5\n");
     }
 }

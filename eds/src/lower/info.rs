@@ -1,6 +1,6 @@
 //! Pass 2: the information sections and the object lists.
 
-use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys};
+use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys, report_duplicate};
 use super::{Crumbs, Ctx, FastMap};
 use crate::codes;
 use crate::model::{Category, Commissioning, DeviceInfo, ExtraSection, FileInfo, Index, Model, Role};
@@ -536,9 +536,24 @@ pub(crate) fn lower_info(secs: &Sections<'_>, model: &mut Model, cx: &mut Ctx<'_
                     Some(sec.name_span),
                     format!("section [{}] is not a CiA 306 section; it is kept as written", sec.name),
                 );
-                model
-                    .extra_sections
-                    .push(ExtraSection { name: sec.name.to_owned(), entries: sec.entries.iter().map(owned).collect() });
+                // A key set again (in the section or in a repeat of it) keeps its first place
+                // with the later value, as in every other section.
+                let mut entries: Vec<(String, String)> = Vec::with_capacity(sec.entries.len());
+                let mut seen: std::collections::HashMap<String, (usize, &Kv<'_>)> = std::collections::HashMap::new();
+                for kv in sec.entries {
+                    match seen.entry(kv.key.to_ascii_lowercase()) {
+                        std::collections::hash_map::Entry::Occupied(e) => {
+                            let (i, first) = *e.get();
+                            report_duplicate(cx, first, kv, Crumbs::default());
+                            entries[i] = owned(kv);
+                        }
+                        std::collections::hash_map::Entry::Vacant(e) => {
+                            e.insert((entries.len(), kv));
+                            entries.push(owned(kv));
+                        }
+                    }
+                }
+                model.extra_sections.push(ExtraSection { name: sec.name.to_owned(), entries });
             }
             _ => {}
         }

@@ -1172,10 +1172,17 @@ fn check_structure(
     }
     if obj.object_type == ObjectType::Array {
         let mut types = obj.subs.values().filter(|e| e.sub.0 != 0).map(|e| (e.sub.0, e.data_type));
-        if let Some((_, first)) = types.next()
+        if let Some((first_sub, first)) = types.next()
             && let Some((s, other)) = types.find(|&(_, t)| t != first)
         {
-            let span = subs.iter().find(|(x, _)| *x == s).map(|(_, sec)| sec.name_span);
+            // The element's own section; an element CompactSubObj made has none: then the
+            // section of the first element (which overrides the compact type), else the
+            // object's CompactSubObj key, else its header. Always a place in the file.
+            let section_of = |sub: u8| subs.iter().find(|(x, _)| *x == sub).map(|(_, sec)| sec.name_span);
+            let span = section_of(s)
+                .or_else(|| section_of(first_sub))
+                .or_else(|| keys.get(K_COMPACT).map(|kv| kv.key_span()))
+                .or(Some(sec.name_span));
             let d = cx.emit(
                 codes::E0219,
                 span,

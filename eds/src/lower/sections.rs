@@ -279,10 +279,61 @@ fn classify_object(name: &str, index: u16) -> (Kind, Spelling) {
     (Kind::Unknown, Spelling::Exact)
 }
 
+/// The name of a section of unknown kind in ASCII lower case, as a map key. Debug builds count
+/// the comparisons of two keys ([`name_comparisons`]), so that a test can hold the grouping of
+/// sections to a bounded number per section, whatever the file.
+#[derive(Eq)]
+struct NameKey(String);
+
+impl std::hash::Hash for NameKey {
+    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
+        self.0.hash(state);
+    }
+}
+
+impl PartialEq for NameKey {
+    fn eq(&self, other: &Self) -> bool {
+        #[cfg(debug_assertions)]
+        NAME_COMPARISONS.with(|c| c.set(c.get() + 1));
+        self.0 == other.0
+    }
+}
+
+#[cfg(debug_assertions)]
+thread_local! {
+    static NAME_COMPARISONS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// How many times this thread compared two names of unknown sections while grouping sections
+/// (debug builds; 0 in release builds, which do not count).
+#[doc(hidden)]
+pub fn name_comparisons() -> u64 {
+    #[cfg(debug_assertions)]
+    return NAME_COMPARISONS.with(|c| c.get());
+    #[cfg(not(debug_assertions))]
+    0
+}
+
 /// Groups the document's lines into sections and reports line-level problems.
 pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> {
     let src = &doc.source;
-    if src.encoding == Encoding::Windows1252 {
+    if matches!(src.encoding, Encoding::Utf16Le | Encoding::Utf16Be) {
+        let order = if src.encoding == Encoding::Utf16Le { "little" } else { "big" };
+        cx.emit(
+            codes::E0010,
+            None,
+            format!("file is UTF-16 ({order}-endian, with a byte-order mark); it was decoded as such"),
+        )
+        .hint = Some("save the file as UTF-8 (or plain ASCII, as CiA 306 asks); `odgen fmt` writes it so".into());
+        if src.invalid_units > 0 {
+            cx.emit(
+                codes::E0011,
+                None,
+                format!("{} code unit(s) are not valid UTF-16; each was read as U+FFFD", src.invalid_units),
+            )
+            .hint = Some("the file is damaged or not UTF-16: check how it was saved".into());
+        }
+    } else if src.encoding == Encoding::Windows1252 {
         cx.emit(codes::E0001, None, "file is not valid UTF-8; it was decoded as Windows-1252").hint =
             Some("save the file as UTF-8 (or plain ASCII, as CiA 306 asks)".into());
     } else if !src.text.is_ascii()
@@ -299,8 +350,10 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
     let sections = text.len() / 48 + 8;
     let mut heads: Vec<Head<'a>> = Vec::with_capacity(sections);
     let mut by_kind: FastMap<u32, usize> = FastMap::with_capacity_and_hasher(sections, Default::default());
-    // Sections of unknown kind, matched by name (ignoring ASCII case); there are few.
-    let mut unknown: Vec<usize> = Vec::new();
+    // Sections of unknown kind, by name in ASCII lower case (names are matched ignoring ASCII
+    // case). Real files have few; a file of many must not cost a scan of all the others each,
+    // and the names are the file's choice: the standard (keyed) hasher, not `FastMap`'s.
+    let mut unknown: std::collections::HashMap<NameKey, usize> = std::collections::HashMap::new();
     let mut occurrences: Vec<u16> = Vec::with_capacity(sections);
     let mut entries: Vec<Kv<'a>> = Vec::with_capacity(text.len() / 10 + 8);
     // Each section header starts a run of entries: (section, first entry). A run ends where the
@@ -309,13 +362,11 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
     let mut repeated = false;
     // The section the following entries belong to, and its occurrence.
     let mut current: Option<(usize, u16)> = None;
-    // The start of every line `line_col` counts (lines end at `\n`), handed to the source for its
-    // diagnostics; its length is the number of the current line. And the number of characters
-    // between the start of that line and the start of the current lexer line (not 0 only after
-    // lines that end with a lone `\r`).
+    // The start of every line (lines end at `\n`, `\r\n` or a lone `\r`, for positions as for
+    // the lexer), handed to the source for its diagnostics; its length is the number of the
+    // current line.
     let mut line_starts: Vec<u32> = Vec::with_capacity(text.len() / 6 + 2);
     line_starts.push(0);
-    let mut col_base = 0u32;
     // The lines are taken from the lexer one at a time; none is kept. Most lines are plain
     // entries inside a section: the lexer reads those on a shorter path of their own.
     let mut lexer = crate::lex::Lexer::new(text);
@@ -325,7 +376,6 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
         {
             entries.push(Kv { key: e.key, value: e.value, key_start: e.start, occurrence });
             if e.newline {
-                col_base = 0;
                 line_starts.push(e.end);
             }
             continue;
@@ -333,7 +383,6 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
         // Empty lines (one between sections, as most files write them) need no more than
         // their end.
         if let Some(end) = lexer.next_empty_line() {
-            col_base = 0;
             line_starts.push(end);
             continue;
         }
@@ -373,9 +422,13 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                     // A new section of a known kind is entered under the number it is about to get
                     // (one hash and one probe, where a look-up and an insertion took two).
                     let existing = match kind {
-                        Kind::Unknown => {
-                            unknown.iter().copied().find(|&i| heads[i].name.eq_ignore_ascii_case(name_str))
-                        }
+                        Kind::Unknown => match unknown.entry(NameKey(name_str.to_ascii_lowercase())) {
+                            std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
+                            std::collections::hash_map::Entry::Vacant(e) => {
+                                e.insert(heads.len());
+                                None
+                            }
+                        },
                         k => match by_kind.entry(k.key()) {
                             std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
                             std::collections::hash_map::Entry::Vacant(e) => {
@@ -402,12 +455,9 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                             let i = heads.len();
                             let before = src.slice(Span::new(line.raw.start, name.start));
                             let line_no = line_starts.len() as u32;
-                            let at = LineCol { line: line_no, col: col_base + char_count(before) + 1 };
+                            let at = LineCol { line: line_no, col: char_count(before) + 1 };
                             heads.push(Head { name: name_str, name_span: name, at, kind, entries: 0..0 });
                             occurrences.push(0);
-                            if kind == Kind::Unknown {
-                                unknown.push(i);
-                            }
                             i
                         }
                     };
@@ -434,17 +484,13 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
                         Some(line.content),
                         format!("`{shown}` is not a section header, a `key=value` entry or a comment (line ignored)"),
                     );
-                    d.hint = Some(hint.to_owned().into());
+                    d.hint = Some(hint.into());
                 }
                 LineKind::Blank => {}
             }
         }
         match line.ending {
-            LineEnding::Lf | LineEnding::CrLf => {
-                col_base = 0;
-                line_starts.push(line.raw.end);
-            }
-            LineEnding::Cr => col_base += char_count(src.slice(line.raw)),
+            LineEnding::Lf | LineEnding::CrLf | LineEnding::Cr => line_starts.push(line.raw.end),
             LineEnding::None => {}
         }
     }
@@ -680,7 +726,8 @@ impl<const N: usize> KeySet<N> {
 pub(crate) struct Keys<'a, const N: usize> {
     /// For each known key, the entry that sets it (the last one if repeated).
     pub found: [Option<&'a Kv<'a>>; N],
-    /// Entries whose key is not known, in file order.
+    /// Entries whose key is not known, in file order of each key's first entry, with the value
+    /// of its last.
     pub unknown: Vec<&'a Kv<'a>>,
 }
 
@@ -748,13 +795,24 @@ pub(crate) fn match_keys<'a, const N: usize>(
                     last_unknown = Some(map);
                 }
                 let prev = match &mut last_unknown {
-                    Some(map) => map.insert(Caseless(kv.key), unknown.len()).map(|i| unknown[i]),
-                    None => unknown.iter().rev().find(|u| u.key.eq_ignore_ascii_case(kv.key)).copied(),
+                    Some(map) => match map.entry(Caseless(kv.key)) {
+                        std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
+                        std::collections::hash_map::Entry::Vacant(e) => {
+                            e.insert(unknown.len());
+                            None
+                        }
+                    },
+                    None => unknown.iter().position(|u| u.key.eq_ignore_ascii_case(kv.key)),
                 };
-                if let Some(prev) = prev {
-                    report_duplicate(cx, prev, kv, context);
+                // A repeated key keeps its first place with the later value, as a known key
+                // does: the model (and a file written from it) has each key once.
+                match prev {
+                    Some(i) => {
+                        report_duplicate(cx, unknown[i], kv, context);
+                        unknown[i] = kv;
+                    }
+                    None => unknown.push(kv),
                 }
-                unknown.push(kv);
                 if report_unknown {
                     let d = cx.emit(
                         codes::E0102,
@@ -790,7 +848,8 @@ impl std::hash::Hash for Caseless<'_> {
     }
 }
 
-fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, context: Crumbs<'_>) {
+/// Reports `kv` as a repeat of `prev` (E0007), unless the repeat comes from a repeated section.
+pub(crate) fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, context: Crumbs<'_>) {
     // Repeats that come from a repeated section were already reported with the section.
     if prev.occurrence != kv.occurrence {
         return;
@@ -901,7 +960,10 @@ mod tests {
             let collected = collect(&doc, &mut cx);
             let secs = collected.sections();
             let keys = match_keys(&mut cx, &secs.list[0], &KeySet::new(["SupportedObjects"]), Crumbs::default(), false);
-            assert_eq!(keys.unknown.len(), n + 3);
+            // Each key once: `2` and `xY` keep their first place with their later values.
+            assert_eq!(keys.unknown.len(), n + 1);
+            assert_eq!(keys.unknown[1].value, "0x2000");
+            assert_eq!(keys.unknown[n].value, "2");
             let repeats: Vec<_> = cx
                 .diags
                 .iter()

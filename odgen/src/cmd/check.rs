@@ -1,11 +1,16 @@
-//! `odgen check`: read and validate files, print every diagnostic and a summary.
+//! `odgen check`: read and validate files, print their diagnostics and a summary.
+//!
+//! Each file's part of the output is rendered by the thread that read it (which then drops the
+//! file's text and model, so its memory serves the next file), and the parts go out in the
+//! order of the files through one buffer ([`super::Stream`]). JSON and SARIF are written
+//! directly, not through a value tree per diagnostic.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use eds::{Diagnostic, Severity};
 
-use super::{EXIT_FAILURE, EXIT_TROUBLE};
+use super::{EXIT_FAILURE, EXIT_TROUBLE, Stream};
 
 /// How diagnostics are printed.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -13,11 +18,35 @@ pub enum Format {
     /// rustc-style text with the offending line quoted.
     #[default]
     Human,
-    /// One JSON document: `{"files": [{"file", "diagnostics"}], "errors", "warnings", "notes"}`.
+    /// One JSON document: `{"files": [{"file", "diagnostics"}], "errors", "warnings", "notes",
+    /// "unreadable", "unreadable_files": [{"file", "reason"}]}`.
     Json,
+    /// SARIF 2.1.0 (the format code-scanning services read): one run, one result per diagnostic.
+    Sarif,
 }
 
-/// `odgen check [--strict] [--format human|json] FILE...`
+/// The least severe diagnostics printed.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Level {
+    /// Errors only.
+    Error,
+    /// Errors and warnings (the default for human output).
+    Warning,
+    /// Everything, notes too (the default for JSON and SARIF).
+    Note,
+}
+
+impl Level {
+    fn shows(self, s: Severity) -> bool {
+        match self {
+            Level::Error => s == Severity::Error,
+            Level::Warning => s >= Severity::Warning,
+            Level::Note => true,
+        }
+    }
+}
+
+/// `odgen check [--strict] [--format human|json|sarif] [--level L | --notes] FILE...`
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Treat every CiA 306 deviation as an error (default: lenient, deviations are warnings).
@@ -26,6 +55,13 @@ pub struct Args {
     /// Output format.
     #[arg(long, value_enum, default_value_t = Format::Human)]
     pub format: Format,
+    /// The least severe diagnostics to print (default: `warning` for human output, where notes
+    /// are only counted in the summary; `note` for JSON and SARIF, which keep everything).
+    #[arg(long, value_enum)]
+    pub level: Option<Level>,
+    /// Print notes too (the same as `--level note`).
+    #[arg(long, conflicts_with = "level")]
+    pub notes: bool,
     /// Threads reading files at once (default: one per core); the output is in the order of
     /// the files whatever the number.
     #[arg(long, short = 'j')]
@@ -35,65 +71,172 @@ pub struct Args {
     pub files: Vec<PathBuf>,
 }
 
+/// What is kept of a file once it is read: its part of the output, rendered by the thread that
+/// read it, and its counts. The file's text, model and diagnostics are dropped there and then,
+/// so that the thread's next file reuses their memory, and rendering runs on every thread.
+struct Report {
+    text: String,
+    counts: Counts,
+}
+
+/// Counts by severity.
+#[derive(Default)]
+struct Counts {
+    errors: usize,
+    warnings: usize,
+    notes: usize,
+}
+
+impl Counts {
+    fn add(&mut self, diagnostics: &[Diagnostic]) {
+        for d in diagnostics {
+            match d.severity {
+                Severity::Error => self.errors += 1,
+                Severity::Warning => self.warnings += 1,
+                Severity::Note => self.notes += 1,
+            }
+        }
+    }
+}
+
 /// Runs the subcommand. Exit code 0 when no file has an error, 1 when one has, 2 when a file
 /// could not be read at all.
 pub fn run(args: Args) -> ExitCode {
     let options = if args.strict { eds::Options::strict() } else { eds::Options::lenient() };
-    let mut all: Vec<Diagnostic> = Vec::new();
-    let mut json_files = Vec::new();
-    let mut unreadable = 0usize;
-    let read = super::par_map(&args.files, super::jobs(args.jobs), |path| eds::read_file(path, &options));
-    for (path, parsed) in args.files.iter().zip(read) {
-        let parsed = match parsed {
-            Ok(p) => p,
-            Err(e) => {
-                eprintln!("error: cannot read {}: {e}", path.display());
-                unreadable += 1;
-                continue;
-            }
-        };
-        match args.format {
+    let level = match (args.level, args.notes, args.format) {
+        (Some(l), _, _) => l,
+        (None, true, _) => Level::Note,
+        (None, false, Format::Human) => Level::Warning,
+        (None, false, _) => Level::Note,
+    };
+    let format = args.format;
+    let reports = super::par_map(&args.files, super::jobs(args.jobs), |path| {
+        let parsed = eds::read_file(path, &options)?;
+        let mut counts = Counts::default();
+        counts.add(&parsed.diagnostics);
+        let source = &parsed.document.source;
+        let shown = parsed.diagnostics.iter().filter(|d| level.shows(d.severity));
+        let mut text = String::new();
+        match format {
             Format::Human => {
-                for d in &parsed.diagnostics {
-                    super::outln!("{}", eds::diag::render(d, &parsed.document.source));
+                for d in shown {
+                    eds::diag::render_to(&mut text, d, source);
+                    text.push('\n');
                 }
             }
             Format::Json => {
-                let diagnostics: serde_json::Value =
-                    serde_json::from_str(&eds::diag::to_json(&parsed.diagnostics)).unwrap_or_default();
-                json_files.push(serde_json::json!({ "file": path.display().to_string(), "diagnostics": diagnostics }));
+                text.push_str("{\"file\":");
+                eds::diag::push_json_str(&mut text, &path.display().to_string());
+                text.push_str(",\"diagnostics\":[");
+                for (i, d) in shown.enumerate() {
+                    text.push_str(if i == 0 { "\n" } else { ",\n" });
+                    eds::diag::push_json(&mut text, d);
+                }
+                text.push_str("]}");
+            }
+            Format::Sarif => {
+                for (i, d) in shown.enumerate() {
+                    if i > 0 {
+                        text.push_str(",\n");
+                    }
+                    super::sarif::push_result(&mut text, d, source);
+                }
             }
         }
-        all.extend(parsed.diagnostics);
+        Ok::<_, std::io::Error>(Report { text, counts })
+    });
+    let mut out = Stream::stdout();
+    let mut counts = Counts::default();
+    let mut unreadable: Vec<(String, String)> = Vec::new();
+    match args.format {
+        Format::Human => {}
+        Format::Json => out.push("{\"files\":["),
+        Format::Sarif => super::sarif::start(&mut out),
     }
-    let count = |s: Severity| all.iter().filter(|d| d.severity == s).count();
-    let errors = count(Severity::Error);
+    // Whether a JSON file object or a SARIF result was written (the next one needs a comma).
+    let mut any = false;
+    for (path, report) in args.files.iter().zip(reports) {
+        let report = match report {
+            Ok(r) => r,
+            Err(e) => {
+                let name = path.display().to_string();
+                if args.format == Format::Human {
+                    eprintln!("error: cannot read {name}: {e}");
+                }
+                unreadable.push((name, e.to_string()));
+                continue;
+            }
+        };
+        counts.errors += report.counts.errors;
+        counts.warnings += report.counts.warnings;
+        counts.notes += report.counts.notes;
+        if args.format != Format::Human && !report.text.is_empty() {
+            out.push(if any { ",\n" } else { "\n" });
+            any = true;
+        }
+        out.push(&report.text);
+    }
     match args.format {
         Format::Human => {
             let files = args.files.len();
             let mut line =
-                format!("checked {files} file{}: {}", if files == 1 { "" } else { "s" }, eds::diag::summary(&all));
-            if unreadable > 0 {
-                line.push_str(&format!(", {unreadable} unreadable"));
+                format!("checked {files} file{}: {}", if files == 1 { "" } else { "s" }, summary(&counts, level));
+            if !unreadable.is_empty() {
+                line.push_str(&format!(", {} unreadable", unreadable.len()));
             }
-            super::outln!("{line}");
+            line.push('\n');
+            out.push(&line);
         }
-        Format::Json => {
-            let doc = serde_json::json!({
-                "files": json_files,
-                "errors": errors,
-                "warnings": count(Severity::Warning),
-                "notes": count(Severity::Note),
-                "unreadable": unreadable,
-            });
-            super::outln!("{}", serde_json::to_string_pretty(&doc).unwrap_or_default());
-        }
+        Format::Json => out.with(|buf| {
+            use std::fmt::Write as _;
+            let _ = write!(
+                buf,
+                "\n],\n\"errors\":{},\"warnings\":{},\"notes\":{},\"unreadable\":{},\"unreadable_files\":[",
+                counts.errors,
+                counts.warnings,
+                counts.notes,
+                unreadable.len()
+            );
+            for (i, (file, reason)) in unreadable.iter().enumerate() {
+                buf.push_str(if i == 0 { "\n{\"file\":" } else { ",\n{\"file\":" });
+                eds::diag::push_json_str(buf, file);
+                buf.push_str(",\"reason\":");
+                eds::diag::push_json_str(buf, reason);
+                buf.push('}');
+            }
+            buf.push_str("]}\n");
+        }),
+        Format::Sarif => super::sarif::finish(&mut out, &unreadable),
     }
-    if unreadable > 0 {
+    out.finish();
+    if !unreadable.is_empty() {
         ExitCode::from(EXIT_TROUBLE)
-    } else if errors > 0 {
+    } else if counts.errors > 0 {
         ExitCode::from(EXIT_FAILURE)
     } else {
         ExitCode::SUCCESS
     }
+}
+
+/// `2 errors, 1 warning, 3 notes` (`no problems` when there are none); what was counted but
+/// not printed is marked so, with the flag that prints it.
+fn summary(c: &Counts, level: Level) -> String {
+    let part = |n: usize, what: &str, severity: Severity, flag: &str| {
+        let mut p = format!("{n} {what}{}", if n == 1 { "" } else { "s" });
+        if !level.shows(severity) {
+            p.push_str(&format!(" (not shown; {flag} shows them)"));
+        }
+        p
+    };
+    let mut parts = Vec::new();
+    if c.errors > 0 {
+        parts.push(part(c.errors, "error", Severity::Error, ""));
+    }
+    if c.warnings > 0 {
+        parts.push(part(c.warnings, "warning", Severity::Warning, "--level warning"));
+    }
+    if c.notes > 0 {
+        parts.push(part(c.notes, "note", Severity::Note, "--notes"));
+    }
+    if parts.is_empty() { "no problems".to_owned() } else { parts.join(", ") }
 }

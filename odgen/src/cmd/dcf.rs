@@ -32,8 +32,9 @@ pub struct Args {
     /// The device description to configure.
     #[arg(required_unless_present = "network")]
     pub eds: Option<PathBuf>,
-    /// Where to write the DCF (default: standard output); with `--network`, the directory for
-    /// the DCFs (created if missing).
+    /// Where to write the DCF (default, or `-`: standard output), through a symbolic link to its
+    /// target, keeping an existing file's mode and owner (devices and read-only files are
+    /// refused); with `--network`, the directory for the DCFs (created if missing).
     #[arg(short = 'o', long = "output")]
     pub output: Option<PathBuf>,
 }
@@ -130,9 +131,10 @@ pub fn run(args: Args) -> ExitCode {
     let text = eds::write::write_dcf(&configured);
     match &args.output {
         None => super::write_stdout(&text),
+        Some(out) if out.as_os_str() == "-" => super::write_stdout(&text),
         Some(out) => {
-            if let Err(e) = super::fmt::write_atomically(out, text.as_bytes()) {
-                eprintln!("error: cannot write {}: {e}", out.display());
+            if let Err(e) = odgen::safe_write::write(out, text.as_bytes()) {
+                eprintln!("error: cannot write {e}");
                 return ExitCode::from(EXIT_TROUBLE);
             }
             eprintln!(
@@ -178,8 +180,8 @@ fn run_network(network: &std::path::Path, out_dir: Option<&std::path::Path>) -> 
     }
     for dcf in &outcome.dcfs {
         let path = out_dir.join(&dcf.file_name);
-        if let Err(e) = super::fmt::write_atomically(&path, dcf.text.as_bytes()) {
-            eprintln!("error: cannot write {}: {e}", path.display());
+        if let Err(e) = odgen::safe_write::write(&path, dcf.text.as_bytes()) {
+            eprintln!("error: cannot write {e}");
             return ExitCode::from(EXIT_TROUBLE);
         }
         eprintln!("wrote {} (node {}, {})", path.display(), dcf.node_id, dcf.device);

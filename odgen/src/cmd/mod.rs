@@ -7,6 +7,7 @@ pub mod diff;
 pub mod dump;
 pub mod fmt;
 pub mod generate;
+pub mod sarif;
 
 use std::path::Path;
 
@@ -84,6 +85,67 @@ pub fn write_stdout(text: &str) {
         }
         eprintln!("error: cannot write to standard output: {e}");
         std::process::exit(i32::from(EXIT_TROUBLE));
+    }
+}
+
+/// Output to standard output, written in blocks of 64 KiB through [`write_stdout`] as it is
+/// made: a command printing a great deal never holds it all.
+pub struct Stream {
+    buf: String,
+}
+
+impl Stream {
+    /// The size at which the buffer is written out.
+    const BLOCK: usize = 1 << 16;
+
+    /// A stream to standard output.
+    pub fn stdout() -> Self {
+        Stream { buf: String::with_capacity(Self::BLOCK + 4096) }
+    }
+
+    /// Appends text.
+    pub fn push(&mut self, text: &str) {
+        self.buf.push_str(text);
+        self.write_if_full();
+    }
+
+    /// Lets `f` append to the buffer.
+    pub fn with(&mut self, f: impl FnOnce(&mut String)) {
+        f(&mut self.buf);
+        self.write_if_full();
+    }
+
+    fn write_if_full(&mut self) {
+        if self.buf.len() >= Self::BLOCK {
+            write_stdout(&self.buf);
+            self.buf.clear();
+        }
+    }
+
+    /// Writes what is left.
+    pub fn finish(mut self) {
+        write_stdout(&self.buf);
+        self.buf.clear();
+    }
+}
+
+impl crate::yaml::Sink for Stream {
+    fn push(&mut self, text: &str) {
+        Stream::push(self, text);
+    }
+}
+
+/// Bytes written to a [`Stream`] (serde_json's output, which is UTF-8).
+impl std::io::Write for Stream {
+    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+        // serde_json writes whole UTF-8 sequences; anything else is a bug to hear about.
+        let text = std::str::from_utf8(bytes).map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))?;
+        self.push(text);
+        Ok(bytes.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
     }
 }
 
