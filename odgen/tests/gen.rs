@@ -100,3 +100,41 @@ fn errors_exit_1_and_write_nothing_usage_errors_exit_2() {
     assert_eq!(odgen(&["gen", "no/such/file.eds"]).status.code(), Some(2));
     assert_eq!(odgen(&["gen", quirks, "--sidecar", "no/such/sidecar.toml"]).status.code(), Some(1));
 }
+
+/// `-o` writes as `fmt` and `dcf -o` do: through a symbolic link to its target (the link
+/// stays a link), keeping the target's mode; a device or a read-only file is refused and left
+/// as it was; `-o -` is standard output.
+#[cfg(unix)]
+#[test]
+fn output_files_are_written_safely() {
+    use std::os::unix::fs::PermissionsExt as _;
+    let dir = std::env::temp_dir().join(format!("odgen-gen-out-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = "od-codegen/tests/fixtures/mini.eds";
+    let expected = builder_text(file, "mini", false, false);
+
+    let target = dir.join("target.rs");
+    std::fs::write(&target, "old").unwrap();
+    std::fs::set_permissions(&target, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let link = dir.join("link.rs");
+    std::os::unix::fs::symlink(&target, &link).unwrap();
+    let out = odgen(&["gen", file, "-o", link.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink(), "the link stays a link");
+    assert_eq!(std::fs::read_to_string(&target).unwrap(), expected);
+    assert_eq!(std::fs::metadata(&target).unwrap().permissions().mode() & 0o777, 0o600);
+
+    let read_only = dir.join("ro.rs");
+    std::fs::write(&read_only, "keep").unwrap();
+    std::fs::set_permissions(&read_only, std::fs::Permissions::from_mode(0o444)).unwrap();
+    let out = odgen(&["gen", file, "-o", read_only.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("read-only"));
+    assert_eq!(std::fs::read_to_string(&read_only).unwrap(), "keep");
+
+    let out = odgen(&["gen", file, "-o", "-"]);
+    assert_eq!(out.status.code(), Some(0));
+    assert!(out.stdout == expected.as_bytes());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -27,7 +27,9 @@ pub struct Args {
     /// Include the description's text as `pub const EDS: &str`.
     #[arg(long)]
     pub embed_eds: bool,
-    /// Write the module to this file (only if its contents change) instead of standard output.
+    /// Write the module to this file (only if its contents change; `-` is standard output)
+    /// instead of standard output. The file is written through symbolic links, keeping its
+    /// mode and owner; devices and read-only files are refused.
     #[arg(short = 'o', long = "output", value_name = "OUT.rs")]
     pub output: Option<PathBuf>,
 }
@@ -73,12 +75,23 @@ pub fn run(args: Args) -> ExitCode {
         return ExitCode::from(EXIT_FAILURE);
     }
     match &args.output {
-        Some(path) => {
-            if let Err(e) = od_codegen::write_if_changed(path, &output.text) {
-                eprintln!("error: {e}");
-                return ExitCode::from(EXIT_TROUBLE);
+        // `-o -` is standard output; a file is written as `fmt` and `dcf -o` write theirs
+        // (through symbolic links, mode and owner kept, devices and read-only files refused),
+        // and left alone when it already holds this text (no rebuild for a build system that
+        // watches it).
+        Some(path) => match odgen::safe_write::Destination::from_arg(path) {
+            odgen::safe_write::Destination::Stdout => super::write_stdout(&output.text),
+            odgen::safe_write::Destination::File(path) => {
+                let unchanged = std::fs::metadata(&path).is_ok_and(|m| m.is_file())
+                    && std::fs::read(&path).is_ok_and(|old| old == output.text.as_bytes());
+                if !unchanged {
+                    if let Err(e) = odgen::safe_write::write(&path, output.text.as_bytes()) {
+                        eprintln!("error: {e}");
+                        return ExitCode::from(EXIT_TROUBLE);
+                    }
+                }
             }
-        }
+        },
         None => super::write_stdout(&output.text),
     }
     ExitCode::SUCCESS
