@@ -56,11 +56,17 @@ impl<T> BoundedQueue<T> {
 
     /// Appends an item without blocking.
     pub(crate) fn push(&self, item: T) -> Result<(), PushError> {
+        self.push_within(item, self.capacity)
+    }
+
+    /// Appends an item without blocking if fewer than `limit` are queued (`limit` may exceed
+    /// the capacity: room kept for items that must not be dropped, such as protocol replies).
+    pub(crate) fn push_within(&self, item: T, limit: usize) -> Result<(), PushError> {
         let mut state = lock(&self.state);
         if state.closed {
             return Err(PushError::Closed);
         }
-        if state.items.len() >= self.capacity {
+        if state.items.len() >= limit {
             return Err(PushError::Full);
         }
         state.items.push_back(item);
