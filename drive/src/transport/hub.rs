@@ -592,7 +592,13 @@ impl HubInner {
                     decoder.feed(&buf[..n], |message| session.handle(message));
                     if session.sent > sent_before {
                         connection.sent_frames.store(true, Ordering::SeqCst);
-                        throttle.sent(session.sent - sent_before);
+                        // Paused in slices, so a client closed meanwhile is let go promptly.
+                        let mut pause = throttle.sent(session.sent - sent_before);
+                        while !pause.is_zero() && !connection.closing.load(Ordering::SeqCst) {
+                            let slice = pause.min(Duration::from_millis(100));
+                            std::thread::sleep(slice);
+                            pause -= slice;
+                        }
                     }
                     if connection.closing.load(Ordering::SeqCst) {
                         break connection.reason();
@@ -660,18 +666,17 @@ impl Throttle {
         (f64::from(rate) / 10.0).max(16.0)
     }
 
-    fn sent(&mut self, frames: u64) {
+    /// Counts `frames` sent; returns how long the client must wait before it is read again.
+    fn sent(&mut self, frames: u64) -> Duration {
         if self.rate == 0 {
-            return;
+            return Duration::ZERO;
         }
         let rate = f64::from(self.rate);
         let now = Instant::now();
         let refill = now.saturating_duration_since(self.refilled).as_secs_f64() * rate;
         self.refilled = now;
         self.tokens = (self.tokens + refill).min(Self::burst(self.rate)) - frames as f64;
-        if self.tokens < 0.0 {
-            std::thread::sleep(Duration::from_secs_f64(-self.tokens / rate));
-        }
+        if self.tokens < 0.0 { Duration::from_secs_f64(-self.tokens / rate) } else { Duration::ZERO }
     }
 }
 

@@ -25,9 +25,11 @@ use super::socketcand::Timestamp;
 /// Frames one member may have waiting for the wire.
 pub(crate) const TX_QUEUE: usize = 16;
 
-/// How far the wire may run behind real time and catch up (sleeps overshoot; the bus time
-/// they lose is made up by sending the next frames back to back).
-const CATCH_UP: Duration = Duration::from_millis(2);
+/// How far a busy wire may run behind real time and catch up. Sleeps overshoot, by
+/// milliseconds on a loaded machine; while frames wait, the bus time an overshoot lost is made
+/// up by sending the next frames back to back, so the wire keeps its rate on average. An idle
+/// wire earns no such credit: the frame that ends the idleness starts at once.
+const CATCH_UP: Duration = Duration::from_millis(50);
 
 /// Frames delivered this much before their last bit would have passed are fine: the wire
 /// sleeps only for longer gaps, which saves a system call per frame at high bit rates.
@@ -190,9 +192,11 @@ impl Wire {
         self.space.notify_all();
     }
 
-    /// The next frame to win arbitration, waiting for one; `None` once closed.
-    fn next(&self) -> Option<(MemberId, CanFrame)> {
+    /// The next frame to win arbitration, waiting for one, and whether the wire had to wait
+    /// (was idle); `None` once closed.
+    fn next(&self) -> Option<(MemberId, CanFrame, bool)> {
         let mut state = lock(&self.state);
+        let mut waited = false;
         loop {
             if state.closed {
                 return None;
@@ -212,8 +216,9 @@ impl Wire {
                 }
                 drop(state);
                 self.space.notify_all();
-                return Some((from, frame));
+                return Some((from, frame, waited));
             }
+            waited = true;
             state = self.ready.wait(state).unwrap_or_else(PoisonError::into_inner);
         }
     }
@@ -222,11 +227,11 @@ impl Wire {
     /// channel is gone).
     pub(crate) fn carry(&self, mut deliver: impl FnMut(MemberId, CanFrame, Timestamp) -> bool) {
         let mut free_at = Instant::now();
-        while let Some((from, frame)) = self.next() {
+        while let Some((from, frame, idle)) = self.next() {
             let bits = u64::from(frame_bits(&frame));
             let length = Duration::from_nanos(bits * 1_000_000_000 / u64::from(self.bitrate));
             let now = Instant::now();
-            let start = free_at.max(now.checked_sub(CATCH_UP).unwrap_or(now));
+            let start = if idle { free_at.max(now) } else { free_at.max(now.checked_sub(CATCH_UP).unwrap_or(now)) };
             free_at = start + length;
             if free_at > now + EARLY {
                 std::thread::sleep(free_at - now);
@@ -305,10 +310,10 @@ mod tests {
         assert!(wire.submit(2, std(0x7FF, &[]), None));
         assert!(wire.submit(3, std(0x001, &[]), None));
         // Member 3's frame has the lowest id; member 1's queue goes in its own order.
-        assert_eq!(wire.next().map(|(from, f)| (from, f.id())), Some((3, 0x001)));
-        assert_eq!(wire.next().map(|(from, f)| (from, f.id())), Some((1, 0x700)));
+        assert_eq!(wire.next().map(|(from, f, _)| (from, f.id())), Some((3, 0x001)));
+        assert_eq!(wire.next().map(|(from, f, _)| (from, f.id())), Some((1, 0x700)));
         wire.forget(1);
-        assert_eq!(wire.next().map(|(from, f)| (from, f.id())), Some((2, 0x7FF)));
+        assert_eq!(wire.next().map(|(from, f, _)| (from, f.id())), Some((2, 0x7FF)));
         wire.close();
         assert!(wire.next().is_none());
         assert!(!wire.submit(2, std(1, &[]), None));
