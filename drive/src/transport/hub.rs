@@ -53,7 +53,9 @@ pub struct HubConfig {
     pub client_queue: usize,
     /// Frames queued for one in-process endpoint before further frames are dropped.
     pub endpoint_queue: usize,
-    /// A write to a client that blocks this long disconnects it.
+    /// A write to a client that blocks this long (the client reads nothing at all, say `dump`
+    /// piped into a pager that waits) disconnects it. Frames beyond its queue are dropped
+    /// meanwhile; the blocked writer costs one thread.
     pub write_timeout: Duration,
     /// A client that has not opened a channel this long after connecting (the handshake) is
     /// disconnected. (After `open`, silence is normal: a client may only listen.)
@@ -97,7 +99,7 @@ impl Default for HubConfig {
             max_clients: 1024,
             client_queue: 4096,
             endpoint_queue: 4096,
-            write_timeout: Duration::from_secs(5),
+            write_timeout: Duration::from_secs(60),
             open_timeout: Duration::from_secs(5),
             max_rate: 20_000,
             bitrate: None,
