@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use drive::transport::{CanFrame, Endpoint, Hub, HubConfig, HubEvent, SocketcandClient, TransportError};
 
-const WAIT: Duration = Duration::from_secs(5);
+const WAIT: Duration = Duration::from_secs(15);
 
 /// A client speaking the protocol as text, the way python-can does.
 struct TextClient {

@@ -41,6 +41,21 @@ pub(crate) trait Sink: Send + Sync {
     fn deliver(&self, frame: CanFrame, at: Timestamp) -> Delivery;
     /// Closes the member for good (the hub is shutting down).
     fn close(&self);
+    /// Hands over the frames of `batch` not sent by `me`, in order (an emulated wire delivers
+    /// what is due in one go). The default hands them over one by one.
+    fn deliver_batch(&self, batch: &[(MemberId, CanFrame)], me: MemberId, at: Timestamp) -> Delivery {
+        let mut result = Delivery::Accepted;
+        for (from, frame) in batch {
+            if *from != me {
+                match self.deliver(*frame, at) {
+                    Delivery::Gone => return Delivery::Gone,
+                    Delivery::Dropped => result = Delivery::Dropped,
+                    Delivery::Accepted => {}
+                }
+            }
+        }
+        result
+    }
 }
 
 /// One CAN bus: every member receives what the others relay.
@@ -67,9 +82,9 @@ impl Channel {
         let channel =
             Arc::new(Self { name: name.to_owned(), members: Mutex::new(Vec::new()), wire: Some(Arc::clone(&wire)) });
         let weak = Arc::downgrade(&channel);
-        std::thread::Builder::new().name(format!("wire-{name}")).spawn(move || {
-            wire.carry(|from, frame, at| weak.upgrade().map(|c| c.deliver(from, frame, at)).is_some())
-        })?;
+        std::thread::Builder::new()
+            .name(format!("wire-{name}"))
+            .spawn(move || wire.carry(|batch, at| weak.upgrade().map(|c| c.deliver_batch(batch, at)).is_some()))?;
         Ok(channel)
     }
 
@@ -106,7 +121,7 @@ impl Channel {
                 self.deliver(from, frame, at);
                 true
             }
-            Some(wire) => wire.submit(from, frame, block),
+            Some(wire) => wire.submit(from, frame, block, &|batch, at| self.deliver_batch(batch, at)),
         }
     }
 
@@ -130,6 +145,13 @@ impl Channel {
             }
         });
         accepted
+    }
+
+    /// Delivers the frames of `batch` (sender, frame) in order, each to every member but its
+    /// sender, with one pass over the members.
+    pub(crate) fn deliver_batch(&self, batch: &[(MemberId, CanFrame)], at: Timestamp) {
+        let mut members = lock(&self.members);
+        members.retain(|(id, sink)| sink.deliver_batch(batch, *id, at) != Delivery::Gone);
     }
 
     /// Closes every member (hub shutdown).
@@ -195,6 +217,25 @@ impl Sink for Inbox {
 
     fn close(&self) {
         self.queue.close();
+    }
+
+    fn deliver_batch(&self, batch: &[(MemberId, CanFrame)], me: MemberId, _at: Timestamp) -> Delivery {
+        let frames = batch.iter().filter(|(from, _)| *from != me).map(|(_, frame)| *frame);
+        match self.queue.push_all(frames) {
+            Ok(0) => Delivery::Accepted,
+            Ok(refused) => {
+                let before = self.dropped.fetch_add(refused as u64, Ordering::Relaxed);
+                let total = before + refused as u64;
+                // Reported when the total passes a power of two, as one by one.
+                if let Some(hook) = &self.on_overflow
+                    && (before + 1..=total).any(u64::is_power_of_two)
+                {
+                    hook(total);
+                }
+                Delivery::Dropped
+            }
+            Err(_) => Delivery::Gone,
+        }
     }
 }
 

@@ -904,4 +904,17 @@ impl Sink for Connection {
     fn close(&self) {
         self.kill("hub stopped");
     }
+
+    fn deliver_batch(&self, batch: &[(MemberId, CanFrame)], me: MemberId, at: Timestamp) -> Delivery {
+        let frames = batch.iter().filter(|(from, _)| *from != me).map(|(_, frame)| Outgoing::Frame(*frame, at));
+        match self.queue.push_all(frames) {
+            Ok(0) => Delivery::Accepted,
+            Ok(refused) => {
+                // A slow reader loses frames, not its connection (reported by its writer).
+                self.dropped.fetch_add(refused as u64, Ordering::Relaxed);
+                Delivery::Dropped
+            }
+            Err(_) => Delivery::Gone,
+        }
+    }
 }

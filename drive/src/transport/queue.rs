@@ -78,6 +78,29 @@ impl<T> BoundedQueue<T> {
         Ok(())
     }
 
+    /// Appends every item that fits (one lock, one wake-up for the lot); returns how many did
+    /// not fit, or `Err(PushError::Closed)`.
+    pub(crate) fn push_all(&self, items: impl Iterator<Item = T>) -> Result<usize, PushError> {
+        let mut state = lock(&self.state);
+        if state.closed {
+            return Err(PushError::Closed);
+        }
+        let mut refused = 0;
+        for item in items {
+            if state.items.len() >= self.capacity {
+                refused += 1;
+            } else {
+                state.items.push_back(item);
+            }
+        }
+        let wake = state.waiters > 0 && !state.items.is_empty();
+        drop(state);
+        if wake {
+            self.ready.notify_one();
+        }
+        Ok(refused)
+    }
+
     /// Takes the oldest item, waiting up to `timeout` for one. Items pushed before [`close`]
     /// are still handed out; `Err(Closed)` comes once the queue is closed and empty.
     ///
