@@ -175,3 +175,16 @@ fn dump_reports_the_frames_the_hub_dropped_because_it_read_too_slowly() {
         .unwrap();
     assert!(lost > 0 && printed as u64 + lost <= 300_002, "printed {printed}, lost {lost}");
 }
+
+#[test]
+fn hub_and_run_help_document_the_limits_and_the_bitrate() {
+    for command in ["hub", "run"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_drive-sim")).args([command, "--help"]).output().unwrap();
+        assert!(out.status.success());
+        let help = String::from_utf8(out.stdout).unwrap();
+        for option in ["--max-clients", "--handshake-timeout-ms", "--max-rate", "--bitrate", "Hub limits"] {
+            assert!(help.contains(option), "{command} --help lacks {option}:\n{help}");
+        }
+        assert!(help.contains("[default: 1024]") && help.contains("longest"), "{help}");
+    }
+}

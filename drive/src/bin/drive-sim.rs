@@ -109,6 +109,7 @@ struct HubArgs {
 
 /// The hub's limits, shared by `hub` and `run --listen`.
 #[derive(Debug, Args)]
+#[command(next_help_heading = "Hub limits (hub, and run with --listen)")]
 struct HubLimits {
     /// Connections served at once. When full, the connection idle longest among those that
     /// never sent a frame is closed to let a new one in; only if every client sends frames is
