@@ -259,6 +259,9 @@ pub fn decode_set(bytes: &[u8], tag: &str) -> Result<Vec<(Area, Vec<Record>)>, I
     Ok(areas)
 }
 
+/// The images of a parameter file: each area's records.
+type AreaImages = Vec<(Area, Vec<Record>)>;
+
 /// The areas a file can hold, in file order.
 const AREAS: [Area; 3] = [Area::Communication, Area::Application, Area::Manufacturer];
 
@@ -564,7 +567,7 @@ impl FileStorage {
     }
 
     /// The areas of the parameter file; `Ok(None)` if there is no such file.
-    fn read_set(&self) -> Result<Option<Vec<(Area, Vec<Record>)>>, String> {
+    fn read_set(&self) -> Result<Option<AreaImages>, String> {
         let path = self.set_path();
         match read_limited(&path)? {
             Some(bytes) => decode_set(&bytes, &self.tag).map(Some).map_err(|e| format!("{}: {e}", path.display())),

@@ -136,6 +136,9 @@ struct State {
     delivering: bool,
 }
 
+/// Frames handed to the members together, each with its sender.
+pub(crate) type Batch = [(MemberId, CanFrame)];
+
 /// What a thread working the wire does next.
 enum Step {
     /// Hand these frames (sender, frame), in order, to the members; then clear `delivering`.
@@ -190,7 +193,7 @@ impl Wire {
         from: MemberId,
         frame: CanFrame,
         block: Option<Duration>,
-        deliver: &dyn Fn(&[(MemberId, CanFrame)], Timestamp),
+        deliver: &dyn Fn(&Batch, Timestamp),
     ) -> bool {
         let deadline = block.and_then(|b| Instant::now().checked_add(b));
         let mut state = lock(&self.state);
