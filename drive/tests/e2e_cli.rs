@@ -101,16 +101,106 @@ fn a_device_joins_a_hub_with_bus_and_stops_on_sigint() {
     assert!(log.contains("SIGINT, stopping"), "{log}");
 }
 
+fn download_u32(bus: &mut SocketcandClient, node: u32, index: u16, sub: u8, value: u32) {
+    let v = value.to_le_bytes();
+    bus.send(
+        CanFrame::standard(0x600 + node, &[0x23, index as u8, (index >> 8) as u8, sub, v[0], v[1], v[2], v[3]])
+            .unwrap(),
+    )
+    .unwrap();
+    let reply = next_with_id(bus, 0x580 + node);
+    assert_eq!(reply.data()[0], 0x60, "{reply}");
+}
+
 #[test]
-fn a_device_whose_hub_goes_away_fails() {
+fn a_device_whose_hub_goes_away_keeps_its_state_and_reconnects() {
     let mut hub = Process::start(&["hub", "--listen", "127.0.0.1:0", "--quiet"], "listening on ");
-    let spec = format!("tcp://{}", hub.ready);
+    let address = hub.ready.clone();
+    let spec = format!("tcp://{address}");
     let mut run = Process::start(&["run", "--device", "drcs", "--node-id", "3", "--bus", &spec], "running on ");
+    let mut master = SocketcandClient::connect(address.as_str(), "can0").unwrap();
+    download_u32(&mut master, 3, 0x6083, 0, 4321); // not saved: only the running device has it
+    drop(master);
     hub.signal(libc::SIGTERM);
     assert!(hub.wait().0.success());
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(run.child.try_wait().unwrap().is_none(), "the device runs on without its bus");
+
+    // A hub on the same address: the device comes back by itself, with its state.
+    let _hub = Process::start(&["hub", "--listen", &address, "--quiet"], "listening on ");
+    let mut master = SocketcandClient::connect(address.as_str(), "can0").unwrap();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let value = loop {
+        assert!(Instant::now() < deadline, "the device did not come back");
+        master.send(CanFrame::standard(0x603, &[0x40, 0x83, 0x60, 0, 0, 0, 0, 0]).unwrap()).unwrap();
+        match master.recv_timeout(Duration::from_millis(200)).unwrap() {
+            Some(f) if f.id() == 0x583 => break f.data()[4..8].to_vec(),
+            _ => {}
+        }
+    };
+    assert_eq!(value, 4321u32.to_le_bytes());
+    run.signal(libc::SIGTERM);
     let (status, log) = run.wait();
-    assert_eq!(status.code(), Some(1), "{log}");
-    assert!(log.contains("drcs node 3: the bus was closed"), "{log}");
+    assert!(status.success(), "{status}: {log}");
+    assert!(log.contains("drcs node 3") && log.contains("reconnecting"), "{log}");
+    assert!(log.contains("reconnected after"), "{log}");
+}
+
+#[test]
+fn saves_killed_at_random_moments_never_mix_two_saves_nor_lose_a_confirmed_one() {
+    let dir = std::env::temp_dir().join(format!("drive-e2e-cli-kill-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let state = dir.to_str().unwrap();
+    let args =
+        ["run", "--device", "drvi", "--node-id", "2", "--state-dir", state, "--listen", "127.0.0.1:0", "--quiet"];
+    let mut confirmed = 0u32; // last save whose response the master got
+    let mut written = 0u32; // last generation written and asked to be saved
+    let mut seed = 0x2545_F491u32;
+    let rounds = 25;
+    let mut torn_rounds = 0;
+    // The last round only checks what the kill of the one before left.
+    for round in 1..=rounds + 1 {
+        let mut run = Process::start(&args, "listening on ");
+        let mut bus = SocketcandClient::connect(run.ready.as_str(), "can0").unwrap();
+        let acc = u32::from_le_bytes(upload_expedited(&mut bus, 2, 0x6083).try_into().unwrap());
+        let hb = upload_expedited(&mut bus, 2, 0x1017);
+        let hb = u32::from(u16::from_le_bytes(hb.try_into().unwrap()));
+        // 6083h (application area) = 1000 + g and 1017h (communication area) = 100 + g were
+        // saved together: both from one generation g, or nothing saved yet.
+        let g = match (acc.checked_sub(1000), hb.checked_sub(100)) {
+            (Some(a), Some(h)) if a == h => a,
+            _ if acc == 0 && hb == 0 => 0,
+            _ => panic!("round {round}: areas from different saves: 6083h={acc} 1017h={hb}"),
+        };
+        assert!(
+            g >= confirmed && g <= written,
+            "round {round}: generation {g}, confirmed {confirmed}, written {written}"
+        );
+        if g < written {
+            torn_rounds += 1; // the kill came before the save's rename: the previous save stands
+        }
+        if round > rounds {
+            break;
+        }
+        written = round;
+        download_u32(&mut bus, 2, 0x6083, 0, 1000 + round);
+        bus.send(CanFrame::standard(0x602, &[0x2B, 0x17, 0x10, 0, (100 + round) as u8, 0, 0, 0]).unwrap()).unwrap();
+        assert_eq!(next_with_id(&mut bus, 0x582).data()[0], 0x60);
+        bus.send(CanFrame::standard(0x602, &[0x23, 0x10, 0x10, 0x01, b's', b'a', b'v', b'e']).unwrap()).unwrap();
+        seed ^= seed << 13;
+        seed ^= seed >> 17;
+        seed ^= seed << 5;
+        std::thread::sleep(Duration::from_micros(u64::from(seed % 4000)));
+        run.signal(libc::SIGKILL);
+        let _ = run.wait();
+        while let Ok(Some(frame)) = bus.recv_timeout(Duration::from_millis(50)) {
+            if frame.id() == 0x582 && frame.data()[..4] == [0x60, 0x10, 0x10, 0x01] {
+                confirmed = round;
+            }
+        }
+    }
+    eprintln!("{rounds} kill rounds: {torn_rounds} killed before the save took effect, none mixed");
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -209,7 +299,7 @@ fn saved_parameters_persist_and_a_corrupt_file_is_reported() {
     second.signal(libc::SIGTERM);
     assert!(second.wait().0.success());
 
-    let file = dir.join("drvi-node2.app.params");
+    let file = dir.join("drvi-node2.params");
     let mut bytes = std::fs::read(&file).unwrap();
     let middle = bytes.len() / 2;
     bytes[middle] ^= 0xFF;
@@ -221,6 +311,6 @@ fn saved_parameters_persist_and_a_corrupt_file_is_reported() {
     let (status, log) = third.wait();
     assert!(status.success());
     assert!(log.contains("drvi-node2: warning: ignoring stored parameters, defaults used"), "{log}");
-    assert!(log.contains("drvi-node2.app.params"), "{log}");
+    assert!(log.contains("drvi-node2.params"), "{log}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

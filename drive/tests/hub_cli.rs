@@ -113,3 +113,78 @@ fn dump_and_send_are_clients_of_the_hub() {
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("odd number of data hex digits"));
 }
+
+#[test]
+fn dump_reports_the_frames_the_hub_dropped_because_it_read_too_slowly() {
+    use std::io::Read;
+    let mut hub = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
+        .args(["hub", "--listen", "127.0.0.1:0", "--quiet", "--queue", "16", "--max-rate", "0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(hub.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let address = line.trim().strip_prefix("listening on ").unwrap().to_owned();
+    // dump's stdout is not read for now: it blocks writing, stops reading its socket, and the
+    // hub's queue for it overflows.
+    let mut dump = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
+        .args(["dump", "--bus", &format!("tcp://{address}/can0"), "--timeout", "20"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut sender = SocketcandClient::connect(address.as_str(), "can0").unwrap();
+    // Wait until dump has joined (its own connection is the second on the channel).
+    std::thread::sleep(Duration::from_millis(300));
+    let frame = CanFrame::standard(0x181, &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
+    for _ in 0..300_000 {
+        sender.send(frame).unwrap();
+    }
+    sender.echo(Duration::from_secs(30)).unwrap();
+    // Now read: dump catches up and is told what it missed.
+    let mut out = dump.stdout.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut text = String::new();
+        let _ = out.read_to_string(&mut text);
+        text.lines().count()
+    });
+    std::thread::sleep(Duration::from_millis(500));
+    sender.send(CanFrame::standard(0x7FF, &[]).unwrap()).unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    sender.send(CanFrame::standard(0x7FF, &[]).unwrap()).unwrap();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let mut stderr = dump.stderr.take().unwrap();
+    let _ = unsafe { libc::kill(libc::pid_t::try_from(dump.id()).unwrap(), libc::SIGTERM) };
+    let mut log = String::new();
+    stderr.read_to_string(&mut log).unwrap();
+    while dump.try_wait().unwrap().is_none() {
+        assert!(Instant::now() < deadline, "dump did not stop");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let printed = reader.join().unwrap();
+    let _ = hub.kill();
+    let _ = hub.wait();
+    assert!(log.contains("frames lost") && log.contains("reads more slowly than the bus runs"), "{log}");
+    let lost: u64 = log
+        .lines()
+        .filter_map(|l| {
+            l.split_once(" in all)").and_then(|(head, _)| head.rsplit_once('(')).map(|(_, n)| n.parse().unwrap())
+        })
+        .max()
+        .unwrap();
+    assert!(lost > 0 && printed as u64 + lost <= 300_002, "printed {printed}, lost {lost}");
+}
+
+#[test]
+fn hub_and_run_help_document_the_limits_and_the_bitrate() {
+    for command in ["hub", "run"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_drive-sim")).args([command, "--help"]).output().unwrap();
+        assert!(out.status.success());
+        let help = String::from_utf8(out.stdout).unwrap();
+        for option in ["--max-clients", "--handshake-timeout-ms", "--max-rate", "--bitrate", "Hub limits"] {
+            assert!(help.contains(option), "{command} --help lacks {option}:\n{help}");
+        }
+        assert!(help.contains("[default: 1024]") && help.contains("longest"), "{help}");
+    }
+}

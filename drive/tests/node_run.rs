@@ -82,3 +82,82 @@ fn the_loop_ends_with_closed_when_the_hub_stops() {
         assert!(stopped.elapsed() < Duration::from_secs(1));
     });
 }
+
+/// An endpoint whose bus fails for good after `left` more sends.
+struct Failing {
+    inner: LocalEndpoint,
+    left: u32,
+}
+
+impl Endpoint for Failing {
+    fn send(&mut self, frame: CanFrame) -> Result<(), TransportError> {
+        if self.left == 0 {
+            return Err(TransportError::Closed);
+        }
+        self.left -= 1;
+        self.inner.send(frame)
+    }
+
+    fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<CanFrame>, TransportError> {
+        if self.left == 0 {
+            return Err(TransportError::Closed);
+        }
+        self.inner.recv_timeout(timeout)
+    }
+}
+
+#[test]
+fn a_node_whose_bus_fails_keeps_its_state_and_comes_back_when_the_bus_opens_again() {
+    use drive::node::{Backoff, BusEvent, run_reconnecting};
+    let bus = MemoryBus::new();
+    let mut master = bus.endpoint();
+    // The first bus carries the boot-up and two SDO responses, then fails; the first attempt
+    // to open it again fails too, the second gives a working endpoint.
+    let first: Box<dyn Endpoint> = Box::new(Failing { inner: bus.endpoint(), left: 3 });
+    let mut node =
+        DeviceKind::Drvi.build(&NodeConfig { node_id: Some(2), ..NodeConfig::default() }, &DefaultApps).unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let events = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let thread = {
+        let (stop, events, bus) = (Arc::clone(&stop), Arc::clone(&events), bus.clone());
+        std::thread::spawn(move || {
+            let mut attempts = 0;
+            let mut open = || -> Result<Box<dyn Endpoint>, TransportError> {
+                attempts += 1;
+                if attempts == 1 {
+                    Err(TransportError::Protocol("not yet".into()))
+                } else {
+                    Ok(Box::new(bus.endpoint()))
+                }
+            };
+            let backoff = Backoff { first: Duration::from_millis(10), max: Duration::from_millis(40) };
+            let mut report = |event: BusEvent<'_>| {
+                events.lock().unwrap().push(match event {
+                    BusEvent::Lost(_) => "lost".to_owned(),
+                    BusEvent::RetryFailed { retry_in, .. } => format!("retry in {retry_in:?}"),
+                    BusEvent::Reconnected { attempts } => format!("back after {attempts}"),
+                    _ => "other".to_owned(),
+                })
+            };
+            run_reconnecting(&mut *node, first, &mut open, &MonotonicClock::new(), &stop, backoff, &mut report)
+        })
+    };
+    assert_eq!(next_with_id(&mut master, 0x702).1.data(), [0x00]);
+    // 6083h = 4321 (not saved: only the running node has it).
+    master.send(CanFrame::standard(0x602, &[0x23, 0x83, 0x60, 0x00, 0xE1, 0x10, 0, 0]).unwrap()).unwrap();
+    assert_eq!(next_with_id(&mut master, 0x582).1.data()[0], 0x60);
+    master.send(CanFrame::standard(0x602, &[0x40, 0x83, 0x60, 0x00, 0, 0, 0, 0]).unwrap()).unwrap();
+    assert_eq!(next_with_id(&mut master, 0x582).1.data()[4..8], 4321u32.to_le_bytes());
+    // The bus fails now; the node is back on a new endpoint with what it had.
+    let deadline = Instant::now() + WAIT;
+    while !events.lock().unwrap().iter().any(|e| e.starts_with("back")) {
+        assert!(Instant::now() < deadline, "{:?}", events.lock().unwrap());
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    master.send(CanFrame::standard(0x602, &[0x40, 0x83, 0x60, 0x00, 0, 0, 0, 0]).unwrap()).unwrap();
+    assert_eq!(next_with_id(&mut master, 0x582).1.data()[4..8], 4321u32.to_le_bytes());
+    stop.store(true, Ordering::SeqCst);
+    let stats = thread.join().unwrap();
+    assert!(stats.sent >= 4, "{stats:?}");
+    assert_eq!(*events.lock().unwrap(), ["lost", "retry in 20ms", "back after 2"]);
+}

@@ -67,11 +67,10 @@ fn saved_parameters_survive_a_new_process() {
     let mut first = drvi(&dir.0);
     configure_and_save(&mut first);
     drop(first);
-    // Files per area, no temporary left behind.
-    let mut names: Vec<String> =
+    // One file for every area, no temporary left behind.
+    let names: Vec<String> =
         std::fs::read_dir(&dir.0).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
-    names.sort();
-    assert_eq!(names, ["drvi-node2.app.params", "drvi-node2.comm.params", "drvi-node2.mfr.params"]);
+    assert_eq!(names, ["drvi-node2.params"]);
 
     let mut second = drvi(&dir.0);
     assert_eq!(value(&second, 0x6083), 1234);
@@ -84,23 +83,24 @@ fn saved_parameters_survive_a_new_process() {
 }
 
 #[test]
-fn a_corrupt_area_is_ignored_with_a_warning_and_the_others_load() {
+fn a_corrupt_file_is_ignored_with_a_warning_and_every_area_starts_from_defaults() {
     let dir = TempDir::new("corrupt");
     let mut first = drvi(&dir.0);
     configure_and_save(&mut first);
-    let app_file = first.storage_mut().path(Area::Application);
+    let file = first.storage_mut().set_path();
     drop(first);
-    let mut bytes = std::fs::read(&app_file).unwrap();
-    let last = bytes.len() - 6;
+    let mut bytes = std::fs::read(&file).unwrap();
+    let last = bytes.len() - 10;
     bytes[last] ^= 0x40; // inside the last record
-    std::fs::write(&app_file, &bytes).unwrap();
+    std::fs::write(&file, &bytes).unwrap();
 
+    // The areas were saved together and are dropped together: no mix of saved and default.
     let mut second = drvi(&dir.0);
-    assert_eq!(value(&second, 0x6083), 0, "the application area falls back to its defaults");
-    assert_eq!(value(&second, 0x1017), 100, "the communication area still loads");
+    assert_eq!(value(&second, 0x6083), 0);
+    assert_eq!(value(&second, 0x1017), 0);
     let warnings = second.storage_mut().warnings();
-    assert_eq!(warnings.len(), 1, "{warnings:?}");
-    assert!(warnings[0].contains("checksum mismatch") && warnings[0].contains("defaults used"), "{warnings:?}");
+    assert!(!warnings.is_empty());
+    assert!(warnings.iter().all(|w| w.contains("checksum mismatch") && w.contains("defaults used")), "{warnings:?}");
 }
 
 #[test]
@@ -108,17 +108,16 @@ fn a_torn_file_is_ignored_with_a_warning() {
     let dir = TempDir::new("torn");
     let mut first = drvi(&dir.0);
     configure_and_save(&mut first);
-    let comm_file = first.storage_mut().path(Area::Communication);
+    let file = first.storage_mut().set_path();
     drop(first);
-    let bytes = std::fs::read(&comm_file).unwrap();
-    std::fs::write(&comm_file, &bytes[..bytes.len() / 2]).unwrap();
+    let bytes = std::fs::read(&file).unwrap();
+    std::fs::write(&file, &bytes[..bytes.len() / 2]).unwrap();
 
     let mut second = drvi(&dir.0);
     assert_eq!(value(&second, 0x1017), 0);
-    assert_eq!(value(&second, 0x6083), 1234);
+    assert_eq!(value(&second, 0x6083), 0);
     let warnings = second.storage_mut().warnings();
-    assert_eq!(warnings.len(), 1, "{warnings:?}");
-    assert!(warnings[0].contains("drvi-node2.comm.params"), "{warnings:?}");
+    assert!(!warnings.is_empty() && warnings.iter().all(|w| w.contains("drvi-node2.params")), "{warnings:?}");
 }
 
 #[test]
@@ -129,7 +128,7 @@ fn restoring_defaults_deletes_the_images() {
     // The devices have 1011h sub 1 only: every area. Nothing changes until the next reset.
     assert_eq!(sdo(&mut first, "602#231110016C6F6164"), "582#6011100100000000");
     for area in [Area::Communication, Area::Application, Area::Manufacturer] {
-        assert!(!first.storage_mut().path(area).exists(), "{area:?}");
+        assert_eq!(first.storage_mut().read_image(area), Ok(None), "{area:?}");
     }
     assert_eq!(value(&first, 0x6083), 1234);
     drop(first);
@@ -161,8 +160,8 @@ fn leftover_temporary_files_are_removed_and_foreign_images_refused() {
     assert!(!tmp.exists());
     configure_and_save(&mut first);
     drop(first);
-    // Node 2's image copied to node 3's name: refused (another device's parameters).
-    std::fs::copy(dir.0.join("drvi-node2.app.params"), dir.0.join("drvi-node3.app.params")).unwrap();
+    // Node 2's file copied to node 3's name: refused (another device's parameters).
+    std::fs::copy(dir.0.join("drvi-node2.params"), dir.0.join("drvi-node3.params")).unwrap();
     let mut storage = FileStorage::open(&dir.0, "drvi-node3").unwrap().with_warning_sink(std::sync::Arc::new(|_| {}));
     let err = storage.read_image(Area::Application).unwrap_err();
     assert!(err.contains("'drvi-node2'"), "{err}");
@@ -182,7 +181,155 @@ fn drive_sim_nodes_name_their_files_by_kind_and_node_id() {
     sent.clear();
     node.poll(1, &mut |f| sent.push(f.to_string()));
     assert_eq!(sent, ["587#6010100100000000"]);
-    for area in ["comm", "app", "mfr"] {
-        assert!(dir.0.join(format!("akd-node7.{area}.params")).is_file(), "{area}");
+    assert!(dir.0.join("akd-node7.params").is_file());
+}
+
+/// A DRVI like [`drvi`] whose storage calls `hook` at every step of a save.
+fn drvi_with_hook(dir: &Path, hook: drive::storage::IoHook) -> Drvi {
+    let storage =
+        FileStorage::open(dir, "drvi-node2").unwrap().with_warning_sink(std::sync::Arc::new(|_| {})).with_io_hook(hook);
+    let mut node = Node::new(generated::drvi::Dictionary::new(2), DefaultApp::new(), storage, NodeId::new(2).unwrap());
+    node.poll(0, &mut |_| {});
+    node
+}
+
+/// Writes 6083h (application area) = 1000 + g and 1017h (communication area) = 100 + g.
+fn configure(node: &mut Drvi, g: u32) {
+    let acc = (1000 + g).to_le_bytes();
+    let request = format!("602#23836000{:02X}{:02X}{:02X}{:02X}", acc[0], acc[1], acc[2], acc[3]);
+    assert_eq!(sdo(node, &request), "582#6083600000000000");
+    let hb = (100 + g) as u16;
+    let request = format!("602#2B171000{:02X}{:02X}0000", hb & 0xFF, hb >> 8);
+    assert_eq!(sdo(node, &request), "582#6017100000000000");
+}
+
+/// The save generation the stored areas come from; panics on a mix of two saves.
+fn generation(dir: &Path) -> u32 {
+    let node = drvi(dir);
+    let (acc, hb) = (value(&node, 0x6083), value(&node, 0x1017));
+    assert_eq!(acc.checked_sub(1000), hb.checked_sub(100), "areas from different saves: 6083h={acc} 1017h={hb}");
+    hb - 100
+}
+
+const STEPS: [drive::storage::IoStep; 5] = [
+    drive::storage::IoStep::TempHalfWritten,
+    drive::storage::IoStep::TempWritten,
+    drive::storage::IoStep::TempSynced,
+    drive::storage::IoStep::Renamed,
+    drive::storage::IoStep::DirSynced,
+];
+
+#[test]
+fn a_save_all_killed_at_any_step_leaves_every_area_from_one_save() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    for (n, &kill_at) in STEPS.iter().enumerate() {
+        let dir = TempDir::new(&format!("kill-{n}"));
+        let mut node = drvi(&dir.0);
+        configure(&mut node, 1);
+        assert_eq!(sdo(&mut node, "602#2310100173617665"), "582#6010100100000000");
+        drop(node);
+        assert_eq!(generation(&dir.0), 1);
+
+        // The second save is killed at `kill_at`: a panic in the hook stops it there, with
+        // nothing cleaned up, as SIGKILL would.
+        let armed = std::sync::Arc::new(AtomicBool::new(false));
+        let trigger = std::sync::Arc::clone(&armed);
+        let hook: drive::storage::IoHook = std::sync::Arc::new(move |step| {
+            if step == kill_at && trigger.load(Ordering::SeqCst) {
+                std::panic::panic_any("killed");
+            }
+            Ok(())
+        });
+        let mut node = drvi_with_hook(&dir.0, hook);
+        configure(&mut node, 2);
+        armed.store(true, Ordering::SeqCst);
+        let killed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            node.handle(&"602#2310100173617665".parse::<CanFrame>().unwrap(), 10);
+        }));
+        assert!(killed.is_err(), "the save reached {kill_at:?}");
+        std::mem::forget(node); // a killed process runs no destructors
+
+        // Before the rename the old save stands, from it on the new one: never a mix.
+        let expected = if n >= 3 { 2 } else { 1 };
+        assert_eq!(generation(&dir.0), expected, "killed at {kill_at:?}");
     }
+}
+
+#[test]
+fn a_save_all_failing_at_any_step_aborts_and_keeps_the_previous_save() {
+    for (n, &fail_at) in STEPS.iter().enumerate().take(4) {
+        let dir = TempDir::new(&format!("fail-{n}"));
+        let mut node = drvi(&dir.0);
+        configure(&mut node, 1);
+        assert_eq!(sdo(&mut node, "602#2310100173617665"), "582#6010100100000000");
+        drop(node);
+        let hook: drive::storage::IoHook =
+            std::sync::Arc::new(
+                move |step| if step == fail_at { Err(std::io::Error::other("disk full")) } else { Ok(()) },
+            );
+        let mut node = drvi_with_hook(&dir.0, hook);
+        configure(&mut node, 2);
+        assert_eq!(sdo(&mut node, "602#2310100173617665"), "582#8010100120000008", "failing at {fail_at:?}");
+        drop(node);
+        // A failure after the rename (the directory sync) cannot undo it; before it, nothing
+        // changed.
+        assert_eq!(generation(&dir.0), if n >= 3 { 2 } else { 1 }, "failing at {fail_at:?}");
+        let leftovers: Vec<_> = std::fs::read_dir(&dir.0)
+            .unwrap()
+            .filter(|e| e.as_ref().unwrap().path().extension().is_some_and(|x| x == "tmp"))
+            .collect();
+        assert!(leftovers.is_empty(), "{leftovers:?}");
+    }
+}
+
+/// Saves `records` as the image of `area` alone, as od-runtime does for 1010h sub 2, 3 or 4
+/// (no bundled device has those sub-indices).
+fn save_one_area(storage: &mut FileStorage, area: Area, records: &[drive::storage::Record]) {
+    use od_runtime::Storage;
+    storage.begin_transaction().unwrap();
+    storage.begin_save(area).unwrap();
+    for r in records {
+        storage.save_entry(r.index, r.sub, &r.data).unwrap();
+    }
+    storage.end_save(area).unwrap();
+    storage.end_transaction(true).unwrap();
+}
+
+#[test]
+fn a_save_of_one_area_replaces_that_area_only() {
+    use drive::storage::Record;
+    let dir = TempDir::new("one-area");
+    let mut node = drvi(&dir.0);
+    configure(&mut node, 1);
+    assert_eq!(sdo(&mut node, "602#2310100173617665"), "582#6010100100000000");
+    drop(node);
+    let mut storage = FileStorage::open(&dir.0, "drvi-node2").unwrap();
+    let app = [Record { index: 0x6083, sub: 0, data: 1002u32.to_le_bytes().to_vec() }];
+    save_one_area(&mut storage, Area::Application, &app);
+    assert_eq!(storage.read_image(Area::Application), Ok(Some(app.to_vec())));
+    let node = drvi(&dir.0);
+    assert_eq!((value(&node, 0x6083), value(&node, 0x1017)), (1002, 101));
+}
+
+#[test]
+fn per_area_files_of_earlier_releases_are_read_and_replaced_by_the_first_save() {
+    use drive::storage::{Record, encode_image};
+    let dir = TempDir::new("legacy");
+    std::fs::create_dir_all(&dir.0).unwrap();
+    let comm = [Record { index: 0x1017, sub: 0, data: vec![0x65, 0x00] }];
+    let app = [Record { index: 0x6083, sub: 0, data: 1001u32.to_le_bytes().to_vec() }];
+    std::fs::write(dir.0.join("drvi-node2.comm.params"), encode_image(Area::Communication, "drvi-node2", &comm))
+        .unwrap();
+    std::fs::write(dir.0.join("drvi-node2.app.params"), encode_image(Area::Application, "drvi-node2", &app)).unwrap();
+    assert_eq!(generation(&dir.0), 1);
+
+    // Saving the application area keeps the communication area of the old files.
+    let mut storage = FileStorage::open(&dir.0, "drvi-node2").unwrap();
+    let app = [Record { index: 0x6083, sub: 0, data: 1002u32.to_le_bytes().to_vec() }];
+    save_one_area(&mut storage, Area::Application, &app);
+    let names: Vec<String> =
+        std::fs::read_dir(&dir.0).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert_eq!(names, ["drvi-node2.params"]);
+    let node = drvi(&dir.0);
+    assert_eq!((value(&node, 0x6083), value(&node, 0x1017)), (1002, 101));
 }

@@ -836,7 +836,15 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         if signature != SAVE_SIGNATURE {
             return Err(AbortCode::CANNOT_STORE);
         }
-        for &area in storage::areas_of(sub) {
+        self.storage.begin_transaction()?;
+        let saved = self.save_areas(storage::areas_of(sub));
+        let committed = self.storage.end_transaction(saved.is_ok());
+        saved.and(committed)
+    }
+
+    /// Saves `areas` inside a storage transaction (see [`Storage::begin_transaction`]).
+    fn save_areas(&mut self, areas: &[Area]) -> Result<(), AbortCode> {
+        for &area in areas {
             self.storage.begin_save(area)?;
             let mut buf = [0u8; 256];
             for e in self.od.entries() {
@@ -862,10 +870,10 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         if signature != LOAD_SIGNATURE {
             return Err(AbortCode::CANNOT_STORE);
         }
-        for &area in storage::areas_of(sub) {
-            self.storage.erase(area)?;
-        }
-        Ok(())
+        self.storage.begin_transaction()?;
+        let erased = storage::areas_of(sub).iter().try_for_each(|&area| self.storage.erase(area));
+        let committed = self.storage.end_transaction(erased.is_ok());
+        erased.and(committed)
     }
 
     fn load_stored(&mut self, area: Area) {

@@ -29,6 +29,20 @@ pub trait Storage {
     fn load(&mut self, area: Area, apply: &mut dyn FnMut(u16, u8, &[u8]));
     /// Deletes the stored image of `area` (1011h: defaults apply from the next reset).
     fn erase(&mut self, area: Area) -> Result<(), AbortCode>;
+    /// Starts a group of saves and erases that must take effect together: the runtime calls
+    /// it before the areas of one 1010h or 1011h write (all three for sub 1), then
+    /// [`Storage::end_transaction`]. A backend that can, keeps the images of the group aside
+    /// and commits them as one step, so a power cut leaves every area from the same save.
+    /// The default does nothing: each `end_save`/`erase` then takes effect on its own.
+    fn begin_transaction(&mut self) -> Result<(), AbortCode> {
+        Ok(())
+    }
+    /// Ends the group begun by [`Storage::begin_transaction`]: `commit` true makes it take
+    /// effect (all of it or, on error, none of it); false drops it (a step failed).
+    fn end_transaction(&mut self, commit: bool) -> Result<(), AbortCode> {
+        let _ = commit;
+        Ok(())
+    }
 }
 
 /// No persistent storage: saving aborts with `CANNOT_STORE`, nothing is ever loaded.

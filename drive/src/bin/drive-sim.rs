@@ -4,8 +4,10 @@
 //! drive-sim run --device drvi --node-id 2 [--dcf FILE] [--machine PRESET|FILE] [--device akd --node-id 3 ...]
 //!               [--state-dir DIR] (--listen 127.0.0.1:0 | --bus tcp://127.0.0.1:29536/can0)
 //!               [--trace FILE.csv] [--plot FILE.svg] [--trace-interval-ms 5]
+//!               [hub limits with --listen] [--reconnect-ms 100 with --bus]
 //! drive-sim demo [--device drvi] [--plot demo.svg] [--trace demo.csv]   the main job, in process
 //! drive-sim hub --listen 127.0.0.1:29536        socketcand-compatible hub (python-can connects to it)
+//!               [--max-clients 1024] [--handshake-timeout-ms 5000] [--max-rate 20000] [--bitrate BITS_PER_S]
 //! drive-sim dump --bus tcp://127.0.0.1:29536/can0 [--count N] [--timeout SECONDS]
 //! drive-sim send --bus tcp://127.0.0.1:29536/can0 601#4041600000000000 000#0100 ...
 //! ```
@@ -27,6 +29,13 @@
 //! master taking it through NMT, the CiA 402 state machine, homing and an absolute move in
 //! physical units with real frames (`drive::drives::demo`), printing what happened.
 //!
+//! A device on `--bus` survives the bus: when its connection fails it keeps its state and runs
+//! on, and reconnects with backoff. The hub limits (`hub`, `run --listen`) are described in
+//! `drive::transport::HubConfig`: a full hub makes room by closing the longest-idle client that
+//! never sent a frame, a flooding client is slowed down, a slow reader loses frames (logged)
+//! rather than its connection, and `--bitrate` emulates the wire. `dump` reports frames the hub
+//! dropped for it.
+//!
 //! `hub` prints `listening on ADDRESS` on stdout once it accepts connections (so a script can
 //! ask for port 0 and read the port chosen). Every subcommand logs to stderr, and `run` and
 //! `hub` stop cleanly on SIGINT or SIGTERM (exit status 0; 1 if a device failed first).
@@ -41,7 +50,7 @@ use std::time::{Duration, Instant};
 use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 use drive::drives::demo::{self, DemoOptions};
 use drive::drives::{DeviceApps, machine};
-use drive::node::{AnyNode, DeviceKind, MonotonicClock, NodeConfig};
+use drive::node::{AnyNode, Backoff, BusEvent, DeviceKind, MonotonicClock, NodeConfig};
 use drive::transport::{BusSpec, CanFrame, DEFAULT_CHANNEL, Endpoint, Hub, HubConfig, TransportError};
 
 #[derive(Debug, Parser)]
@@ -90,15 +99,50 @@ struct HubArgs {
     /// Address to listen on; port 0 picks a free port (printed on stdout).
     #[arg(long, default_value = "127.0.0.1:29536")]
     listen: String,
-    /// Clients served at once.
-    #[arg(long, default_value_t = HubConfig::default().max_clients)]
-    max_clients: usize,
-    /// Messages queued per client before a client that does not keep up is disconnected.
+    /// Frames queued per client; a client that reads more slowly than the bus runs loses the
+    /// frames beyond this (counted, logged once a second), not its connection.
     #[arg(long, default_value_t = HubConfig::default().client_queue)]
     queue: usize,
+    #[command(flatten)]
+    limits: HubLimits,
     /// Log only problems (no connect/disconnect lines).
     #[arg(long, short)]
     quiet: bool,
+}
+
+/// The hub's limits, shared by `hub` and `run --listen`.
+#[derive(Debug, Args)]
+#[command(next_help_heading = "Hub limits (hub, and run with --listen)")]
+struct HubLimits {
+    /// Connections served at once. When full, the connection idle longest among those that
+    /// never sent a frame is closed to let a new one in; only if every client sends frames is
+    /// the new one refused.
+    #[arg(long, default_value_t = HubConfig::default().max_clients)]
+    max_clients: usize,
+    /// A connection must open a channel within this many milliseconds (the handshake).
+    #[arg(long, default_value_t = HubConfig::default().open_timeout.as_millis() as u64)]
+    handshake_timeout_ms: u64,
+    /// Frames per second one client may send; a faster sender is slowed down (not
+    /// disconnected), so a flood cannot starve the others. 0: no limit.
+    #[arg(long, default_value_t = HubConfig::default().max_rate)]
+    max_rate: u32,
+    /// Emulate a CAN bus of this many bits per second (e.g. 1000000: about 8 to 9 thousand
+    /// frames per second): a channel carries at most what such a bus carries, the lowest CAN
+    /// id first when frames compete, and senders wait for the wire. Default: no limit.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1_000..=10_000_000))]
+    bitrate: Option<u32>,
+}
+
+impl HubLimits {
+    fn apply(&self, config: HubConfig) -> HubConfig {
+        HubConfig {
+            max_clients: self.max_clients,
+            open_timeout: Duration::from_millis(self.handshake_timeout_ms),
+            max_rate: self.max_rate,
+            bitrate: self.bitrate,
+            ..config
+        }
+    }
 }
 
 #[derive(Debug, Args)]
@@ -137,6 +181,13 @@ struct RunArgs {
     /// With --listen: log only hub problems (no connect/disconnect lines).
     #[arg(long, short)]
     quiet: bool,
+    /// With --listen: the hub's limits.
+    #[command(flatten)]
+    limits: HubLimits,
+    /// With --bus: when the bus fails, wait this many milliseconds before reconnecting (each
+    /// device keeps its state and runs on meanwhile), doubling up to 5 s between attempts.
+    #[arg(long, default_value_t = 100)]
+    reconnect_ms: u64,
     /// Record every device's motion and write it as CSV here when stopped.
     #[arg(long)]
     trace: Option<PathBuf>,
@@ -203,7 +254,7 @@ fn main() -> ExitCode {
 fn run_hub(args: &HubArgs) -> Result<(), String> {
     // Before any thread starts, so every thread inherits the blocked signal set.
     let termination = Termination::block().map_err(|e| format!("cannot set up signal handling: {e}"))?;
-    let mut config = HubConfig { max_clients: args.max_clients, client_queue: args.queue, ..HubConfig::default() };
+    let mut config = args.limits.apply(HubConfig { client_queue: args.queue, ..HubConfig::default() });
     if args.quiet {
         config = quiet_hub(config);
     }
@@ -345,7 +396,7 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
     let mut hub = None;
     let mut endpoints: Vec<Box<dyn Endpoint>> = Vec::new();
     let ready = if let Some(listen) = &args.listen {
-        let mut config = HubConfig::default();
+        let mut config = args.limits.apply(HubConfig::default());
         if args.quiet {
             config = quiet_hub(config);
         }
@@ -369,12 +420,30 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
     let failed = Arc::new(AtomicBool::new(false));
     let clock = MonotonicClock::new();
     let mut threads = Vec::new();
+    let backoff = Backoff { first: Duration::from_millis(args.reconnect_ms.max(1)), ..Backoff::default() };
     for ((name, mut node), mut endpoint) in nodes.into_iter().zip(endpoints) {
         let (stop, failed) = (Arc::clone(&stop), Arc::clone(&failed));
+        let reconnect = args.bus.clone();
         eprintln!("drive-sim: {name} started");
         let thread = std::thread::Builder::new()
             .name(name.clone())
             .spawn(move || {
+                if let Some(bus) = reconnect {
+                    // A bus of its own: lost connections are opened again, the node runs on.
+                    let mut open = || bus.open();
+                    let mut report = |event: BusEvent<'_>| match event {
+                        BusEvent::Lost(e) => eprintln!("drive-sim: {name}: {bus}: {e}; reconnecting"),
+                        BusEvent::RetryFailed { error, retry_in } => {
+                            eprintln!("drive-sim: {name}: {bus}: {error}; next attempt in {retry_in:?}")
+                        }
+                        BusEvent::Reconnected { attempts } => {
+                            eprintln!("drive-sim: {name}: {bus}: reconnected after {attempts} attempt(s)")
+                        }
+                        _ => {}
+                    };
+                    drive::node::run_reconnecting(&mut *node, endpoint, &mut open, &clock, &stop, backoff, &mut report);
+                    return node;
+                }
                 match drive::node::run(&mut *node, &mut *endpoint, &clock, &stop) {
                     Ok(_) => {}
                     Err(TransportError::Closed) if stop.load(Ordering::SeqCst) => {}
@@ -417,7 +486,15 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
 fn quiet_hub(config: HubConfig) -> HubConfig {
     config.with_observer(std::sync::Arc::new(|event| {
         use drive::transport::HubEvent::*;
-        if matches!(event, Overflow { .. } | AcceptFailed { .. } | Rejected { .. } | EndpointOverflow { .. }) {
+        if matches!(
+            event,
+            Overflow { .. }
+                | AcceptFailed { .. }
+                | Rejected { .. }
+                | EndpointOverflow { .. }
+                | Evicted { .. }
+                | FramesDropped { .. }
+        ) {
             eprintln!("hub: {event}");
         }
     }))
@@ -435,10 +512,25 @@ fn run_dump(args: &DumpArgs) -> Result<(), String> {
     };
     let mut seen = 0u64;
     let mut stdout = std::io::stdout().lock();
+    // Frames lost on the way to us (the hub drops frames for a reader slower than the bus),
+    // reported at most once a second and when dump ends.
+    let mut lost_reported = 0u64;
+    let mut last_report = Instant::now();
+    let mut report_lost = |lost: u64, force: bool| {
+        if lost > lost_reported && (force || last_report.elapsed() >= Duration::from_secs(1)) {
+            eprintln!(
+                "dump: {} frames lost ({lost} in all): dump reads more slowly than the bus runs",
+                lost - lost_reported
+            );
+            lost_reported = lost;
+            last_report = Instant::now();
+        }
+    };
     while args.count.is_none_or(|count| seen < count) {
+        report_lost(bus.lost(), false);
         let wait = match deadline {
             Some(deadline) => deadline.saturating_duration_since(Instant::now()),
-            None => Duration::from_secs(3600),
+            None => Duration::from_secs(1),
         };
         if deadline.is_some() && wait.is_zero() {
             break;
@@ -453,6 +545,7 @@ fn run_dump(args: &DumpArgs) -> Result<(), String> {
             None => continue,
         }
     }
+    report_lost(bus.lost(), true);
     Ok(())
 }
 

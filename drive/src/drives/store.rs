@@ -79,6 +79,14 @@ impl Storage for StoreFilter {
     fn erase(&mut self, area: Area) -> Result<(), AbortCode> {
         self.inner.erase(area)
     }
+
+    fn begin_transaction(&mut self) -> Result<(), AbortCode> {
+        self.inner.begin_transaction()
+    }
+
+    fn end_transaction(&mut self, commit: bool) -> Result<(), AbortCode> {
+        self.inner.end_transaction(commit)
+    }
 }
 
 /// The `[store]` list of a bundled device (empty if its sidecar does not parse, which the

@@ -82,7 +82,7 @@ pub use app::{Ctx, DefaultApp, DriveApp, EMCY_HEARTBEAT_OR_GUARDING, EMCY_RPDO_T
 pub use devices::{Apps, DefaultApps, DeviceKind, NodeConfig, NodeSetupError};
 pub use params::{DcfError, NodeStorage, ParameterSet};
 pub use retain::{FileRetain, MemoryRetain, Retain};
-pub use run::{Clock, MonotonicClock, RunStats, run};
+pub use run::{Backoff, BusEvent, Clock, MonotonicClock, RunStats, run, run_reconnecting};
 pub use sim::Sim;
 
 /// Events held between the device call that raised them and their delivery to the

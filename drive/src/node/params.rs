@@ -233,4 +233,12 @@ impl Storage for NodeStorage {
     fn erase(&mut self, area: Area) -> Result<(), AbortCode> {
         self.backend.erase(area)
     }
+
+    fn begin_transaction(&mut self) -> Result<(), AbortCode> {
+        self.backend.begin_transaction()
+    }
+
+    fn end_transaction(&mut self, commit: bool) -> Result<(), AbortCode> {
+        self.backend.end_transaction(commit)
+    }
 }

@@ -7,8 +7,23 @@
 //!
 //! # The file format
 //!
-//! [`FileStorage`] keeps one file per area, `<dir>/<tag>.<area>.params` (`drvi-node2.comm.params`,
-//! `.app.params`, `.mfr.params`):
+//! [`FileStorage`] keeps every area in one file, `<dir>/<tag>.params` (`drvi-node2.params`), so
+//! that a 1010h "save all" replaces the three areas as one step: a process killed at any
+//! moment leaves all three from the old save or all three from the new one. The file (format
+//! version 2) is a header and one area image per saved area:
+//!
+//! ```text
+//! magic     4 bytes  "ODRS"
+//! version   1 byte   2
+//! tag       1 byte length + that many bytes
+//! count     u8       number of area images
+//! images    count × (length u32 LE, an area image as below)
+//! checksum  u32 LE   CRC-32 (IEEE) of every byte before it
+//! ```
+//!
+//! An area image (format version 1; earlier releases kept each in a file of its own,
+//! `<tag>.<area>.params`, which is still read while no `<tag>.params` exists and removed by
+//! the first save):
 //!
 //! ```text
 //! magic     4 bytes  "ODRS"
@@ -20,12 +35,16 @@
 //! checksum  u32 LE   CRC-32 (IEEE) of every byte before it
 //! ```
 //!
-//! A save is atomic: the image is written to `<file>.tmp`, flushed to disk (`fsync`), renamed
+//! A save is atomic: the file is written to `<file>.tmp`, flushed to disk (`fsync`), renamed
 //! over the old file, and the directory is flushed so the rename itself survives a power cut.
-//! A reader therefore sees either the old image or the new one. A file that is torn anyway
-//! (written by something else, a disk error) or altered fails the checksum or the structure
-//! check; it is then ignored with a warning, and the device starts from its defaults, as a
-//! real drive does after a checksum error in its parameter flash.
+//! A reader therefore sees either the old file or the new one. A save of one area (1010h sub
+//! 2, 3, 4) writes the file with that area replaced and the others as they were; a save of
+//! all (sub 1) is one transaction ([`Storage::begin_transaction`]): the three images are kept
+//! aside and written in one file. A file that is torn anyway (written by something else, a
+//! disk error) or altered fails a checksum or the structure check; it is then ignored with a
+//! warning, and the device starts from its defaults, as a real drive does after a checksum
+//! error in its parameter flash. ([`FileStorage::with_io_hook`] lets tests stop a save at any
+//! step, as a kill would.)
 
 use std::fmt;
 use std::fs::{self, File, OpenOptions};
@@ -38,8 +57,10 @@ use od_runtime::od::{AbortCode, Area};
 
 /// File magic of a stored parameter image.
 pub const MAGIC: [u8; 4] = *b"ODRS";
-/// Format version written and accepted.
+/// Format version of an area image.
 pub const VERSION: u8 = 1;
+/// Format version of the file holding every area ([`encode_set`]).
+pub const SET_VERSION: u8 = 2;
 
 /// Largest stored image accepted when loading (a device dictionary has a few thousand entries
 /// of a few bytes; anything this large is not ours).
@@ -168,6 +189,81 @@ pub fn encode_image(area: Area, tag: &str, records: &[Record]) -> Vec<u8> {
     out.extend_from_slice(&crc.to_le_bytes());
     out
 }
+
+/// Serialises the file holding the images of several areas (see the module docs).
+pub fn encode_set(tag: &str, images: &[(Area, &[Record])]) -> Vec<u8> {
+    let mut out = Vec::new();
+    out.extend_from_slice(&MAGIC);
+    out.push(SET_VERSION);
+    let tag_bytes = &tag.as_bytes()[..tag.len().min(255)];
+    out.push(tag_bytes.len() as u8);
+    out.extend_from_slice(tag_bytes);
+    out.push(images.len().min(255) as u8);
+    for (area, records) in images.iter().take(255) {
+        let image = encode_image(*area, tag, records);
+        out.extend_from_slice(&(image.len() as u32).to_le_bytes());
+        out.extend_from_slice(&image);
+    }
+    let crc = crc32(&out);
+    out.extend_from_slice(&crc.to_le_bytes());
+    out
+}
+
+/// Parses and verifies a file written by [`encode_set`] for `tag`: the records of each area it
+/// holds. Never panics, whatever the bytes.
+pub fn decode_set(bytes: &[u8], tag: &str) -> Result<Vec<(Area, Vec<Record>)>, ImageError> {
+    if bytes.len() < 4 || bytes[..4] != MAGIC {
+        return Err(if bytes.len() < 4 && MAGIC.starts_with(bytes) {
+            ImageError::Truncated("header")
+        } else {
+            ImageError::Magic
+        });
+    }
+    if bytes.len() < 4 + 1 + 1 + 1 + 4 {
+        return Err(ImageError::Truncated("header"));
+    }
+    let (body, tail) = bytes.split_at(bytes.len() - 4);
+    let stored = u32::from_le_bytes([tail[0], tail[1], tail[2], tail[3]]);
+    let mut r = Reader { bytes: body, pos: 4 };
+    let version = r.u8("header")?;
+    if version != SET_VERSION {
+        return Err(ImageError::Version(version));
+    }
+    let computed = crc32(body);
+    if stored != computed {
+        return Err(ImageError::Checksum { stored, computed });
+    }
+    let tag_len = r.u8("header")?;
+    let found_tag = r.take(usize::from(tag_len), "tag")?;
+    if found_tag != tag.as_bytes() {
+        return Err(ImageError::Tag {
+            expected: tag.to_owned(),
+            found: String::from_utf8_lossy(found_tag).into_owned(),
+        });
+    }
+    let count = r.u8("header")?;
+    let mut areas = Vec::with_capacity(usize::from(count));
+    for _ in 0..count {
+        let len = r.u32("image length")?;
+        let image = r.take(len as usize, "image")?;
+        let code = *image.get(5).ok_or(ImageError::Truncated("image"))?;
+        let area = AREAS
+            .into_iter()
+            .find(|&a| area_code(a) == Some(code))
+            .ok_or(ImageError::Area { expected: 0, found: code })?;
+        areas.push((area, decode_image(image, area, tag)?));
+    }
+    if r.pos != body.len() {
+        return Err(ImageError::Trailing(body.len() - r.pos));
+    }
+    Ok(areas)
+}
+
+/// The images of a parameter file: each area's records.
+type AreaImages = Vec<(Area, Vec<Record>)>;
+
+/// The areas a file can hold, in file order.
+const AREAS: [Area; 3] = [Area::Communication, Area::Application, Area::Manufacturer];
 
 struct Reader<'a> {
     bytes: &'a [u8],
@@ -336,9 +432,34 @@ pub struct FileStorage {
     dir: PathBuf,
     tag: String,
     pending: Option<(Area, Vec<Record>)>,
+    /// Inside a transaction: per area, the change to make (`Some(None)`: erase).
+    staged: Option<[Option<Option<Vec<Record>>>; 3]>,
     warn: WarningSink,
     warnings: Arc<Mutex<Vec<String>>>,
+    hook: Option<IoHook>,
 }
+
+/// A step of writing the parameter file, for [`FileStorage::with_io_hook`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum IoStep {
+    /// Half of the temporary file is written.
+    TempHalfWritten,
+    /// The temporary file is written, not yet flushed.
+    TempWritten,
+    /// The temporary file is flushed to disk.
+    TempSynced,
+    /// The temporary file was renamed over the parameter file.
+    Renamed,
+    /// The directory is flushed: the save is durable.
+    DirSynced,
+    /// A version-1 per-area file was removed after the first save in the new format.
+    LegacyRemoved,
+}
+
+/// Called at every [`IoStep`] of a save; an error makes the save fail there (as a failing disk
+/// would), a panic stops it there (as a kill would: nothing is cleaned up).
+pub type IoHook = Arc<dyn Fn(IoStep) -> io::Result<()> + Send + Sync>;
 
 impl fmt::Debug for FileStorage {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -377,16 +498,35 @@ impl FileStorage {
             dir,
             tag: tag.to_owned(),
             pending: None,
+            staged: None,
             warn: Arc::new(move |message| eprintln!("{prefix}: warning: {message}")),
             warnings,
+            hook: None,
         };
-        for area in [Area::Communication, Area::Application, Area::Manufacturer] {
-            let tmp = storage.temp_path(area);
+        let mut leftovers = vec![storage.set_temp_path()];
+        leftovers.extend(AREAS.map(|area| storage.temp_path(area)));
+        for tmp in leftovers {
             if tmp.exists() {
                 let _ = fs::remove_file(&tmp);
             }
         }
         Ok(storage)
+    }
+
+    /// Calls `hook` at every step of every save (see [`IoStep`]): for tests that stop a save
+    /// half-way, as a kill or a failing disk would.
+    pub fn with_io_hook(mut self, hook: IoHook) -> Self {
+        self.hook = Some(hook);
+        self
+    }
+
+    /// The file holding every area's image.
+    pub fn set_path(&self) -> PathBuf {
+        self.dir.join(format!("{}.params", self.tag))
+    }
+
+    fn set_temp_path(&self) -> PathBuf {
+        self.dir.join(format!("{}.params.tmp", self.tag))
     }
 
     /// Sends warnings (corrupt images, failed saves) to `sink` instead of standard error. They
@@ -401,7 +541,8 @@ impl FileStorage {
         self.warnings.lock().map(|w| w.clone()).unwrap_or_default()
     }
 
-    /// The file holding the image of `area`.
+    /// The version-1 file of `area` alone, as earlier releases wrote it: read while no
+    /// [`set_path`](FileStorage::set_path) file exists, removed by the first save.
     pub fn path(&self, area: Area) -> PathBuf {
         self.dir.join(format!("{}.{}.params", self.tag, area_file_suffix(area)))
     }
@@ -419,26 +560,108 @@ impl FileStorage {
 
     /// Reads and checks the image of `area`: `Ok(None)` if there is none.
     pub fn read_image(&self, area: Area) -> Result<Option<Vec<Record>>, String> {
-        let path = self.path(area);
-        let file = match File::open(&path) {
-            Ok(f) => f,
-            Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
-            Err(e) => return Err(format!("{}: {e}", path.display())),
-        };
-        let len = file.metadata().map(|m| m.len()).unwrap_or(0);
-        if len > MAX_FILE {
-            return Err(format!("{}: {len} bytes is too large for a parameter image", path.display()));
+        match self.read_set()? {
+            Some(areas) => Ok(areas.into_iter().find(|(a, _)| *a == area).map(|(_, records)| records)),
+            None => self.read_legacy(area),
         }
-        let mut bytes = Vec::with_capacity(len as usize);
-        io::Read::read_to_end(&mut io::Read::take(file, MAX_FILE), &mut bytes)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
-        decode_image(&bytes, area, &self.tag).map(Some).map_err(|e| format!("{}: {e}", path.display()))
     }
 
-    /// Writes the image of `area` atomically (see [`write_atomically`]).
-    fn write_atomically(&self, area: Area, bytes: &[u8]) -> io::Result<()> {
-        write_atomically(&self.dir, &self.temp_path(area), &self.path(area), bytes)
+    /// The areas of the parameter file; `Ok(None)` if there is no such file.
+    fn read_set(&self) -> Result<Option<AreaImages>, String> {
+        let path = self.set_path();
+        match read_limited(&path)? {
+            Some(bytes) => decode_set(&bytes, &self.tag).map(Some).map_err(|e| format!("{}: {e}", path.display())),
+            None => Ok(None),
+        }
     }
+
+    fn read_legacy(&self, area: Area) -> Result<Option<Vec<Record>>, String> {
+        let path = self.path(area);
+        match read_limited(&path)? {
+            Some(bytes) => {
+                decode_image(&bytes, area, &self.tag).map(Some).map_err(|e| format!("{}: {e}", path.display()))
+            }
+            None => Ok(None),
+        }
+    }
+
+    /// Applies `changes` (per area: `None` keep, `Some(None)` erase, `Some(Some(_))` replace)
+    /// to what is stored, writing one file atomically.
+    fn commit(&mut self, changes: [Option<Option<Vec<Record>>>; 3]) -> Result<(), AbortCode> {
+        let mut current: [Option<Vec<Record>>; 3] = match self.read_set() {
+            Ok(Some(areas)) => {
+                let mut current = [None, None, None];
+                for (area, records) in areas {
+                    if let Ok(slot) = slot(area) {
+                        current[slot] = Some(records);
+                    }
+                }
+                current
+            }
+            Ok(None) => AREAS.map(|area| self.read_legacy(area).ok().flatten()),
+            Err(message) => {
+                // Unreadable already (and ignored at load): what is saved now replaces it.
+                self.warn(format!("replacing unreadable stored parameters: {message}"));
+                [None, None, None]
+            }
+        };
+        for (slot, change) in changes.into_iter().enumerate() {
+            if let Some(change) = change {
+                current[slot] = change;
+            }
+        }
+        let images: Vec<(Area, &[Record])> =
+            AREAS.iter().zip(&current).filter_map(|(&area, records)| Some((area, records.as_deref()?))).collect();
+        let bytes = encode_set(&self.tag, &images);
+        let hook = self.hook.clone();
+        let step = |s: IoStep| hook.as_ref().map_or(Ok(()), |h| h(s));
+        let written = write_atomically_with(&self.dir, &self.set_temp_path(), &self.set_path(), &bytes, &step);
+        if let Err(e) = written {
+            self.warn(format!("cannot save {}: {e}", self.set_path().display()));
+            return Err(AbortCode::CANNOT_STORE);
+        }
+        // The new file holds everything: earlier releases' per-area files are stale now.
+        for area in AREAS {
+            let legacy = self.path(area);
+            if legacy.exists() && fs::remove_file(&legacy).is_ok() {
+                let _ = step(IoStep::LegacyRemoved);
+            }
+        }
+        Ok(())
+    }
+
+    /// Records a change: staged inside a transaction, committed at once outside one.
+    fn change(&mut self, area: Area, image: Option<Vec<Record>>) -> Result<(), AbortCode> {
+        let slot = slot(area)?;
+        match &mut self.staged {
+            Some(staged) => {
+                staged[slot] = Some(image);
+                Ok(())
+            }
+            None => {
+                let mut changes = [None, None, None];
+                changes[slot] = Some(image);
+                self.commit(changes)
+            }
+        }
+    }
+}
+
+/// The bytes of `path` (at most [`MAX_FILE`]); `Ok(None)` if it does not exist.
+fn read_limited(path: &Path) -> Result<Option<Vec<u8>>, String> {
+    let file = match File::open(path) {
+        Ok(f) => f,
+        Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(format!("{}: {e}", path.display())),
+    };
+    let len = file.metadata().map(|m| m.len()).unwrap_or(0);
+    if len > MAX_FILE {
+        return Err(format!("{}: {len} bytes is too large for a parameter image", path.display()));
+    }
+    let mut bytes = Vec::with_capacity(len as usize);
+    io::Read::read_to_end(&mut io::Read::take(file, MAX_FILE), &mut bytes)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(Some(bytes))
 }
 
 /// Writes `bytes` to `path` in `dir` atomically: to `tmp` first, flushed to disk (`fsync`),
@@ -446,13 +669,31 @@ impl FileStorage {
 /// failure removes `tmp` and leaves `path` as it was. Used for parameter images and for
 /// retained data.
 pub(crate) fn write_atomically(dir: &Path, tmp: &Path, path: &Path, bytes: &[u8]) -> io::Result<()> {
+    write_atomically_with(dir, tmp, path, bytes, &|_| Ok(()))
+}
+
+/// [`write_atomically`], calling `step` after each step (see [`IoStep`]).
+fn write_atomically_with(
+    dir: &Path,
+    tmp: &Path,
+    path: &Path,
+    bytes: &[u8],
+    step: &dyn Fn(IoStep) -> io::Result<()>,
+) -> io::Result<()> {
     let result = (|| {
         let mut file = OpenOptions::new().write(true).create(true).truncate(true).open(tmp)?;
-        file.write_all(bytes)?;
+        let (first, second) = bytes.split_at(bytes.len() / 2);
+        file.write_all(first)?;
+        step(IoStep::TempHalfWritten)?;
+        file.write_all(second)?;
+        step(IoStep::TempWritten)?;
         file.sync_all()?;
+        step(IoStep::TempSynced)?;
         drop(file);
         fs::rename(tmp, path)?;
-        sync_dir(dir)
+        step(IoStep::Renamed)?;
+        sync_dir(dir)?;
+        step(IoStep::DirSynced)
     })();
     if result.is_err() {
         let _ = fs::remove_file(tmp);
@@ -489,11 +730,7 @@ impl Storage for FileStorage {
         if a != area {
             return Err(AbortCode::CANNOT_STORE);
         }
-        let bytes = encode_image(area, &self.tag, &records);
-        self.write_atomically(area, &bytes).map_err(|e| {
-            self.warn(format!("cannot save {}: {e}", self.path(area).display()));
-            AbortCode::CANNOT_STORE
-        })
+        self.change(area, Some(records))
     }
 
     fn load(&mut self, area: Area, apply: &mut dyn FnMut(u16, u8, &[u8])) {
@@ -509,17 +746,19 @@ impl Storage for FileStorage {
     }
 
     fn erase(&mut self, area: Area) -> Result<(), AbortCode> {
-        let path = self.path(area);
-        match fs::remove_file(&path) {
-            Ok(()) => sync_dir(&self.dir).map_err(|e| {
-                self.warn(format!("cannot sync {}: {e}", self.dir.display()));
-                AbortCode::CANNOT_STORE
-            }),
-            Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(()),
-            Err(e) => {
-                self.warn(format!("cannot delete {}: {e}", path.display()));
-                Err(AbortCode::CANNOT_STORE)
-            }
+        self.change(area, None)
+    }
+
+    fn begin_transaction(&mut self) -> Result<(), AbortCode> {
+        self.staged = Some([None, None, None]);
+        Ok(())
+    }
+
+    fn end_transaction(&mut self, commit: bool) -> Result<(), AbortCode> {
+        self.pending = None;
+        match self.staged.take() {
+            Some(changes) if commit && changes.iter().any(Option::is_some) => self.commit(changes),
+            _ => Ok(()),
         }
     }
 }

@@ -13,6 +13,7 @@ use std::time::Duration;
 
 use super::queue::{BoundedQueue, PushError, lock};
 use super::socketcand::Timestamp;
+use super::wire::Wire;
 use super::{CanFrame, Endpoint, TransportError};
 
 /// Identifies one member of a channel (an endpoint or a TCP client), unique in the process.
@@ -40,17 +41,51 @@ pub(crate) trait Sink: Send + Sync {
     fn deliver(&self, frame: CanFrame, at: Timestamp) -> Delivery;
     /// Closes the member for good (the hub is shutting down).
     fn close(&self);
+    /// Hands over the frames of `batch` not sent by `me`, in order (an emulated wire delivers
+    /// what is due in one go). The default hands them over one by one.
+    fn deliver_batch(&self, batch: &[(MemberId, CanFrame)], me: MemberId, at: Timestamp) -> Delivery {
+        let mut result = Delivery::Accepted;
+        for (from, frame) in batch {
+            if *from != me {
+                match self.deliver(*frame, at) {
+                    Delivery::Gone => return Delivery::Gone,
+                    Delivery::Dropped => result = Delivery::Dropped,
+                    Delivery::Accepted => {}
+                }
+            }
+        }
+        result
+    }
 }
 
 /// One CAN bus: every member receives what the others relay.
+///
+/// Without a [`Wire`] a relayed frame reaches the members at once, however many are relayed.
+/// With one (`--bitrate`), frames wait in their sender's transmit queue and the wire carries
+/// them one at a time, each taking as long as it takes on a real CAN bus of that bit rate,
+/// the lowest identifier first when several wait (see [`wire`](super::wire)).
 pub(crate) struct Channel {
     name: String,
     members: Mutex<Vec<(MemberId, Arc<dyn Sink>)>>,
+    wire: Option<Arc<Wire>>,
 }
 
 impl Channel {
     pub(crate) fn new(name: &str) -> Self {
-        Self { name: name.to_owned(), members: Mutex::new(Vec::new()) }
+        Self { name: name.to_owned(), members: Mutex::new(Vec::new()), wire: None }
+    }
+
+    /// A channel whose frames go over an emulated wire of `bitrate` bits per second (a thread
+    /// per channel carries them; it ends when the channel is dropped).
+    pub(crate) fn with_bitrate(name: &str, bitrate: u32) -> Result<Arc<Self>, std::io::Error> {
+        let wire = Arc::new(Wire::new(bitrate));
+        let channel =
+            Arc::new(Self { name: name.to_owned(), members: Mutex::new(Vec::new()), wire: Some(Arc::clone(&wire)) });
+        let weak = Arc::downgrade(&channel);
+        std::thread::Builder::new()
+            .name(format!("wire-{name}"))
+            .spawn(move || wire.carry(|batch, at| weak.upgrade().map(|c| c.deliver_batch(batch, at)).is_some()))?;
+        Ok(channel)
     }
 
     pub(crate) fn name(&self) -> &str {
@@ -66,16 +101,34 @@ impl Channel {
 
     pub(crate) fn leave(&self, id: MemberId) {
         lock(&self.members).retain(|(member, _)| *member != id);
+        if let Some(wire) = &self.wire {
+            wire.forget(id);
+        }
     }
 
     pub(crate) fn member_count(&self) -> usize {
         lock(&self.members).len()
     }
 
+    /// Puts `frame` from `from` on the bus. Without a wire it reaches every other member at
+    /// once; with one it joins the sender's transmit queue, and `block` decides what a full
+    /// queue means: wait up to that long for room (a TCP client's reader: the client is throttled to what the
+    /// wire carries) or drop the frame (an in-process endpoint, which must never block).
+    /// Returns false when the frame was dropped.
+    pub(crate) fn relay(&self, from: MemberId, frame: CanFrame, at: Timestamp, block: Option<Duration>) -> bool {
+        match &self.wire {
+            None => {
+                self.deliver(from, frame, at);
+                true
+            }
+            Some(wire) => wire.submit(from, frame, block, &|batch, at| self.deliver_batch(batch, at)),
+        }
+    }
+
     /// Delivers `frame` to every member but `from`; members whose sink reports
     /// [`Delivery::Gone`] are removed. Never blocks on a member. Returns how many members
     /// accepted the frame.
-    pub(crate) fn relay(&self, from: MemberId, frame: CanFrame, at: Timestamp) -> usize {
+    pub(crate) fn deliver(&self, from: MemberId, frame: CanFrame, at: Timestamp) -> usize {
         let mut members = lock(&self.members);
         let mut accepted = 0;
         members.retain(|(id, sink)| {
@@ -94,11 +147,29 @@ impl Channel {
         accepted
     }
 
+    /// Delivers the frames of `batch` (sender, frame) in order, each to every member but its
+    /// sender, with one pass over the members.
+    pub(crate) fn deliver_batch(&self, batch: &[(MemberId, CanFrame)], at: Timestamp) {
+        let mut members = lock(&self.members);
+        members.retain(|(id, sink)| sink.deliver_batch(batch, *id, at) != Delivery::Gone);
+    }
+
     /// Closes every member (hub shutdown).
     pub(crate) fn close_all(&self) {
         let members = std::mem::take(&mut *lock(&self.members));
         for (_, sink) in members {
             sink.close();
+        }
+        if let Some(wire) = &self.wire {
+            wire.close();
+        }
+    }
+}
+
+impl Drop for Channel {
+    fn drop(&mut self) {
+        if let Some(wire) = &self.wire {
+            wire.close();
         }
     }
 }
@@ -111,12 +182,19 @@ pub(crate) type OverflowHook = Box<dyn Fn(u64) + Send + Sync>;
 pub(crate) struct Inbox {
     queue: BoundedQueue<CanFrame>,
     dropped: AtomicU64,
+    /// Frames this endpoint sent that the wire had no room for (`--bitrate` only).
+    tx_dropped: AtomicU64,
     on_overflow: Option<OverflowHook>,
 }
 
 impl Inbox {
     pub(crate) fn new(capacity: usize, on_overflow: Option<OverflowHook>) -> Self {
-        Self { queue: BoundedQueue::new(capacity), dropped: AtomicU64::new(0), on_overflow }
+        Self {
+            queue: BoundedQueue::new(capacity),
+            dropped: AtomicU64::new(0),
+            tx_dropped: AtomicU64::new(0),
+            on_overflow,
+        }
     }
 }
 
@@ -139,6 +217,25 @@ impl Sink for Inbox {
 
     fn close(&self) {
         self.queue.close();
+    }
+
+    fn deliver_batch(&self, batch: &[(MemberId, CanFrame)], me: MemberId, _at: Timestamp) -> Delivery {
+        let frames = batch.iter().filter(|(from, _)| *from != me).map(|(_, frame)| *frame);
+        match self.queue.push_all(frames) {
+            Ok(0) => Delivery::Accepted,
+            Ok(refused) => {
+                let before = self.dropped.fetch_add(refused as u64, Ordering::Relaxed);
+                let total = before + refused as u64;
+                // Reported when the total passes a power of two, as one by one.
+                if let Some(hook) = &self.on_overflow
+                    && (before + 1..=total).any(u64::is_power_of_two)
+                {
+                    hook(total);
+                }
+                Delivery::Dropped
+            }
+            Err(_) => Delivery::Gone,
+        }
     }
 }
 
@@ -167,6 +264,12 @@ impl LocalEndpoint {
         self.inbox.dropped.load(Ordering::Relaxed)
     }
 
+    /// Frames this endpoint sent that were lost because its transmit queue on an emulated wire
+    /// (`--bitrate`) was full: the bus was saturated by frames of higher priority.
+    pub fn send_dropped(&self) -> u64 {
+        self.inbox.tx_dropped.load(Ordering::Relaxed)
+    }
+
     /// Frames waiting to be received.
     pub fn pending(&self) -> usize {
         self.inbox.queue.len()
@@ -183,12 +286,18 @@ impl Endpoint for LocalEndpoint {
         if self.inbox.queue.is_closed() {
             return Err(TransportError::Closed);
         }
-        self.channel.relay(self.id, frame, Timestamp::now());
+        if !self.channel.relay(self.id, frame, Timestamp::now(), None) {
+            self.inbox.tx_dropped.fetch_add(1, Ordering::Relaxed);
+        }
         Ok(())
     }
 
     fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<CanFrame>, TransportError> {
         self.inbox.queue.pop_timeout(timeout).map_err(|_| TransportError::Closed)
+    }
+
+    fn lost(&self) -> u64 {
+        self.dropped()
     }
 }
 

@@ -17,7 +17,9 @@ use super::{CanFrame, Endpoint, TransportError};
 /// messages and [`Endpoint::recv_timeout`] returns the frames the server reports. `< error >`
 /// messages from the server are counted, not returned (see
 /// [`remote_errors`](SocketcandClient::remote_errors)); remote frames work with our hub, which
-/// speaks socketcand's `sendrtr`/`rtr` messages.
+/// speaks socketcand's `sendrtr`/`rtr` messages. After the handshake it asks the server for
+/// `< dropped N >` reports (our hub's extension), so [`Endpoint::lost`] counts the frames the
+/// hub dropped because this client read too slowly.
 pub struct SocketcandClient {
     stream: TcpStream,
     peer: SocketAddr,
@@ -29,6 +31,10 @@ pub struct SocketcandClient {
     out: String,
     remote_errors: u64,
     last_remote_error: Option<String>,
+    /// Frames the server reported dropping for us (`< dropped N >`, our hub's extension).
+    server_dropped: u64,
+    /// Frames dropped here because more than [`MAX_BUFFERED_FRAMES`] were waiting.
+    buffer_dropped: u64,
 }
 
 /// Frames decoded but not yet received are kept up to this many; past it the oldest are dropped,
@@ -76,12 +82,17 @@ impl SocketcandClient {
             out: String::with_capacity(64),
             remote_errors: 0,
             last_remote_error: None,
+            server_dropped: 0,
+            buffer_dropped: 0,
         };
         client.expect(Message::Hi, timeout)?;
         client.write(&Message::Open(channel.to_owned()))?;
         client.expect(Message::Ok, timeout)?;
         client.write(&Message::RawMode)?;
         client.expect(Message::Ok, timeout)?;
+        // Our hub then reports frames it drops for us (see `lost`); it sends no reply. A real
+        // socketcand answers `< error ... >`, which is only counted.
+        client.write(&Message::DropReport)?;
         Ok(client)
     }
 
@@ -159,13 +170,16 @@ impl SocketcandClient {
         };
         let (frames, replies) = (&mut self.frames, &mut self.replies);
         let errors = &mut self.remote_errors;
+        let (server_dropped, buffer_dropped) = (&mut self.server_dropped, &mut self.buffer_dropped);
         self.decoder.feed(&self.buf[..n], |message| match message {
             Ok(Message::Frame { frame, .. }) => {
                 if frames.len() >= MAX_BUFFERED_FRAMES {
                     frames.pop_front();
+                    *buffer_dropped += 1;
                 }
                 frames.push_back(frame);
             }
+            Ok(Message::Dropped(total)) => *server_dropped = (*server_dropped).max(total),
             Ok(other) => replies.push_back(other),
             // A server sending garbage: nothing to answer, the frames around it still count.
             Err(_) => *errors += 1,
@@ -212,6 +226,10 @@ impl Endpoint for SocketcandClient {
                 return Ok(None);
             }
         }
+    }
+
+    fn lost(&self) -> u64 {
+        self.server_dropped + self.buffer_dropped
     }
 }
 

@@ -7,15 +7,28 @@
 //!
 //! Threads: one accepting connections, and per client one reading (parsing commands, relaying
 //! frames) and one writing (draining the client's send queue). Relaying never blocks: a frame
-//! is copied into each member's bounded queue. A TCP client whose queue overflows (it stopped
-//! reading, or reads slower than the bus runs) is disconnected with a log line, so it cannot
-//! hold up the others; an in-process endpoint whose queue overflows loses frames, counted.
+//! is copied into each member's bounded queue. A member whose queue is full (it reads more
+//! slowly than the bus runs) loses frames, counted and logged at most once per
+//! [`HubConfig::drop_report_interval`], and keeps its connection: it cannot hold up the others.
+//!
+//! Load and faults:
+//! * Admission: up to [`HubConfig::max_clients`] connections (1024 by default; each costs a
+//!   socket and two threads). A connection must open a channel within
+//!   [`HubConfig::open_timeout`] (5 s). When the hub is full, the connection that has been idle
+//!   longest among those that never sent a frame is closed to make room, so a master always
+//!   gets in past silent or stuck clients; only when every client has sent frames is the new
+//!   one refused.
+//! * Floods: a client sending faster than [`HubConfig::max_rate`] frames per second is slowed
+//!   down (its reader pauses, so TCP pushes back on it); the others keep their share.
+//! * With [`HubConfig::bitrate`] every channel is an emulated wire ([`super::wire`]): it
+//!   carries what a CAN bus of that bit rate carries, frames arbitrated by identifier, and a
+//!   client sending more waits for the wire.
 
 use std::collections::HashMap;
 use std::fmt;
 use std::io::{self, Read, Write};
 use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, Shutdown, SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, Weak};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -31,18 +44,31 @@ pub type HubObserver = Arc<dyn Fn(&HubEvent) + Send + Sync>;
 /// Settings of a [`Hub`].
 #[derive(Clone)]
 pub struct HubConfig {
-    /// Connections served at once; more are answered `< error ... >` and closed.
+    /// Connections served at once. When full, the longest-idle connection that never sent a
+    /// frame is closed for a new one; if every client sent frames, the new one is answered
+    /// `< error ... >` and closed.
     pub max_clients: usize,
-    /// Messages queued for one TCP client before it is disconnected as too slow.
+    /// Frames queued for one TCP client; further frames are dropped for it (counted) until it
+    /// catches up.
     pub client_queue: usize,
     /// Frames queued for one in-process endpoint before further frames are dropped.
     pub endpoint_queue: usize,
-    /// A write to a client that blocks this long disconnects it.
+    /// A write to a client that blocks this long (the client reads nothing at all, say `dump`
+    /// piped into a pager that waits) disconnects it. Frames beyond its queue are dropped
+    /// meanwhile; the blocked writer costs one thread.
     pub write_timeout: Duration,
-    /// A client that has not opened a channel this long after connecting is disconnected, so
-    /// idle connections cannot use up `max_clients`. (After `open`, silence is normal: a
-    /// client may only listen.)
+    /// A client that has not opened a channel this long after connecting (the handshake) is
+    /// disconnected. (After `open`, silence is normal: a client may only listen.)
     pub open_timeout: Duration,
+    /// Frames per second one client may send; faster senders are slowed down (the hub stops
+    /// reading from them for a while). 0: no limit.
+    pub max_rate: u32,
+    /// Emulate a CAN bus of this many bits per second on every channel (see
+    /// [`super::wire`]); `None`: frames are relayed as fast as they come.
+    pub bitrate: Option<u32>,
+    /// Frames dropped for a slow client are logged (and reported to clients that asked with
+    /// `< dropreport >`) at most this often.
+    pub drop_report_interval: Duration,
     /// Pause after each `< ok >` before the next frame goes to that client. python-can reads
     /// each handshake reply with one `recv` and compares the whole text with `< ok >`, so a
     /// frame arriving right behind the reply (likely on a bus busy with heartbeats) would make
@@ -70,11 +96,14 @@ impl HubConfig {
 impl Default for HubConfig {
     fn default() -> Self {
         Self {
-            max_clients: 64,
+            max_clients: 1024,
             client_queue: 4096,
             endpoint_queue: 4096,
-            write_timeout: Duration::from_secs(5),
-            open_timeout: Duration::from_secs(30),
+            write_timeout: Duration::from_secs(60),
+            open_timeout: Duration::from_secs(5),
+            max_rate: 20_000,
+            bitrate: None,
+            drop_report_interval: Duration::from_secs(1),
             reply_pause: Duration::from_millis(50),
             observer: Arc::new(|event: &HubEvent| eprintln!("hub: {event}")),
         }
@@ -90,6 +119,9 @@ impl fmt::Debug for HubConfig {
             .field("write_timeout", &self.write_timeout)
             .field("open_timeout", &self.open_timeout)
             .field("reply_pause", &self.reply_pause)
+            .field("max_rate", &self.max_rate)
+            .field("bitrate", &self.bitrate)
+            .field("drop_report_interval", &self.drop_report_interval)
             .finish_non_exhaustive()
     }
 }
@@ -150,7 +182,9 @@ pub enum HubEvent {
         /// Its address.
         peer: SocketAddr,
     },
-    /// A client's send queue overflowed; it is being disconnected.
+    /// A client sends commands and does not read the replies: even its room for replies is full;
+    /// it is being disconnected. (Frames are dropped for a slow reader instead, see
+    /// [`HubEvent::FramesDropped`].)
     Overflow {
         /// Client number.
         client: u64,
@@ -158,6 +192,28 @@ pub enum HubEvent {
         peer: SocketAddr,
         /// The queue length that was exceeded.
         capacity: usize,
+    },
+    /// The hub was full: this client, idle longest of those that never sent a frame, was
+    /// closed to make room for a new connection.
+    Evicted {
+        /// Client number.
+        client: u64,
+        /// Its address.
+        peer: SocketAddr,
+        /// How long it had sent nothing.
+        idle: Duration,
+    },
+    /// A client reads more slowly than the bus runs: frames were dropped for it (reported at
+    /// most once per [`HubConfig::drop_report_interval`]).
+    FramesDropped {
+        /// Client number.
+        client: u64,
+        /// Its address.
+        peer: SocketAddr,
+        /// Dropped since the last report.
+        dropped: u64,
+        /// Dropped since it connected.
+        total: u64,
     },
     /// An in-process endpoint's queue is full and frames are being dropped (reported at 1, 2,
     /// 4, 8 ... drops).
@@ -201,7 +257,16 @@ impl fmt::Display for HubEvent {
             }
             HubEvent::Overflow { client, peer, capacity } => write!(
                 f,
-                "client {client} ({peer}) disconnected: it fell {capacity} messages behind (reading too slowly or not at all)"
+                "client {client} ({peer}) disconnected: it fell {capacity} replies behind (it does not read what it asked for)"
+            ),
+            HubEvent::Evicted { client, peer, idle } => write!(
+                f,
+                "client {client} ({peer}) closed to make room: the hub is full and it sent no frame (idle {:.1} s)",
+                idle.as_secs_f64()
+            ),
+            HubEvent::FramesDropped { client, peer, dropped, total } => write!(
+                f,
+                "client {client} ({peer}) reads more slowly than the bus runs: {dropped} frames dropped for it ({total} in all)"
             ),
             HubEvent::EndpointOverflow { channel, dropped } => {
                 write!(f, "in-process endpoint on channel {channel} is not reading: {dropped} frames dropped")
@@ -241,6 +306,8 @@ struct HubInner {
     channels: Mutex<HashMap<String, Weak<Channel>>>,
     connections: Mutex<HashMap<u64, ConnectionEntry>>,
     stopping: AtomicBool,
+    /// Origin of the connections' activity times.
+    epoch: Instant,
 }
 
 struct ConnectionEntry {
@@ -260,6 +327,7 @@ impl Hub {
             channels: Mutex::new(HashMap::new()),
             connections: Mutex::new(HashMap::new()),
             stopping: AtomicBool::new(false),
+            epoch: Instant::now(),
         });
         inner.emit(&HubEvent::Listening { addr: local_addr });
         let accept = {
@@ -285,7 +353,7 @@ impl Hub {
             return Err(TransportError::Closed);
         }
         let name = parse_channel(channel).map_err(|e| TransportError::Protocol(e.to_string()))?.to_owned();
-        let channel = self.inner.channel(&name);
+        let channel = self.inner.channel(&name)?;
         let observer = Arc::clone(&self.inner.config.observer);
         let hook = Box::new(move |dropped| observer(&HubEvent::EndpointOverflow { channel: name.clone(), dropped }));
         Ok(LocalEndpoint::attach(channel, self.inner.config.endpoint_queue, Some(hook)))
@@ -367,15 +435,45 @@ impl HubInner {
         (self.config.observer)(event);
     }
 
-    fn channel(&self, name: &str) -> Arc<Channel> {
+    fn channel(&self, name: &str) -> Result<Arc<Channel>, TransportError> {
         let mut channels = lock(&self.channels);
         if let Some(channel) = channels.get(name).and_then(Weak::upgrade) {
-            return channel;
+            return Ok(channel);
         }
         channels.retain(|_, channel| channel.strong_count() > 0);
-        let channel = Arc::new(Channel::new(name));
+        let channel = match self.config.bitrate {
+            Some(bitrate) => Channel::with_bitrate(name, bitrate)
+                .map_err(|e| TransportError::io("cannot start the channel's wire thread", e))?,
+            None => Arc::new(Channel::new(name)),
+        };
         channels.insert(name.to_owned(), Arc::downgrade(&channel));
-        channel
+        Ok(channel)
+    }
+
+    /// Microseconds since the hub started: the clock of the connections' activity times.
+    fn micros(&self) -> u64 {
+        u64::try_from(self.epoch.elapsed().as_micros()).unwrap_or(u64::MAX)
+    }
+
+    /// Closes the connection that has been idle longest among those that never sent a frame,
+    /// to make room for a new one. Returns false when there is none (every client sent frames).
+    fn evict_idle(&self, connections: &mut HashMap<u64, ConnectionEntry>) -> bool {
+        let victim = connections
+            .values()
+            .filter(|entry| !entry.connection.sent_frames.load(Ordering::SeqCst))
+            .min_by_key(|entry| (entry.connection.last_active.load(Ordering::SeqCst), entry.connection.id))
+            .map(|entry| entry.connection.id);
+        let Some(entry) = victim.and_then(|id| connections.remove(&id)) else { return false };
+        let connection = entry.connection;
+        let idle = self.micros().saturating_sub(connection.last_active.load(Ordering::SeqCst));
+        self.emit(&HubEvent::Evicted {
+            client: connection.id,
+            peer: connection.peer,
+            idle: Duration::from_micros(idle),
+        });
+        connection.kill("closed to make room for a new client (the hub was full and it sent no frame)");
+        // Its threads end on their own once the socket is shut down.
+        true
     }
 
     fn accept_loop(self: Arc<Self>, listener: &TcpListener) {
@@ -398,22 +496,21 @@ impl HubInner {
 
     fn serve(self: Arc<Self>, stream: TcpStream, peer: SocketAddr) {
         let mut connections = lock(&self.connections);
-        if connections.len() >= self.config.max_clients {
+        if connections.len() >= self.config.max_clients.max(1) && !self.evict_idle(&mut connections) {
             drop(connections);
-            let reason = format!("{} clients already connected", self.config.max_clients);
+            let reason = format!("{} clients already connected, all of them sending", self.config.max_clients);
             let mut stream = stream;
             let _ = stream.set_write_timeout(Some(Duration::from_millis(100)));
             let _ = stream.write_all(Message::Error(format!("too many clients, {reason}")).to_string().as_bytes());
             self.emit(&HubEvent::Rejected { peer, reason });
             return;
         }
-        let setup = || -> io::Result<(TcpStream, TcpStream)> {
+        let setup = || -> io::Result<()> {
             stream.set_nodelay(true)?;
-            stream.set_write_timeout(Some(self.config.write_timeout))?;
-            Ok((stream.try_clone()?, stream.try_clone()?))
+            stream.set_write_timeout(Some(self.config.write_timeout))
         };
-        let (reader, writer) = match setup() {
-            Ok(halves) => halves,
+        match setup() {
+            Ok(()) => {}
             Err(error) => {
                 drop(connections);
                 self.emit(&HubEvent::Rejected { peer, reason: format!("socket setup failed: {error}") });
@@ -431,6 +528,11 @@ impl HubInner {
             closing: AtomicBool::new(false),
             reason: Mutex::new(None),
             observer: Arc::clone(&self.config.observer),
+            last_active: AtomicU64::new(self.micros()),
+            sent_frames: AtomicBool::new(false),
+            dropped: AtomicU64::new(0),
+            drop_report: AtomicBool::new(false),
+            drop_report_interval: self.config.drop_report_interval,
         });
         connections.insert(id, ConnectionEntry { connection: Arc::clone(&connection), threads: Vec::new() });
         drop(connections);
@@ -439,12 +541,12 @@ impl HubInner {
 
         let write_thread = {
             let connection = Arc::clone(&connection);
-            std::thread::Builder::new().name(format!("hub-write-{id}")).spawn(move || connection.write_loop(writer))
+            std::thread::Builder::new().name(format!("hub-write-{id}")).spawn(move || connection.write_loop())
         };
         let read_thread = {
             let connection = Arc::clone(&connection);
             let hub = Arc::clone(&self);
-            std::thread::Builder::new().name(format!("hub-read-{id}")).spawn(move || hub.read_loop(&connection, reader))
+            std::thread::Builder::new().name(format!("hub-read-{id}")).spawn(move || hub.read_loop(&connection))
         };
         let mut threads = Vec::new();
         let mut reading = true;
@@ -469,11 +571,13 @@ impl HubInner {
         // Otherwise the reader already finished and removed the entry; its threads end alone.
     }
 
-    fn read_loop(&self, connection: &Arc<Connection>, mut reader: TcpStream) {
-        let mut session = Session { hub: self, connection, mode: Mode::NoBus, channel: None, errors: 0 };
+    fn read_loop(&self, connection: &Arc<Connection>) {
+        let mut reader: &TcpStream = &connection.stream;
+        let mut session = Session { hub: self, connection, mode: Mode::NoBus, channel: None, errors: 0, sent: 0 };
         let mut decoder = Decoder::new();
         let mut buf = vec![0u8; 16 * 1024];
         let open_deadline = Instant::now() + self.config.open_timeout;
+        let mut throttle = Throttle::new(self.config.max_rate);
         let ended = loop {
             if session.mode == Mode::NoBus {
                 let left = open_deadline.saturating_duration_since(Instant::now());
@@ -484,8 +588,20 @@ impl HubInner {
             match reader.read(&mut buf) {
                 Ok(0) => break "client closed the connection".to_owned(),
                 Ok(n) => {
+                    connection.last_active.store(self.micros(), Ordering::SeqCst);
                     let was_open = session.mode != Mode::NoBus;
+                    let sent_before = session.sent;
                     decoder.feed(&buf[..n], |message| session.handle(message));
+                    if session.sent > sent_before {
+                        connection.sent_frames.store(true, Ordering::SeqCst);
+                        // Paused in slices, so a client closed meanwhile is let go promptly.
+                        let mut pause = throttle.sent(session.sent - sent_before);
+                        while !pause.is_zero() && !connection.closing.load(Ordering::SeqCst) {
+                            let slice = pause.min(Duration::from_millis(100));
+                            std::thread::sleep(slice);
+                            pause -= slice;
+                        }
+                    }
                     if connection.closing.load(Ordering::SeqCst) {
                         break connection.reason();
                     }
@@ -530,6 +646,40 @@ struct Session<'a> {
     mode: Mode,
     channel: Option<Arc<Channel>>,
     errors: u32,
+    /// Frames the client put on the bus.
+    sent: u64,
+}
+
+/// Slows a client down to `rate` frames per second on average (a token bucket holding a tenth
+/// of a second's worth): when it has sent more, its reader sleeps, and TCP flow control makes
+/// the client wait.
+struct Throttle {
+    rate: u32,
+    tokens: f64,
+    refilled: Instant,
+}
+
+impl Throttle {
+    fn new(rate: u32) -> Self {
+        Self { rate, tokens: Self::burst(rate), refilled: Instant::now() }
+    }
+
+    fn burst(rate: u32) -> f64 {
+        (f64::from(rate) / 10.0).max(16.0)
+    }
+
+    /// Counts `frames` sent; returns how long the client must wait before it is read again.
+    fn sent(&mut self, frames: u64) -> Duration {
+        if self.rate == 0 {
+            return Duration::ZERO;
+        }
+        let rate = f64::from(self.rate);
+        let now = Instant::now();
+        let refill = now.saturating_duration_since(self.refilled).as_secs_f64() * rate;
+        self.refilled = now;
+        self.tokens = (self.tokens + refill).min(Self::burst(self.rate)) - frames as f64;
+        if self.tokens < 0.0 { Duration::from_secs_f64(-self.tokens / rate) } else { Duration::ZERO }
+    }
 }
 
 impl Session<'_> {
@@ -546,7 +696,10 @@ impl Session<'_> {
         match (message, self.mode) {
             (Message::Echo, _) => self.connection.reply(Message::Echo),
             (Message::Open(name), Mode::NoBus) => {
-                self.channel = Some(self.hub.channel(&name));
+                match self.hub.channel(&name) {
+                    Ok(channel) => self.channel = Some(channel),
+                    Err(error) => return self.refuse(format!("cannot open channel {name}: {error}")),
+                }
                 self.mode = Mode::Bcm;
                 self.connection.reply(Message::Ok);
                 self.hub.emit(&HubEvent::Opened {
@@ -578,10 +731,17 @@ impl Session<'_> {
             (Message::RawMode, Mode::Raw) | (Message::BcmMode, Mode::Bcm) => self.connection.reply(Message::Ok),
             (Message::Send(frame), _) => {
                 if let Some(channel) = &self.channel {
-                    channel.relay(self.connection.id, frame, Timestamp::now());
+                    self.sent += 1;
+                    // With an emulated wire a full transmit queue waits (bounded, so a client
+                    // closed meanwhile is noticed): the flooder is the one slowed down.
+                    channel.relay(self.connection.id, frame, Timestamp::now(), Some(Duration::from_millis(500)));
                 }
             }
-            (server @ (Message::Hi | Message::Ok | Message::Frame { .. } | Message::Error(_)), _) => {
+            (Message::DropReport, _) => self.connection.drop_report.store(true, Ordering::SeqCst),
+            (
+                server @ (Message::Hi | Message::Ok | Message::Frame { .. } | Message::Error(_) | Message::Dropped(_)),
+                _,
+            ) => {
                 let name = server.to_string();
                 let command = name.split_whitespace().nth(1).unwrap_or_default();
                 self.refuse(format!("'{command}' is a server message"));
@@ -625,12 +785,24 @@ struct Connection {
     closing: AtomicBool,
     reason: Mutex<Option<String>>,
     observer: HubObserver,
+    /// When the client last sent anything, in [`HubInner::micros`].
+    last_active: AtomicU64,
+    /// Whether it ever put a frame on the bus (clients that did are never evicted).
+    sent_frames: AtomicBool,
+    /// Frames dropped for it because its queue was full.
+    dropped: AtomicU64,
+    /// It asked for `< dropped N >` reports.
+    drop_report: AtomicBool,
+    drop_report_interval: Duration,
 }
 
 impl Connection {
-    /// Queues a reply; a client so far behind that even this does not fit is disconnected.
+    /// Queues a reply. Replies are never dropped; they may use a second queue's worth of room
+    /// beyond the frames, and a client so far behind that even this does not fit (it sends
+    /// commands and does not read the answers) is disconnected.
     fn reply(&self, message: Message) {
-        if let Err(PushError::Full) = self.queue.push(Outgoing::Reply(message)) {
+        if let Err(PushError::Full) = self.queue.push_within(Outgoing::Reply(message), self.capacity.saturating_mul(2))
+        {
             self.overflow();
         }
     }
@@ -639,7 +811,7 @@ impl Connection {
         if !self.closing.load(Ordering::SeqCst) {
             (self.observer)(&HubEvent::Overflow { client: self.id, peer: self.peer, capacity: self.capacity });
         }
-        self.kill(&format!("fell {} messages behind", self.capacity));
+        self.kill(&format!("fell {} replies behind", self.capacity));
     }
 
     /// Disconnects the client (the first reason given is kept): its queue closes, and the
@@ -657,29 +829,46 @@ impl Connection {
         lock(&self.reason).clone().unwrap_or_else(|| "closed".to_owned())
     }
 
-    fn write_loop(&self, mut writer: TcpStream) {
+    fn write_loop(&self) {
         const BATCH: usize = 256;
+        let writer: &TcpStream = &self.stream;
         let mut batch = Vec::with_capacity(BATCH);
         let mut text = String::with_capacity(BATCH * 64);
+        let mut reported = 0u64;
+        let mut last_report: Option<Instant> = None;
         while self.queue.drain_blocking(&mut batch, BATCH).is_ok() {
             text.clear();
             let mut result = Ok(());
+            let dropped = self.dropped.load(Ordering::Relaxed);
+            if dropped > reported && last_report.is_none_or(|at| at.elapsed() >= self.drop_report_interval) {
+                (self.observer)(&HubEvent::FramesDropped {
+                    client: self.id,
+                    peer: self.peer,
+                    dropped: dropped - reported,
+                    total: dropped,
+                });
+                if self.drop_report.load(Ordering::SeqCst) {
+                    Message::Dropped(dropped).write_to(&mut text);
+                }
+                reported = dropped;
+                last_report = Some(Instant::now());
+            }
             for item in batch.drain(..) {
                 match item {
                     Outgoing::Frame(frame, timestamp) => Message::Frame { frame, timestamp }.write_to(&mut text),
                     Outgoing::Reply(message) => {
                         // Written alone: python-can reads its handshake replies with a single
                         // recv() and compares the whole text.
-                        result = result.and_then(|()| flush(&mut writer, &mut text));
+                        result = result.and_then(|()| flush(writer, &mut text));
                         message.write_to(&mut text);
-                        result = result.and_then(|()| flush(&mut writer, &mut text));
+                        result = result.and_then(|()| flush(writer, &mut text));
                         if message == Message::Ok && result.is_ok() {
                             std::thread::sleep(self.reply_pause);
                         }
                     }
                 }
             }
-            if let Err(error) = result.and_then(|()| flush(&mut writer, &mut text)) {
+            if let Err(error) = result.and_then(|()| flush(writer, &mut text)) {
                 let reason = match error.kind() {
                     io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut => "not reading (write timed out)".to_owned(),
                     _ => format!("write failed: {error}"),
@@ -691,7 +880,7 @@ impl Connection {
     }
 }
 
-fn flush(writer: &mut TcpStream, text: &mut String) -> io::Result<()> {
+fn flush(mut writer: &TcpStream, text: &mut String) -> io::Result<()> {
     if !text.is_empty() {
         writer.write_all(text.as_bytes())?;
         text.clear();
@@ -704,8 +893,9 @@ impl Sink for Connection {
         match self.queue.push(Outgoing::Frame(frame, at)) {
             Ok(()) => Delivery::Accepted,
             Err(PushError::Full) => {
-                self.overflow();
-                Delivery::Gone
+                // A slow reader loses frames, not its connection (reported by its writer).
+                self.dropped.fetch_add(1, Ordering::Relaxed);
+                Delivery::Dropped
             }
             Err(PushError::Closed) => Delivery::Gone,
         }
@@ -713,5 +903,18 @@ impl Sink for Connection {
 
     fn close(&self) {
         self.kill("hub stopped");
+    }
+
+    fn deliver_batch(&self, batch: &[(MemberId, CanFrame)], me: MemberId, at: Timestamp) -> Delivery {
+        let frames = batch.iter().filter(|(from, _)| *from != me).map(|(_, frame)| Outgoing::Frame(*frame, at));
+        match self.queue.push_all(frames) {
+            Ok(0) => Delivery::Accepted,
+            Ok(refused) => {
+                // A slow reader loses frames, not its connection (reported by its writer).
+                self.dropped.fetch_add(refused as u64, Ordering::Relaxed);
+                Delivery::Dropped
+            }
+            Err(_) => Delivery::Gone,
+        }
     }
 }

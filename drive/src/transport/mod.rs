@@ -58,6 +58,7 @@ mod queue;
 pub mod socketcan;
 pub mod socketcand;
 mod spec;
+pub mod wire;
 
 use std::time::Duration;
 
@@ -117,6 +118,13 @@ pub trait Endpoint: Send {
     fn try_recv(&mut self) -> Result<Option<CanFrame>, TransportError> {
         self.recv_timeout(Duration::ZERO)
     }
+
+    /// Frames lost on the way to this endpoint so far: its receive queue overflowed, or the
+    /// hub dropped them because this endpoint read more slowly than the bus ran. 0 where the
+    /// transport cannot tell.
+    fn lost(&self) -> u64 {
+        0
+    }
 }
 
 impl<E: Endpoint + ?Sized> Endpoint for Box<E> {
@@ -131,6 +139,10 @@ impl<E: Endpoint + ?Sized> Endpoint for Box<E> {
     fn try_recv(&mut self) -> Result<Option<CanFrame>, TransportError> {
         (**self).try_recv()
     }
+
+    fn lost(&self) -> u64 {
+        (**self).lost()
+    }
 }
 
 impl<E: Endpoint + ?Sized> Endpoint for &mut E {
@@ -144,5 +156,9 @@ impl<E: Endpoint + ?Sized> Endpoint for &mut E {
 
     fn try_recv(&mut self) -> Result<Option<CanFrame>, TransportError> {
         (**self).try_recv()
+    }
+
+    fn lost(&self) -> u64 {
+        (**self).lost()
     }
 }

@@ -56,11 +56,17 @@ impl<T> BoundedQueue<T> {
 
     /// Appends an item without blocking.
     pub(crate) fn push(&self, item: T) -> Result<(), PushError> {
+        self.push_within(item, self.capacity)
+    }
+
+    /// Appends an item without blocking if fewer than `limit` are queued (`limit` may exceed
+    /// the capacity: room kept for items that must not be dropped, such as protocol replies).
+    pub(crate) fn push_within(&self, item: T, limit: usize) -> Result<(), PushError> {
         let mut state = lock(&self.state);
         if state.closed {
             return Err(PushError::Closed);
         }
-        if state.items.len() >= self.capacity {
+        if state.items.len() >= limit {
             return Err(PushError::Full);
         }
         state.items.push_back(item);
@@ -70,6 +76,29 @@ impl<T> BoundedQueue<T> {
             self.ready.notify_one();
         }
         Ok(())
+    }
+
+    /// Appends every item that fits (one lock, one wake-up for the lot); returns how many did
+    /// not fit, or `Err(PushError::Closed)`.
+    pub(crate) fn push_all(&self, items: impl Iterator<Item = T>) -> Result<usize, PushError> {
+        let mut state = lock(&self.state);
+        if state.closed {
+            return Err(PushError::Closed);
+        }
+        let mut refused = 0;
+        for item in items {
+            if state.items.len() >= self.capacity {
+                refused += 1;
+            } else {
+                state.items.push_back(item);
+            }
+        }
+        let wake = state.waiters > 0 && !state.items.is_empty();
+        drop(state);
+        if wake {
+            self.ready.notify_one();
+        }
+        Ok(refused)
     }
 
     /// Takes the oldest item, waiting up to `timeout` for one. Items pushed before [`close`]

@@ -135,6 +135,14 @@ pub enum Message {
     },
     /// `< error TEXT >`: the server rejects the client's last message.
     Error(String),
+    /// `< dropreport >` (this hub's extension, not socketcand's): the client asks to be told
+    /// when the hub drops frames for it because it reads more slowly than the bus runs. No
+    /// reply; from then on the hub sends [`Message::Dropped`] at most once per report interval.
+    DropReport,
+    /// `< dropped TOTAL >` (this hub's extension): the hub dropped frames for this client, TOTAL
+    /// so far. Sent only to clients that asked with `< dropreport >`: python-can reads any
+    /// unknown message as an error.
+    Dropped(u64),
 }
 
 /// Why a message could not be read. The `Display` text is what the hub puts in its
@@ -284,6 +292,14 @@ impl Message {
                 _ => Err(ParseError::Arguments { command: "rtr", usage: "rtr ID SECONDS.MICROS LEN" }),
             },
             "error" => Ok(Message::Error(args.join(" "))),
+            "dropreport" => no_args(Message::DropReport, "dropreport"),
+            "dropped" => match args.as_slice() {
+                [total] if total.len() <= 20 && total.bytes().all(|b| b.is_ascii_digit()) => total
+                    .parse()
+                    .map(Message::Dropped)
+                    .map_err(|_| ParseError::Arguments { command: "dropped", usage: "dropped TOTAL" }),
+                _ => Err(ParseError::Arguments { command: "dropped", usage: "dropped TOTAL" }),
+            },
             other => match UNSUPPORTED.iter().find(|&&name| name == other) {
                 Some(name) => Err(ParseError::Unsupported(name)),
                 None => Err(ParseError::Unknown(snippet(other))),
@@ -374,6 +390,8 @@ impl fmt::Display for Message {
             Message::Echo => f.write_str("< echo >"),
             Message::RawMode => f.write_str("< rawmode >"),
             Message::BcmMode => f.write_str("< bcmmode >"),
+            Message::DropReport => f.write_str("< dropreport >"),
+            Message::Dropped(total) => write!(f, "< dropped {total} >"),
             Message::Open(channel) => {
                 let clean: String = channel.chars().map(|c| if is_safe(c) { c } else { '_' }).collect();
                 write!(f, "< open {clean} >")
@@ -547,6 +565,8 @@ mod tests {
             (Message::BcmMode, "< bcmmode >"),
             (Message::Open("can0".into()), "< open can0 >"),
             (Message::Error("unknown command".into()), "< error unknown command >"),
+            (Message::DropReport, "< dropreport >"),
+            (Message::Dropped(12345), "< dropped 12345 >"),
         ] {
             assert_eq!(message.to_string(), text);
             assert_eq!(Message::parse(text), Ok(message));
