@@ -35,6 +35,8 @@
 #[doc(hidden)]
 #[path = "private_v1.rs"]
 pub mod __private_v1; // support for generated code: not public API (see the module docs)
+#[cfg(feature = "embedded-can")]
+pub mod can;
 pub mod cia402;
 pub mod crc;
 mod device;
