@@ -15588,6 +15588,24 @@ PDOMapping=0
             self.write_at(h.get() as usize, data)
         }
     }
+    /// The SDO server's buffer: the largest entry, in bytes (at least 8).
+    pub const SDO_BUFFER: usize = 32;
+    /// PDOs per direction the device has (`NrOfRXPDO`/`NrOfTXPDO`, or its PDO objects).
+    pub const PDOS: usize = 8;
+    /// Entries a PDO can map: the mapping objects' sub-objects, at most 64 bits at the
+    /// EDS's `Granularity`.
+    pub const MAPPED_PER_PDO: usize = 8;
+    /// The device runtime around this dictionary, sized for it: [`SDO_BUFFER`], [`PDOS`],
+    /// [`MAPPED_PER_PDO`]. Build it with `Device::with_capacity` (a `const fn`, so it can
+    /// initialise a `static`).
+    pub type Device<A, S = ::od_runtime::NoStorage> = ::od_runtime::Device<
+        Dictionary,
+        A,
+        S,
+        SDO_BUFFER,
+        PDOS,
+        MAPPED_PER_PDO,
+    >;
     /// Typed layouts of the device's default PDO mappings.
     pub mod pdo {
         /// A received PDO was shorter than its mapping.

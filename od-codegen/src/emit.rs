@@ -610,3 +610,94 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
         }
     }
 }
+
+/// What the device needs of `od_runtime::Device`, from the description: how many PDOs, how
+/// many mapped entries per PDO, how large an SDO transfer can be.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Capacities {
+    /// PDOs per direction: `NrOfRXPDO`/`NrOfTXPDO`, or more if the file has more PDO objects.
+    pub pdos: usize,
+    /// Mapped entries per PDO: what the mapping objects hold (sub-objects after sub 0), but no
+    /// more than 64 bits at `Granularity` allow, and never fewer than a loadable default
+    /// mapping has.
+    pub mapped: usize,
+    /// The largest entry in bytes (at least 8): the SDO server's buffer, block transfers
+    /// included (a transfer is never larger than the entry it reads or writes).
+    pub sdo_buffer: usize,
+}
+
+pub(crate) fn capacities(model: &Model, plan: &Plan<'_>) -> Capacities {
+    use eds::model::Role;
+    let info = &model.device_info;
+    let mut pdos = usize::from(info.nr_of_rx_pdo.unwrap_or(0).max(info.nr_of_tx_pdo.unwrap_or(0)));
+    // Granularity g: at most 64 / g entries fit 64 bits (0 or absent: no statement, 64).
+    let by_granularity = match info.granularity {
+        Some(g) if g > 0 => 64 / usize::from(g),
+        _ => 64,
+    };
+    let mut mapped = 0usize;
+    let mut sdo_buffer = 8usize;
+    // Per mapping object: its default count (sub 0) and the bits of its default entries.
+    let mut defaults: Vec<(u16, usize, Vec<u32>)> = Vec::new();
+    for e in &plan.entries {
+        sdo_buffer = sdo_buffer.max((e.bits as usize).div_ceil(8));
+        let role = eds::model::Index(e.index).role();
+        match role {
+            Role::RpdoCommunication(n) | Role::TpdoCommunication(n) | Role::RpdoMapping(n) | Role::TpdoMapping(n) => {
+                pdos = pdos.max(usize::from(n) + 1);
+            }
+            _ => {}
+        }
+        if !matches!(role, Role::RpdoMapping(_) | Role::TpdoMapping(_)) {
+            continue;
+        }
+        if defaults.last().is_none_or(|d| d.0 != e.index) {
+            defaults.push((e.index, 0, Vec::new()));
+        }
+        let Some(d) = defaults.last_mut() else { continue };
+        let value = match e.default {
+            Def::Int(v, _) => usize::try_from(v).unwrap_or(0),
+            _ => 0,
+        };
+        if e.sub == 0 {
+            d.1 = value;
+        } else {
+            mapped = mapped.max(usize::from(e.sub).min(by_granularity));
+            d.2.push(value as u32 & 0xFF);
+        }
+    }
+    // A default mapping the device can load (its entries fit 64 bits) is kept whole, even
+    // with entries shorter than the granularity.
+    for (_, count, bits) in &defaults {
+        let total: u32 = bits.iter().take(*count).sum();
+        if *count <= bits.len() && total <= 64 {
+            mapped = mapped.max(*count);
+        }
+    }
+    Capacities { pdos: pdos.min(512), mapped: mapped.min(64), sdo_buffer }
+}
+
+/// `SDO_BUFFER`, `PDOS`, `MAPPED_PER_PDO` and the `Device` type sized with them.
+pub(crate) fn device_type(model: &Model, plan: &Plan<'_>) -> TokenStream {
+    let c = capacities(model, plan);
+    let (buf, pdos, mapped) = (
+        proc_macro2::Literal::usize_unsuffixed(c.sdo_buffer),
+        proc_macro2::Literal::usize_unsuffixed(c.pdos),
+        proc_macro2::Literal::usize_unsuffixed(c.mapped),
+    );
+    quote! {
+        /// The SDO server's buffer: the largest entry, in bytes (at least 8).
+        pub const SDO_BUFFER: usize = #buf;
+        /// PDOs per direction the device has (`NrOfRXPDO`/`NrOfTXPDO`, or its PDO objects).
+        pub const PDOS: usize = #pdos;
+        /// Entries a PDO can map: the mapping objects' sub-objects, at most 64 bits at the
+        /// EDS's `Granularity`.
+        pub const MAPPED_PER_PDO: usize = #mapped;
+
+        /// The device runtime around this dictionary, sized for it: [`SDO_BUFFER`], [`PDOS`],
+        /// [`MAPPED_PER_PDO`]. Build it with `Device::with_capacity` (a `const fn`, so it can
+        /// initialise a `static`).
+        pub type Device<A, S = ::od_runtime::NoStorage> =
+            ::od_runtime::Device<Dictionary, A, S, SDO_BUFFER, PDOS, MAPPED_PER_PDO>;
+    }
+}

@@ -184,6 +184,7 @@ pub fn expand(model: &Model, options: &Options) -> Generated {
     let index = emit::index_consts(&plan);
     let tables = emit::tables(&plan, &mut sink);
     let dictionary = emit::dictionary(model, &plan, options.sidecar.as_ref());
+    let device = emit::device_type(model, &plan);
     let pdo = pdo::module(model, &plan, &mut sink);
     let units = match &options.sidecar {
         Some(sc) => units::module(model, &plan, sc, &mut sink),
@@ -205,6 +206,7 @@ pub fn expand(model: &Model, options: &Options) -> Generated {
             #index
             #tables
             #dictionary
+            #device
             #pdo
             #units
         }

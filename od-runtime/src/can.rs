@@ -113,10 +113,10 @@ impl<const Q: usize> CanLink<Q> {
     /// into the device, polls it, and transmits queued frames until the driver would block.
     /// Driver errors are counted ([`CanLink::errors`]) and end that turn's receiving or
     /// transmitting; the next call tries again.
-    pub fn service<C, OD, A, S, const BUF: usize, const PDOS: usize>(
+    pub fn service<C, OD, A, S, const BUF: usize, const PDOS: usize, const MAP: usize>(
         &mut self,
         can: &mut C,
-        dev: &mut Device<OD, A, S, BUF, PDOS>,
+        dev: &mut Device<OD, A, S, BUF, PDOS, MAP>,
         now: Micros,
     ) where
         C: embedded_can::nb::Can,

@@ -146,7 +146,7 @@ const fn has_side_effects(index: u16) -> bool {
 }
 
 #[derive(Clone, Copy)]
-struct Tpdo {
+struct Tpdo<const M: usize> {
     present: bool,
     cob: u16,
     valid: bool,
@@ -157,7 +157,7 @@ struct Tpdo {
     sync_start: u8,
     ok: bool,
     count: u8,
-    map: [Mapped; MAX_MAPPED],
+    map: [Mapped; M],
     bytes: u8,
     /// Data sampled at the last SYNC (types 0..=240, 252).
     sample: [u8; 8],
@@ -174,7 +174,7 @@ struct Tpdo {
     requested: bool,
 }
 
-impl Tpdo {
+impl<const M: usize> Tpdo<M> {
     const EMPTY: Self = Self {
         present: false,
         cob: 0,
@@ -186,7 +186,7 @@ impl Tpdo {
         sync_start: 0,
         ok: false,
         count: 0,
-        map: [Mapped::EMPTY; MAX_MAPPED],
+        map: [Mapped::EMPTY; M],
         bytes: 0,
         sample: [0; 8],
         has_sample: false,
@@ -239,14 +239,14 @@ impl Tpdo {
 }
 
 #[derive(Clone, Copy)]
-struct Rpdo {
+struct Rpdo<const M: usize> {
     present: bool,
     cob: u16,
     valid: bool,
     ttype: u8,
     ok: bool,
     count: u8,
-    map: [Mapped; MAX_MAPPED],
+    map: [Mapped; M],
     bytes: u8,
     pending: Option<[u8; 8]>,
     /// Deadline monitoring: 0 = off.
@@ -255,7 +255,7 @@ struct Rpdo {
     expired: bool,
 }
 
-impl Rpdo {
+impl<const M: usize> Rpdo<M> {
     const EMPTY: Self = Self {
         present: false,
         cob: 0,
@@ -263,7 +263,7 @@ impl Rpdo {
         ttype: 0,
         ok: false,
         count: 0,
-        map: [Mapped::EMPTY; MAX_MAPPED],
+        map: [Mapped::EMPTY; M],
         bytes: 0,
         pending: None,
         timeout: 0,
@@ -276,7 +276,7 @@ impl Rpdo {
     }
 }
 
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 struct Consumer {
     node: u8,
     time: Micros,
@@ -284,8 +284,12 @@ struct Consumer {
     active: bool,
 }
 
+impl Consumer {
+    const EMPTY: Self = Self { node: 0, time: 0, last: 0, active: false };
+}
+
 /// Everything but the SDO server, so the server can borrow it as its [`ObjectAccess`].
-struct Core<OD, A, S, const P: usize> {
+struct Core<OD, A, S, const P: usize, const M: usize> {
     od: OD,
     app: A,
     storage: S,
@@ -320,8 +324,8 @@ struct Core<OD, A, S, const P: usize> {
     consumers: [Consumer; MAX_HEARTBEAT_CONSUMERS],
     /// `consumers[..consumers_len]` holds every configured consumer (node != 0).
     consumers_len: usize,
-    rpdo: [Rpdo; P],
-    tpdo: [Tpdo; P],
+    rpdo: [Rpdo<M>; P],
+    tpdo: [Tpdo<M>; P],
     /// Numbers of the active RPDOs (`rx_active[..rx_len]`), in order, so that frames, SYNCs and
     /// deadlines only visit the PDOs in use.
     rx_active: [u16; P],
@@ -371,9 +375,16 @@ struct Core<OD, A, S, const P: usize> {
 /// dev.on_frame(&Frame::new(0x000, &[0x01, 5]).unwrap(), 10); // NMT start
 /// assert_eq!(dev.nmt_state(), od_runtime::NmtState::Operational);
 /// ```
-pub struct Device<OD, A, S = crate::NoStorage, const BUF: usize = 1024, const PDOS: usize = 8> {
+pub struct Device<
+    OD,
+    A,
+    S = crate::NoStorage,
+    const BUF: usize = 1024,
+    const PDOS: usize = 8,
+    const MAP: usize = MAX_MAPPED,
+> {
     sdo: SdoServer<BUF>,
-    core: Core<OD, A, S, PDOS>,
+    core: Core<OD, A, S, PDOS, MAP>,
     node_id: NodeId,
     started: bool,
 }
@@ -413,7 +424,7 @@ fn pack<OD: ObjectDictionary>(od: &OD, map: &[Mapped]) -> [u8; 8] {
     od.read_mapped(map).to_le_bytes()
 }
 
-impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S, P> {
+impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usize> Core<OD, A, S, P, M> {
     fn event(&mut self, e: Event) {
         self.app.on_event(&mut self.od, e);
     }
@@ -479,7 +490,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                     k += 1;
                 }
                 for c in &mut self.consumers[k..] {
-                    *c = Consumer::default();
+                    *c = Consumer::EMPTY;
                 }
                 // Polls and heartbeats visit the consumers up to the last configured one.
                 self.consumers_len = self.consumers.iter().rposition(|c| c.node != 0).map_or(0, |last| last + 1);
@@ -519,8 +530,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         let od = &self.od;
         let cob = read_uint(od, comm, 1);
         let ttype = read_uint(od, comm, 2).unwrap_or(255) as u8;
-        let count = read_uint(od, map, 0).unwrap_or(0).min(MAX_MAPPED as u32) as u8;
-        let mut values = [0u32; MAX_MAPPED];
+        let count = read_uint(od, map, 0).unwrap_or(0).min(M as u32) as u8;
+        let mut values = [0u32; M];
         let mut ok = true;
         for k in 0..count {
             match read_uint(od, map, k + 1) {
@@ -531,7 +542,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         let bits = pdo::check_mapping(dir, &values[..usize::from(count)], pdo_lookup(od));
         let mut ok = ok && bits.is_ok();
         let bytes = bits.unwrap_or(0).div_ceil(8) as u8;
-        let mut entries = [Mapped::EMPTY; MAX_MAPPED];
+        let mut entries = [Mapped::EMPTY; M];
         for (e, v) in entries.iter_mut().zip(&values[..usize::from(count)]) {
             let m = MapEntry::decode(*v);
             *e = Mapped { index: m.index, sub: m.sub, bits: m.bits, handle: Handle::new(0) };
@@ -675,10 +686,12 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                 return Ok(()); // the dictionary reports the length error
             }
             let count = data[0];
-            if usize::from(count) > MAX_MAPPED {
+            // More entries than the device keeps per PDO (`MAP`, the EDS's Granularity
+            // allows no more in 64 bits), or than CiA 301 allows.
+            if usize::from(count) > M || usize::from(count) > MAX_MAPPED {
                 return Err(AbortCode::VALUE_TOO_HIGH);
             }
-            let mut values = [0u32; MAX_MAPPED];
+            let mut values = [0u32; M];
             for k in 0..count {
                 values[usize::from(k)] = read_uint(&self.od, index, k + 1).ok_or(AbortCode::VALUE_TOO_HIGH)?;
             }
@@ -905,7 +918,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         self.guard_reply = false;
         self.guard_last = None;
         self.guard_lost = false;
-        self.consumers = [Consumer::default(); MAX_HEARTBEAT_CONSUMERS];
+        self.consumers = [Consumer::EMPTY; MAX_HEARTBEAT_CONSUMERS];
         self.reload_all();
         self.sdo_reset = true;
         self.bootup = true;
@@ -1096,7 +1109,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         let word = u64::from_le_bytes(data);
         let count = self.rpdo.get(n).map_or(0, |r| usize::from(r.count));
         let mut offset = 0u32;
-        for k in 0..count.min(MAX_MAPPED) {
+        for k in 0..count.min(M) {
             let e = self.rpdo[n].map[k];
             let bits = u32::from(e.bits);
             if !e.is_dummy() {
@@ -1289,7 +1302,9 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
     }
 }
 
-impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> ObjectAccess for Core<OD, A, S, P> {
+impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usize> ObjectAccess
+    for Core<OD, A, S, P, M>
+{
     fn info(&self, index: u16, sub: u8) -> Result<&'static EntryInfo, AbortCode> {
         self.od.info(index, sub)
     }
@@ -1304,19 +1319,27 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> ObjectAccess 
 }
 
 impl<OD: ObjectDictionary, A: App<OD>, S: Storage> Device<OD, A, S> {
-    /// A device with a 1 KiB SDO buffer and room for 8 RPDOs and 8 TPDOs. Nothing happens
-    /// until the first [`Device::poll`] or [`Device::on_frame`], which runs the reset node
-    /// sequence (defaults, stored values) and queues the boot-up message.
-    pub fn new(od: OD, app: A, storage: S, node_id: NodeId) -> Self {
+    /// A device with a 1 KiB SDO buffer and room for 8 RPDOs and 8 TPDOs of up to 64 mapped
+    /// entries each. Nothing happens until the first [`Device::poll`] or [`Device::on_frame`],
+    /// which runs the reset node sequence (defaults, stored values) and queues the boot-up
+    /// message. A generated dictionary's module also has a `Device` type sized from its EDS.
+    pub const fn new(od: OD, app: A, storage: S, node_id: NodeId) -> Self {
         Self::with_capacity(od, app, storage, node_id)
     }
 }
 
-impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS: usize> Device<OD, A, S, BUF, PDOS> {
+impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS: usize, const MAP: usize>
+    Device<OD, A, S, BUF, PDOS, MAP>
+{
     /// Like [`Device::new`], for any buffer size and PDO capacity given as type parameters:
-    /// `Device::<_, _, _, 4096, 16>::with_capacity(..)`. PDOs the dictionary defines past
-    /// `PDOS` are not served.
-    pub fn with_capacity(od: OD, app: A, storage: S, node_id: NodeId) -> Self {
+    /// `Device::<_, _, _, 4096, 16, 8>::with_capacity(..)`. PDOs the dictionary defines past
+    /// `PDOS` are not served, and a mapping of more than `MAP` entries is refused
+    /// (`VALUE_TOO_HIGH` when written, not loaded when stored).
+    ///
+    /// A `const fn`, so a firmware can build the device in a `static` at compile time, with
+    /// no copy through the stack: `static DEV: Mutex<RefCell<Device<…>>> = …` or a
+    /// `static mut` initialised by this call.
+    pub const fn with_capacity(od: OD, app: A, storage: S, node_id: NodeId) -> Self {
         let node = node_id.get();
         Self {
             sdo: SdoServer::new(),
@@ -1331,8 +1354,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
                 nmt: NmtState::Initialising,
                 bootup: false,
                 sdo_reset: false,
-                sdo_rx: 0x600 + u16::from(node),
-                sdo_tx: 0x580 + u16::from(node),
+                sdo_rx: 0x600 + node as u16,
+                sdo_tx: 0x580 + node as u16,
                 sdo_valid: true,
                 sync_cob: 0x80,
                 sync_producer: false,
@@ -1340,7 +1363,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
                 sync_overflow: 0,
                 sync_counter: 1,
                 sync_next: 0,
-                emcy_cob: 0x80 + u16::from(node),
+                emcy_cob: 0x80 + node as u16,
                 emcy_valid: true,
                 emcy_inhibit: 0,
                 emcy_last: None,
@@ -1354,7 +1377,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
                 guard_reply: false,
                 guard_last: None,
                 guard_lost: false,
-                consumers: [Consumer::default(); MAX_HEARTBEAT_CONSUMERS],
+                consumers: [Consumer::EMPTY; MAX_HEARTBEAT_CONSUMERS],
                 consumers_len: 0,
                 rpdo: [Rpdo::EMPTY; PDOS],
                 tpdo: [Tpdo::EMPTY; PDOS],

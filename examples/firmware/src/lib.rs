@@ -13,7 +13,7 @@ pub mod bxcan;
 use od_runtime::can::CanLink;
 use od_runtime::cia402::State;
 use od_runtime::od::ObjectDictionary;
-use od_runtime::{App, Device, Event, Micros, NoStorage, NodeId};
+use od_runtime::{App, Event, Micros, NoStorage, NodeId};
 
 #[cfg(all(feature = "akd", not(any(feature = "drcs", feature = "drvi"))))]
 pub use generated::akd as device;
@@ -25,8 +25,9 @@ pub use generated::drvi as device;
 /// The object dictionary the firmware serves.
 pub type Od = device::Dictionary;
 
-/// The device: the dictionary, the axis, no parameter storage.
-pub type Dev = Device<Od, Axis, NoStorage>;
+/// The device: the dictionary, the axis, no parameter storage; SDO buffer and PDO tables sized
+/// for the dictionary by the generator.
+pub type Dev = device::Device<Axis, NoStorage>;
 
 /// Position actual value (6064h) and target position (607Ah).
 const POSITION_ACTUAL: u16 = 0x6064;
@@ -42,6 +43,11 @@ pub struct Axis {
 }
 
 impl Axis {
+    /// An axis that stands still.
+    pub const fn new() -> Self {
+        Self { enabled: false }
+    }
+
     /// Increments the axis moves per millisecond.
     pub const SPEED: i32 = 100;
 
@@ -77,10 +83,11 @@ pub struct Firmware {
 }
 
 impl Firmware {
-    /// The firmware as node `node`, with the dictionary's defaults.
-    pub fn new(node: NodeId) -> Self {
+    /// The firmware as node `node`, with the dictionary's defaults. A `const fn`: the binary
+    /// builds it in a `static` at compile time, so nothing is copied through the stack.
+    pub const fn new(node: NodeId) -> Self {
         Self {
-            dev: Device::new(Od::new(node.get()), Axis::default(), NoStorage, node),
+            dev: Dev::with_capacity(Od::new(node.get()), Axis::new(), NoStorage, node),
             link: CanLink::new(),
             last_ms: 0,
         }

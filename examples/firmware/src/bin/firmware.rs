@@ -5,7 +5,6 @@
 #![no_std]
 #![no_main]
 
-use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m_rt::{entry, exception};
@@ -23,8 +22,15 @@ const SYST_RVR: *mut u32 = 0xE000_E014 as *mut u32;
 /// Core clock cycles per millisecond (16 MHz internal oscillator after reset).
 const CYCLES_PER_MS: u32 = 16_000;
 
-/// The firmware's state, in RAM beside the stack rather than on it.
-static mut FIRMWARE: MaybeUninit<Firmware> = MaybeUninit::uninit();
+/// The node id.
+const NODE: NodeId = match NodeId::new(5) {
+    Some(n) => n,
+    None => panic!("node ids are 1..=127"),
+};
+
+/// The firmware's state, built at compile time in RAM beside the stack (`Firmware::new` is a
+/// `const fn`): no copy through the stack at start.
+static mut FIRMWARE: Firmware = Firmware::new(NODE);
 
 #[exception]
 fn SysTick() {
@@ -40,9 +46,8 @@ fn main() -> ! {
     }
     // SAFETY: CAN1 is used by this driver alone (clock and pins: the board's start-up code).
     let Ok(mut can) = (unsafe { BxCan::new(CAN1, BTR_500K_42MHZ) }) else { loop {} };
-    let Some(node) = NodeId::new(5) else { loop {} };
     // SAFETY: `main` runs once and is the only user of FIRMWARE; no interrupt touches it.
-    let fw = unsafe { (*(&raw mut FIRMWARE)).write(Firmware::new(node)) };
+    let fw = unsafe { &mut *(&raw mut FIRMWARE) };
     loop {
         let now = u64::from(MILLIS.load(Ordering::Relaxed)) * 1000;
         fw.step(&mut can, now);
