@@ -3081,7 +3081,6 @@ PDOMapping=0
         /// `0x67FF` Single device type.
         pub const SINGLE_DEVICE_TYPE: u16 = 0x67FF;
     }
-    /// The index of every object, sorted (the lookup's page table is computed from it).
     static OBJECTS: [u16; 94] = [
         0x1000, 0x1001, 0x1002, 0x1003, 0x1005, 0x1006, 0x1007, 0x1008, 0x1009, 0x100A,
         0x100C, 0x100D, 0x1010, 0x1011, 0x1012, 0x1014, 0x1015, 0x1017, 0x1018, 0x1019,
@@ -3094,13 +3093,10 @@ PDOMapping=0
         0x607E, 0x6081, 0x6083, 0x6084, 0x608F, 0x6091, 0x6092, 0x6098, 0x6099, 0x60FF,
         0x6402, 0x6404, 0x6502, 0x67FF,
     ];
-    /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
-    /// the index to its object, then the sub-index in the object's run of entries (`runs`:
-    /// `0xFFFFFFLL`, the object's first entry `FFFFFF` and its last position in the run `LL`;
-    /// `subs`: every entry's sub-index).
     static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
         pages: ::od_runtime::__private_v1::pages(&OBJECTS),
-        slots: &::od_runtime::__private_v1::slots::<3584>(&OBJECTS),
+        bits: &::od_runtime::__private_v1::bits::<13>(&OBJECTS),
+        ranks: &::od_runtime::__private_v1::ranks::<13>(&OBJECTS),
         runs: &[
             0x00000000, 0x00000100, 0x00000200, 0x00000308, 0x00000C00, 0x00000D00,
             0x00000E00, 0x00000F00, 0x00001000, 0x00001100, 0x00001200, 0x00001300,
@@ -3134,7 +3130,7 @@ PDOMapping=0
             0, 0, 0, 0, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 0, 1, 2, 0, 0, 0, 0, 0,
         ],
     };
-    /// Metadata of every entry, sorted by `(index, sub)`.
+    /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
     pub static ENTRIES: [::od_runtime::od::EntryInfo; 308] = [
         ::od_runtime::od::EntryInfo {
             index: 0x1000,
@@ -3142,11 +3138,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF7C0192),
-            name: "Device type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, device_type),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[0]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1001,
@@ -3154,11 +3153,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Error register",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, error_register),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1002,
@@ -3166,11 +3168,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Manufacturer status register",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_status_register),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3178,11 +3183,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Pre-defined error field: Number of errors",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_number_of_errors
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3190,11 +3200,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3202,11 +3217,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3214,11 +3234,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3226,11 +3251,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3238,11 +3268,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3250,11 +3285,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3262,11 +3302,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3274,11 +3319,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1005,
@@ -3286,11 +3336,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80),
-            name: "COB-ID SYNC",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, cob_id_sync),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[1]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1006,
@@ -3298,11 +3351,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Communication cycle period",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, communication_cycle_period),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1007,
@@ -3310,11 +3366,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Synchronous window length",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, synchronous_window_length),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1008,
@@ -3322,11 +3381,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"DRCS"),
-            name: "Manufacturer device name",
+            slot: ::od_runtime::__private_v1::offset::<
+                ::od_runtime::__private_v1::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_device_name),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[2]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1009,
@@ -3334,11 +3396,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"1"),
-            name: "Manufacturer hardware version",
+            slot: ::od_runtime::__private_v1::offset::<
+                ::od_runtime::__private_v1::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_hardware_version),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[3]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x100A,
@@ -3346,11 +3411,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"1.18"),
-            name: "Manufacturer software version",
+            slot: ::od_runtime::__private_v1::offset::<
+                ::od_runtime::__private_v1::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_software_version),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[4]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x100C,
@@ -3358,11 +3426,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Guard time",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, guard_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x100D,
@@ -3370,11 +3441,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Life time factor",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, life_time_factor),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1010,
@@ -3382,11 +3456,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Store parameter field: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, store_parameter_field_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1010,
@@ -3394,11 +3473,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x1),
-            name: "Store parameter field: Save all parameters",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, store_parameter_field_save_all_parameters
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1011,
@@ -3406,11 +3490,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Restore default parameters: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, restore_default_parameters_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1011,
@@ -3418,11 +3507,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x1),
-            name: "Restore default parameters: Restore all default parameters",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, restore_default_parameters_restore_all_default_parameters
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1012,
@@ -3430,11 +3524,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000100),
-            name: "COB-ID time stamp",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, cob_id_time_stamp),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[7]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1014,
@@ -3442,11 +3539,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80),
-            name: "COB-ID EMCY",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, cob_id_emcy),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1015,
@@ -3454,11 +3554,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Inhibit time emergency",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, inhibit_time_emergency),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1017,
@@ -3466,11 +3569,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Producer heartbeat time",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, producer_heartbeat_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -3478,11 +3584,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(4),
-            name: "Identity object: Number of entries",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[9]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -3490,11 +3599,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x151),
-            name: "Identity object: Vendor ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_vendor_id),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -3502,11 +3614,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x5A),
-            name: "Identity object: Product code",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_product_code),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[11]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -3514,11 +3629,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x1),
-            name: "Identity object: Revision number",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_revision_number),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -3526,11 +3644,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Identity object: Serial number",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_serial_number),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1019,
@@ -3538,11 +3659,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: Some(240),
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Synchronous counter overflow value",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, synchronous_counter_overflow_value),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1020,
@@ -3550,11 +3674,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Verify configuration: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, verify_configuration_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1020,
@@ -3562,11 +3691,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Verify configuration: Configuration date",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, verify_configuration_configuration_date
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1020,
@@ -3574,11 +3708,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Verify configuration: Configuration time",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, verify_configuration_configuration_time
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1200,
@@ -3586,11 +3725,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Server SDO parameter: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, server_sdo_parameter_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1200,
@@ -3598,11 +3742,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x600),
-            name: "Server SDO parameter: COB-ID client to server",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, server_sdo_parameter_cob_id_client_to_server
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[14]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1200,
@@ -3610,11 +3759,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x580),
-            name: "Server SDO parameter: COB-ID server to client",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, server_sdo_parameter_cob_id_server_to_client
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[15]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -3622,11 +3776,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 1: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_1_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -3634,11 +3794,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
-            name: "Rx PDO communication parameter 1: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_1_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -3646,11 +3811,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 1: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_1_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1401,
@@ -3658,11 +3828,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 2: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_2_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1401,
@@ -3670,11 +3846,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000300),
-            name: "Rx PDO communication parameter 2: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_2_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[18]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1401,
@@ -3682,11 +3863,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 2: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_2_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1402,
@@ -3694,11 +3880,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 3: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_3_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1402,
@@ -3706,11 +3898,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000400),
-            name: "Rx PDO communication parameter 3: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_3_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1402,
@@ -3718,11 +3915,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 3: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_3_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1403,
@@ -3730,11 +3932,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 4: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_4_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1403,
@@ -3742,11 +3950,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000500),
-            name: "Rx PDO communication parameter 4: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_4_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1403,
@@ -3754,11 +3967,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 4: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_4_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1404,
@@ -3766,11 +3984,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 5: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_5_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1404,
@@ -3778,11 +4002,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Rx PDO communication parameter 5: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_5_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[21]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1404,
@@ -3790,11 +4019,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 5: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_5_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1405,
@@ -3802,11 +4036,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 6: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_6_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1405,
@@ -3814,11 +4054,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Rx PDO communication parameter 6: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_6_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[21]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1405,
@@ -3826,11 +4071,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 6: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_6_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1406,
@@ -3838,11 +4088,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 7: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_7_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1406,
@@ -3850,11 +4106,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Rx PDO communication parameter 7: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_7_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[21]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1406,
@@ -3862,11 +4123,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 7: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_7_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1407,
@@ -3874,11 +4140,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 8: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_8_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1407,
@@ -3886,11 +4158,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Rx PDO communication parameter 8: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_8_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[21]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1407,
@@ -3898,11 +4175,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 8: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_8_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3910,11 +4192,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Rx PDO mapping parameter 1: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3922,11 +4209,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
-            name: "Rx PDO mapping parameter 1: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[22]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3934,11 +4226,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 1: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3946,11 +4243,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 1: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3958,11 +4260,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 1: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3970,11 +4277,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 1: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3982,11 +4294,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 1: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3994,11 +4311,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 1: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -4006,11 +4328,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 1: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4018,11 +4345,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rx PDO mapping parameter 2: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4030,11 +4362,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4042,11 +4379,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4054,11 +4396,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4066,11 +4413,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4078,11 +4430,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4090,11 +4447,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4102,11 +4464,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4114,11 +4481,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4126,11 +4498,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rx PDO mapping parameter 3: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4138,11 +4515,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4150,11 +4532,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4162,11 +4549,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4174,11 +4566,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4186,11 +4583,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4198,11 +4600,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4210,11 +4617,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4222,11 +4634,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4234,11 +4651,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rx PDO mapping parameter 4: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4246,11 +4668,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4258,11 +4685,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4270,11 +4702,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4282,11 +4719,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4294,11 +4736,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4306,11 +4753,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4318,11 +4770,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4330,11 +4787,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4342,11 +4804,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rx PDO mapping parameter 5: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4354,11 +4821,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4366,11 +4838,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4378,11 +4855,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4390,11 +4872,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4402,11 +4889,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4414,11 +4906,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4426,11 +4923,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4438,11 +4940,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4450,11 +4957,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rx PDO mapping parameter 6: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4462,11 +4974,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4474,11 +4991,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4486,11 +5008,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4498,11 +5025,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4510,11 +5042,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4522,11 +5059,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4534,11 +5076,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4546,11 +5093,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4558,11 +5110,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rx PDO mapping parameter 7: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4570,11 +5127,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4582,11 +5144,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4594,11 +5161,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4606,11 +5178,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4618,11 +5195,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4630,11 +5212,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4642,11 +5229,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4654,11 +5246,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4666,11 +5263,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rx PDO mapping parameter 8: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4678,11 +5280,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4690,11 +5297,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4702,11 +5314,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4714,11 +5331,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4726,11 +5348,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4738,11 +5365,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4750,11 +5382,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4762,11 +5399,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4774,11 +5416,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 1: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_1_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[23]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4786,11 +5434,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
-            name: "Tx PDO communication parameter 1: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_1_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[24]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4798,11 +5451,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 1: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_1_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4810,11 +5468,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 1: Inhibit time",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_1_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4822,11 +5485,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 1: Compatibility entry",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_1_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4834,11 +5502,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 1: Event timer",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_1_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4846,11 +5519,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 2: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_2_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[23]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4858,11 +5537,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000280),
-            name: "Tx PDO communication parameter 2: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_2_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[25]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4870,11 +5554,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 2: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_2_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4882,11 +5571,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 2: Inhibit time",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_2_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4894,11 +5588,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 2: Compatibility entry",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_2_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4906,11 +5605,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 2: Event timer",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_2_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4918,11 +5622,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 3: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_3_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[23]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4930,11 +5640,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000380),
-            name: "Tx PDO communication parameter 3: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_3_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[26]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4942,11 +5657,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 3: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_3_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4954,11 +5674,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 3: Inhibit time",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_3_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4966,11 +5691,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 3: Compatibility entry",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_3_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4978,11 +5708,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 3: Event timer",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_3_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -4990,11 +5725,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 4: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_4_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[23]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -5002,11 +5743,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000480),
-            name: "Tx PDO communication parameter 4: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_4_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[27]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -5014,11 +5760,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 4: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_4_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -5026,11 +5777,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 4: Inhibit time",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_4_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -5038,11 +5794,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 4: Compatibility entry",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_4_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -5050,11 +5811,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 4: Event timer",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_4_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -5062,11 +5828,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 5: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_5_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[23]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -5074,11 +5846,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Tx PDO communication parameter 5: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_5_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[21]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -5086,11 +5863,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 5: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_5_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -5098,11 +5880,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 5: Inhibit time",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_5_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -5110,11 +5897,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 5: Compatibility entry",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_5_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -5122,11 +5914,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 5: Event timer",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_5_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5134,11 +5931,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 6: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_6_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[23]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5146,11 +5949,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Tx PDO communication parameter 6: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_6_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[21]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5158,11 +5966,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 6: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_6_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5170,11 +5983,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 6: Inhibit time",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_6_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5182,11 +6000,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 6: Compatibility entry",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_6_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5194,11 +6017,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 6: Event timer",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_6_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5206,11 +6034,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 7: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_7_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[23]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5218,11 +6052,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Tx PDO communication parameter 7: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_7_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[21]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5230,11 +6069,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 7: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_7_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5242,11 +6086,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 7: Inhibit time",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_7_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5254,11 +6103,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 7: Compatibility entry",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_7_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5266,11 +6120,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 7: Event timer",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_7_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5278,11 +6137,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 8: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_8_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[23]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5290,11 +6155,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Tx PDO communication parameter 8: COB-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_8_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[21]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5302,11 +6172,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 8: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_8_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5314,11 +6189,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 8: Inhibit time",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_8_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5326,11 +6206,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 8: Compatibility entry",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_8_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5338,11 +6223,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 8: Event timer",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_8_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5350,11 +6240,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Tx PDO mapping parameter 1: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5362,11 +6257,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
-            name: "Tx PDO mapping parameter 1: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[28]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5374,11 +6274,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 1: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5386,11 +6291,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 1: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5398,11 +6308,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 1: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5410,11 +6325,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 1: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5422,11 +6342,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 1: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5434,11 +6359,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 1: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5446,11 +6376,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 1: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5458,11 +6393,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO mapping parameter 2: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5470,11 +6410,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5482,11 +6427,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5494,11 +6444,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5506,11 +6461,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5518,11 +6478,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5530,11 +6495,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5542,11 +6512,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5554,11 +6529,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5566,11 +6546,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO mapping parameter 3: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5578,11 +6563,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5590,11 +6580,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5602,11 +6597,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5614,11 +6614,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5626,11 +6631,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5638,11 +6648,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5650,11 +6665,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5662,11 +6682,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5674,11 +6699,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO mapping parameter 4: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5686,11 +6716,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5698,11 +6733,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5710,11 +6750,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5722,11 +6767,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5734,11 +6784,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5746,11 +6801,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5758,11 +6818,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5770,11 +6835,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5782,11 +6852,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO mapping parameter 5: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5794,11 +6869,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5806,11 +6886,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5818,11 +6903,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5830,11 +6920,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5842,11 +6937,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5854,11 +6954,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5866,11 +6971,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5878,11 +6988,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5890,11 +7005,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO mapping parameter 6: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5902,11 +7022,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5914,11 +7039,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5926,11 +7056,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5938,11 +7073,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5950,11 +7090,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5962,11 +7107,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5974,11 +7124,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5986,11 +7141,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -5998,11 +7158,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO mapping parameter 7: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6010,11 +7175,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6022,11 +7192,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6034,11 +7209,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6046,11 +7226,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6058,11 +7243,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6070,11 +7260,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6082,11 +7277,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6094,11 +7294,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6106,11 +7311,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO mapping parameter 8: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6118,11 +7328,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6130,11 +7345,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6142,11 +7362,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6154,11 +7379,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6166,11 +7396,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 5",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6178,11 +7413,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 6",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6190,11 +7430,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 7",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6202,11 +7447,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 8",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1F80,
@@ -6214,11 +7464,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x4),
-            name: "NMT startup",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, nmt_startup),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[29]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2001,
@@ -6226,11 +7479,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Feed converter: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, feed_converter_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2001,
@@ -6238,11 +7496,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Feed converter: Numerator",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feed_converter_numerator),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2001,
@@ -6250,11 +7511,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Feed converter: Denominator",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feed_converter_denominator),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2002,
@@ -6262,11 +7526,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Input status",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, input_status),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2003,
@@ -6274,11 +7541,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Output status",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, output_status),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2004,
@@ -6286,11 +7556,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing status",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_status),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2005,
@@ -6298,11 +7571,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Brake",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, brake),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2100,
@@ -6310,11 +7586,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Total time off",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, total_time_off),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2101,
@@ -6322,11 +7601,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Total time on",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, total_time_on),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2102,
@@ -6334,11 +7616,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Total time run",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, total_time_run),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2103,
@@ -6346,11 +7631,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Total stroke",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, total_stroke),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x603F,
@@ -6358,11 +7646,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Error code",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, error_code),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6040,
@@ -6370,11 +7661,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Controlword",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, controlword),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6041,
@@ -6382,11 +7676,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Statusword",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, statusword),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6060,
@@ -6394,11 +7691,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Modes of operation",
+            slot: ::od_runtime::__private_v1::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, modes_of_operation),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6061,
@@ -6406,11 +7706,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Modes of operation display",
+            slot: ::od_runtime::__private_v1::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, modes_of_operation_display),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6062,
@@ -6418,11 +7721,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position demand value",
+            slot: ::od_runtime::__private_v1::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_demand_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6064,
@@ -6430,11 +7736,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position actual value",
+            slot: ::od_runtime::__private_v1::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_actual_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606B,
@@ -6442,11 +7751,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity demand value",
+            slot: ::od_runtime::__private_v1::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_demand_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606C,
@@ -6454,11 +7766,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity actual value",
+            slot: ::od_runtime::__private_v1::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_actual_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606D,
@@ -6466,11 +7781,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity window",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_window),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606E,
@@ -6478,11 +7796,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity window time",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_window_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606F,
@@ -6490,11 +7811,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity threshold",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_threshold),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6070,
@@ -6502,11 +7826,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity threshold time",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_threshold_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607A,
@@ -6514,11 +7841,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Target position",
+            slot: ::od_runtime::__private_v1::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, target_position),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607C,
@@ -6526,11 +7856,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Home offset",
+            slot: ::od_runtime::__private_v1::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, home_offset),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607D,
@@ -6538,11 +7871,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Software position limit: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, software_position_limit_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607D,
@@ -6550,11 +7888,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Software position limit: Min software position limit",
+            slot: ::od_runtime::__private_v1::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, software_position_limit_min_software_position_limit
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607D,
@@ -6562,11 +7905,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Software position limit: Max software position limit",
+            slot: ::od_runtime::__private_v1::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, software_position_limit_max_software_position_limit
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607E,
@@ -6574,11 +7922,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Polarity",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, polarity),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6081,
@@ -6586,11 +7937,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Profile velocity in pp-mode",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, profile_velocity_in_pp_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6083,
@@ -6598,11 +7952,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Profile acceleration",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, profile_acceleration),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6084,
@@ -6610,11 +7967,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Profile deceleration",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, profile_deceleration),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x608F,
@@ -6622,11 +7982,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Position encoder resolution: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, position_encoder_resolution_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x608F,
@@ -6634,11 +7999,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1000),
-            name: "Position encoder resolution: Encoder increments",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, position_encoder_resolution_encoder_increments
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[30]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x608F,
@@ -6646,11 +8016,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Position encoder resolution: Motor revolutions",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, position_encoder_resolution_motor_revolutions
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6091,
@@ -6658,11 +8033,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Gear ratio: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, gear_ratio_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6091,
@@ -6670,11 +8050,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Gear ratio: Motor revolutions",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, gear_ratio_motor_revolutions),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6091,
@@ -6682,11 +8065,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Gear ratio: Shaft revolutions",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, gear_ratio_shaft_revolutions),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6092,
@@ -6694,11 +8080,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Feed constant: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, feed_constant_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6092,
@@ -6706,11 +8097,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Feed constant: Feed",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feed_constant_feed),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6092,
@@ -6718,11 +8112,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Feed constant: Shaft revolutions",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feed_constant_shaft_revolutions),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6098,
@@ -6730,11 +8127,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(17),
-            name: "Homing method",
+            slot: ::od_runtime::__private_v1::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_method),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: Some(&EXTRAS[31]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -6742,11 +8142,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Homing speed: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, homing_speed_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -6754,11 +8159,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing speed: Fast homing speed",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_speed_fast_homing_speed),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -6766,11 +8174,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing speed: Slow homing speed",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_speed_slow_homing_speed),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60FF,
@@ -6778,11 +8189,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Target velocity",
+            slot: ::od_runtime::__private_v1::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, target_velocity),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6402,
@@ -6790,11 +8204,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x9),
-            name: "Motor type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_type),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: Some(&EXTRAS[32]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6404,
@@ -6802,11 +8219,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"Camozzi"),
-            name: "Motor manufacturer",
+            slot: ::od_runtime::__private_v1::offset::<
+                ::od_runtime::__private_v1::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_manufacturer),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[33]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6502,
@@ -6814,11 +8234,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x25),
-            name: "Supported drive modes",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, supported_drive_modes),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[34]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x67FF,
@@ -6826,12 +8249,519 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x440192),
-            name: "Single device type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, single_device_type),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[35]),
         },
+    ];
+    /// Capacities, defaults other than zero and limits, each distinct one once
+    /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
+    pub static EXTRAS: [::od_runtime::od::EntryExtras; 36] = [
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0xFF7C0192),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x80),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"DRCS"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"1"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"1.18"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x1),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x80000100),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(4),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x151),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x5A),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::None,
+            limits: Some(&LIMITS[0]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(2),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x600),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x580),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0xFF),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000300),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000400),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000500),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(5),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000280),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000380),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000480),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x4),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1000),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(17),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x9),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"Camozzi"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x25),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x440192),
+            limits: None,
+        },
+    ];
+    /// The limits of the entries that have any, each distinct one once.
+    pub static LIMITS: [::od_runtime::od::Limits; 1] = [
+        ::od_runtime::od::Limits {
+            low: None,
+            high: Some(240),
+        },
+    ];
+    /// The name of every entry (`ParameterName`, `Object: Sub-object` for sub-entries), in
+    /// [`ENTRIES`] order.
+    #[cfg(feature = "names")]
+    pub static NAMES: [&str; 308] = [
+        "Device type",
+        "Error register",
+        "Manufacturer status register",
+        "Pre-defined error field: Number of errors",
+        "Pre-defined error field: Standard error field 1",
+        "Pre-defined error field: Standard error field 2",
+        "Pre-defined error field: Standard error field 3",
+        "Pre-defined error field: Standard error field 4",
+        "Pre-defined error field: Standard error field 5",
+        "Pre-defined error field: Standard error field 6",
+        "Pre-defined error field: Standard error field 7",
+        "Pre-defined error field: Standard error field 8",
+        "COB-ID SYNC",
+        "Communication cycle period",
+        "Synchronous window length",
+        "Manufacturer device name",
+        "Manufacturer hardware version",
+        "Manufacturer software version",
+        "Guard time",
+        "Life time factor",
+        "Store parameter field: Highest sub-index supported",
+        "Store parameter field: Save all parameters",
+        "Restore default parameters: Highest sub-index supported",
+        "Restore default parameters: Restore all default parameters",
+        "COB-ID time stamp",
+        "COB-ID EMCY",
+        "Inhibit time emergency",
+        "Producer heartbeat time",
+        "Identity object: Number of entries",
+        "Identity object: Vendor ID",
+        "Identity object: Product code",
+        "Identity object: Revision number",
+        "Identity object: Serial number",
+        "Synchronous counter overflow value",
+        "Verify configuration: Highest sub-index supported",
+        "Verify configuration: Configuration date",
+        "Verify configuration: Configuration time",
+        "Server SDO parameter: Highest sub-index supported",
+        "Server SDO parameter: COB-ID client to server",
+        "Server SDO parameter: COB-ID server to client",
+        "Rx PDO communication parameter 1: Highest sub-index supported",
+        "Rx PDO communication parameter 1: COB-ID",
+        "Rx PDO communication parameter 1: Transmission type",
+        "Rx PDO communication parameter 2: Highest sub-index supported",
+        "Rx PDO communication parameter 2: COB-ID",
+        "Rx PDO communication parameter 2: Transmission type",
+        "Rx PDO communication parameter 3: Highest sub-index supported",
+        "Rx PDO communication parameter 3: COB-ID",
+        "Rx PDO communication parameter 3: Transmission type",
+        "Rx PDO communication parameter 4: Highest sub-index supported",
+        "Rx PDO communication parameter 4: COB-ID",
+        "Rx PDO communication parameter 4: Transmission type",
+        "Rx PDO communication parameter 5: Highest sub-index supported",
+        "Rx PDO communication parameter 5: COB-ID",
+        "Rx PDO communication parameter 5: Transmission type",
+        "Rx PDO communication parameter 6: Highest sub-index supported",
+        "Rx PDO communication parameter 6: COB-ID",
+        "Rx PDO communication parameter 6: Transmission type",
+        "Rx PDO communication parameter 7: Highest sub-index supported",
+        "Rx PDO communication parameter 7: COB-ID",
+        "Rx PDO communication parameter 7: Transmission type",
+        "Rx PDO communication parameter 8: Highest sub-index supported",
+        "Rx PDO communication parameter 8: COB-ID",
+        "Rx PDO communication parameter 8: Transmission type",
+        "Rx PDO mapping parameter 1: Number of mapped objects",
+        "Rx PDO mapping parameter 1: Mapping entry 1",
+        "Rx PDO mapping parameter 1: Mapping entry 2",
+        "Rx PDO mapping parameter 1: Mapping entry 3",
+        "Rx PDO mapping parameter 1: Mapping entry 4",
+        "Rx PDO mapping parameter 1: Mapping entry 5",
+        "Rx PDO mapping parameter 1: Mapping entry 6",
+        "Rx PDO mapping parameter 1: Mapping entry 7",
+        "Rx PDO mapping parameter 1: Mapping entry 8",
+        "Rx PDO mapping parameter 2: Number of mapped objects",
+        "Rx PDO mapping parameter 2: Mapping entry 1",
+        "Rx PDO mapping parameter 2: Mapping entry 2",
+        "Rx PDO mapping parameter 2: Mapping entry 3",
+        "Rx PDO mapping parameter 2: Mapping entry 4",
+        "Rx PDO mapping parameter 2: Mapping entry 5",
+        "Rx PDO mapping parameter 2: Mapping entry 6",
+        "Rx PDO mapping parameter 2: Mapping entry 7",
+        "Rx PDO mapping parameter 2: Mapping entry 8",
+        "Rx PDO mapping parameter 3: Number of mapped objects",
+        "Rx PDO mapping parameter 3: Mapping entry 1",
+        "Rx PDO mapping parameter 3: Mapping entry 2",
+        "Rx PDO mapping parameter 3: Mapping entry 3",
+        "Rx PDO mapping parameter 3: Mapping entry 4",
+        "Rx PDO mapping parameter 3: Mapping entry 5",
+        "Rx PDO mapping parameter 3: Mapping entry 6",
+        "Rx PDO mapping parameter 3: Mapping entry 7",
+        "Rx PDO mapping parameter 3: Mapping entry 8",
+        "Rx PDO mapping parameter 4: Number of mapped objects",
+        "Rx PDO mapping parameter 4: Mapping entry 1",
+        "Rx PDO mapping parameter 4: Mapping entry 2",
+        "Rx PDO mapping parameter 4: Mapping entry 3",
+        "Rx PDO mapping parameter 4: Mapping entry 4",
+        "Rx PDO mapping parameter 4: Mapping entry 5",
+        "Rx PDO mapping parameter 4: Mapping entry 6",
+        "Rx PDO mapping parameter 4: Mapping entry 7",
+        "Rx PDO mapping parameter 4: Mapping entry 8",
+        "Rx PDO mapping parameter 5: Number of mapped objects",
+        "Rx PDO mapping parameter 5: Mapping entry 1",
+        "Rx PDO mapping parameter 5: Mapping entry 2",
+        "Rx PDO mapping parameter 5: Mapping entry 3",
+        "Rx PDO mapping parameter 5: Mapping entry 4",
+        "Rx PDO mapping parameter 5: Mapping entry 5",
+        "Rx PDO mapping parameter 5: Mapping entry 6",
+        "Rx PDO mapping parameter 5: Mapping entry 7",
+        "Rx PDO mapping parameter 5: Mapping entry 8",
+        "Rx PDO mapping parameter 6: Number of mapped objects",
+        "Rx PDO mapping parameter 6: Mapping entry 1",
+        "Rx PDO mapping parameter 6: Mapping entry 2",
+        "Rx PDO mapping parameter 6: Mapping entry 3",
+        "Rx PDO mapping parameter 6: Mapping entry 4",
+        "Rx PDO mapping parameter 6: Mapping entry 5",
+        "Rx PDO mapping parameter 6: Mapping entry 6",
+        "Rx PDO mapping parameter 6: Mapping entry 7",
+        "Rx PDO mapping parameter 6: Mapping entry 8",
+        "Rx PDO mapping parameter 7: Number of mapped objects",
+        "Rx PDO mapping parameter 7: Mapping entry 1",
+        "Rx PDO mapping parameter 7: Mapping entry 2",
+        "Rx PDO mapping parameter 7: Mapping entry 3",
+        "Rx PDO mapping parameter 7: Mapping entry 4",
+        "Rx PDO mapping parameter 7: Mapping entry 5",
+        "Rx PDO mapping parameter 7: Mapping entry 6",
+        "Rx PDO mapping parameter 7: Mapping entry 7",
+        "Rx PDO mapping parameter 7: Mapping entry 8",
+        "Rx PDO mapping parameter 8: Number of mapped objects",
+        "Rx PDO mapping parameter 8: Mapping entry 1",
+        "Rx PDO mapping parameter 8: Mapping entry 2",
+        "Rx PDO mapping parameter 8: Mapping entry 3",
+        "Rx PDO mapping parameter 8: Mapping entry 4",
+        "Rx PDO mapping parameter 8: Mapping entry 5",
+        "Rx PDO mapping parameter 8: Mapping entry 6",
+        "Rx PDO mapping parameter 8: Mapping entry 7",
+        "Rx PDO mapping parameter 8: Mapping entry 8",
+        "Tx PDO communication parameter 1: Highest sub-index supported",
+        "Tx PDO communication parameter 1: COB-ID",
+        "Tx PDO communication parameter 1: Transmission type",
+        "Tx PDO communication parameter 1: Inhibit time",
+        "Tx PDO communication parameter 1: Compatibility entry",
+        "Tx PDO communication parameter 1: Event timer",
+        "Tx PDO communication parameter 2: Highest sub-index supported",
+        "Tx PDO communication parameter 2: COB-ID",
+        "Tx PDO communication parameter 2: Transmission type",
+        "Tx PDO communication parameter 2: Inhibit time",
+        "Tx PDO communication parameter 2: Compatibility entry",
+        "Tx PDO communication parameter 2: Event timer",
+        "Tx PDO communication parameter 3: Highest sub-index supported",
+        "Tx PDO communication parameter 3: COB-ID",
+        "Tx PDO communication parameter 3: Transmission type",
+        "Tx PDO communication parameter 3: Inhibit time",
+        "Tx PDO communication parameter 3: Compatibility entry",
+        "Tx PDO communication parameter 3: Event timer",
+        "Tx PDO communication parameter 4: Highest sub-index supported",
+        "Tx PDO communication parameter 4: COB-ID",
+        "Tx PDO communication parameter 4: Transmission type",
+        "Tx PDO communication parameter 4: Inhibit time",
+        "Tx PDO communication parameter 4: Compatibility entry",
+        "Tx PDO communication parameter 4: Event timer",
+        "Tx PDO communication parameter 5: Highest sub-index supported",
+        "Tx PDO communication parameter 5: COB-ID",
+        "Tx PDO communication parameter 5: Transmission type",
+        "Tx PDO communication parameter 5: Inhibit time",
+        "Tx PDO communication parameter 5: Compatibility entry",
+        "Tx PDO communication parameter 5: Event timer",
+        "Tx PDO communication parameter 6: Highest sub-index supported",
+        "Tx PDO communication parameter 6: COB-ID",
+        "Tx PDO communication parameter 6: Transmission type",
+        "Tx PDO communication parameter 6: Inhibit time",
+        "Tx PDO communication parameter 6: Compatibility entry",
+        "Tx PDO communication parameter 6: Event timer",
+        "Tx PDO communication parameter 7: Highest sub-index supported",
+        "Tx PDO communication parameter 7: COB-ID",
+        "Tx PDO communication parameter 7: Transmission type",
+        "Tx PDO communication parameter 7: Inhibit time",
+        "Tx PDO communication parameter 7: Compatibility entry",
+        "Tx PDO communication parameter 7: Event timer",
+        "Tx PDO communication parameter 8: Highest sub-index supported",
+        "Tx PDO communication parameter 8: COB-ID",
+        "Tx PDO communication parameter 8: Transmission type",
+        "Tx PDO communication parameter 8: Inhibit time",
+        "Tx PDO communication parameter 8: Compatibility entry",
+        "Tx PDO communication parameter 8: Event timer",
+        "Tx PDO mapping parameter 1: Number of mapped objects",
+        "Tx PDO mapping parameter 1: Mapping entry 1",
+        "Tx PDO mapping parameter 1: Mapping entry 2",
+        "Tx PDO mapping parameter 1: Mapping entry 3",
+        "Tx PDO mapping parameter 1: Mapping entry 4",
+        "Tx PDO mapping parameter 1: Mapping entry 5",
+        "Tx PDO mapping parameter 1: Mapping entry 6",
+        "Tx PDO mapping parameter 1: Mapping entry 7",
+        "Tx PDO mapping parameter 1: Mapping entry 8",
+        "Tx PDO mapping parameter 2: Number of mapped objects",
+        "Tx PDO mapping parameter 2: Mapping entry 1",
+        "Tx PDO mapping parameter 2: Mapping entry 2",
+        "Tx PDO mapping parameter 2: Mapping entry 3",
+        "Tx PDO mapping parameter 2: Mapping entry 4",
+        "Tx PDO mapping parameter 2: Mapping entry 5",
+        "Tx PDO mapping parameter 2: Mapping entry 6",
+        "Tx PDO mapping parameter 2: Mapping entry 7",
+        "Tx PDO mapping parameter 2: Mapping entry 8",
+        "Tx PDO mapping parameter 3: Number of mapped objects",
+        "Tx PDO mapping parameter 3: Mapping entry 1",
+        "Tx PDO mapping parameter 3: Mapping entry 2",
+        "Tx PDO mapping parameter 3: Mapping entry 3",
+        "Tx PDO mapping parameter 3: Mapping entry 4",
+        "Tx PDO mapping parameter 3: Mapping entry 5",
+        "Tx PDO mapping parameter 3: Mapping entry 6",
+        "Tx PDO mapping parameter 3: Mapping entry 7",
+        "Tx PDO mapping parameter 3: Mapping entry 8",
+        "Tx PDO mapping parameter 4: Number of mapped objects",
+        "Tx PDO mapping parameter 4: Mapping entry 1",
+        "Tx PDO mapping parameter 4: Mapping entry 2",
+        "Tx PDO mapping parameter 4: Mapping entry 3",
+        "Tx PDO mapping parameter 4: Mapping entry 4",
+        "Tx PDO mapping parameter 4: Mapping entry 5",
+        "Tx PDO mapping parameter 4: Mapping entry 6",
+        "Tx PDO mapping parameter 4: Mapping entry 7",
+        "Tx PDO mapping parameter 4: Mapping entry 8",
+        "Tx PDO mapping parameter 5: Number of mapped objects",
+        "Tx PDO mapping parameter 5: Mapping entry 1",
+        "Tx PDO mapping parameter 5: Mapping entry 2",
+        "Tx PDO mapping parameter 5: Mapping entry 3",
+        "Tx PDO mapping parameter 5: Mapping entry 4",
+        "Tx PDO mapping parameter 5: Mapping entry 5",
+        "Tx PDO mapping parameter 5: Mapping entry 6",
+        "Tx PDO mapping parameter 5: Mapping entry 7",
+        "Tx PDO mapping parameter 5: Mapping entry 8",
+        "Tx PDO mapping parameter 6: Number of mapped objects",
+        "Tx PDO mapping parameter 6: Mapping entry 1",
+        "Tx PDO mapping parameter 6: Mapping entry 2",
+        "Tx PDO mapping parameter 6: Mapping entry 3",
+        "Tx PDO mapping parameter 6: Mapping entry 4",
+        "Tx PDO mapping parameter 6: Mapping entry 5",
+        "Tx PDO mapping parameter 6: Mapping entry 6",
+        "Tx PDO mapping parameter 6: Mapping entry 7",
+        "Tx PDO mapping parameter 6: Mapping entry 8",
+        "Tx PDO mapping parameter 7: Number of mapped objects",
+        "Tx PDO mapping parameter 7: Mapping entry 1",
+        "Tx PDO mapping parameter 7: Mapping entry 2",
+        "Tx PDO mapping parameter 7: Mapping entry 3",
+        "Tx PDO mapping parameter 7: Mapping entry 4",
+        "Tx PDO mapping parameter 7: Mapping entry 5",
+        "Tx PDO mapping parameter 7: Mapping entry 6",
+        "Tx PDO mapping parameter 7: Mapping entry 7",
+        "Tx PDO mapping parameter 7: Mapping entry 8",
+        "Tx PDO mapping parameter 8: Number of mapped objects",
+        "Tx PDO mapping parameter 8: Mapping entry 1",
+        "Tx PDO mapping parameter 8: Mapping entry 2",
+        "Tx PDO mapping parameter 8: Mapping entry 3",
+        "Tx PDO mapping parameter 8: Mapping entry 4",
+        "Tx PDO mapping parameter 8: Mapping entry 5",
+        "Tx PDO mapping parameter 8: Mapping entry 6",
+        "Tx PDO mapping parameter 8: Mapping entry 7",
+        "Tx PDO mapping parameter 8: Mapping entry 8",
+        "NMT startup",
+        "Feed converter: Highest sub-index supported",
+        "Feed converter: Numerator",
+        "Feed converter: Denominator",
+        "Input status",
+        "Output status",
+        "Homing status",
+        "Brake",
+        "Total time off",
+        "Total time on",
+        "Total time run",
+        "Total stroke",
+        "Error code",
+        "Controlword",
+        "Statusword",
+        "Modes of operation",
+        "Modes of operation display",
+        "Position demand value",
+        "Position actual value",
+        "Velocity demand value",
+        "Velocity actual value",
+        "Velocity window",
+        "Velocity window time",
+        "Velocity threshold",
+        "Velocity threshold time",
+        "Target position",
+        "Home offset",
+        "Software position limit: Highest sub-index supported",
+        "Software position limit: Min software position limit",
+        "Software position limit: Max software position limit",
+        "Polarity",
+        "Profile velocity in pp-mode",
+        "Profile acceleration",
+        "Profile deceleration",
+        "Position encoder resolution: Highest sub-index supported",
+        "Position encoder resolution: Encoder increments",
+        "Position encoder resolution: Motor revolutions",
+        "Gear ratio: Highest sub-index supported",
+        "Gear ratio: Motor revolutions",
+        "Gear ratio: Shaft revolutions",
+        "Feed constant: Highest sub-index supported",
+        "Feed constant: Feed",
+        "Feed constant: Shaft revolutions",
+        "Homing method",
+        "Homing speed: Highest sub-index supported",
+        "Homing speed: Fast homing speed",
+        "Homing speed: Slow homing speed",
+        "Target velocity",
+        "Motor type",
+        "Motor manufacturer",
+        "Supported drive modes",
+        "Single device type",
     ];
     /// The object dictionary of the DRCS (Camozzi Automation S.p.A.): the current value of every entry.
     ///
@@ -7488,2956 +9418,17 @@ PDOMapping=0
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
         }
+        /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
         fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v1::Slot::U32(&self.device_type),
-                    1 => ::od_runtime::__private_v1::Slot::U8(&self.error_register),
-                    2 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.manufacturer_status_register,
-                        )
-                    }
-                    3 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.pre_defined_error_field_number_of_errors,
-                        )
-                    }
-                    4 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_1,
-                        )
-                    }
-                    5 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_2,
-                        )
-                    }
-                    6 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_3,
-                        )
-                    }
-                    7 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_4,
-                        )
-                    }
-                    8 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_5,
-                        )
-                    }
-                    9 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_6,
-                        )
-                    }
-                    10 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_7,
-                        )
-                    }
-                    11 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_8,
-                        )
-                    }
-                    12 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_sync),
-                    13 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.communication_cycle_period,
-                        )
-                    }
-                    14 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.synchronous_window_length,
-                        )
-                    }
-                    15 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.manufacturer_device_name.as_slice(),
-                        )
-                    }
-                    16 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.manufacturer_hardware_version.as_slice(),
-                        )
-                    }
-                    17 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.manufacturer_software_version.as_slice(),
-                        )
-                    }
-                    18 => ::od_runtime::__private_v1::Slot::U16(&self.guard_time),
-                    19 => ::od_runtime::__private_v1::Slot::U8(&self.life_time_factor),
-                    20 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.store_parameter_field_highest_sub_index_supported,
-                        )
-                    }
-                    21 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.store_parameter_field_save_all_parameters,
-                        )
-                    }
-                    22 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.restore_default_parameters_highest_sub_index_supported,
-                        )
-                    }
-                    23 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .restore_default_parameters_restore_all_default_parameters,
-                        )
-                    }
-                    24 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_time_stamp),
-                    25 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_emcy),
-                    26 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.inhibit_time_emergency,
-                        )
-                    }
-                    27 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.producer_heartbeat_time,
-                        )
-                    }
-                    28 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.identity_object_number_of_entries,
-                        )
-                    }
-                    29 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_vendor_id,
-                        )
-                    }
-                    30 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_product_code,
-                        )
-                    }
-                    31 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_revision_number,
-                        )
-                    }
-                    32 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_serial_number,
-                        )
-                    }
-                    33 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.synchronous_counter_overflow_value,
-                        )
-                    }
-                    34 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.verify_configuration_highest_sub_index_supported,
-                        )
-                    }
-                    35 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.verify_configuration_configuration_date,
-                        )
-                    }
-                    36 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.verify_configuration_configuration_time,
-                        )
-                    }
-                    37 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.server_sdo_parameter_highest_sub_index_supported,
-                        )
-                    }
-                    38 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.server_sdo_parameter_cob_id_client_to_server,
-                        )
-                    }
-                    39 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.server_sdo_parameter_cob_id_server_to_client,
-                        )
-                    }
-                    40 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    41 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_1_cob_id,
-                        )
-                    }
-                    42 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    43 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_2_highest_sub_index_supported,
-                        )
-                    }
-                    44 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_2_cob_id,
-                        )
-                    }
-                    45 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_2_transmission_type,
-                        )
-                    }
-                    46 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_3_highest_sub_index_supported,
-                        )
-                    }
-                    47 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_3_cob_id,
-                        )
-                    }
-                    48 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_3_transmission_type,
-                        )
-                    }
-                    49 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_4_highest_sub_index_supported,
-                        )
-                    }
-                    50 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_4_cob_id,
-                        )
-                    }
-                    51 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_4_transmission_type,
-                        )
-                    }
-                    52 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_5_highest_sub_index_supported,
-                        )
-                    }
-                    53 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_5_cob_id,
-                        )
-                    }
-                    54 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_5_transmission_type,
-                        )
-                    }
-                    55 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_6_highest_sub_index_supported,
-                        )
-                    }
-                    56 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_6_cob_id,
-                        )
-                    }
-                    57 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_6_transmission_type,
-                        )
-                    }
-                    58 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_7_highest_sub_index_supported,
-                        )
-                    }
-                    59 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_7_cob_id,
-                        )
-                    }
-                    60 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_7_transmission_type,
-                        )
-                    }
-                    61 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_8_highest_sub_index_supported,
-                        )
-                    }
-                    62 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_8_cob_id,
-                        )
-                    }
-                    63 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_8_transmission_type,
-                        )
-                    }
-                    64 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    65 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_1,
-                        )
-                    }
-                    66 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_2,
-                        )
-                    }
-                    67 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_3,
-                        )
-                    }
-                    68 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_4,
-                        )
-                    }
-                    69 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_5,
-                        )
-                    }
-                    70 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_6,
-                        )
-                    }
-                    71 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_7,
-                        )
-                    }
-                    72 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_8,
-                        )
-                    }
-                    73 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    74 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_1,
-                        )
-                    }
-                    75 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_2,
-                        )
-                    }
-                    76 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_3,
-                        )
-                    }
-                    77 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_4,
-                        )
-                    }
-                    78 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_5,
-                        )
-                    }
-                    79 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_6,
-                        )
-                    }
-                    80 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_7,
-                        )
-                    }
-                    81 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_8,
-                        )
-                    }
-                    82 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_3_number_of_mapped_objects,
-                        )
-                    }
-                    83 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_1,
-                        )
-                    }
-                    84 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_2,
-                        )
-                    }
-                    85 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_3,
-                        )
-                    }
-                    86 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_4,
-                        )
-                    }
-                    87 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_5,
-                        )
-                    }
-                    88 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_6,
-                        )
-                    }
-                    89 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_7,
-                        )
-                    }
-                    90 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_8,
-                        )
-                    }
-                    91 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_4_number_of_mapped_objects,
-                        )
-                    }
-                    92 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_1,
-                        )
-                    }
-                    93 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_2,
-                        )
-                    }
-                    94 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_3,
-                        )
-                    }
-                    95 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_4,
-                        )
-                    }
-                    96 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_5,
-                        )
-                    }
-                    97 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_6,
-                        )
-                    }
-                    98 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_7,
-                        )
-                    }
-                    99 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_8,
-                        )
-                    }
-                    100 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_5_number_of_mapped_objects,
-                        )
-                    }
-                    101 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_1,
-                        )
-                    }
-                    102 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_2,
-                        )
-                    }
-                    103 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_3,
-                        )
-                    }
-                    104 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_4,
-                        )
-                    }
-                    105 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_5,
-                        )
-                    }
-                    106 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_6,
-                        )
-                    }
-                    107 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_7,
-                        )
-                    }
-                    108 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_8,
-                        )
-                    }
-                    109 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_6_number_of_mapped_objects,
-                        )
-                    }
-                    110 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_1,
-                        )
-                    }
-                    111 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_2,
-                        )
-                    }
-                    112 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_3,
-                        )
-                    }
-                    113 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_4,
-                        )
-                    }
-                    114 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_5,
-                        )
-                    }
-                    115 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_6,
-                        )
-                    }
-                    116 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_7,
-                        )
-                    }
-                    117 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_8,
-                        )
-                    }
-                    118 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_7_number_of_mapped_objects,
-                        )
-                    }
-                    119 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_1,
-                        )
-                    }
-                    120 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_2,
-                        )
-                    }
-                    121 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_3,
-                        )
-                    }
-                    122 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_4,
-                        )
-                    }
-                    123 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_5,
-                        )
-                    }
-                    124 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_6,
-                        )
-                    }
-                    125 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_7,
-                        )
-                    }
-                    126 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_8,
-                        )
-                    }
-                    127 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_8_number_of_mapped_objects,
-                        )
-                    }
-                    128 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_1,
-                        )
-                    }
-                    129 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_2,
-                        )
-                    }
-                    130 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_3,
-                        )
-                    }
-                    131 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_4,
-                        )
-                    }
-                    132 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_5,
-                        )
-                    }
-                    133 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_6,
-                        )
-                    }
-                    134 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_7,
-                        )
-                    }
-                    135 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_8,
-                        )
-                    }
-                    136 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    137 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_1_cob_id,
-                        )
-                    }
-                    138 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    139 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_1_inhibit_time,
-                        )
-                    }
-                    140 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_1_compatibility_entry,
-                        )
-                    }
-                    141 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_1_event_timer,
-                        )
-                    }
-                    142 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_2_highest_sub_index_supported,
-                        )
-                    }
-                    143 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_2_cob_id,
-                        )
-                    }
-                    144 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_2_transmission_type,
-                        )
-                    }
-                    145 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_2_inhibit_time,
-                        )
-                    }
-                    146 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_2_compatibility_entry,
-                        )
-                    }
-                    147 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_2_event_timer,
-                        )
-                    }
-                    148 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_3_highest_sub_index_supported,
-                        )
-                    }
-                    149 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_3_cob_id,
-                        )
-                    }
-                    150 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_3_transmission_type,
-                        )
-                    }
-                    151 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_3_inhibit_time,
-                        )
-                    }
-                    152 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_3_compatibility_entry,
-                        )
-                    }
-                    153 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_3_event_timer,
-                        )
-                    }
-                    154 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_4_highest_sub_index_supported,
-                        )
-                    }
-                    155 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_4_cob_id,
-                        )
-                    }
-                    156 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_4_transmission_type,
-                        )
-                    }
-                    157 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_4_inhibit_time,
-                        )
-                    }
-                    158 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_4_compatibility_entry,
-                        )
-                    }
-                    159 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_4_event_timer,
-                        )
-                    }
-                    160 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_5_highest_sub_index_supported,
-                        )
-                    }
-                    161 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_5_cob_id,
-                        )
-                    }
-                    162 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_5_transmission_type,
-                        )
-                    }
-                    163 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_5_inhibit_time,
-                        )
-                    }
-                    164 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_5_compatibility_entry,
-                        )
-                    }
-                    165 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_5_event_timer,
-                        )
-                    }
-                    166 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_6_highest_sub_index_supported,
-                        )
-                    }
-                    167 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_6_cob_id,
-                        )
-                    }
-                    168 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_6_transmission_type,
-                        )
-                    }
-                    169 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_6_inhibit_time,
-                        )
-                    }
-                    170 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_6_compatibility_entry,
-                        )
-                    }
-                    171 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_6_event_timer,
-                        )
-                    }
-                    172 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_7_highest_sub_index_supported,
-                        )
-                    }
-                    173 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_7_cob_id,
-                        )
-                    }
-                    174 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_7_transmission_type,
-                        )
-                    }
-                    175 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_7_inhibit_time,
-                        )
-                    }
-                    176 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_7_compatibility_entry,
-                        )
-                    }
-                    177 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_7_event_timer,
-                        )
-                    }
-                    178 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_8_highest_sub_index_supported,
-                        )
-                    }
-                    179 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_8_cob_id,
-                        )
-                    }
-                    180 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_8_transmission_type,
-                        )
-                    }
-                    181 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_8_inhibit_time,
-                        )
-                    }
-                    182 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_8_compatibility_entry,
-                        )
-                    }
-                    183 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_8_event_timer,
-                        )
-                    }
-                    184 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    185 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_1,
-                        )
-                    }
-                    186 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_2,
-                        )
-                    }
-                    187 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_3,
-                        )
-                    }
-                    188 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_4,
-                        )
-                    }
-                    189 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_5,
-                        )
-                    }
-                    190 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_6,
-                        )
-                    }
-                    191 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_7,
-                        )
-                    }
-                    192 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_8,
-                        )
-                    }
-                    193 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    194 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_1,
-                        )
-                    }
-                    195 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_2,
-                        )
-                    }
-                    196 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_3,
-                        )
-                    }
-                    197 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_4,
-                        )
-                    }
-                    198 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_5,
-                        )
-                    }
-                    199 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_6,
-                        )
-                    }
-                    200 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_7,
-                        )
-                    }
-                    201 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_8,
-                        )
-                    }
-                    202 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_3_number_of_mapped_objects,
-                        )
-                    }
-                    203 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_1,
-                        )
-                    }
-                    204 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_2,
-                        )
-                    }
-                    205 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_3,
-                        )
-                    }
-                    206 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_4,
-                        )
-                    }
-                    207 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_5,
-                        )
-                    }
-                    208 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_6,
-                        )
-                    }
-                    209 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_7,
-                        )
-                    }
-                    210 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_8,
-                        )
-                    }
-                    211 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_4_number_of_mapped_objects,
-                        )
-                    }
-                    212 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_1,
-                        )
-                    }
-                    213 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_2,
-                        )
-                    }
-                    214 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_3,
-                        )
-                    }
-                    215 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_4,
-                        )
-                    }
-                    216 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_5,
-                        )
-                    }
-                    217 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_6,
-                        )
-                    }
-                    218 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_7,
-                        )
-                    }
-                    219 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_8,
-                        )
-                    }
-                    220 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_5_number_of_mapped_objects,
-                        )
-                    }
-                    221 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_1,
-                        )
-                    }
-                    222 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_2,
-                        )
-                    }
-                    223 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_3,
-                        )
-                    }
-                    224 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_4,
-                        )
-                    }
-                    225 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_5,
-                        )
-                    }
-                    226 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_6,
-                        )
-                    }
-                    227 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_7,
-                        )
-                    }
-                    228 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_8,
-                        )
-                    }
-                    229 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_6_number_of_mapped_objects,
-                        )
-                    }
-                    230 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_1,
-                        )
-                    }
-                    231 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_2,
-                        )
-                    }
-                    232 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_3,
-                        )
-                    }
-                    233 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_4,
-                        )
-                    }
-                    234 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_5,
-                        )
-                    }
-                    235 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_6,
-                        )
-                    }
-                    236 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_7,
-                        )
-                    }
-                    237 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_8,
-                        )
-                    }
-                    238 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_7_number_of_mapped_objects,
-                        )
-                    }
-                    239 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_1,
-                        )
-                    }
-                    240 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_2,
-                        )
-                    }
-                    241 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_3,
-                        )
-                    }
-                    242 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_4,
-                        )
-                    }
-                    243 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_5,
-                        )
-                    }
-                    244 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_6,
-                        )
-                    }
-                    245 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_7,
-                        )
-                    }
-                    246 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_8,
-                        )
-                    }
-                    247 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_8_number_of_mapped_objects,
-                        )
-                    }
-                    248 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_1,
-                        )
-                    }
-                    249 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_2,
-                        )
-                    }
-                    250 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_3,
-                        )
-                    }
-                    251 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_4,
-                        )
-                    }
-                    252 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_5,
-                        )
-                    }
-                    253 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_6,
-                        )
-                    }
-                    254 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_7,
-                        )
-                    }
-                    255 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_8,
-                        )
-                    }
-                    256 => ::od_runtime::__private_v1::Slot::U32(&self.nmt_startup),
-                    257 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.feed_converter_highest_sub_index_supported,
-                        )
-                    }
-                    258 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.feed_converter_numerator,
-                        )
-                    }
-                    259 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.feed_converter_denominator,
-                        )
-                    }
-                    260 => ::od_runtime::__private_v1::Slot::U32(&self.input_status),
-                    261 => ::od_runtime::__private_v1::Slot::U32(&self.output_status),
-                    262 => ::od_runtime::__private_v1::Slot::U8(&self.homing_status),
-                    263 => ::od_runtime::__private_v1::Slot::U8(&self.brake),
-                    264 => ::od_runtime::__private_v1::Slot::U32(&self.total_time_off),
-                    265 => ::od_runtime::__private_v1::Slot::U32(&self.total_time_on),
-                    266 => ::od_runtime::__private_v1::Slot::U32(&self.total_time_run),
-                    267 => ::od_runtime::__private_v1::Slot::U32(&self.total_stroke),
-                    268 => ::od_runtime::__private_v1::Slot::U16(&self.error_code),
-                    269 => ::od_runtime::__private_v1::Slot::U16(&self.controlword),
-                    270 => ::od_runtime::__private_v1::Slot::U16(&self.statusword),
-                    271 => ::od_runtime::__private_v1::Slot::I8(&self.modes_of_operation),
-                    272 => {
-                        ::od_runtime::__private_v1::Slot::I8(
-                            &self.modes_of_operation_display,
-                        )
-                    }
-                    273 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.position_demand_value,
-                        )
-                    }
-                    274 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.position_actual_value,
-                        )
-                    }
-                    275 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.velocity_demand_value,
-                        )
-                    }
-                    276 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.velocity_actual_value,
-                        )
-                    }
-                    277 => ::od_runtime::__private_v1::Slot::U16(&self.velocity_window),
-                    278 => {
-                        ::od_runtime::__private_v1::Slot::U16(&self.velocity_window_time)
-                    }
-                    279 => {
-                        ::od_runtime::__private_v1::Slot::U16(&self.velocity_threshold)
-                    }
-                    280 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.velocity_threshold_time,
-                        )
-                    }
-                    281 => ::od_runtime::__private_v1::Slot::I32(&self.target_position),
-                    282 => ::od_runtime::__private_v1::Slot::I32(&self.home_offset),
-                    283 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.software_position_limit_highest_sub_index_supported,
-                        )
-                    }
-                    284 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.software_position_limit_min_software_position_limit,
-                        )
-                    }
-                    285 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.software_position_limit_max_software_position_limit,
-                        )
-                    }
-                    286 => ::od_runtime::__private_v1::Slot::U8(&self.polarity),
-                    287 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.profile_velocity_in_pp_mode,
-                        )
-                    }
-                    288 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.profile_acceleration)
-                    }
-                    289 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.profile_deceleration)
-                    }
-                    290 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.position_encoder_resolution_highest_sub_index_supported,
-                        )
-                    }
-                    291 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.position_encoder_resolution_encoder_increments,
-                        )
-                    }
-                    292 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.position_encoder_resolution_motor_revolutions,
-                        )
-                    }
-                    293 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.gear_ratio_highest_sub_index_supported,
-                        )
-                    }
-                    294 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.gear_ratio_motor_revolutions,
-                        )
-                    }
-                    295 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.gear_ratio_shaft_revolutions,
-                        )
-                    }
-                    296 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.feed_constant_highest_sub_index_supported,
-                        )
-                    }
-                    297 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.feed_constant_feed)
-                    }
-                    298 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.feed_constant_shaft_revolutions,
-                        )
-                    }
-                    299 => ::od_runtime::__private_v1::Slot::I8(&self.homing_method),
-                    300 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.homing_speed_highest_sub_index_supported,
-                        )
-                    }
-                    301 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speed_fast_homing_speed,
-                        )
-                    }
-                    302 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speed_slow_homing_speed,
-                        )
-                    }
-                    303 => ::od_runtime::__private_v1::Slot::I32(&self.target_velocity),
-                    304 => ::od_runtime::__private_v1::Slot::U16(&self.motor_type),
-                    305 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.motor_manufacturer.as_slice(),
-                        )
-                    }
-                    306 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.supported_drive_modes,
-                        )
-                    }
-                    307 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.single_device_type)
-                    }
-                    _ => return None,
-                },
-            )
+            ::od_runtime::__private_v1::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
         ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.device_type),
-                    1 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(&mut self.error_register)
-                    }
-                    2 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.manufacturer_status_register,
-                        )
-                    }
-                    3 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.pre_defined_error_field_number_of_errors,
-                        )
-                    }
-                    4 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_1,
-                        )
-                    }
-                    5 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_2,
-                        )
-                    }
-                    6 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_3,
-                        )
-                    }
-                    7 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_4,
-                        )
-                    }
-                    8 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_5,
-                        )
-                    }
-                    9 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_6,
-                        )
-                    }
-                    10 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_7,
-                        )
-                    }
-                    11 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_8,
-                        )
-                    }
-                    12 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.cob_id_sync),
-                    13 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.communication_cycle_period,
-                        )
-                    }
-                    14 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.synchronous_window_length,
-                        )
-                    }
-                    15 => self.manufacturer_device_name.slot_mut(),
-                    16 => self.manufacturer_hardware_version.slot_mut(),
-                    17 => self.manufacturer_software_version.slot_mut(),
-                    18 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.guard_time),
-                    19 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.life_time_factor,
-                        )
-                    }
-                    20 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.store_parameter_field_highest_sub_index_supported,
-                        )
-                    }
-                    21 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.store_parameter_field_save_all_parameters,
-                        )
-                    }
-                    22 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .restore_default_parameters_highest_sub_index_supported,
-                        )
-                    }
-                    23 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .restore_default_parameters_restore_all_default_parameters,
-                        )
-                    }
-                    24 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.cob_id_time_stamp,
-                        )
-                    }
-                    25 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.cob_id_emcy),
-                    26 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.inhibit_time_emergency,
-                        )
-                    }
-                    27 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.producer_heartbeat_time,
-                        )
-                    }
-                    28 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.identity_object_number_of_entries,
-                        )
-                    }
-                    29 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_vendor_id,
-                        )
-                    }
-                    30 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_product_code,
-                        )
-                    }
-                    31 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_revision_number,
-                        )
-                    }
-                    32 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_serial_number,
-                        )
-                    }
-                    33 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.synchronous_counter_overflow_value,
-                        )
-                    }
-                    34 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.verify_configuration_highest_sub_index_supported,
-                        )
-                    }
-                    35 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.verify_configuration_configuration_date,
-                        )
-                    }
-                    36 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.verify_configuration_configuration_time,
-                        )
-                    }
-                    37 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.server_sdo_parameter_highest_sub_index_supported,
-                        )
-                    }
-                    38 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.server_sdo_parameter_cob_id_client_to_server,
-                        )
-                    }
-                    39 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.server_sdo_parameter_cob_id_server_to_client,
-                        )
-                    }
-                    40 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    41 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_1_cob_id,
-                        )
-                    }
-                    42 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    43 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_2_highest_sub_index_supported,
-                        )
-                    }
-                    44 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_2_cob_id,
-                        )
-                    }
-                    45 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_2_transmission_type,
-                        )
-                    }
-                    46 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_3_highest_sub_index_supported,
-                        )
-                    }
-                    47 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_3_cob_id,
-                        )
-                    }
-                    48 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_3_transmission_type,
-                        )
-                    }
-                    49 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_4_highest_sub_index_supported,
-                        )
-                    }
-                    50 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_4_cob_id,
-                        )
-                    }
-                    51 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_4_transmission_type,
-                        )
-                    }
-                    52 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_5_highest_sub_index_supported,
-                        )
-                    }
-                    53 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_5_cob_id,
-                        )
-                    }
-                    54 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_5_transmission_type,
-                        )
-                    }
-                    55 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_6_highest_sub_index_supported,
-                        )
-                    }
-                    56 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_6_cob_id,
-                        )
-                    }
-                    57 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_6_transmission_type,
-                        )
-                    }
-                    58 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_7_highest_sub_index_supported,
-                        )
-                    }
-                    59 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_7_cob_id,
-                        )
-                    }
-                    60 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_7_transmission_type,
-                        )
-                    }
-                    61 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_8_highest_sub_index_supported,
-                        )
-                    }
-                    62 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_8_cob_id,
-                        )
-                    }
-                    63 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_8_transmission_type,
-                        )
-                    }
-                    64 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    65 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_1,
-                        )
-                    }
-                    66 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_2,
-                        )
-                    }
-                    67 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_3,
-                        )
-                    }
-                    68 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_4,
-                        )
-                    }
-                    69 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_5,
-                        )
-                    }
-                    70 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_6,
-                        )
-                    }
-                    71 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_7,
-                        )
-                    }
-                    72 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_8,
-                        )
-                    }
-                    73 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    74 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_1,
-                        )
-                    }
-                    75 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_2,
-                        )
-                    }
-                    76 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_3,
-                        )
-                    }
-                    77 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_4,
-                        )
-                    }
-                    78 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_5,
-                        )
-                    }
-                    79 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_6,
-                        )
-                    }
-                    80 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_7,
-                        )
-                    }
-                    81 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_8,
-                        )
-                    }
-                    82 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_3_number_of_mapped_objects,
-                        )
-                    }
-                    83 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_1,
-                        )
-                    }
-                    84 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_2,
-                        )
-                    }
-                    85 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_3,
-                        )
-                    }
-                    86 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_4,
-                        )
-                    }
-                    87 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_5,
-                        )
-                    }
-                    88 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_6,
-                        )
-                    }
-                    89 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_7,
-                        )
-                    }
-                    90 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_8,
-                        )
-                    }
-                    91 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_4_number_of_mapped_objects,
-                        )
-                    }
-                    92 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_1,
-                        )
-                    }
-                    93 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_2,
-                        )
-                    }
-                    94 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_3,
-                        )
-                    }
-                    95 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_4,
-                        )
-                    }
-                    96 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_5,
-                        )
-                    }
-                    97 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_6,
-                        )
-                    }
-                    98 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_7,
-                        )
-                    }
-                    99 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_8,
-                        )
-                    }
-                    100 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_5_number_of_mapped_objects,
-                        )
-                    }
-                    101 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_1,
-                        )
-                    }
-                    102 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_2,
-                        )
-                    }
-                    103 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_3,
-                        )
-                    }
-                    104 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_4,
-                        )
-                    }
-                    105 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_5,
-                        )
-                    }
-                    106 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_6,
-                        )
-                    }
-                    107 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_7,
-                        )
-                    }
-                    108 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_8,
-                        )
-                    }
-                    109 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_6_number_of_mapped_objects,
-                        )
-                    }
-                    110 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_1,
-                        )
-                    }
-                    111 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_2,
-                        )
-                    }
-                    112 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_3,
-                        )
-                    }
-                    113 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_4,
-                        )
-                    }
-                    114 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_5,
-                        )
-                    }
-                    115 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_6,
-                        )
-                    }
-                    116 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_7,
-                        )
-                    }
-                    117 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_8,
-                        )
-                    }
-                    118 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_7_number_of_mapped_objects,
-                        )
-                    }
-                    119 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_1,
-                        )
-                    }
-                    120 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_2,
-                        )
-                    }
-                    121 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_3,
-                        )
-                    }
-                    122 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_4,
-                        )
-                    }
-                    123 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_5,
-                        )
-                    }
-                    124 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_6,
-                        )
-                    }
-                    125 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_7,
-                        )
-                    }
-                    126 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_8,
-                        )
-                    }
-                    127 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_8_number_of_mapped_objects,
-                        )
-                    }
-                    128 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_1,
-                        )
-                    }
-                    129 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_2,
-                        )
-                    }
-                    130 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_3,
-                        )
-                    }
-                    131 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_4,
-                        )
-                    }
-                    132 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_5,
-                        )
-                    }
-                    133 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_6,
-                        )
-                    }
-                    134 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_7,
-                        )
-                    }
-                    135 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_8,
-                        )
-                    }
-                    136 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    137 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_1_cob_id,
-                        )
-                    }
-                    138 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    139 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_1_inhibit_time,
-                        )
-                    }
-                    140 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_1_compatibility_entry,
-                        )
-                    }
-                    141 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_1_event_timer,
-                        )
-                    }
-                    142 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_2_highest_sub_index_supported,
-                        )
-                    }
-                    143 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_2_cob_id,
-                        )
-                    }
-                    144 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_2_transmission_type,
-                        )
-                    }
-                    145 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_2_inhibit_time,
-                        )
-                    }
-                    146 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_2_compatibility_entry,
-                        )
-                    }
-                    147 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_2_event_timer,
-                        )
-                    }
-                    148 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_3_highest_sub_index_supported,
-                        )
-                    }
-                    149 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_3_cob_id,
-                        )
-                    }
-                    150 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_3_transmission_type,
-                        )
-                    }
-                    151 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_3_inhibit_time,
-                        )
-                    }
-                    152 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_3_compatibility_entry,
-                        )
-                    }
-                    153 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_3_event_timer,
-                        )
-                    }
-                    154 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_4_highest_sub_index_supported,
-                        )
-                    }
-                    155 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_4_cob_id,
-                        )
-                    }
-                    156 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_4_transmission_type,
-                        )
-                    }
-                    157 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_4_inhibit_time,
-                        )
-                    }
-                    158 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_4_compatibility_entry,
-                        )
-                    }
-                    159 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_4_event_timer,
-                        )
-                    }
-                    160 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_5_highest_sub_index_supported,
-                        )
-                    }
-                    161 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_5_cob_id,
-                        )
-                    }
-                    162 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_5_transmission_type,
-                        )
-                    }
-                    163 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_5_inhibit_time,
-                        )
-                    }
-                    164 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_5_compatibility_entry,
-                        )
-                    }
-                    165 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_5_event_timer,
-                        )
-                    }
-                    166 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_6_highest_sub_index_supported,
-                        )
-                    }
-                    167 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_6_cob_id,
-                        )
-                    }
-                    168 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_6_transmission_type,
-                        )
-                    }
-                    169 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_6_inhibit_time,
-                        )
-                    }
-                    170 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_6_compatibility_entry,
-                        )
-                    }
-                    171 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_6_event_timer,
-                        )
-                    }
-                    172 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_7_highest_sub_index_supported,
-                        )
-                    }
-                    173 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_7_cob_id,
-                        )
-                    }
-                    174 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_7_transmission_type,
-                        )
-                    }
-                    175 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_7_inhibit_time,
-                        )
-                    }
-                    176 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_7_compatibility_entry,
-                        )
-                    }
-                    177 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_7_event_timer,
-                        )
-                    }
-                    178 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_8_highest_sub_index_supported,
-                        )
-                    }
-                    179 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_8_cob_id,
-                        )
-                    }
-                    180 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_8_transmission_type,
-                        )
-                    }
-                    181 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_8_inhibit_time,
-                        )
-                    }
-                    182 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_8_compatibility_entry,
-                        )
-                    }
-                    183 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_8_event_timer,
-                        )
-                    }
-                    184 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    185 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_1,
-                        )
-                    }
-                    186 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_2,
-                        )
-                    }
-                    187 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_3,
-                        )
-                    }
-                    188 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_4,
-                        )
-                    }
-                    189 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_5,
-                        )
-                    }
-                    190 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_6,
-                        )
-                    }
-                    191 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_7,
-                        )
-                    }
-                    192 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_8,
-                        )
-                    }
-                    193 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    194 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_1,
-                        )
-                    }
-                    195 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_2,
-                        )
-                    }
-                    196 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_3,
-                        )
-                    }
-                    197 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_4,
-                        )
-                    }
-                    198 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_5,
-                        )
-                    }
-                    199 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_6,
-                        )
-                    }
-                    200 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_7,
-                        )
-                    }
-                    201 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_8,
-                        )
-                    }
-                    202 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_3_number_of_mapped_objects,
-                        )
-                    }
-                    203 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_1,
-                        )
-                    }
-                    204 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_2,
-                        )
-                    }
-                    205 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_3,
-                        )
-                    }
-                    206 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_4,
-                        )
-                    }
-                    207 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_5,
-                        )
-                    }
-                    208 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_6,
-                        )
-                    }
-                    209 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_7,
-                        )
-                    }
-                    210 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_8,
-                        )
-                    }
-                    211 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_4_number_of_mapped_objects,
-                        )
-                    }
-                    212 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_1,
-                        )
-                    }
-                    213 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_2,
-                        )
-                    }
-                    214 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_3,
-                        )
-                    }
-                    215 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_4,
-                        )
-                    }
-                    216 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_5,
-                        )
-                    }
-                    217 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_6,
-                        )
-                    }
-                    218 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_7,
-                        )
-                    }
-                    219 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_8,
-                        )
-                    }
-                    220 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_5_number_of_mapped_objects,
-                        )
-                    }
-                    221 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_1,
-                        )
-                    }
-                    222 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_2,
-                        )
-                    }
-                    223 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_3,
-                        )
-                    }
-                    224 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_4,
-                        )
-                    }
-                    225 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_5,
-                        )
-                    }
-                    226 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_6,
-                        )
-                    }
-                    227 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_7,
-                        )
-                    }
-                    228 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_8,
-                        )
-                    }
-                    229 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_6_number_of_mapped_objects,
-                        )
-                    }
-                    230 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_1,
-                        )
-                    }
-                    231 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_2,
-                        )
-                    }
-                    232 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_3,
-                        )
-                    }
-                    233 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_4,
-                        )
-                    }
-                    234 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_5,
-                        )
-                    }
-                    235 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_6,
-                        )
-                    }
-                    236 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_7,
-                        )
-                    }
-                    237 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_8,
-                        )
-                    }
-                    238 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_7_number_of_mapped_objects,
-                        )
-                    }
-                    239 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_1,
-                        )
-                    }
-                    240 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_2,
-                        )
-                    }
-                    241 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_3,
-                        )
-                    }
-                    242 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_4,
-                        )
-                    }
-                    243 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_5,
-                        )
-                    }
-                    244 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_6,
-                        )
-                    }
-                    245 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_7,
-                        )
-                    }
-                    246 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_8,
-                        )
-                    }
-                    247 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_8_number_of_mapped_objects,
-                        )
-                    }
-                    248 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_1,
-                        )
-                    }
-                    249 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_2,
-                        )
-                    }
-                    250 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_3,
-                        )
-                    }
-                    251 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_4,
-                        )
-                    }
-                    252 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_5,
-                        )
-                    }
-                    253 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_6,
-                        )
-                    }
-                    254 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_7,
-                        )
-                    }
-                    255 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_8,
-                        )
-                    }
-                    256 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.nmt_startup)
-                    }
-                    257 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.feed_converter_highest_sub_index_supported,
-                        )
-                    }
-                    258 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.feed_converter_numerator,
-                        )
-                    }
-                    259 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.feed_converter_denominator,
-                        )
-                    }
-                    260 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.input_status)
-                    }
-                    261 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.output_status)
-                    }
-                    262 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(&mut self.homing_status)
-                    }
-                    263 => ::od_runtime::__private_v1::SlotMut::U8(&mut self.brake),
-                    264 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.total_time_off,
-                        )
-                    }
-                    265 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.total_time_on)
-                    }
-                    266 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.total_time_run,
-                        )
-                    }
-                    267 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.total_stroke)
-                    }
-                    268 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.error_code),
-                    269 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(&mut self.controlword)
-                    }
-                    270 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.statusword),
-                    271 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(
-                            &mut self.modes_of_operation,
-                        )
-                    }
-                    272 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(
-                            &mut self.modes_of_operation_display,
-                        )
-                    }
-                    273 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.position_demand_value,
-                        )
-                    }
-                    274 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.position_actual_value,
-                        )
-                    }
-                    275 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.velocity_demand_value,
-                        )
-                    }
-                    276 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.velocity_actual_value,
-                        )
-                    }
-                    277 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.velocity_window,
-                        )
-                    }
-                    278 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.velocity_window_time,
-                        )
-                    }
-                    279 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.velocity_threshold,
-                        )
-                    }
-                    280 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.velocity_threshold_time,
-                        )
-                    }
-                    281 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.target_position,
-                        )
-                    }
-                    282 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(&mut self.home_offset)
-                    }
-                    283 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.software_position_limit_highest_sub_index_supported,
-                        )
-                    }
-                    284 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.software_position_limit_min_software_position_limit,
-                        )
-                    }
-                    285 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.software_position_limit_max_software_position_limit,
-                        )
-                    }
-                    286 => ::od_runtime::__private_v1::SlotMut::U8(&mut self.polarity),
-                    287 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.profile_velocity_in_pp_mode,
-                        )
-                    }
-                    288 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.profile_acceleration,
-                        )
-                    }
-                    289 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.profile_deceleration,
-                        )
-                    }
-                    290 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .position_encoder_resolution_highest_sub_index_supported,
-                        )
-                    }
-                    291 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.position_encoder_resolution_encoder_increments,
-                        )
-                    }
-                    292 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.position_encoder_resolution_motor_revolutions,
-                        )
-                    }
-                    293 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.gear_ratio_highest_sub_index_supported,
-                        )
-                    }
-                    294 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.gear_ratio_motor_revolutions,
-                        )
-                    }
-                    295 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.gear_ratio_shaft_revolutions,
-                        )
-                    }
-                    296 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.feed_constant_highest_sub_index_supported,
-                        )
-                    }
-                    297 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.feed_constant_feed,
-                        )
-                    }
-                    298 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.feed_constant_shaft_revolutions,
-                        )
-                    }
-                    299 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(&mut self.homing_method)
-                    }
-                    300 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.homing_speed_highest_sub_index_supported,
-                        )
-                    }
-                    301 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speed_fast_homing_speed,
-                        )
-                    }
-                    302 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speed_slow_homing_speed,
-                        )
-                    }
-                    303 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.target_velocity,
-                        )
-                    }
-                    304 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.motor_type),
-                    305 => self.motor_manufacturer.slot_mut(),
-                    306 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.supported_drive_modes,
-                        )
-                    }
-                    307 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.single_device_type,
-                        )
-                    }
-                    _ => return None,
-                },
-            )
+            ::od_runtime::__private_v1::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -10446,7 +9437,7 @@ PDOMapping=0
             match self.slot(pos) {
                 Some(slot) => {
                     ::od_runtime::__private_v1::first8(
-                        || ENTRIES.get(pos).map_or(0, |e| e.bits),
+                        || ENTRIES.get(pos).map_or(0, |e| e.bits()),
                         slot,
                     )
                 }
@@ -15516,9 +14507,19 @@ PDOMapping=0
             Ok(())
         }
     }
+    unsafe impl ::od_runtime::__private_v1::Table for Dictionary {
+        #[inline(always)]
+        fn entries() -> &'static [::od_runtime::od::EntryInfo] {
+            &ENTRIES
+        }
+    }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
         fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
+        }
+        #[cfg(feature = "names")]
+        fn name(&self, index: u16, sub: u8) -> Option<&'static str> {
+            Self::position(index, sub).ok().and_then(|pos| NAMES.get(pos).copied())
         }
         #[inline]
         fn info(

@@ -566,19 +566,15 @@ PDOMapping=0
         /// `0x6099` Homing speeds.
         pub const HOMING_SPEEDS: u16 = 0x6099;
     }
-    /// The index of every object, sorted (the lookup's page table is computed from it).
     static OBJECTS: [u16; 25] = [
         0x1000, 0x1001, 0x1008, 0x1017, 0x1018, 0x1400, 0x1600, 0x1800, 0x1A00, 0x1A01,
         0x2001, 0x2002, 0x2003, 0x2004, 0x2005, 0x2006, 0x2007, 0x6040, 0x6041, 0x6060,
         0x6061, 0x6064, 0x606C, 0x607A, 0x6099,
     ];
-    /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
-    /// the index to its object, then the sub-index in the object's run of entries (`runs`:
-    /// `0xFFFFFFLL`, the object's first entry `FFFFFF` and its last position in the run `LL`;
-    /// `subs`: every entry's sub-index).
     static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
         pages: ::od_runtime::__private_v1::pages(&OBJECTS),
-        slots: &::od_runtime::__private_v1::slots::<2048>(&OBJECTS),
+        bits: &::od_runtime::__private_v1::bits::<7>(&OBJECTS),
+        ranks: &::od_runtime::__private_v1::ranks::<7>(&OBJECTS),
         runs: &[
             0x00000000, 0x00000100, 0x00000200, 0x00000300, 0x00000404, 0x00000902,
             0x00000C03, 0x00001002, 0x00001304, 0x00001802, 0x00001B00, 0x00001C00,
@@ -591,7 +587,7 @@ PDOMapping=0
             2, 0, 0, 0, 0, 0, 0, 1, 2, 3, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2,
         ],
     };
-    /// Metadata of every entry, sorted by `(index, sub)`.
+    /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
     pub static ENTRIES: [::od_runtime::od::EntryInfo; 47] = [
         ::od_runtime::od::EntryInfo {
             index: 0x1000,
@@ -599,11 +595,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x20192),
-            name: "Device type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, device_type),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[0]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1001,
@@ -611,11 +610,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Error register",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, error_register),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1008,
@@ -623,11 +625,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"Mini drive"),
-            name: "Manufacturer device name",
+            slot: ::od_runtime::__private_v1::offset::<
+                ::od_runtime::__private_v1::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_device_name),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[1]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1017,
@@ -635,11 +640,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Producer heartbeat time",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, producer_heartbeat_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -647,11 +655,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(4),
-            name: "Identity object: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, identity_object_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[2]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -659,11 +672,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x1234),
-            name: "Identity object: Vendor-ID",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_vendor_id),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[3]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -671,11 +687,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x1),
-            name: "Identity object: Product code",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_product_code),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[4]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -683,11 +702,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x1),
-            name: "Identity object: Revision number",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_revision_number),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[4]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -695,11 +717,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Identity object: Serial number",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_serial_number),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -707,11 +732,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "RPDO communication parameter 1: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rpdo_communication_parameter_1_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -719,11 +750,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
-            name: "RPDO communication parameter 1: COB-ID used by RPDO",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rpdo_communication_parameter_1_cob_id_used_by_rpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -731,11 +767,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(255),
-            name: "RPDO communication parameter 1: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rpdo_communication_parameter_1_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[7]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -743,11 +784,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(3),
-            name: "RPDO mapping parameter 1: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rpdo_mapping_parameter_1_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -755,11 +801,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
-            name: "RPDO mapping parameter 1: Mapped object 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rpdo_mapping_parameter_1_mapped_object_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[9]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -767,11 +818,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x50008),
-            name: "RPDO mapping parameter 1: Mapped object 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rpdo_mapping_parameter_1_mapped_object_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -779,11 +835,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60600008),
-            name: "RPDO mapping parameter 1: Mapped object 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rpdo_mapping_parameter_1_mapped_object_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[11]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -791,11 +852,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "TPDO communication parameter 1: Highest sub-index supported",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tpdo_communication_parameter_1_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -803,11 +870,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
-            name: "TPDO communication parameter 1: COB-ID used by TPDO",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_communication_parameter_1_cob_id_used_by_tpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -815,11 +887,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(255),
-            name: "TPDO communication parameter 1: Transmission type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_communication_parameter_1_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[7]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -827,11 +904,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(4),
-            name: "TPDO mapping parameter 1: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_1_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[2]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -839,11 +921,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
-            name: "TPDO mapping parameter 1: Mapped object 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_1_mapped_object_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -851,11 +938,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60610008),
-            name: "TPDO mapping parameter 1: Mapped object 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_1_mapped_object_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[14]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -863,11 +955,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x20010018),
-            name: "TPDO mapping parameter 1: Mapped object 3",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_1_mapped_object_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[15]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -875,11 +972,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x20020001),
-            name: "TPDO mapping parameter 1: Mapped object 4",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_1_mapped_object_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -887,11 +989,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "TPDO mapping parameter 2: Number of mapped objects",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_2_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -899,11 +1006,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60640020),
-            name: "TPDO mapping parameter 2: Mapped object 1",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_2_mapped_object_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -911,11 +1023,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x606C0020),
-            name: "TPDO mapping parameter 2: Mapped object 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_2_mapped_object_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[18]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2001,
@@ -923,11 +1040,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer24,
             access: ::od_runtime::od::Access::Rwr,
             pdo_mappable: true,
-            bits: 24,
-            low: Some(-1000),
-            high: Some(1000),
-            default: ::od_runtime::od::DefaultValue::Int(-5),
-            name: "Signed 24",
+            slot: ::od_runtime::__private_v1::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, signed_24),
+                ::od_runtime::od::DataType::Integer24,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2002,
@@ -935,11 +1055,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Boolean,
             access: ::od_runtime::od::Access::Rwr,
             pdo_mappable: true,
-            bits: 1,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Flag",
+            slot: ::od_runtime::__private_v1::offset::<
+                bool,
+            >(
+                ::core::mem::offset_of!(Dictionary, flag),
+                ::od_runtime::od::DataType::Boolean,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2003,
@@ -947,11 +1070,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Real32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Real(1.5),
-            name: "Gain",
+            slot: ::od_runtime::__private_v1::offset::<
+                f32,
+            >(
+                ::core::mem::offset_of!(Dictionary, gain),
+                ::od_runtime::od::DataType::Real32,
+                0,
+            ),
+            extras: Some(&EXTRAS[21]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2004,
@@ -959,11 +1085,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::OctetString,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"\x01\x02"),
-            name: "Blob",
+            slot: ::od_runtime::__private_v1::offset::<
+                ::od_runtime::__private_v1::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, blob),
+                ::od_runtime::od::DataType::OctetString,
+                256,
+            ),
+            extras: Some(&EXTRAS[22]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2005,
@@ -971,11 +1100,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned40,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 40,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x123456789),
-            name: "Counter",
+            slot: ::od_runtime::__private_v1::offset::<
+                u64,
+            >(
+                ::core::mem::offset_of!(Dictionary, counter),
+                ::od_runtime::od::DataType::Unsigned40,
+                0,
+            ),
+            extras: Some(&EXTRAS[23]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2006,
@@ -983,11 +1115,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(3),
-            name: "Gains: Number of entries",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, gains_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2006,
@@ -995,11 +1130,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Gains: Type",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, gains_type),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2006,
@@ -1007,11 +1145,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: Some(500),
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Gains: Gain 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, gains_gain_2),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: Some(&EXTRAS[24]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2006,
@@ -1019,11 +1160,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(3),
-            name: "Gains: Gain 2",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, gains_gain_2_2006_3),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2007,
@@ -1031,11 +1175,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x10),
-            name: "Position window",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_window),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[25]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6040,
@@ -1043,11 +1190,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rww,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Controlword",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, controlword),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6041,
@@ -1055,11 +1205,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Statusword",
+            slot: ::od_runtime::__private_v1::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, statusword),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6060,
@@ -1067,11 +1220,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rww,
             pdo_mappable: true,
-            bits: 8,
-            low: Some(-3),
-            high: Some(10),
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Modes of operation",
+            slot: ::od_runtime::__private_v1::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, modes_of_operation),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: Some(&EXTRAS[26]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6061,
@@ -1079,11 +1235,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Modes of operation display",
+            slot: ::od_runtime::__private_v1::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, modes_of_operation_display),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6064,
@@ -1091,11 +1250,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position actual value",
+            slot: ::od_runtime::__private_v1::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_actual_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606C,
@@ -1103,11 +1265,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity actual value",
+            slot: ::od_runtime::__private_v1::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_actual_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607A,
@@ -1115,11 +1280,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rww,
             pdo_mappable: true,
-            bits: 32,
-            low: Some(-1000000),
-            high: Some(1000000),
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Target position",
+            slot: ::od_runtime::__private_v1::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, target_position),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: Some(&EXTRAS[27]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -1127,11 +1295,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Homing speeds: Number of entries",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_speeds_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -1139,11 +1310,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1000),
-            name: "Homing speeds: Speed during search for switch",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, homing_speeds_speed_during_search_for_switch
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[28]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -1151,12 +1327,242 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(100),
-            name: "Homing speeds: Speed during search for zero",
+            slot: ::od_runtime::__private_v1::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, homing_speeds_speed_during_search_for_zero
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[29]),
         },
+    ];
+    /// Capacities, defaults other than zero and limits, each distinct one once
+    /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
+    pub static EXTRAS: [::od_runtime::od::EntryExtras; 30] = [
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x20192),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"Mini drive"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(4),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x1234),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x1),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(2),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(255),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(3),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x50008),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60600008),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60610008),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x20010018),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x20020001),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60640020),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x606C0020),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(-5),
+            limits: Some(&LIMITS[0]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Real32(1.5),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"\x01\x02"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x123456789),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(2),
+            limits: Some(&LIMITS[1]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x10),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1),
+            limits: Some(&LIMITS[2]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::None,
+            limits: Some(&LIMITS[3]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1000),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(100),
+            limits: None,
+        },
+    ];
+    /// The limits of the entries that have any, each distinct one once.
+    pub static LIMITS: [::od_runtime::od::Limits; 4] = [
+        ::od_runtime::od::Limits {
+            low: Some(-1000),
+            high: Some(1000),
+        },
+        ::od_runtime::od::Limits {
+            low: None,
+            high: Some(500),
+        },
+        ::od_runtime::od::Limits {
+            low: Some(-3),
+            high: Some(10),
+        },
+        ::od_runtime::od::Limits {
+            low: Some(-1000000),
+            high: Some(1000000),
+        },
+    ];
+    /// The name of every entry (`ParameterName`, `Object: Sub-object` for sub-entries), in
+    /// [`ENTRIES`] order.
+    #[cfg(feature = "names")]
+    pub static NAMES: [&str; 47] = [
+        "Device type",
+        "Error register",
+        "Manufacturer device name",
+        "Producer heartbeat time",
+        "Identity object: Highest sub-index supported",
+        "Identity object: Vendor-ID",
+        "Identity object: Product code",
+        "Identity object: Revision number",
+        "Identity object: Serial number",
+        "RPDO communication parameter 1: Highest sub-index supported",
+        "RPDO communication parameter 1: COB-ID used by RPDO",
+        "RPDO communication parameter 1: Transmission type",
+        "RPDO mapping parameter 1: Number of mapped objects",
+        "RPDO mapping parameter 1: Mapped object 1",
+        "RPDO mapping parameter 1: Mapped object 2",
+        "RPDO mapping parameter 1: Mapped object 3",
+        "TPDO communication parameter 1: Highest sub-index supported",
+        "TPDO communication parameter 1: COB-ID used by TPDO",
+        "TPDO communication parameter 1: Transmission type",
+        "TPDO mapping parameter 1: Number of mapped objects",
+        "TPDO mapping parameter 1: Mapped object 1",
+        "TPDO mapping parameter 1: Mapped object 2",
+        "TPDO mapping parameter 1: Mapped object 3",
+        "TPDO mapping parameter 1: Mapped object 4",
+        "TPDO mapping parameter 2: Number of mapped objects",
+        "TPDO mapping parameter 2: Mapped object 1",
+        "TPDO mapping parameter 2: Mapped object 2",
+        "Signed 24",
+        "Flag",
+        "Gain",
+        "Blob",
+        "Counter",
+        "Gains: Number of entries",
+        "Gains: Type",
+        "Gains: Gain 2",
+        "Gains: Gain 2",
+        "Position window",
+        "Controlword",
+        "Statusword",
+        "Modes of operation",
+        "Modes of operation display",
+        "Position actual value",
+        "Velocity actual value",
+        "Target position",
+        "Homing speeds: Number of entries",
+        "Homing speeds: Speed during search for switch",
+        "Homing speeds: Speed during search for zero",
     ];
     /// The object dictionary of the Mini drive (Fixture Works): the current value of every entry.
     ///
@@ -1277,396 +1683,17 @@ PDOMapping=0
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
         }
+        /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
         fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v1::Slot::U32(&self.device_type),
-                    1 => ::od_runtime::__private_v1::Slot::U8(&self.error_register),
-                    2 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.manufacturer_device_name.as_slice(),
-                        )
-                    }
-                    3 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.producer_heartbeat_time,
-                        )
-                    }
-                    4 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.identity_object_highest_sub_index_supported,
-                        )
-                    }
-                    5 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_vendor_id,
-                        )
-                    }
-                    6 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_product_code,
-                        )
-                    }
-                    7 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_revision_number,
-                        )
-                    }
-                    8 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_serial_number,
-                        )
-                    }
-                    9 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rpdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    10 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rpdo_communication_parameter_1_cob_id_used_by_rpdo,
-                        )
-                    }
-                    11 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rpdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    12 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rpdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    13 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rpdo_mapping_parameter_1_mapped_object_1,
-                        )
-                    }
-                    14 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rpdo_mapping_parameter_1_mapped_object_2,
-                        )
-                    }
-                    15 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rpdo_mapping_parameter_1_mapped_object_3,
-                        )
-                    }
-                    16 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tpdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    17 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tpdo_communication_parameter_1_cob_id_used_by_tpdo,
-                        )
-                    }
-                    18 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tpdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    19 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tpdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    20 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tpdo_mapping_parameter_1_mapped_object_1,
-                        )
-                    }
-                    21 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tpdo_mapping_parameter_1_mapped_object_2,
-                        )
-                    }
-                    22 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tpdo_mapping_parameter_1_mapped_object_3,
-                        )
-                    }
-                    23 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tpdo_mapping_parameter_1_mapped_object_4,
-                        )
-                    }
-                    24 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tpdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    25 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tpdo_mapping_parameter_2_mapped_object_1,
-                        )
-                    }
-                    26 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tpdo_mapping_parameter_2_mapped_object_2,
-                        )
-                    }
-                    27 => ::od_runtime::__private_v1::Slot::I32(&self.signed_24),
-                    28 => ::od_runtime::__private_v1::Slot::Bool(&self.flag),
-                    29 => ::od_runtime::__private_v1::Slot::F32(&self.gain),
-                    30 => ::od_runtime::__private_v1::Slot::Bytes(self.blob.as_slice()),
-                    31 => ::od_runtime::__private_v1::Slot::U64(&self.counter),
-                    32 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.gains_number_of_entries,
-                        )
-                    }
-                    33 => ::od_runtime::__private_v1::Slot::U16(&self.gains_type),
-                    34 => ::od_runtime::__private_v1::Slot::U16(&self.gains_gain_2),
-                    35 => {
-                        ::od_runtime::__private_v1::Slot::U16(&self.gains_gain_2_2006_3)
-                    }
-                    36 => ::od_runtime::__private_v1::Slot::U32(&self.position_window),
-                    37 => ::od_runtime::__private_v1::Slot::U16(&self.controlword),
-                    38 => ::od_runtime::__private_v1::Slot::U16(&self.statusword),
-                    39 => ::od_runtime::__private_v1::Slot::I8(&self.modes_of_operation),
-                    40 => {
-                        ::od_runtime::__private_v1::Slot::I8(
-                            &self.modes_of_operation_display,
-                        )
-                    }
-                    41 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.position_actual_value,
-                        )
-                    }
-                    42 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.velocity_actual_value,
-                        )
-                    }
-                    43 => ::od_runtime::__private_v1::Slot::I32(&self.target_position),
-                    44 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.homing_speeds_number_of_entries,
-                        )
-                    }
-                    45 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speeds_speed_during_search_for_switch,
-                        )
-                    }
-                    46 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speeds_speed_during_search_for_zero,
-                        )
-                    }
-                    _ => return None,
-                },
-            )
+            ::od_runtime::__private_v1::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
         ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.device_type),
-                    1 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(&mut self.error_register)
-                    }
-                    2 => self.manufacturer_device_name.slot_mut(),
-                    3 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.producer_heartbeat_time,
-                        )
-                    }
-                    4 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.identity_object_highest_sub_index_supported,
-                        )
-                    }
-                    5 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_vendor_id,
-                        )
-                    }
-                    6 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_product_code,
-                        )
-                    }
-                    7 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_revision_number,
-                        )
-                    }
-                    8 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_serial_number,
-                        )
-                    }
-                    9 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rpdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    10 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rpdo_communication_parameter_1_cob_id_used_by_rpdo,
-                        )
-                    }
-                    11 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rpdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    12 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rpdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    13 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rpdo_mapping_parameter_1_mapped_object_1,
-                        )
-                    }
-                    14 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rpdo_mapping_parameter_1_mapped_object_2,
-                        )
-                    }
-                    15 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rpdo_mapping_parameter_1_mapped_object_3,
-                        )
-                    }
-                    16 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tpdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    17 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tpdo_communication_parameter_1_cob_id_used_by_tpdo,
-                        )
-                    }
-                    18 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tpdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    19 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tpdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    20 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tpdo_mapping_parameter_1_mapped_object_1,
-                        )
-                    }
-                    21 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tpdo_mapping_parameter_1_mapped_object_2,
-                        )
-                    }
-                    22 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tpdo_mapping_parameter_1_mapped_object_3,
-                        )
-                    }
-                    23 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tpdo_mapping_parameter_1_mapped_object_4,
-                        )
-                    }
-                    24 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tpdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    25 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tpdo_mapping_parameter_2_mapped_object_1,
-                        )
-                    }
-                    26 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tpdo_mapping_parameter_2_mapped_object_2,
-                        )
-                    }
-                    27 => ::od_runtime::__private_v1::SlotMut::I32(&mut self.signed_24),
-                    28 => ::od_runtime::__private_v1::SlotMut::Bool(&mut self.flag),
-                    29 => ::od_runtime::__private_v1::SlotMut::F32(&mut self.gain),
-                    30 => self.blob.slot_mut(),
-                    31 => ::od_runtime::__private_v1::SlotMut::U64(&mut self.counter),
-                    32 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.gains_number_of_entries,
-                        )
-                    }
-                    33 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.gains_type),
-                    34 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(&mut self.gains_gain_2)
-                    }
-                    35 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.gains_gain_2_2006_3,
-                        )
-                    }
-                    36 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.position_window,
-                        )
-                    }
-                    37 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.controlword),
-                    38 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.statusword),
-                    39 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(
-                            &mut self.modes_of_operation,
-                        )
-                    }
-                    40 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(
-                            &mut self.modes_of_operation_display,
-                        )
-                    }
-                    41 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.position_actual_value,
-                        )
-                    }
-                    42 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.velocity_actual_value,
-                        )
-                    }
-                    43 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.target_position,
-                        )
-                    }
-                    44 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.homing_speeds_number_of_entries,
-                        )
-                    }
-                    45 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speeds_speed_during_search_for_switch,
-                        )
-                    }
-                    46 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speeds_speed_during_search_for_zero,
-                        )
-                    }
-                    _ => return None,
-                },
-            )
+            ::od_runtime::__private_v1::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -1675,7 +1702,7 @@ PDOMapping=0
             match self.slot(pos) {
                 Some(slot) => {
                     ::od_runtime::__private_v1::first8(
-                        || ENTRIES.get(pos).map_or(0, |e| e.bits),
+                        || ENTRIES.get(pos).map_or(0, |e| e.bits()),
                         slot,
                     )
                 }
@@ -2529,9 +2556,19 @@ PDOMapping=0
             Ok(())
         }
     }
+    unsafe impl ::od_runtime::__private_v1::Table for Dictionary {
+        #[inline(always)]
+        fn entries() -> &'static [::od_runtime::od::EntryInfo] {
+            &ENTRIES
+        }
+    }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
         fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
+        }
+        #[cfg(feature = "names")]
+        fn name(&self, index: u16, sub: u8) -> Option<&'static str> {
+            Self::position(index, sub).ok().and_then(|pos| NAMES.get(pos).copied())
         }
         #[inline]
         fn info(

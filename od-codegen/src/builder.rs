@@ -63,6 +63,7 @@ pub struct Builder {
     root: Option<PathBuf>,
     cargo_metadata: Option<bool>,
     min_capacity: Option<usize>,
+    names: Option<crate::Names>,
 }
 
 /// What went wrong in [`Builder::compile`].
@@ -177,6 +178,12 @@ impl Builder {
         self
     }
 
+    /// Whether the generated code keeps the entries' names (default [`crate::Names::Always`]).
+    pub fn names(mut self, names: crate::Names) -> Self {
+        self.names = Some(names);
+        self
+    }
+
     fn resolve(&self, p: &Path) -> PathBuf {
         match &self.root {
             Some(r) if p.is_relative() => r.join(p),
@@ -204,6 +211,9 @@ impl Builder {
             options.eds_text = Some(source.text.clone());
             if let Some(n) = self.min_capacity {
                 options.min_capacity = n;
+            }
+            if let Some(n) = &self.names {
+                options.names = n.clone();
             }
             let sidecar_path = match &d.sidecar {
                 SidecarSource::Beside => Some(path.with_extension("toml")).filter(|p| p.is_file()),

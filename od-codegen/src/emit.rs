@@ -30,26 +30,6 @@ pub(crate) fn rust_type(ty: Ty) -> TokenStream {
     }
 }
 
-fn slot_variant(ty: Ty) -> proc_macro2::Ident {
-    format_ident!(
-        "{}",
-        match ty {
-            Ty::Bool => "Bool",
-            Ty::U8 => "U8",
-            Ty::U16 => "U16",
-            Ty::U32 => "U32",
-            Ty::U64 => "U64",
-            Ty::I8 => "I8",
-            Ty::I16 => "I16",
-            Ty::I32 => "I32",
-            Ty::I64 => "I64",
-            Ty::F32 => "F32",
-            Ty::F64 => "F64",
-            Ty::Bytes(_) => "Bytes",
-        }
-    )
-}
-
 fn data_type_variant(dt: DataType) -> proc_macro2::Ident {
     use DataType as D;
     format_ident!(
@@ -203,20 +183,36 @@ pub(crate) fn index_consts(plan: &Plan<'_>) -> TokenStream {
     }
 }
 
+/// An `i64` literal holding `v`'s low 64 bits (an UNSIGNED64 above `i64::MAX` as its bits:
+/// a default is encoded by truncation, so the bytes are the same).
+fn int64(v: i128, hex: bool) -> TokenStream {
+    match i64::try_from(v) {
+        Ok(_) => lit::int_radix(v, hex),
+        Err(_) => {
+            let lit = syn::LitInt::new(&format!("0x{:016X}u64", v as u64), proc_macro2::Span::call_site());
+            quote!((#lit as i64))
+        }
+    }
+}
+
 fn default_value_tokens(e: &PEntry<'_>) -> TokenStream {
     match &e.default {
         Def::None => quote!(::od_runtime::od::DefaultValue::None),
         Def::Int(v, hex) => {
-            let v = lit::int_radix(*v, *hex);
+            let v = int64(*v, *hex);
             quote!(::od_runtime::od::DefaultValue::Int(#v))
         }
         Def::NodeId(o, hex) => {
-            let o = lit::int_radix(*o, *hex);
+            let o = int64(*o, *hex);
             quote!(::od_runtime::od::DefaultValue::NodeIdPlus(#o))
+        }
+        Def::Real(f) if e.dt == DataType::Real32 => {
+            let f = lit::real(*f, true);
+            quote!(::od_runtime::od::DefaultValue::Real32(#f))
         }
         Def::Real(f) => {
             let f = lit::real(*f, false);
-            quote!(::od_runtime::od::DefaultValue::Real(#f))
+            quote!(::od_runtime::od::DefaultValue::Real64(#f))
         }
         Def::Bytes(b) => {
             let b = lit::bytes(b);
@@ -225,8 +221,76 @@ fn default_value_tokens(e: &PEntry<'_>) -> TokenStream {
     }
 }
 
+/// Whether a default restores to zero bytes (then the entry needs no default in its extras).
+fn zero_default(e: &PEntry<'_>) -> bool {
+    match &e.default {
+        Def::None => true,
+        Def::Int(v, _) => *v == 0,
+        Def::Real(f) => f.to_bits() == 0,
+        Def::Bytes(b) => b.is_empty(),
+        Def::NodeId(..) => false,
+    }
+}
+
+/// The limits of an entry, if it has any.
+fn limits_tokens(e: &PEntry<'_>) -> Option<TokenStream> {
+    if e.low.is_none() && e.high.is_none() {
+        return None;
+    }
+    let opt = |v: Option<i128>| match v {
+        Some(v) => {
+            let v = lit::int(v);
+            quote!(Some(#v))
+        }
+        None => quote!(None),
+    };
+    let (low, high) = (opt(e.low), opt(e.high));
+    Some(quote!(::od_runtime::od::Limits { low: #low, high: #high }))
+}
+
+/// The extras of an entry (capacity, default, the position of its limits in `LIMITS`), if it
+/// has any.
+fn extras_tokens(e: &PEntry<'_>, limits: Option<usize>) -> Option<TokenStream> {
+    let bits = if let Ty::Bytes(_) = e.ty { e.bits } else { 0 };
+    if bits == 0 && limits.is_none() && zero_default(e) {
+        return None;
+    }
+    let default = if zero_default(e) { quote!(::od_runtime::od::DefaultValue::None) } else { default_value_tokens(e) };
+    let bits = proc_macro2::Literal::u32_unsuffixed(bits);
+    let limits = match limits {
+        Some(i) => {
+            let i = proc_macro2::Literal::usize_unsuffixed(i);
+            quote!(Some(&LIMITS[#i]))
+        }
+        None => quote!(None),
+    };
+    Some(quote!(::od_runtime::od::EntryExtras { bits: #bits, default: #default, limits: #limits }))
+}
+
+/// Each distinct value of `items` once: the values, and each item's position among them.
+fn dedup(items: impl Iterator<Item = Option<TokenStream>>) -> (Vec<TokenStream>, Vec<Option<usize>>) {
+    let mut keys: Vec<String> = Vec::new();
+    let mut values = Vec::new();
+    let positions = items
+        .map(|t| {
+            t.map(|t| {
+                let key = t.to_string();
+                match keys.iter().position(|k| *k == key) {
+                    Some(i) => i,
+                    None => {
+                        keys.push(key);
+                        values.push(t);
+                        values.len() - 1
+                    }
+                }
+            })
+        })
+        .collect();
+    (values, positions)
+}
+
 /// `LOOKUP` and `ENTRIES`.
-pub(crate) fn tables(plan: &Plan<'_>, sink: &mut crate::diag::Sink) -> TokenStream {
+pub(crate) fn tables(plan: &Plan<'_>, names: &crate::Names, sink: &mut crate::diag::Sink) -> TokenStream {
     let n = proc_macro2::Literal::usize_unsuffixed(plan.entries.len());
     let keys: Vec<(u16, u8)> = plan.entries.iter().map(|e| (e.index, e.sub)).collect();
     let lookup = crate::lookup::tokens(&keys).unwrap_or_else(|| {
@@ -234,30 +298,34 @@ pub(crate) fn tables(plan: &Plan<'_>, sink: &mut crate::diag::Sink) -> TokenStre
             eds::diag::Severity::Error,
             crate::diag::TOO_MANY_OBJECTS,
             format!(
-                "the device has more than {} objects; the generated lookup table cannot number them",
-                crate::lookup::MAX_OBJECTS
+                "the device has more than {} objects, or objects in more than {} ranges of 256 \
+                 indices; the generated lookup table cannot number them",
+                crate::lookup::MAX_OBJECTS,
+                crate::lookup::MAX_PAGES
             ),
         );
         crate::lookup::tokens(&[]).unwrap_or_default()
     });
-    let infos = plan.entries.iter().map(|e| {
+    // Each distinct limits and extras value once; entries point at theirs.
+    let (limits, limits_of) = dedup(plan.entries.iter().map(limits_tokens));
+    let (extras, extras_of) = dedup(plan.entries.iter().zip(&limits_of).map(|(e, l)| extras_tokens(e, *l)));
+    let rt = rt();
+    let infos = plan.entries.iter().zip(&extras_of).map(|(e, x)| {
         let index = lit::hex(e.index as u64, 4);
         let sub = proc_macro2::Literal::u8_unsuffixed(e.sub);
         let dt = data_type_variant(e.dt);
         let access = access_variant(e.entry.access);
         let pdo = e.entry.pdo_mapping;
-        let bits = proc_macro2::Literal::u32_unsuffixed(e.bits);
-        let opt = |v: Option<i128>| match v {
-            Some(v) => {
-                let v = lit::int(v);
-                quote!(Some(#v))
+        let field = format_ident!("{}", e.field);
+        let ty = rust_type(e.ty);
+        let cap = proc_macro2::Literal::u32_unsuffixed(if let Ty::Bytes(_) = e.ty { e.bits } else { 0 });
+        let extras = match x {
+            Some(i) => {
+                let i = proc_macro2::Literal::usize_unsuffixed(*i);
+                quote!(Some(&EXTRAS[#i]))
             }
             None => quote!(None),
         };
-        let low = opt(e.low);
-        let high = opt(e.high);
-        let default = default_value_tokens(e);
-        let name = display_name(e);
         quote! {
             ::od_runtime::od::EntryInfo {
                 index: #index,
@@ -265,19 +333,46 @@ pub(crate) fn tables(plan: &Plan<'_>, sink: &mut crate::diag::Sink) -> TokenStre
                 data_type: ::od_runtime::od::DataType::#dt,
                 access: ::od_runtime::od::Access::#access,
                 pdo_mappable: #pdo,
-                bits: #bits,
-                low: #low,
-                high: #high,
-                default: #default,
-                name: #name,
+                slot: #rt::offset::<#ty>(::core::mem::offset_of!(Dictionary, #field), ::od_runtime::od::DataType::#dt, #cap),
+                extras: #extras,
             }
         }
     });
+    let nx = proc_macro2::Literal::usize_unsuffixed(extras.len());
+    let nl = proc_macro2::Literal::usize_unsuffixed(limits.len());
+    let names = names_table(plan, names);
     quote! {
         #lookup
 
-        /// Metadata of every entry, sorted by `(index, sub)`.
+        /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
         pub static ENTRIES: [::od_runtime::od::EntryInfo; #n] = [#(#infos),*];
+
+        /// Capacities, defaults other than zero and limits, each distinct one once
+        /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
+        pub static EXTRAS: [::od_runtime::od::EntryExtras; #nx] = [#(#extras),*];
+
+        /// The limits of the entries that have any, each distinct one once.
+        pub static LIMITS: [::od_runtime::od::Limits; #nl] = [#(#limits),*];
+
+        #names
+    }
+}
+
+/// `NAMES`, the display name of every entry in `ENTRIES` order, as the options say: always,
+/// never, or behind a cargo feature of the crate the code is compiled in.
+fn names_table(plan: &Plan<'_>, names: &crate::Names) -> TokenStream {
+    let cfg = match names {
+        crate::Names::Never => return TokenStream::new(),
+        crate::Names::Always => TokenStream::new(),
+        crate::Names::Feature(f) => quote!(#[cfg(feature = #f)]),
+    };
+    let n = proc_macro2::Literal::usize_unsuffixed(plan.entries.len());
+    let all = plan.entries.iter().map(display_name);
+    quote! {
+        /// The name of every entry (`ParameterName`, `Object: Sub-object` for sub-entries), in
+        /// [`ENTRIES`] order.
+        #cfg
+        pub static NAMES: [&str; #n] = [#(#all),*];
     }
 }
 
@@ -382,7 +477,12 @@ fn getter(e: &PEntry<'_>, sidecar: Option<&devices::sidecar::Sidecar>) -> TokenS
 }
 
 /// The storage struct, its inherent methods and the trait implementation.
-pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&devices::sidecar::Sidecar>) -> TokenStream {
+pub(crate) fn dictionary(
+    model: &Model,
+    plan: &Plan<'_>,
+    names: &crate::Names,
+    sidecar: Option<&devices::sidecar::Sidecar>,
+) -> TokenStream {
     let product = model.device_info.product_name.as_deref().unwrap_or("device");
     let vendor = model.device_info.vendor_name.as_deref().unwrap_or("unknown vendor");
     let struct_doc = lit::doc(&[
@@ -411,32 +511,6 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
         quote!(#f: #v)
     });
     let rt = rt();
-    let slot_arms = plan.entries.iter().enumerate().map(|(i, e)| {
-        let i = proc_macro2::Literal::usize_unsuffixed(i);
-        let f = format_ident!("{}", e.field);
-        let v = slot_variant(e.ty);
-        match e.ty {
-            Ty::Bytes(_) => quote!(#i => #rt::Slot::Bytes(self.#f.as_slice())),
-            _ => quote!(#i => #rt::Slot::#v(&self.#f)),
-        }
-    });
-    let slot_mut_arms = plan.entries.iter().enumerate().map(|(i, e)| {
-        let i = proc_macro2::Literal::usize_unsuffixed(i);
-        let f = format_ident!("{}", e.field);
-        let v = slot_variant(e.ty);
-        match e.ty {
-            Ty::Bytes(_) => quote!(#i => self.#f.slot_mut()),
-            _ => quote!(#i => #rt::SlotMut::#v(&mut self.#f)),
-        }
-    });
-    let (slot_body, slot_mut_body) = if plan.entries.is_empty() {
-        (quote!(let _ = pos; None), quote!(let _ = pos; None))
-    } else {
-        (
-            quote!(Some(match pos { #(#slot_arms,)* _ => return None })),
-            quote!(Some(match pos { #(#slot_mut_arms,)* _ => return None })),
-        )
-    };
     let real_limited: Vec<&PEntry<'_>> =
         plan.entries.iter().filter(|e| e.real_low.is_some() || e.real_high.is_some()).collect();
     let real_limits = if real_limited.is_empty() {
@@ -457,6 +531,18 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
             },
         );
         quote!(let (real_low, real_high) = match pos { #(#arms,)* _ => (None, None) };)
+    };
+    let name_fn = {
+        let body = quote! {
+            fn name(&self, index: u16, sub: u8) -> Option<&'static str> {
+                Self::position(index, sub).ok().and_then(|pos| NAMES.get(pos).copied())
+            }
+        };
+        match names {
+            crate::Names::Never => TokenStream::new(),
+            crate::Names::Always => body,
+            crate::Names::Feature(f) => quote!(#[cfg(feature = #f)] #body),
+        }
     };
     let accessors = plan.entries.iter().map(|e| {
         let g = getter(e, sidecar);
@@ -484,14 +570,15 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
                 #rt::position(&LOOKUP, index, sub)
             }
 
+            /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
             #[inline(always)]
             fn slot(&self, pos: usize) -> Option<#rt::Slot<'_>> {
-                #slot_body
+                #rt::slot(self, pos)
             }
 
             #[inline(always)]
             fn slot_mut(&mut self, pos: usize) -> Option<#rt::SlotMut<'_>> {
-                #slot_mut_body
+                #rt::slot_mut(self, pos)
             }
 
             /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
@@ -499,7 +586,7 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
             #[inline(always)]
             fn read_at(&self, pos: usize) -> [u8; 8] {
                 match self.slot(pos) {
-                    Some(slot) => #rt::first8(|| ENTRIES.get(pos).map_or(0, |e| e.bits), slot),
+                    Some(slot) => #rt::first8(|| ENTRIES.get(pos).map_or(0, |e| e.bits()), slot),
                     None => [0; 8],
                 }
             }
@@ -544,10 +631,21 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
             #(#accessors)*
         }
 
+        // SAFETY: every slot in ENTRIES is `offset::<T>(offset_of!(Dictionary, field), …)` of
+        // the entry's own field, whose type `offset` checked at compile time.
+        unsafe impl #rt::Table for Dictionary {
+            #[inline(always)]
+            fn entries() -> &'static [::od_runtime::od::EntryInfo] {
+                &ENTRIES
+            }
+        }
+
         impl ::od_runtime::od::ObjectDictionary for Dictionary {
             fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
                 &ENTRIES
             }
+
+            #name_fn
 
             #[inline]
             fn info(&self, index: u16, sub: u8) -> Result<&'static ::od_runtime::od::EntryInfo, ::od_runtime::od::AbortCode> {
@@ -579,7 +677,7 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
             }
 
             // The PDO fast path: a handle is the entry's position in ENTRIES, so the runtime
-            // reaches a mapped entry with one `match` on it, without a lookup.
+            // reaches a mapped entry through its slot, without a lookup.
 
             #[inline]
             fn handle(&self, index: u16, sub: u8) -> Option<::od_runtime::od::Handle> {
@@ -591,7 +689,7 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&device
                 self.read_at(h.get() as usize)
             }
 
-            // The read inlined into the packing loop, as one jump table over the slots. It
+            // The read inlined into the packing loop, one jump on the storage kind. It
             // skips `read_handle`'s cut to the entry's length (which would look the entry up):
             // the loop cuts every value to its mapped length, which a loaded mapping makes
             // the entry's own.

@@ -125,6 +125,21 @@ pub struct Options {
     pub sidecar: Option<devices::sidecar::Sidecar>,
     /// Smallest capacity of a string or byte buffer, in bytes.
     pub min_capacity: usize,
+    /// Whether to generate the entries' names (`NAMES`, `ObjectDictionary::name`).
+    pub names: Names,
+}
+
+/// Whether generated code holds the entries' names (about 40 bytes of flash per entry).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub enum Names {
+    /// Always (the default).
+    #[default]
+    Always,
+    /// Never: `ObjectDictionary::name` answers `None`.
+    Never,
+    /// When the crate the code is compiled in has this cargo feature enabled (the
+    /// `generated` crate: `names`, a default feature).
+    Feature(String),
 }
 
 impl Options {
@@ -136,6 +151,7 @@ impl Options {
             eds_text: None,
             sidecar: None,
             min_capacity: DEFAULT_MIN_CAPACITY,
+            names: Names::Always,
         }
     }
 }
@@ -182,8 +198,8 @@ pub fn expand(model: &Model, options: &Options) -> Generated {
     let plan = plan::build(model, options, &mut sink);
     let eds_text = lit::text_block(options.eds_text.as_deref().unwrap_or(""));
     let index = emit::index_consts(&plan);
-    let tables = emit::tables(&plan, &mut sink);
-    let dictionary = emit::dictionary(model, &plan, options.sidecar.as_ref());
+    let tables = emit::tables(&plan, &options.names, &mut sink);
+    let dictionary = emit::dictionary(model, &plan, &options.names, options.sidecar.as_ref());
     let device = emit::device_type(model, &plan);
     let pdo = pdo::module(model, &plan, &mut sink);
     let units = match &options.sidecar {

@@ -19,19 +19,15 @@ pub mod tiny {
         /// `0x2000` Speed.
         pub const SPEED: u16 = 0x2000;
     }
-    /// The index of every object, sorted (the lookup's page table is computed from it).
     static OBJECTS: [u16; 1] = [0x2000];
-    /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
-    /// the index to its object, then the sub-index in the object's run of entries (`runs`:
-    /// `0xFFFFFFLL`, the object's first entry `FFFFFF` and its last position in the run `LL`;
-    /// `subs`: every entry's sub-index).
     static LOOKUP: ::od_runtime::__private_v0::Lookup = ::od_runtime::__private_v0::Lookup {
         pages: ::od_runtime::__private_v0::pages(&OBJECTS),
-        slots: &::od_runtime::__private_v0::slots::<512>(&OBJECTS),
+        bits: &::od_runtime::__private_v0::bits::<1>(&OBJECTS),
+        ranks: &::od_runtime::__private_v0::ranks::<1>(&OBJECTS),
         runs: &[0x00000000],
         subs: &[0],
     };
-    /// Metadata of every entry, sorted by `(index, sub)`.
+    /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
     pub static ENTRIES: [::od_runtime::od::EntryInfo; 1] = [
         ::od_runtime::od::EntryInfo {
             index: 0x2000,
@@ -39,13 +35,30 @@ pub mod tiny {
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(7),
-            name: "Speed",
+            slot: ::od_runtime::__private_v0::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, speed),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[0]),
         },
     ];
+    /// Capacities, defaults other than zero and limits, each distinct one once
+    /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
+    pub static EXTRAS: [::od_runtime::od::EntryExtras; 1] = [
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(7),
+            limits: None,
+        },
+    ];
+    /// The limits of the entries that have any, each distinct one once.
+    pub static LIMITS: [::od_runtime::od::Limits; 0] = [];
+    /// The name of every entry (`ParameterName`, `Object: Sub-object` for sub-entries), in
+    /// [`ENTRIES`] order.
+    pub static NAMES: [&str; 1] = ["Speed"];
     /// The object dictionary of the Test device (Tests): the current value of every entry.
     ///
     /// Build it with [`Dictionary::new`]; read and write entries with the typed accessors (the application side) or through [`ObjectDictionary`](::od_runtime::od::ObjectDictionary) (the bus side, as little-endian bytes).
@@ -67,26 +80,17 @@ pub mod tiny {
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v0::position(&LOOKUP, index, sub)
         }
+        /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
         fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v0::Slot<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v0::Slot::U8(&self.speed),
-                    _ => return None,
-                },
-            )
+            ::od_runtime::__private_v0::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
         ) -> Option<::od_runtime::__private_v0::SlotMut<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v0::SlotMut::U8(&mut self.speed),
-                    _ => return None,
-                },
-            )
+            ::od_runtime::__private_v0::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -95,7 +99,7 @@ pub mod tiny {
             match self.slot(pos) {
                 Some(slot) => {
                     ::od_runtime::__private_v0::first8(
-                        || ENTRIES.get(pos).map_or(0, |e| e.bits),
+                        || ENTRIES.get(pos).map_or(0, |e| e.bits()),
                         slot,
                     )
                 }
@@ -184,9 +188,18 @@ pub mod tiny {
             Ok(())
         }
     }
+    unsafe impl ::od_runtime::__private_v0::Table for Dictionary {
+        #[inline(always)]
+        fn entries() -> &'static [::od_runtime::od::EntryInfo] {
+            &ENTRIES
+        }
+    }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
         fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
+        }
+        fn name(&self, index: u16, sub: u8) -> Option<&'static str> {
+            Self::position(index, sub).ok().and_then(|pos| NAMES.get(pos).copied())
         }
         #[inline]
         fn info(
