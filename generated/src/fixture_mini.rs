@@ -576,16 +576,10 @@ PDOMapping=0
         bits: &::od_runtime::__private_v1::bits::<7>(&OBJECTS),
         ranks: &::od_runtime::__private_v1::ranks::<7>(&OBJECTS),
         runs: &[
-            0x00000000, 0x00000100, 0x00000200, 0x00000300, 0x00000404, 0x00000902,
-            0x00000C03, 0x00001002, 0x00001304, 0x00001802, 0x00001B00, 0x00001C00,
-            0x00001D00, 0x00001E00, 0x00001F00, 0x00002003, 0x00002400, 0x00002500,
-            0x00002600, 0x00002700, 0x00002800, 0x00002900, 0x00002A00, 0x00002B00,
-            0x00002C02,
+            0, 1, 2, 3, 4, 9, 12, 16, 19, 24, 27, 28, 29, 30, 31, 32, 36, 37, 38, 39, 40,
+            41, 42, 43, 44, 47,
         ],
-        subs: &[
-            0, 0, 0, 0, 0, 1, 2, 3, 4, 0, 1, 2, 0, 1, 2, 3, 0, 1, 2, 0, 1, 2, 3, 4, 0, 1,
-            2, 0, 0, 0, 0, 0, 0, 1, 2, 3, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2,
-        ],
+        entries: &ENTRIES,
     };
     /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
     pub static ENTRIES: [::od_runtime::od::EntryInfo; 47] = [
@@ -1062,7 +1056,7 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Boolean,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            extras: Some(&EXTRAS[4]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2003,
@@ -1077,7 +1071,7 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Real32,
                 0,
             ),
-            extras: Some(&EXTRAS[21]),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2004,
@@ -1092,7 +1086,7 @@ PDOMapping=0
                 ::od_runtime::od::DataType::OctetString,
                 256,
             ),
-            extras: Some(&EXTRAS[22]),
+            extras: Some(&EXTRAS[21]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2005,
@@ -1107,7 +1101,7 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned40,
                 0,
             ),
-            extras: Some(&EXTRAS[23]),
+            extras: Some(&EXTRAS[22]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2006,
@@ -1137,7 +1131,7 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            extras: Some(&EXTRAS[4]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2006,
@@ -1152,7 +1146,7 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: Some(&EXTRAS[24]),
+            extras: Some(&EXTRAS[23]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2006,
@@ -1182,7 +1176,7 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[25]),
+            extras: Some(&EXTRAS[24]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6040,
@@ -1227,7 +1221,7 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            extras: Some(&EXTRAS[26]),
+            extras: Some(&EXTRAS[25]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6061,
@@ -1287,7 +1281,7 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: Some(&EXTRAS[27]),
+            extras: Some(&EXTRAS[26]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -1319,7 +1313,7 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[28]),
+            extras: Some(&EXTRAS[27]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -1336,12 +1330,12 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[29]),
+            extras: Some(&EXTRAS[28]),
         },
     ];
     /// Capacities, defaults other than zero and limits, each distinct one once
     /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
-    pub static EXTRAS: [::od_runtime::od::EntryExtras; 30] = [
+    pub static EXTRAS: [::od_runtime::od::EntryExtras; 29] = [
         ::od_runtime::od::EntryExtras {
             bits: 0,
             default: ::od_runtime::od::DefaultValue::Int(0x20192),
@@ -1444,11 +1438,6 @@ PDOMapping=0
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            limits: None,
-        },
-        ::od_runtime::od::EntryExtras {
-            bits: 0,
             default: ::od_runtime::od::DefaultValue::Real32(1.5),
             limits: None,
         },
@@ -1496,20 +1485,20 @@ PDOMapping=0
     /// The limits of the entries that have any, each distinct one once.
     pub static LIMITS: [::od_runtime::od::Limits; 4] = [
         ::od_runtime::od::Limits {
-            low: Some(-1000),
-            high: Some(1000),
+            low: -1000,
+            high: 1000,
         },
         ::od_runtime::od::Limits {
-            low: None,
-            high: Some(500),
+            low: 0,
+            high: 500,
         },
         ::od_runtime::od::Limits {
-            low: Some(-3),
-            high: Some(10),
+            low: -3,
+            high: 10,
         },
         ::od_runtime::od::Limits {
-            low: Some(-1000000),
-            high: Some(1000000),
+            low: -1000000,
+            high: 1000000,
         },
     ];
     /// The name of every entry (`ParameterName`, `Object: Sub-object` for sub-entries), in
@@ -1672,6 +1661,62 @@ PDOMapping=0
                 homing_speeds_number_of_entries: 2,
                 homing_speeds_speed_during_search_for_switch: 1000,
                 homing_speeds_speed_during_search_for_zero: 100,
+            }
+        }
+        /// Every value zero, every buffer empty. A device's first poll (its reset node)
+        /// restores the defaults, so a firmware can start from this: its device then
+        /// needs no image of the defaults in flash besides the entry table's.
+        pub const fn zeroed() -> Self {
+            Dictionary {
+                device_type: 0,
+                error_register: 0,
+                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                    &[],
+                ),
+                producer_heartbeat_time: 0,
+                identity_object_highest_sub_index_supported: 0,
+                identity_object_vendor_id: 0,
+                identity_object_product_code: 0,
+                identity_object_revision_number: 0,
+                identity_object_serial_number: 0,
+                rpdo_communication_parameter_1_highest_sub_index_supported: 0,
+                rpdo_communication_parameter_1_cob_id_used_by_rpdo: 0,
+                rpdo_communication_parameter_1_transmission_type: 0,
+                rpdo_mapping_parameter_1_number_of_mapped_objects: 0,
+                rpdo_mapping_parameter_1_mapped_object_1: 0,
+                rpdo_mapping_parameter_1_mapped_object_2: 0,
+                rpdo_mapping_parameter_1_mapped_object_3: 0,
+                tpdo_communication_parameter_1_highest_sub_index_supported: 0,
+                tpdo_communication_parameter_1_cob_id_used_by_tpdo: 0,
+                tpdo_communication_parameter_1_transmission_type: 0,
+                tpdo_mapping_parameter_1_number_of_mapped_objects: 0,
+                tpdo_mapping_parameter_1_mapped_object_1: 0,
+                tpdo_mapping_parameter_1_mapped_object_2: 0,
+                tpdo_mapping_parameter_1_mapped_object_3: 0,
+                tpdo_mapping_parameter_1_mapped_object_4: 0,
+                tpdo_mapping_parameter_2_number_of_mapped_objects: 0,
+                tpdo_mapping_parameter_2_mapped_object_1: 0,
+                tpdo_mapping_parameter_2_mapped_object_2: 0,
+                signed_24: 0,
+                flag: false,
+                gain: 0.0,
+                blob: ::od_runtime::__private_v1::Bytes::from_slice(&[]),
+                counter: 0,
+                gains_number_of_entries: 0,
+                gains_type: 0,
+                gains_gain_2: 0,
+                gains_gain_2_2006_3: 0,
+                position_window: 0,
+                controlword: 0,
+                statusword: 0,
+                modes_of_operation: 0,
+                modes_of_operation_display: 0,
+                position_actual_value: 0,
+                velocity_actual_value: 0,
+                target_position: 0,
+                homing_speeds_number_of_entries: 0,
+                homing_speeds_speed_during_search_for_switch: 0,
+                homing_speeds_speed_during_search_for_zero: 0,
             }
         }
         /// Position of `(index, sub)` in [`ENTRIES`]: `Err(NO_OBJECT)` if the index is absent,

@@ -237,14 +237,12 @@ fn limits_tokens(e: &PEntry<'_>) -> Option<TokenStream> {
     if e.low.is_none() && e.high.is_none() {
         return None;
     }
-    let opt = |v: Option<i128>| match v {
-        Some(v) => {
-            let v = lit::int(v);
-            quote!(Some(#v))
-        }
-        None => quote!(None),
-    };
-    let (low, high) = (opt(e.low), opt(e.high));
+    // The side without a limit is the type's end (a bound that refuses nothing).
+    let bits = e.bits.clamp(1, 64);
+    let (min, max) =
+        if e.dt.is_signed() { (-(1i128 << (bits - 1)), (1i128 << (bits - 1)) - 1) } else { (0, (1i128 << bits) - 1) };
+    let low = int64(e.low.unwrap_or(min), false);
+    let high = int64(e.high.unwrap_or(max), false);
     Some(quote!(::od_runtime::od::Limits { low: #low, high: #high }))
 }
 
@@ -268,13 +266,39 @@ fn extras_tokens(e: &PEntry<'_>, limits: Option<usize>) -> Option<TokenStream> {
 }
 
 /// Each distinct value of `items` once: the values, and each item's position among them.
+/// Values are told apart by their tokens with every integer literal read as a number, so
+/// `1` and `0x1` are one value.
 fn dedup(items: impl Iterator<Item = Option<TokenStream>>) -> (Vec<TokenStream>, Vec<Option<usize>>) {
+    fn canonical(t: TokenStream, out: &mut String) {
+        for tt in t {
+            match tt {
+                proc_macro2::TokenTree::Group(g) => {
+                    out.push('(');
+                    canonical(g.stream(), out);
+                    out.push(')');
+                }
+                proc_macro2::TokenTree::Literal(l) => {
+                    let text = l.to_string();
+                    match syn::parse_str::<syn::LitInt>(&text).ok().and_then(|i| i.base10_parse::<u128>().ok()) {
+                        Some(v) => out.push_str(&v.to_string()),
+                        None => out.push_str(&text),
+                    }
+                    out.push(' ');
+                }
+                other => {
+                    out.push_str(&other.to_string());
+                    out.push(' ');
+                }
+            }
+        }
+    }
     let mut keys: Vec<String> = Vec::new();
     let mut values = Vec::new();
     let positions = items
         .map(|t| {
             t.map(|t| {
-                let key = t.to_string();
+                let mut key = String::new();
+                canonical(t.clone(), &mut key);
                 match keys.iter().position(|k| *k == key) {
                     Some(i) => i,
                     None => {
@@ -510,6 +534,17 @@ pub(crate) fn dictionary(
         let v = init_expr(e);
         quote!(#f: #v)
     });
+    let zeros = plan.entries.iter().map(|e| {
+        let f = format_ident!("{}", e.field);
+        let v = match e.ty {
+            Ty::Bytes(_) => {
+                let rt = rt();
+                quote!(#rt::Bytes::from_slice(&[]))
+            }
+            t => lit::int_of(0, t),
+        };
+        quote!(#f: #v)
+    });
     let rt = rt();
     let real_limited: Vec<&PEntry<'_>> =
         plan.entries.iter().filter(|e| e.real_low.is_some() || e.real_high.is_some()).collect();
@@ -561,6 +596,13 @@ pub(crate) fn dictionary(
             /// A dictionary holding every entry's default, with `$NODEID` resolved for `node_id`.
             pub const fn new(#node_id: u8) -> Self {
                                 Dictionary { #(#inits,)* }
+            }
+
+            /// Every value zero, every buffer empty. A device's first poll (its reset node)
+            /// restores the defaults, so a firmware can start from this: its device then
+            /// needs no image of the defaults in flash besides the entry table's.
+            pub const fn zeroed() -> Self {
+                Dictionary { #(#zeros,)* }
             }
 
             /// Position of `(index, sub)` in [`ENTRIES`]: `Err(NO_OBJECT)` if the index is absent,

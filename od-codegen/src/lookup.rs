@@ -14,8 +14,8 @@ use quote::quote;
 use crate::lit;
 use crate::support::rt;
 
-/// The most objects the tables can number (ranks are `u16`). 65535 objects of at most 256
-/// entries also keep every first entry below 2^24, as `runs` needs.
+/// The most objects the tables can number (ranks are `u16`), and the most entries (`runs`
+/// holds entry positions and their count as `u16`).
 pub(crate) const MAX_OBJECTS: usize = u16::MAX as usize;
 
 /// The most pages (distinct high bytes of the indices; page numbers are a `u8` plus one).
@@ -30,10 +30,8 @@ pub(crate) struct Tables {
     pub bits: Vec<[u64; 4]>,
     /// Per page: the number of the first object of each word.
     pub ranks: Vec<[u16; 4]>,
-    /// Per object: `first << 8 | (count - 1)`.
-    pub runs: Vec<u32>,
-    /// Sub-index of every entry.
-    pub subs: Vec<u8>,
+    /// Per object: its first entry; then the number of entries.
+    pub runs: Vec<u16>,
 }
 
 /// The tables, or `None` past [`MAX_OBJECTS`] objects or [`MAX_PAGES`] pages.
@@ -45,7 +43,7 @@ pub(crate) fn build(keys: &[(u16, u8)]) -> Option<Tables> {
             _ => objects.push((index, pos, 1)),
         }
     }
-    if objects.len() > MAX_OBJECTS {
+    if objects.len() > MAX_OBJECTS || keys.len() > MAX_OBJECTS {
         return None;
     }
     let mut highs: Vec<u8> = objects.iter().map(|o| (o.0 >> 8) as u8).collect();
@@ -57,14 +55,13 @@ pub(crate) fn build(keys: &[(u16, u8)]) -> Option<Tables> {
         pages: vec![0; 256],
         bits: vec![[0; 4]; highs.len()],
         ranks: vec![[0; 4]; highs.len()],
-        runs: Vec::with_capacity(objects.len()),
-        subs: keys.iter().map(|k| k.1).collect(),
+        runs: Vec::with_capacity(objects.len() + 1),
     };
     for (k, h) in highs.iter().enumerate() {
         t.pages[usize::from(*h)] = u8::try_from(k + 1).ok()?;
     }
     let mut seen = vec![[false; 4]; highs.len()];
-    for (n, &(index, first, count)) in objects.iter().enumerate() {
+    for (n, &(index, first, _)) in objects.iter().enumerate() {
         let page = usize::from(t.pages[usize::from(index >> 8)]) - 1;
         let low = usize::from(index & 0xFF);
         t.bits[page][low / 64] |= 1 << (low % 64);
@@ -72,10 +69,9 @@ pub(crate) fn build(keys: &[(u16, u8)]) -> Option<Tables> {
             seen[page][low / 64] = true;
             t.ranks[page][low / 64] = u16::try_from(n).ok()?;
         }
-        let first = u32::try_from(first).ok().filter(|f| *f < 1 << 24)?;
-        let last = u32::try_from(count - 1).ok().filter(|l| *l < 256)?;
-        t.runs.push(first << 8 | last);
+        t.runs.push(u16::try_from(first).ok()?);
     }
+    t.runs.push(u16::try_from(keys.len()).ok()?);
     Some(t)
 }
 
@@ -91,8 +87,7 @@ pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
     let n_objects = Literal::usize_unsuffixed(objects.len());
     let n_pages = Literal::usize_unsuffixed(t.bits.len());
     let objects = objects.iter().map(|i| lit::hex(u64::from(*i), 4));
-    let runs = t.runs.iter().map(|r| lit::hex(u64::from(*r), 8));
-    let subs = t.subs.iter().map(|s| Literal::u8_unsuffixed(*s));
+    let runs = t.runs.iter().map(|r| Literal::u16_unsuffixed(*r));
     Some(quote! {
         static OBJECTS: [u16; #n_objects] = [#(#objects),*];
 
@@ -101,7 +96,7 @@ pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
             bits: &#rt::bits::<#n_pages>(&OBJECTS),
             ranks: &#rt::ranks::<#n_pages>(&OBJECTS),
             runs: &[#(#runs),*],
-            subs: &[#(#subs),*],
+            entries: &ENTRIES,
         };
     })
 }
@@ -110,7 +105,7 @@ pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
 mod tests {
     use super::*;
     use od_runtime::__private_v1::{Lookup, position};
-    use od_runtime::od::AbortCode;
+    use od_runtime::od::{AbortCode, Access, DataType, EntryInfo};
     use proptest::prelude::*;
 
     fn leak<T>(v: Vec<T>) -> &'static [T] {
@@ -131,7 +126,9 @@ mod tests {
         assert_eq!(&bits[..t.bits.len()], &t.bits[..]);
         assert_eq!(&ranks[..t.ranks.len()], &t.ranks[..]);
         assert!(bits[t.bits.len()..].iter().all(|b| *b == [0; 4]));
-        Lookup { pages, bits: leak(t.bits), ranks: leak(t.ranks), runs: leak(t.runs), subs: leak(t.subs) }
+        let entries =
+            keys.iter().map(|&(index, sub)| EntryInfo::new(index, sub, DataType::Unsigned8, Access::Ro, false));
+        Lookup { pages, bits: leak(t.bits), ranks: leak(t.ranks), runs: leak(t.runs), entries: leak(entries.collect()) }
     }
 
     /// What a binary search over the sorted keys says.
@@ -184,6 +181,7 @@ mod tests {
         let all: Vec<(u16, u8)> = (0..=u16::MAX).map(|i| (i, 0)).collect();
         assert_eq!(build(&all), None);
         assert_eq!(build(&all[1..]), None, "256 pages");
+        assert_eq!(build(&[(0x1000, 0); 65536]), None, "65536 entries");
         // 255 full pages: 65280 objects.
         let l = lookup(&all[256..]);
         assert_eq!(position(&l, 0xFFFF, 0), Ok(255 * 256 - 1));

@@ -212,13 +212,16 @@ impl EntryExtras {
     pub const NONE: Self = Self { bits: 0, default: DefaultValue::None, limits: None };
 }
 
-/// The values an integer entry accepts from the bus (`LowLimit`, `HighLimit`).
+/// The values an integer entry accepts from the bus (`LowLimit`, `HighLimit`), in 64 bits
+/// like [`DefaultValue::Int`]: a limit of an UNSIGNED64 above `i64::MAX` is kept as its 64
+/// bits, and [`EntryInfo::low`]/[`EntryInfo::high`] read it back as the unsigned number. An
+/// entry limited on one side only has its type's range on the other.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Limits {
-    /// Lowest value accepted, if limited.
-    pub low: Option<i128>,
-    /// Highest value accepted, if limited.
-    pub high: Option<i128>,
+    /// Lowest value accepted.
+    pub low: i64,
+    /// Highest value accepted.
+    pub high: i64,
 }
 
 /// Static metadata of one `(index, sub-index)` entry: 12 bytes on a 32-bit target.
@@ -279,7 +282,7 @@ impl EntryInfo {
     #[inline]
     pub const fn low(&self) -> Option<i128> {
         match self.extras {
-            Some(EntryExtras { limits: Some(l), .. }) => l.low,
+            Some(EntryExtras { limits: Some(Limits { low, .. }), .. }) => Some(self.limit(*low)),
             _ => None,
         }
     }
@@ -288,9 +291,14 @@ impl EntryInfo {
     #[inline]
     pub const fn high(&self) -> Option<i128> {
         match self.extras {
-            Some(EntryExtras { limits: Some(l), .. }) => l.high,
+            Some(EntryExtras { limits: Some(Limits { high, .. }), .. }) => Some(self.limit(*high)),
             _ => None,
         }
+    }
+
+    /// A limit as the number it stands for: unsigned types read its 64 bits as unsigned.
+    const fn limit(&self, v: i64) -> i128 {
+        if self.data_type.is_signed() { v as i128 } else { v as u64 as i128 }
     }
 
     /// Default value.

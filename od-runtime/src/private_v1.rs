@@ -311,13 +311,15 @@ pub fn slot_mut<D: Table>(d: &mut D, pos: usize) -> Option<SlotMut<'_>> {
 ///    page is a set of 256 bits, one per low byte, in four 64-bit words
 ///    ([`bits`](Self::bits)); the object's number is the number of the first object of its
 ///    word ([`ranks`](Self::ranks)) plus the set bits below its own in that word.
-/// 2. **Object → entry**: [`runs`](Self::runs) packs the object's first entry and its last
-///    position in the run (`first << 8 | (count - 1)`). Sub-indices are almost always
-///    `0, 1, 2, …`, so the entry is tried at `first + sub` and confirmed with
-///    [`subs`](Self::subs); objects with gaps fall back to a binary search of their run.
+/// 2. **Object → entry**: [`runs`](Self::runs) holds each object's first entry (and, last,
+///    the number of entries), so an object's entries are `runs[n]..runs[n + 1]`. Sub-indices
+///    are almost always `0, 1, 2, …`, so the entry is tried at `first + sub` and confirmed with
+///    the sub-index in [`entries`](Self::entries); objects with gaps fall back to a binary
+///    search of their run.
 ///
-/// A dictionary with `O` objects in `P` distinct high bytes and `E` entries needs
-/// `256 + 40·P + 4·O + E` bytes. The generator refuses more than 65535 objects or 255 pages.
+/// A dictionary with `O` objects in `P` distinct high bytes needs `256 + 40·P + 2·O` bytes
+/// besides its entry table. The generator refuses more than 65535 objects or entries, or 255
+/// pages.
 #[derive(Debug)]
 pub struct Lookup {
     /// Per high byte: its page's number plus one, or 0.
@@ -326,10 +328,10 @@ pub struct Lookup {
     pub bits: &'static [[u64; 4]],
     /// Per page: the number of the first object of each word.
     pub ranks: &'static [[u16; 4]],
-    /// Per object: `first << 8 | (count - 1)`, its first entry and its number of entries.
-    pub runs: &'static [u32],
-    /// The sub-index of every entry, in `ENTRIES` order.
-    pub subs: &'static [u8],
+    /// Per object: its first entry; then the number of entries.
+    pub runs: &'static [u16],
+    /// The entry table (`ENTRIES`), for the sub-indices.
+    pub entries: &'static [EntryInfo],
 }
 
 /// [`Lookup::pages`] for the sorted index of every object (pages past 255 are left out: the
@@ -396,16 +398,16 @@ pub fn position(t: &Lookup, index: u16, sub: u8) -> Result<usize, AbortCode> {
         return Err(AbortCode::NO_OBJECT);
     }
     let obj = usize::from(ranks[word]) + (w & ((1u64 << bit) - 1)).count_ones() as usize;
-    let Some(&run) = t.runs.get(obj) else {
+    let (Some(&first), Some(&end)) = (t.runs.get(obj), t.runs.get(obj + 1)) else {
         return Err(AbortCode::NO_OBJECT);
     };
-    let (first, last) = ((run >> 8) as usize, (run & 0xFF) as u8);
+    let (first, end) = (usize::from(first), usize::from(end));
     let direct = first + usize::from(sub);
-    if sub <= last && t.subs.get(direct) == Some(&sub) {
+    if direct < end && t.entries.get(direct).is_some_and(|e| e.sub == sub) {
         return Ok(direct);
     }
-    match t.subs.get(first..=first + usize::from(last)) {
-        Some(run) => run.binary_search(&sub).map(|p| first + p).map_err(|_| AbortCode::NO_SUB_INDEX),
+    match t.entries.get(first..end) {
+        Some(run) => run.binary_search_by_key(&sub, |e| e.sub).map(|p| first + p).map_err(|_| AbortCode::NO_SUB_INDEX),
         None => Err(AbortCode::NO_OBJECT),
     }
 }

@@ -93,6 +93,17 @@ impl Firmware {
         }
     }
 
+    /// Builds the firmware in place, in `place` (a `static` of the binary): every value of the
+    /// dictionary zero, which the device's first poll replaces with the defaults (its reset
+    /// node). Nothing of it needs an image in flash, and nothing is built on the stack first.
+    pub fn init(place: &mut core::mem::MaybeUninit<Firmware>, node: NodeId) -> &mut Firmware {
+        place.write(Self {
+            dev: Dev::with_capacity(Od::zeroed(), Axis::new(), NoStorage, node),
+            link: CanLink::new(),
+            last_ms: 0,
+        })
+    }
+
     /// One turn of the main loop at time `now`: the bus (receive, device services, transmit),
     /// then the axis, once per elapsed millisecond.
     pub fn step<C: embedded_can::nb::Can>(&mut self, can: &mut C, now: Micros) {

@@ -24,8 +24,8 @@ pub mod tiny {
         pages: ::od_runtime::__private_v0::pages(&OBJECTS),
         bits: &::od_runtime::__private_v0::bits::<1>(&OBJECTS),
         ranks: &::od_runtime::__private_v0::ranks::<1>(&OBJECTS),
-        runs: &[0x00000000],
-        subs: &[0],
+        runs: &[0, 1],
+        entries: &ENTRIES,
     };
     /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
     pub static ENTRIES: [::od_runtime::od::EntryInfo; 1] = [
@@ -70,6 +70,12 @@ pub mod tiny {
         /// A dictionary holding every entry's default, with `$NODEID` resolved for `node_id`.
         pub const fn new(_node_id: u8) -> Self {
             Dictionary { speed: 7 }
+        }
+        /// Every value zero, every buffer empty. A device's first poll (its reset node)
+        /// restores the defaults, so a firmware can start from this: its device then
+        /// needs no image of the defaults in flash besides the entry table's.
+        pub const fn zeroed() -> Self {
+            Dictionary { speed: 0 }
         }
         /// Position of `(index, sub)` in [`ENTRIES`]: `Err(NO_OBJECT)` if the index is absent,
         /// `Err(NO_SUB_INDEX)` if only the sub-index is.

@@ -53,7 +53,7 @@ const fn sized(mut r: Row, bytes: u32) -> Row {
 }
 
 const fn limits(mut r: Row, low: i128, high: i128) -> Row {
-    r.limits = Some(Limits { low: Some(low), high: Some(high) });
+    r.limits = Some(Limits { low: low as i64, high: high as i64 });
     r
 }
 
@@ -213,7 +213,7 @@ const fn table() -> [Row; N] {
 const ROWS: [Row; N] = table();
 
 const fn limits_table() -> [Limits; N] {
-    let mut l = [Limits { low: None, high: None }; N];
+    let mut l = [Limits { low: 0, high: 0 }; N];
     let mut i = 0;
     while i < N {
         if let Some(x) = ROWS[i].limits {

@@ -5,6 +5,7 @@
 #![no_std]
 #![no_main]
 
+use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m_rt::{entry, exception};
@@ -22,15 +23,14 @@ const SYST_RVR: *mut u32 = 0xE000_E014 as *mut u32;
 /// Core clock cycles per millisecond (16 MHz internal oscillator after reset).
 const CYCLES_PER_MS: u32 = 16_000;
 
-/// The node id.
-const NODE: NodeId = match NodeId::new(5) {
-    Some(n) => n,
-    None => panic!("node ids are 1..=127"),
-};
+/// The node id, a configuration byte of the flash image (a board would read DIP switches or
+/// its parameter memory).
+#[unsafe(link_section = ".rodata.node_id")]
+static NODE_ID: u8 = 5;
 
-/// The firmware's state, built at compile time in RAM beside the stack (`Firmware::new` is a
-/// `const fn`): no copy through the stack at start.
-static mut FIRMWARE: Firmware = Firmware::new(NODE);
+/// The firmware's state, in RAM beside the stack: zeroed at reset like `.bss`, built in place
+/// by `Firmware::init` (no image of it in flash, no copy through the stack).
+static mut FIRMWARE: MaybeUninit<Firmware> = MaybeUninit::uninit();
 
 #[exception]
 fn SysTick() {
@@ -46,8 +46,11 @@ fn main() -> ! {
     }
     // SAFETY: CAN1 is used by this driver alone (clock and pins: the board's start-up code).
     let Ok(mut can) = (unsafe { BxCan::new(CAN1, BTR_500K_42MHZ) }) else { loop {} };
+    // SAFETY: a plain byte of this image; read as the configuration it stands for.
+    let node = unsafe { (&raw const NODE_ID).read_volatile() };
+    let Some(node) = NodeId::new(node) else { loop {} };
     // SAFETY: `main` runs once and is the only user of FIRMWARE; no interrupt touches it.
-    let fw = unsafe { &mut *(&raw mut FIRMWARE) };
+    let fw = Firmware::init(unsafe { &mut *(&raw mut FIRMWARE) }, node);
     loop {
         let now = u64::from(MILLIS.load(Ordering::Relaxed)) * 1000;
         fw.step(&mut can, now);
