@@ -1339,6 +1339,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
     /// A `const fn`, so a firmware can build the device in a `static` at compile time, with
     /// no copy through the stack: `static DEV: Mutex<RefCell<Device<…>>> = …` or a
     /// `static mut` initialised by this call.
+    #[inline(always)]
     pub const fn with_capacity(od: OD, app: A, storage: S, node_id: NodeId) -> Self {
         let node = node_id.get();
         Self {
@@ -1394,6 +1395,145 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
                 quick_stop: None,
                 remote: true,
             },
+        }
+    }
+
+    /// Builds the device in `place` (a `static` of a firmware, typically) and returns it:
+    /// the same device as [`with_capacity`](Self::with_capacity), written field by field,
+    /// the PDO tables entry by entry, so that nothing of its size passes through the stack.
+    /// (Building it with `with_capacity` and moving it there may copy it through the stack;
+    /// `MaybeUninit::write` does not promise otherwise.)
+    ///
+    /// `od` is moved in: pass a value the compiler can write in place, such as a generated
+    /// dictionary's `zeroed()` (its first poll restores the defaults).
+    #[inline(always)]
+    pub fn init_in_place(
+        place: &mut core::mem::MaybeUninit<Self>,
+        od: OD,
+        app: A,
+        storage: S,
+        node_id: NodeId,
+    ) -> &mut Self {
+        use core::ptr::addr_of_mut;
+        /// Fails to compile when `Core` gains a field that the writes below do not cover.
+        #[allow(dead_code, clippy::too_many_lines)]
+        fn every_field_is_written<OD, A, S, const P: usize, const M: usize>(c: Core<OD, A, S, P, M>) {
+            let Core {
+                od: _,
+                app: _,
+                storage: _,
+                node: _,
+                now: _,
+                nmt: _,
+                bootup: _,
+                sdo_reset: _,
+                sdo_rx: _,
+                sdo_tx: _,
+                sdo_valid: _,
+                sync_cob: _,
+                sync_producer: _,
+                sync_period: _,
+                sync_overflow: _,
+                sync_counter: _,
+                sync_next: _,
+                emcy_cob: _,
+                emcy_valid: _,
+                emcy_inhibit: _,
+                emcy_last: _,
+                emcy_queue: _,
+                history_len: _,
+                hb_period: _,
+                hb_next: _,
+                guard_time: _,
+                life_factor: _,
+                guard_toggle: _,
+                guard_reply: _,
+                guard_last: _,
+                guard_lost: _,
+                consumers: _,
+                consumers_len: _,
+                rpdo: _,
+                tpdo: _,
+                rx_active: _,
+                rx_len: _,
+                tx_active: _,
+                tx_len: _,
+                tx_async: _,
+                tx_poll: _,
+                rx_deadlines: _,
+                rx_pending: _,
+                drive: _,
+                statusword: _,
+                quick_stop: _,
+                remote: _,
+            } = c;
+        }
+        let node = node_id.get();
+        let p = place.as_mut_ptr();
+        // SAFETY: every field of `*p` is written exactly once below (whole values, or every
+        // element of an array), through raw pointers into `place`, which is valid for writes
+        // and exclusively ours; `every_field_is_written` keeps the list complete for `Core`,
+        // and `Device` has the four fields written first. Then `*p` is initialised.
+        unsafe {
+            addr_of_mut!((*p).sdo).write(SdoServer::new());
+            addr_of_mut!((*p).node_id).write(node_id);
+            addr_of_mut!((*p).started).write(false);
+            let c = addr_of_mut!((*p).core);
+            addr_of_mut!((*c).od).write(od);
+            let rpdo = addr_of_mut!((*c).rpdo).cast::<Rpdo<MAP>>();
+            let tpdo = addr_of_mut!((*c).tpdo).cast::<Tpdo<MAP>>();
+            for i in 0..PDOS {
+                rpdo.add(i).write(Rpdo::EMPTY);
+                tpdo.add(i).write(Tpdo::EMPTY);
+            }
+            let consumers = addr_of_mut!((*c).consumers).cast::<Consumer>();
+            for i in 0..MAX_HEARTBEAT_CONSUMERS {
+                consumers.add(i).write(Consumer::EMPTY);
+            }
+            addr_of_mut!((*c).rx_active).write([0; PDOS]);
+            addr_of_mut!((*c).tx_active).write([0; PDOS]);
+            addr_of_mut!((*c).app).write(app);
+            addr_of_mut!((*c).storage).write(storage);
+            addr_of_mut!((*c).node).write(node);
+            addr_of_mut!((*c).now).write(0);
+            addr_of_mut!((*c).nmt).write(NmtState::Initialising);
+            addr_of_mut!((*c).bootup).write(false);
+            addr_of_mut!((*c).sdo_reset).write(false);
+            addr_of_mut!((*c).sdo_rx).write(0x600 + node as u16);
+            addr_of_mut!((*c).sdo_tx).write(0x580 + node as u16);
+            addr_of_mut!((*c).sdo_valid).write(true);
+            addr_of_mut!((*c).sync_cob).write(0x80);
+            addr_of_mut!((*c).sync_producer).write(false);
+            addr_of_mut!((*c).sync_period).write(0);
+            addr_of_mut!((*c).sync_overflow).write(0);
+            addr_of_mut!((*c).sync_counter).write(1);
+            addr_of_mut!((*c).sync_next).write(0);
+            addr_of_mut!((*c).emcy_cob).write(0x80 + node as u16);
+            addr_of_mut!((*c).emcy_valid).write(true);
+            addr_of_mut!((*c).emcy_inhibit).write(0);
+            addr_of_mut!((*c).emcy_last).write(None);
+            addr_of_mut!((*c).emcy_queue).write(Queue::new());
+            addr_of_mut!((*c).history_len).write(0);
+            addr_of_mut!((*c).hb_period).write(0);
+            addr_of_mut!((*c).hb_next).write(0);
+            addr_of_mut!((*c).guard_time).write(0);
+            addr_of_mut!((*c).life_factor).write(0);
+            addr_of_mut!((*c).guard_toggle).write(false);
+            addr_of_mut!((*c).guard_reply).write(false);
+            addr_of_mut!((*c).guard_last).write(None);
+            addr_of_mut!((*c).guard_lost).write(false);
+            addr_of_mut!((*c).consumers_len).write(0);
+            addr_of_mut!((*c).rx_len).write(0);
+            addr_of_mut!((*c).tx_len).write(0);
+            addr_of_mut!((*c).tx_async).write(false);
+            addr_of_mut!((*c).tx_poll).write(false);
+            addr_of_mut!((*c).rx_deadlines).write(false);
+            addr_of_mut!((*c).rx_pending).write(false);
+            addr_of_mut!((*c).drive).write(None);
+            addr_of_mut!((*c).statusword).write(None);
+            addr_of_mut!((*c).quick_stop).write(None);
+            addr_of_mut!((*c).remote).write(true);
+            place.assume_init_mut()
         }
     }
 

@@ -9,7 +9,12 @@
 //! * the AKD firmware takes more than [`FLASH_PER_ENTRY`] bytes of flash per dictionary entry
 //!   it has beyond the DRCS's;
 //! * any firmware links code of `core::fmt` (with panic-halt nothing formats, so formatting
-//!   code in the image is dead weight that something pulled in).
+//!   code in the image is dead weight that something pulled in);
+//! * any firmware may need more than [`STACK`] bytes of stack: a static upper bound from the
+//!   machine code ([`stack`]), the deepest call path from the reset handler (each function's
+//!   prologue: pushes, `sub sp`, `vpush`; calls followed through `bl` and tail branches) plus
+//!   the worst exception handler and the 104 bytes the core stacks for an exception with FPU
+//!   state. Calls through registers cannot be followed; their count is printed (0 today).
 //!
 //! The ELF is read with the `object` crate, so no binutils for the target are needed.
 
@@ -26,6 +31,8 @@ pub const DRCS_FLASH: u64 = 32 * 1024;
 pub const DRCS_RAM: u64 = 4 * 1024;
 /// Flash budget per dictionary entry of the AKD beyond the DRCS's, bytes.
 pub const FLASH_PER_ENTRY: u64 = 16;
+/// Stack budget of every firmware (the static worst case, exceptions included), bytes.
+pub const STACK: u64 = 1024;
 
 /// The devices the firmware is built for: cargo feature, module in `generated/src`.
 const DEVICES: &[&str] = &["drcs", "drvi", "akd"];
@@ -64,6 +71,8 @@ pub struct Image {
     pub sizes: Sizes,
     /// Names (mangled) of linked `core::fmt` symbols.
     pub fmt_symbols: Vec<String>,
+    /// Static upper bound of the stack, bytes (0 when not estimated).
+    pub stack: u64,
 }
 
 /// Reads an ELF image.
@@ -90,7 +99,7 @@ pub fn read_elf(bytes: &[u8]) -> Result<Image, String> {
         .filter_map(|s| s.name().ok().map(str::to_owned))
         .filter(|n| n.contains("4core3fmt"))
         .collect();
-    Ok(Image { sizes, fmt_symbols })
+    Ok(Image { sizes, fmt_symbols, stack: 0 })
 }
 
 /// Entries of a generated dictionary: the length of its `ENTRIES` table.
@@ -131,7 +140,13 @@ pub fn main(args: &[String]) -> Result<(), String> {
     for &dev in DEVICES {
         let elf = build(&root, dev)?;
         let bytes = std::fs::read(&elf).map_err(|e| format!("{}: {e}", elf.display()))?;
-        let image = read_elf(&bytes).map_err(|e| format!("{}: {e}", elf.display()))?;
+        let mut image = read_elf(&bytes).map_err(|e| format!("{}: {e}", elf.display()))?;
+        let (stack, path, indirect) = stack::estimate(&bytes).map_err(|e| format!("{}: {e}", elf.display()))?;
+        image.stack = stack;
+        println!("{dev}: worst-case stack {stack} B ({indirect} indirect calls not followed); deepest path:");
+        for p in &path {
+            println!("    {p}");
+        }
         let module = root.join("generated/src").join(format!("{dev}.rs"));
         let text = std::fs::read_to_string(&module).map_err(|e| format!("{}: {e}", module.display()))?;
         let entries = entry_count(&text).ok_or_else(|| format!("{}: no ENTRIES table", module.display()))?;
@@ -144,14 +159,15 @@ pub fn main(args: &[String]) -> Result<(), String> {
     for (dev, entries, img) in &rows {
         let s = img.sizes;
         println!(
-            "{dev:<6} {entries:>7} {:>7} {:>8} {:>8} {:>6} {:>6} {:>8} {:>7}",
+            "{dev:<6} {entries:>7} {:>7} {:>8} {:>8} {:>6} {:>6} {:>8} {:>7} {:>6}",
             s.vectors,
             s.text,
             s.rodata,
             s.data,
             s.bss,
             s.flash(),
-            s.ram()
+            s.ram(),
+            img.stack
         );
     }
     check(&rows)
@@ -181,6 +197,9 @@ pub fn check(rows: &[(&str, u64, Image)]) -> Result<(), String> {
         }
     }
     for (dev, _, img) in rows {
+        if img.stack > STACK {
+            errors.push(format!("{dev} firmware: up to {} bytes of stack, budget {STACK}", img.stack));
+        }
         if !img.fmt_symbols.is_empty() {
             let some: Vec<&str> = img.fmt_symbols.iter().take(5).map(String::as_str).collect();
             errors.push(format!(
@@ -219,6 +238,7 @@ mod tests {
         let img = |flash: u64, ram: u64, fmt: &[&str]| Image {
             sizes: Sizes { text: flash, bss: ram, ..Sizes::default() },
             fmt_symbols: fmt.iter().map(|s| s.to_string()).collect(),
+            stack: ram / 4,
         };
         assert!(check(&[("drcs", 300, img(30_000, 4000, &[])), ("akd", 500, img(33_200, 4000, &[]))]).is_ok());
         let e = check(&[
@@ -240,5 +260,202 @@ mod tests {
         assert!(img.sizes.text > 0);
         assert!(!img.fmt_symbols.is_empty(), "a std test binary formats");
         assert!(read_elf(b"not an elf").is_err());
+    }
+}
+
+/// A static upper bound of the stack a Thumb-2 program uses, from its ELF.
+pub mod stack {
+    use std::collections::BTreeMap;
+
+    use object::{Object, ObjectSection, ObjectSymbol, SymbolKind};
+
+    /// One function: where it starts, its frame, whom it calls.
+    #[derive(Clone, Debug, Default)]
+    pub struct Function {
+        /// Symbol name.
+        pub name: String,
+        /// Bytes its prologue takes from the stack (pushes, `sub sp`, `vpush`), all added up.
+        pub frame: u64,
+        /// Start addresses of the functions it calls (`bl`) or branches to (a tail call).
+        pub calls: Vec<u64>,
+        /// Calls through a register (`blx rN`): targets unknown.
+        pub indirect: usize,
+    }
+
+    /// The worst-case stack from `root` through the call graph: `(bytes, path)`; `None` for a
+    /// cycle (recursion) or an unknown root.
+    pub fn worst(funcs: &BTreeMap<u64, Function>, root: u64) -> Option<(u64, Vec<String>)> {
+        fn go(
+            funcs: &BTreeMap<u64, Function>,
+            at: u64,
+            on_path: &mut Vec<u64>,
+            memo: &mut BTreeMap<u64, (u64, Vec<String>)>,
+        ) -> Option<(u64, Vec<String>)> {
+            if let Some(m) = memo.get(&at) {
+                return Some(m.clone());
+            }
+            if on_path.contains(&at) {
+                return None;
+            }
+            let f = funcs.get(&at)?;
+            on_path.push(at);
+            let mut best = (0, Vec::new());
+            for &c in &f.calls {
+                if c == at || !funcs.contains_key(&c) {
+                    continue;
+                }
+                let sub = go(funcs, c, on_path, memo)?;
+                if sub.0 > best.0 {
+                    best = sub;
+                }
+            }
+            on_path.pop();
+            let mut path = vec![format!("{} ({} B)", f.name, f.frame)];
+            path.extend(best.1);
+            let r = (f.frame + best.0, path);
+            memo.insert(at, r.clone());
+            Some(r)
+        }
+        go(funcs, root, &mut Vec::new(), &mut BTreeMap::new())
+    }
+
+    /// `ThumbExpandImm` for the rotated forms a stack adjustment uses.
+    fn expand_imm(imm12: u32) -> u64 {
+        let imm8 = imm12 & 0xFF;
+        if imm12 >> 10 == 0 {
+            return u64::from(match (imm12 >> 8) & 3 {
+                0 => imm8,
+                1 => imm8 << 16 | imm8,
+                2 => imm8 << 24 | imm8 << 8,
+                _ => imm8 << 24 | imm8 << 16 | imm8 << 8 | imm8,
+            });
+        }
+        let unrotated = 0x80 | (imm12 & 0x7F);
+        u64::from(unrotated.rotate_right(imm12 >> 7))
+    }
+
+    /// Decodes one function's code (Thumb-2, little-endian) starting at `addr`.
+    pub fn decode(name: &str, addr: u64, code: &[u8]) -> Function {
+        let mut f = Function { name: name.to_owned(), ..Function::default() };
+        let half = |i: usize| code.get(i..i + 2).map(|b| u32::from(u16::from_le_bytes([b[0], b[1]])));
+        let mut movw = [None::<u64>; 16];
+        let mut i = 0;
+        while let Some(h1) = half(i) {
+            let wide = matches!(h1 >> 11, 0b11101..=0b11111);
+            if !wide {
+                if h1 & 0xFE00 == 0xB400 {
+                    f.frame += 4 * u64::from((h1 & 0xFF).count_ones() + ((h1 >> 8) & 1));
+                } else if h1 & 0xFF80 == 0xB080 {
+                    f.frame += u64::from(h1 & 0x7F) * 4;
+                } else if h1 & 0xFF87 == 0x4780 {
+                    f.indirect += 1;
+                }
+                i += 2;
+                continue;
+            }
+            let Some(h2) = half(i + 2) else { break };
+            let pc = addr + i as u64 + 4;
+            if h1 == 0xE92D {
+                f.frame += 4 * u64::from((h2 & 0x5FFF).count_ones());
+            } else if h1 == 0xF84D && h2 & 0x0FFF == 0x0D04 {
+                f.frame += 4;
+            } else if h1 & 0xFFBF == 0xED2D && (h2 >> 9) & 7 == 5 {
+                f.frame += u64::from(h2 & 0xFF) * 4;
+            } else if (h1 & 0xFBEF == 0xF1AD || h1 & 0xFBFF == 0xF2AD) && h2 & 0x8F00 == 0x0D00 {
+                let imm12 = ((h1 >> 10) & 1) << 11 | ((h2 >> 12) & 7) << 8 | (h2 & 0xFF);
+                f.frame += if h1 & 0x0200 != 0 { u64::from(imm12) } else { expand_imm(imm12) };
+            } else if h1 & 0xFBF0 == 0xF240 {
+                let imm16 = (h1 & 0xF) << 12 | ((h1 >> 10) & 1) << 11 | ((h2 >> 12) & 7) << 8 | (h2 & 0xFF);
+                movw[((h2 >> 8) & 0xF) as usize] = Some(u64::from(imm16));
+            } else if h1 == 0xEBAD && (h2 >> 8) & 0xF == 13 {
+                f.frame += movw[(h2 & 0xF) as usize].unwrap_or(0);
+            } else if h1 & 0xF800 == 0xF000 && (h2 & 0xD000 == 0xD000 || h2 & 0xD000 == 0x9000) {
+                // BL, or B.W (T4) leaving the function: a tail call.
+                let s = (h1 >> 10) & 1;
+                let (j1, j2) = ((h2 >> 13) & 1, (h2 >> 11) & 1);
+                let (i1, i2) = (!(j1 ^ s) & 1, !(j2 ^ s) & 1);
+                let imm = s << 24 | i1 << 23 | i2 << 22 | (h1 & 0x3FF) << 12 | (h2 & 0x7FF) << 1;
+                let off = ((imm << 7) as i32 >> 7) as i64;
+                let target = (pc as i64 + off) as u64;
+                let inside = target >= addr && target < addr + code.len() as u64;
+                if h2 & 0xD000 == 0xD000 || !inside {
+                    f.calls.push(target);
+                }
+            }
+            i += 4;
+        }
+        f
+    }
+
+    /// Every function of an ELF, by start address.
+    pub fn functions(bytes: &[u8]) -> Result<BTreeMap<u64, Function>, String> {
+        let file = object::File::parse(bytes).map_err(|e| format!("not an object file: {e}"))?;
+        let text = file.section_by_name(".text").ok_or("no .text section")?;
+        let data = text.data().map_err(|e| format!(".text: {e}"))?;
+        let base = text.address();
+        let mut funcs = BTreeMap::new();
+        for s in file.symbols().filter(|s| s.kind() == SymbolKind::Text && s.size() > 0) {
+            let addr = s.address() & !1;
+            let Some(start) = addr.checked_sub(base).map(|o| o as usize) else { continue };
+            let Some(code) = data.get(start..start + s.size() as usize) else { continue };
+            funcs.insert(addr, decode(s.name().unwrap_or("?"), addr, code));
+        }
+        Ok(funcs)
+    }
+
+    /// The worst-case stack from the reset handler, plus what an exception adds: the largest
+    /// handler's own worst case and the 104 bytes the core stacks for it (with the FPU's
+    /// registers). `(bytes, path from Reset, indirect calls seen)`.
+    pub fn estimate(bytes: &[u8]) -> Result<(u64, Vec<String>, usize), String> {
+        let funcs = functions(bytes)?;
+        let by_name = |n: &str| funcs.iter().find(|(_, f)| f.name == n).map(|(a, _)| *a);
+        let reset = by_name("Reset").ok_or("no Reset symbol")?;
+        let (main, path) = worst(&funcs, reset).ok_or("recursion on the path from Reset: no static bound")?;
+        let mut exception = 0;
+        for h in ["SysTick", "HardFault_", "DefaultHandler_"] {
+            if let Some(a) = by_name(h) {
+                exception = exception.max(worst(&funcs, a).map_or(0, |w| w.0));
+            }
+        }
+        let indirect = funcs.values().map(|f| f.indirect).sum();
+        Ok((main + exception + 104, path, indirect))
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+
+        #[test]
+        fn prologues_and_calls_decode() {
+            // push {r4-r7, lr}; sub sp, #16; push.w {r8, r9, r11}; vpush {d8}; bl +0x100
+            let code: Vec<u8> = [0xB5F0u16, 0xB084, 0xE92D, 0x0B00, 0xED2D, 0x8B02, 0xF000, 0xF87A]
+                .iter()
+                .flat_map(|h| h.to_le_bytes())
+                .collect();
+            let f = decode("f", 0x1000, &code);
+            assert_eq!(f.frame, 20 + 16 + 12 + 8);
+            assert_eq!(f.calls, [0x1000 + 12 + 4 + 0xF4]);
+            // sub.w sp, sp, #4096 (i:imm3:imm8 = 0b0_100_10000000 → 0x80 ror 9) and subw sp, #1234.
+            let big: Vec<u8> = [0xF5AD, 0x5D80, 0xF2AD, 0x4DD2].iter().flat_map(|h: &u16| h.to_le_bytes()).collect();
+            assert_eq!(decode("g", 0, &big).frame, 4096 + 1234);
+        }
+
+        #[test]
+        fn the_worst_path_adds_frames_and_recursion_has_no_bound() {
+            let mut funcs = BTreeMap::new();
+            let f = |name: &str, frame, calls: &[u64]| Function {
+                name: name.into(),
+                frame,
+                calls: calls.to_vec(),
+                indirect: 0,
+            };
+            funcs.insert(1, f("a", 8, &[2, 3]));
+            funcs.insert(2, f("b", 100, &[]));
+            funcs.insert(3, f("c", 16, &[4]));
+            funcs.insert(4, f("d", 96, &[]));
+            assert_eq!(worst(&funcs, 1).unwrap().0, 120);
+            funcs.insert(4, f("d", 96, &[3]));
+            assert_eq!(worst(&funcs, 1), None);
+        }
     }
 }

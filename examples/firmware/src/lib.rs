@@ -93,15 +93,21 @@ impl Firmware {
         }
     }
 
-    /// Builds the firmware in place, in `place` (a `static` of the binary): every value of the
+    /// Builds the firmware in place, in `place` (a `static` of the binary), with
+    /// [`Device::init_in_place`](od_runtime::Device::init_in_place): every value of the
     /// dictionary zero, which the device's first poll replaces with the defaults (its reset
     /// node). Nothing of it needs an image in flash, and nothing is built on the stack first.
     pub fn init(place: &mut core::mem::MaybeUninit<Firmware>, node: NodeId) -> &mut Firmware {
-        place.write(Self {
-            dev: Dev::with_capacity(Od::zeroed(), Axis::new(), NoStorage, node),
-            link: CanLink::new(),
-            last_ms: 0,
-        })
+        let p = place.as_mut_ptr();
+        // SAFETY: the three fields of `*p` are written once each (the device in place), through
+        // raw pointers into `place`, which is valid for writes and exclusively ours.
+        unsafe {
+            let dev = &mut *core::ptr::addr_of_mut!((*p).dev).cast::<core::mem::MaybeUninit<Dev>>();
+            Dev::init_in_place(dev, Od::zeroed(), Axis::new(), NoStorage, node);
+            core::ptr::addr_of_mut!((*p).link).write(CanLink::new());
+            core::ptr::addr_of_mut!((*p).last_ms).write(0);
+            place.assume_init_mut()
+        }
     }
 
     /// One turn of the main loop at time `now`: the bus (receive, device services, transmit),

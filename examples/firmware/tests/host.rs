@@ -43,18 +43,29 @@ impl embedded_can::nb::Can for BusCan {
 }
 
 struct Bench {
-    fw: Firmware,
+    fw: &'static mut Firmware,
     can: BusCan,
     master: LocalEndpoint,
     now: u64,
 }
 
 impl Bench {
+    /// The firmware as the binary builds it: in place, from a zeroed dictionary.
     fn new() -> Self {
+        let place = Box::leak(Box::new(std::mem::MaybeUninit::uninit()));
+        Self::with(Firmware::init(place, NodeId::new(NODE).unwrap()))
+    }
+
+    /// The firmware built by the `const fn` (the dictionary starts from its defaults).
+    fn from_const() -> Self {
+        Self::with(Box::leak(Box::new(Firmware::new(NodeId::new(NODE).unwrap()))))
+    }
+
+    fn with(fw: &'static mut Firmware) -> Self {
         let bus = MemoryBus::new();
         let can = BusCan(bus.endpoint());
         let master = bus.endpoint();
-        Self { fw: Firmware::new(NodeId::new(NODE).unwrap()), can, master, now: 0 }
+        Self { fw, can, master, now: 0 }
     }
 
     /// Runs the firmware for `ms` milliseconds in 100 µs turns; returns what it sent.
@@ -95,7 +106,11 @@ impl Bench {
 
 #[test]
 fn boots_enables_and_moves_to_the_target() {
-    let mut b = Bench::new();
+    boot_enable_move(Bench::new());
+    boot_enable_move(Bench::from_const());
+}
+
+fn boot_enable_move(mut b: Bench) {
     assert_eq!(b.run(1), ["705 00"], "boot-up");
     b.send(0x000, &[0x01, NODE]);
     assert_eq!(b.fw.device().nmt_state(), od_runtime::NmtState::Operational);
@@ -128,6 +143,8 @@ fn boots_enables_and_moves_to_the_target() {
 fn sync_answers_with_the_synchronous_tpdo() {
     let mut b = Bench::new();
     b.run(1);
+    // The defaults are in place after the boot (the dictionary started zeroed).
+    assert_eq!(b.sdo_read(0x1800, 1), 0x180 + u32::from(NODE));
     // TPDO1 (statusword, by the DRCS's default mapping) made synchronous, every SYNC.
     b.sdo_write(0x1800, 2, &[1]);
     let sw = b.sdo_read(0x6041, 0) as u16;
