@@ -574,10 +574,14 @@ PDOMapping=0
     static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
         pages: ::od_runtime::__private_v1::pages(&OBJECTS),
         bits: &::od_runtime::__private_v1::bits::<7>(&OBJECTS),
-        ranks: &::od_runtime::__private_v1::ranks::<7>(&OBJECTS),
-        runs: &[
-            0, 1, 2, 3, 4, 9, 12, 16, 19, 24, 27, 28, 29, 30, 31, 32, 36, 37, 38, 39, 40,
-            41, 42, 43, 44, 47,
+        ranks: &[
+            [0, 9, 9, 9],
+            [9, 12, 12, 12],
+            [12, 16, 16, 16],
+            [16, 19, 19, 19],
+            [19, 27, 27, 27],
+            [27, 37, 37, 37],
+            [37, 37, 44, 47],
         ],
         entries: &ENTRIES,
     };

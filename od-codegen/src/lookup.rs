@@ -14,8 +14,7 @@ use quote::quote;
 use crate::lit;
 use crate::support::rt;
 
-/// The most objects the tables can number (ranks are `u16`), and the most entries (`runs`
-/// holds entry positions and their count as `u16`).
+/// The most entries (and so objects) the tables can number (ranks are `u16` positions).
 pub(crate) const MAX_OBJECTS: usize = u16::MAX as usize;
 
 /// The most pages (distinct high bytes of the indices; page numbers are a `u8` plus one).
@@ -28,10 +27,8 @@ pub(crate) struct Tables {
     pub pages: Vec<u8>,
     /// Per page: the low bytes that have an object.
     pub bits: Vec<[u64; 4]>,
-    /// Per page: the number of the first object of each word.
+    /// Per page and word: the first entry at or after the word's first index.
     pub ranks: Vec<[u16; 4]>,
-    /// Per object: its first entry; then the number of entries.
-    pub runs: Vec<u16>,
 }
 
 /// The tables, or `None` past [`MAX_OBJECTS`] objects or [`MAX_PAGES`] pages.
@@ -51,27 +48,19 @@ pub(crate) fn build(keys: &[(u16, u8)]) -> Option<Tables> {
     if highs.len() > MAX_PAGES {
         return None;
     }
-    let mut t = Tables {
-        pages: vec![0; 256],
-        bits: vec![[0; 4]; highs.len()],
-        ranks: vec![[0; 4]; highs.len()],
-        runs: Vec::with_capacity(objects.len() + 1),
-    };
+    let mut t = Tables { pages: vec![0; 256], bits: vec![[0; 4]; highs.len()], ranks: vec![[0; 4]; highs.len()] };
     for (k, h) in highs.iter().enumerate() {
         t.pages[usize::from(*h)] = u8::try_from(k + 1).ok()?;
+        for w in 0..4u16 {
+            let start = u16::from(*h) << 8 | w * 64;
+            t.ranks[k][usize::from(w)] = u16::try_from(keys.partition_point(|key| key.0 < start)).ok()?;
+        }
     }
-    let mut seen = vec![[false; 4]; highs.len()];
-    for (n, &(index, first, _)) in objects.iter().enumerate() {
+    for &(index, _, _) in &objects {
         let page = usize::from(t.pages[usize::from(index >> 8)]) - 1;
         let low = usize::from(index & 0xFF);
         t.bits[page][low / 64] |= 1 << (low % 64);
-        if !seen[page][low / 64] {
-            seen[page][low / 64] = true;
-            t.ranks[page][low / 64] = u16::try_from(n).ok()?;
-        }
-        t.runs.push(u16::try_from(first).ok()?);
     }
-    t.runs.push(u16::try_from(keys.len()).ok()?);
     Some(t)
 }
 
@@ -87,15 +76,17 @@ pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
     let n_objects = Literal::usize_unsuffixed(objects.len());
     let n_pages = Literal::usize_unsuffixed(t.bits.len());
     let objects = objects.iter().map(|i| lit::hex(u64::from(*i), 4));
-    let runs = t.runs.iter().map(|r| Literal::u16_unsuffixed(*r));
+    let ranks = t.ranks.iter().map(|r| {
+        let r = r.iter().map(|x| Literal::u16_unsuffixed(*x));
+        quote!([#(#r),*])
+    });
     Some(quote! {
         static OBJECTS: [u16; #n_objects] = [#(#objects),*];
 
         static LOOKUP: #rt::Lookup = #rt::Lookup {
             pages: #rt::pages(&OBJECTS),
             bits: &#rt::bits::<#n_pages>(&OBJECTS),
-            ranks: &#rt::ranks::<#n_pages>(&OBJECTS),
-            runs: &[#(#runs),*],
+            ranks: &[#(#ranks),*],
             entries: &ENTRIES,
         };
     })
@@ -122,13 +113,11 @@ mod tests {
         assert_eq!(od_runtime::__private_v1::pages(&objects), pages);
         // The largest page count there is; the generator sizes the arrays exactly.
         let bits = od_runtime::__private_v1::bits::<MAX_PAGES>(&objects);
-        let ranks = od_runtime::__private_v1::ranks::<MAX_PAGES>(&objects);
         assert_eq!(&bits[..t.bits.len()], &t.bits[..]);
-        assert_eq!(&ranks[..t.ranks.len()], &t.ranks[..]);
         assert!(bits[t.bits.len()..].iter().all(|b| *b == [0; 4]));
         let entries =
             keys.iter().map(|&(index, sub)| EntryInfo::new(index, sub, DataType::Unsigned8, Access::Ro, false));
-        Lookup { pages, bits: leak(t.bits), ranks: leak(t.ranks), runs: leak(t.runs), entries: leak(entries.collect()) }
+        Lookup { pages, bits: leak(t.bits), ranks: leak(t.ranks), entries: leak(entries.collect()) }
     }
 
     /// What a binary search over the sorted keys says.

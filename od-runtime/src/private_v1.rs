@@ -300,37 +300,29 @@ pub fn slot_mut<D: Table>(d: &mut D, pos: usize) -> Option<SlotMut<'_>> {
 // Lookup
 // ---------------------------------------------------------------------------------------------
 
-/// The lookup tables of a dictionary: `(index, sub)` → position in its `ENTRIES` table, in a
-/// constant number of steps.
+/// The lookup tables of a dictionary: `(index, sub)` → position in its `ENTRIES` table.
 ///
-/// The entries are sorted by `(index, sub)`, so each object's entries are one run. Finding an
-/// entry takes two steps:
+/// The entries are sorted by `(index, sub)`. The index's high byte selects a *page*
+/// ([`pages`](Self::pages): its number plus one, 0 when no object has that high byte). A page
+/// is a set of 256 bits, one per low byte, in four 64-bit words ([`bits`](Self::bits)), and
+/// [`ranks`](Self::ranks) holds, per word, the first entry at or after the word's first index.
+/// An object whose bit is set has its first entry at least `k` entries past its word's rank,
+/// `k` being the set bits below its own (each object before it has an entry), and before the
+/// next word's rank. Objects are mostly one entry each, so the entry is tried at
+/// `rank + k + sub` (one comparison); otherwise a binary search of that stretch finds it.
 ///
-/// 1. **Index → object number.** The index's high byte selects a *page*
-///    ([`pages`](Self::pages): its number plus one, 0 when no object has that high byte). A
-///    page is a set of 256 bits, one per low byte, in four 64-bit words
-///    ([`bits`](Self::bits)); the object's number is the number of the first object of its
-///    word ([`ranks`](Self::ranks)) plus the set bits below its own in that word.
-/// 2. **Object → entry**: [`runs`](Self::runs) holds each object's first entry (and, last,
-///    the number of entries), so an object's entries are `runs[n]..runs[n + 1]`. Sub-indices
-///    are almost always `0, 1, 2, …`, so the entry is tried at `first + sub` and confirmed with
-///    the sub-index in [`entries`](Self::entries); objects with gaps fall back to a binary
-///    search of their run.
-///
-/// A dictionary with `O` objects in `P` distinct high bytes needs `256 + 40·P + 2·O` bytes
-/// besides its entry table. The generator refuses more than 65535 objects or entries, or 255
-/// pages.
+/// A dictionary with `P` distinct high bytes needs `256 + 40·P` bytes besides its entry
+/// table ([`entries`](Self::entries), which gives the keys). The generator refuses more than
+/// 65535 entries or 255 pages.
 #[derive(Debug)]
 pub struct Lookup {
     /// Per high byte: its page's number plus one, or 0.
     pub pages: [u8; 256],
     /// Per page: which low bytes have an object, 64 per word.
     pub bits: &'static [[u64; 4]],
-    /// Per page: the number of the first object of each word.
+    /// Per page and word: the first entry whose index is at or after the word's first index.
     pub ranks: &'static [[u16; 4]],
-    /// Per object: its first entry; then the number of entries.
-    pub runs: &'static [u16],
-    /// The entry table (`ENTRIES`), for the sub-indices.
+    /// The entry table (`ENTRIES`).
     pub entries: &'static [EntryInfo],
 }
 
@@ -366,48 +358,34 @@ pub const fn bits<const P: usize>(objects: &[u16]) -> [[u64; 4]; P] {
     bits
 }
 
-/// [`Lookup::ranks`] for the sorted index of every object; `P` is the number of pages.
-pub const fn ranks<const P: usize>(objects: &[u16]) -> [[u16; 4]; P] {
-    let pages = pages(objects);
-    let mut ranks = [[0u16; 4]; P];
-    let mut i = objects.len();
-    // From the last object down: each word's rank ends as the number of its first object.
-    while i > 0 {
-        i -= 1;
-        let (high, low) = ((objects[i] >> 8) as usize, (objects[i] & 0xFF) as usize);
-        let page = pages[high] as usize;
-        if page >= 1 && page <= P && i <= u16::MAX as usize {
-            ranks[page - 1][low / 64] = i as u16;
-        }
-    }
-    ranks
-}
-
 /// Position of `(index, sub)` in a dictionary's entry table: `Err(NO_OBJECT)` if the index is
 /// absent, `Err(NO_SUB_INDEX)` if only the sub-index is.
 #[inline]
 pub fn position(t: &Lookup, index: u16, sub: u8) -> Result<usize, AbortCode> {
-    let page = usize::from(t.pages[usize::from(index >> 8)]);
+    let page = usize::from(t.pages[usize::from(index >> 8)]).wrapping_sub(1);
     let low = usize::from(index & 0xFF);
     let (word, bit) = (low / 64, low % 64);
-    let (Some(bits), Some(ranks)) = (t.bits.get(page.wrapping_sub(1)), t.ranks.get(page.wrapping_sub(1))) else {
+    let (Some(bits), Some(ranks)) = (t.bits.get(page), t.ranks.get(page)) else {
         return Err(AbortCode::NO_OBJECT);
     };
     let w = bits[word];
     if (w >> bit) & 1 == 0 {
         return Err(AbortCode::NO_OBJECT);
     }
-    let obj = usize::from(ranks[word]) + (w & ((1u64 << bit) - 1)).count_ones() as usize;
-    let (Some(&first), Some(&end)) = (t.runs.get(obj), t.runs.get(obj + 1)) else {
-        return Err(AbortCode::NO_OBJECT);
+    let lo = usize::from(ranks[word]) + (w & ((1u64 << bit) - 1)).count_ones() as usize;
+    let hi = match ranks.get(word + 1) {
+        Some(&next) => usize::from(next),
+        None => t.ranks.get(page + 1).map_or(t.entries.len(), |r| usize::from(r[0])),
     };
-    let (first, end) = (usize::from(first), usize::from(end));
-    let direct = first + usize::from(sub);
-    if direct < end && t.entries.get(direct).is_some_and(|e| e.sub == sub) {
-        return Ok(direct);
+    let guess = lo + usize::from(sub);
+    if guess < hi && t.entries.get(guess).is_some_and(|e| e.index == index && e.sub == sub) {
+        return Ok(guess);
     }
-    match t.entries.get(first..end) {
-        Some(run) => run.binary_search_by_key(&sub, |e| e.sub).map(|p| first + p).map_err(|_| AbortCode::NO_SUB_INDEX),
+    match t.entries.get(lo..hi) {
+        Some(run) => run
+            .binary_search_by(|e| (e.index, e.sub).cmp(&(index, sub)))
+            .map(|p| lo + p)
+            .map_err(|_| AbortCode::NO_SUB_INDEX),
         None => Err(AbortCode::NO_OBJECT),
     }
 }

@@ -33,8 +33,7 @@ pub mod tiny {
     static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
         pages: ::od_runtime::__private_v1::pages(&OBJECTS),
         bits: &::od_runtime::__private_v1::bits::<1>(&OBJECTS),
-        ranks: &::od_runtime::__private_v1::ranks::<1>(&OBJECTS),
-        runs: &[0, 1],
+        ranks: &[[0, 1, 1, 1]],
         entries: &ENTRIES,
     };
     /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
