@@ -29,6 +29,10 @@ pub(crate) struct Tables {
     pub bits: Vec<[u64; 4]>,
     /// Per page and word: the first entry at or after the word's first index.
     pub ranks: Vec<[u16; 4]>,
+    /// Per page and word: the number of the first object at or after the word's first index.
+    pub objects: Vec<[u16; 4]>,
+    /// Per object: entries of the objects before it in its word beyond one each, at most 255.
+    pub extra: Vec<u8>,
 }
 
 /// The tables, or `None` past [`MAX_OBJECTS`] objects or [`MAX_PAGES`] pages.
@@ -48,18 +52,30 @@ pub(crate) fn build(keys: &[(u16, u8)]) -> Option<Tables> {
     if highs.len() > MAX_PAGES {
         return None;
     }
-    let mut t = Tables { pages: vec![0; 256], bits: vec![[0; 4]; highs.len()], ranks: vec![[0; 4]; highs.len()] };
+    let n = highs.len();
+    let mut t = Tables {
+        pages: vec![0; 256],
+        bits: vec![[0; 4]; n],
+        ranks: vec![[0; 4]; n],
+        objects: vec![[0; 4]; n],
+        extra: Vec::with_capacity(objects.len()),
+    };
     for (k, h) in highs.iter().enumerate() {
         t.pages[usize::from(*h)] = u8::try_from(k + 1).ok()?;
         for w in 0..4u16 {
             let start = u16::from(*h) << 8 | w * 64;
             t.ranks[k][usize::from(w)] = u16::try_from(keys.partition_point(|key| key.0 < start)).ok()?;
+            t.objects[k][usize::from(w)] = u16::try_from(objects.partition_point(|o| o.0 < start)).ok()?;
         }
     }
-    for &(index, _, _) in &objects {
+    for (number, &(index, first, _)) in objects.iter().enumerate() {
         let page = usize::from(t.pages[usize::from(index >> 8)]) - 1;
         let low = usize::from(index & 0xFF);
         t.bits[page][low / 64] |= 1 << (low % 64);
+        // `first` is `rank + k + extra`, with `k` the objects before it in its word.
+        let k = number - usize::from(t.objects[page][low / 64]);
+        let extra = first - usize::from(t.ranks[page][low / 64]) - k;
+        t.extra.push(u8::try_from(extra).unwrap_or(u8::MAX));
     }
     Some(t)
 }
@@ -76,10 +92,16 @@ pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
     let n_objects = Literal::usize_unsuffixed(objects.len());
     let n_pages = Literal::usize_unsuffixed(t.bits.len());
     let objects = objects.iter().map(|i| lit::hex(u64::from(*i), 4));
-    let ranks = t.ranks.iter().map(|r| {
-        let r = r.iter().map(|x| Literal::u16_unsuffixed(*x));
-        quote!([#(#r),*])
-    });
+    let words = |v: &[[u16; 4]]| -> Vec<TokenStream> {
+        v.iter()
+            .map(|r| {
+                let r = r.iter().map(|x| Literal::u16_unsuffixed(*x));
+                quote!([#(#r),*])
+            })
+            .collect()
+    };
+    let (ranks, numbers) = (words(&t.ranks), words(&t.objects));
+    let extra = t.extra.iter().map(|e| Literal::u8_unsuffixed(*e));
     Some(quote! {
         static OBJECTS: [u16; #n_objects] = [#(#objects),*];
 
@@ -87,6 +109,8 @@ pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
             pages: #rt::pages(&OBJECTS),
             bits: &#rt::bits::<#n_pages>(&OBJECTS),
             ranks: &[#(#ranks),*],
+            objects: &[#(#numbers),*],
+            extra: &[#(#extra),*],
             entries: &ENTRIES,
         };
     })
@@ -117,7 +141,14 @@ mod tests {
         assert!(bits[t.bits.len()..].iter().all(|b| *b == [0; 4]));
         let entries =
             keys.iter().map(|&(index, sub)| EntryInfo::new(index, sub, DataType::Unsigned8, Access::Ro, false));
-        Lookup { pages, bits: leak(t.bits), ranks: leak(t.ranks), entries: leak(entries.collect()) }
+        Lookup {
+            pages,
+            bits: leak(t.bits),
+            ranks: leak(t.ranks),
+            objects: leak(t.objects),
+            extra: leak(t.extra),
+            entries: leak(entries.collect()),
+        }
     }
 
     /// What a binary search over the sorted keys says.
@@ -163,6 +194,23 @@ mod tests {
         assert_eq!(position(&l, 0x20FF, 1), Err(AbortCode::NO_SUB_INDEX));
         let empty = lookup(&[]);
         assert_eq!(position(&empty, 0x1000, 0), Err(AbortCode::NO_OBJECT));
+    }
+
+    #[test]
+    fn objects_past_255_extra_entries_in_their_word_are_searched() {
+        // 0x2000 and 0x2001 with 256 entries each: 0x2002's extra is 510, kept as 255 ("more").
+        let mut keys: Vec<(u16, u8)> = (0..=255).map(|s| (0x2000, s)).collect();
+        keys.extend((0..=255).map(|s| (0x2001, s)));
+        keys.extend([(0x2002, 0), (0x2002, 1), (0x2003, 7), (0x2040, 0)]);
+        let t = build(&keys).unwrap();
+        assert_eq!(t.extra, [0, 255, 255, 255, 0]);
+        let l = lookup(&keys);
+        for (pos, &(index, sub)) in keys.iter().enumerate() {
+            assert_eq!(position(&l, index, sub), Ok(pos));
+        }
+        assert_eq!(position(&l, 0x2002, 2), Err(AbortCode::NO_SUB_INDEX));
+        assert_eq!(position(&l, 0x2003, 0), Err(AbortCode::NO_SUB_INDEX));
+        assert_eq!(position(&l, 0x2004, 0), Err(AbortCode::NO_OBJECT));
     }
 
     #[test]

@@ -300,20 +300,23 @@ pub fn slot_mut<D: Table>(d: &mut D, pos: usize) -> Option<SlotMut<'_>> {
 // Lookup
 // ---------------------------------------------------------------------------------------------
 
-/// The lookup tables of a dictionary: `(index, sub)` → position in its `ENTRIES` table.
+/// The lookup tables of a dictionary: `(index, sub)` → position in its `ENTRIES` table, in a
+/// constant number of steps for almost every key.
 ///
 /// The entries are sorted by `(index, sub)`. The index's high byte selects a *page*
 /// ([`pages`](Self::pages): its number plus one, 0 when no object has that high byte). A page
-/// is a set of 256 bits, one per low byte, in four 64-bit words ([`bits`](Self::bits)), and
-/// [`ranks`](Self::ranks) holds, per word, the first entry at or after the word's first index.
-/// An object whose bit is set has its first entry at least `k` entries past its word's rank,
-/// `k` being the set bits below its own (each object before it has an entry), and before the
-/// next word's rank. Objects are mostly one entry each, so the entry is tried at
-/// `rank + k + sub` (one comparison); otherwise a binary search of that stretch finds it.
+/// is a set of 256 bits, one per low byte, in four 64-bit words ([`bits`](Self::bits)). Per
+/// word, [`ranks`](Self::ranks) holds the first entry at or after the word's first index and
+/// [`objects`](Self::objects) the number of the first object there. With `k` the set bits
+/// below the index's own, the object is number `objects + k`, and its first entry is
+/// `ranks + k` plus [`extra`](Self::extra) of the object: the entries that the objects before
+/// it in its word have beyond one each. The entry is tried at that first entry `+ sub`
+/// (sub-indices are almost always `0, 1, 2, …`); otherwise, or for an `extra` of 255 ("more"),
+/// a binary search of the word's entries finds it.
 ///
-/// A dictionary with `P` distinct high bytes needs `256 + 40·P` bytes besides its entry
-/// table ([`entries`](Self::entries), which gives the keys). The generator refuses more than
-/// 65535 entries or 255 pages.
+/// A dictionary with `O` objects in `P` distinct high bytes needs `256 + 48·P + O` bytes
+/// besides its entry table ([`entries`](Self::entries), which gives the keys). The generator
+/// refuses more than 65535 entries or 255 pages.
 #[derive(Debug)]
 pub struct Lookup {
     /// Per high byte: its page's number plus one, or 0.
@@ -322,6 +325,11 @@ pub struct Lookup {
     pub bits: &'static [[u64; 4]],
     /// Per page and word: the first entry whose index is at or after the word's first index.
     pub ranks: &'static [[u16; 4]],
+    /// Per page and word: the number of the first object at or after the word's first index.
+    pub objects: &'static [[u16; 4]],
+    /// Per object: the entries of the objects before it in its word beyond one each (255:
+    /// 255 or more).
+    pub extra: &'static [u8],
     /// The entry table (`ENTRIES`).
     pub entries: &'static [EntryInfo],
 }
@@ -372,14 +380,18 @@ pub fn position(t: &Lookup, index: u16, sub: u8) -> Result<usize, AbortCode> {
     if (w >> bit) & 1 == 0 {
         return Err(AbortCode::NO_OBJECT);
     }
-    let lo = usize::from(ranks[word]) + (w & ((1u64 << bit) - 1)).count_ones() as usize;
+    let k = (w & ((1u64 << bit) - 1)).count_ones() as usize;
+    let lo = usize::from(ranks[word]) + k;
     let hi = match ranks.get(word + 1) {
         Some(&next) => usize::from(next),
         None => t.ranks.get(page + 1).map_or(t.entries.len(), |r| usize::from(r[0])),
     };
-    let guess = lo + usize::from(sub);
-    if guess < hi && t.entries.get(guess).is_some_and(|e| e.index == index && e.sub == sub) {
-        return Ok(guess);
+    let obj = t.objects.get(page).map_or(usize::MAX, |o| usize::from(o[word]) + k);
+    if let Some(&extra) = t.extra.get(obj).filter(|e| **e < u8::MAX) {
+        let guess = lo + usize::from(extra) + usize::from(sub);
+        if guess < hi && t.entries.get(guess).is_some_and(|e| e.index == index && e.sub == sub) {
+            return Ok(guess);
+        }
     }
     match t.entries.get(lo..hi) {
         Some(run) => run

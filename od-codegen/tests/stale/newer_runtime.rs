@@ -34,6 +34,8 @@ pub mod tiny {
         pages: ::od_runtime::__private_v1::pages(&OBJECTS),
         bits: &::od_runtime::__private_v1::bits::<1>(&OBJECTS),
         ranks: &[[0, 1, 1, 1]],
+        objects: &[[0, 1, 1, 1]],
+        extra: &[0],
         entries: &ENTRIES,
     };
     /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
