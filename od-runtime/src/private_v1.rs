@@ -382,17 +382,24 @@ pub fn position(t: &Lookup, index: u16, sub: u8) -> Result<usize, AbortCode> {
     }
     let k = (w & ((1u64 << bit) - 1)).count_ones() as usize;
     let lo = usize::from(ranks[word]) + k;
-    let hi = match ranks.get(word + 1) {
-        Some(&next) => usize::from(next),
-        None => t.ranks.get(page + 1).map_or(t.entries.len(), |r| usize::from(r[0])),
-    };
+    // The probe: keys are unique, so an entry with this key is the one.
     let obj = t.objects.get(page).map_or(usize::MAX, |o| usize::from(o[word]) + k);
     if let Some(&extra) = t.extra.get(obj).filter(|e| **e < u8::MAX) {
         let guess = lo + usize::from(extra) + usize::from(sub);
-        if guess < hi && t.entries.get(guess).is_some_and(|e| e.index == index && e.sub == sub) {
+        if t.entries.get(guess).is_some_and(|e| e.index == index && e.sub == sub) {
             return Ok(guess);
         }
     }
+    search(t, page, word, lo, index, sub)
+}
+
+/// The lookup's way out: a binary search of the entries of the key's word from `lo` on.
+#[inline(never)]
+fn search(t: &Lookup, page: usize, word: usize, lo: usize, index: u16, sub: u8) -> Result<usize, AbortCode> {
+    let hi = match t.ranks.get(page).and_then(|r| r.get(word + 1)) {
+        Some(&next) => usize::from(next),
+        None => t.ranks.get(page + 1).map_or(t.entries.len(), |r| usize::from(r[0])),
+    };
     match t.entries.get(lo..hi) {
         Some(run) => run
             .binary_search_by(|e| (e.index, e.sub).cmp(&(index, sub)))
