@@ -14890,14 +14890,9 @@ PDOMapping=0
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
             ::od_runtime::__private_v1::pack_mapped(
                 map,
-                |h| match ::od_runtime::__private_v1::raw_at(self, h.get() as usize) {
-                    Some(v) => v.to_le_bytes(),
-                    None => {
-                        match self.slot(h.get() as usize) {
-                            Some(slot) => ::od_runtime::__private_v1::first8(|| 64, slot),
-                            None => [0; 8],
-                        }
-                    }
+                |h| match self.slot(h.get() as usize) {
+                    Some(slot) => ::od_runtime::__private_v1::first8(|| 64, slot),
+                    None => [0; 8],
                 },
             )
         }

@@ -731,18 +731,15 @@ pub(crate) fn dictionary(
                 self.read_at(h.get() as usize)
             }
 
-            // The read inlined into the packing loop: one switch on the data type, one load
-            // ([`raw_at`]; buffers take the slot path). It skips `read_handle`'s cut to the entry's length:
+            // The read inlined into the packing loop, one jump on the storage kind. It
+            // skips `read_handle`'s cut to the entry's length (which would look the entry up):
             // the loop cuts every value to its mapped length, which a loaded mapping makes
             // the entry's own.
             #[inline]
             fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-                #rt::pack_mapped(map, |h| match #rt::raw_at(self, h.get() as usize) {
-                    Some(v) => v.to_le_bytes(),
-                    None => match self.slot(h.get() as usize) {
-                        Some(slot) => #rt::first8(|| 64, slot),
-                        None => [0; 8],
-                    },
+                #rt::pack_mapped(map, |h| match self.slot(h.get() as usize) {
+                    Some(slot) => #rt::first8(|| 64, slot),
+                    None => [0; 8],
                 })
             }
 

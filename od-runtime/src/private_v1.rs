@@ -266,28 +266,6 @@ pub fn slot<D: Table>(d: &D, pos: usize) -> Option<Slot<'_>> {
     }
 }
 
-/// The value of entry `pos` of `D`'s table as its storage's bits, zero-extended (an `i8` as
-/// its byte, an INTEGER24 as its `i32`'s four bytes): what a PDO packs before it cuts the value
-/// to its mapped length. `None` past the table and for buffers (see [`slot`]). One switch on
-/// the data type, four loads: the PDO packing loop's read.
-#[inline(always)]
-pub fn raw_at<D: Table>(d: &D, pos: usize) -> Option<u64> {
-    let info = D::entries().get(pos)?;
-    let base = (d as *const D).cast::<u8>();
-    // SAFETY: as in `slot`: the field at the slot is stored as `kind_of(data_type)`, and each
-    // arm reads exactly that many bytes of it (a `bool`'s byte is 0 or 1).
-    unsafe {
-        let p = base.add(usize::from(info.slot));
-        Some(match kind_of(info.data_type) {
-            Kind::Bool | Kind::U8 | Kind::I8 => u64::from(p.read()),
-            Kind::U16 | Kind::I16 => u64::from(p.cast::<u16>().read()),
-            Kind::U32 | Kind::I32 | Kind::F32 => u64::from(p.cast::<u32>().read()),
-            Kind::U64 | Kind::I64 | Kind::F64 => p.cast::<u64>().read(),
-            Kind::Bytes => return None,
-        })
-    }
-}
-
 /// The value of entry `pos` of `D`'s table, mutable: `None` past the table.
 #[inline(always)]
 pub fn slot_mut<D: Table>(d: &mut D, pos: usize) -> Option<SlotMut<'_>> {
