@@ -368,7 +368,12 @@ pub const fn bits<const P: usize>(objects: &[u16]) -> [[u64; 4]; P] {
 
 /// Position of `(index, sub)` in a dictionary's entry table: `Err(NO_OBJECT)` if the index is
 /// absent, `Err(NO_SUB_INDEX)` if only the sub-index is.
-#[inline]
+///
+/// Inlined on a host; one copy on a microcontroller (`target_os = "none"`), where the half
+/// dozen callers (info, read, write, handle, the mapping check) would each carry it: 1.7 KB of
+/// flash in the example firmware.
+#[cfg_attr(target_os = "none", inline(never))]
+#[cfg_attr(not(target_os = "none"), inline)]
 pub fn position(t: &Lookup, index: u16, sub: u8) -> Result<usize, AbortCode> {
     let page = usize::from(t.pages[usize::from(index >> 8)]).wrapping_sub(1);
     let low = usize::from(index & 0xFF);
