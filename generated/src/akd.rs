@@ -6561,9 +6561,9 @@ Denotation=MOTOR.BRAKEIMM
         0x60BB, 0x60BC, 0x60BD, 0x60C0, 0x60C1, 0x60C2, 0x60C4, 0x60D0, 0x60F4, 0x60FD,
         0x60FE, 0x60FF, 0x6502,
     ];
-    static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
-        pages: ::od_runtime::__private_v1::pages(&OBJECTS),
-        bits: &::od_runtime::__private_v1::bits::<16>(&OBJECTS),
+    static LOOKUP: ::od_runtime::__private_v2::Lookup = ::od_runtime::__private_v2::Lookup {
+        pages: ::od_runtime::__private_v2::pages(&OBJECTS),
+        bits: &::od_runtime::__private_v2::bits::<16>(&OBJECTS),
         ranks: &[
             [0, 37, 37, 37],
             [37, 49, 49, 49],
@@ -6626,7 +6626,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, device_type),
@@ -6641,7 +6641,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, error_register),
@@ -6656,7 +6656,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_status_register),
@@ -6671,7 +6671,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6688,7 +6688,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6705,7 +6705,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6722,7 +6722,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6739,7 +6739,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6756,7 +6756,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6773,7 +6773,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6790,7 +6790,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6807,7 +6807,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6824,7 +6824,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6841,7 +6841,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6858,7 +6858,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, cob_id_sync_message),
@@ -6873,7 +6873,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, communication_cycle_period),
@@ -6888,8 +6888,8 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
-                ::od_runtime::__private_v1::Bytes<32>,
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_device_name),
                 ::od_runtime::od::DataType::VisibleString,
@@ -6903,8 +6903,8 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
-                ::od_runtime::__private_v1::Bytes<32>,
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_hardware_version),
                 ::od_runtime::od::DataType::VisibleString,
@@ -6918,8 +6918,8 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
-                ::od_runtime::__private_v1::Bytes<32>,
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_software_version),
                 ::od_runtime::od::DataType::VisibleString,
@@ -6933,7 +6933,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, guard_time),
@@ -6948,7 +6948,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, life_time_factor),
@@ -6963,7 +6963,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, store_parameters_number_of_entries),
@@ -6978,7 +6978,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6995,7 +6995,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7012,7 +7012,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7029,7 +7029,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, cob_id_emcy),
@@ -7044,7 +7044,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7061,7 +7061,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7078,7 +7078,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, producer_heartbeat_time),
@@ -7093,7 +7093,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_number_of_entries),
@@ -7108,7 +7108,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_vendor_id),
@@ -7123,7 +7123,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_product_code),
@@ -7138,7 +7138,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_revision_number),
@@ -7153,7 +7153,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_serial_number),
@@ -7168,7 +7168,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, os_prompt_number_of_entries),
@@ -7183,7 +7183,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, os_prompt_std_in),
@@ -7198,7 +7198,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, os_prompt_std_out),
@@ -7213,7 +7213,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7230,7 +7230,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7247,7 +7247,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7264,7 +7264,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7281,7 +7281,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7298,7 +7298,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7315,7 +7315,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7332,7 +7332,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7349,7 +7349,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7366,7 +7366,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7383,7 +7383,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7400,7 +7400,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7417,7 +7417,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7434,7 +7434,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7451,7 +7451,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7468,7 +7468,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7485,7 +7485,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7502,7 +7502,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7519,7 +7519,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7536,7 +7536,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7553,7 +7553,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7570,7 +7570,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7587,7 +7587,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7604,7 +7604,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7621,7 +7621,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7638,7 +7638,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7655,7 +7655,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7672,7 +7672,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7689,7 +7689,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7706,7 +7706,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7723,7 +7723,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7740,7 +7740,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7757,7 +7757,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7774,7 +7774,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7791,7 +7791,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7808,7 +7808,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7825,7 +7825,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7842,7 +7842,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7859,7 +7859,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7876,7 +7876,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7893,7 +7893,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7910,7 +7910,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7927,7 +7927,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7944,7 +7944,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7961,7 +7961,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7978,7 +7978,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7995,7 +7995,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8012,7 +8012,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8029,7 +8029,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8046,7 +8046,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8063,7 +8063,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8080,7 +8080,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8097,7 +8097,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8114,7 +8114,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8131,7 +8131,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8148,7 +8148,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8165,7 +8165,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8182,7 +8182,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8199,7 +8199,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8216,7 +8216,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8233,7 +8233,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8250,7 +8250,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8267,7 +8267,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8284,7 +8284,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8301,7 +8301,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8318,7 +8318,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8335,7 +8335,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8352,7 +8352,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8369,7 +8369,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8386,7 +8386,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8403,7 +8403,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8420,7 +8420,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8437,7 +8437,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8454,7 +8454,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8471,7 +8471,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8488,7 +8488,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8505,7 +8505,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8522,7 +8522,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8539,7 +8539,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8556,7 +8556,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8573,7 +8573,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8590,7 +8590,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8607,7 +8607,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8624,7 +8624,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8641,7 +8641,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8658,7 +8658,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8675,7 +8675,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8692,7 +8692,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8709,7 +8709,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8726,7 +8726,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8743,7 +8743,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8760,7 +8760,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8777,7 +8777,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8794,7 +8794,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8811,7 +8811,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8828,7 +8828,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8845,7 +8845,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8862,7 +8862,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8879,7 +8879,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8896,7 +8896,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8913,7 +8913,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8930,7 +8930,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8947,7 +8947,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8964,7 +8964,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8981,7 +8981,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8998,7 +8998,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9015,7 +9015,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9032,7 +9032,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9049,7 +9049,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9066,7 +9066,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9083,7 +9083,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9100,7 +9100,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9117,7 +9117,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9134,7 +9134,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9151,7 +9151,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9168,7 +9168,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9185,7 +9185,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9202,7 +9202,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9219,7 +9219,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9236,7 +9236,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9253,7 +9253,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, firmware_version_number_of_entries),
@@ -9268,7 +9268,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, firmware_version_major_version),
@@ -9283,7 +9283,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, firmware_version_minor_version),
@@ -9298,7 +9298,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, firmware_version_revision),
@@ -9313,7 +9313,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, firmware_version_derived_version),
@@ -9328,7 +9328,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, ascii_channel_number_of_entries),
@@ -9343,8 +9343,8 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
-                ::od_runtime::__private_v1::Bytes<32>,
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, ascii_channel_command),
                 ::od_runtime::od::DataType::VisibleString,
@@ -9358,8 +9358,8 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
-                ::od_runtime::__private_v1::Bytes<32>,
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, ascii_channel_response),
                 ::od_runtime::od::DataType::VisibleString,
@@ -9373,7 +9373,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, pv_scaling_factor_number_of_entries),
@@ -9388,7 +9388,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -9405,7 +9405,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -9422,7 +9422,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, secondary_feedback_position),
@@ -9437,7 +9437,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_current),
@@ -9452,7 +9452,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, current_actual_value),
@@ -9467,7 +9467,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, latch_position_1_positive_edge),
@@ -9482,7 +9482,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, latch_position_1_negative_edge),
@@ -9497,7 +9497,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, latch_position_2_positive_edge),
@@ -9512,7 +9512,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, latch_position_2_negative_edge),
@@ -9527,7 +9527,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rww,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, latch_control_register),
@@ -9542,7 +9542,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rwr,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, latch_status_register),
@@ -9557,7 +9557,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -9574,7 +9574,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, reset_of_changed_input_information),
@@ -9589,7 +9589,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, dummy_entry_4_bytes),
@@ -9604,7 +9604,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9621,7 +9621,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9639,7 +9639,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9657,7 +9657,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9675,7 +9675,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9693,7 +9693,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9710,7 +9710,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9728,7 +9728,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9746,7 +9746,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9764,7 +9764,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9782,7 +9782,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9800,7 +9800,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9818,7 +9818,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9836,7 +9836,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9854,7 +9854,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9872,7 +9872,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9890,7 +9890,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9908,7 +9908,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9926,7 +9926,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9944,7 +9944,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9962,7 +9962,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9980,7 +9980,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9998,7 +9998,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10015,7 +10015,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -10033,7 +10033,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10051,7 +10051,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10069,7 +10069,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10086,7 +10086,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, regen_resistor_type),
@@ -10101,7 +10101,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, regen_resistor_fault_level),
@@ -10116,7 +10116,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10133,7 +10133,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, regen_resistor_calculated_power),
@@ -10148,7 +10148,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, foldback_fault_level),
@@ -10163,7 +10163,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, foldback_fault_level_user_value),
@@ -10178,7 +10178,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, friction_compensation_value),
@@ -10193,7 +10193,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -10210,7 +10210,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, current_loop_pi_integrator_enable),
@@ -10225,7 +10225,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, overall_foldback_current_limit),
@@ -10240,7 +10240,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10257,7 +10257,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10274,7 +10274,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10291,7 +10291,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10308,7 +10308,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10325,7 +10325,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, direction_for_absolute_motion_tasks),
@@ -10340,7 +10340,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, motion_task_setting),
@@ -10355,7 +10355,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10372,7 +10372,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10389,7 +10389,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10407,7 +10407,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10425,7 +10425,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, controlled_stop_state),
@@ -10440,7 +10440,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, drive_disable_cause),
@@ -10455,7 +10455,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, dynamic_braking_maximum_current),
@@ -10470,7 +10470,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, emergency_timeout_for_braking),
@@ -10485,7 +10485,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_brake_release),
@@ -10500,7 +10500,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10517,7 +10517,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_maximum_voltage),
@@ -10532,7 +10532,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_temperature_warning_level),
@@ -10547,7 +10547,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_winding_thermal_constant),
@@ -10562,7 +10562,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10579,7 +10579,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10596,7 +10596,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10613,7 +10613,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -10630,7 +10630,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -10647,7 +10647,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -10665,7 +10665,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10682,7 +10682,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10699,7 +10699,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10716,7 +10716,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10733,7 +10733,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10750,7 +10750,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10767,7 +10767,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10784,7 +10784,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10801,7 +10801,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10818,7 +10818,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10835,7 +10835,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10852,7 +10852,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10869,7 +10869,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(
@@ -10886,7 +10886,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(
@@ -10903,7 +10903,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(
@@ -10921,7 +10921,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(
@@ -10938,7 +10938,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10956,7 +10956,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_output_position_scale_factor),
@@ -10971,7 +10971,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_position_scale_factor),
@@ -10986,7 +10986,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11003,7 +11003,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11021,7 +11021,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11039,7 +11039,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11057,7 +11057,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11075,7 +11075,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11093,7 +11093,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11111,7 +11111,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11129,7 +11129,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11147,7 +11147,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11165,7 +11165,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11183,7 +11183,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11201,7 +11201,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11219,7 +11219,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11237,7 +11237,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11255,7 +11255,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11272,7 +11272,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11290,7 +11290,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11308,7 +11308,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11326,7 +11326,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11344,7 +11344,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_loop_integral_gain),
@@ -11359,7 +11359,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11376,7 +11376,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11394,7 +11394,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11412,7 +11412,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_maximum_following_error),
@@ -11427,7 +11427,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_error_warning_level),
@@ -11442,7 +11442,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_additional_move_distance),
@@ -11457,7 +11457,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, feedback_position_offset),
@@ -11472,7 +11472,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11489,7 +11489,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, drive_motion_status),
@@ -11504,7 +11504,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, emulated_encoder_output_direction),
@@ -11519,7 +11519,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11536,7 +11536,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(
@@ -11553,7 +11553,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11570,7 +11570,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -11588,7 +11588,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11605,7 +11605,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11622,7 +11622,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11639,7 +11639,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11656,7 +11656,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11674,7 +11674,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11692,7 +11692,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11710,7 +11710,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11727,7 +11727,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11744,7 +11744,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11762,7 +11762,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11780,7 +11780,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11798,7 +11798,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11816,7 +11816,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11834,7 +11834,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11852,7 +11852,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11870,7 +11870,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11888,7 +11888,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11905,7 +11905,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11922,7 +11922,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11939,7 +11939,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11956,7 +11956,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11973,7 +11973,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11990,7 +11990,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12007,7 +12007,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12024,7 +12024,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12041,7 +12041,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -12058,7 +12058,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12075,7 +12075,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12092,7 +12092,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12109,7 +12109,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12126,7 +12126,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12143,7 +12143,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12160,7 +12160,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12177,7 +12177,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12194,7 +12194,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -12211,7 +12211,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12229,7 +12229,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12247,7 +12247,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12264,7 +12264,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12282,7 +12282,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_units),
@@ -12297,7 +12297,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, acceleration_ramp),
@@ -12312,7 +12312,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_and_jog_acceleration_ramp),
@@ -12327,7 +12327,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, hardware_enable_input_mode),
@@ -12342,7 +12342,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_voltage),
@@ -12357,7 +12357,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, deceleration_ramp),
@@ -12372,7 +12372,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_and_jog_deceleration_ramp),
@@ -12387,7 +12387,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, motion_direction),
@@ -12402,7 +12402,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_encoder_resolution),
@@ -12417,7 +12417,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, emulated_encoder_connector_mode),
@@ -12432,7 +12432,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, emulated_encoder_resolution),
@@ -12447,7 +12447,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, emulated_encoder_index_pulse_offset),
@@ -12462,7 +12462,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, feedback_type_selection),
@@ -12477,7 +12477,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_loop_proportional_gain),
@@ -12492,7 +12492,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_loop_proportional_gain),
@@ -12507,7 +12507,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12524,7 +12524,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_loop_integral_time),
@@ -12539,7 +12539,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, current_feedback),
@@ -12554,7 +12554,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, drive_foldback_current),
@@ -12569,7 +12569,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, foldback_warning_level),
@@ -12584,7 +12584,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_1_mode),
@@ -12599,7 +12599,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_2_mode),
@@ -12614,7 +12614,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_3_mode),
@@ -12629,7 +12629,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_4_mode),
@@ -12644,7 +12644,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12661,7 +12661,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12678,7 +12678,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_temperature_fault_level),
@@ -12693,7 +12693,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_holding_brake_selection),
@@ -12708,7 +12708,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_continuous_current),
@@ -12723,7 +12723,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_peak_current),
@@ -12738,7 +12738,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_torque_constant),
@@ -12753,7 +12753,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, current_loop_d_component_gain_ratio),
@@ -12768,7 +12768,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, current_loop_proportional_gain),
@@ -12783,7 +12783,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_phase),
@@ -12798,7 +12798,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_poles),
@@ -12813,7 +12813,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_maximum_velocity),
@@ -12828,7 +12828,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_foldback_current_limit),
@@ -12843,7 +12843,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_inertia),
@@ -12858,7 +12858,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_output_1_mode),
@@ -12873,7 +12873,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_output_2_mode),
@@ -12888,7 +12888,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, drive_operation_mode),
@@ -12903,7 +12903,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, next_motion_task_of_motion_task_0),
@@ -12918,7 +12918,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, regen_resistor_selection),
@@ -12933,7 +12933,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_following_error),
@@ -12948,7 +12948,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, in_position_window),
@@ -12963,7 +12963,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, maximum_following_error),
@@ -12978,7 +12978,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_resolution_numerator),
@@ -12993,7 +12993,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_resolution_denominator),
@@ -13008,7 +13008,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_current_limit_for_hard_stop),
@@ -13023,7 +13023,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, save_data_to_non_volatile_memory),
@@ -13038,7 +13038,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, set_reference_point),
@@ -13053,7 +13053,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, stop_motion_task),
@@ -13068,7 +13068,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, disable_mode),
@@ -13083,7 +13083,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, ambient_temperature),
@@ -13098,7 +13098,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, heat_sink_temperature),
@@ -13113,7 +13113,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_temperature),
@@ -13128,7 +13128,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, undervoltage_mode),
@@ -13143,7 +13143,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_feedback),
@@ -13158,7 +13158,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, dc_bus_voltage),
@@ -13173,7 +13173,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, undervoltage_fault_level),
@@ -13188,7 +13188,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, positive_velocity_limit),
@@ -13203,7 +13203,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, negative_velocity_limit),
@@ -13218,7 +13218,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, overspeed_threshold),
@@ -13233,7 +13233,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_velocity_scale_factor),
@@ -13248,7 +13248,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned64,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u64,
             >(
                 ::core::mem::offset_of!(Dictionary, initial_feedback_position),
@@ -13263,7 +13263,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, rotary_acceleration_units),
@@ -13278,7 +13278,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, motion_task_number),
@@ -13293,7 +13293,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, rotary_velocity_units),
@@ -13308,7 +13308,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, rotary_position_units),
@@ -13323,7 +13323,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, brake_apply_delay),
@@ -13338,7 +13338,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, brake_release_delay),
@@ -13353,7 +13353,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, wake_and_shake_delay_1),
@@ -13368,7 +13368,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, wake_and_shake_delay_2),
@@ -13383,7 +13383,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, wake_and_shake_current_vector_time),
@@ -13398,7 +13398,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, wake_and_shake_minimum_movement),
@@ -13413,7 +13413,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_automatic_move_flag),
@@ -13428,7 +13428,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, wake_and_shake_number_of_loops),
@@ -13443,7 +13443,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, can_baud_rate_selection),
@@ -13458,7 +13458,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pll_synchronization),
@@ -13473,7 +13473,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fieldbus_parameter_3),
@@ -13488,7 +13488,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, sync_supervision),
@@ -13503,7 +13503,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fieldbus_configuration_bits),
@@ -13518,7 +13518,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fieldbus_parameter_6),
@@ -13533,7 +13533,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fieldbus_parameter_7),
@@ -13548,7 +13548,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fieldbus_parameter_8),
@@ -13563,7 +13563,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fieldbus_parameter_9),
@@ -13578,7 +13578,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fieldbus_parameter_10),
@@ -13593,7 +13593,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_5_mode),
@@ -13608,7 +13608,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_6_mode),
@@ -13623,7 +13623,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_7_mode),
@@ -13638,7 +13638,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_position_velocity_window),
@@ -13653,7 +13653,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -13670,7 +13670,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_deadband),
@@ -13685,7 +13685,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_current_scale_factor),
@@ -13700,7 +13700,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_offset),
@@ -13715,7 +13715,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_output_current_scale_factor),
@@ -13730,7 +13730,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_output_offset),
@@ -13745,7 +13745,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, bode_excitation_update_gap),
@@ -13760,7 +13760,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, bode_current_command_amplitude),
@@ -13775,7 +13775,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, bode_injection_point),
@@ -13790,7 +13790,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, bode_prb_signal_depth),
@@ -13805,7 +13805,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fault_relay_mode),
@@ -13820,7 +13820,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, software_enable_default_state),
@@ -13835,7 +13835,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, drive_continuous_rated_current),
@@ -13850,7 +13850,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, drive_peak_rated_current),
@@ -13865,7 +13865,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, zero_procedure_current),
@@ -13880,7 +13880,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, bi_ss_sensor_position_bits),
@@ -13895,7 +13895,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, initial_feedback_value_signed),
@@ -13910,7 +13910,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, phase_finding_current),
@@ -13925,7 +13925,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feedback_poles),
@@ -13940,7 +13940,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, resolver_transformation_ratio),
@@ -13955,7 +13955,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, resolver_reference_phase_lag),
@@ -13970,7 +13970,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tracking_calibration),
@@ -13985,7 +13985,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pll_lock_threshold),
@@ -14000,7 +14000,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gearing_maximum_acceleration),
@@ -14015,7 +14015,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gearing_maximum_deceleration),
@@ -14030,7 +14030,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gearing_ratio_denominator),
@@ -14045,7 +14045,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gearing_mode),
@@ -14060,7 +14060,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gearing_ratio_numerator),
@@ -14075,7 +14075,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -14092,7 +14092,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_pitch),
@@ -14107,7 +14107,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_thermal_resistor_type),
@@ -14122,7 +14122,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_type),
@@ -14137,7 +14137,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motion_task_after_emergency_stop),
@@ -14152,7 +14152,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, following_error_mode),
@@ -14167,7 +14167,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_loop_feedback_source),
@@ -14182,7 +14182,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, service_motion_current_1),
@@ -14197,7 +14197,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, service_motion_current_2),
@@ -14212,7 +14212,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, service_motion_mode),
@@ -14227,7 +14227,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, service_motion_time_1),
@@ -14242,7 +14242,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, service_motion_time_2),
@@ -14257,7 +14257,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, software_limit_switch_enable),
@@ -14272,7 +14272,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, linear_acceleration_units),
@@ -14287,7 +14287,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, linear_position_units),
@@ -14302,7 +14302,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, linear_velocity_units),
@@ -14317,7 +14317,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, overvoltage_warning_level),
@@ -14332,7 +14332,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_loop_feedback_source),
@@ -14347,7 +14347,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_generation_mode),
@@ -14362,7 +14362,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, observer_velocity_scale),
@@ -14377,7 +14377,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, load_to_motor_inertia_ratio),
@@ -14392,7 +14392,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, observer_bandwidth),
@@ -14407,7 +14407,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, observer_mode),
@@ -14422,7 +14422,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_1_filter_mode),
@@ -14437,7 +14437,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_2_filter_mode),
@@ -14452,7 +14452,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_3_filter_mode),
@@ -14467,7 +14467,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_4_filter_mode),
@@ -14482,7 +14482,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_5_filter_mode),
@@ -14497,7 +14497,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_6_filter_mode),
@@ -14512,7 +14512,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_7_filter_mode),
@@ -14527,7 +14527,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, modbus_user_units_input),
@@ -14542,7 +14542,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, modbus_user_units_output),
@@ -14557,7 +14557,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, modbus_feedback_resolution),
@@ -14572,7 +14572,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, secondary_feedback_resolution),
@@ -14587,7 +14587,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, secondary_feedback_mode),
@@ -14602,7 +14602,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, secondary_feedback_source),
@@ -14617,7 +14617,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, brake_apply_timeout),
@@ -14632,7 +14632,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, modbus_message_log),
@@ -14647,7 +14647,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, modbus_scaling_mode),
@@ -14662,7 +14662,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, emulated_encoder_pulse_width),
@@ -14677,7 +14677,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -14694,7 +14694,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_deadband_mode),
@@ -14709,7 +14709,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_mode),
@@ -14724,7 +14724,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, dio10_direction),
@@ -14739,7 +14739,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, dio10_output_inversion),
@@ -14754,7 +14754,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, dio11_direction),
@@ -14769,7 +14769,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, dio11_output_inversion),
@@ -14784,7 +14784,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, dio9_direction),
@@ -14799,7 +14799,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, dio9_output_inversion),
@@ -14814,7 +14814,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fault_130_action),
@@ -14829,7 +14829,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fault_131_action),
@@ -14844,7 +14844,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fault_132_action),
@@ -14859,7 +14859,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fault_134_action),
@@ -14874,7 +14874,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fault_702_action),
@@ -14889,7 +14889,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, ip_address_mode),
@@ -14904,7 +14904,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, load_inertia),
@@ -14919,7 +14919,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_back_emf_constant),
@@ -14934,7 +14934,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, bus_voltage_half_voltage_thresholds),
@@ -14949,7 +14949,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, secondary_feedback_direction),
@@ -14964,7 +14964,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, handwheel_feedback_source),
@@ -14979,7 +14979,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, hardware_enable_delay),
@@ -14994,7 +14994,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, current_loop_gain_scheduling_index),
@@ -15009,7 +15009,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, current_loop_gain_scheduling_value),
@@ -15024,7 +15024,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fault_451_action),
@@ -15039,7 +15039,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, brake_immediately_on_disable),
@@ -15054,7 +15054,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, controlword),
@@ -15069,7 +15069,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, statusword),
@@ -15084,7 +15084,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation),
@@ -15099,7 +15099,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation_display),
@@ -15114,7 +15114,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_actual_internal_value),
@@ -15129,7 +15129,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_actual_value),
@@ -15144,7 +15144,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, following_error_window),
@@ -15159,7 +15159,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_demand_value),
@@ -15174,7 +15174,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_actual_value),
@@ -15189,7 +15189,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_window),
@@ -15204,7 +15204,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_window_time),
@@ -15219,7 +15219,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, target_torque),
@@ -15234,7 +15234,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, max_torque),
@@ -15249,7 +15249,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, max_current),
@@ -15264,7 +15264,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, torque_actual_value),
@@ -15279,7 +15279,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_position),
@@ -15294,7 +15294,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, home_offset),
@@ -15309,7 +15309,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -15326,7 +15326,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -15343,7 +15343,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -15360,7 +15360,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_velocity),
@@ -15375,7 +15375,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_acceleration),
@@ -15390,7 +15390,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_deceleration),
@@ -15405,7 +15405,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -15422,7 +15422,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -15439,7 +15439,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -15456,7 +15456,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, gear_ratio_number_of_entries),
@@ -15471,7 +15471,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gear_ratio_motor_shaft_revolutions),
@@ -15486,7 +15486,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -15503,7 +15503,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_constant_number_of_entries),
@@ -15518,7 +15518,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_constant_feed),
@@ -15533,7 +15533,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_constant_shaft_revolutions),
@@ -15548,7 +15548,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_method),
@@ -15563,7 +15563,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_speeds_number_of_entries),
@@ -15578,7 +15578,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -15595,7 +15595,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -15612,7 +15612,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_acceleration),
@@ -15627,7 +15627,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_offset),
@@ -15642,7 +15642,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, torque_offset),
@@ -15657,7 +15657,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, touch_probe_function),
@@ -15672,7 +15672,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, touch_probe_status),
@@ -15687,7 +15687,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, touch_probe_1_positive_edge),
@@ -15702,7 +15702,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, touch_probe_1_negative_edge),
@@ -15717,7 +15717,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, touch_probe_2_positive_edge),
@@ -15732,7 +15732,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, touch_probe_2_negative_edge),
@@ -15747,7 +15747,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, interpolation_sub_mode_select),
@@ -15762,7 +15762,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -15779,7 +15779,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -15796,7 +15796,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -15813,7 +15813,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -15830,7 +15830,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -15847,7 +15847,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -15864,7 +15864,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(
@@ -15881,7 +15881,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -15898,7 +15898,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -15915,7 +15915,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -15932,7 +15932,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -15949,7 +15949,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -15966,7 +15966,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -15983,7 +15983,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -16000,7 +16000,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -16017,7 +16017,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(
@@ -16034,7 +16034,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(
@@ -16051,7 +16051,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, following_error_actual_value),
@@ -16066,7 +16066,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_inputs),
@@ -16081,7 +16081,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_outputs_number_of_entries),
@@ -16096,7 +16096,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_outputs_physical_outputs),
@@ -16111,7 +16111,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_outputs_bit_mask),
@@ -16126,7 +16126,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_velocity),
@@ -16141,7 +16141,7 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, supported_drive_modes),
@@ -17072,9 +17072,9 @@ Denotation=MOTOR.BRAKEIMM
         pre_defined_error_field_standard_error_field_10: u32,
         cob_id_sync_message: u32,
         communication_cycle_period: u32,
-        manufacturer_device_name: ::od_runtime::__private_v1::Bytes<32>,
-        manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes<32>,
-        manufacturer_software_version: ::od_runtime::__private_v1::Bytes<32>,
+        manufacturer_device_name: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_software_version: ::od_runtime::__private_v2::Bytes<32>,
         guard_time: u16,
         life_time_factor: u8,
         store_parameters_number_of_entries: u8,
@@ -17219,8 +17219,8 @@ Denotation=MOTOR.BRAKEIMM
         firmware_version_revision: u16,
         firmware_version_derived_version: u16,
         ascii_channel_number_of_entries: u8,
-        ascii_channel_command: ::od_runtime::__private_v1::Bytes<32>,
-        ascii_channel_response: ::od_runtime::__private_v1::Bytes<32>,
+        ascii_channel_command: ::od_runtime::__private_v2::Bytes<32>,
+        ascii_channel_response: ::od_runtime::__private_v2::Bytes<32>,
         pv_scaling_factor_number_of_entries: u8,
         pv_scaling_factor_pv_scaling_factor_numerator: i32,
         pv_scaling_factor_pv_scaling_factor_denominator: i32,
@@ -17668,13 +17668,13 @@ Denotation=MOTOR.BRAKEIMM
                 pre_defined_error_field_standard_error_field_10: 0x0,
                 cob_id_sync_message: 0x80,
                 communication_cycle_period: 0x0,
-                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"M006",
                 ),
-                manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"",
                 ),
-                manufacturer_software_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"0.20",
                 ),
                 guard_time: 0,
@@ -17829,10 +17829,10 @@ Denotation=MOTOR.BRAKEIMM
                 firmware_version_revision: 0,
                 firmware_version_derived_version: 0,
                 ascii_channel_number_of_entries: 2,
-                ascii_channel_command: ::od_runtime::__private_v1::Bytes::from_slice(
+                ascii_channel_command: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"",
                 ),
-                ascii_channel_response: ::od_runtime::__private_v1::Bytes::from_slice(
+                ascii_channel_response: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"",
                 ),
                 pv_scaling_factor_number_of_entries: 2,
@@ -18284,13 +18284,13 @@ Denotation=MOTOR.BRAKEIMM
                 pre_defined_error_field_standard_error_field_10: 0,
                 cob_id_sync_message: 0,
                 communication_cycle_period: 0,
-                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
                     &[],
                 ),
-                manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     &[],
                 ),
-                manufacturer_software_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     &[],
                 ),
                 guard_time: 0,
@@ -18437,10 +18437,10 @@ Denotation=MOTOR.BRAKEIMM
                 firmware_version_revision: 0,
                 firmware_version_derived_version: 0,
                 ascii_channel_number_of_entries: 0,
-                ascii_channel_command: ::od_runtime::__private_v1::Bytes::from_slice(
+                ascii_channel_command: ::od_runtime::__private_v2::Bytes::from_slice(
                     &[],
                 ),
-                ascii_channel_response: ::od_runtime::__private_v1::Bytes::from_slice(
+                ascii_channel_response: ::od_runtime::__private_v2::Bytes::from_slice(
                     &[],
                 ),
                 pv_scaling_factor_number_of_entries: 0,
@@ -18878,19 +18878,19 @@ Denotation=MOTOR.BRAKEIMM
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
+            ::od_runtime::__private_v2::position(&LOOKUP, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
-        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
-            ::od_runtime::__private_v1::slot(self, pos)
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v2::Slot<'_>> {
+            ::od_runtime::__private_v2::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
-        ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
-            ::od_runtime::__private_v1::slot_mut(self, pos)
+        ) -> Option<::od_runtime::__private_v2::SlotMut<'_>> {
+            ::od_runtime::__private_v2::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -18898,7 +18898,7 @@ Denotation=MOTOR.BRAKEIMM
         fn read_at(&self, pos: usize) -> [u8; 8] {
             match self.slot(pos) {
                 Some(slot) => {
-                    ::od_runtime::__private_v1::first8(
+                    ::od_runtime::__private_v2::first8(
                         || ENTRIES.get(pos).map_or(0, |e| e.bits()),
                         slot,
                     )
@@ -18917,7 +18917,7 @@ Denotation=MOTOR.BRAKEIMM
             let (real_low, real_high) = (None, None);
             match (ENTRIES.get(pos), self.slot_mut(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::write(
+                    ::od_runtime::__private_v2::write(
                         info,
                         slot,
                         data,
@@ -18936,7 +18936,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v2::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -18946,7 +18946,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v2::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -18956,7 +18956,7 @@ Denotation=MOTOR.BRAKEIMM
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
@@ -18967,7 +18967,7 @@ Denotation=MOTOR.BRAKEIMM
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
@@ -29843,7 +29843,7 @@ Denotation=MOTOR.BRAKEIMM
             Ok(())
         }
     }
-    unsafe impl ::od_runtime::__private_v1::Table for Dictionary {
+    unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
         #[inline(always)]
         fn entries() -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
@@ -29875,7 +29875,7 @@ Denotation=MOTOR.BRAKEIMM
             let pos = Self::position(index, sub)?;
             match (ENTRIES.get(pos), self.slot(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::read(info, slot, buf)
+                    ::od_runtime::__private_v2::read(info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -29892,7 +29892,7 @@ Denotation=MOTOR.BRAKEIMM
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, info) in ENTRIES.iter().enumerate() {
                 if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v1::set_default(info, slot, node_id);
+                    ::od_runtime::__private_v2::set_default(info, slot, node_id);
                 }
             }
         }
@@ -29908,10 +29908,10 @@ Denotation=MOTOR.BRAKEIMM
         }
         #[inline]
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-            ::od_runtime::__private_v1::pack_mapped(
+            ::od_runtime::__private_v2::pack_mapped(
                 map,
                 |h| match self.slot(h.get() as usize) {
-                    Some(slot) => ::od_runtime::__private_v1::first8(|| 64, slot),
+                    Some(slot) => ::od_runtime::__private_v2::first8(|| 64, slot),
                     None => [0; 8],
                 },
             )
@@ -29947,7 +29947,7 @@ Denotation=MOTOR.BRAKEIMM
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
         #[doc(inline)]
-        pub use ::od_runtime::__private_v1::PdoLengthError as LengthError;
+        pub use ::od_runtime::__private_v2::PdoLengthError as LengthError;
         /// RPDO 1 (received by the device), default mapping of `0x1600`: 16 bits in 2 bytes.
         ///
         /// | bits | object | field |
@@ -29976,7 +29976,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                 })
@@ -30029,7 +30029,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 3)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 3)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     modes_of_operation: (((((w >> 16) & 0xFF) << 56) as i64) >> 56) as i8,
@@ -30085,7 +30085,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 6)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     target_position: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64) >> 32)
@@ -30142,7 +30142,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 6)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     target_velocity: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64) >> 32)
@@ -30195,7 +30195,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                 })
@@ -30248,7 +30248,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 3)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 3)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     modes_of_operation_display: (((((w >> 16) & 0xFF) << 56) as i64)
@@ -30305,7 +30305,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 6)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     position_actual_value: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64)
@@ -30362,7 +30362,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 6)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     velocity_actual_value: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64)
@@ -30392,7 +30392,7 @@ Denotation=MOTOR.BRAKEIMM
     /// module docs for the arithmetic).
     pub mod units {
         #[doc(inline)]
-        pub use ::od_runtime::__private_v1::Ratio;
+        pub use ::od_runtime::__private_v2::Ratio;
         /// A physical unit.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         pub enum Unit {
@@ -30535,7 +30535,7 @@ Denotation=MOTOR.BRAKEIMM
             system: System,
             /// Physical value per raw unit (prepared for fast exact conversions both ways),
             /// and the physical unit, per dimension.
-            factor: [Option<(::od_runtime::__private_v1::Scale, Unit)>; 6],
+            factor: [Option<(::od_runtime::__private_v2::Scale, Unit)>; 6],
             /// Internal value (increments or motor revolutions) per raw unit, per dimension.
             internal: [Option<Ratio>; 6],
         }
@@ -30563,7 +30563,7 @@ Denotation=MOTOR.BRAKEIMM
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::UserUnit,
                             ));
                             internal[0] = Some(g.reduced());
@@ -30577,7 +30577,7 @@ Denotation=MOTOR.BRAKEIMM
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::UserUnitPerSecond,
                             ));
                             internal[1] = Some(g.reduced());
@@ -30591,7 +30591,7 @@ Denotation=MOTOR.BRAKEIMM
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::UserUnitPerSecond2,
                             ));
                             internal[2] = Some(g.reduced());
@@ -30599,21 +30599,21 @@ Denotation=MOTOR.BRAKEIMM
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::PermilleRatedTorque,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[4] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MilliAmpere,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[5] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -30634,7 +30634,7 @@ Denotation=MOTOR.BRAKEIMM
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::UserUnit,
                             ));
                             internal[0] = Some(g.reduced());
@@ -30657,7 +30657,7 @@ Denotation=MOTOR.BRAKEIMM
                                 .checked_mul(Self::velocity_factor(od)?)
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::UserUnitPerSecond,
                             ));
                             internal[1] = Some(g.reduced());
@@ -30677,7 +30677,7 @@ Denotation=MOTOR.BRAKEIMM
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::UserUnitPerSecond2,
                             ));
                             internal[2] = Some(g.reduced());
@@ -30685,21 +30685,21 @@ Denotation=MOTOR.BRAKEIMM
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::PermilleRatedTorque,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[4] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MilliAmpere,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[5] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -30746,7 +30746,7 @@ Denotation=MOTOR.BRAKEIMM
                 &self,
                 d: Dimension,
                 q: &Quantity,
-            ) -> Result<&::od_runtime::__private_v1::Scale, UnitError> {
+            ) -> Result<&::od_runtime::__private_v2::Scale, UnitError> {
                 match self.factor.get(d.slot()) {
                     Some(Some((f, unit))) if *unit == q.unit => Ok(f),
                     Some(Some((_, unit))) => {

@@ -3093,9 +3093,9 @@ PDOMapping=0
         0x607E, 0x6081, 0x6083, 0x6084, 0x608F, 0x6091, 0x6092, 0x6098, 0x6099, 0x60FF,
         0x6402, 0x6404, 0x6502, 0x67FF,
     ];
-    static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
-        pages: ::od_runtime::__private_v1::pages(&OBJECTS),
-        bits: &::od_runtime::__private_v1::bits::<13>(&OBJECTS),
+    static LOOKUP: ::od_runtime::__private_v2::Lookup = ::od_runtime::__private_v2::Lookup {
+        pages: ::od_runtime::__private_v2::pages(&OBJECTS),
+        bits: &::od_runtime::__private_v2::bits::<13>(&OBJECTS),
         ranks: &[
             [0, 37, 37, 37],
             [37, 40, 40, 40],
@@ -3143,7 +3143,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, device_type),
@@ -3158,7 +3158,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, error_register),
@@ -3173,7 +3173,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_status_register),
@@ -3188,7 +3188,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3205,7 +3205,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3222,7 +3222,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3239,7 +3239,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3256,7 +3256,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3273,7 +3273,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3290,7 +3290,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3307,7 +3307,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3324,7 +3324,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3341,7 +3341,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, cob_id_sync),
@@ -3356,7 +3356,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, communication_cycle_period),
@@ -3371,7 +3371,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, synchronous_window_length),
@@ -3386,8 +3386,8 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
-                ::od_runtime::__private_v1::Bytes<32>,
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_device_name),
                 ::od_runtime::od::DataType::VisibleString,
@@ -3401,8 +3401,8 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
-                ::od_runtime::__private_v1::Bytes<32>,
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_hardware_version),
                 ::od_runtime::od::DataType::VisibleString,
@@ -3416,8 +3416,8 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
-                ::od_runtime::__private_v1::Bytes<32>,
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_software_version),
                 ::od_runtime::od::DataType::VisibleString,
@@ -3431,7 +3431,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, guard_time),
@@ -3446,7 +3446,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, life_time_factor),
@@ -3461,7 +3461,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3478,7 +3478,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3495,7 +3495,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3512,7 +3512,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3529,7 +3529,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, cob_id_time_stamp),
@@ -3544,7 +3544,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, cob_id_emcy),
@@ -3559,7 +3559,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, inhibit_time_emergency),
@@ -3574,7 +3574,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, producer_heartbeat_time),
@@ -3589,7 +3589,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_number_of_entries),
@@ -3604,7 +3604,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_vendor_id),
@@ -3619,7 +3619,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_product_code),
@@ -3634,7 +3634,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_revision_number),
@@ -3649,7 +3649,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_serial_number),
@@ -3664,7 +3664,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, synchronous_counter_overflow_value),
@@ -3679,7 +3679,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3696,7 +3696,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3713,7 +3713,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3730,7 +3730,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3747,7 +3747,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3764,7 +3764,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3781,7 +3781,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3799,7 +3799,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3816,7 +3816,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3833,7 +3833,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3851,7 +3851,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3868,7 +3868,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3885,7 +3885,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3903,7 +3903,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3920,7 +3920,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3937,7 +3937,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3955,7 +3955,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3972,7 +3972,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3989,7 +3989,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4007,7 +4007,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4024,7 +4024,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4041,7 +4041,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4059,7 +4059,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4076,7 +4076,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4093,7 +4093,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4111,7 +4111,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4128,7 +4128,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4145,7 +4145,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4163,7 +4163,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4180,7 +4180,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4197,7 +4197,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4214,7 +4214,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4231,7 +4231,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4248,7 +4248,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4265,7 +4265,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4282,7 +4282,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4299,7 +4299,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4316,7 +4316,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4333,7 +4333,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4350,7 +4350,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4367,7 +4367,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4384,7 +4384,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4401,7 +4401,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4418,7 +4418,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4435,7 +4435,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4452,7 +4452,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4469,7 +4469,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4486,7 +4486,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4503,7 +4503,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4520,7 +4520,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4537,7 +4537,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4554,7 +4554,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4571,7 +4571,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4588,7 +4588,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4605,7 +4605,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4622,7 +4622,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4639,7 +4639,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4656,7 +4656,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4673,7 +4673,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4690,7 +4690,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4707,7 +4707,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4724,7 +4724,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4741,7 +4741,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4758,7 +4758,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4775,7 +4775,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4792,7 +4792,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4809,7 +4809,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4826,7 +4826,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4843,7 +4843,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4860,7 +4860,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4877,7 +4877,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4894,7 +4894,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4911,7 +4911,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4928,7 +4928,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4945,7 +4945,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4962,7 +4962,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4979,7 +4979,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4996,7 +4996,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5013,7 +5013,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5030,7 +5030,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5047,7 +5047,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5064,7 +5064,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5081,7 +5081,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5098,7 +5098,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5115,7 +5115,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5132,7 +5132,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5149,7 +5149,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5166,7 +5166,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5183,7 +5183,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5200,7 +5200,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5217,7 +5217,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5234,7 +5234,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5251,7 +5251,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5268,7 +5268,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5285,7 +5285,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5302,7 +5302,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5319,7 +5319,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5336,7 +5336,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5353,7 +5353,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5370,7 +5370,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5387,7 +5387,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5404,7 +5404,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5421,7 +5421,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5439,7 +5439,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5456,7 +5456,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5473,7 +5473,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5490,7 +5490,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5507,7 +5507,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5524,7 +5524,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5542,7 +5542,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5559,7 +5559,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5576,7 +5576,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5593,7 +5593,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5610,7 +5610,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5627,7 +5627,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5645,7 +5645,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5662,7 +5662,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5679,7 +5679,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5696,7 +5696,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5713,7 +5713,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5730,7 +5730,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5748,7 +5748,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5765,7 +5765,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5782,7 +5782,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5799,7 +5799,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5816,7 +5816,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5833,7 +5833,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5851,7 +5851,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5868,7 +5868,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5885,7 +5885,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5902,7 +5902,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5919,7 +5919,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5936,7 +5936,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5954,7 +5954,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5971,7 +5971,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5988,7 +5988,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6005,7 +6005,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6022,7 +6022,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6039,7 +6039,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6057,7 +6057,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6074,7 +6074,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6091,7 +6091,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6108,7 +6108,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6125,7 +6125,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6142,7 +6142,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6160,7 +6160,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6177,7 +6177,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6194,7 +6194,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6211,7 +6211,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6228,7 +6228,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6245,7 +6245,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6262,7 +6262,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6279,7 +6279,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6296,7 +6296,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6313,7 +6313,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6330,7 +6330,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6347,7 +6347,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6364,7 +6364,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6381,7 +6381,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6398,7 +6398,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6415,7 +6415,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6432,7 +6432,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6449,7 +6449,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6466,7 +6466,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6483,7 +6483,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6500,7 +6500,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6517,7 +6517,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6534,7 +6534,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6551,7 +6551,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6568,7 +6568,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6585,7 +6585,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6602,7 +6602,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6619,7 +6619,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6636,7 +6636,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6653,7 +6653,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6670,7 +6670,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6687,7 +6687,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6704,7 +6704,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6721,7 +6721,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6738,7 +6738,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6755,7 +6755,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6772,7 +6772,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6789,7 +6789,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6806,7 +6806,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6823,7 +6823,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6840,7 +6840,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6857,7 +6857,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6874,7 +6874,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6891,7 +6891,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6908,7 +6908,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6925,7 +6925,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6942,7 +6942,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6959,7 +6959,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6976,7 +6976,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6993,7 +6993,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7010,7 +7010,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7027,7 +7027,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7044,7 +7044,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7061,7 +7061,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7078,7 +7078,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7095,7 +7095,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7112,7 +7112,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7129,7 +7129,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7146,7 +7146,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7163,7 +7163,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7180,7 +7180,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7197,7 +7197,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7214,7 +7214,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7231,7 +7231,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7248,7 +7248,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7265,7 +7265,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7282,7 +7282,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7299,7 +7299,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7316,7 +7316,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7333,7 +7333,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7350,7 +7350,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7367,7 +7367,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7384,7 +7384,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7401,7 +7401,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7418,7 +7418,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7435,7 +7435,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7452,7 +7452,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7469,7 +7469,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, nmt_startup),
@@ -7484,7 +7484,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7501,7 +7501,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_converter_numerator),
@@ -7516,7 +7516,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_converter_denominator),
@@ -7531,7 +7531,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, input_status),
@@ -7546,7 +7546,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, output_status),
@@ -7561,7 +7561,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_status),
@@ -7576,7 +7576,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, brake),
@@ -7591,7 +7591,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, total_time_off),
@@ -7606,7 +7606,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, total_time_on),
@@ -7621,7 +7621,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, total_time_run),
@@ -7636,7 +7636,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, total_stroke),
@@ -7651,7 +7651,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, error_code),
@@ -7666,7 +7666,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, controlword),
@@ -7681,7 +7681,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, statusword),
@@ -7696,7 +7696,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation),
@@ -7711,7 +7711,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation_display),
@@ -7726,7 +7726,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_demand_value),
@@ -7741,7 +7741,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_actual_value),
@@ -7756,7 +7756,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_demand_value),
@@ -7771,7 +7771,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_actual_value),
@@ -7786,7 +7786,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_window),
@@ -7801,7 +7801,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_window_time),
@@ -7816,7 +7816,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_threshold),
@@ -7831,7 +7831,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_threshold_time),
@@ -7846,7 +7846,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_position),
@@ -7861,7 +7861,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, home_offset),
@@ -7876,7 +7876,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7893,7 +7893,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -7910,7 +7910,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -7927,7 +7927,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, polarity),
@@ -7942,7 +7942,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_velocity_in_pp_mode),
@@ -7957,7 +7957,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_acceleration),
@@ -7972,7 +7972,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_deceleration),
@@ -7987,7 +7987,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8004,7 +8004,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8021,7 +8021,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8038,7 +8038,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8055,7 +8055,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gear_ratio_motor_revolutions),
@@ -8070,7 +8070,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gear_ratio_shaft_revolutions),
@@ -8085,7 +8085,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8102,7 +8102,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_constant_feed),
@@ -8117,7 +8117,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_constant_shaft_revolutions),
@@ -8132,7 +8132,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_method),
@@ -8147,7 +8147,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8164,7 +8164,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_speed_fast_homing_speed),
@@ -8179,7 +8179,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_speed_slow_homing_speed),
@@ -8194,7 +8194,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_velocity),
@@ -8209,7 +8209,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_type),
@@ -8224,8 +8224,8 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
-                ::od_runtime::__private_v1::Bytes<32>,
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_manufacturer),
                 ::od_runtime::od::DataType::VisibleString,
@@ -8239,7 +8239,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, supported_drive_modes),
@@ -8254,7 +8254,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, single_device_type),
@@ -8778,9 +8778,9 @@ PDOMapping=0
         cob_id_sync: u32,
         communication_cycle_period: u32,
         synchronous_window_length: u32,
-        manufacturer_device_name: ::od_runtime::__private_v1::Bytes<32>,
-        manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes<32>,
-        manufacturer_software_version: ::od_runtime::__private_v1::Bytes<32>,
+        manufacturer_device_name: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_software_version: ::od_runtime::__private_v2::Bytes<32>,
         guard_time: u16,
         life_time_factor: u8,
         store_parameter_field_highest_sub_index_supported: u8,
@@ -9068,7 +9068,7 @@ PDOMapping=0
         homing_speed_slow_homing_speed: u32,
         target_velocity: i32,
         motor_type: u16,
-        motor_manufacturer: ::od_runtime::__private_v1::Bytes<32>,
+        motor_manufacturer: ::od_runtime::__private_v2::Bytes<32>,
         supported_drive_modes: u32,
         single_device_type: u32,
     }
@@ -9091,13 +9091,13 @@ PDOMapping=0
                 cob_id_sync: 0x80,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
-                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"DRCS",
                 ),
-                manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"1",
                 ),
-                manufacturer_software_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"1.18",
                 ),
                 guard_time: 0,
@@ -9397,7 +9397,7 @@ PDOMapping=0
                 homing_speed_slow_homing_speed: 0,
                 target_velocity: 0,
                 motor_type: 0x9,
-                motor_manufacturer: ::od_runtime::__private_v1::Bytes::from_slice(
+                motor_manufacturer: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"Camozzi",
                 ),
                 supported_drive_modes: 0x25,
@@ -9424,13 +9424,13 @@ PDOMapping=0
                 cob_id_sync: 0,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
-                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
                     &[],
                 ),
-                manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     &[],
                 ),
-                manufacturer_software_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     &[],
                 ),
                 guard_time: 0,
@@ -9720,7 +9720,7 @@ PDOMapping=0
                 homing_speed_slow_homing_speed: 0,
                 target_velocity: 0,
                 motor_type: 0,
-                motor_manufacturer: ::od_runtime::__private_v1::Bytes::from_slice(&[]),
+                motor_manufacturer: ::od_runtime::__private_v2::Bytes::from_slice(&[]),
                 supported_drive_modes: 0,
                 single_device_type: 0,
             }
@@ -9732,19 +9732,19 @@ PDOMapping=0
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
+            ::od_runtime::__private_v2::position(&LOOKUP, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
-        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
-            ::od_runtime::__private_v1::slot(self, pos)
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v2::Slot<'_>> {
+            ::od_runtime::__private_v2::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
-        ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
-            ::od_runtime::__private_v1::slot_mut(self, pos)
+        ) -> Option<::od_runtime::__private_v2::SlotMut<'_>> {
+            ::od_runtime::__private_v2::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -9752,7 +9752,7 @@ PDOMapping=0
         fn read_at(&self, pos: usize) -> [u8; 8] {
             match self.slot(pos) {
                 Some(slot) => {
-                    ::od_runtime::__private_v1::first8(
+                    ::od_runtime::__private_v2::first8(
                         || ENTRIES.get(pos).map_or(0, |e| e.bits()),
                         slot,
                     )
@@ -9771,7 +9771,7 @@ PDOMapping=0
             let (real_low, real_high) = (None, None);
             match (ENTRIES.get(pos), self.slot_mut(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::write(
+                    ::od_runtime::__private_v2::write(
                         info,
                         slot,
                         data,
@@ -9790,7 +9790,7 @@ PDOMapping=0
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v2::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -9800,7 +9800,7 @@ PDOMapping=0
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v2::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -9810,7 +9810,7 @@ PDOMapping=0
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
@@ -9821,7 +9821,7 @@ PDOMapping=0
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
@@ -14823,7 +14823,7 @@ PDOMapping=0
             Ok(())
         }
     }
-    unsafe impl ::od_runtime::__private_v1::Table for Dictionary {
+    unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
         #[inline(always)]
         fn entries() -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
@@ -14855,7 +14855,7 @@ PDOMapping=0
             let pos = Self::position(index, sub)?;
             match (ENTRIES.get(pos), self.slot(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::read(info, slot, buf)
+                    ::od_runtime::__private_v2::read(info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -14872,7 +14872,7 @@ PDOMapping=0
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, info) in ENTRIES.iter().enumerate() {
                 if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v1::set_default(info, slot, node_id);
+                    ::od_runtime::__private_v2::set_default(info, slot, node_id);
                 }
             }
         }
@@ -14888,10 +14888,10 @@ PDOMapping=0
         }
         #[inline]
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-            ::od_runtime::__private_v1::pack_mapped(
+            ::od_runtime::__private_v2::pack_mapped(
                 map,
                 |h| match self.slot(h.get() as usize) {
-                    Some(slot) => ::od_runtime::__private_v1::first8(|| 64, slot),
+                    Some(slot) => ::od_runtime::__private_v2::first8(|| 64, slot),
                     None => [0; 8],
                 },
             )
@@ -14927,7 +14927,7 @@ PDOMapping=0
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
         #[doc(inline)]
-        pub use ::od_runtime::__private_v1::PdoLengthError as LengthError;
+        pub use ::od_runtime::__private_v2::PdoLengthError as LengthError;
         /// RPDO 1 (received by the device), default mapping of `0x1600`: 16 bits in 2 bytes.
         ///
         /// | bits | object | field |
@@ -14956,7 +14956,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                 })
@@ -15005,7 +15005,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                 })
@@ -15031,7 +15031,7 @@ PDOMapping=0
     /// module docs for the arithmetic).
     pub mod units {
         #[doc(inline)]
-        pub use ::od_runtime::__private_v1::Ratio;
+        pub use ::od_runtime::__private_v2::Ratio;
         /// A physical unit.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         pub enum Unit {
@@ -15170,7 +15170,7 @@ PDOMapping=0
             system: System,
             /// Physical value per raw unit (prepared for fast exact conversions both ways),
             /// and the physical unit, per dimension.
-            factor: [Option<(::od_runtime::__private_v1::Scale, Unit)>; 4],
+            factor: [Option<(::od_runtime::__private_v2::Scale, Unit)>; 4],
             /// Internal value (increments or motor revolutions) per raw unit, per dimension.
             internal: [Option<Ratio>; 4],
         }
@@ -15199,7 +15199,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millimeter,
                             ));
                         }
@@ -15213,7 +15213,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MillimeterPerSecond,
                             ));
                         }
@@ -15227,14 +15227,14 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MillimeterPerSecond2,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -15250,7 +15250,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Degree,
                             ));
                         }
@@ -15264,7 +15264,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::DegreePerSecond,
                             ));
                         }
@@ -15278,14 +15278,14 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::DegreePerSecond2,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -15332,7 +15332,7 @@ PDOMapping=0
                 &self,
                 d: Dimension,
                 q: &Quantity,
-            ) -> Result<&::od_runtime::__private_v1::Scale, UnitError> {
+            ) -> Result<&::od_runtime::__private_v2::Scale, UnitError> {
                 match self.factor.get(d.slot()) {
                     Some(Some((f, unit))) if *unit == q.unit => Ok(f),
                     Some(Some((_, unit))) => {

@@ -3101,9 +3101,9 @@ PDOMapping=0
         0x607D, 0x607E, 0x607F, 0x6081, 0x6083, 0x6084, 0x6087, 0x6091, 0x6092, 0x6098,
         0x6099, 0x609A, 0x60FF,
     ];
-    static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
-        pages: ::od_runtime::__private_v1::pages(&OBJECTS),
-        bits: &::od_runtime::__private_v1::bits::<8>(&OBJECTS),
+    static LOOKUP: ::od_runtime::__private_v2::Lookup = ::od_runtime::__private_v2::Lookup {
+        pages: ::od_runtime::__private_v2::pages(&OBJECTS),
+        bits: &::od_runtime::__private_v2::bits::<8>(&OBJECTS),
         ranks: &[
             [0, 32, 32, 32],
             [32, 56, 56, 56],
@@ -3140,7 +3140,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, device_type),
@@ -3155,7 +3155,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, error_register),
@@ -3170,7 +3170,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_status_register),
@@ -3185,7 +3185,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3202,7 +3202,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3219,7 +3219,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3236,7 +3236,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3253,7 +3253,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3270,7 +3270,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3287,7 +3287,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3304,7 +3304,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3321,7 +3321,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3338,7 +3338,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, cob_id_sync),
@@ -3353,7 +3353,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, communication_cycle_period),
@@ -3368,7 +3368,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, synchronous_window_length),
@@ -3383,8 +3383,8 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
-                ::od_runtime::__private_v1::Bytes<32>,
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_device_name),
                 ::od_runtime::od::DataType::VisibleString,
@@ -3398,8 +3398,8 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
-                ::od_runtime::__private_v1::Bytes<32>,
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_hardware_version),
                 ::od_runtime::od::DataType::VisibleString,
@@ -3413,8 +3413,8 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
-                ::od_runtime::__private_v1::Bytes<32>,
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_software_version),
                 ::od_runtime::od::DataType::VisibleString,
@@ -3428,7 +3428,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, guard_time),
@@ -3443,7 +3443,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, life_time_factor),
@@ -3458,7 +3458,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3475,7 +3475,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3492,7 +3492,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3509,7 +3509,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3526,7 +3526,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, cob_id_emcy),
@@ -3541,7 +3541,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, inhibit_time_emcy),
@@ -3556,7 +3556,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, producer_heartbeat_time),
@@ -3571,7 +3571,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_number_of_entries),
@@ -3586,7 +3586,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_vendor_id),
@@ -3601,7 +3601,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_product_code),
@@ -3616,7 +3616,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_revision_number),
@@ -3631,7 +3631,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_serial_number),
@@ -3646,7 +3646,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3664,7 +3664,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3681,7 +3681,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3698,7 +3698,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3716,7 +3716,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3733,7 +3733,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3750,7 +3750,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3768,7 +3768,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3785,7 +3785,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3802,7 +3802,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3820,7 +3820,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3837,7 +3837,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3854,7 +3854,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3872,7 +3872,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3889,7 +3889,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3906,7 +3906,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3924,7 +3924,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3941,7 +3941,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3958,7 +3958,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3976,7 +3976,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3993,7 +3993,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4010,7 +4010,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4028,7 +4028,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4045,7 +4045,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4062,7 +4062,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4079,7 +4079,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4096,7 +4096,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4113,7 +4113,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4130,7 +4130,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4147,7 +4147,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4164,7 +4164,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4181,7 +4181,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4198,7 +4198,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4215,7 +4215,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4232,7 +4232,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4249,7 +4249,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4266,7 +4266,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4283,7 +4283,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4300,7 +4300,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4317,7 +4317,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4334,7 +4334,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4351,7 +4351,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4368,7 +4368,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4385,7 +4385,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4402,7 +4402,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4419,7 +4419,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4436,7 +4436,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4453,7 +4453,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4470,7 +4470,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4487,7 +4487,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4504,7 +4504,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4521,7 +4521,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4538,7 +4538,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4555,7 +4555,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4572,7 +4572,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4589,7 +4589,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4606,7 +4606,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4623,7 +4623,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4640,7 +4640,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4657,7 +4657,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4674,7 +4674,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4691,7 +4691,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4708,7 +4708,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4725,7 +4725,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4742,7 +4742,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4759,7 +4759,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4776,7 +4776,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4793,7 +4793,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4810,7 +4810,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4827,7 +4827,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4844,7 +4844,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4861,7 +4861,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4878,7 +4878,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4895,7 +4895,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4912,7 +4912,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4929,7 +4929,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4946,7 +4946,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4963,7 +4963,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4980,7 +4980,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4997,7 +4997,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5014,7 +5014,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5031,7 +5031,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5048,7 +5048,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5065,7 +5065,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5082,7 +5082,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5099,7 +5099,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5116,7 +5116,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5133,7 +5133,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5150,7 +5150,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5167,7 +5167,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5184,7 +5184,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5201,7 +5201,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5218,7 +5218,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5235,7 +5235,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5252,7 +5252,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5269,7 +5269,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5286,7 +5286,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5304,7 +5304,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5322,7 +5322,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5339,7 +5339,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5356,7 +5356,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5374,7 +5374,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5391,7 +5391,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5409,7 +5409,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5427,7 +5427,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5444,7 +5444,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5461,7 +5461,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5479,7 +5479,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5496,7 +5496,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5514,7 +5514,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5532,7 +5532,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5549,7 +5549,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5566,7 +5566,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5584,7 +5584,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5601,7 +5601,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5619,7 +5619,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5637,7 +5637,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5654,7 +5654,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5671,7 +5671,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5689,7 +5689,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5706,7 +5706,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5724,7 +5724,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5742,7 +5742,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5759,7 +5759,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5776,7 +5776,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5794,7 +5794,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5811,7 +5811,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5829,7 +5829,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5847,7 +5847,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5864,7 +5864,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5881,7 +5881,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5899,7 +5899,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5916,7 +5916,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5934,7 +5934,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5952,7 +5952,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5969,7 +5969,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5986,7 +5986,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6004,7 +6004,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6021,7 +6021,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6039,7 +6039,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6057,7 +6057,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6074,7 +6074,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6091,7 +6091,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6109,7 +6109,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6126,7 +6126,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6143,7 +6143,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6160,7 +6160,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6177,7 +6177,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6194,7 +6194,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6211,7 +6211,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6228,7 +6228,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6245,7 +6245,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6262,7 +6262,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6279,7 +6279,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6296,7 +6296,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6313,7 +6313,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6330,7 +6330,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6347,7 +6347,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6364,7 +6364,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6381,7 +6381,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6398,7 +6398,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6415,7 +6415,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6432,7 +6432,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6449,7 +6449,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6466,7 +6466,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6483,7 +6483,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6500,7 +6500,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6517,7 +6517,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6534,7 +6534,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6551,7 +6551,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6568,7 +6568,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6585,7 +6585,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6602,7 +6602,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6619,7 +6619,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6636,7 +6636,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6653,7 +6653,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6670,7 +6670,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6687,7 +6687,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6704,7 +6704,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6721,7 +6721,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6738,7 +6738,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6755,7 +6755,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6772,7 +6772,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6789,7 +6789,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6806,7 +6806,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6823,7 +6823,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6840,7 +6840,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6857,7 +6857,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6874,7 +6874,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6891,7 +6891,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6908,7 +6908,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6925,7 +6925,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6942,7 +6942,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6959,7 +6959,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6976,7 +6976,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6993,7 +6993,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7010,7 +7010,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7027,7 +7027,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7044,7 +7044,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7061,7 +7061,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7078,7 +7078,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7095,7 +7095,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7112,7 +7112,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7129,7 +7129,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7146,7 +7146,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7163,7 +7163,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7180,7 +7180,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7197,7 +7197,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7214,7 +7214,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7231,7 +7231,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7248,7 +7248,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7265,7 +7265,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7282,7 +7282,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7299,7 +7299,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7316,7 +7316,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7333,7 +7333,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7350,7 +7350,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, nmt_startup),
@@ -7365,7 +7365,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7382,7 +7382,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_converter_numerator),
@@ -7397,7 +7397,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_converter_denominator),
@@ -7412,7 +7412,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, input_status),
@@ -7427,7 +7427,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, output_status),
@@ -7442,7 +7442,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_ok),
@@ -7457,7 +7457,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, warnings),
@@ -7472,7 +7472,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, limits_enable),
@@ -7487,7 +7487,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7504,7 +7504,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, pid_parameters_pid_selection),
@@ -7519,7 +7519,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, pid_parameters_kp_position),
@@ -7534,7 +7534,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, pid_parameters_kp_speed),
@@ -7549,7 +7549,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, pid_parameters_ki_position),
@@ -7564,7 +7564,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, pid_parameters_ki_speed),
@@ -7579,7 +7579,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7596,7 +7596,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_parameters_profile_check),
@@ -7611,7 +7611,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -7628,7 +7628,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_torque_limit),
@@ -7643,7 +7643,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, actuator_type),
@@ -7658,7 +7658,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, torque_limit_enable),
@@ -7673,7 +7673,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, error_code),
@@ -7688,7 +7688,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, controlword),
@@ -7703,7 +7703,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, statusword),
@@ -7718,7 +7718,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation),
@@ -7733,7 +7733,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation_display),
@@ -7748,7 +7748,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_demand_value),
@@ -7763,7 +7763,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_actual_value),
@@ -7778,7 +7778,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, following_error_window),
@@ -7793,7 +7793,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, following_error_timeout),
@@ -7808,7 +7808,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_demand_value),
@@ -7823,7 +7823,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_actual_value),
@@ -7838,7 +7838,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_threshold),
@@ -7853,7 +7853,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_threshold_time),
@@ -7868,7 +7868,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, target_torque),
@@ -7883,7 +7883,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, torque_demand_value),
@@ -7898,7 +7898,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, torque_actual_value),
@@ -7913,7 +7913,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_position),
@@ -7928,7 +7928,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, home_offset),
@@ -7943,7 +7943,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7960,7 +7960,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -7977,7 +7977,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -7994,7 +7994,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, polarity),
@@ -8009,7 +8009,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, max_profile_velocity),
@@ -8024,7 +8024,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_velocity),
@@ -8039,7 +8039,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_acceleration),
@@ -8054,7 +8054,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_deceleration),
@@ -8069,7 +8069,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, torque_slope),
@@ -8084,7 +8084,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8101,7 +8101,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gear_ratio_motor_revolutions),
@@ -8116,7 +8116,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gear_ratio_shaft_revolutions),
@@ -8131,7 +8131,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8148,7 +8148,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_constant_feed),
@@ -8163,7 +8163,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_constant_shaft_revolutions),
@@ -8178,7 +8178,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_method),
@@ -8193,7 +8193,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8210,7 +8210,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_speeds_fast_homing_speed),
@@ -8225,7 +8225,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_speeds_slow_homing_speed),
@@ -8240,7 +8240,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_acceleration),
@@ -8255,7 +8255,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_velocity),
@@ -8810,9 +8810,9 @@ PDOMapping=0
         cob_id_sync: u32,
         communication_cycle_period: u32,
         synchronous_window_length: u32,
-        manufacturer_device_name: ::od_runtime::__private_v1::Bytes<32>,
-        manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes<32>,
-        manufacturer_software_version: ::od_runtime::__private_v1::Bytes<32>,
+        manufacturer_device_name: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_software_version: ::od_runtime::__private_v2::Bytes<32>,
         guard_time: u16,
         life_time_factor: u8,
         store_parameters_highest_sub_index_supported: u8,
@@ -9123,13 +9123,13 @@ PDOMapping=0
                 cob_id_sync: 0x80,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
-                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"DRVI",
                 ),
-                manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"1",
                 ),
-                manufacturer_software_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"0",
                 ),
                 guard_time: 0,
@@ -9453,13 +9453,13 @@ PDOMapping=0
                 cob_id_sync: 0,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
-                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
                     &[],
                 ),
-                manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     &[],
                 ),
-                manufacturer_software_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     &[],
                 ),
                 guard_time: 0,
@@ -9761,19 +9761,19 @@ PDOMapping=0
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
+            ::od_runtime::__private_v2::position(&LOOKUP, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
-        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
-            ::od_runtime::__private_v1::slot(self, pos)
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v2::Slot<'_>> {
+            ::od_runtime::__private_v2::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
-        ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
-            ::od_runtime::__private_v1::slot_mut(self, pos)
+        ) -> Option<::od_runtime::__private_v2::SlotMut<'_>> {
+            ::od_runtime::__private_v2::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -9781,7 +9781,7 @@ PDOMapping=0
         fn read_at(&self, pos: usize) -> [u8; 8] {
             match self.slot(pos) {
                 Some(slot) => {
-                    ::od_runtime::__private_v1::first8(
+                    ::od_runtime::__private_v2::first8(
                         || ENTRIES.get(pos).map_or(0, |e| e.bits()),
                         slot,
                     )
@@ -9800,7 +9800,7 @@ PDOMapping=0
             let (real_low, real_high) = (None, None);
             match (ENTRIES.get(pos), self.slot_mut(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::write(
+                    ::od_runtime::__private_v2::write(
                         info,
                         slot,
                         data,
@@ -9819,7 +9819,7 @@ PDOMapping=0
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v2::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -9829,7 +9829,7 @@ PDOMapping=0
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v2::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -9839,7 +9839,7 @@ PDOMapping=0
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
@@ -9850,7 +9850,7 @@ PDOMapping=0
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
@@ -15002,7 +15002,7 @@ PDOMapping=0
             Ok(())
         }
     }
-    unsafe impl ::od_runtime::__private_v1::Table for Dictionary {
+    unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
         #[inline(always)]
         fn entries() -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
@@ -15034,7 +15034,7 @@ PDOMapping=0
             let pos = Self::position(index, sub)?;
             match (ENTRIES.get(pos), self.slot(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::read(info, slot, buf)
+                    ::od_runtime::__private_v2::read(info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -15051,7 +15051,7 @@ PDOMapping=0
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, info) in ENTRIES.iter().enumerate() {
                 if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v1::set_default(info, slot, node_id);
+                    ::od_runtime::__private_v2::set_default(info, slot, node_id);
                 }
             }
         }
@@ -15067,10 +15067,10 @@ PDOMapping=0
         }
         #[inline]
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-            ::od_runtime::__private_v1::pack_mapped(
+            ::od_runtime::__private_v2::pack_mapped(
                 map,
                 |h| match self.slot(h.get() as usize) {
-                    Some(slot) => ::od_runtime::__private_v1::first8(|| 64, slot),
+                    Some(slot) => ::od_runtime::__private_v2::first8(|| 64, slot),
                     None => [0; 8],
                 },
             )
@@ -15106,7 +15106,7 @@ PDOMapping=0
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
         #[doc(inline)]
-        pub use ::od_runtime::__private_v1::PdoLengthError as LengthError;
+        pub use ::od_runtime::__private_v2::PdoLengthError as LengthError;
         /// RPDO 1 (received by the device), default mapping of `0x1600`: 16 bits in 2 bytes.
         ///
         /// | bits | object | field |
@@ -15135,7 +15135,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                 })
@@ -15184,7 +15184,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                 })
@@ -15210,7 +15210,7 @@ PDOMapping=0
     /// module docs for the arithmetic).
     pub mod units {
         #[doc(inline)]
-        pub use ::od_runtime::__private_v1::Ratio;
+        pub use ::od_runtime::__private_v2::Ratio;
         /// A physical unit.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         pub enum Unit {
@@ -15362,7 +15362,7 @@ PDOMapping=0
             system: System,
             /// Physical value per raw unit (prepared for fast exact conversions both ways),
             /// and the physical unit, per dimension.
-            factor: [Option<(::od_runtime::__private_v1::Scale, Unit)>; 6],
+            factor: [Option<(::od_runtime::__private_v2::Scale, Unit)>; 6],
             /// Internal value (increments or motor revolutions) per raw unit, per dimension.
             internal: [Option<Ratio>; 6],
         }
@@ -15391,7 +15391,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Degree,
                             ));
                         }
@@ -15405,7 +15405,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Rpm,
                             ));
                         }
@@ -15419,28 +15419,28 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::RpmPerSecond,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MilliAmpere,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[4] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MilliAmperePerSecond,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[5] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -15456,7 +15456,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millimeter,
                             ));
                         }
@@ -15470,7 +15470,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MillimeterPerSecond,
                             ));
                         }
@@ -15484,28 +15484,28 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MillimeterPerSecond2,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MilliAmpere,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[4] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MilliAmperePerSecond,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[5] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -15552,7 +15552,7 @@ PDOMapping=0
                 &self,
                 d: Dimension,
                 q: &Quantity,
-            ) -> Result<&::od_runtime::__private_v1::Scale, UnitError> {
+            ) -> Result<&::od_runtime::__private_v2::Scale, UnitError> {
                 match self.factor.get(d.slot()) {
                     Some(Some((f, unit))) if *unit == q.unit => Ok(f),
                     Some(Some((_, unit))) => {

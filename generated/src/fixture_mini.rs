@@ -571,9 +571,9 @@ PDOMapping=0
         0x2001, 0x2002, 0x2003, 0x2004, 0x2005, 0x2006, 0x2007, 0x6040, 0x6041, 0x6060,
         0x6061, 0x6064, 0x606C, 0x607A, 0x6099,
     ];
-    static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
-        pages: ::od_runtime::__private_v1::pages(&OBJECTS),
-        bits: &::od_runtime::__private_v1::bits::<7>(&OBJECTS),
+    static LOOKUP: ::od_runtime::__private_v2::Lookup = ::od_runtime::__private_v2::Lookup {
+        pages: ::od_runtime::__private_v2::pages(&OBJECTS),
+        bits: &::od_runtime::__private_v2::bits::<7>(&OBJECTS),
         ranks: &[
             [0, 9, 9, 9],
             [9, 12, 12, 12],
@@ -605,7 +605,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, device_type),
@@ -620,7 +620,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, error_register),
@@ -635,8 +635,8 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
-                ::od_runtime::__private_v1::Bytes<32>,
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_device_name),
                 ::od_runtime::od::DataType::VisibleString,
@@ -650,7 +650,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, producer_heartbeat_time),
@@ -665,7 +665,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -682,7 +682,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_vendor_id),
@@ -697,7 +697,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_product_code),
@@ -712,7 +712,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_revision_number),
@@ -727,7 +727,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_serial_number),
@@ -742,7 +742,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -760,7 +760,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -777,7 +777,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -794,7 +794,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -811,7 +811,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -828,7 +828,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -845,7 +845,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -862,7 +862,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -880,7 +880,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -897,7 +897,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -914,7 +914,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -931,7 +931,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -948,7 +948,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -965,7 +965,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -982,7 +982,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -999,7 +999,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -1016,7 +1016,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -1033,7 +1033,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -1050,7 +1050,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer24,
             access: ::od_runtime::od::Access::Rwr,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, signed_24),
@@ -1065,7 +1065,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Boolean,
             access: ::od_runtime::od::Access::Rwr,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 bool,
             >(
                 ::core::mem::offset_of!(Dictionary, flag),
@@ -1080,7 +1080,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Real32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 f32,
             >(
                 ::core::mem::offset_of!(Dictionary, gain),
@@ -1095,8 +1095,8 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::OctetString,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
-                ::od_runtime::__private_v1::Bytes<32>,
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, blob),
                 ::od_runtime::od::DataType::OctetString,
@@ -1110,7 +1110,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned40,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u64,
             >(
                 ::core::mem::offset_of!(Dictionary, counter),
@@ -1125,7 +1125,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, gains_number_of_entries),
@@ -1140,7 +1140,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, gains_type),
@@ -1155,7 +1155,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, gains_gain_2),
@@ -1170,7 +1170,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, gains_gain_2_2006_3),
@@ -1185,7 +1185,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_window),
@@ -1200,7 +1200,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rww,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, controlword),
@@ -1215,7 +1215,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, statusword),
@@ -1230,7 +1230,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rww,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation),
@@ -1245,7 +1245,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation_display),
@@ -1260,7 +1260,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_actual_value),
@@ -1275,7 +1275,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_actual_value),
@@ -1290,7 +1290,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rww,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_position),
@@ -1305,7 +1305,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_speeds_number_of_entries),
@@ -1320,7 +1320,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -1337,7 +1337,7 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -1576,7 +1576,7 @@ PDOMapping=0
     pub struct Dictionary {
         device_type: u32,
         error_register: u8,
-        manufacturer_device_name: ::od_runtime::__private_v1::Bytes<32>,
+        manufacturer_device_name: ::od_runtime::__private_v2::Bytes<32>,
         producer_heartbeat_time: u16,
         identity_object_highest_sub_index_supported: u8,
         identity_object_vendor_id: u32,
@@ -1604,7 +1604,7 @@ PDOMapping=0
         signed_24: i32,
         flag: bool,
         gain: f32,
-        blob: ::od_runtime::__private_v1::Bytes<32>,
+        blob: ::od_runtime::__private_v2::Bytes<32>,
         counter: u64,
         gains_number_of_entries: u8,
         gains_type: u16,
@@ -1628,7 +1628,7 @@ PDOMapping=0
             Dictionary {
                 device_type: 0x20192,
                 error_register: 0,
-                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"Mini drive",
                 ),
                 producer_heartbeat_time: 0,
@@ -1660,7 +1660,7 @@ PDOMapping=0
                 signed_24: -5,
                 flag: true,
                 gain: 1.5,
-                blob: ::od_runtime::__private_v1::Bytes::from_slice(b"\x01\x02"),
+                blob: ::od_runtime::__private_v2::Bytes::from_slice(b"\x01\x02"),
                 counter: 0x123456789,
                 gains_number_of_entries: 3,
                 gains_type: 1,
@@ -1686,7 +1686,7 @@ PDOMapping=0
             Dictionary {
                 device_type: 0,
                 error_register: 0,
-                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
                     &[],
                 ),
                 producer_heartbeat_time: 0,
@@ -1716,7 +1716,7 @@ PDOMapping=0
                 signed_24: 0,
                 flag: false,
                 gain: 0.0,
-                blob: ::od_runtime::__private_v1::Bytes::from_slice(&[]),
+                blob: ::od_runtime::__private_v2::Bytes::from_slice(&[]),
                 counter: 0,
                 gains_number_of_entries: 0,
                 gains_type: 0,
@@ -1742,19 +1742,19 @@ PDOMapping=0
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
+            ::od_runtime::__private_v2::position(&LOOKUP, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
-        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
-            ::od_runtime::__private_v1::slot(self, pos)
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v2::Slot<'_>> {
+            ::od_runtime::__private_v2::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
-        ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
-            ::od_runtime::__private_v1::slot_mut(self, pos)
+        ) -> Option<::od_runtime::__private_v2::SlotMut<'_>> {
+            ::od_runtime::__private_v2::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -1762,7 +1762,7 @@ PDOMapping=0
         fn read_at(&self, pos: usize) -> [u8; 8] {
             match self.slot(pos) {
                 Some(slot) => {
-                    ::od_runtime::__private_v1::first8(
+                    ::od_runtime::__private_v2::first8(
                         || ENTRIES.get(pos).map_or(0, |e| e.bits()),
                         slot,
                     )
@@ -1784,7 +1784,7 @@ PDOMapping=0
             };
             match (ENTRIES.get(pos), self.slot_mut(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::write(
+                    ::od_runtime::__private_v2::write(
                         info,
                         slot,
                         data,
@@ -1803,7 +1803,7 @@ PDOMapping=0
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v2::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -1813,7 +1813,7 @@ PDOMapping=0
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v2::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -1823,7 +1823,7 @@ PDOMapping=0
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
@@ -1834,7 +1834,7 @@ PDOMapping=0
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
@@ -2617,7 +2617,7 @@ PDOMapping=0
             Ok(())
         }
     }
-    unsafe impl ::od_runtime::__private_v1::Table for Dictionary {
+    unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
         #[inline(always)]
         fn entries() -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
@@ -2649,7 +2649,7 @@ PDOMapping=0
             let pos = Self::position(index, sub)?;
             match (ENTRIES.get(pos), self.slot(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::read(info, slot, buf)
+                    ::od_runtime::__private_v2::read(info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -2666,7 +2666,7 @@ PDOMapping=0
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, info) in ENTRIES.iter().enumerate() {
                 if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v1::set_default(info, slot, node_id);
+                    ::od_runtime::__private_v2::set_default(info, slot, node_id);
                 }
             }
         }
@@ -2682,10 +2682,10 @@ PDOMapping=0
         }
         #[inline]
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-            ::od_runtime::__private_v1::pack_mapped(
+            ::od_runtime::__private_v2::pack_mapped(
                 map,
                 |h| match self.slot(h.get() as usize) {
-                    Some(slot) => ::od_runtime::__private_v1::first8(|| 64, slot),
+                    Some(slot) => ::od_runtime::__private_v2::first8(|| 64, slot),
                     None => [0; 8],
                 },
             )
@@ -2721,7 +2721,7 @@ PDOMapping=0
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
         #[doc(inline)]
-        pub use ::od_runtime::__private_v1::PdoLengthError as LengthError;
+        pub use ::od_runtime::__private_v2::PdoLengthError as LengthError;
         /// RPDO 1 (received by the device), default mapping of `0x1600`: 32 bits in 4 bytes.
         ///
         /// | bits | object | field |
@@ -2755,7 +2755,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 4)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 4)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     modes_of_operation: (((((w >> 24) & 0xFF) << 56) as i64) >> 56) as i8,
@@ -2821,7 +2821,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 7)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 7)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     modes_of_operation_display: (((((w >> 16) & 0xFF) << 56) as i64)
@@ -2884,7 +2884,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 8)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 8)?;
                 Ok(Self {
                     position_actual_value: ((((w & 0xFFFFFFFF) << 32) as i64) >> 32)
                         as i32,

@@ -20,9 +20,9 @@ pub mod tiny {
         pub const SPEED: u16 = 0x2000;
     }
     static OBJECTS: [u16; 1] = [0x2000];
-    static LOOKUP: ::od_runtime::__private_v0::Lookup = ::od_runtime::__private_v0::Lookup {
-        pages: ::od_runtime::__private_v0::pages(&OBJECTS),
-        bits: &::od_runtime::__private_v0::bits::<1>(&OBJECTS),
+    static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
+        pages: ::od_runtime::__private_v1::pages(&OBJECTS),
+        bits: &::od_runtime::__private_v1::bits::<1>(&OBJECTS),
         ranks: &[[0, 1, 1, 1]],
         objects: &[[0, 1, 1, 1]],
         extra: &[0],
@@ -36,7 +36,7 @@ pub mod tiny {
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            slot: ::od_runtime::__private_v0::offset::<
+            slot: ::od_runtime::__private_v1::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, speed),
@@ -85,19 +85,19 @@ pub mod tiny {
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v0::position(&LOOKUP, index, sub)
+            ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
-        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v0::Slot<'_>> {
-            ::od_runtime::__private_v0::slot(self, pos)
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
+            ::od_runtime::__private_v1::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
-        ) -> Option<::od_runtime::__private_v0::SlotMut<'_>> {
-            ::od_runtime::__private_v0::slot_mut(self, pos)
+        ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
+            ::od_runtime::__private_v1::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -105,7 +105,7 @@ pub mod tiny {
         fn read_at(&self, pos: usize) -> [u8; 8] {
             match self.slot(pos) {
                 Some(slot) => {
-                    ::od_runtime::__private_v0::first8(
+                    ::od_runtime::__private_v1::first8(
                         || ENTRIES.get(pos).map_or(0, |e| e.bits()),
                         slot,
                     )
@@ -124,7 +124,7 @@ pub mod tiny {
             let (real_low, real_high) = (None, None);
             match (ENTRIES.get(pos), self.slot_mut(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v0::write(
+                    ::od_runtime::__private_v1::write(
                         info,
                         slot,
                         data,
@@ -143,7 +143,7 @@ pub mod tiny {
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v0::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v1::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -153,7 +153,7 @@ pub mod tiny {
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v0::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v1::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -163,7 +163,7 @@ pub mod tiny {
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v0::check_mapping(
+            ::od_runtime::__private_v1::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
@@ -174,7 +174,7 @@ pub mod tiny {
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v0::check_mapping(
+            ::od_runtime::__private_v1::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
@@ -195,7 +195,7 @@ pub mod tiny {
             Ok(())
         }
     }
-    unsafe impl ::od_runtime::__private_v0::Table for Dictionary {
+    unsafe impl ::od_runtime::__private_v1::Table for Dictionary {
         #[inline(always)]
         fn entries() -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
@@ -226,7 +226,7 @@ pub mod tiny {
             let pos = Self::position(index, sub)?;
             match (ENTRIES.get(pos), self.slot(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v0::read(info, slot, buf)
+                    ::od_runtime::__private_v1::read(info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -243,7 +243,7 @@ pub mod tiny {
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, info) in ENTRIES.iter().enumerate() {
                 if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v0::set_default(info, slot, node_id);
+                    ::od_runtime::__private_v1::set_default(info, slot, node_id);
                 }
             }
         }
@@ -259,10 +259,10 @@ pub mod tiny {
         }
         #[inline]
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-            ::od_runtime::__private_v0::pack_mapped(
+            ::od_runtime::__private_v1::pack_mapped(
                 map,
                 |h| match self.slot(h.get() as usize) {
-                    Some(slot) => ::od_runtime::__private_v0::first8(|| 64, slot),
+                    Some(slot) => ::od_runtime::__private_v1::first8(|| 64, slot),
                     None => [0; 8],
                 },
             )
@@ -298,7 +298,7 @@ pub mod tiny {
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
         #[doc(inline)]
-        pub use ::od_runtime::__private_v0::PdoLengthError as LengthError;
+        pub use ::od_runtime::__private_v1::PdoLengthError as LengthError;
     }
 }
 
