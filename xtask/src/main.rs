@@ -7,7 +7,7 @@ const USAGE: &str = "usage: cargo xtask <command>
 commands:
   gen [--check]   regenerate generated/ from the device files and network descriptions,
                   printing what changed in each changed device file (--check: fail if stale)
-  size            build the example firmware for each device (thumbv7em-none-eabihf), print
+  size [--elf F]  build the example firmware for each device (thumbv7em-none-eabihf), print
                   its sections, fail above the size budget or when core::fmt is linked";
 
 fn main() -> ExitCode {

@@ -1,4 +1,4 @@
-//! `cargo xtask size [--no-build]`: builds the example firmware (`examples/firmware`) for a
+//! `cargo xtask size [--elf FILE]`: builds the example firmware (`examples/firmware`) for a
 //! Cortex-M4F once per device, reads each ELF and checks the size budget.
 //!
 //! For each device it prints the bytes of `.vector_table`, `.text`, `.rodata`, `.data` and
@@ -17,6 +17,7 @@
 //!   state. Calls through registers cannot be followed; their count is printed (0 today).
 //!
 //! The ELF is read with the `object` crate, so no binutils for the target are needed.
+//! `--elf FILE` prints the same figures for any Cortex-M ELF, without building or a budget.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -132,8 +133,10 @@ fn build(root: &Path, device: &str) -> Result<PathBuf, String> {
 
 /// Runs the command.
 pub fn main(args: &[String]) -> Result<(), String> {
-    if let Some(a) = args.first() {
-        return Err(format!("unknown argument `{a}` (usage: cargo xtask size)"));
+    match args {
+        [] => {}
+        [flag, path] if flag == "--elf" => return report_elf(Path::new(path)),
+        _ => return Err("usage: cargo xtask size [--elf FILE]".to_owned()),
     }
     let root = crate::workspace_root();
     let mut rows = Vec::new();
@@ -171,6 +174,19 @@ pub fn main(args: &[String]) -> Result<(), String> {
         );
     }
     check(&rows)
+}
+
+/// `--elf FILE`: the sections and the stack bound of any Cortex-M ELF, without a budget.
+fn report_elf(path: &Path) -> Result<(), String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let s = read_elf(&bytes).map_err(|e| format!("{}: {e}", path.display()))?.sizes;
+    let (stack, path_names, indirect) = stack::estimate(&bytes).map_err(|e| format!("{}: {e}", path.display()))?;
+    println!("vectors {} .text {} .rodata {} .data {} .bss {}", s.vectors, s.text, s.rodata, s.data, s.bss);
+    println!("flash {} RAM {} stack {stack} ({indirect} indirect calls not followed)", s.flash(), s.ram());
+    for p in path_names {
+        println!("    {p}");
+    }
+    Ok(())
 }
 
 /// Checks the budget; every failure is named.
