@@ -33,6 +33,12 @@ cargo build --workspace --bins --locked
 step "SocketCAN transport compiles"
 cargo check -p drive --features socketcan --locked
 
+# The firmware example for a Cortex-M4F, once per device, against the size budget (flash, RAM,
+# a static stack bound, no core::fmt). `rustup target add` is a no-op when the target is there.
+step "firmware size budget (thumbv7em-none-eabihf, cargo xtask size)"
+rustup target add thumbv7em-none-eabihf
+cargo xtask size
+
 step "pytest (python-canopen against the simulated drives)"
 # Where cargo put them: $CARGO_TARGET_DIR when set (relative to the root, as cargo reads it).
 target=${CARGO_TARGET_DIR:-$root/target}

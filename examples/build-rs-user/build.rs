@@ -3,7 +3,9 @@
 //!
 //! `root` makes the device path resolve against the workspace root while the file is still
 //! named `devices/camozzi-drvi.eds` in the output, so this crate's module is byte-identical to
-//! the checked-in `generated/src/drvi.rs` (tested in `tests/same_as_xtask.rs`).
+//! the checked-in `generated/src/drvi.rs` (tested in `tests/same_as_xtask.rs`). Like
+//! `cargo xtask gen`, it puts the entries' names behind this crate's `names` feature (on by
+//! default): a firmware build turns it off and saves their flash.
 //!
 //! `vendor-io.eds` stands for a file nobody here wrote: its default TPDO 1 mapping is two
 //! `0x00000000` placeholders. Generation is lenient by default, so the crate builds, Cargo
@@ -17,6 +19,7 @@ fn main() {
         .root("../..")
         .strict() // our own file: every deviation is an error
         .embed_eds(true) // as `cargo xtask gen` does, so the two files are the same
+        .names(od_codegen::Names::Feature("names".to_owned()))
         .device("drvi", "devices/camozzi-drvi.eds")
         .compile();
     let vendor = od_codegen::Builder::new().device("vendor_io", "vendor-io.eds").compile();

@@ -114,7 +114,7 @@ fn run(op: &str, n: usize) -> Result<(), String> {
         }),
         "info" => repeat(n, |i| {
             let (index, sub) = next(i);
-            od.info(black_box(index), black_box(sub)).map(|e| e.bits).unwrap_or(0) as u64
+            od.info(black_box(index), black_box(sub)).map(|e| e.bits()).unwrap_or(0) as u64
         }),
         "read" => repeat(n, |i| {
             let (index, sub) = next(i);

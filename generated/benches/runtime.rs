@@ -39,7 +39,7 @@ fn lookup(c: &mut Criterion) {
         b.iter(|| {
             i = i.wrapping_add(1);
             let (index, sub) = keys[i & 1023];
-            od.info(black_box(index), black_box(sub)).map(|e| e.bits)
+            od.info(black_box(index), black_box(sub)).map(|e| e.bits())
         })
     });
     let absent: Vec<(u16, u8)> = keys.iter().map(|&(index, sub)| (index ^ 0x0800, sub.wrapping_add(100))).collect();

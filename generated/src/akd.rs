@@ -6525,7 +6525,6 @@ Denotation=MOTOR.BRAKEIMM
         /// `0x6502` Supported drive modes.
         pub const SUPPORTED_DRIVE_MODES: u16 = 0x6502;
     }
-    /// The index of every object, sorted (the lookup's page table is computed from it).
     static OBJECTS: [u16; 333] = [
         0x1000, 0x1001, 0x1002, 0x1003, 0x1005, 0x1006, 0x1008, 0x1009, 0x100A, 0x100C,
         0x100D, 0x1010, 0x1011, 0x1014, 0x1016, 0x1017, 0x1018, 0x1026, 0x1400, 0x1401,
@@ -6562,98 +6561,64 @@ Denotation=MOTOR.BRAKEIMM
         0x60BB, 0x60BC, 0x60BD, 0x60C0, 0x60C1, 0x60C2, 0x60C4, 0x60D0, 0x60F4, 0x60FD,
         0x60FE, 0x60FF, 0x6502,
     ];
-    /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
-    /// the index to its object, then the sub-index in the object's run of entries (`runs`:
-    /// `0xFFFFFFLL`, the object's first entry `FFFFFF` and its last position in the run `LL`;
-    /// `subs`: every entry's sub-index).
-    static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
-        pages: ::od_runtime::__private_v1::pages(&OBJECTS),
-        slots: &::od_runtime::__private_v1::slots::<4352>(&OBJECTS),
-        runs: &[
-            0x00000000, 0x00000100, 0x00000200, 0x0000030A, 0x00000E00, 0x00000F00,
-            0x00001000, 0x00001100, 0x00001200, 0x00001300, 0x00001400, 0x00001501,
-            0x00001701, 0x00001900, 0x00001A01, 0x00001C00, 0x00001D04, 0x00002202,
-            0x00002502, 0x00002802, 0x00002B02, 0x00002E02, 0x00003108, 0x00003A08,
-            0x00004308, 0x00004C08, 0x00005505, 0x00005B05, 0x00006105, 0x00006705,
-            0x00006D08, 0x00007608, 0x00007F08, 0x00008808, 0x00009102, 0x00009402,
-            0x00009702, 0x00009A02, 0x00009D04, 0x0000A202, 0x0000A502, 0x0000A800,
-            0x0000A900, 0x0000AA00, 0x0000AB00, 0x0000AC00, 0x0000AD00, 0x0000AE00,
-            0x0000AF00, 0x0000B000, 0x0000B100, 0x0000B200, 0x0000B300, 0x0000B404,
-            0x0000B910, 0x0000CA04, 0x0000CF00, 0x0000D000, 0x0000D100, 0x0000D200,
-            0x0000D300, 0x0000D400, 0x0000D500, 0x0000D600, 0x0000D700, 0x0000D800,
-            0x0000D900, 0x0000DA03, 0x0000DE00, 0x0000DF00, 0x0000E003, 0x0000E400,
-            0x0000E500, 0x0000E600, 0x0000E700, 0x0000E800, 0x0000E900, 0x0000EA00,
-            0x0000EB00, 0x0000EC00, 0x0000ED00, 0x0000EE00, 0x0000EF03, 0x0000F30A,
-            0x0000FE05, 0x00010400, 0x00010500, 0x0001060E, 0x00011504, 0x00011A00,
-            0x00011B02, 0x00011E00, 0x00011F00, 0x00012000, 0x00012100, 0x00012200,
-            0x00012300, 0x00012400, 0x00012506, 0x00012C04, 0x00013108, 0x00013A08,
-            0x00014308, 0x00014C04, 0x00015100, 0x00015200, 0x00015300, 0x00015400,
-            0x00015500, 0x00015600, 0x00015700, 0x00015800, 0x00015900, 0x00015A00,
-            0x00015B00, 0x00015C00, 0x00015D00, 0x00015E00, 0x00015F00, 0x00016000,
-            0x00016100, 0x00016200, 0x00016300, 0x00016400, 0x00016500, 0x00016600,
-            0x00016700, 0x00016800, 0x00016900, 0x00016A00, 0x00016B00, 0x00016C00,
-            0x00016D00, 0x00016E00, 0x00016F00, 0x00017000, 0x00017100, 0x00017200,
-            0x00017300, 0x00017400, 0x00017500, 0x00017600, 0x00017700, 0x00017800,
-            0x00017900, 0x00017A00, 0x00017B00, 0x00017C00, 0x00017D00, 0x00017E00,
-            0x00017F00, 0x00018000, 0x00018100, 0x00018200, 0x00018300, 0x00018400,
-            0x00018500, 0x00018600, 0x00018700, 0x00018800, 0x00018900, 0x00018A00,
-            0x00018B00, 0x00018C00, 0x00018D00, 0x00018E00, 0x00018F00, 0x00019000,
-            0x00019100, 0x00019200, 0x00019300, 0x00019400, 0x00019500, 0x00019600,
-            0x00019700, 0x00019800, 0x00019900, 0x00019A00, 0x00019B00, 0x00019C00,
-            0x00019D00, 0x00019E00, 0x00019F00, 0x0001A000, 0x0001A100, 0x0001A200,
-            0x0001A300, 0x0001A400, 0x0001A500, 0x0001A600, 0x0001A700, 0x0001A800,
-            0x0001A900, 0x0001AA00, 0x0001AB00, 0x0001AC00, 0x0001AD00, 0x0001AE00,
-            0x0001AF00, 0x0001B000, 0x0001B100, 0x0001B200, 0x0001B300, 0x0001B400,
-            0x0001B500, 0x0001B600, 0x0001B700, 0x0001B800, 0x0001B900, 0x0001BA00,
-            0x0001BB00, 0x0001BC00, 0x0001BD00, 0x0001BE00, 0x0001BF00, 0x0001C000,
-            0x0001C100, 0x0001C200, 0x0001C300, 0x0001C400, 0x0001C500, 0x0001C600,
-            0x0001C700, 0x0001C800, 0x0001C900, 0x0001CA00, 0x0001CB00, 0x0001CC00,
-            0x0001CD00, 0x0001CE00, 0x0001CF00, 0x0001D000, 0x0001D100, 0x0001D200,
-            0x0001D300, 0x0001D400, 0x0001D500, 0x0001D600, 0x0001D700, 0x0001D800,
-            0x0001D900, 0x0001DA00, 0x0001DB00, 0x0001DC00, 0x0001DD00, 0x0001DE00,
-            0x0001DF00, 0x0001E000, 0x0001E100, 0x0001E200, 0x0001E300, 0x0001E400,
-            0x0001E500, 0x0001E600, 0x0001E700, 0x0001E800, 0x0001E900, 0x0001EA00,
-            0x0001EB00, 0x0001EC00, 0x0001ED00, 0x0001EE00, 0x0001EF00, 0x0001F000,
-            0x0001F100, 0x0001F200, 0x0001F300, 0x0001F400, 0x0001F500, 0x0001F600,
-            0x0001F700, 0x0001F800, 0x0001F900, 0x0001FA00, 0x0001FB00, 0x0001FC00,
-            0x0001FD00, 0x0001FE00, 0x0001FF00, 0x00020000, 0x00020100, 0x00020200,
-            0x00020300, 0x00020400, 0x00020500, 0x00020600, 0x00020700, 0x00020800,
-            0x00020900, 0x00020A00, 0x00020B00, 0x00020C00, 0x00020D00, 0x00020E00,
-            0x00020F00, 0x00021000, 0x00021100, 0x00021200, 0x00021300, 0x00021400,
-            0x00021500, 0x00021600, 0x00021700, 0x00021800, 0x00021900, 0x00021A02,
-            0x00021D00, 0x00021E00, 0x00021F00, 0x00022002, 0x00022302, 0x00022602,
-            0x00022900, 0x00022A02, 0x00022D00, 0x00022E00, 0x00022F00, 0x00023000,
-            0x00023100, 0x00023200, 0x00023300, 0x00023400, 0x00023500, 0x00023600,
-            0x00023703, 0x00023B02, 0x00023E06, 0x00024502, 0x00024800, 0x00024900,
-            0x00024A02, 0x00024D00, 0x00024E00,
+    static LOOKUP: ::od_runtime::__private_v2::Lookup = ::od_runtime::__private_v2::Lookup {
+        pages: ::od_runtime::__private_v2::pages(&OBJECTS),
+        bits: &::od_runtime::__private_v2::bits::<16>(&OBJECTS),
+        ranks: &[
+            [0, 37, 37, 37],
+            [37, 49, 49, 49],
+            [49, 85, 85, 85],
+            [85, 109, 109, 109],
+            [109, 145, 145, 145],
+            [145, 165, 171, 179],
+            [179, 180, 180, 180],
+            [180, 224, 282, 338],
+            [338, 350, 363, 379],
+            [390, 401, 408, 410],
+            [427, 427, 428, 428],
+            [428, 438, 439, 456],
+            [459, 463, 469, 479],
+            [494, 497, 521, 521],
+            [521, 521, 541, 566],
+            [590, 591, 591, 591],
         ],
-        subs: &[
-            0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 1,
-            0, 0, 1, 0, 0, 1, 2, 3, 4, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1,
-            2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0,
-            1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5,
-            0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1,
-            2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0,
-            1, 2, 0, 1, 2, 3, 4, 0, 1, 2, 0, 1, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-            1, 2, 3, 4, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 0, 1,
-            2, 3, 4, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2, 3, 0, 0, 0, 1, 2, 3, 0, 0,
-            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 0,
-            1, 2, 3, 4, 5, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 0, 1,
-            2, 3, 4, 0, 0, 1, 2, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 0, 1, 2, 3, 4,
-            0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7,
-            8, 0, 1, 2, 3, 4, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-            1, 2, 0, 0, 0, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 0, 1, 2, 0, 0, 0, 0, 0, 0, 0, 0,
-            0, 0, 0, 1, 2, 3, 0, 1, 2, 0, 1, 2, 3, 4, 5, 6, 0, 1, 2, 0, 0, 0, 1, 2, 0, 0,
+        objects: &[
+            [0, 18, 18, 18],
+            [18, 22, 22, 22],
+            [22, 26, 26, 26],
+            [26, 30, 30, 30],
+            [30, 34, 34, 34],
+            [34, 40, 44, 52],
+            [52, 53, 53, 53],
+            [53, 70, 89, 105],
+            [105, 117, 130, 146],
+            [157, 168, 175, 177],
+            [194, 194, 195, 195],
+            [195, 205, 206, 223],
+            [226, 230, 236, 246],
+            [261, 264, 288, 288],
+            [288, 288, 306, 323],
+            [332, 333, 333, 333],
         ],
+        extra: &[
+            0, 0, 0, 0, 10, 10, 10, 10, 10, 10, 10, 10, 11, 12, 12, 13, 13, 17, 0, 2, 4,
+            6, 0, 8, 16, 24, 0, 5, 10, 15, 0, 8, 16, 24, 0, 2, 4, 6, 8, 12, 0, 2, 2, 2,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 4, 20, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24,
+            24, 24, 27, 27, 0, 3, 3, 3, 3, 3, 3, 3, 3, 3, 3, 3, 3, 6, 16, 21, 21, 21, 35,
+            0, 0, 2, 2, 2, 2, 2, 2, 2, 2, 8, 12, 20, 28, 36, 40, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 4, 6, 6, 8, 8, 8, 8, 8, 8, 8,
+            8, 8, 0, 0, 3, 5, 11, 13, 13, 13, 15, 0,
+        ],
+        entries: &ENTRIES,
     };
-    /// Metadata of every entry, sorted by `(index, sub)`.
+    /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
     pub static ENTRIES: [::od_runtime::od::EntryInfo; 591] = [
         ::od_runtime::od::EntryInfo {
             index: 0x1000,
@@ -6661,11 +6626,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x20192),
-            name: "Device type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, device_type),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[0]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1001,
@@ -6673,11 +6641,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Error register",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, error_register),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1002,
@@ -6685,11 +6656,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Manufacturer status register",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_status_register),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -6697,11 +6671,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: Some(10),
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Pre-defined error field: Number of errors",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_number_of_errors
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[1]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -6709,11 +6688,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -6721,11 +6705,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -6733,11 +6722,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -6745,11 +6739,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -6757,11 +6756,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -6769,11 +6773,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -6781,11 +6790,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -6793,11 +6807,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -6805,11 +6824,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 9",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_9
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -6817,11 +6841,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 10",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_10
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1005,
@@ -6829,11 +6858,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80),
-            name: "COB-ID SYNC message",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, cob_id_sync_message),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[2]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1006,
@@ -6841,11 +6873,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Communication cycle period",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, communication_cycle_period),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1008,
@@ -6853,11 +6888,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"M006"),
-            name: "Manufacturer device name",
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_device_name),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[3]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1009,
@@ -6865,11 +6903,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b""),
-            name: "Manufacturer hardware version",
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_hardware_version),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[4]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x100A,
@@ -6877,11 +6918,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"0.20"),
-            name: "Manufacturer software version",
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_software_version),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x100C,
@@ -6889,11 +6933,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Guard time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, guard_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x100D,
@@ -6901,11 +6948,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Life time factor",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, life_time_factor),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1010,
@@ -6913,11 +6963,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Store parameters: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, store_parameters_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1010,
@@ -6925,11 +6978,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x1),
-            name: "Store parameters: Save all parameters",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, store_parameters_save_all_parameters
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1011,
@@ -6937,11 +6995,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Restore default parameters: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, restore_default_parameters_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1011,
@@ -6949,11 +7012,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x1),
-            name: "Restore default parameters: Restore all default parameters",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, restore_default_parameters_restore_all_default_parameters
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1014,
@@ -6961,11 +7029,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80),
-            name: "COB-ID EMCY",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, cob_id_emcy),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[7]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1016,
@@ -6973,11 +7044,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Consumer heartbeat time: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, consumer_heartbeat_time_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1016,
@@ -6985,11 +7061,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Consumer heartbeat time: Consumer heartbeat time 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, consumer_heartbeat_time_1),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1017,
@@ -6997,11 +7076,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Producer heartbeat time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, producer_heartbeat_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -7009,11 +7091,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(4),
-            name: "Identity object: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -7021,11 +7106,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x6A),
-            name: "Identity object: Vendor ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_vendor_id),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[9]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -7033,11 +7121,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x3630304D),
-            name: "Identity object: Product code",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_product_code),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -7045,11 +7136,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x140000),
-            name: "Identity object: Revision number",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_revision_number),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[11]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -7057,11 +7151,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Identity object: Serial number",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_serial_number),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1026,
@@ -7069,11 +7166,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "OS prompt: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, os_prompt_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1026,
@@ -7081,11 +7181,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "OS prompt: StdIn",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, os_prompt_std_in),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1026,
@@ -7093,11 +7196,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "OS prompt: StdOut",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, os_prompt_std_out),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -7105,11 +7211,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Receive PDO 1 communication parameter: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_1_communication_parameter_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -7117,11 +7228,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
-            name: "Receive PDO 1 communication parameter: COB-ID used by PDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_1_communication_parameter_cob_id_used_by_pdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -7129,11 +7245,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(255),
-            name: "Receive PDO 1 communication parameter: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_1_communication_parameter_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[14]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1401,
@@ -7141,11 +7262,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Receive PDO 2 communication parameter: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_2_communication_parameter_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1401,
@@ -7153,11 +7279,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x300),
-            name: "Receive PDO 2 communication parameter: COB-ID used by PDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_2_communication_parameter_cob_id_used_by_pdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[15]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1401,
@@ -7165,11 +7296,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(255),
-            name: "Receive PDO 2 communication parameter: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_2_communication_parameter_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[14]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1402,
@@ -7177,11 +7313,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Receive PDO 3 communication parameter: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_3_communication_parameter_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1402,
@@ -7189,11 +7330,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x400),
-            name: "Receive PDO 3 communication parameter: COB-ID used by PDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_3_communication_parameter_cob_id_used_by_pdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1402,
@@ -7201,11 +7347,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(255),
-            name: "Receive PDO 3 communication parameter: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_3_communication_parameter_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[14]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1403,
@@ -7213,11 +7364,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Receive PDO 4 communication parameter: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_4_communication_parameter_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1403,
@@ -7225,11 +7381,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x500),
-            name: "Receive PDO 4 communication parameter: COB-ID used by PDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_4_communication_parameter_cob_id_used_by_pdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1403,
@@ -7237,11 +7398,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(255),
-            name: "Receive PDO 4 communication parameter: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_4_communication_parameter_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[14]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -7249,11 +7415,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: Some(8),
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Receive PDO 1 mapping parameter: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_1_mapping_parameter_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[18]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -7261,11 +7432,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
-            name: "Receive PDO 1 mapping parameter: Mapped object 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_1_mapping_parameter_mapped_object_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -7273,11 +7449,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 1 mapping parameter: Mapped object 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_1_mapping_parameter_mapped_object_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -7285,11 +7466,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 1 mapping parameter: Mapped object 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_1_mapping_parameter_mapped_object_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -7297,11 +7483,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 1 mapping parameter: Mapped object 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_1_mapping_parameter_mapped_object_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -7309,11 +7500,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 1 mapping parameter: Mapped object 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_1_mapping_parameter_mapped_object_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -7321,11 +7517,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 1 mapping parameter: Mapped object 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_1_mapping_parameter_mapped_object_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -7333,11 +7534,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 1 mapping parameter: Mapped object 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_1_mapping_parameter_mapped_object_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -7345,11 +7551,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 1 mapping parameter: Mapped object 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_1_mapping_parameter_mapped_object_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -7357,11 +7568,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: Some(8),
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Receive PDO 2 mapping parameter: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_2_mapping_parameter_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -7369,11 +7585,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
-            name: "Receive PDO 2 mapping parameter: Mapped object 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_2_mapping_parameter_mapped_object_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -7381,11 +7602,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60600008),
-            name: "Receive PDO 2 mapping parameter: Mapped object 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_2_mapping_parameter_mapped_object_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[21]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -7393,11 +7619,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 2 mapping parameter: Mapped object 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_2_mapping_parameter_mapped_object_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -7405,11 +7636,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 2 mapping parameter: Mapped object 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_2_mapping_parameter_mapped_object_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -7417,11 +7653,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 2 mapping parameter: Mapped object 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_2_mapping_parameter_mapped_object_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -7429,11 +7670,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 2 mapping parameter: Mapped object 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_2_mapping_parameter_mapped_object_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -7441,11 +7687,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 2 mapping parameter: Mapped object 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_2_mapping_parameter_mapped_object_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -7453,11 +7704,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 2 mapping parameter: Mapped object 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_2_mapping_parameter_mapped_object_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -7465,11 +7721,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: Some(8),
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Receive PDO 3 mapping parameter: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_3_mapping_parameter_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -7477,11 +7738,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
-            name: "Receive PDO 3 mapping parameter: Mapped object 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_3_mapping_parameter_mapped_object_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -7489,11 +7755,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x607A0020),
-            name: "Receive PDO 3 mapping parameter: Mapped object 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_3_mapping_parameter_mapped_object_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[22]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -7501,11 +7772,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 3 mapping parameter: Mapped object 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_3_mapping_parameter_mapped_object_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -7513,11 +7789,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 3 mapping parameter: Mapped object 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_3_mapping_parameter_mapped_object_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -7525,11 +7806,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 3 mapping parameter: Mapped object 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_3_mapping_parameter_mapped_object_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -7537,11 +7823,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 3 mapping parameter: Mapped object 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_3_mapping_parameter_mapped_object_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -7549,11 +7840,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 3 mapping parameter: Mapped object 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_3_mapping_parameter_mapped_object_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -7561,11 +7857,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 3 mapping parameter: Mapped object 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_3_mapping_parameter_mapped_object_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -7573,11 +7874,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: Some(8),
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Receive PDO 4 mapping parameter: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_4_mapping_parameter_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -7585,11 +7891,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
-            name: "Receive PDO 4 mapping parameter: Mapped object 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_4_mapping_parameter_mapped_object_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -7597,11 +7908,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60FF0020),
-            name: "Receive PDO 4 mapping parameter: Mapped object 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_4_mapping_parameter_mapped_object_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[23]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -7609,11 +7925,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 4 mapping parameter: Mapped object 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_4_mapping_parameter_mapped_object_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -7621,11 +7942,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 4 mapping parameter: Mapped object 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_4_mapping_parameter_mapped_object_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -7633,11 +7959,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 4 mapping parameter: Mapped object 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_4_mapping_parameter_mapped_object_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -7645,11 +7976,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 4 mapping parameter: Mapped object 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_4_mapping_parameter_mapped_object_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -7657,11 +7993,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 4 mapping parameter: Mapped object 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_4_mapping_parameter_mapped_object_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -7669,11 +8010,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO 4 mapping parameter: Mapped object 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_4_mapping_parameter_mapped_object_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -7681,11 +8027,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Transmit PDO 1 communication parameter: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_communication_parameter_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[24]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -7693,11 +8044,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
-            name: "Transmit PDO 1 communication parameter: COB-ID used by PDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_communication_parameter_cob_id_used_by_pdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[25]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -7705,11 +8061,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(255),
-            name: "Transmit PDO 1 communication parameter: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_communication_parameter_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[14]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -7717,11 +8078,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO 1 communication parameter: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_communication_parameter_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -7729,11 +8095,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO 1 communication parameter: Reserved",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_communication_parameter_reserved
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -7741,11 +8112,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO 1 communication parameter: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_communication_parameter_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -7753,11 +8129,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Transmit PDO 2 communication parameter: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_communication_parameter_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[24]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -7765,11 +8146,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x280),
-            name: "Transmit PDO 2 communication parameter: COB-ID used by PDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_communication_parameter_cob_id_used_by_pdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[26]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -7777,11 +8163,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(255),
-            name: "Transmit PDO 2 communication parameter: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_communication_parameter_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[14]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -7789,11 +8180,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO 2 communication parameter: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_communication_parameter_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -7801,11 +8197,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO 2 communication parameter: Reserved",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_communication_parameter_reserved
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -7813,11 +8214,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO 2 communication parameter: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_communication_parameter_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -7825,11 +8231,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Transmit PDO 3 communication parameter: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_communication_parameter_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[24]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -7837,11 +8248,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x380),
-            name: "Transmit PDO 3 communication parameter: COB-ID used by PDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_communication_parameter_cob_id_used_by_pdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[27]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -7849,11 +8265,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(255),
-            name: "Transmit PDO 3 communication parameter: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_communication_parameter_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[14]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -7861,11 +8282,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO 3 communication parameter: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_communication_parameter_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -7873,11 +8299,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO 3 communication parameter: Reserved",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_communication_parameter_reserved
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -7885,11 +8316,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO 3 communication parameter: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_communication_parameter_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -7897,11 +8333,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Transmit PDO 4 communication parameter: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_communication_parameter_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[24]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -7909,11 +8350,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x480),
-            name: "Transmit PDO 4 communication parameter: COB-ID used by PDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_communication_parameter_cob_id_used_by_pdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[28]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -7921,11 +8367,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(255),
-            name: "Transmit PDO 4 communication parameter: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_communication_parameter_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[14]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -7933,11 +8384,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO 4 communication parameter: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_communication_parameter_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -7945,11 +8401,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO 4 communication parameter: Reserved",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_communication_parameter_reserved
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -7957,11 +8418,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO 4 communication parameter: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_communication_parameter_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -7969,11 +8435,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: Some(8),
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Transmit PDO 1 mapping parameter: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_mapping_parameter_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[18]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -7981,11 +8452,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
-            name: "Transmit PDO 1 mapping parameter: Mapped object 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_mapping_parameter_mapped_object_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[29]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -7993,11 +8469,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 1 mapping parameter: Mapped object 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_mapping_parameter_mapped_object_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -8005,11 +8486,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 1 mapping parameter: Mapped object 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_mapping_parameter_mapped_object_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -8017,11 +8503,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 1 mapping parameter: Mapped object 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_mapping_parameter_mapped_object_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -8029,11 +8520,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 1 mapping parameter: Mapped object 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_mapping_parameter_mapped_object_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -8041,11 +8537,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 1 mapping parameter: Mapped object 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_mapping_parameter_mapped_object_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -8053,11 +8554,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 1 mapping parameter: Mapped object 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_mapping_parameter_mapped_object_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -8065,11 +8571,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 1 mapping parameter: Mapped object 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_mapping_parameter_mapped_object_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -8077,11 +8588,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: Some(8),
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Transmit PDO 2 mapping parameter: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_mapping_parameter_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -8089,11 +8605,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
-            name: "Transmit PDO 2 mapping parameter: Mapped object 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_mapping_parameter_mapped_object_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[29]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -8101,11 +8622,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60610008),
-            name: "Transmit PDO 2 mapping parameter: Mapped object 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_mapping_parameter_mapped_object_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[30]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -8113,11 +8639,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 2 mapping parameter: Mapped object 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_mapping_parameter_mapped_object_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -8125,11 +8656,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 2 mapping parameter: Mapped object 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_mapping_parameter_mapped_object_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -8137,11 +8673,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 2 mapping parameter: Mapped object 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_mapping_parameter_mapped_object_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -8149,11 +8690,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 2 mapping parameter: Mapped object 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_mapping_parameter_mapped_object_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -8161,11 +8707,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 2 mapping parameter: Mapped object 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_mapping_parameter_mapped_object_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -8173,11 +8724,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 2 mapping parameter: Mapped object 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_mapping_parameter_mapped_object_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -8185,11 +8741,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: Some(8),
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Transmit PDO 3 mapping parameter: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_mapping_parameter_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -8197,11 +8758,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
-            name: "Transmit PDO 3 mapping parameter: Mapped object 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_mapping_parameter_mapped_object_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[29]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -8209,11 +8775,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60640020),
-            name: "Transmit PDO 3 mapping parameter: Mapped object 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_mapping_parameter_mapped_object_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[31]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -8221,11 +8792,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 3 mapping parameter: Mapped object 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_mapping_parameter_mapped_object_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -8233,11 +8809,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 3 mapping parameter: Mapped object 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_mapping_parameter_mapped_object_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -8245,11 +8826,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 3 mapping parameter: Mapped object 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_mapping_parameter_mapped_object_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -8257,11 +8843,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 3 mapping parameter: Mapped object 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_mapping_parameter_mapped_object_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -8269,11 +8860,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 3 mapping parameter: Mapped object 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_mapping_parameter_mapped_object_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -8281,11 +8877,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 3 mapping parameter: Mapped object 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_mapping_parameter_mapped_object_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -8293,11 +8894,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: Some(8),
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Transmit PDO 4 mapping parameter: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_mapping_parameter_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -8305,11 +8911,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
-            name: "Transmit PDO 4 mapping parameter: Mapped object 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_mapping_parameter_mapped_object_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[29]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -8317,11 +8928,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x606C0020),
-            name: "Transmit PDO 4 mapping parameter: Mapped object 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_mapping_parameter_mapped_object_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[32]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -8329,11 +8945,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 4 mapping parameter: Mapped object 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_mapping_parameter_mapped_object_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -8341,11 +8962,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 4 mapping parameter: Mapped object 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_mapping_parameter_mapped_object_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -8353,11 +8979,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 4 mapping parameter: Mapped object 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_mapping_parameter_mapped_object_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -8365,11 +8996,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 4 mapping parameter: Mapped object 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_mapping_parameter_mapped_object_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -8377,11 +9013,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 4 mapping parameter: Mapped object 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_mapping_parameter_mapped_object_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -8389,11 +9030,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO 4 mapping parameter: Mapped object 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_mapping_parameter_mapped_object_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2014,
@@ -8401,11 +9047,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Transmit PDO 1 mask: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_1_mask_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2014,
@@ -8413,11 +9064,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFFFFFFFF),
-            name: "Transmit PDO 1 mask: Mask (bytes 0 to 3)",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, transmit_pdo_1_mask_bytes_0_to_3),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[33]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2014,
@@ -8425,11 +9079,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFFFFFFFF),
-            name: "Transmit PDO 1 mask: Mask (bytes 4 to 7)",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, transmit_pdo_1_mask_bytes_4_to_7),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[33]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2015,
@@ -8437,11 +9094,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Transmit PDO 2 mask: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_2_mask_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2015,
@@ -8449,11 +9111,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFFFFFFFF),
-            name: "Transmit PDO 2 mask: Mask (bytes 0 to 3)",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, transmit_pdo_2_mask_bytes_0_to_3),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[33]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2015,
@@ -8461,11 +9126,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFFFFFFFF),
-            name: "Transmit PDO 2 mask: Mask (bytes 4 to 7)",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, transmit_pdo_2_mask_bytes_4_to_7),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[33]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2016,
@@ -8473,11 +9141,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Transmit PDO 3 mask: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_3_mask_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2016,
@@ -8485,11 +9158,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFFFFFFFF),
-            name: "Transmit PDO 3 mask: Mask (bytes 0 to 3)",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, transmit_pdo_3_mask_bytes_0_to_3),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[33]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2016,
@@ -8497,11 +9173,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFFFFFFFF),
-            name: "Transmit PDO 3 mask: Mask (bytes 4 to 7)",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, transmit_pdo_3_mask_bytes_4_to_7),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[33]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2017,
@@ -8509,11 +9188,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Transmit PDO 4 mask: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_4_mask_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2017,
@@ -8521,11 +9205,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFFFFFFFF),
-            name: "Transmit PDO 4 mask: Mask (bytes 0 to 3)",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, transmit_pdo_4_mask_bytes_0_to_3),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[33]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2017,
@@ -8533,11 +9220,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFFFFFFFF),
-            name: "Transmit PDO 4 mask: Mask (bytes 4 to 7)",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, transmit_pdo_4_mask_bytes_4_to_7),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[33]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2018,
@@ -8545,11 +9235,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(4),
-            name: "Firmware version: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, firmware_version_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2018,
@@ -8557,11 +9250,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Firmware version: Major version",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, firmware_version_major_version),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2018,
@@ -8569,11 +9265,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Firmware version: Minor version",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, firmware_version_minor_version),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2018,
@@ -8581,11 +9280,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Firmware version: Revision",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, firmware_version_revision),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2018,
@@ -8593,11 +9295,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Firmware version: Derived version",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, firmware_version_derived_version),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2026,
@@ -8605,11 +9310,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "ASCII channel: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, ascii_channel_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2026,
@@ -8617,11 +9325,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b""),
-            name: "ASCII channel: Command",
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, ascii_channel_command),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[4]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2026,
@@ -8629,11 +9340,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b""),
-            name: "ASCII channel: Response",
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, ascii_channel_response),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[4]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x204C,
@@ -8641,11 +9355,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "pv scaling factor: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, pv_scaling_factor_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x204C,
@@ -8653,11 +9370,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: Some(-32768),
-            high: Some(32767),
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "pv scaling factor: pv scaling factor numerator",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, pv_scaling_factor_numerator),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: Some(&EXTRAS[34]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x204C,
@@ -8665,11 +9385,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: Some(-32768),
-            high: Some(32767),
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "pv scaling factor: pv scaling factor denominator",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, pv_scaling_factor_denominator),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: Some(&EXTRAS[34]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2050,
@@ -8677,11 +9400,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Secondary feedback position",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, secondary_feedback_position),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2071,
@@ -8689,11 +9415,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Target current",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, target_current),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2077,
@@ -8701,11 +9430,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Current actual value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, current_actual_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x20A0,
@@ -8713,11 +9445,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Latch position 1, positive edge",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, latch_position_1_positive_edge),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x20A1,
@@ -8725,11 +9460,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Latch position 1, negative edge",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, latch_position_1_negative_edge),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x20A2,
@@ -8737,11 +9475,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Latch position 2, positive edge",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, latch_position_2_positive_edge),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x20A3,
@@ -8749,11 +9490,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Latch position 2, negative edge",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, latch_position_2_negative_edge),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x20A4,
@@ -8761,11 +9505,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rww,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Latch control register",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, latch_control_register),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x20A5,
@@ -8773,11 +9520,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rwr,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Latch status register",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, latch_status_register),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x20A6,
@@ -8785,11 +9535,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Latch position 1, positive or negative edge",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, latch_position_1_positive_or_negative_edge
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x20B8,
@@ -8797,11 +9552,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Reset of changed input information",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, reset_of_changed_input_information),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2100,
@@ -8809,11 +9567,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Dummy entry (4 bytes)",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, dummy_entry_4_bytes),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3405,
@@ -8821,11 +9582,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(4),
-            name: "Velocity loop BiQuad filter types: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, velocity_loop_bi_quad_filter_types_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3405,
@@ -8833,11 +9599,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filter types: BiQuad filter 1 calculation method",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, velocity_loop_bi_quad_filter_types_1_calculation_method
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3405,
@@ -8845,11 +9616,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filter types: BiQuad filter 2 calculation method",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, velocity_loop_bi_quad_filter_types_2_calculation_method
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3405,
@@ -8857,11 +9633,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filter types: BiQuad filter 3 calculation method",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, velocity_loop_bi_quad_filter_types_3_calculation_method
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3405,
@@ -8869,11 +9650,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filter types: BiQuad filter 4 calculation method",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, velocity_loop_bi_quad_filter_types_4_calculation_method
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -8881,11 +9667,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(16),
-            name: "Velocity loop BiQuad filters: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, velocity_loop_bi_quad_filters_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[35]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -8893,11 +9684,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 1 pole natural frequency",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -8905,11 +9702,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 2 pole natural frequency",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -8917,11 +9720,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 3 pole natural frequency",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -8929,11 +9738,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 4 pole natural frequency",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -8941,11 +9756,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 1 pole Q",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -8953,11 +9774,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 2 pole Q",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -8965,11 +9792,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 3 pole Q",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -8977,11 +9810,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 4 pole Q",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -8989,11 +9828,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 1 zero natural frequency",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -9001,11 +9846,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 2 zero natural frequency",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -9013,11 +9864,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 3 zero natural frequency",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -9025,11 +9882,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 4 zero natural frequency",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -9037,11 +9900,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 1 zero Q",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -9049,11 +9918,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 2 zero Q",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -9061,11 +9936,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 3 zero Q",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3406,
@@ -9073,11 +9954,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop BiQuad filters: Anti-resonance filter 4 zero Q",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3407,
@@ -9085,11 +9972,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(4),
-            name: "Velocity loop filter and feedforward: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, velocity_loop_filter_and_feedforward_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3407,
@@ -9097,11 +9989,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop filter and feedforward: Velocity feedback filtered at 10 Hz",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3407,
@@ -9109,11 +10007,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop filter and feedforward: Velocity feedforward gain",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    velocity_loop_filter_and_feedforward_velocity_feedforward_gain
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3407,
@@ -9121,11 +10025,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop filter and feedforward: Acceleration feedforward gain",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, velocity_loop_filter_and_feedforward_acceleration_gain
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3407,
@@ -9133,11 +10042,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop filter and feedforward: Velocity error",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, velocity_loop_filter_and_feedforward_velocity_error
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3412,
@@ -9145,11 +10059,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Regen resistor type",
+            slot: ::od_runtime::__private_v2::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, regen_resistor_type),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3414,
@@ -9157,11 +10074,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Regen resistor fault level",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, regen_resistor_fault_level),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3415,
@@ -9169,11 +10089,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Regen resistor thermal time constant",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, regen_resistor_thermal_time_constant
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3416,
@@ -9181,11 +10106,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Regen resistor calculated power",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, regen_resistor_calculated_power),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3420,
@@ -9193,11 +10121,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Foldback fault level",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, foldback_fault_level),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3421,
@@ -9205,11 +10136,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Foldback fault level, user value",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, foldback_fault_level_user_value),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3422,
@@ -9217,11 +10151,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Friction compensation value",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, friction_compensation_value),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3423,
@@ -9229,11 +10166,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Current offset for gravity compensation",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, current_offset_for_gravity_compensation
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3424,
@@ -9241,11 +10183,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Current loop PI integrator enable",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, current_loop_pi_integrator_enable),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3425,
@@ -9253,11 +10198,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Overall foldback current limit",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, overall_foldback_current_limit),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3426,
@@ -9265,11 +10213,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Current loop acceleration feedforward gain",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, current_loop_acceleration_feedforward_gain
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3427,
@@ -9277,11 +10230,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(3),
-            name: "Motor protection parameters: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, motor_protection_parameters_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[36]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3427,
@@ -9289,11 +10247,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor protection parameters: Motor protection mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, motor_protection_parameters_motor_protection_mode
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3427,
@@ -9301,11 +10264,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor protection parameters: Motor I2t warning threshold",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, motor_protection_parameters_motor_i2t_warning_threshold
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3427,
@@ -9313,11 +10281,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor protection parameters: Motor I2t load",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, motor_protection_parameters_motor_i2t_load
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3430,
@@ -9325,11 +10298,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Direction for absolute motion tasks",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, direction_for_absolute_motion_tasks),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3431,
@@ -9337,11 +10313,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motion task setting",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, motion_task_setting),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3440,
@@ -9349,11 +10328,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(3),
-            name: "Controlled stop parameters: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, controlled_stop_parameters_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[36]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3440,
@@ -9361,11 +10345,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Controlled stop parameters: Controlled stop deceleration",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, controlled_stop_parameters_controlled_stop_deceleration
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3440,
@@ -9373,11 +10362,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Controlled stop parameters: Controlled stop velocity threshold",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    controlled_stop_parameters_controlled_stop_velocity_threshold
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3440,
@@ -9385,11 +10380,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Controlled stop parameters: Controlled stop velocity threshold time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, controlled_stop_parameters_velocity_threshold_time
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3441,
@@ -9397,11 +10397,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Controlled stop state",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, controlled_stop_state),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3443,
@@ -9409,11 +10412,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Drive disable cause",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, drive_disable_cause),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3444,
@@ -9421,11 +10427,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Dynamic braking maximum current",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, dynamic_braking_maximum_current),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3445,
@@ -9433,11 +10442,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Emergency timeout for braking",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, emergency_timeout_for_braking),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3450,
@@ -9445,11 +10457,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor brake release",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_brake_release),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3451,
@@ -9457,11 +10472,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor parameters automatic calculation",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, motor_parameters_automatic_calculation
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3452,
@@ -9469,11 +10489,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor maximum voltage",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_maximum_voltage),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3453,
@@ -9481,11 +10504,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor temperature warning level",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_temperature_warning_level),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3454,
@@ -9493,11 +10519,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor winding thermal constant",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_winding_thermal_constant),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3455,
@@ -9505,11 +10534,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor quadrature inductance (line to line)",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, motor_quadrature_inductance_line_to_line
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3456,
@@ -9517,11 +10551,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor stator winding resistance (phase to phase)",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, motor_stator_winding_resistance_phase_to_phase
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3457,
@@ -9529,11 +10568,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(3),
-            name: "Induction motor parameters: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, induction_motor_parameters_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[36]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3457,
@@ -9541,11 +10585,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Induction motor parameters: Induction motor rated velocity",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, induction_motor_parameters_induction_motor_rated_velocity
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3457,
@@ -9553,11 +10602,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Induction motor parameters: Induction motor rated voltage",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, induction_motor_parameters_induction_motor_rated_voltage
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3457,
@@ -9565,11 +10619,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Induction motor parameters: Minimum voltage for V/f control",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    induction_motor_parameters_minimum_voltage_for_v_f_control
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3460,
@@ -9577,11 +10637,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(10),
-            name: "Capture engine parameters: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, capture_engine_parameters_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[37]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3460,
@@ -9589,11 +10654,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Capture engine parameters: Capture 0 trigger source",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, capture_engine_parameters_capture_0_trigger_source
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3460,
@@ -9601,11 +10671,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Capture engine parameters: Capture 1 trigger source",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, capture_engine_parameters_capture_1_trigger_source
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3460,
@@ -9613,11 +10688,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Capture engine parameters: Capture 0 mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, capture_engine_parameters_capture_0_mode
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3460,
@@ -9625,11 +10705,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Capture engine parameters: Capture 1 mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, capture_engine_parameters_capture_1_mode
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3460,
@@ -9637,11 +10722,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Capture engine parameters: Capture 0 precondition logic",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, capture_engine_parameters_capture_0_precondition_logic
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3460,
@@ -9649,11 +10739,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Capture engine parameters: Capture 1 precondition logic",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, capture_engine_parameters_capture_1_precondition_logic
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3460,
@@ -9661,11 +10756,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Capture engine parameters: Capture 0 precondition edge",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, capture_engine_parameters_capture_0_precondition_edge
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3460,
@@ -9673,11 +10773,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Capture engine parameters: Capture 1 precondition edge",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, capture_engine_parameters_capture_1_precondition_edge
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3460,
@@ -9685,11 +10790,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Capture engine parameters: Capture 0 precondition trigger",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, capture_engine_parameters_capture_0_precondition_trigger
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3460,
@@ -9697,11 +10807,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Capture engine parameters: Capture 1 precondition trigger",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, capture_engine_parameters_capture_1_precondition_trigger
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3470,
@@ -9709,11 +10824,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Analog input and output parameters: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, analog_input_and_output_parameters_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[24]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3470,
@@ -9721,11 +10841,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog input and output parameters: Analog output mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, analog_input_and_output_parameters_analog_output_mode
+                ),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3470,
@@ -9733,11 +10858,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog input and output parameters: Analog output value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, analog_input_and_output_parameters_analog_output_value
+                ),
+                ::od_runtime::od::DataType::Integer16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3470,
@@ -9745,11 +10875,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog input and output parameters: Analog output value, user units",
+            slot: ::od_runtime::__private_v2::offset::<
+                i16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, analog_input_and_output_parameters_value_user_units
+                ),
+                ::od_runtime::od::DataType::Integer16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3470,
@@ -9757,11 +10892,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog input and output parameters: Analog input value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, analog_input_and_output_parameters_analog_input_value
+                ),
+                ::od_runtime::od::DataType::Integer16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3470,
@@ -9769,11 +10909,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog input and output parameters: Analog output velocity scale factor",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, analog_input_and_output_parameters_velocity_scale_factor
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3471,
@@ -9781,11 +10926,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog output position scale factor",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, analog_output_position_scale_factor),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3472,
@@ -9793,11 +10941,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog input position scale factor",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, analog_input_position_scale_factor),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3474,
@@ -9805,11 +10956,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(14),
-            name: "Digital input parameters: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, digital_input_parameters_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[38]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3474,
@@ -9817,11 +10973,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input parameters: Digital input 1 parameter, low 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    digital_input_parameters_digital_input_1_parameter_low_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3474,
@@ -9829,11 +10991,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input parameters: Digital input 2 parameter, low 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    digital_input_parameters_digital_input_2_parameter_low_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3474,
@@ -9841,11 +11009,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input parameters: Digital input 3 parameter, low 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    digital_input_parameters_digital_input_3_parameter_low_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3474,
@@ -9853,11 +11027,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input parameters: Digital input 4 parameter, low 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    digital_input_parameters_digital_input_4_parameter_low_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3474,
@@ -9865,11 +11045,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input parameters: Digital input 5 parameter, low 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    digital_input_parameters_digital_input_5_parameter_low_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3474,
@@ -9877,11 +11063,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input parameters: Digital input 6 parameter, low 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    digital_input_parameters_digital_input_6_parameter_low_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3474,
@@ -9889,11 +11081,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input parameters: Digital input 7 parameter, low 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    digital_input_parameters_digital_input_7_parameter_low_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3474,
@@ -9901,11 +11099,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input parameters: Digital input 1 parameter, high 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    digital_input_parameters_digital_input_1_parameter_high_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3474,
@@ -9913,11 +11117,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input parameters: Digital input 2 parameter, high 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    digital_input_parameters_digital_input_2_parameter_high_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3474,
@@ -9925,11 +11135,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input parameters: Digital input 3 parameter, high 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    digital_input_parameters_digital_input_3_parameter_high_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3474,
@@ -9937,11 +11153,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input parameters: Digital input 4 parameter, high 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    digital_input_parameters_digital_input_4_parameter_high_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3474,
@@ -9949,11 +11171,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input parameters: Digital input 5 parameter, high 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    digital_input_parameters_digital_input_5_parameter_high_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3474,
@@ -9961,11 +11189,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input parameters: Digital input 6 parameter, high 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    digital_input_parameters_digital_input_6_parameter_high_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3474,
@@ -9973,11 +11207,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input parameters: Digital input 7 parameter, high 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    digital_input_parameters_digital_input_7_parameter_high_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3475,
@@ -9985,11 +11225,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(4),
-            name: "Digital output parameters: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, digital_output_parameters_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3475,
@@ -9997,11 +11242,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital output parameters: Digital output 1 parameter, low 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, digital_output_parameters_1_parameter_low_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3475,
@@ -10009,11 +11259,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital output parameters: Digital output 2 parameter, low 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, digital_output_parameters_2_parameter_low_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3475,
@@ -10021,11 +11276,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital output parameters: Digital output 1 parameter, high 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, digital_output_parameters_1_parameter_high_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3475,
@@ -10033,11 +11293,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital output parameters: Digital output 2 parameter, high 32 bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, digital_output_parameters_2_parameter_high_32_bits
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3480,
@@ -10045,11 +11310,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position loop integral gain",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_loop_integral_gain),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3481,
@@ -10057,11 +11325,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Position loop integrator saturation: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, position_loop_integrator_saturation_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3481,
@@ -10069,11 +11342,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position loop integrator saturation: Integrator input saturation",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    position_loop_integrator_saturation_integrator_input_saturation
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3481,
@@ -10081,11 +11360,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position loop integrator saturation: Integrator output saturation",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, position_loop_integrator_saturation_output
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3482,
@@ -10093,11 +11377,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing maximum following error",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_maximum_following_error),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3483,
@@ -10105,11 +11392,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position error warning level",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_error_warning_level),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3484,
@@ -10117,11 +11407,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing additional move distance",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_additional_move_distance),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3490,
@@ -10129,11 +11422,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Feedback position offset",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feedback_position_offset),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3491,
@@ -10141,11 +11437,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Emulated encoder index pulse turn position",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, emulated_encoder_index_pulse_turn_position
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3492,
@@ -10153,11 +11454,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Drive motion status",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, drive_motion_status),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3493,
@@ -10165,11 +11469,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Emulated encoder output direction",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, emulated_encoder_output_direction),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3494,
@@ -10177,11 +11484,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(6),
-            name: "Wake and shake parameters: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, wake_and_shake_parameters_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[39]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3494,
@@ -10189,11 +11501,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Wake and shake parameters: Wake and shake maximum current",
+            slot: ::od_runtime::__private_v2::offset::<
+                i16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, wake_and_shake_parameters_wake_and_shake_maximum_current
+                ),
+                ::od_runtime::od::DataType::Integer16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3494,
@@ -10201,11 +11518,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Wake and shake parameters: Wake and shake maximum movement",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, wake_and_shake_parameters_wake_and_shake_maximum_movement
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3494,
@@ -10213,11 +11535,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Wake and shake parameters: Wake and shake delay between loops in mode 0",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, wake_and_shake_parameters_delay_between_loops_in_mode_0
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3494,
@@ -10225,11 +11552,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Wake and shake parameters: Wake and shake maximum velocity",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, wake_and_shake_parameters_wake_and_shake_maximum_velocity
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3494,
@@ -10237,11 +11569,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Wake and shake parameters: Wake and shake state",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, wake_and_shake_parameters_wake_and_shake_state
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3494,
@@ -10249,11 +11586,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Wake and shake parameters: Wake and shake arm",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, wake_and_shake_parameters_wake_and_shake_arm
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3496,
@@ -10261,11 +11603,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(4),
-            name: "Fieldbus synchronization parameters: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, fieldbus_synchronization_parameters_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3496,
@@ -10273,11 +11620,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(320000),
-            name: "Fieldbus synchronization parameters: Expected synchronization distance",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, fieldbus_synchronization_parameters_expected_distance
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[40]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3496,
@@ -10285,11 +11637,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(320000),
-            name: "Fieldbus synchronization parameters: Actual synchronization distance",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, fieldbus_synchronization_parameters_actual_distance
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[40]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3496,
@@ -10297,11 +11654,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(70000),
-            name: "Fieldbus synchronization parameters: Synchronization window",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    fieldbus_synchronization_parameters_synchronization_window
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[41]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3496,
@@ -10309,11 +11672,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(150),
-            name: "Fieldbus synchronization parameters: Compensation time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, fieldbus_synchronization_parameters_compensation_time
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[42]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A0,
@@ -10321,11 +11689,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(8),
-            name: "Programmable limit switch positions: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_positions_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[43]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A0,
@@ -10333,11 +11706,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch positions: Limit switch 1 compare position",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_positions_1_compare_position
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A0,
@@ -10345,11 +11723,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch positions: Limit switch 2 compare position",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_positions_2_compare_position
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A0,
@@ -10357,11 +11740,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch positions: Limit switch 3 compare position",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_positions_3_compare_position
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A0,
@@ -10369,11 +11757,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch positions: Limit switch 4 compare position",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_positions_4_compare_position
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A0,
@@ -10381,11 +11774,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch positions: Limit switch 5 compare position",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_positions_5_compare_position
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A0,
@@ -10393,11 +11791,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch positions: Limit switch 6 compare position",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_positions_6_compare_position
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A0,
@@ -10405,11 +11808,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch positions: Limit switch 7 compare position",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_positions_7_compare_position
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A0,
@@ -10417,11 +11825,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch positions: Limit switch 8 compare position",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_positions_8_compare_position
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A1,
@@ -10429,11 +11842,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(8),
-            name: "Programmable limit switch widths: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_widths_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[43]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A1,
@@ -10441,11 +11859,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch widths: Limit switch 1 width",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_widths_limit_switch_1_width
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A1,
@@ -10453,11 +11876,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch widths: Limit switch 2 width",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_widths_limit_switch_2_width
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A1,
@@ -10465,11 +11893,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch widths: Limit switch 3 width",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_widths_limit_switch_3_width
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A1,
@@ -10477,11 +11910,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch widths: Limit switch 4 width",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_widths_limit_switch_4_width
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A1,
@@ -10489,11 +11927,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch widths: Limit switch 5 width",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_widths_limit_switch_5_width
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A1,
@@ -10501,11 +11944,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch widths: Limit switch 6 width",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_widths_limit_switch_6_width
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A1,
@@ -10513,11 +11961,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch widths: Limit switch 7 width",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_widths_limit_switch_7_width
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A1,
@@ -10525,11 +11978,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch widths: Limit switch 8 width",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_widths_limit_switch_8_width
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A2,
@@ -10537,11 +11995,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(8),
-            name: "Programmable limit switch times: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_times_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[43]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A2,
@@ -10549,11 +12012,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch times: Limit switch 1 time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_times_limit_switch_1_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A2,
@@ -10561,11 +12029,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch times: Limit switch 2 time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_times_limit_switch_2_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A2,
@@ -10573,11 +12046,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch times: Limit switch 3 time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_times_limit_switch_3_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A2,
@@ -10585,11 +12063,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch times: Limit switch 4 time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_times_limit_switch_4_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A2,
@@ -10597,11 +12080,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch times: Limit switch 5 time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_times_limit_switch_5_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A2,
@@ -10609,11 +12097,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch times: Limit switch 6 time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_times_limit_switch_6_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A2,
@@ -10621,11 +12114,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch times: Limit switch 7 time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_times_limit_switch_7_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A2,
@@ -10633,11 +12131,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch times: Limit switch 8 time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_times_limit_switch_8_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A3,
@@ -10645,11 +12148,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(4),
-            name: "Programmable limit switch configuration: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_configuration_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A3,
@@ -10657,11 +12165,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch configuration: Limit switch enable",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    programmable_limit_switch_configuration_limit_switch_enable
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A3,
@@ -10669,11 +12183,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch configuration: Limit switch reset",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    programmable_limit_switch_configuration_limit_switch_reset
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A3,
@@ -10681,11 +12201,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch configuration: Limit switch mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, programmable_limit_switch_configuration_limit_switch_mode
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A3,
@@ -10693,11 +12218,17 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch configuration: Limit switch state",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    programmable_limit_switch_configuration_limit_switch_state
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x34A4,
@@ -10705,11 +12236,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Programmable limit switch units",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_units),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3501,
@@ -10717,11 +12251,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Acceleration ramp",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, acceleration_ramp),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3502,
@@ -10729,11 +12266,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing and jog acceleration ramp",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_and_jog_acceleration_ramp),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3506,
@@ -10741,11 +12281,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Hardware enable input mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, hardware_enable_input_mode),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3509,
@@ -10753,11 +12296,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog input voltage",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, analog_input_voltage),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3522,
@@ -10765,11 +12311,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Deceleration ramp",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, deceleration_ramp),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3524,
@@ -10777,11 +12326,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing and jog deceleration ramp",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_and_jog_deceleration_ramp),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x352A,
@@ -10789,11 +12341,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motion direction",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motion_direction),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3533,
@@ -10801,11 +12356,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor encoder resolution",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_encoder_resolution),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3534,
@@ -10813,11 +12371,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Emulated encoder connector mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, emulated_encoder_connector_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3535,
@@ -10825,11 +12386,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Emulated encoder resolution",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, emulated_encoder_resolution),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3537,
@@ -10837,11 +12401,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Emulated encoder index pulse offset",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, emulated_encoder_index_pulse_offset),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x353B,
@@ -10849,11 +12416,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Feedback type selection",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feedback_type_selection),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3542,
@@ -10861,11 +12431,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position loop proportional gain",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_loop_proportional_gain),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3548,
@@ -10873,11 +12446,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop proportional gain",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_loop_proportional_gain),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x354B,
@@ -10885,11 +12461,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop velocity feedforward gain",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, velocity_loop_velocity_feedforward_gain
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x354D,
@@ -10897,11 +12478,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop integral time",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_loop_integral_time),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3558,
@@ -10909,11 +12493,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Current feedback",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, current_feedback),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3559,
@@ -10921,11 +12508,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Drive foldback current",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, drive_foldback_current),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x355A,
@@ -10933,11 +12523,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Foldback warning level",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, foldback_warning_level),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3562,
@@ -10945,11 +12538,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input 1 mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_input_1_mode),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3565,
@@ -10957,11 +12553,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input 2 mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_input_2_mode),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3568,
@@ -10969,11 +12568,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input 3 mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_input_3_mode),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x356B,
@@ -10981,11 +12583,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input 4 mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_input_4_mode),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x356E,
@@ -10993,11 +12598,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Application peak current, positive direction",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, application_peak_current_positive_direction
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x356F,
@@ -11005,11 +12615,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Application peak current, negative direction",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, application_peak_current_negative_direction
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3586,
@@ -11017,11 +12632,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor temperature fault level",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_temperature_fault_level),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3587,
@@ -11029,11 +12647,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor holding brake selection",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_holding_brake_selection),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x358E,
@@ -11041,11 +12662,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor continuous current",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_continuous_current),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x358F,
@@ -11053,11 +12677,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor peak current",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_peak_current),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3593,
@@ -11065,11 +12692,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor torque constant",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_torque_constant),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3596,
@@ -11077,11 +12707,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Current loop d-component gain ratio",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, current_loop_d_component_gain_ratio),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3598,
@@ -11089,11 +12722,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Current loop proportional gain",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, current_loop_proportional_gain),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x359C,
@@ -11101,11 +12737,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor phase",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_phase),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x359D,
@@ -11113,11 +12752,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor poles",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_poles),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35A3,
@@ -11125,11 +12767,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor maximum velocity",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_maximum_velocity),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35A4,
@@ -11137,11 +12782,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor foldback current limit",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_foldback_current_limit),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35AB,
@@ -11149,11 +12797,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor inertia",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_inertia),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35AF,
@@ -11161,11 +12812,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital output 1 mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_output_1_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35B2,
@@ -11173,11 +12827,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital output 2 mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_output_2_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35B4,
@@ -11185,11 +12842,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Drive operation mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, drive_operation_mode),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35BC,
@@ -11197,11 +12857,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Next motion task of motion task 0",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, next_motion_task_of_motion_task_0),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35C2,
@@ -11209,11 +12872,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Regen resistor selection",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, regen_resistor_selection),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35C5,
@@ -11221,11 +12887,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position following error",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_following_error),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35C6,
@@ -11233,11 +12902,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "In-position window",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, in_position_window),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35C7,
@@ -11245,11 +12917,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Maximum following error",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, maximum_following_error),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35CA,
@@ -11257,11 +12932,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position resolution numerator",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_resolution_numerator),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35CB,
@@ -11269,11 +12947,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position resolution denominator",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_resolution_denominator),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35E2,
@@ -11281,11 +12962,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing current limit for hard stop",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_current_limit_for_hard_stop),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35EB,
@@ -11293,11 +12977,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Save data to non-volatile memory",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, save_data_to_non_volatile_memory),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35F0,
@@ -11305,11 +12992,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Set reference point",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, set_reference_point),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35FE,
@@ -11317,11 +13007,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Stop motion task",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, stop_motion_task),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x35FF,
@@ -11329,11 +13022,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Disable mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, disable_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3610,
@@ -11341,11 +13037,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Ambient temperature",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, ambient_temperature),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3611,
@@ -11353,11 +13052,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Heat sink temperature",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, heat_sink_temperature),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3612,
@@ -11365,11 +13067,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor temperature",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_temperature),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3617,
@@ -11377,11 +13082,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Undervoltage mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, undervoltage_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3618,
@@ -11389,11 +13097,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity feedback",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_feedback),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x361A,
@@ -11401,11 +13112,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "DC bus voltage",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, dc_bus_voltage),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x361D,
@@ -11413,11 +13127,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Undervoltage fault level",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, undervoltage_fault_level),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3622,
@@ -11425,11 +13142,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Positive velocity limit",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, positive_velocity_limit),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3623,
@@ -11437,11 +13157,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Negative velocity limit",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, negative_velocity_limit),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3627,
@@ -11449,11 +13172,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Overspeed threshold",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, overspeed_threshold),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3629,
@@ -11461,11 +13187,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog input velocity scale factor",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, analog_input_velocity_scale_factor),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3656,
@@ -11473,11 +13202,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned64,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 64,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Initial feedback position",
+            slot: ::od_runtime::__private_v2::offset::<
+                u64,
+            >(
+                ::core::mem::offset_of!(Dictionary, initial_feedback_position),
+                ::od_runtime::od::DataType::Unsigned64,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3659,
@@ -11485,11 +13217,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rotary acceleration units",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, rotary_acceleration_units),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x365B,
@@ -11497,11 +13232,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motion task number",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motion_task_number),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x365F,
@@ -11509,11 +13247,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rotary velocity units",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, rotary_velocity_units),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3660,
@@ -11521,11 +13262,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rotary position units",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, rotary_position_units),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x366E,
@@ -11533,11 +13277,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Brake apply delay",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, brake_apply_delay),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x366F,
@@ -11545,11 +13292,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Brake release delay",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, brake_release_delay),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3683,
@@ -11557,11 +13307,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Wake and shake delay 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, wake_and_shake_delay_1),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3685,
@@ -11569,11 +13322,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Wake and shake delay 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, wake_and_shake_delay_2),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36D0,
@@ -11581,11 +13337,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Wake and shake current vector time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, wake_and_shake_current_vector_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36D1,
@@ -11593,11 +13352,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Wake and shake minimum movement",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, wake_and_shake_minimum_movement),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36D7,
@@ -11605,11 +13367,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing automatic move flag",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_automatic_move_flag),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36E2,
@@ -11617,11 +13382,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Wake and shake number of loops",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, wake_and_shake_number_of_loops),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36E5,
@@ -11629,11 +13397,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(125),
-            name: "CAN baud rate selection",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, can_baud_rate_selection),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[44]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36E6,
@@ -11641,11 +13412,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "PLL synchronization",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, pll_synchronization),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36E7,
@@ -11653,11 +13427,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Fieldbus parameter 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, fieldbus_parameter_3),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36E8,
@@ -11665,11 +13442,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "SYNC supervision",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, sync_supervision),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36E9,
@@ -11677,11 +13457,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Fieldbus configuration bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, fieldbus_configuration_bits),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36EA,
@@ -11689,11 +13472,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Fieldbus parameter 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, fieldbus_parameter_6),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36EB,
@@ -11701,11 +13487,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Fieldbus parameter 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, fieldbus_parameter_7),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36EC,
@@ -11713,11 +13502,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Fieldbus parameter 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, fieldbus_parameter_8),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36ED,
@@ -11725,11 +13517,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Fieldbus parameter 9",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, fieldbus_parameter_9),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36EE,
@@ -11737,11 +13532,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Fieldbus parameter 10",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, fieldbus_parameter_10),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36F6,
@@ -11749,11 +13547,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input 5 mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_input_5_mode),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36F9,
@@ -11761,11 +13562,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input 6 mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_input_6_mode),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x36FC,
@@ -11773,11 +13577,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input 7 mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_input_7_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x3856,
@@ -11785,11 +13592,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Profile position velocity window",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, profile_position_velocity_window),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5000,
@@ -11797,11 +13607,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog input low-pass cutoff frequency",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, analog_input_low_pass_cutoff_frequency
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5001,
@@ -11809,11 +13624,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog input deadband",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, analog_input_deadband),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5002,
@@ -11821,11 +13639,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog input current scale factor",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, analog_input_current_scale_factor),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5003,
@@ -11833,11 +13654,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog input offset",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, analog_input_offset),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5009,
@@ -11845,11 +13669,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog output current scale factor",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, analog_output_current_scale_factor),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x500B,
@@ -11857,11 +13684,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog output offset",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, analog_output_offset),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5013,
@@ -11869,11 +13699,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Bode excitation update gap",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, bode_excitation_update_gap),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5015,
@@ -11881,11 +13714,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Bode current command amplitude",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, bode_current_command_amplitude),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5016,
@@ -11893,11 +13729,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Bode injection point",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, bode_injection_point),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5019,
@@ -11905,11 +13744,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Bode PRB signal depth",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, bode_prb_signal_depth),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5060,
@@ -11917,11 +13759,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Fault relay mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, fault_relay_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5080,
@@ -11929,11 +13774,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Software enable default state",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, software_enable_default_state),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5083,
@@ -11941,11 +13789,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Drive continuous rated current",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, drive_continuous_rated_current),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5084,
@@ -11953,11 +13804,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Drive peak rated current",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, drive_peak_rated_current),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5085,
@@ -11965,11 +13819,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Zero procedure current",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, zero_procedure_current),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x508C,
@@ -11977,11 +13834,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "BiSS sensor position bits",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, bi_ss_sensor_position_bits),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x508F,
@@ -11989,11 +13849,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Initial feedback value signed",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, initial_feedback_value_signed),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5096,
@@ -12001,11 +13864,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Phase finding current",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, phase_finding_current),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5097,
@@ -12013,11 +13879,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Feedback poles",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feedback_poles),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5099,
@@ -12025,11 +13894,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Resolver transformation ratio",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, resolver_transformation_ratio),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x509A,
@@ -12037,11 +13909,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Resolver reference phase lag",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, resolver_reference_phase_lag),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x509C,
@@ -12049,11 +13924,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tracking calibration",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, tracking_calibration),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x50B1,
@@ -12061,11 +13939,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "PLL lock threshold",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, pll_lock_threshold),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x50B7,
@@ -12073,11 +13954,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Gearing maximum acceleration",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, gearing_maximum_acceleration),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x50B9,
@@ -12085,11 +13969,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Gearing maximum deceleration",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, gearing_maximum_deceleration),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x50BB,
@@ -12097,11 +13984,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Gearing ratio denominator",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, gearing_ratio_denominator),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x50BC,
@@ -12109,11 +13999,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Gearing mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, gearing_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x50BE,
@@ -12121,11 +14014,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Gearing ratio numerator",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, gearing_ratio_numerator),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x50E2,
@@ -12133,11 +14029,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Current loop fieldbus feedforward gain",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, current_loop_fieldbus_feedforward_gain
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x50FB,
@@ -12145,11 +14046,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor pitch",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_pitch),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x50FE,
@@ -12157,11 +14061,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor thermal resistor type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_thermal_resistor_type),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5104,
@@ -12169,11 +14076,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_type),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x510E,
@@ -12181,11 +14091,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motion task after emergency stop",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motion_task_after_emergency_stop),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5121,
@@ -12193,11 +14106,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Following error mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, following_error_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5128,
@@ -12205,11 +14121,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position loop feedback source",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_loop_feedback_source),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5175,
@@ -12217,11 +14136,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Service motion current 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, service_motion_current_1),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5176,
@@ -12229,11 +14151,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Service motion current 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, service_motion_current_2),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5177,
@@ -12241,11 +14166,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Service motion mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, service_motion_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5179,
@@ -12253,11 +14181,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Service motion time 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, service_motion_time_1),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x517A,
@@ -12265,11 +14196,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Service motion time 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, service_motion_time_2),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x517E,
@@ -12277,11 +14211,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Software limit switch enable",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, software_limit_switch_enable),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5184,
@@ -12289,11 +14226,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Linear acceleration units",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, linear_acceleration_units),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5187,
@@ -12301,11 +14241,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Linear position units",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, linear_position_units),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x518A,
@@ -12313,11 +14256,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Linear velocity units",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, linear_velocity_units),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x518E,
@@ -12325,11 +14271,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Overvoltage warning level",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, overvoltage_warning_level),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51AE,
@@ -12337,11 +14286,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity loop feedback source",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_loop_feedback_source),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51B0,
@@ -12349,11 +14301,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity generation mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_generation_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51B3,
@@ -12361,11 +14316,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Observer velocity scale",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, observer_velocity_scale),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51B8,
@@ -12373,11 +14331,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Load to motor inertia ratio",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, load_to_motor_inertia_ratio),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51BA,
@@ -12385,11 +14346,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Observer bandwidth",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, observer_bandwidth),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51BB,
@@ -12397,11 +14361,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Observer mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, observer_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51CB,
@@ -12409,11 +14376,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input 1 filter mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_input_1_filter_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51CC,
@@ -12421,11 +14391,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input 2 filter mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_input_2_filter_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51CD,
@@ -12433,11 +14406,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input 3 filter mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_input_3_filter_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51CE,
@@ -12445,11 +14421,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input 4 filter mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_input_4_filter_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51CF,
@@ -12457,11 +14436,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input 5 filter mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_input_5_filter_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51D0,
@@ -12469,11 +14451,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input 6 filter mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_input_6_filter_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51D1,
@@ -12481,11 +14466,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Digital input 7 filter mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_input_7_filter_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51E7,
@@ -12493,11 +14481,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Modbus user units input",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, modbus_user_units_input),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51E8,
@@ -12505,11 +14496,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Modbus user units output",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, modbus_user_units_output),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51E9,
@@ -12517,11 +14511,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Modbus feedback resolution",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, modbus_feedback_resolution),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51EC,
@@ -12529,11 +14526,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Secondary feedback resolution",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, secondary_feedback_resolution),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51ED,
@@ -12541,11 +14541,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Secondary feedback mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, secondary_feedback_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51EE,
@@ -12553,11 +14556,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Secondary feedback source",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, secondary_feedback_source),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51EF,
@@ -12565,11 +14571,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Brake apply timeout",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, brake_apply_timeout),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x51F0,
@@ -12577,11 +14586,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Modbus message log",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, modbus_message_log),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x520C,
@@ -12589,11 +14601,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Modbus scaling mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, modbus_scaling_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x520D,
@@ -12601,11 +14616,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Emulated encoder pulse width",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, emulated_encoder_pulse_width),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x520E,
@@ -12613,11 +14631,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Emulated encoder velocity monitoring",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, emulated_encoder_velocity_monitoring
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5251,
@@ -12625,11 +14648,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog input deadband mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, analog_input_deadband_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5252,
@@ -12637,11 +14663,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Analog input mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, analog_input_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5253,
@@ -12649,11 +14678,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "DIO10 direction",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, dio10_direction),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5254,
@@ -12661,11 +14693,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "DIO10 output inversion",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, dio10_output_inversion),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5255,
@@ -12673,11 +14708,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "DIO11 direction",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, dio11_direction),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5256,
@@ -12685,11 +14723,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "DIO11 output inversion",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, dio11_output_inversion),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5257,
@@ -12697,11 +14738,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "DIO9 direction",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, dio9_direction),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5258,
@@ -12709,11 +14753,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "DIO9 output inversion",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, dio9_output_inversion),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5259,
@@ -12721,11 +14768,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Fault 130 action",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, fault_130_action),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x525A,
@@ -12733,11 +14783,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Fault 131 action",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, fault_131_action),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x525B,
@@ -12745,11 +14798,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Fault 132 action",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, fault_132_action),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x525C,
@@ -12757,11 +14813,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Fault 134 action",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, fault_134_action),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x525D,
@@ -12769,11 +14828,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Fault 702 action",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, fault_702_action),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x525E,
@@ -12781,11 +14843,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "IP address mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, ip_address_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x525F,
@@ -12793,11 +14858,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Load inertia",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, load_inertia),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5260,
@@ -12805,11 +14873,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Motor back EMF constant",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_back_emf_constant),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5261,
@@ -12817,11 +14888,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Bus voltage half-voltage thresholds",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, bus_voltage_half_voltage_thresholds),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5262,
@@ -12829,11 +14903,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Secondary feedback direction",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, secondary_feedback_direction),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5263,
@@ -12841,11 +14918,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Handwheel feedback source",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, handwheel_feedback_source),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5264,
@@ -12853,11 +14933,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Hardware enable delay",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, hardware_enable_delay),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5265,
@@ -12865,11 +14948,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Current loop gain scheduling index",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, current_loop_gain_scheduling_index),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5266,
@@ -12877,11 +14963,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Current loop gain scheduling value",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, current_loop_gain_scheduling_value),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5267,
@@ -12889,11 +14978,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Fault 451 action",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, fault_451_action),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x5268,
@@ -12901,11 +14993,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Brake immediately on disable",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, brake_immediately_on_disable),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6040,
@@ -12913,11 +15008,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Controlword",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, controlword),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6041,
@@ -12925,11 +15023,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Statusword",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, statusword),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6060,
@@ -12937,11 +15038,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Modes of operation",
+            slot: ::od_runtime::__private_v2::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, modes_of_operation),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6061,
@@ -12949,11 +15053,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Modes of operation display",
+            slot: ::od_runtime::__private_v2::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, modes_of_operation_display),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6063,
@@ -12961,11 +15068,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position actual internal value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_actual_internal_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6064,
@@ -12973,11 +15083,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position actual value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_actual_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6065,
@@ -12985,11 +15098,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Following error window",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, following_error_window),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606B,
@@ -12997,11 +15113,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity demand value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_demand_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606C,
@@ -13009,11 +15128,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity actual value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_actual_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606D,
@@ -13021,11 +15143,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity window",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_window),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606E,
@@ -13033,11 +15158,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity window time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_window_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6071,
@@ -13045,11 +15173,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Target torque",
+            slot: ::od_runtime::__private_v2::offset::<
+                i16,
+            >(
+                ::core::mem::offset_of!(Dictionary, target_torque),
+                ::od_runtime::od::DataType::Integer16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6072,
@@ -13057,11 +15188,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Max torque",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, max_torque),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6073,
@@ -13069,11 +15203,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Max current",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, max_current),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6077,
@@ -13081,11 +15218,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Torque actual value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i16,
+            >(
+                ::core::mem::offset_of!(Dictionary, torque_actual_value),
+                ::od_runtime::od::DataType::Integer16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607A,
@@ -13093,11 +15233,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: Some(-2147483647),
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Target position",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, target_position),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: Some(&EXTRAS[45]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607C,
@@ -13105,11 +15248,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Home offset",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, home_offset),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607D,
@@ -13117,11 +15263,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Software position limit: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, software_position_limit_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607D,
@@ -13129,11 +15280,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Software position limit: Min position limit",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, software_position_limit_min_position_limit
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607D,
@@ -13141,11 +15297,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Software position limit: Max position limit",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, software_position_limit_max_position_limit
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6081,
@@ -13153,11 +15314,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(10),
-            name: "Profile velocity",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, profile_velocity),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[37]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6083,
@@ -13165,11 +15329,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Profile acceleration",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, profile_acceleration),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6084,
@@ -13177,11 +15344,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Profile deceleration",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, profile_deceleration),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x608F,
@@ -13189,11 +15359,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Position encoder resolution: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, position_encoder_resolution_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x608F,
@@ -13201,11 +15376,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1048576),
-            name: "Position encoder resolution: Encoder increments",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, position_encoder_resolution_encoder_increments
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[46]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x608F,
@@ -13213,11 +15393,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Position encoder resolution: Motor revolutions",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, position_encoder_resolution_motor_revolutions
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6091,
@@ -13225,11 +15410,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Gear ratio: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, gear_ratio_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6091,
@@ -13237,11 +15425,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Gear ratio: Motor shaft revolutions",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, gear_ratio_motor_shaft_revolutions),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6091,
@@ -13249,11 +15440,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Gear ratio: Driving shaft revolutions",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, gear_ratio_driving_shaft_revolutions
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6092,
@@ -13261,11 +15457,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Feed constant: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, feed_constant_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6092,
@@ -13273,11 +15472,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Feed constant: Feed",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feed_constant_feed),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6092,
@@ -13285,11 +15487,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Feed constant: Shaft revolutions",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feed_constant_shaft_revolutions),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6098,
@@ -13297,11 +15502,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing method",
+            slot: ::od_runtime::__private_v2::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_method),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -13309,11 +15517,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Homing speeds: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_speeds_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -13321,11 +15532,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Homing speeds: Speed during search for switch",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, homing_speeds_speed_during_search_for_switch
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -13333,11 +15549,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing speeds: Speed during search for zero",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, homing_speeds_speed_during_search_for_zero
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x609A,
@@ -13345,11 +15566,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing acceleration",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_acceleration),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60B1,
@@ -13357,11 +15581,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity offset",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_offset),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60B2,
@@ -13369,11 +15596,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Torque offset",
+            slot: ::od_runtime::__private_v2::offset::<
+                i16,
+            >(
+                ::core::mem::offset_of!(Dictionary, torque_offset),
+                ::od_runtime::od::DataType::Integer16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60B8,
@@ -13381,11 +15611,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Touch probe function",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, touch_probe_function),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60B9,
@@ -13393,11 +15626,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Touch probe status",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, touch_probe_status),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60BA,
@@ -13405,11 +15641,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Touch probe 1 positive edge",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, touch_probe_1_positive_edge),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60BB,
@@ -13417,11 +15656,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Touch probe 1 negative edge",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, touch_probe_1_negative_edge),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60BC,
@@ -13429,11 +15671,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Touch probe 2 positive edge",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, touch_probe_2_positive_edge),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60BD,
@@ -13441,11 +15686,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Touch probe 2 negative edge",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, touch_probe_2_negative_edge),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60C0,
@@ -13453,11 +15701,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: Some(-2),
-            high: Some(0),
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Interpolation sub mode select",
+            slot: ::od_runtime::__private_v2::offset::<
+                i16,
+            >(
+                ::core::mem::offset_of!(Dictionary, interpolation_sub_mode_select),
+                ::od_runtime::od::DataType::Integer16,
+                0,
+            ),
+            extras: Some(&EXTRAS[47]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60C1,
@@ -13465,11 +15716,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(3),
-            name: "Interpolation data record: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, interpolation_data_record_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[36]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60C1,
@@ -13477,11 +15733,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Interpolation data record: Interpolation target position",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, interpolation_data_record_interpolation_target_position
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60C1,
@@ -13489,11 +15750,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Interpolation data record: Interpolation time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, interpolation_data_record_interpolation_time
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60C1,
@@ -13501,11 +15767,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Interpolation data record: Interpolation target velocity",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, interpolation_data_record_interpolation_target_velocity
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60C2,
@@ -13513,11 +15784,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Interpolation time period: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, interpolation_time_period_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60C2,
@@ -13525,11 +15801,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Interpolation time period: Interpolation time period value",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, interpolation_time_period_value),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60C2,
@@ -13537,11 +15816,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(-3),
-            name: "Interpolation time period: Interpolation time index",
+            slot: ::od_runtime::__private_v2::offset::<
+                i16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, interpolation_time_period_interpolation_time_index
+                ),
+                ::od_runtime::od::DataType::Integer16,
+                0,
+            ),
+            extras: Some(&EXTRAS[48]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60C4,
@@ -13549,11 +15833,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(6),
-            name: "Interpolation data configuration: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, interpolation_data_configuration_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[39]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60C4,
@@ -13561,11 +15850,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(10),
-            name: "Interpolation data configuration: Maximum buffer size",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, interpolation_data_configuration_maximum_buffer_size
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[37]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60C4,
@@ -13573,11 +15867,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: Some(9),
-            default: ::od_runtime::od::DefaultValue::Int(9),
-            name: "Interpolation data configuration: Actual buffer size",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, interpolation_data_configuration_actual_buffer_size
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[49]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60C4,
@@ -13585,11 +15884,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Interpolation data configuration: Buffer organization",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, interpolation_data_configuration_buffer_organization
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60C4,
@@ -13597,11 +15901,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Interpolation data configuration: Buffer position",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, interpolation_data_configuration_buffer_position
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60C4,
@@ -13609,11 +15918,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            bits: 8,
-            low: Some(1),
-            high: Some(254),
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Interpolation data configuration: Size of data record",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, interpolation_data_configuration_size_of_data_record
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[50]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60C4,
@@ -13621,11 +15935,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Wo,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Interpolation data configuration: Buffer clear",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, interpolation_data_configuration_buffer_clear
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60D0,
@@ -13633,11 +15952,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Touch probe source: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, touch_probe_source_number_of_entries
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60D0,
@@ -13645,11 +15969,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: Some(-11),
-            high: Some(5),
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Touch probe source: Touch probe 1 source",
+            slot: ::od_runtime::__private_v2::offset::<
+                i16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, touch_probe_source_touch_probe_1_source
+                ),
+                ::od_runtime::od::DataType::Integer16,
+                0,
+            ),
+            extras: Some(&EXTRAS[51]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60D0,
@@ -13657,11 +15986,16 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: Some(-11),
-            high: Some(5),
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Touch probe source: Touch probe 2 source",
+            slot: ::od_runtime::__private_v2::offset::<
+                i16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, touch_probe_source_touch_probe_2_source
+                ),
+                ::od_runtime::od::DataType::Integer16,
+                0,
+            ),
+            extras: Some(&EXTRAS[51]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60F4,
@@ -13669,11 +16003,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Following error actual value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, following_error_actual_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60FD,
@@ -13681,11 +16018,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Digital inputs",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_inputs),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60FE,
@@ -13693,11 +16033,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Digital outputs: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_outputs_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60FE,
@@ -13705,11 +16048,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Digital outputs: Physical outputs",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_outputs_physical_outputs),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60FE,
@@ -13717,11 +16063,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Digital outputs: Bit mask",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, digital_outputs_bit_mask),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60FF,
@@ -13729,11 +16078,14 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Target velocity",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, target_velocity),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6502,
@@ -13741,12 +16093,915 @@ Denotation=MOTOR.BRAKEIMM
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x65),
-            name: "Supported drive modes",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, supported_drive_modes),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[52]),
         },
+    ];
+    /// Capacities, defaults other than zero and limits, each distinct one once
+    /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
+    pub static EXTRAS: [::od_runtime::od::EntryExtras; 53] = [
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x20192),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::None,
+            limits: Some(&LIMITS[0]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x80),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"M006"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::None,
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"0.20"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(4),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x6A),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x3630304D),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x140000),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(2),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(255),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x300),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x400),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x500),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1),
+            limits: Some(&LIMITS[1]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(2),
+            limits: Some(&LIMITS[1]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60600008),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x607A0020),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60FF0020),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(5),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x280),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x380),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x480),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60610008),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60640020),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x606C0020),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0xFFFFFFFF),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1),
+            limits: Some(&LIMITS[2]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(16),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(3),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(10),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(14),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(6),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(320000),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(70000),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(150),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(8),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(125),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::None,
+            limits: Some(&LIMITS[3]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1048576),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::None,
+            limits: Some(&LIMITS[4]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(-3),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(9),
+            limits: Some(&LIMITS[5]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1),
+            limits: Some(&LIMITS[6]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1),
+            limits: Some(&LIMITS[7]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x65),
+            limits: None,
+        },
+    ];
+    /// The limits of the entries that have any, each distinct one once.
+    pub static LIMITS: [::od_runtime::od::Limits; 8] = [
+        ::od_runtime::od::Limits {
+            low: 0,
+            high: 10,
+        },
+        ::od_runtime::od::Limits {
+            low: 0,
+            high: 8,
+        },
+        ::od_runtime::od::Limits {
+            low: -32768,
+            high: 32767,
+        },
+        ::od_runtime::od::Limits {
+            low: -2147483647,
+            high: 2147483647,
+        },
+        ::od_runtime::od::Limits {
+            low: -2,
+            high: 0,
+        },
+        ::od_runtime::od::Limits {
+            low: 0,
+            high: 9,
+        },
+        ::od_runtime::od::Limits {
+            low: 1,
+            high: 254,
+        },
+        ::od_runtime::od::Limits {
+            low: -11,
+            high: 5,
+        },
+    ];
+    /// The name of every entry (`ParameterName`, `Object: Sub-object` for sub-entries), in
+    /// [`ENTRIES`] order.
+    #[cfg(feature = "names")]
+    pub static NAMES: [&str; 591] = [
+        "Device type",
+        "Error register",
+        "Manufacturer status register",
+        "Pre-defined error field: Number of errors",
+        "Pre-defined error field: Standard error field 1",
+        "Pre-defined error field: Standard error field 2",
+        "Pre-defined error field: Standard error field 3",
+        "Pre-defined error field: Standard error field 4",
+        "Pre-defined error field: Standard error field 5",
+        "Pre-defined error field: Standard error field 6",
+        "Pre-defined error field: Standard error field 7",
+        "Pre-defined error field: Standard error field 8",
+        "Pre-defined error field: Standard error field 9",
+        "Pre-defined error field: Standard error field 10",
+        "COB-ID SYNC message",
+        "Communication cycle period",
+        "Manufacturer device name",
+        "Manufacturer hardware version",
+        "Manufacturer software version",
+        "Guard time",
+        "Life time factor",
+        "Store parameters: Number of entries",
+        "Store parameters: Save all parameters",
+        "Restore default parameters: Number of entries",
+        "Restore default parameters: Restore all default parameters",
+        "COB-ID EMCY",
+        "Consumer heartbeat time: Number of entries",
+        "Consumer heartbeat time: Consumer heartbeat time 1",
+        "Producer heartbeat time",
+        "Identity object: Number of entries",
+        "Identity object: Vendor ID",
+        "Identity object: Product code",
+        "Identity object: Revision number",
+        "Identity object: Serial number",
+        "OS prompt: Number of entries",
+        "OS prompt: StdIn",
+        "OS prompt: StdOut",
+        "Receive PDO 1 communication parameter: Number of entries",
+        "Receive PDO 1 communication parameter: COB-ID used by PDO",
+        "Receive PDO 1 communication parameter: Transmission type",
+        "Receive PDO 2 communication parameter: Number of entries",
+        "Receive PDO 2 communication parameter: COB-ID used by PDO",
+        "Receive PDO 2 communication parameter: Transmission type",
+        "Receive PDO 3 communication parameter: Number of entries",
+        "Receive PDO 3 communication parameter: COB-ID used by PDO",
+        "Receive PDO 3 communication parameter: Transmission type",
+        "Receive PDO 4 communication parameter: Number of entries",
+        "Receive PDO 4 communication parameter: COB-ID used by PDO",
+        "Receive PDO 4 communication parameter: Transmission type",
+        "Receive PDO 1 mapping parameter: Number of mapped objects",
+        "Receive PDO 1 mapping parameter: Mapped object 1",
+        "Receive PDO 1 mapping parameter: Mapped object 2",
+        "Receive PDO 1 mapping parameter: Mapped object 3",
+        "Receive PDO 1 mapping parameter: Mapped object 4",
+        "Receive PDO 1 mapping parameter: Mapped object 5",
+        "Receive PDO 1 mapping parameter: Mapped object 6",
+        "Receive PDO 1 mapping parameter: Mapped object 7",
+        "Receive PDO 1 mapping parameter: Mapped object 8",
+        "Receive PDO 2 mapping parameter: Number of mapped objects",
+        "Receive PDO 2 mapping parameter: Mapped object 1",
+        "Receive PDO 2 mapping parameter: Mapped object 2",
+        "Receive PDO 2 mapping parameter: Mapped object 3",
+        "Receive PDO 2 mapping parameter: Mapped object 4",
+        "Receive PDO 2 mapping parameter: Mapped object 5",
+        "Receive PDO 2 mapping parameter: Mapped object 6",
+        "Receive PDO 2 mapping parameter: Mapped object 7",
+        "Receive PDO 2 mapping parameter: Mapped object 8",
+        "Receive PDO 3 mapping parameter: Number of mapped objects",
+        "Receive PDO 3 mapping parameter: Mapped object 1",
+        "Receive PDO 3 mapping parameter: Mapped object 2",
+        "Receive PDO 3 mapping parameter: Mapped object 3",
+        "Receive PDO 3 mapping parameter: Mapped object 4",
+        "Receive PDO 3 mapping parameter: Mapped object 5",
+        "Receive PDO 3 mapping parameter: Mapped object 6",
+        "Receive PDO 3 mapping parameter: Mapped object 7",
+        "Receive PDO 3 mapping parameter: Mapped object 8",
+        "Receive PDO 4 mapping parameter: Number of mapped objects",
+        "Receive PDO 4 mapping parameter: Mapped object 1",
+        "Receive PDO 4 mapping parameter: Mapped object 2",
+        "Receive PDO 4 mapping parameter: Mapped object 3",
+        "Receive PDO 4 mapping parameter: Mapped object 4",
+        "Receive PDO 4 mapping parameter: Mapped object 5",
+        "Receive PDO 4 mapping parameter: Mapped object 6",
+        "Receive PDO 4 mapping parameter: Mapped object 7",
+        "Receive PDO 4 mapping parameter: Mapped object 8",
+        "Transmit PDO 1 communication parameter: Number of entries",
+        "Transmit PDO 1 communication parameter: COB-ID used by PDO",
+        "Transmit PDO 1 communication parameter: Transmission type",
+        "Transmit PDO 1 communication parameter: Inhibit time",
+        "Transmit PDO 1 communication parameter: Reserved",
+        "Transmit PDO 1 communication parameter: Event timer",
+        "Transmit PDO 2 communication parameter: Number of entries",
+        "Transmit PDO 2 communication parameter: COB-ID used by PDO",
+        "Transmit PDO 2 communication parameter: Transmission type",
+        "Transmit PDO 2 communication parameter: Inhibit time",
+        "Transmit PDO 2 communication parameter: Reserved",
+        "Transmit PDO 2 communication parameter: Event timer",
+        "Transmit PDO 3 communication parameter: Number of entries",
+        "Transmit PDO 3 communication parameter: COB-ID used by PDO",
+        "Transmit PDO 3 communication parameter: Transmission type",
+        "Transmit PDO 3 communication parameter: Inhibit time",
+        "Transmit PDO 3 communication parameter: Reserved",
+        "Transmit PDO 3 communication parameter: Event timer",
+        "Transmit PDO 4 communication parameter: Number of entries",
+        "Transmit PDO 4 communication parameter: COB-ID used by PDO",
+        "Transmit PDO 4 communication parameter: Transmission type",
+        "Transmit PDO 4 communication parameter: Inhibit time",
+        "Transmit PDO 4 communication parameter: Reserved",
+        "Transmit PDO 4 communication parameter: Event timer",
+        "Transmit PDO 1 mapping parameter: Number of mapped objects",
+        "Transmit PDO 1 mapping parameter: Mapped object 1",
+        "Transmit PDO 1 mapping parameter: Mapped object 2",
+        "Transmit PDO 1 mapping parameter: Mapped object 3",
+        "Transmit PDO 1 mapping parameter: Mapped object 4",
+        "Transmit PDO 1 mapping parameter: Mapped object 5",
+        "Transmit PDO 1 mapping parameter: Mapped object 6",
+        "Transmit PDO 1 mapping parameter: Mapped object 7",
+        "Transmit PDO 1 mapping parameter: Mapped object 8",
+        "Transmit PDO 2 mapping parameter: Number of mapped objects",
+        "Transmit PDO 2 mapping parameter: Mapped object 1",
+        "Transmit PDO 2 mapping parameter: Mapped object 2",
+        "Transmit PDO 2 mapping parameter: Mapped object 3",
+        "Transmit PDO 2 mapping parameter: Mapped object 4",
+        "Transmit PDO 2 mapping parameter: Mapped object 5",
+        "Transmit PDO 2 mapping parameter: Mapped object 6",
+        "Transmit PDO 2 mapping parameter: Mapped object 7",
+        "Transmit PDO 2 mapping parameter: Mapped object 8",
+        "Transmit PDO 3 mapping parameter: Number of mapped objects",
+        "Transmit PDO 3 mapping parameter: Mapped object 1",
+        "Transmit PDO 3 mapping parameter: Mapped object 2",
+        "Transmit PDO 3 mapping parameter: Mapped object 3",
+        "Transmit PDO 3 mapping parameter: Mapped object 4",
+        "Transmit PDO 3 mapping parameter: Mapped object 5",
+        "Transmit PDO 3 mapping parameter: Mapped object 6",
+        "Transmit PDO 3 mapping parameter: Mapped object 7",
+        "Transmit PDO 3 mapping parameter: Mapped object 8",
+        "Transmit PDO 4 mapping parameter: Number of mapped objects",
+        "Transmit PDO 4 mapping parameter: Mapped object 1",
+        "Transmit PDO 4 mapping parameter: Mapped object 2",
+        "Transmit PDO 4 mapping parameter: Mapped object 3",
+        "Transmit PDO 4 mapping parameter: Mapped object 4",
+        "Transmit PDO 4 mapping parameter: Mapped object 5",
+        "Transmit PDO 4 mapping parameter: Mapped object 6",
+        "Transmit PDO 4 mapping parameter: Mapped object 7",
+        "Transmit PDO 4 mapping parameter: Mapped object 8",
+        "Transmit PDO 1 mask: Number of entries",
+        "Transmit PDO 1 mask: Mask (bytes 0 to 3)",
+        "Transmit PDO 1 mask: Mask (bytes 4 to 7)",
+        "Transmit PDO 2 mask: Number of entries",
+        "Transmit PDO 2 mask: Mask (bytes 0 to 3)",
+        "Transmit PDO 2 mask: Mask (bytes 4 to 7)",
+        "Transmit PDO 3 mask: Number of entries",
+        "Transmit PDO 3 mask: Mask (bytes 0 to 3)",
+        "Transmit PDO 3 mask: Mask (bytes 4 to 7)",
+        "Transmit PDO 4 mask: Number of entries",
+        "Transmit PDO 4 mask: Mask (bytes 0 to 3)",
+        "Transmit PDO 4 mask: Mask (bytes 4 to 7)",
+        "Firmware version: Number of entries",
+        "Firmware version: Major version",
+        "Firmware version: Minor version",
+        "Firmware version: Revision",
+        "Firmware version: Derived version",
+        "ASCII channel: Number of entries",
+        "ASCII channel: Command",
+        "ASCII channel: Response",
+        "pv scaling factor: Number of entries",
+        "pv scaling factor: pv scaling factor numerator",
+        "pv scaling factor: pv scaling factor denominator",
+        "Secondary feedback position",
+        "Target current",
+        "Current actual value",
+        "Latch position 1, positive edge",
+        "Latch position 1, negative edge",
+        "Latch position 2, positive edge",
+        "Latch position 2, negative edge",
+        "Latch control register",
+        "Latch status register",
+        "Latch position 1, positive or negative edge",
+        "Reset of changed input information",
+        "Dummy entry (4 bytes)",
+        "Velocity loop BiQuad filter types: Number of entries",
+        "Velocity loop BiQuad filter types: BiQuad filter 1 calculation method",
+        "Velocity loop BiQuad filter types: BiQuad filter 2 calculation method",
+        "Velocity loop BiQuad filter types: BiQuad filter 3 calculation method",
+        "Velocity loop BiQuad filter types: BiQuad filter 4 calculation method",
+        "Velocity loop BiQuad filters: Number of entries",
+        "Velocity loop BiQuad filters: Anti-resonance filter 1 pole natural frequency",
+        "Velocity loop BiQuad filters: Anti-resonance filter 2 pole natural frequency",
+        "Velocity loop BiQuad filters: Anti-resonance filter 3 pole natural frequency",
+        "Velocity loop BiQuad filters: Anti-resonance filter 4 pole natural frequency",
+        "Velocity loop BiQuad filters: Anti-resonance filter 1 pole Q",
+        "Velocity loop BiQuad filters: Anti-resonance filter 2 pole Q",
+        "Velocity loop BiQuad filters: Anti-resonance filter 3 pole Q",
+        "Velocity loop BiQuad filters: Anti-resonance filter 4 pole Q",
+        "Velocity loop BiQuad filters: Anti-resonance filter 1 zero natural frequency",
+        "Velocity loop BiQuad filters: Anti-resonance filter 2 zero natural frequency",
+        "Velocity loop BiQuad filters: Anti-resonance filter 3 zero natural frequency",
+        "Velocity loop BiQuad filters: Anti-resonance filter 4 zero natural frequency",
+        "Velocity loop BiQuad filters: Anti-resonance filter 1 zero Q",
+        "Velocity loop BiQuad filters: Anti-resonance filter 2 zero Q",
+        "Velocity loop BiQuad filters: Anti-resonance filter 3 zero Q",
+        "Velocity loop BiQuad filters: Anti-resonance filter 4 zero Q",
+        "Velocity loop filter and feedforward: Number of entries",
+        "Velocity loop filter and feedforward: Velocity feedback filtered at 10 Hz",
+        "Velocity loop filter and feedforward: Velocity feedforward gain",
+        "Velocity loop filter and feedforward: Acceleration feedforward gain",
+        "Velocity loop filter and feedforward: Velocity error",
+        "Regen resistor type",
+        "Regen resistor fault level",
+        "Regen resistor thermal time constant",
+        "Regen resistor calculated power",
+        "Foldback fault level",
+        "Foldback fault level, user value",
+        "Friction compensation value",
+        "Current offset for gravity compensation",
+        "Current loop PI integrator enable",
+        "Overall foldback current limit",
+        "Current loop acceleration feedforward gain",
+        "Motor protection parameters: Number of entries",
+        "Motor protection parameters: Motor protection mode",
+        "Motor protection parameters: Motor I2t warning threshold",
+        "Motor protection parameters: Motor I2t load",
+        "Direction for absolute motion tasks",
+        "Motion task setting",
+        "Controlled stop parameters: Number of entries",
+        "Controlled stop parameters: Controlled stop deceleration",
+        "Controlled stop parameters: Controlled stop velocity threshold",
+        "Controlled stop parameters: Controlled stop velocity threshold time",
+        "Controlled stop state",
+        "Drive disable cause",
+        "Dynamic braking maximum current",
+        "Emergency timeout for braking",
+        "Motor brake release",
+        "Motor parameters automatic calculation",
+        "Motor maximum voltage",
+        "Motor temperature warning level",
+        "Motor winding thermal constant",
+        "Motor quadrature inductance (line to line)",
+        "Motor stator winding resistance (phase to phase)",
+        "Induction motor parameters: Number of entries",
+        "Induction motor parameters: Induction motor rated velocity",
+        "Induction motor parameters: Induction motor rated voltage",
+        "Induction motor parameters: Minimum voltage for V/f control",
+        "Capture engine parameters: Number of entries",
+        "Capture engine parameters: Capture 0 trigger source",
+        "Capture engine parameters: Capture 1 trigger source",
+        "Capture engine parameters: Capture 0 mode",
+        "Capture engine parameters: Capture 1 mode",
+        "Capture engine parameters: Capture 0 precondition logic",
+        "Capture engine parameters: Capture 1 precondition logic",
+        "Capture engine parameters: Capture 0 precondition edge",
+        "Capture engine parameters: Capture 1 precondition edge",
+        "Capture engine parameters: Capture 0 precondition trigger",
+        "Capture engine parameters: Capture 1 precondition trigger",
+        "Analog input and output parameters: Number of entries",
+        "Analog input and output parameters: Analog output mode",
+        "Analog input and output parameters: Analog output value",
+        "Analog input and output parameters: Analog output value, user units",
+        "Analog input and output parameters: Analog input value",
+        "Analog input and output parameters: Analog output velocity scale factor",
+        "Analog output position scale factor",
+        "Analog input position scale factor",
+        "Digital input parameters: Number of entries",
+        "Digital input parameters: Digital input 1 parameter, low 32 bits",
+        "Digital input parameters: Digital input 2 parameter, low 32 bits",
+        "Digital input parameters: Digital input 3 parameter, low 32 bits",
+        "Digital input parameters: Digital input 4 parameter, low 32 bits",
+        "Digital input parameters: Digital input 5 parameter, low 32 bits",
+        "Digital input parameters: Digital input 6 parameter, low 32 bits",
+        "Digital input parameters: Digital input 7 parameter, low 32 bits",
+        "Digital input parameters: Digital input 1 parameter, high 32 bits",
+        "Digital input parameters: Digital input 2 parameter, high 32 bits",
+        "Digital input parameters: Digital input 3 parameter, high 32 bits",
+        "Digital input parameters: Digital input 4 parameter, high 32 bits",
+        "Digital input parameters: Digital input 5 parameter, high 32 bits",
+        "Digital input parameters: Digital input 6 parameter, high 32 bits",
+        "Digital input parameters: Digital input 7 parameter, high 32 bits",
+        "Digital output parameters: Number of entries",
+        "Digital output parameters: Digital output 1 parameter, low 32 bits",
+        "Digital output parameters: Digital output 2 parameter, low 32 bits",
+        "Digital output parameters: Digital output 1 parameter, high 32 bits",
+        "Digital output parameters: Digital output 2 parameter, high 32 bits",
+        "Position loop integral gain",
+        "Position loop integrator saturation: Number of entries",
+        "Position loop integrator saturation: Integrator input saturation",
+        "Position loop integrator saturation: Integrator output saturation",
+        "Homing maximum following error",
+        "Position error warning level",
+        "Homing additional move distance",
+        "Feedback position offset",
+        "Emulated encoder index pulse turn position",
+        "Drive motion status",
+        "Emulated encoder output direction",
+        "Wake and shake parameters: Number of entries",
+        "Wake and shake parameters: Wake and shake maximum current",
+        "Wake and shake parameters: Wake and shake maximum movement",
+        "Wake and shake parameters: Wake and shake delay between loops in mode 0",
+        "Wake and shake parameters: Wake and shake maximum velocity",
+        "Wake and shake parameters: Wake and shake state",
+        "Wake and shake parameters: Wake and shake arm",
+        "Fieldbus synchronization parameters: Number of entries",
+        "Fieldbus synchronization parameters: Expected synchronization distance",
+        "Fieldbus synchronization parameters: Actual synchronization distance",
+        "Fieldbus synchronization parameters: Synchronization window",
+        "Fieldbus synchronization parameters: Compensation time",
+        "Programmable limit switch positions: Number of entries",
+        "Programmable limit switch positions: Limit switch 1 compare position",
+        "Programmable limit switch positions: Limit switch 2 compare position",
+        "Programmable limit switch positions: Limit switch 3 compare position",
+        "Programmable limit switch positions: Limit switch 4 compare position",
+        "Programmable limit switch positions: Limit switch 5 compare position",
+        "Programmable limit switch positions: Limit switch 6 compare position",
+        "Programmable limit switch positions: Limit switch 7 compare position",
+        "Programmable limit switch positions: Limit switch 8 compare position",
+        "Programmable limit switch widths: Number of entries",
+        "Programmable limit switch widths: Limit switch 1 width",
+        "Programmable limit switch widths: Limit switch 2 width",
+        "Programmable limit switch widths: Limit switch 3 width",
+        "Programmable limit switch widths: Limit switch 4 width",
+        "Programmable limit switch widths: Limit switch 5 width",
+        "Programmable limit switch widths: Limit switch 6 width",
+        "Programmable limit switch widths: Limit switch 7 width",
+        "Programmable limit switch widths: Limit switch 8 width",
+        "Programmable limit switch times: Number of entries",
+        "Programmable limit switch times: Limit switch 1 time",
+        "Programmable limit switch times: Limit switch 2 time",
+        "Programmable limit switch times: Limit switch 3 time",
+        "Programmable limit switch times: Limit switch 4 time",
+        "Programmable limit switch times: Limit switch 5 time",
+        "Programmable limit switch times: Limit switch 6 time",
+        "Programmable limit switch times: Limit switch 7 time",
+        "Programmable limit switch times: Limit switch 8 time",
+        "Programmable limit switch configuration: Number of entries",
+        "Programmable limit switch configuration: Limit switch enable",
+        "Programmable limit switch configuration: Limit switch reset",
+        "Programmable limit switch configuration: Limit switch mode",
+        "Programmable limit switch configuration: Limit switch state",
+        "Programmable limit switch units",
+        "Acceleration ramp",
+        "Homing and jog acceleration ramp",
+        "Hardware enable input mode",
+        "Analog input voltage",
+        "Deceleration ramp",
+        "Homing and jog deceleration ramp",
+        "Motion direction",
+        "Motor encoder resolution",
+        "Emulated encoder connector mode",
+        "Emulated encoder resolution",
+        "Emulated encoder index pulse offset",
+        "Feedback type selection",
+        "Position loop proportional gain",
+        "Velocity loop proportional gain",
+        "Velocity loop velocity feedforward gain",
+        "Velocity loop integral time",
+        "Current feedback",
+        "Drive foldback current",
+        "Foldback warning level",
+        "Digital input 1 mode",
+        "Digital input 2 mode",
+        "Digital input 3 mode",
+        "Digital input 4 mode",
+        "Application peak current, positive direction",
+        "Application peak current, negative direction",
+        "Motor temperature fault level",
+        "Motor holding brake selection",
+        "Motor continuous current",
+        "Motor peak current",
+        "Motor torque constant",
+        "Current loop d-component gain ratio",
+        "Current loop proportional gain",
+        "Motor phase",
+        "Motor poles",
+        "Motor maximum velocity",
+        "Motor foldback current limit",
+        "Motor inertia",
+        "Digital output 1 mode",
+        "Digital output 2 mode",
+        "Drive operation mode",
+        "Next motion task of motion task 0",
+        "Regen resistor selection",
+        "Position following error",
+        "In-position window",
+        "Maximum following error",
+        "Position resolution numerator",
+        "Position resolution denominator",
+        "Homing current limit for hard stop",
+        "Save data to non-volatile memory",
+        "Set reference point",
+        "Stop motion task",
+        "Disable mode",
+        "Ambient temperature",
+        "Heat sink temperature",
+        "Motor temperature",
+        "Undervoltage mode",
+        "Velocity feedback",
+        "DC bus voltage",
+        "Undervoltage fault level",
+        "Positive velocity limit",
+        "Negative velocity limit",
+        "Overspeed threshold",
+        "Analog input velocity scale factor",
+        "Initial feedback position",
+        "Rotary acceleration units",
+        "Motion task number",
+        "Rotary velocity units",
+        "Rotary position units",
+        "Brake apply delay",
+        "Brake release delay",
+        "Wake and shake delay 1",
+        "Wake and shake delay 2",
+        "Wake and shake current vector time",
+        "Wake and shake minimum movement",
+        "Homing automatic move flag",
+        "Wake and shake number of loops",
+        "CAN baud rate selection",
+        "PLL synchronization",
+        "Fieldbus parameter 3",
+        "SYNC supervision",
+        "Fieldbus configuration bits",
+        "Fieldbus parameter 6",
+        "Fieldbus parameter 7",
+        "Fieldbus parameter 8",
+        "Fieldbus parameter 9",
+        "Fieldbus parameter 10",
+        "Digital input 5 mode",
+        "Digital input 6 mode",
+        "Digital input 7 mode",
+        "Profile position velocity window",
+        "Analog input low-pass cutoff frequency",
+        "Analog input deadband",
+        "Analog input current scale factor",
+        "Analog input offset",
+        "Analog output current scale factor",
+        "Analog output offset",
+        "Bode excitation update gap",
+        "Bode current command amplitude",
+        "Bode injection point",
+        "Bode PRB signal depth",
+        "Fault relay mode",
+        "Software enable default state",
+        "Drive continuous rated current",
+        "Drive peak rated current",
+        "Zero procedure current",
+        "BiSS sensor position bits",
+        "Initial feedback value signed",
+        "Phase finding current",
+        "Feedback poles",
+        "Resolver transformation ratio",
+        "Resolver reference phase lag",
+        "Tracking calibration",
+        "PLL lock threshold",
+        "Gearing maximum acceleration",
+        "Gearing maximum deceleration",
+        "Gearing ratio denominator",
+        "Gearing mode",
+        "Gearing ratio numerator",
+        "Current loop fieldbus feedforward gain",
+        "Motor pitch",
+        "Motor thermal resistor type",
+        "Motor type",
+        "Motion task after emergency stop",
+        "Following error mode",
+        "Position loop feedback source",
+        "Service motion current 1",
+        "Service motion current 2",
+        "Service motion mode",
+        "Service motion time 1",
+        "Service motion time 2",
+        "Software limit switch enable",
+        "Linear acceleration units",
+        "Linear position units",
+        "Linear velocity units",
+        "Overvoltage warning level",
+        "Velocity loop feedback source",
+        "Velocity generation mode",
+        "Observer velocity scale",
+        "Load to motor inertia ratio",
+        "Observer bandwidth",
+        "Observer mode",
+        "Digital input 1 filter mode",
+        "Digital input 2 filter mode",
+        "Digital input 3 filter mode",
+        "Digital input 4 filter mode",
+        "Digital input 5 filter mode",
+        "Digital input 6 filter mode",
+        "Digital input 7 filter mode",
+        "Modbus user units input",
+        "Modbus user units output",
+        "Modbus feedback resolution",
+        "Secondary feedback resolution",
+        "Secondary feedback mode",
+        "Secondary feedback source",
+        "Brake apply timeout",
+        "Modbus message log",
+        "Modbus scaling mode",
+        "Emulated encoder pulse width",
+        "Emulated encoder velocity monitoring",
+        "Analog input deadband mode",
+        "Analog input mode",
+        "DIO10 direction",
+        "DIO10 output inversion",
+        "DIO11 direction",
+        "DIO11 output inversion",
+        "DIO9 direction",
+        "DIO9 output inversion",
+        "Fault 130 action",
+        "Fault 131 action",
+        "Fault 132 action",
+        "Fault 134 action",
+        "Fault 702 action",
+        "IP address mode",
+        "Load inertia",
+        "Motor back EMF constant",
+        "Bus voltage half-voltage thresholds",
+        "Secondary feedback direction",
+        "Handwheel feedback source",
+        "Hardware enable delay",
+        "Current loop gain scheduling index",
+        "Current loop gain scheduling value",
+        "Fault 451 action",
+        "Brake immediately on disable",
+        "Controlword",
+        "Statusword",
+        "Modes of operation",
+        "Modes of operation display",
+        "Position actual internal value",
+        "Position actual value",
+        "Following error window",
+        "Velocity demand value",
+        "Velocity actual value",
+        "Velocity window",
+        "Velocity window time",
+        "Target torque",
+        "Max torque",
+        "Max current",
+        "Torque actual value",
+        "Target position",
+        "Home offset",
+        "Software position limit: Number of entries",
+        "Software position limit: Min position limit",
+        "Software position limit: Max position limit",
+        "Profile velocity",
+        "Profile acceleration",
+        "Profile deceleration",
+        "Position encoder resolution: Number of entries",
+        "Position encoder resolution: Encoder increments",
+        "Position encoder resolution: Motor revolutions",
+        "Gear ratio: Number of entries",
+        "Gear ratio: Motor shaft revolutions",
+        "Gear ratio: Driving shaft revolutions",
+        "Feed constant: Number of entries",
+        "Feed constant: Feed",
+        "Feed constant: Shaft revolutions",
+        "Homing method",
+        "Homing speeds: Number of entries",
+        "Homing speeds: Speed during search for switch",
+        "Homing speeds: Speed during search for zero",
+        "Homing acceleration",
+        "Velocity offset",
+        "Torque offset",
+        "Touch probe function",
+        "Touch probe status",
+        "Touch probe 1 positive edge",
+        "Touch probe 1 negative edge",
+        "Touch probe 2 positive edge",
+        "Touch probe 2 negative edge",
+        "Interpolation sub mode select",
+        "Interpolation data record: Number of entries",
+        "Interpolation data record: Interpolation target position",
+        "Interpolation data record: Interpolation time",
+        "Interpolation data record: Interpolation target velocity",
+        "Interpolation time period: Number of entries",
+        "Interpolation time period: Interpolation time period value",
+        "Interpolation time period: Interpolation time index",
+        "Interpolation data configuration: Number of entries",
+        "Interpolation data configuration: Maximum buffer size",
+        "Interpolation data configuration: Actual buffer size",
+        "Interpolation data configuration: Buffer organization",
+        "Interpolation data configuration: Buffer position",
+        "Interpolation data configuration: Size of data record",
+        "Interpolation data configuration: Buffer clear",
+        "Touch probe source: Number of entries",
+        "Touch probe source: Touch probe 1 source",
+        "Touch probe source: Touch probe 2 source",
+        "Following error actual value",
+        "Digital inputs",
+        "Digital outputs: Number of entries",
+        "Digital outputs: Physical outputs",
+        "Digital outputs: Bit mask",
+        "Target velocity",
+        "Supported drive modes",
     ];
     /// The object dictionary of the AKD (Kollmorgen (Danaher Motion)): the current value of every entry.
     ///
@@ -13769,9 +17024,9 @@ Denotation=MOTOR.BRAKEIMM
         pre_defined_error_field_standard_error_field_10: u32,
         cob_id_sync_message: u32,
         communication_cycle_period: u32,
-        manufacturer_device_name: ::od_runtime::__private_v1::Bytes<32>,
-        manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes<32>,
-        manufacturer_software_version: ::od_runtime::__private_v1::Bytes<32>,
+        manufacturer_device_name: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_software_version: ::od_runtime::__private_v2::Bytes<32>,
         guard_time: u16,
         life_time_factor: u8,
         store_parameters_number_of_entries: u8,
@@ -13916,8 +17171,8 @@ Denotation=MOTOR.BRAKEIMM
         firmware_version_revision: u16,
         firmware_version_derived_version: u16,
         ascii_channel_number_of_entries: u8,
-        ascii_channel_command: ::od_runtime::__private_v1::Bytes<32>,
-        ascii_channel_response: ::od_runtime::__private_v1::Bytes<32>,
+        ascii_channel_command: ::od_runtime::__private_v2::Bytes<32>,
+        ascii_channel_response: ::od_runtime::__private_v2::Bytes<32>,
         pv_scaling_factor_number_of_entries: u8,
         pv_scaling_factor_numerator: i32,
         pv_scaling_factor_denominator: i32,
@@ -14365,13 +17620,13 @@ Denotation=MOTOR.BRAKEIMM
                 pre_defined_error_field_standard_error_field_10: 0x0,
                 cob_id_sync_message: 0x80,
                 communication_cycle_period: 0x0,
-                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"M006",
                 ),
-                manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"",
                 ),
-                manufacturer_software_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"0.20",
                 ),
                 guard_time: 0,
@@ -14526,10 +17781,10 @@ Denotation=MOTOR.BRAKEIMM
                 firmware_version_revision: 0,
                 firmware_version_derived_version: 0,
                 ascii_channel_number_of_entries: 2,
-                ascii_channel_command: ::od_runtime::__private_v1::Bytes::from_slice(
+                ascii_channel_command: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"",
                 ),
-                ascii_channel_response: ::od_runtime::__private_v1::Bytes::from_slice(
+                ascii_channel_response: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"",
                 ),
                 pv_scaling_factor_number_of_entries: 2,
@@ -14960,6 +18215,614 @@ Denotation=MOTOR.BRAKEIMM
                 supported_drive_modes: 0x65,
             }
         }
+        /// Every value zero, every buffer empty. A device's first poll (its reset node)
+        /// restores the defaults, so a firmware can start from this: its device then
+        /// needs no image of the defaults in flash besides the entry table's.
+        pub const fn zeroed() -> Self {
+            Dictionary {
+                device_type: 0,
+                error_register: 0,
+                manufacturer_status_register: 0,
+                pre_defined_error_field_number_of_errors: 0,
+                pre_defined_error_field_standard_error_field_1: 0,
+                pre_defined_error_field_standard_error_field_2: 0,
+                pre_defined_error_field_standard_error_field_3: 0,
+                pre_defined_error_field_standard_error_field_4: 0,
+                pre_defined_error_field_standard_error_field_5: 0,
+                pre_defined_error_field_standard_error_field_6: 0,
+                pre_defined_error_field_standard_error_field_7: 0,
+                pre_defined_error_field_standard_error_field_8: 0,
+                pre_defined_error_field_standard_error_field_9: 0,
+                pre_defined_error_field_standard_error_field_10: 0,
+                cob_id_sync_message: 0,
+                communication_cycle_period: 0,
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
+                    &[],
+                ),
+                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                    &[],
+                ),
+                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                    &[],
+                ),
+                guard_time: 0,
+                life_time_factor: 0,
+                store_parameters_number_of_entries: 0,
+                store_parameters_save_all_parameters: 0,
+                restore_default_parameters_number_of_entries: 0,
+                restore_default_parameters_restore_all_default_parameters: 0,
+                cob_id_emcy: 0,
+                consumer_heartbeat_time_number_of_entries: 0,
+                consumer_heartbeat_time_1: 0,
+                producer_heartbeat_time: 0,
+                identity_object_number_of_entries: 0,
+                identity_object_vendor_id: 0,
+                identity_object_product_code: 0,
+                identity_object_revision_number: 0,
+                identity_object_serial_number: 0,
+                os_prompt_number_of_entries: 0,
+                os_prompt_std_in: 0,
+                os_prompt_std_out: 0,
+                receive_pdo_1_communication_parameter_number_of_entries: 0,
+                receive_pdo_1_communication_parameter_cob_id_used_by_pdo: 0,
+                receive_pdo_1_communication_parameter_transmission_type: 0,
+                receive_pdo_2_communication_parameter_number_of_entries: 0,
+                receive_pdo_2_communication_parameter_cob_id_used_by_pdo: 0,
+                receive_pdo_2_communication_parameter_transmission_type: 0,
+                receive_pdo_3_communication_parameter_number_of_entries: 0,
+                receive_pdo_3_communication_parameter_cob_id_used_by_pdo: 0,
+                receive_pdo_3_communication_parameter_transmission_type: 0,
+                receive_pdo_4_communication_parameter_number_of_entries: 0,
+                receive_pdo_4_communication_parameter_cob_id_used_by_pdo: 0,
+                receive_pdo_4_communication_parameter_transmission_type: 0,
+                receive_pdo_1_mapping_parameter_number_of_mapped_objects: 0,
+                receive_pdo_1_mapping_parameter_mapped_object_1: 0,
+                receive_pdo_1_mapping_parameter_mapped_object_2: 0,
+                receive_pdo_1_mapping_parameter_mapped_object_3: 0,
+                receive_pdo_1_mapping_parameter_mapped_object_4: 0,
+                receive_pdo_1_mapping_parameter_mapped_object_5: 0,
+                receive_pdo_1_mapping_parameter_mapped_object_6: 0,
+                receive_pdo_1_mapping_parameter_mapped_object_7: 0,
+                receive_pdo_1_mapping_parameter_mapped_object_8: 0,
+                receive_pdo_2_mapping_parameter_number_of_mapped_objects: 0,
+                receive_pdo_2_mapping_parameter_mapped_object_1: 0,
+                receive_pdo_2_mapping_parameter_mapped_object_2: 0,
+                receive_pdo_2_mapping_parameter_mapped_object_3: 0,
+                receive_pdo_2_mapping_parameter_mapped_object_4: 0,
+                receive_pdo_2_mapping_parameter_mapped_object_5: 0,
+                receive_pdo_2_mapping_parameter_mapped_object_6: 0,
+                receive_pdo_2_mapping_parameter_mapped_object_7: 0,
+                receive_pdo_2_mapping_parameter_mapped_object_8: 0,
+                receive_pdo_3_mapping_parameter_number_of_mapped_objects: 0,
+                receive_pdo_3_mapping_parameter_mapped_object_1: 0,
+                receive_pdo_3_mapping_parameter_mapped_object_2: 0,
+                receive_pdo_3_mapping_parameter_mapped_object_3: 0,
+                receive_pdo_3_mapping_parameter_mapped_object_4: 0,
+                receive_pdo_3_mapping_parameter_mapped_object_5: 0,
+                receive_pdo_3_mapping_parameter_mapped_object_6: 0,
+                receive_pdo_3_mapping_parameter_mapped_object_7: 0,
+                receive_pdo_3_mapping_parameter_mapped_object_8: 0,
+                receive_pdo_4_mapping_parameter_number_of_mapped_objects: 0,
+                receive_pdo_4_mapping_parameter_mapped_object_1: 0,
+                receive_pdo_4_mapping_parameter_mapped_object_2: 0,
+                receive_pdo_4_mapping_parameter_mapped_object_3: 0,
+                receive_pdo_4_mapping_parameter_mapped_object_4: 0,
+                receive_pdo_4_mapping_parameter_mapped_object_5: 0,
+                receive_pdo_4_mapping_parameter_mapped_object_6: 0,
+                receive_pdo_4_mapping_parameter_mapped_object_7: 0,
+                receive_pdo_4_mapping_parameter_mapped_object_8: 0,
+                transmit_pdo_1_communication_parameter_number_of_entries: 0,
+                transmit_pdo_1_communication_parameter_cob_id_used_by_pdo: 0,
+                transmit_pdo_1_communication_parameter_transmission_type: 0,
+                transmit_pdo_1_communication_parameter_inhibit_time: 0,
+                transmit_pdo_1_communication_parameter_reserved: 0,
+                transmit_pdo_1_communication_parameter_event_timer: 0,
+                transmit_pdo_2_communication_parameter_number_of_entries: 0,
+                transmit_pdo_2_communication_parameter_cob_id_used_by_pdo: 0,
+                transmit_pdo_2_communication_parameter_transmission_type: 0,
+                transmit_pdo_2_communication_parameter_inhibit_time: 0,
+                transmit_pdo_2_communication_parameter_reserved: 0,
+                transmit_pdo_2_communication_parameter_event_timer: 0,
+                transmit_pdo_3_communication_parameter_number_of_entries: 0,
+                transmit_pdo_3_communication_parameter_cob_id_used_by_pdo: 0,
+                transmit_pdo_3_communication_parameter_transmission_type: 0,
+                transmit_pdo_3_communication_parameter_inhibit_time: 0,
+                transmit_pdo_3_communication_parameter_reserved: 0,
+                transmit_pdo_3_communication_parameter_event_timer: 0,
+                transmit_pdo_4_communication_parameter_number_of_entries: 0,
+                transmit_pdo_4_communication_parameter_cob_id_used_by_pdo: 0,
+                transmit_pdo_4_communication_parameter_transmission_type: 0,
+                transmit_pdo_4_communication_parameter_inhibit_time: 0,
+                transmit_pdo_4_communication_parameter_reserved: 0,
+                transmit_pdo_4_communication_parameter_event_timer: 0,
+                transmit_pdo_1_mapping_parameter_number_of_mapped_objects: 0,
+                transmit_pdo_1_mapping_parameter_mapped_object_1: 0,
+                transmit_pdo_1_mapping_parameter_mapped_object_2: 0,
+                transmit_pdo_1_mapping_parameter_mapped_object_3: 0,
+                transmit_pdo_1_mapping_parameter_mapped_object_4: 0,
+                transmit_pdo_1_mapping_parameter_mapped_object_5: 0,
+                transmit_pdo_1_mapping_parameter_mapped_object_6: 0,
+                transmit_pdo_1_mapping_parameter_mapped_object_7: 0,
+                transmit_pdo_1_mapping_parameter_mapped_object_8: 0,
+                transmit_pdo_2_mapping_parameter_number_of_mapped_objects: 0,
+                transmit_pdo_2_mapping_parameter_mapped_object_1: 0,
+                transmit_pdo_2_mapping_parameter_mapped_object_2: 0,
+                transmit_pdo_2_mapping_parameter_mapped_object_3: 0,
+                transmit_pdo_2_mapping_parameter_mapped_object_4: 0,
+                transmit_pdo_2_mapping_parameter_mapped_object_5: 0,
+                transmit_pdo_2_mapping_parameter_mapped_object_6: 0,
+                transmit_pdo_2_mapping_parameter_mapped_object_7: 0,
+                transmit_pdo_2_mapping_parameter_mapped_object_8: 0,
+                transmit_pdo_3_mapping_parameter_number_of_mapped_objects: 0,
+                transmit_pdo_3_mapping_parameter_mapped_object_1: 0,
+                transmit_pdo_3_mapping_parameter_mapped_object_2: 0,
+                transmit_pdo_3_mapping_parameter_mapped_object_3: 0,
+                transmit_pdo_3_mapping_parameter_mapped_object_4: 0,
+                transmit_pdo_3_mapping_parameter_mapped_object_5: 0,
+                transmit_pdo_3_mapping_parameter_mapped_object_6: 0,
+                transmit_pdo_3_mapping_parameter_mapped_object_7: 0,
+                transmit_pdo_3_mapping_parameter_mapped_object_8: 0,
+                transmit_pdo_4_mapping_parameter_number_of_mapped_objects: 0,
+                transmit_pdo_4_mapping_parameter_mapped_object_1: 0,
+                transmit_pdo_4_mapping_parameter_mapped_object_2: 0,
+                transmit_pdo_4_mapping_parameter_mapped_object_3: 0,
+                transmit_pdo_4_mapping_parameter_mapped_object_4: 0,
+                transmit_pdo_4_mapping_parameter_mapped_object_5: 0,
+                transmit_pdo_4_mapping_parameter_mapped_object_6: 0,
+                transmit_pdo_4_mapping_parameter_mapped_object_7: 0,
+                transmit_pdo_4_mapping_parameter_mapped_object_8: 0,
+                transmit_pdo_1_mask_number_of_entries: 0,
+                transmit_pdo_1_mask_bytes_0_to_3: 0,
+                transmit_pdo_1_mask_bytes_4_to_7: 0,
+                transmit_pdo_2_mask_number_of_entries: 0,
+                transmit_pdo_2_mask_bytes_0_to_3: 0,
+                transmit_pdo_2_mask_bytes_4_to_7: 0,
+                transmit_pdo_3_mask_number_of_entries: 0,
+                transmit_pdo_3_mask_bytes_0_to_3: 0,
+                transmit_pdo_3_mask_bytes_4_to_7: 0,
+                transmit_pdo_4_mask_number_of_entries: 0,
+                transmit_pdo_4_mask_bytes_0_to_3: 0,
+                transmit_pdo_4_mask_bytes_4_to_7: 0,
+                firmware_version_number_of_entries: 0,
+                firmware_version_major_version: 0,
+                firmware_version_minor_version: 0,
+                firmware_version_revision: 0,
+                firmware_version_derived_version: 0,
+                ascii_channel_number_of_entries: 0,
+                ascii_channel_command: ::od_runtime::__private_v2::Bytes::from_slice(
+                    &[],
+                ),
+                ascii_channel_response: ::od_runtime::__private_v2::Bytes::from_slice(
+                    &[],
+                ),
+                pv_scaling_factor_number_of_entries: 0,
+                pv_scaling_factor_numerator: 0,
+                pv_scaling_factor_denominator: 0,
+                secondary_feedback_position: 0,
+                target_current: 0,
+                current_actual_value: 0,
+                latch_position_1_positive_edge: 0,
+                latch_position_1_negative_edge: 0,
+                latch_position_2_positive_edge: 0,
+                latch_position_2_negative_edge: 0,
+                latch_control_register: 0,
+                latch_status_register: 0,
+                latch_position_1_positive_or_negative_edge: 0,
+                reset_of_changed_input_information: 0,
+                dummy_entry_4_bytes: 0,
+                velocity_loop_bi_quad_filter_types_number_of_entries: 0,
+                velocity_loop_bi_quad_filter_types_1_calculation_method: 0,
+                velocity_loop_bi_quad_filter_types_2_calculation_method: 0,
+                velocity_loop_bi_quad_filter_types_3_calculation_method: 0,
+                velocity_loop_bi_quad_filter_types_4_calculation_method: 0,
+                velocity_loop_bi_quad_filters_number_of_entries: 0,
+                vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency: 0,
+                vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency: 0,
+                vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency: 0,
+                vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q: 0,
+                vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency: 0,
+                vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency: 0,
+                vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency: 0,
+                vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q: 0,
+                velocity_loop_filter_and_feedforward_number_of_entries: 0,
+                velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz: 0,
+                velocity_loop_filter_and_feedforward_velocity_feedforward_gain: 0,
+                velocity_loop_filter_and_feedforward_acceleration_gain: 0,
+                velocity_loop_filter_and_feedforward_velocity_error: 0,
+                regen_resistor_type: 0,
+                regen_resistor_fault_level: 0,
+                regen_resistor_thermal_time_constant: 0,
+                regen_resistor_calculated_power: 0,
+                foldback_fault_level: 0,
+                foldback_fault_level_user_value: 0,
+                friction_compensation_value: 0,
+                current_offset_for_gravity_compensation: 0,
+                current_loop_pi_integrator_enable: 0,
+                overall_foldback_current_limit: 0,
+                current_loop_acceleration_feedforward_gain: 0,
+                motor_protection_parameters_number_of_entries: 0,
+                motor_protection_parameters_motor_protection_mode: 0,
+                motor_protection_parameters_motor_i2t_warning_threshold: 0,
+                motor_protection_parameters_motor_i2t_load: 0,
+                direction_for_absolute_motion_tasks: 0,
+                motion_task_setting: 0,
+                controlled_stop_parameters_number_of_entries: 0,
+                controlled_stop_parameters_controlled_stop_deceleration: 0,
+                controlled_stop_parameters_controlled_stop_velocity_threshold: 0,
+                controlled_stop_parameters_velocity_threshold_time: 0,
+                controlled_stop_state: 0,
+                drive_disable_cause: 0,
+                dynamic_braking_maximum_current: 0,
+                emergency_timeout_for_braking: 0,
+                motor_brake_release: 0,
+                motor_parameters_automatic_calculation: 0,
+                motor_maximum_voltage: 0,
+                motor_temperature_warning_level: 0,
+                motor_winding_thermal_constant: 0,
+                motor_quadrature_inductance_line_to_line: 0,
+                motor_stator_winding_resistance_phase_to_phase: 0,
+                induction_motor_parameters_number_of_entries: 0,
+                induction_motor_parameters_induction_motor_rated_velocity: 0,
+                induction_motor_parameters_induction_motor_rated_voltage: 0,
+                induction_motor_parameters_minimum_voltage_for_v_f_control: 0,
+                capture_engine_parameters_number_of_entries: 0,
+                capture_engine_parameters_capture_0_trigger_source: 0,
+                capture_engine_parameters_capture_1_trigger_source: 0,
+                capture_engine_parameters_capture_0_mode: 0,
+                capture_engine_parameters_capture_1_mode: 0,
+                capture_engine_parameters_capture_0_precondition_logic: 0,
+                capture_engine_parameters_capture_1_precondition_logic: 0,
+                capture_engine_parameters_capture_0_precondition_edge: 0,
+                capture_engine_parameters_capture_1_precondition_edge: 0,
+                capture_engine_parameters_capture_0_precondition_trigger: 0,
+                capture_engine_parameters_capture_1_precondition_trigger: 0,
+                analog_input_and_output_parameters_number_of_entries: 0,
+                analog_input_and_output_parameters_analog_output_mode: 0,
+                analog_input_and_output_parameters_analog_output_value: 0,
+                analog_input_and_output_parameters_value_user_units: 0,
+                analog_input_and_output_parameters_analog_input_value: 0,
+                analog_input_and_output_parameters_velocity_scale_factor: 0,
+                analog_output_position_scale_factor: 0,
+                analog_input_position_scale_factor: 0,
+                digital_input_parameters_number_of_entries: 0,
+                digital_input_parameters_digital_input_1_parameter_low_32_bits: 0,
+                digital_input_parameters_digital_input_2_parameter_low_32_bits: 0,
+                digital_input_parameters_digital_input_3_parameter_low_32_bits: 0,
+                digital_input_parameters_digital_input_4_parameter_low_32_bits: 0,
+                digital_input_parameters_digital_input_5_parameter_low_32_bits: 0,
+                digital_input_parameters_digital_input_6_parameter_low_32_bits: 0,
+                digital_input_parameters_digital_input_7_parameter_low_32_bits: 0,
+                digital_input_parameters_digital_input_1_parameter_high_32_bits: 0,
+                digital_input_parameters_digital_input_2_parameter_high_32_bits: 0,
+                digital_input_parameters_digital_input_3_parameter_high_32_bits: 0,
+                digital_input_parameters_digital_input_4_parameter_high_32_bits: 0,
+                digital_input_parameters_digital_input_5_parameter_high_32_bits: 0,
+                digital_input_parameters_digital_input_6_parameter_high_32_bits: 0,
+                digital_input_parameters_digital_input_7_parameter_high_32_bits: 0,
+                digital_output_parameters_number_of_entries: 0,
+                digital_output_parameters_1_parameter_low_32_bits: 0,
+                digital_output_parameters_2_parameter_low_32_bits: 0,
+                digital_output_parameters_1_parameter_high_32_bits: 0,
+                digital_output_parameters_2_parameter_high_32_bits: 0,
+                position_loop_integral_gain: 0,
+                position_loop_integrator_saturation_number_of_entries: 0,
+                position_loop_integrator_saturation_integrator_input_saturation: 0,
+                position_loop_integrator_saturation_output: 0,
+                homing_maximum_following_error: 0,
+                position_error_warning_level: 0,
+                homing_additional_move_distance: 0,
+                feedback_position_offset: 0,
+                emulated_encoder_index_pulse_turn_position: 0,
+                drive_motion_status: 0,
+                emulated_encoder_output_direction: 0,
+                wake_and_shake_parameters_number_of_entries: 0,
+                wake_and_shake_parameters_wake_and_shake_maximum_current: 0,
+                wake_and_shake_parameters_wake_and_shake_maximum_movement: 0,
+                wake_and_shake_parameters_delay_between_loops_in_mode_0: 0,
+                wake_and_shake_parameters_wake_and_shake_maximum_velocity: 0,
+                wake_and_shake_parameters_wake_and_shake_state: 0,
+                wake_and_shake_parameters_wake_and_shake_arm: 0,
+                fieldbus_synchronization_parameters_number_of_entries: 0,
+                fieldbus_synchronization_parameters_expected_distance: 0,
+                fieldbus_synchronization_parameters_actual_distance: 0,
+                fieldbus_synchronization_parameters_synchronization_window: 0,
+                fieldbus_synchronization_parameters_compensation_time: 0,
+                programmable_limit_switch_positions_number_of_entries: 0,
+                programmable_limit_switch_positions_1_compare_position: 0,
+                programmable_limit_switch_positions_2_compare_position: 0,
+                programmable_limit_switch_positions_3_compare_position: 0,
+                programmable_limit_switch_positions_4_compare_position: 0,
+                programmable_limit_switch_positions_5_compare_position: 0,
+                programmable_limit_switch_positions_6_compare_position: 0,
+                programmable_limit_switch_positions_7_compare_position: 0,
+                programmable_limit_switch_positions_8_compare_position: 0,
+                programmable_limit_switch_widths_number_of_entries: 0,
+                programmable_limit_switch_widths_limit_switch_1_width: 0,
+                programmable_limit_switch_widths_limit_switch_2_width: 0,
+                programmable_limit_switch_widths_limit_switch_3_width: 0,
+                programmable_limit_switch_widths_limit_switch_4_width: 0,
+                programmable_limit_switch_widths_limit_switch_5_width: 0,
+                programmable_limit_switch_widths_limit_switch_6_width: 0,
+                programmable_limit_switch_widths_limit_switch_7_width: 0,
+                programmable_limit_switch_widths_limit_switch_8_width: 0,
+                programmable_limit_switch_times_number_of_entries: 0,
+                programmable_limit_switch_times_limit_switch_1_time: 0,
+                programmable_limit_switch_times_limit_switch_2_time: 0,
+                programmable_limit_switch_times_limit_switch_3_time: 0,
+                programmable_limit_switch_times_limit_switch_4_time: 0,
+                programmable_limit_switch_times_limit_switch_5_time: 0,
+                programmable_limit_switch_times_limit_switch_6_time: 0,
+                programmable_limit_switch_times_limit_switch_7_time: 0,
+                programmable_limit_switch_times_limit_switch_8_time: 0,
+                programmable_limit_switch_configuration_number_of_entries: 0,
+                programmable_limit_switch_configuration_limit_switch_enable: 0,
+                programmable_limit_switch_configuration_limit_switch_reset: 0,
+                programmable_limit_switch_configuration_limit_switch_mode: 0,
+                programmable_limit_switch_configuration_limit_switch_state: 0,
+                programmable_limit_switch_units: 0,
+                acceleration_ramp: 0,
+                homing_and_jog_acceleration_ramp: 0,
+                hardware_enable_input_mode: 0,
+                analog_input_voltage: 0,
+                deceleration_ramp: 0,
+                homing_and_jog_deceleration_ramp: 0,
+                motion_direction: 0,
+                motor_encoder_resolution: 0,
+                emulated_encoder_connector_mode: 0,
+                emulated_encoder_resolution: 0,
+                emulated_encoder_index_pulse_offset: 0,
+                feedback_type_selection: 0,
+                position_loop_proportional_gain: 0,
+                velocity_loop_proportional_gain: 0,
+                velocity_loop_velocity_feedforward_gain: 0,
+                velocity_loop_integral_time: 0,
+                current_feedback: 0,
+                drive_foldback_current: 0,
+                foldback_warning_level: 0,
+                digital_input_1_mode: 0,
+                digital_input_2_mode: 0,
+                digital_input_3_mode: 0,
+                digital_input_4_mode: 0,
+                application_peak_current_positive_direction: 0,
+                application_peak_current_negative_direction: 0,
+                motor_temperature_fault_level: 0,
+                motor_holding_brake_selection: 0,
+                motor_continuous_current: 0,
+                motor_peak_current: 0,
+                motor_torque_constant: 0,
+                current_loop_d_component_gain_ratio: 0,
+                current_loop_proportional_gain: 0,
+                motor_phase: 0,
+                motor_poles: 0,
+                motor_maximum_velocity: 0,
+                motor_foldback_current_limit: 0,
+                motor_inertia: 0,
+                digital_output_1_mode: 0,
+                digital_output_2_mode: 0,
+                drive_operation_mode: 0,
+                next_motion_task_of_motion_task_0: 0,
+                regen_resistor_selection: 0,
+                position_following_error: 0,
+                in_position_window: 0,
+                maximum_following_error: 0,
+                position_resolution_numerator: 0,
+                position_resolution_denominator: 0,
+                homing_current_limit_for_hard_stop: 0,
+                save_data_to_non_volatile_memory: 0,
+                set_reference_point: 0,
+                stop_motion_task: 0,
+                disable_mode: 0,
+                ambient_temperature: 0,
+                heat_sink_temperature: 0,
+                motor_temperature: 0,
+                undervoltage_mode: 0,
+                velocity_feedback: 0,
+                dc_bus_voltage: 0,
+                undervoltage_fault_level: 0,
+                positive_velocity_limit: 0,
+                negative_velocity_limit: 0,
+                overspeed_threshold: 0,
+                analog_input_velocity_scale_factor: 0,
+                initial_feedback_position: 0,
+                rotary_acceleration_units: 0,
+                motion_task_number: 0,
+                rotary_velocity_units: 0,
+                rotary_position_units: 0,
+                brake_apply_delay: 0,
+                brake_release_delay: 0,
+                wake_and_shake_delay_1: 0,
+                wake_and_shake_delay_2: 0,
+                wake_and_shake_current_vector_time: 0,
+                wake_and_shake_minimum_movement: 0,
+                homing_automatic_move_flag: 0,
+                wake_and_shake_number_of_loops: 0,
+                can_baud_rate_selection: 0,
+                pll_synchronization: 0,
+                fieldbus_parameter_3: 0,
+                sync_supervision: 0,
+                fieldbus_configuration_bits: 0,
+                fieldbus_parameter_6: 0,
+                fieldbus_parameter_7: 0,
+                fieldbus_parameter_8: 0,
+                fieldbus_parameter_9: 0,
+                fieldbus_parameter_10: 0,
+                digital_input_5_mode: 0,
+                digital_input_6_mode: 0,
+                digital_input_7_mode: 0,
+                profile_position_velocity_window: 0,
+                analog_input_low_pass_cutoff_frequency: 0,
+                analog_input_deadband: 0,
+                analog_input_current_scale_factor: 0,
+                analog_input_offset: 0,
+                analog_output_current_scale_factor: 0,
+                analog_output_offset: 0,
+                bode_excitation_update_gap: 0,
+                bode_current_command_amplitude: 0,
+                bode_injection_point: 0,
+                bode_prb_signal_depth: 0,
+                fault_relay_mode: 0,
+                software_enable_default_state: 0,
+                drive_continuous_rated_current: 0,
+                drive_peak_rated_current: 0,
+                zero_procedure_current: 0,
+                bi_ss_sensor_position_bits: 0,
+                initial_feedback_value_signed: 0,
+                phase_finding_current: 0,
+                feedback_poles: 0,
+                resolver_transformation_ratio: 0,
+                resolver_reference_phase_lag: 0,
+                tracking_calibration: 0,
+                pll_lock_threshold: 0,
+                gearing_maximum_acceleration: 0,
+                gearing_maximum_deceleration: 0,
+                gearing_ratio_denominator: 0,
+                gearing_mode: 0,
+                gearing_ratio_numerator: 0,
+                current_loop_fieldbus_feedforward_gain: 0,
+                motor_pitch: 0,
+                motor_thermal_resistor_type: 0,
+                motor_type: 0,
+                motion_task_after_emergency_stop: 0,
+                following_error_mode: 0,
+                position_loop_feedback_source: 0,
+                service_motion_current_1: 0,
+                service_motion_current_2: 0,
+                service_motion_mode: 0,
+                service_motion_time_1: 0,
+                service_motion_time_2: 0,
+                software_limit_switch_enable: 0,
+                linear_acceleration_units: 0,
+                linear_position_units: 0,
+                linear_velocity_units: 0,
+                overvoltage_warning_level: 0,
+                velocity_loop_feedback_source: 0,
+                velocity_generation_mode: 0,
+                observer_velocity_scale: 0,
+                load_to_motor_inertia_ratio: 0,
+                observer_bandwidth: 0,
+                observer_mode: 0,
+                digital_input_1_filter_mode: 0,
+                digital_input_2_filter_mode: 0,
+                digital_input_3_filter_mode: 0,
+                digital_input_4_filter_mode: 0,
+                digital_input_5_filter_mode: 0,
+                digital_input_6_filter_mode: 0,
+                digital_input_7_filter_mode: 0,
+                modbus_user_units_input: 0,
+                modbus_user_units_output: 0,
+                modbus_feedback_resolution: 0,
+                secondary_feedback_resolution: 0,
+                secondary_feedback_mode: 0,
+                secondary_feedback_source: 0,
+                brake_apply_timeout: 0,
+                modbus_message_log: 0,
+                modbus_scaling_mode: 0,
+                emulated_encoder_pulse_width: 0,
+                emulated_encoder_velocity_monitoring: 0,
+                analog_input_deadband_mode: 0,
+                analog_input_mode: 0,
+                dio10_direction: 0,
+                dio10_output_inversion: 0,
+                dio11_direction: 0,
+                dio11_output_inversion: 0,
+                dio9_direction: 0,
+                dio9_output_inversion: 0,
+                fault_130_action: 0,
+                fault_131_action: 0,
+                fault_132_action: 0,
+                fault_134_action: 0,
+                fault_702_action: 0,
+                ip_address_mode: 0,
+                load_inertia: 0,
+                motor_back_emf_constant: 0,
+                bus_voltage_half_voltage_thresholds: 0,
+                secondary_feedback_direction: 0,
+                handwheel_feedback_source: 0,
+                hardware_enable_delay: 0,
+                current_loop_gain_scheduling_index: 0,
+                current_loop_gain_scheduling_value: 0,
+                fault_451_action: 0,
+                brake_immediately_on_disable: 0,
+                controlword: 0,
+                statusword: 0,
+                modes_of_operation: 0,
+                modes_of_operation_display: 0,
+                position_actual_internal_value: 0,
+                position_actual_value: 0,
+                following_error_window: 0,
+                velocity_demand_value: 0,
+                velocity_actual_value: 0,
+                velocity_window: 0,
+                velocity_window_time: 0,
+                target_torque: 0,
+                max_torque: 0,
+                max_current: 0,
+                torque_actual_value: 0,
+                target_position: 0,
+                home_offset: 0,
+                software_position_limit_number_of_entries: 0,
+                software_position_limit_min_position_limit: 0,
+                software_position_limit_max_position_limit: 0,
+                profile_velocity: 0,
+                profile_acceleration: 0,
+                profile_deceleration: 0,
+                position_encoder_resolution_number_of_entries: 0,
+                position_encoder_resolution_encoder_increments: 0,
+                position_encoder_resolution_motor_revolutions: 0,
+                gear_ratio_number_of_entries: 0,
+                gear_ratio_motor_shaft_revolutions: 0,
+                gear_ratio_driving_shaft_revolutions: 0,
+                feed_constant_number_of_entries: 0,
+                feed_constant_feed: 0,
+                feed_constant_shaft_revolutions: 0,
+                homing_method: 0,
+                homing_speeds_number_of_entries: 0,
+                homing_speeds_speed_during_search_for_switch: 0,
+                homing_speeds_speed_during_search_for_zero: 0,
+                homing_acceleration: 0,
+                velocity_offset: 0,
+                torque_offset: 0,
+                touch_probe_function: 0,
+                touch_probe_status: 0,
+                touch_probe_1_positive_edge: 0,
+                touch_probe_1_negative_edge: 0,
+                touch_probe_2_positive_edge: 0,
+                touch_probe_2_negative_edge: 0,
+                interpolation_sub_mode_select: 0,
+                interpolation_data_record_number_of_entries: 0,
+                interpolation_data_record_interpolation_target_position: 0,
+                interpolation_data_record_interpolation_time: 0,
+                interpolation_data_record_interpolation_target_velocity: 0,
+                interpolation_time_period_number_of_entries: 0,
+                interpolation_time_period_value: 0,
+                interpolation_time_period_interpolation_time_index: 0,
+                interpolation_data_configuration_number_of_entries: 0,
+                interpolation_data_configuration_maximum_buffer_size: 0,
+                interpolation_data_configuration_actual_buffer_size: 0,
+                interpolation_data_configuration_buffer_organization: 0,
+                interpolation_data_configuration_buffer_position: 0,
+                interpolation_data_configuration_size_of_data_record: 0,
+                interpolation_data_configuration_buffer_clear: 0,
+                touch_probe_source_number_of_entries: 0,
+                touch_probe_source_touch_probe_1_source: 0,
+                touch_probe_source_touch_probe_2_source: 0,
+                following_error_actual_value: 0,
+                digital_inputs: 0,
+                digital_outputs_number_of_entries: 0,
+                digital_outputs_physical_outputs: 0,
+                digital_outputs_bit_mask: 0,
+                target_velocity: 0,
+                supported_drive_modes: 0,
+            }
+        }
         /// Position of `(index, sub)` in [`ENTRIES`]: `Err(NO_OBJECT)` if the index is absent,
         /// `Err(NO_SUB_INDEX)` if only the sub-index is.
         #[inline]
@@ -14967,5736 +18830,19 @@ Denotation=MOTOR.BRAKEIMM
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
+            ::od_runtime::__private_v2::position(&LOOKUP, index, sub)
         }
+        /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
-        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v1::Slot::U32(&self.device_type),
-                    1 => ::od_runtime::__private_v1::Slot::U8(&self.error_register),
-                    2 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.manufacturer_status_register,
-                        )
-                    }
-                    3 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.pre_defined_error_field_number_of_errors,
-                        )
-                    }
-                    4 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_1,
-                        )
-                    }
-                    5 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_2,
-                        )
-                    }
-                    6 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_3,
-                        )
-                    }
-                    7 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_4,
-                        )
-                    }
-                    8 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_5,
-                        )
-                    }
-                    9 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_6,
-                        )
-                    }
-                    10 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_7,
-                        )
-                    }
-                    11 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_8,
-                        )
-                    }
-                    12 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_9,
-                        )
-                    }
-                    13 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_10,
-                        )
-                    }
-                    14 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.cob_id_sync_message)
-                    }
-                    15 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.communication_cycle_period,
-                        )
-                    }
-                    16 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.manufacturer_device_name.as_slice(),
-                        )
-                    }
-                    17 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.manufacturer_hardware_version.as_slice(),
-                        )
-                    }
-                    18 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.manufacturer_software_version.as_slice(),
-                        )
-                    }
-                    19 => ::od_runtime::__private_v1::Slot::U16(&self.guard_time),
-                    20 => ::od_runtime::__private_v1::Slot::U8(&self.life_time_factor),
-                    21 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.store_parameters_number_of_entries,
-                        )
-                    }
-                    22 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.store_parameters_save_all_parameters,
-                        )
-                    }
-                    23 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.restore_default_parameters_number_of_entries,
-                        )
-                    }
-                    24 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .restore_default_parameters_restore_all_default_parameters,
-                        )
-                    }
-                    25 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_emcy),
-                    26 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.consumer_heartbeat_time_number_of_entries,
-                        )
-                    }
-                    27 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.consumer_heartbeat_time_1,
-                        )
-                    }
-                    28 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.producer_heartbeat_time,
-                        )
-                    }
-                    29 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.identity_object_number_of_entries,
-                        )
-                    }
-                    30 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_vendor_id,
-                        )
-                    }
-                    31 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_product_code,
-                        )
-                    }
-                    32 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_revision_number,
-                        )
-                    }
-                    33 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_serial_number,
-                        )
-                    }
-                    34 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.os_prompt_number_of_entries,
-                        )
-                    }
-                    35 => ::od_runtime::__private_v1::Slot::U8(&self.os_prompt_std_in),
-                    36 => ::od_runtime::__private_v1::Slot::U8(&self.os_prompt_std_out),
-                    37 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_1_communication_parameter_number_of_entries,
-                        )
-                    }
-                    38 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .receive_pdo_1_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    39 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_1_communication_parameter_transmission_type,
-                        )
-                    }
-                    40 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_2_communication_parameter_number_of_entries,
-                        )
-                    }
-                    41 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .receive_pdo_2_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    42 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_2_communication_parameter_transmission_type,
-                        )
-                    }
-                    43 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_3_communication_parameter_number_of_entries,
-                        )
-                    }
-                    44 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .receive_pdo_3_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    45 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_3_communication_parameter_transmission_type,
-                        )
-                    }
-                    46 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_4_communication_parameter_number_of_entries,
-                        )
-                    }
-                    47 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .receive_pdo_4_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    48 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_4_communication_parameter_transmission_type,
-                        )
-                    }
-                    49 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_1_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    50 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_1_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    51 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_1_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    52 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_1_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    53 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_1_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    54 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_1_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    55 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_1_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    56 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_1_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    57 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_1_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    58 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_2_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    59 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_2_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    60 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_2_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    61 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_2_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    62 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_2_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    63 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_2_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    64 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_2_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    65 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_2_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    66 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_2_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    67 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_3_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    68 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_3_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    69 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_3_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    70 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_3_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    71 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_3_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    72 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_3_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    73 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_3_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    74 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_3_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    75 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_3_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    76 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_4_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    77 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_4_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    78 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_4_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    79 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_4_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    80 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_4_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    81 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_4_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    82 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_4_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    83 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_4_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    84 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_4_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    85 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_1_communication_parameter_number_of_entries,
-                        )
-                    }
-                    86 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .transmit_pdo_1_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    87 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_1_communication_parameter_transmission_type,
-                        )
-                    }
-                    88 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_1_communication_parameter_inhibit_time,
-                        )
-                    }
-                    89 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.transmit_pdo_1_communication_parameter_reserved,
-                        )
-                    }
-                    90 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_1_communication_parameter_event_timer,
-                        )
-                    }
-                    91 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_2_communication_parameter_number_of_entries,
-                        )
-                    }
-                    92 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .transmit_pdo_2_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    93 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_2_communication_parameter_transmission_type,
-                        )
-                    }
-                    94 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_2_communication_parameter_inhibit_time,
-                        )
-                    }
-                    95 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.transmit_pdo_2_communication_parameter_reserved,
-                        )
-                    }
-                    96 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_2_communication_parameter_event_timer,
-                        )
-                    }
-                    97 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_3_communication_parameter_number_of_entries,
-                        )
-                    }
-                    98 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .transmit_pdo_3_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    99 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_3_communication_parameter_transmission_type,
-                        )
-                    }
-                    100 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_3_communication_parameter_inhibit_time,
-                        )
-                    }
-                    101 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.transmit_pdo_3_communication_parameter_reserved,
-                        )
-                    }
-                    102 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_3_communication_parameter_event_timer,
-                        )
-                    }
-                    103 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_4_communication_parameter_number_of_entries,
-                        )
-                    }
-                    104 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .transmit_pdo_4_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    105 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_4_communication_parameter_transmission_type,
-                        )
-                    }
-                    106 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_4_communication_parameter_inhibit_time,
-                        )
-                    }
-                    107 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.transmit_pdo_4_communication_parameter_reserved,
-                        )
-                    }
-                    108 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_4_communication_parameter_event_timer,
-                        )
-                    }
-                    109 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_1_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    110 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_1_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    111 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_1_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    112 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_1_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    113 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_1_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    114 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_1_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    115 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_1_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    116 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_1_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    117 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_1_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    118 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_2_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    119 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_2_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    120 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_2_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    121 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_2_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    122 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_2_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    123 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_2_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    124 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_2_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    125 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_2_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    126 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_2_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    127 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_3_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    128 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_3_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    129 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_3_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    130 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_3_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    131 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_3_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    132 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_3_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    133 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_3_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    134 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_3_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    135 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_3_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    136 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_4_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    137 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_4_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    138 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_4_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    139 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_4_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    140 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_4_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    141 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_4_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    142 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_4_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    143 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_4_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    144 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_4_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    145 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.transmit_pdo_1_mask_number_of_entries,
-                        )
-                    }
-                    146 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_1_mask_bytes_0_to_3,
-                        )
-                    }
-                    147 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_1_mask_bytes_4_to_7,
-                        )
-                    }
-                    148 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.transmit_pdo_2_mask_number_of_entries,
-                        )
-                    }
-                    149 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_2_mask_bytes_0_to_3,
-                        )
-                    }
-                    150 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_2_mask_bytes_4_to_7,
-                        )
-                    }
-                    151 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.transmit_pdo_3_mask_number_of_entries,
-                        )
-                    }
-                    152 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_3_mask_bytes_0_to_3,
-                        )
-                    }
-                    153 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_3_mask_bytes_4_to_7,
-                        )
-                    }
-                    154 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.transmit_pdo_4_mask_number_of_entries,
-                        )
-                    }
-                    155 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_4_mask_bytes_0_to_3,
-                        )
-                    }
-                    156 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_4_mask_bytes_4_to_7,
-                        )
-                    }
-                    157 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.firmware_version_number_of_entries,
-                        )
-                    }
-                    158 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.firmware_version_major_version,
-                        )
-                    }
-                    159 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.firmware_version_minor_version,
-                        )
-                    }
-                    160 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.firmware_version_revision,
-                        )
-                    }
-                    161 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.firmware_version_derived_version,
-                        )
-                    }
-                    162 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.ascii_channel_number_of_entries,
-                        )
-                    }
-                    163 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.ascii_channel_command.as_slice(),
-                        )
-                    }
-                    164 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.ascii_channel_response.as_slice(),
-                        )
-                    }
-                    165 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.pv_scaling_factor_number_of_entries,
-                        )
-                    }
-                    166 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.pv_scaling_factor_numerator,
-                        )
-                    }
-                    167 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.pv_scaling_factor_denominator,
-                        )
-                    }
-                    168 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.secondary_feedback_position,
-                        )
-                    }
-                    169 => ::od_runtime::__private_v1::Slot::I32(&self.target_current),
-                    170 => {
-                        ::od_runtime::__private_v1::Slot::I32(&self.current_actual_value)
-                    }
-                    171 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.latch_position_1_positive_edge,
-                        )
-                    }
-                    172 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.latch_position_1_negative_edge,
-                        )
-                    }
-                    173 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.latch_position_2_positive_edge,
-                        )
-                    }
-                    174 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.latch_position_2_negative_edge,
-                        )
-                    }
-                    175 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.latch_control_register,
-                        )
-                    }
-                    176 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.latch_status_register,
-                        )
-                    }
-                    177 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.latch_position_1_positive_or_negative_edge,
-                        )
-                    }
-                    178 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.reset_of_changed_input_information,
-                        )
-                    }
-                    179 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.dummy_entry_4_bytes)
-                    }
-                    180 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.velocity_loop_bi_quad_filter_types_number_of_entries,
-                        )
-                    }
-                    181 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.velocity_loop_bi_quad_filter_types_1_calculation_method,
-                        )
-                    }
-                    182 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.velocity_loop_bi_quad_filter_types_2_calculation_method,
-                        )
-                    }
-                    183 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.velocity_loop_bi_quad_filter_types_3_calculation_method,
-                        )
-                    }
-                    184 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.velocity_loop_bi_quad_filter_types_4_calculation_method,
-                        )
-                    }
-                    185 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.velocity_loop_bi_quad_filters_number_of_entries,
-                        )
-                    }
-                    186 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency,
-                        )
-                    }
-                    187 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency,
-                        )
-                    }
-                    188 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency,
-                        )
-                    }
-                    189 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency,
-                        )
-                    }
-                    190 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q,
-                        )
-                    }
-                    191 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q,
-                        )
-                    }
-                    192 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q,
-                        )
-                    }
-                    193 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q,
-                        )
-                    }
-                    194 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency,
-                        )
-                    }
-                    195 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency,
-                        )
-                    }
-                    196 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency,
-                        )
-                    }
-                    197 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency,
-                        )
-                    }
-                    198 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q,
-                        )
-                    }
-                    199 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q,
-                        )
-                    }
-                    200 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q,
-                        )
-                    }
-                    201 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q,
-                        )
-                    }
-                    202 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.velocity_loop_filter_and_feedforward_number_of_entries,
-                        )
-                    }
-                    203 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self
-                                .velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz,
-                        )
-                    }
-                    204 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .velocity_loop_filter_and_feedforward_velocity_feedforward_gain,
-                        )
-                    }
-                    205 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.velocity_loop_filter_and_feedforward_acceleration_gain,
-                        )
-                    }
-                    206 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.velocity_loop_filter_and_feedforward_velocity_error,
-                        )
-                    }
-                    207 => {
-                        ::od_runtime::__private_v1::Slot::I8(&self.regen_resistor_type)
-                    }
-                    208 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.regen_resistor_fault_level,
-                        )
-                    }
-                    209 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.regen_resistor_thermal_time_constant,
-                        )
-                    }
-                    210 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.regen_resistor_calculated_power,
-                        )
-                    }
-                    211 => {
-                        ::od_runtime::__private_v1::Slot::U16(&self.foldback_fault_level)
-                    }
-                    212 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.foldback_fault_level_user_value,
-                        )
-                    }
-                    213 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.friction_compensation_value,
-                        )
-                    }
-                    214 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.current_offset_for_gravity_compensation,
-                        )
-                    }
-                    215 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.current_loop_pi_integrator_enable,
-                        )
-                    }
-                    216 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.overall_foldback_current_limit,
-                        )
-                    }
-                    217 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.current_loop_acceleration_feedforward_gain,
-                        )
-                    }
-                    218 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.motor_protection_parameters_number_of_entries,
-                        )
-                    }
-                    219 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.motor_protection_parameters_motor_protection_mode,
-                        )
-                    }
-                    220 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.motor_protection_parameters_motor_i2t_warning_threshold,
-                        )
-                    }
-                    221 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.motor_protection_parameters_motor_i2t_load,
-                        )
-                    }
-                    222 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.direction_for_absolute_motion_tasks,
-                        )
-                    }
-                    223 => {
-                        ::od_runtime::__private_v1::Slot::U16(&self.motion_task_setting)
-                    }
-                    224 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.controlled_stop_parameters_number_of_entries,
-                        )
-                    }
-                    225 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.controlled_stop_parameters_controlled_stop_deceleration,
-                        )
-                    }
-                    226 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .controlled_stop_parameters_controlled_stop_velocity_threshold,
-                        )
-                    }
-                    227 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.controlled_stop_parameters_velocity_threshold_time,
-                        )
-                    }
-                    228 => {
-                        ::od_runtime::__private_v1::Slot::U8(&self.controlled_stop_state)
-                    }
-                    229 => {
-                        ::od_runtime::__private_v1::Slot::U16(&self.drive_disable_cause)
-                    }
-                    230 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.dynamic_braking_maximum_current,
-                        )
-                    }
-                    231 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.emergency_timeout_for_braking,
-                        )
-                    }
-                    232 => {
-                        ::od_runtime::__private_v1::Slot::U8(&self.motor_brake_release)
-                    }
-                    233 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.motor_parameters_automatic_calculation,
-                        )
-                    }
-                    234 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.motor_maximum_voltage,
-                        )
-                    }
-                    235 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.motor_temperature_warning_level,
-                        )
-                    }
-                    236 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.motor_winding_thermal_constant,
-                        )
-                    }
-                    237 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.motor_quadrature_inductance_line_to_line,
-                        )
-                    }
-                    238 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.motor_stator_winding_resistance_phase_to_phase,
-                        )
-                    }
-                    239 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.induction_motor_parameters_number_of_entries,
-                        )
-                    }
-                    240 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self
-                                .induction_motor_parameters_induction_motor_rated_velocity,
-                        )
-                    }
-                    241 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self
-                                .induction_motor_parameters_induction_motor_rated_voltage,
-                        )
-                    }
-                    242 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self
-                                .induction_motor_parameters_minimum_voltage_for_v_f_control,
-                        )
-                    }
-                    243 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.capture_engine_parameters_number_of_entries,
-                        )
-                    }
-                    244 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.capture_engine_parameters_capture_0_trigger_source,
-                        )
-                    }
-                    245 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.capture_engine_parameters_capture_1_trigger_source,
-                        )
-                    }
-                    246 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.capture_engine_parameters_capture_0_mode,
-                        )
-                    }
-                    247 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.capture_engine_parameters_capture_1_mode,
-                        )
-                    }
-                    248 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.capture_engine_parameters_capture_0_precondition_logic,
-                        )
-                    }
-                    249 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.capture_engine_parameters_capture_1_precondition_logic,
-                        )
-                    }
-                    250 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.capture_engine_parameters_capture_0_precondition_edge,
-                        )
-                    }
-                    251 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.capture_engine_parameters_capture_1_precondition_edge,
-                        )
-                    }
-                    252 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .capture_engine_parameters_capture_0_precondition_trigger,
-                        )
-                    }
-                    253 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .capture_engine_parameters_capture_1_precondition_trigger,
-                        )
-                    }
-                    254 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.analog_input_and_output_parameters_number_of_entries,
-                        )
-                    }
-                    255 => {
-                        ::od_runtime::__private_v1::Slot::I8(
-                            &self.analog_input_and_output_parameters_analog_output_mode,
-                        )
-                    }
-                    256 => {
-                        ::od_runtime::__private_v1::Slot::I16(
-                            &self.analog_input_and_output_parameters_analog_output_value,
-                        )
-                    }
-                    257 => {
-                        ::od_runtime::__private_v1::Slot::I16(
-                            &self.analog_input_and_output_parameters_value_user_units,
-                        )
-                    }
-                    258 => {
-                        ::od_runtime::__private_v1::Slot::I16(
-                            &self.analog_input_and_output_parameters_analog_input_value,
-                        )
-                    }
-                    259 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .analog_input_and_output_parameters_velocity_scale_factor,
-                        )
-                    }
-                    260 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.analog_output_position_scale_factor,
-                        )
-                    }
-                    261 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.analog_input_position_scale_factor,
-                        )
-                    }
-                    262 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.digital_input_parameters_number_of_entries,
-                        )
-                    }
-                    263 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_input_parameters_digital_input_1_parameter_low_32_bits,
-                        )
-                    }
-                    264 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_input_parameters_digital_input_2_parameter_low_32_bits,
-                        )
-                    }
-                    265 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_input_parameters_digital_input_3_parameter_low_32_bits,
-                        )
-                    }
-                    266 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_input_parameters_digital_input_4_parameter_low_32_bits,
-                        )
-                    }
-                    267 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_input_parameters_digital_input_5_parameter_low_32_bits,
-                        )
-                    }
-                    268 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_input_parameters_digital_input_6_parameter_low_32_bits,
-                        )
-                    }
-                    269 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_input_parameters_digital_input_7_parameter_low_32_bits,
-                        )
-                    }
-                    270 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_input_parameters_digital_input_1_parameter_high_32_bits,
-                        )
-                    }
-                    271 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_input_parameters_digital_input_2_parameter_high_32_bits,
-                        )
-                    }
-                    272 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_input_parameters_digital_input_3_parameter_high_32_bits,
-                        )
-                    }
-                    273 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_input_parameters_digital_input_4_parameter_high_32_bits,
-                        )
-                    }
-                    274 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_input_parameters_digital_input_5_parameter_high_32_bits,
-                        )
-                    }
-                    275 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_input_parameters_digital_input_6_parameter_high_32_bits,
-                        )
-                    }
-                    276 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .digital_input_parameters_digital_input_7_parameter_high_32_bits,
-                        )
-                    }
-                    277 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.digital_output_parameters_number_of_entries,
-                        )
-                    }
-                    278 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.digital_output_parameters_1_parameter_low_32_bits,
-                        )
-                    }
-                    279 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.digital_output_parameters_2_parameter_low_32_bits,
-                        )
-                    }
-                    280 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.digital_output_parameters_1_parameter_high_32_bits,
-                        )
-                    }
-                    281 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.digital_output_parameters_2_parameter_high_32_bits,
-                        )
-                    }
-                    282 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.position_loop_integral_gain,
-                        )
-                    }
-                    283 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.position_loop_integrator_saturation_number_of_entries,
-                        )
-                    }
-                    284 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .position_loop_integrator_saturation_integrator_input_saturation,
-                        )
-                    }
-                    285 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.position_loop_integrator_saturation_output,
-                        )
-                    }
-                    286 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.homing_maximum_following_error,
-                        )
-                    }
-                    287 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.position_error_warning_level,
-                        )
-                    }
-                    288 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.homing_additional_move_distance,
-                        )
-                    }
-                    289 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.feedback_position_offset,
-                        )
-                    }
-                    290 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.emulated_encoder_index_pulse_turn_position,
-                        )
-                    }
-                    291 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.drive_motion_status)
-                    }
-                    292 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.emulated_encoder_output_direction,
-                        )
-                    }
-                    293 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.wake_and_shake_parameters_number_of_entries,
-                        )
-                    }
-                    294 => {
-                        ::od_runtime::__private_v1::Slot::I16(
-                            &self
-                                .wake_and_shake_parameters_wake_and_shake_maximum_current,
-                        )
-                    }
-                    295 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self
-                                .wake_and_shake_parameters_wake_and_shake_maximum_movement,
-                        )
-                    }
-                    296 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.wake_and_shake_parameters_delay_between_loops_in_mode_0,
-                        )
-                    }
-                    297 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self
-                                .wake_and_shake_parameters_wake_and_shake_maximum_velocity,
-                        )
-                    }
-                    298 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.wake_and_shake_parameters_wake_and_shake_state,
-                        )
-                    }
-                    299 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.wake_and_shake_parameters_wake_and_shake_arm,
-                        )
-                    }
-                    300 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.fieldbus_synchronization_parameters_number_of_entries,
-                        )
-                    }
-                    301 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.fieldbus_synchronization_parameters_expected_distance,
-                        )
-                    }
-                    302 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.fieldbus_synchronization_parameters_actual_distance,
-                        )
-                    }
-                    303 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .fieldbus_synchronization_parameters_synchronization_window,
-                        )
-                    }
-                    304 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.fieldbus_synchronization_parameters_compensation_time,
-                        )
-                    }
-                    305 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.programmable_limit_switch_positions_number_of_entries,
-                        )
-                    }
-                    306 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_positions_1_compare_position,
-                        )
-                    }
-                    307 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_positions_2_compare_position,
-                        )
-                    }
-                    308 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_positions_3_compare_position,
-                        )
-                    }
-                    309 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_positions_4_compare_position,
-                        )
-                    }
-                    310 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_positions_5_compare_position,
-                        )
-                    }
-                    311 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_positions_6_compare_position,
-                        )
-                    }
-                    312 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_positions_7_compare_position,
-                        )
-                    }
-                    313 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_positions_8_compare_position,
-                        )
-                    }
-                    314 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.programmable_limit_switch_widths_number_of_entries,
-                        )
-                    }
-                    315 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_widths_limit_switch_1_width,
-                        )
-                    }
-                    316 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_widths_limit_switch_2_width,
-                        )
-                    }
-                    317 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_widths_limit_switch_3_width,
-                        )
-                    }
-                    318 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_widths_limit_switch_4_width,
-                        )
-                    }
-                    319 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_widths_limit_switch_5_width,
-                        )
-                    }
-                    320 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_widths_limit_switch_6_width,
-                        )
-                    }
-                    321 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_widths_limit_switch_7_width,
-                        )
-                    }
-                    322 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.programmable_limit_switch_widths_limit_switch_8_width,
-                        )
-                    }
-                    323 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.programmable_limit_switch_times_number_of_entries,
-                        )
-                    }
-                    324 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.programmable_limit_switch_times_limit_switch_1_time,
-                        )
-                    }
-                    325 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.programmable_limit_switch_times_limit_switch_2_time,
-                        )
-                    }
-                    326 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.programmable_limit_switch_times_limit_switch_3_time,
-                        )
-                    }
-                    327 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.programmable_limit_switch_times_limit_switch_4_time,
-                        )
-                    }
-                    328 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.programmable_limit_switch_times_limit_switch_5_time,
-                        )
-                    }
-                    329 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.programmable_limit_switch_times_limit_switch_6_time,
-                        )
-                    }
-                    330 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.programmable_limit_switch_times_limit_switch_7_time,
-                        )
-                    }
-                    331 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.programmable_limit_switch_times_limit_switch_8_time,
-                        )
-                    }
-                    332 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .programmable_limit_switch_configuration_number_of_entries,
-                        )
-                    }
-                    333 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self
-                                .programmable_limit_switch_configuration_limit_switch_enable,
-                        )
-                    }
-                    334 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self
-                                .programmable_limit_switch_configuration_limit_switch_reset,
-                        )
-                    }
-                    335 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self
-                                .programmable_limit_switch_configuration_limit_switch_mode,
-                        )
-                    }
-                    336 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self
-                                .programmable_limit_switch_configuration_limit_switch_state,
-                        )
-                    }
-                    337 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.programmable_limit_switch_units,
-                        )
-                    }
-                    338 => ::od_runtime::__private_v1::Slot::I32(&self.acceleration_ramp),
-                    339 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.homing_and_jog_acceleration_ramp,
-                        )
-                    }
-                    340 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.hardware_enable_input_mode,
-                        )
-                    }
-                    341 => {
-                        ::od_runtime::__private_v1::Slot::I32(&self.analog_input_voltage)
-                    }
-                    342 => ::od_runtime::__private_v1::Slot::I32(&self.deceleration_ramp),
-                    343 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.homing_and_jog_deceleration_ramp,
-                        )
-                    }
-                    344 => ::od_runtime::__private_v1::Slot::I32(&self.motion_direction),
-                    345 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.motor_encoder_resolution,
-                        )
-                    }
-                    346 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.emulated_encoder_connector_mode,
-                        )
-                    }
-                    347 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.emulated_encoder_resolution,
-                        )
-                    }
-                    348 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.emulated_encoder_index_pulse_offset,
-                        )
-                    }
-                    349 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.feedback_type_selection,
-                        )
-                    }
-                    350 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.position_loop_proportional_gain,
-                        )
-                    }
-                    351 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.velocity_loop_proportional_gain,
-                        )
-                    }
-                    352 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.velocity_loop_velocity_feedforward_gain,
-                        )
-                    }
-                    353 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.velocity_loop_integral_time,
-                        )
-                    }
-                    354 => ::od_runtime::__private_v1::Slot::I32(&self.current_feedback),
-                    355 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.drive_foldback_current,
-                        )
-                    }
-                    356 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.foldback_warning_level,
-                        )
-                    }
-                    357 => {
-                        ::od_runtime::__private_v1::Slot::I32(&self.digital_input_1_mode)
-                    }
-                    358 => {
-                        ::od_runtime::__private_v1::Slot::I32(&self.digital_input_2_mode)
-                    }
-                    359 => {
-                        ::od_runtime::__private_v1::Slot::I32(&self.digital_input_3_mode)
-                    }
-                    360 => {
-                        ::od_runtime::__private_v1::Slot::I32(&self.digital_input_4_mode)
-                    }
-                    361 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.application_peak_current_positive_direction,
-                        )
-                    }
-                    362 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.application_peak_current_negative_direction,
-                        )
-                    }
-                    363 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.motor_temperature_fault_level,
-                        )
-                    }
-                    364 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.motor_holding_brake_selection,
-                        )
-                    }
-                    365 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.motor_continuous_current,
-                        )
-                    }
-                    366 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.motor_peak_current)
-                    }
-                    367 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.motor_torque_constant,
-                        )
-                    }
-                    368 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.current_loop_d_component_gain_ratio,
-                        )
-                    }
-                    369 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.current_loop_proportional_gain,
-                        )
-                    }
-                    370 => ::od_runtime::__private_v1::Slot::U32(&self.motor_phase),
-                    371 => ::od_runtime::__private_v1::Slot::U32(&self.motor_poles),
-                    372 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.motor_maximum_velocity,
-                        )
-                    }
-                    373 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.motor_foldback_current_limit,
-                        )
-                    }
-                    374 => ::od_runtime::__private_v1::Slot::U32(&self.motor_inertia),
-                    375 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.digital_output_1_mode,
-                        )
-                    }
-                    376 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.digital_output_2_mode,
-                        )
-                    }
-                    377 => {
-                        ::od_runtime::__private_v1::Slot::I32(&self.drive_operation_mode)
-                    }
-                    378 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.next_motion_task_of_motion_task_0,
-                        )
-                    }
-                    379 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.regen_resistor_selection,
-                        )
-                    }
-                    380 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.position_following_error,
-                        )
-                    }
-                    381 => {
-                        ::od_runtime::__private_v1::Slot::I32(&self.in_position_window)
-                    }
-                    382 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.maximum_following_error,
-                        )
-                    }
-                    383 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.position_resolution_numerator,
-                        )
-                    }
-                    384 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.position_resolution_denominator,
-                        )
-                    }
-                    385 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_current_limit_for_hard_stop,
-                        )
-                    }
-                    386 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.save_data_to_non_volatile_memory,
-                        )
-                    }
-                    387 => {
-                        ::od_runtime::__private_v1::Slot::I32(&self.set_reference_point)
-                    }
-                    388 => ::od_runtime::__private_v1::Slot::I32(&self.stop_motion_task),
-                    389 => ::od_runtime::__private_v1::Slot::U32(&self.disable_mode),
-                    390 => {
-                        ::od_runtime::__private_v1::Slot::I32(&self.ambient_temperature)
-                    }
-                    391 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.heat_sink_temperature,
-                        )
-                    }
-                    392 => ::od_runtime::__private_v1::Slot::I32(&self.motor_temperature),
-                    393 => ::od_runtime::__private_v1::Slot::U32(&self.undervoltage_mode),
-                    394 => ::od_runtime::__private_v1::Slot::I32(&self.velocity_feedback),
-                    395 => ::od_runtime::__private_v1::Slot::I32(&self.dc_bus_voltage),
-                    396 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.undervoltage_fault_level,
-                        )
-                    }
-                    397 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.positive_velocity_limit,
-                        )
-                    }
-                    398 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.negative_velocity_limit,
-                        )
-                    }
-                    399 => {
-                        ::od_runtime::__private_v1::Slot::I32(&self.overspeed_threshold)
-                    }
-                    400 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.analog_input_velocity_scale_factor,
-                        )
-                    }
-                    401 => {
-                        ::od_runtime::__private_v1::Slot::U64(
-                            &self.initial_feedback_position,
-                        )
-                    }
-                    402 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.rotary_acceleration_units,
-                        )
-                    }
-                    403 => {
-                        ::od_runtime::__private_v1::Slot::I32(&self.motion_task_number)
-                    }
-                    404 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.rotary_velocity_units,
-                        )
-                    }
-                    405 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.rotary_position_units,
-                        )
-                    }
-                    406 => ::od_runtime::__private_v1::Slot::I32(&self.brake_apply_delay),
-                    407 => {
-                        ::od_runtime::__private_v1::Slot::I32(&self.brake_release_delay)
-                    }
-                    408 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.wake_and_shake_delay_1,
-                        )
-                    }
-                    409 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.wake_and_shake_delay_2,
-                        )
-                    }
-                    410 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.wake_and_shake_current_vector_time,
-                        )
-                    }
-                    411 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.wake_and_shake_minimum_movement,
-                        )
-                    }
-                    412 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_automatic_move_flag,
-                        )
-                    }
-                    413 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.wake_and_shake_number_of_loops,
-                        )
-                    }
-                    414 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.can_baud_rate_selection,
-                        )
-                    }
-                    415 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.pll_synchronization)
-                    }
-                    416 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.fieldbus_parameter_3)
-                    }
-                    417 => ::od_runtime::__private_v1::Slot::U32(&self.sync_supervision),
-                    418 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.fieldbus_configuration_bits,
-                        )
-                    }
-                    419 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.fieldbus_parameter_6)
-                    }
-                    420 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.fieldbus_parameter_7)
-                    }
-                    421 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.fieldbus_parameter_8)
-                    }
-                    422 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.fieldbus_parameter_9)
-                    }
-                    423 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.fieldbus_parameter_10,
-                        )
-                    }
-                    424 => {
-                        ::od_runtime::__private_v1::Slot::I32(&self.digital_input_5_mode)
-                    }
-                    425 => {
-                        ::od_runtime::__private_v1::Slot::I32(&self.digital_input_6_mode)
-                    }
-                    426 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.digital_input_7_mode)
-                    }
-                    427 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.profile_position_velocity_window,
-                        )
-                    }
-                    428 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.analog_input_low_pass_cutoff_frequency,
-                        )
-                    }
-                    429 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.analog_input_deadband,
-                        )
-                    }
-                    430 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.analog_input_current_scale_factor,
-                        )
-                    }
-                    431 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.analog_input_offset)
-                    }
-                    432 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.analog_output_current_scale_factor,
-                        )
-                    }
-                    433 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.analog_output_offset)
-                    }
-                    434 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.bode_excitation_update_gap,
-                        )
-                    }
-                    435 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.bode_current_command_amplitude,
-                        )
-                    }
-                    436 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.bode_injection_point)
-                    }
-                    437 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.bode_prb_signal_depth,
-                        )
-                    }
-                    438 => ::od_runtime::__private_v1::Slot::U32(&self.fault_relay_mode),
-                    439 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.software_enable_default_state,
-                        )
-                    }
-                    440 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.drive_continuous_rated_current,
-                        )
-                    }
-                    441 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.drive_peak_rated_current,
-                        )
-                    }
-                    442 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.zero_procedure_current,
-                        )
-                    }
-                    443 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.bi_ss_sensor_position_bits,
-                        )
-                    }
-                    444 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.initial_feedback_value_signed,
-                        )
-                    }
-                    445 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.phase_finding_current,
-                        )
-                    }
-                    446 => ::od_runtime::__private_v1::Slot::U32(&self.feedback_poles),
-                    447 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.resolver_transformation_ratio,
-                        )
-                    }
-                    448 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.resolver_reference_phase_lag,
-                        )
-                    }
-                    449 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.tracking_calibration)
-                    }
-                    450 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.pll_lock_threshold)
-                    }
-                    451 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.gearing_maximum_acceleration,
-                        )
-                    }
-                    452 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.gearing_maximum_deceleration,
-                        )
-                    }
-                    453 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.gearing_ratio_denominator,
-                        )
-                    }
-                    454 => ::od_runtime::__private_v1::Slot::U32(&self.gearing_mode),
-                    455 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.gearing_ratio_numerator,
-                        )
-                    }
-                    456 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.current_loop_fieldbus_feedforward_gain,
-                        )
-                    }
-                    457 => ::od_runtime::__private_v1::Slot::U32(&self.motor_pitch),
-                    458 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.motor_thermal_resistor_type,
-                        )
-                    }
-                    459 => ::od_runtime::__private_v1::Slot::U32(&self.motor_type),
-                    460 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.motion_task_after_emergency_stop,
-                        )
-                    }
-                    461 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.following_error_mode)
-                    }
-                    462 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.position_loop_feedback_source,
-                        )
-                    }
-                    463 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.service_motion_current_1,
-                        )
-                    }
-                    464 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.service_motion_current_2,
-                        )
-                    }
-                    465 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.service_motion_mode)
-                    }
-                    466 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.service_motion_time_1,
-                        )
-                    }
-                    467 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.service_motion_time_2,
-                        )
-                    }
-                    468 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.software_limit_switch_enable,
-                        )
-                    }
-                    469 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.linear_acceleration_units,
-                        )
-                    }
-                    470 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.linear_position_units,
-                        )
-                    }
-                    471 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.linear_velocity_units,
-                        )
-                    }
-                    472 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.overvoltage_warning_level,
-                        )
-                    }
-                    473 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.velocity_loop_feedback_source,
-                        )
-                    }
-                    474 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.velocity_generation_mode,
-                        )
-                    }
-                    475 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.observer_velocity_scale,
-                        )
-                    }
-                    476 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.load_to_motor_inertia_ratio,
-                        )
-                    }
-                    477 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.observer_bandwidth)
-                    }
-                    478 => ::od_runtime::__private_v1::Slot::U32(&self.observer_mode),
-                    479 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.digital_input_1_filter_mode,
-                        )
-                    }
-                    480 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.digital_input_2_filter_mode,
-                        )
-                    }
-                    481 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.digital_input_3_filter_mode,
-                        )
-                    }
-                    482 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.digital_input_4_filter_mode,
-                        )
-                    }
-                    483 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.digital_input_5_filter_mode,
-                        )
-                    }
-                    484 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.digital_input_6_filter_mode,
-                        )
-                    }
-                    485 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.digital_input_7_filter_mode,
-                        )
-                    }
-                    486 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.modbus_user_units_input,
-                        )
-                    }
-                    487 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.modbus_user_units_output,
-                        )
-                    }
-                    488 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.modbus_feedback_resolution,
-                        )
-                    }
-                    489 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.secondary_feedback_resolution,
-                        )
-                    }
-                    490 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.secondary_feedback_mode,
-                        )
-                    }
-                    491 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.secondary_feedback_source,
-                        )
-                    }
-                    492 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.brake_apply_timeout)
-                    }
-                    493 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.modbus_message_log)
-                    }
-                    494 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.modbus_scaling_mode)
-                    }
-                    495 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.emulated_encoder_pulse_width,
-                        )
-                    }
-                    496 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.emulated_encoder_velocity_monitoring,
-                        )
-                    }
-                    497 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.analog_input_deadband_mode,
-                        )
-                    }
-                    498 => ::od_runtime::__private_v1::Slot::U32(&self.analog_input_mode),
-                    499 => ::od_runtime::__private_v1::Slot::U32(&self.dio10_direction),
-                    500 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.dio10_output_inversion,
-                        )
-                    }
-                    501 => ::od_runtime::__private_v1::Slot::U32(&self.dio11_direction),
-                    502 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.dio11_output_inversion,
-                        )
-                    }
-                    503 => ::od_runtime::__private_v1::Slot::U32(&self.dio9_direction),
-                    504 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.dio9_output_inversion,
-                        )
-                    }
-                    505 => ::od_runtime::__private_v1::Slot::U32(&self.fault_130_action),
-                    506 => ::od_runtime::__private_v1::Slot::U32(&self.fault_131_action),
-                    507 => ::od_runtime::__private_v1::Slot::U32(&self.fault_132_action),
-                    508 => ::od_runtime::__private_v1::Slot::U32(&self.fault_134_action),
-                    509 => ::od_runtime::__private_v1::Slot::U32(&self.fault_702_action),
-                    510 => ::od_runtime::__private_v1::Slot::U32(&self.ip_address_mode),
-                    511 => ::od_runtime::__private_v1::Slot::U32(&self.load_inertia),
-                    512 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.motor_back_emf_constant,
-                        )
-                    }
-                    513 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.bus_voltage_half_voltage_thresholds,
-                        )
-                    }
-                    514 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.secondary_feedback_direction,
-                        )
-                    }
-                    515 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.handwheel_feedback_source,
-                        )
-                    }
-                    516 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.hardware_enable_delay,
-                        )
-                    }
-                    517 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.current_loop_gain_scheduling_index,
-                        )
-                    }
-                    518 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.current_loop_gain_scheduling_value,
-                        )
-                    }
-                    519 => ::od_runtime::__private_v1::Slot::U32(&self.fault_451_action),
-                    520 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.brake_immediately_on_disable,
-                        )
-                    }
-                    521 => ::od_runtime::__private_v1::Slot::U16(&self.controlword),
-                    522 => ::od_runtime::__private_v1::Slot::U16(&self.statusword),
-                    523 => ::od_runtime::__private_v1::Slot::I8(&self.modes_of_operation),
-                    524 => {
-                        ::od_runtime::__private_v1::Slot::I8(
-                            &self.modes_of_operation_display,
-                        )
-                    }
-                    525 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.position_actual_internal_value,
-                        )
-                    }
-                    526 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.position_actual_value,
-                        )
-                    }
-                    527 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.following_error_window,
-                        )
-                    }
-                    528 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.velocity_demand_value,
-                        )
-                    }
-                    529 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.velocity_actual_value,
-                        )
-                    }
-                    530 => ::od_runtime::__private_v1::Slot::U16(&self.velocity_window),
-                    531 => {
-                        ::od_runtime::__private_v1::Slot::U16(&self.velocity_window_time)
-                    }
-                    532 => ::od_runtime::__private_v1::Slot::I16(&self.target_torque),
-                    533 => ::od_runtime::__private_v1::Slot::U16(&self.max_torque),
-                    534 => ::od_runtime::__private_v1::Slot::U16(&self.max_current),
-                    535 => {
-                        ::od_runtime::__private_v1::Slot::I16(&self.torque_actual_value)
-                    }
-                    536 => ::od_runtime::__private_v1::Slot::I32(&self.target_position),
-                    537 => ::od_runtime::__private_v1::Slot::I32(&self.home_offset),
-                    538 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.software_position_limit_number_of_entries,
-                        )
-                    }
-                    539 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.software_position_limit_min_position_limit,
-                        )
-                    }
-                    540 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.software_position_limit_max_position_limit,
-                        )
-                    }
-                    541 => ::od_runtime::__private_v1::Slot::U32(&self.profile_velocity),
-                    542 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.profile_acceleration)
-                    }
-                    543 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.profile_deceleration)
-                    }
-                    544 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.position_encoder_resolution_number_of_entries,
-                        )
-                    }
-                    545 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.position_encoder_resolution_encoder_increments,
-                        )
-                    }
-                    546 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.position_encoder_resolution_motor_revolutions,
-                        )
-                    }
-                    547 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.gear_ratio_number_of_entries,
-                        )
-                    }
-                    548 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.gear_ratio_motor_shaft_revolutions,
-                        )
-                    }
-                    549 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.gear_ratio_driving_shaft_revolutions,
-                        )
-                    }
-                    550 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.feed_constant_number_of_entries,
-                        )
-                    }
-                    551 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.feed_constant_feed)
-                    }
-                    552 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.feed_constant_shaft_revolutions,
-                        )
-                    }
-                    553 => ::od_runtime::__private_v1::Slot::I8(&self.homing_method),
-                    554 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.homing_speeds_number_of_entries,
-                        )
-                    }
-                    555 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speeds_speed_during_search_for_switch,
-                        )
-                    }
-                    556 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speeds_speed_during_search_for_zero,
-                        )
-                    }
-                    557 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.homing_acceleration)
-                    }
-                    558 => ::od_runtime::__private_v1::Slot::I32(&self.velocity_offset),
-                    559 => ::od_runtime::__private_v1::Slot::I16(&self.torque_offset),
-                    560 => {
-                        ::od_runtime::__private_v1::Slot::U16(&self.touch_probe_function)
-                    }
-                    561 => {
-                        ::od_runtime::__private_v1::Slot::U16(&self.touch_probe_status)
-                    }
-                    562 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.touch_probe_1_positive_edge,
-                        )
-                    }
-                    563 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.touch_probe_1_negative_edge,
-                        )
-                    }
-                    564 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.touch_probe_2_positive_edge,
-                        )
-                    }
-                    565 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.touch_probe_2_negative_edge,
-                        )
-                    }
-                    566 => {
-                        ::od_runtime::__private_v1::Slot::I16(
-                            &self.interpolation_sub_mode_select,
-                        )
-                    }
-                    567 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.interpolation_data_record_number_of_entries,
-                        )
-                    }
-                    568 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.interpolation_data_record_interpolation_target_position,
-                        )
-                    }
-                    569 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.interpolation_data_record_interpolation_time,
-                        )
-                    }
-                    570 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.interpolation_data_record_interpolation_target_velocity,
-                        )
-                    }
-                    571 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.interpolation_time_period_number_of_entries,
-                        )
-                    }
-                    572 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.interpolation_time_period_value,
-                        )
-                    }
-                    573 => {
-                        ::od_runtime::__private_v1::Slot::I16(
-                            &self.interpolation_time_period_interpolation_time_index,
-                        )
-                    }
-                    574 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.interpolation_data_configuration_number_of_entries,
-                        )
-                    }
-                    575 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.interpolation_data_configuration_maximum_buffer_size,
-                        )
-                    }
-                    576 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.interpolation_data_configuration_actual_buffer_size,
-                        )
-                    }
-                    577 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.interpolation_data_configuration_buffer_organization,
-                        )
-                    }
-                    578 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.interpolation_data_configuration_buffer_position,
-                        )
-                    }
-                    579 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.interpolation_data_configuration_size_of_data_record,
-                        )
-                    }
-                    580 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.interpolation_data_configuration_buffer_clear,
-                        )
-                    }
-                    581 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.touch_probe_source_number_of_entries,
-                        )
-                    }
-                    582 => {
-                        ::od_runtime::__private_v1::Slot::I16(
-                            &self.touch_probe_source_touch_probe_1_source,
-                        )
-                    }
-                    583 => {
-                        ::od_runtime::__private_v1::Slot::I16(
-                            &self.touch_probe_source_touch_probe_2_source,
-                        )
-                    }
-                    584 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.following_error_actual_value,
-                        )
-                    }
-                    585 => ::od_runtime::__private_v1::Slot::U32(&self.digital_inputs),
-                    586 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.digital_outputs_number_of_entries,
-                        )
-                    }
-                    587 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.digital_outputs_physical_outputs,
-                        )
-                    }
-                    588 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.digital_outputs_bit_mask,
-                        )
-                    }
-                    589 => ::od_runtime::__private_v1::Slot::I32(&self.target_velocity),
-                    590 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.supported_drive_modes,
-                        )
-                    }
-                    _ => return None,
-                },
-            )
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v2::Slot<'_>> {
+            ::od_runtime::__private_v2::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
-        ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.device_type),
-                    1 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(&mut self.error_register)
-                    }
-                    2 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.manufacturer_status_register,
-                        )
-                    }
-                    3 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.pre_defined_error_field_number_of_errors,
-                        )
-                    }
-                    4 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_1,
-                        )
-                    }
-                    5 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_2,
-                        )
-                    }
-                    6 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_3,
-                        )
-                    }
-                    7 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_4,
-                        )
-                    }
-                    8 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_5,
-                        )
-                    }
-                    9 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_6,
-                        )
-                    }
-                    10 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_7,
-                        )
-                    }
-                    11 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_8,
-                        )
-                    }
-                    12 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_9,
-                        )
-                    }
-                    13 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_10,
-                        )
-                    }
-                    14 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.cob_id_sync_message,
-                        )
-                    }
-                    15 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.communication_cycle_period,
-                        )
-                    }
-                    16 => self.manufacturer_device_name.slot_mut(),
-                    17 => self.manufacturer_hardware_version.slot_mut(),
-                    18 => self.manufacturer_software_version.slot_mut(),
-                    19 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.guard_time),
-                    20 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.life_time_factor,
-                        )
-                    }
-                    21 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.store_parameters_number_of_entries,
-                        )
-                    }
-                    22 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.store_parameters_save_all_parameters,
-                        )
-                    }
-                    23 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.restore_default_parameters_number_of_entries,
-                        )
-                    }
-                    24 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .restore_default_parameters_restore_all_default_parameters,
-                        )
-                    }
-                    25 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.cob_id_emcy),
-                    26 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.consumer_heartbeat_time_number_of_entries,
-                        )
-                    }
-                    27 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.consumer_heartbeat_time_1,
-                        )
-                    }
-                    28 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.producer_heartbeat_time,
-                        )
-                    }
-                    29 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.identity_object_number_of_entries,
-                        )
-                    }
-                    30 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_vendor_id,
-                        )
-                    }
-                    31 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_product_code,
-                        )
-                    }
-                    32 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_revision_number,
-                        )
-                    }
-                    33 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_serial_number,
-                        )
-                    }
-                    34 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.os_prompt_number_of_entries,
-                        )
-                    }
-                    35 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.os_prompt_std_in,
-                        )
-                    }
-                    36 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.os_prompt_std_out,
-                        )
-                    }
-                    37 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_1_communication_parameter_number_of_entries,
-                        )
-                    }
-                    38 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .receive_pdo_1_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    39 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_1_communication_parameter_transmission_type,
-                        )
-                    }
-                    40 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_2_communication_parameter_number_of_entries,
-                        )
-                    }
-                    41 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .receive_pdo_2_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    42 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_2_communication_parameter_transmission_type,
-                        )
-                    }
-                    43 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_3_communication_parameter_number_of_entries,
-                        )
-                    }
-                    44 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .receive_pdo_3_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    45 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_3_communication_parameter_transmission_type,
-                        )
-                    }
-                    46 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_4_communication_parameter_number_of_entries,
-                        )
-                    }
-                    47 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .receive_pdo_4_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    48 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_4_communication_parameter_transmission_type,
-                        )
-                    }
-                    49 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_1_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    50 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_1_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    51 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_1_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    52 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_1_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    53 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_1_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    54 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_1_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    55 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_1_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    56 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_1_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    57 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_1_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    58 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_2_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    59 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_2_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    60 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_2_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    61 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_2_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    62 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_2_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    63 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_2_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    64 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_2_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    65 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_2_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    66 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_2_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    67 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_3_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    68 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_3_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    69 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_3_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    70 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_3_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    71 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_3_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    72 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_3_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    73 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_3_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    74 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_3_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    75 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_3_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    76 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_4_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    77 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_4_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    78 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_4_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    79 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_4_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    80 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_4_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    81 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_4_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    82 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_4_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    83 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_4_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    84 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_4_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    85 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_1_communication_parameter_number_of_entries,
-                        )
-                    }
-                    86 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .transmit_pdo_1_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    87 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_1_communication_parameter_transmission_type,
-                        )
-                    }
-                    88 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_1_communication_parameter_inhibit_time,
-                        )
-                    }
-                    89 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.transmit_pdo_1_communication_parameter_reserved,
-                        )
-                    }
-                    90 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_1_communication_parameter_event_timer,
-                        )
-                    }
-                    91 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_2_communication_parameter_number_of_entries,
-                        )
-                    }
-                    92 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .transmit_pdo_2_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    93 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_2_communication_parameter_transmission_type,
-                        )
-                    }
-                    94 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_2_communication_parameter_inhibit_time,
-                        )
-                    }
-                    95 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.transmit_pdo_2_communication_parameter_reserved,
-                        )
-                    }
-                    96 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_2_communication_parameter_event_timer,
-                        )
-                    }
-                    97 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_3_communication_parameter_number_of_entries,
-                        )
-                    }
-                    98 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .transmit_pdo_3_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    99 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_3_communication_parameter_transmission_type,
-                        )
-                    }
-                    100 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_3_communication_parameter_inhibit_time,
-                        )
-                    }
-                    101 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.transmit_pdo_3_communication_parameter_reserved,
-                        )
-                    }
-                    102 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_3_communication_parameter_event_timer,
-                        )
-                    }
-                    103 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_4_communication_parameter_number_of_entries,
-                        )
-                    }
-                    104 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .transmit_pdo_4_communication_parameter_cob_id_used_by_pdo,
-                        )
-                    }
-                    105 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_4_communication_parameter_transmission_type,
-                        )
-                    }
-                    106 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_4_communication_parameter_inhibit_time,
-                        )
-                    }
-                    107 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.transmit_pdo_4_communication_parameter_reserved,
-                        )
-                    }
-                    108 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_4_communication_parameter_event_timer,
-                        )
-                    }
-                    109 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_1_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    110 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_1_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    111 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_1_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    112 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_1_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    113 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_1_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    114 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_1_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    115 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_1_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    116 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_1_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    117 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_1_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    118 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_2_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    119 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_2_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    120 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_2_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    121 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_2_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    122 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_2_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    123 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_2_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    124 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_2_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    125 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_2_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    126 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_2_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    127 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_3_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    128 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_3_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    129 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_3_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    130 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_3_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    131 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_3_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    132 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_3_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    133 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_3_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    134 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_3_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    135 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_3_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    136 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_4_mapping_parameter_number_of_mapped_objects,
-                        )
-                    }
-                    137 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_4_mapping_parameter_mapped_object_1,
-                        )
-                    }
-                    138 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_4_mapping_parameter_mapped_object_2,
-                        )
-                    }
-                    139 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_4_mapping_parameter_mapped_object_3,
-                        )
-                    }
-                    140 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_4_mapping_parameter_mapped_object_4,
-                        )
-                    }
-                    141 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_4_mapping_parameter_mapped_object_5,
-                        )
-                    }
-                    142 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_4_mapping_parameter_mapped_object_6,
-                        )
-                    }
-                    143 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_4_mapping_parameter_mapped_object_7,
-                        )
-                    }
-                    144 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_4_mapping_parameter_mapped_object_8,
-                        )
-                    }
-                    145 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.transmit_pdo_1_mask_number_of_entries,
-                        )
-                    }
-                    146 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_1_mask_bytes_0_to_3,
-                        )
-                    }
-                    147 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_1_mask_bytes_4_to_7,
-                        )
-                    }
-                    148 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.transmit_pdo_2_mask_number_of_entries,
-                        )
-                    }
-                    149 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_2_mask_bytes_0_to_3,
-                        )
-                    }
-                    150 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_2_mask_bytes_4_to_7,
-                        )
-                    }
-                    151 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.transmit_pdo_3_mask_number_of_entries,
-                        )
-                    }
-                    152 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_3_mask_bytes_0_to_3,
-                        )
-                    }
-                    153 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_3_mask_bytes_4_to_7,
-                        )
-                    }
-                    154 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.transmit_pdo_4_mask_number_of_entries,
-                        )
-                    }
-                    155 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_4_mask_bytes_0_to_3,
-                        )
-                    }
-                    156 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_4_mask_bytes_4_to_7,
-                        )
-                    }
-                    157 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.firmware_version_number_of_entries,
-                        )
-                    }
-                    158 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.firmware_version_major_version,
-                        )
-                    }
-                    159 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.firmware_version_minor_version,
-                        )
-                    }
-                    160 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.firmware_version_revision,
-                        )
-                    }
-                    161 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.firmware_version_derived_version,
-                        )
-                    }
-                    162 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.ascii_channel_number_of_entries,
-                        )
-                    }
-                    163 => self.ascii_channel_command.slot_mut(),
-                    164 => self.ascii_channel_response.slot_mut(),
-                    165 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.pv_scaling_factor_number_of_entries,
-                        )
-                    }
-                    166 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.pv_scaling_factor_numerator,
-                        )
-                    }
-                    167 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.pv_scaling_factor_denominator,
-                        )
-                    }
-                    168 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.secondary_feedback_position,
-                        )
-                    }
-                    169 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.target_current,
-                        )
-                    }
-                    170 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.current_actual_value,
-                        )
-                    }
-                    171 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.latch_position_1_positive_edge,
-                        )
-                    }
-                    172 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.latch_position_1_negative_edge,
-                        )
-                    }
-                    173 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.latch_position_2_positive_edge,
-                        )
-                    }
-                    174 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.latch_position_2_negative_edge,
-                        )
-                    }
-                    175 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.latch_control_register,
-                        )
-                    }
-                    176 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.latch_status_register,
-                        )
-                    }
-                    177 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.latch_position_1_positive_or_negative_edge,
-                        )
-                    }
-                    178 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.reset_of_changed_input_information,
-                        )
-                    }
-                    179 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.dummy_entry_4_bytes,
-                        )
-                    }
-                    180 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .velocity_loop_bi_quad_filter_types_number_of_entries,
-                        )
-                    }
-                    181 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .velocity_loop_bi_quad_filter_types_1_calculation_method,
-                        )
-                    }
-                    182 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .velocity_loop_bi_quad_filter_types_2_calculation_method,
-                        )
-                    }
-                    183 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .velocity_loop_bi_quad_filter_types_3_calculation_method,
-                        )
-                    }
-                    184 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .velocity_loop_bi_quad_filter_types_4_calculation_method,
-                        )
-                    }
-                    185 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.velocity_loop_bi_quad_filters_number_of_entries,
-                        )
-                    }
-                    186 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency,
-                        )
-                    }
-                    187 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency,
-                        )
-                    }
-                    188 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency,
-                        )
-                    }
-                    189 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency,
-                        )
-                    }
-                    190 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q,
-                        )
-                    }
-                    191 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q,
-                        )
-                    }
-                    192 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q,
-                        )
-                    }
-                    193 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q,
-                        )
-                    }
-                    194 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency,
-                        )
-                    }
-                    195 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency,
-                        )
-                    }
-                    196 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency,
-                        )
-                    }
-                    197 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency,
-                        )
-                    }
-                    198 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q,
-                        )
-                    }
-                    199 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q,
-                        )
-                    }
-                    200 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q,
-                        )
-                    }
-                    201 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q,
-                        )
-                    }
-                    202 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .velocity_loop_filter_and_feedforward_number_of_entries,
-                        )
-                    }
-                    203 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz,
-                        )
-                    }
-                    204 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .velocity_loop_filter_and_feedforward_velocity_feedforward_gain,
-                        )
-                    }
-                    205 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .velocity_loop_filter_and_feedforward_acceleration_gain,
-                        )
-                    }
-                    206 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.velocity_loop_filter_and_feedforward_velocity_error,
-                        )
-                    }
-                    207 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(
-                            &mut self.regen_resistor_type,
-                        )
-                    }
-                    208 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.regen_resistor_fault_level,
-                        )
-                    }
-                    209 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.regen_resistor_thermal_time_constant,
-                        )
-                    }
-                    210 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.regen_resistor_calculated_power,
-                        )
-                    }
-                    211 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.foldback_fault_level,
-                        )
-                    }
-                    212 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.foldback_fault_level_user_value,
-                        )
-                    }
-                    213 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.friction_compensation_value,
-                        )
-                    }
-                    214 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.current_offset_for_gravity_compensation,
-                        )
-                    }
-                    215 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.current_loop_pi_integrator_enable,
-                        )
-                    }
-                    216 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.overall_foldback_current_limit,
-                        )
-                    }
-                    217 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.current_loop_acceleration_feedforward_gain,
-                        )
-                    }
-                    218 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.motor_protection_parameters_number_of_entries,
-                        )
-                    }
-                    219 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.motor_protection_parameters_motor_protection_mode,
-                        )
-                    }
-                    220 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .motor_protection_parameters_motor_i2t_warning_threshold,
-                        )
-                    }
-                    221 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.motor_protection_parameters_motor_i2t_load,
-                        )
-                    }
-                    222 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.direction_for_absolute_motion_tasks,
-                        )
-                    }
-                    223 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.motion_task_setting,
-                        )
-                    }
-                    224 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.controlled_stop_parameters_number_of_entries,
-                        )
-                    }
-                    225 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .controlled_stop_parameters_controlled_stop_deceleration,
-                        )
-                    }
-                    226 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .controlled_stop_parameters_controlled_stop_velocity_threshold,
-                        )
-                    }
-                    227 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.controlled_stop_parameters_velocity_threshold_time,
-                        )
-                    }
-                    228 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.controlled_stop_state,
-                        )
-                    }
-                    229 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.drive_disable_cause,
-                        )
-                    }
-                    230 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.dynamic_braking_maximum_current,
-                        )
-                    }
-                    231 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.emergency_timeout_for_braking,
-                        )
-                    }
-                    232 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.motor_brake_release,
-                        )
-                    }
-                    233 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.motor_parameters_automatic_calculation,
-                        )
-                    }
-                    234 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.motor_maximum_voltage,
-                        )
-                    }
-                    235 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.motor_temperature_warning_level,
-                        )
-                    }
-                    236 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.motor_winding_thermal_constant,
-                        )
-                    }
-                    237 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.motor_quadrature_inductance_line_to_line,
-                        )
-                    }
-                    238 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.motor_stator_winding_resistance_phase_to_phase,
-                        )
-                    }
-                    239 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.induction_motor_parameters_number_of_entries,
-                        )
-                    }
-                    240 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .induction_motor_parameters_induction_motor_rated_velocity,
-                        )
-                    }
-                    241 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self
-                                .induction_motor_parameters_induction_motor_rated_voltage,
-                        )
-                    }
-                    242 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self
-                                .induction_motor_parameters_minimum_voltage_for_v_f_control,
-                        )
-                    }
-                    243 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.capture_engine_parameters_number_of_entries,
-                        )
-                    }
-                    244 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.capture_engine_parameters_capture_0_trigger_source,
-                        )
-                    }
-                    245 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.capture_engine_parameters_capture_1_trigger_source,
-                        )
-                    }
-                    246 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.capture_engine_parameters_capture_0_mode,
-                        )
-                    }
-                    247 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.capture_engine_parameters_capture_1_mode,
-                        )
-                    }
-                    248 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .capture_engine_parameters_capture_0_precondition_logic,
-                        )
-                    }
-                    249 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .capture_engine_parameters_capture_1_precondition_logic,
-                        )
-                    }
-                    250 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .capture_engine_parameters_capture_0_precondition_edge,
-                        )
-                    }
-                    251 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .capture_engine_parameters_capture_1_precondition_edge,
-                        )
-                    }
-                    252 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .capture_engine_parameters_capture_0_precondition_trigger,
-                        )
-                    }
-                    253 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .capture_engine_parameters_capture_1_precondition_trigger,
-                        )
-                    }
-                    254 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .analog_input_and_output_parameters_number_of_entries,
-                        )
-                    }
-                    255 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(
-                            &mut self
-                                .analog_input_and_output_parameters_analog_output_mode,
-                        )
-                    }
-                    256 => {
-                        ::od_runtime::__private_v1::SlotMut::I16(
-                            &mut self
-                                .analog_input_and_output_parameters_analog_output_value,
-                        )
-                    }
-                    257 => {
-                        ::od_runtime::__private_v1::SlotMut::I16(
-                            &mut self.analog_input_and_output_parameters_value_user_units,
-                        )
-                    }
-                    258 => {
-                        ::od_runtime::__private_v1::SlotMut::I16(
-                            &mut self
-                                .analog_input_and_output_parameters_analog_input_value,
-                        )
-                    }
-                    259 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .analog_input_and_output_parameters_velocity_scale_factor,
-                        )
-                    }
-                    260 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.analog_output_position_scale_factor,
-                        )
-                    }
-                    261 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.analog_input_position_scale_factor,
-                        )
-                    }
-                    262 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.digital_input_parameters_number_of_entries,
-                        )
-                    }
-                    263 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_input_parameters_digital_input_1_parameter_low_32_bits,
-                        )
-                    }
-                    264 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_input_parameters_digital_input_2_parameter_low_32_bits,
-                        )
-                    }
-                    265 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_input_parameters_digital_input_3_parameter_low_32_bits,
-                        )
-                    }
-                    266 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_input_parameters_digital_input_4_parameter_low_32_bits,
-                        )
-                    }
-                    267 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_input_parameters_digital_input_5_parameter_low_32_bits,
-                        )
-                    }
-                    268 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_input_parameters_digital_input_6_parameter_low_32_bits,
-                        )
-                    }
-                    269 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_input_parameters_digital_input_7_parameter_low_32_bits,
-                        )
-                    }
-                    270 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_input_parameters_digital_input_1_parameter_high_32_bits,
-                        )
-                    }
-                    271 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_input_parameters_digital_input_2_parameter_high_32_bits,
-                        )
-                    }
-                    272 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_input_parameters_digital_input_3_parameter_high_32_bits,
-                        )
-                    }
-                    273 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_input_parameters_digital_input_4_parameter_high_32_bits,
-                        )
-                    }
-                    274 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_input_parameters_digital_input_5_parameter_high_32_bits,
-                        )
-                    }
-                    275 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_input_parameters_digital_input_6_parameter_high_32_bits,
-                        )
-                    }
-                    276 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .digital_input_parameters_digital_input_7_parameter_high_32_bits,
-                        )
-                    }
-                    277 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.digital_output_parameters_number_of_entries,
-                        )
-                    }
-                    278 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_output_parameters_1_parameter_low_32_bits,
-                        )
-                    }
-                    279 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_output_parameters_2_parameter_low_32_bits,
-                        )
-                    }
-                    280 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_output_parameters_1_parameter_high_32_bits,
-                        )
-                    }
-                    281 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_output_parameters_2_parameter_high_32_bits,
-                        )
-                    }
-                    282 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.position_loop_integral_gain,
-                        )
-                    }
-                    283 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .position_loop_integrator_saturation_number_of_entries,
-                        )
-                    }
-                    284 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .position_loop_integrator_saturation_integrator_input_saturation,
-                        )
-                    }
-                    285 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.position_loop_integrator_saturation_output,
-                        )
-                    }
-                    286 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.homing_maximum_following_error,
-                        )
-                    }
-                    287 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.position_error_warning_level,
-                        )
-                    }
-                    288 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.homing_additional_move_distance,
-                        )
-                    }
-                    289 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.feedback_position_offset,
-                        )
-                    }
-                    290 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.emulated_encoder_index_pulse_turn_position,
-                        )
-                    }
-                    291 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.drive_motion_status,
-                        )
-                    }
-                    292 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.emulated_encoder_output_direction,
-                        )
-                    }
-                    293 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.wake_and_shake_parameters_number_of_entries,
-                        )
-                    }
-                    294 => {
-                        ::od_runtime::__private_v1::SlotMut::I16(
-                            &mut self
-                                .wake_and_shake_parameters_wake_and_shake_maximum_current,
-                        )
-                    }
-                    295 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .wake_and_shake_parameters_wake_and_shake_maximum_movement,
-                        )
-                    }
-                    296 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self
-                                .wake_and_shake_parameters_delay_between_loops_in_mode_0,
-                        )
-                    }
-                    297 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .wake_and_shake_parameters_wake_and_shake_maximum_velocity,
-                        )
-                    }
-                    298 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.wake_and_shake_parameters_wake_and_shake_state,
-                        )
-                    }
-                    299 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.wake_and_shake_parameters_wake_and_shake_arm,
-                        )
-                    }
-                    300 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .fieldbus_synchronization_parameters_number_of_entries,
-                        )
-                    }
-                    301 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .fieldbus_synchronization_parameters_expected_distance,
-                        )
-                    }
-                    302 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.fieldbus_synchronization_parameters_actual_distance,
-                        )
-                    }
-                    303 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .fieldbus_synchronization_parameters_synchronization_window,
-                        )
-                    }
-                    304 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .fieldbus_synchronization_parameters_compensation_time,
-                        )
-                    }
-                    305 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .programmable_limit_switch_positions_number_of_entries,
-                        )
-                    }
-                    306 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_positions_1_compare_position,
-                        )
-                    }
-                    307 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_positions_2_compare_position,
-                        )
-                    }
-                    308 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_positions_3_compare_position,
-                        )
-                    }
-                    309 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_positions_4_compare_position,
-                        )
-                    }
-                    310 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_positions_5_compare_position,
-                        )
-                    }
-                    311 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_positions_6_compare_position,
-                        )
-                    }
-                    312 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_positions_7_compare_position,
-                        )
-                    }
-                    313 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_positions_8_compare_position,
-                        )
-                    }
-                    314 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.programmable_limit_switch_widths_number_of_entries,
-                        )
-                    }
-                    315 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_widths_limit_switch_1_width,
-                        )
-                    }
-                    316 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_widths_limit_switch_2_width,
-                        )
-                    }
-                    317 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_widths_limit_switch_3_width,
-                        )
-                    }
-                    318 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_widths_limit_switch_4_width,
-                        )
-                    }
-                    319 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_widths_limit_switch_5_width,
-                        )
-                    }
-                    320 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_widths_limit_switch_6_width,
-                        )
-                    }
-                    321 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_widths_limit_switch_7_width,
-                        )
-                    }
-                    322 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .programmable_limit_switch_widths_limit_switch_8_width,
-                        )
-                    }
-                    323 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.programmable_limit_switch_times_number_of_entries,
-                        )
-                    }
-                    324 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.programmable_limit_switch_times_limit_switch_1_time,
-                        )
-                    }
-                    325 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.programmable_limit_switch_times_limit_switch_2_time,
-                        )
-                    }
-                    326 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.programmable_limit_switch_times_limit_switch_3_time,
-                        )
-                    }
-                    327 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.programmable_limit_switch_times_limit_switch_4_time,
-                        )
-                    }
-                    328 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.programmable_limit_switch_times_limit_switch_5_time,
-                        )
-                    }
-                    329 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.programmable_limit_switch_times_limit_switch_6_time,
-                        )
-                    }
-                    330 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.programmable_limit_switch_times_limit_switch_7_time,
-                        )
-                    }
-                    331 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.programmable_limit_switch_times_limit_switch_8_time,
-                        )
-                    }
-                    332 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .programmable_limit_switch_configuration_number_of_entries,
-                        )
-                    }
-                    333 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self
-                                .programmable_limit_switch_configuration_limit_switch_enable,
-                        )
-                    }
-                    334 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self
-                                .programmable_limit_switch_configuration_limit_switch_reset,
-                        )
-                    }
-                    335 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self
-                                .programmable_limit_switch_configuration_limit_switch_mode,
-                        )
-                    }
-                    336 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self
-                                .programmable_limit_switch_configuration_limit_switch_state,
-                        )
-                    }
-                    337 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.programmable_limit_switch_units,
-                        )
-                    }
-                    338 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.acceleration_ramp,
-                        )
-                    }
-                    339 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.homing_and_jog_acceleration_ramp,
-                        )
-                    }
-                    340 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.hardware_enable_input_mode,
-                        )
-                    }
-                    341 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.analog_input_voltage,
-                        )
-                    }
-                    342 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.deceleration_ramp,
-                        )
-                    }
-                    343 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.homing_and_jog_deceleration_ramp,
-                        )
-                    }
-                    344 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.motion_direction,
-                        )
-                    }
-                    345 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.motor_encoder_resolution,
-                        )
-                    }
-                    346 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.emulated_encoder_connector_mode,
-                        )
-                    }
-                    347 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.emulated_encoder_resolution,
-                        )
-                    }
-                    348 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.emulated_encoder_index_pulse_offset,
-                        )
-                    }
-                    349 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.feedback_type_selection,
-                        )
-                    }
-                    350 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.position_loop_proportional_gain,
-                        )
-                    }
-                    351 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.velocity_loop_proportional_gain,
-                        )
-                    }
-                    352 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.velocity_loop_velocity_feedforward_gain,
-                        )
-                    }
-                    353 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.velocity_loop_integral_time,
-                        )
-                    }
-                    354 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.current_feedback,
-                        )
-                    }
-                    355 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.drive_foldback_current,
-                        )
-                    }
-                    356 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.foldback_warning_level,
-                        )
-                    }
-                    357 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.digital_input_1_mode,
-                        )
-                    }
-                    358 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.digital_input_2_mode,
-                        )
-                    }
-                    359 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.digital_input_3_mode,
-                        )
-                    }
-                    360 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.digital_input_4_mode,
-                        )
-                    }
-                    361 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.application_peak_current_positive_direction,
-                        )
-                    }
-                    362 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.application_peak_current_negative_direction,
-                        )
-                    }
-                    363 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.motor_temperature_fault_level,
-                        )
-                    }
-                    364 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.motor_holding_brake_selection,
-                        )
-                    }
-                    365 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.motor_continuous_current,
-                        )
-                    }
-                    366 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.motor_peak_current,
-                        )
-                    }
-                    367 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.motor_torque_constant,
-                        )
-                    }
-                    368 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.current_loop_d_component_gain_ratio,
-                        )
-                    }
-                    369 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.current_loop_proportional_gain,
-                        )
-                    }
-                    370 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.motor_phase)
-                    }
-                    371 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.motor_poles)
-                    }
-                    372 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.motor_maximum_velocity,
-                        )
-                    }
-                    373 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.motor_foldback_current_limit,
-                        )
-                    }
-                    374 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.motor_inertia)
-                    }
-                    375 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_output_1_mode,
-                        )
-                    }
-                    376 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_output_2_mode,
-                        )
-                    }
-                    377 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.drive_operation_mode,
-                        )
-                    }
-                    378 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.next_motion_task_of_motion_task_0,
-                        )
-                    }
-                    379 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.regen_resistor_selection,
-                        )
-                    }
-                    380 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.position_following_error,
-                        )
-                    }
-                    381 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.in_position_window,
-                        )
-                    }
-                    382 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.maximum_following_error,
-                        )
-                    }
-                    383 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.position_resolution_numerator,
-                        )
-                    }
-                    384 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.position_resolution_denominator,
-                        )
-                    }
-                    385 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_current_limit_for_hard_stop,
-                        )
-                    }
-                    386 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.save_data_to_non_volatile_memory,
-                        )
-                    }
-                    387 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.set_reference_point,
-                        )
-                    }
-                    388 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.stop_motion_task,
-                        )
-                    }
-                    389 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.disable_mode)
-                    }
-                    390 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.ambient_temperature,
-                        )
-                    }
-                    391 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.heat_sink_temperature,
-                        )
-                    }
-                    392 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.motor_temperature,
-                        )
-                    }
-                    393 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.undervoltage_mode,
-                        )
-                    }
-                    394 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.velocity_feedback,
-                        )
-                    }
-                    395 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.dc_bus_voltage,
-                        )
-                    }
-                    396 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.undervoltage_fault_level,
-                        )
-                    }
-                    397 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.positive_velocity_limit,
-                        )
-                    }
-                    398 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.negative_velocity_limit,
-                        )
-                    }
-                    399 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.overspeed_threshold,
-                        )
-                    }
-                    400 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.analog_input_velocity_scale_factor,
-                        )
-                    }
-                    401 => {
-                        ::od_runtime::__private_v1::SlotMut::U64(
-                            &mut self.initial_feedback_position,
-                        )
-                    }
-                    402 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.rotary_acceleration_units,
-                        )
-                    }
-                    403 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.motion_task_number,
-                        )
-                    }
-                    404 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.rotary_velocity_units,
-                        )
-                    }
-                    405 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.rotary_position_units,
-                        )
-                    }
-                    406 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.brake_apply_delay,
-                        )
-                    }
-                    407 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.brake_release_delay,
-                        )
-                    }
-                    408 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.wake_and_shake_delay_1,
-                        )
-                    }
-                    409 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.wake_and_shake_delay_2,
-                        )
-                    }
-                    410 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.wake_and_shake_current_vector_time,
-                        )
-                    }
-                    411 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.wake_and_shake_minimum_movement,
-                        )
-                    }
-                    412 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_automatic_move_flag,
-                        )
-                    }
-                    413 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.wake_and_shake_number_of_loops,
-                        )
-                    }
-                    414 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.can_baud_rate_selection,
-                        )
-                    }
-                    415 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pll_synchronization,
-                        )
-                    }
-                    416 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.fieldbus_parameter_3,
-                        )
-                    }
-                    417 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.sync_supervision,
-                        )
-                    }
-                    418 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.fieldbus_configuration_bits,
-                        )
-                    }
-                    419 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.fieldbus_parameter_6,
-                        )
-                    }
-                    420 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.fieldbus_parameter_7,
-                        )
-                    }
-                    421 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.fieldbus_parameter_8,
-                        )
-                    }
-                    422 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.fieldbus_parameter_9,
-                        )
-                    }
-                    423 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.fieldbus_parameter_10,
-                        )
-                    }
-                    424 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.digital_input_5_mode,
-                        )
-                    }
-                    425 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.digital_input_6_mode,
-                        )
-                    }
-                    426 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_input_7_mode,
-                        )
-                    }
-                    427 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.profile_position_velocity_window,
-                        )
-                    }
-                    428 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.analog_input_low_pass_cutoff_frequency,
-                        )
-                    }
-                    429 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.analog_input_deadband,
-                        )
-                    }
-                    430 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.analog_input_current_scale_factor,
-                        )
-                    }
-                    431 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.analog_input_offset,
-                        )
-                    }
-                    432 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.analog_output_current_scale_factor,
-                        )
-                    }
-                    433 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.analog_output_offset,
-                        )
-                    }
-                    434 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.bode_excitation_update_gap,
-                        )
-                    }
-                    435 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.bode_current_command_amplitude,
-                        )
-                    }
-                    436 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.bode_injection_point,
-                        )
-                    }
-                    437 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.bode_prb_signal_depth,
-                        )
-                    }
-                    438 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.fault_relay_mode,
-                        )
-                    }
-                    439 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.software_enable_default_state,
-                        )
-                    }
-                    440 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.drive_continuous_rated_current,
-                        )
-                    }
-                    441 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.drive_peak_rated_current,
-                        )
-                    }
-                    442 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.zero_procedure_current,
-                        )
-                    }
-                    443 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.bi_ss_sensor_position_bits,
-                        )
-                    }
-                    444 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.initial_feedback_value_signed,
-                        )
-                    }
-                    445 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.phase_finding_current,
-                        )
-                    }
-                    446 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.feedback_poles,
-                        )
-                    }
-                    447 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.resolver_transformation_ratio,
-                        )
-                    }
-                    448 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.resolver_reference_phase_lag,
-                        )
-                    }
-                    449 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tracking_calibration,
-                        )
-                    }
-                    450 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pll_lock_threshold,
-                        )
-                    }
-                    451 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.gearing_maximum_acceleration,
-                        )
-                    }
-                    452 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.gearing_maximum_deceleration,
-                        )
-                    }
-                    453 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.gearing_ratio_denominator,
-                        )
-                    }
-                    454 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.gearing_mode)
-                    }
-                    455 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.gearing_ratio_numerator,
-                        )
-                    }
-                    456 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.current_loop_fieldbus_feedforward_gain,
-                        )
-                    }
-                    457 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.motor_pitch)
-                    }
-                    458 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.motor_thermal_resistor_type,
-                        )
-                    }
-                    459 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.motor_type),
-                    460 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.motion_task_after_emergency_stop,
-                        )
-                    }
-                    461 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.following_error_mode,
-                        )
-                    }
-                    462 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.position_loop_feedback_source,
-                        )
-                    }
-                    463 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.service_motion_current_1,
-                        )
-                    }
-                    464 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.service_motion_current_2,
-                        )
-                    }
-                    465 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.service_motion_mode,
-                        )
-                    }
-                    466 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.service_motion_time_1,
-                        )
-                    }
-                    467 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.service_motion_time_2,
-                        )
-                    }
-                    468 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.software_limit_switch_enable,
-                        )
-                    }
-                    469 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.linear_acceleration_units,
-                        )
-                    }
-                    470 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.linear_position_units,
-                        )
-                    }
-                    471 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.linear_velocity_units,
-                        )
-                    }
-                    472 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.overvoltage_warning_level,
-                        )
-                    }
-                    473 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.velocity_loop_feedback_source,
-                        )
-                    }
-                    474 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.velocity_generation_mode,
-                        )
-                    }
-                    475 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.observer_velocity_scale,
-                        )
-                    }
-                    476 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.load_to_motor_inertia_ratio,
-                        )
-                    }
-                    477 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.observer_bandwidth,
-                        )
-                    }
-                    478 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.observer_mode)
-                    }
-                    479 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_input_1_filter_mode,
-                        )
-                    }
-                    480 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_input_2_filter_mode,
-                        )
-                    }
-                    481 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_input_3_filter_mode,
-                        )
-                    }
-                    482 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_input_4_filter_mode,
-                        )
-                    }
-                    483 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_input_5_filter_mode,
-                        )
-                    }
-                    484 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_input_6_filter_mode,
-                        )
-                    }
-                    485 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_input_7_filter_mode,
-                        )
-                    }
-                    486 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.modbus_user_units_input,
-                        )
-                    }
-                    487 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.modbus_user_units_output,
-                        )
-                    }
-                    488 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.modbus_feedback_resolution,
-                        )
-                    }
-                    489 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.secondary_feedback_resolution,
-                        )
-                    }
-                    490 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.secondary_feedback_mode,
-                        )
-                    }
-                    491 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.secondary_feedback_source,
-                        )
-                    }
-                    492 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.brake_apply_timeout,
-                        )
-                    }
-                    493 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.modbus_message_log,
-                        )
-                    }
-                    494 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.modbus_scaling_mode,
-                        )
-                    }
-                    495 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.emulated_encoder_pulse_width,
-                        )
-                    }
-                    496 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.emulated_encoder_velocity_monitoring,
-                        )
-                    }
-                    497 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.analog_input_deadband_mode,
-                        )
-                    }
-                    498 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.analog_input_mode,
-                        )
-                    }
-                    499 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.dio10_direction,
-                        )
-                    }
-                    500 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.dio10_output_inversion,
-                        )
-                    }
-                    501 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.dio11_direction,
-                        )
-                    }
-                    502 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.dio11_output_inversion,
-                        )
-                    }
-                    503 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.dio9_direction,
-                        )
-                    }
-                    504 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.dio9_output_inversion,
-                        )
-                    }
-                    505 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.fault_130_action,
-                        )
-                    }
-                    506 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.fault_131_action,
-                        )
-                    }
-                    507 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.fault_132_action,
-                        )
-                    }
-                    508 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.fault_134_action,
-                        )
-                    }
-                    509 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.fault_702_action,
-                        )
-                    }
-                    510 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.ip_address_mode,
-                        )
-                    }
-                    511 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.load_inertia)
-                    }
-                    512 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.motor_back_emf_constant,
-                        )
-                    }
-                    513 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.bus_voltage_half_voltage_thresholds,
-                        )
-                    }
-                    514 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.secondary_feedback_direction,
-                        )
-                    }
-                    515 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.handwheel_feedback_source,
-                        )
-                    }
-                    516 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.hardware_enable_delay,
-                        )
-                    }
-                    517 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.current_loop_gain_scheduling_index,
-                        )
-                    }
-                    518 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.current_loop_gain_scheduling_value,
-                        )
-                    }
-                    519 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.fault_451_action,
-                        )
-                    }
-                    520 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.brake_immediately_on_disable,
-                        )
-                    }
-                    521 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(&mut self.controlword)
-                    }
-                    522 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.statusword),
-                    523 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(
-                            &mut self.modes_of_operation,
-                        )
-                    }
-                    524 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(
-                            &mut self.modes_of_operation_display,
-                        )
-                    }
-                    525 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.position_actual_internal_value,
-                        )
-                    }
-                    526 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.position_actual_value,
-                        )
-                    }
-                    527 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.following_error_window,
-                        )
-                    }
-                    528 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.velocity_demand_value,
-                        )
-                    }
-                    529 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.velocity_actual_value,
-                        )
-                    }
-                    530 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.velocity_window,
-                        )
-                    }
-                    531 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.velocity_window_time,
-                        )
-                    }
-                    532 => {
-                        ::od_runtime::__private_v1::SlotMut::I16(&mut self.target_torque)
-                    }
-                    533 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.max_torque),
-                    534 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(&mut self.max_current)
-                    }
-                    535 => {
-                        ::od_runtime::__private_v1::SlotMut::I16(
-                            &mut self.torque_actual_value,
-                        )
-                    }
-                    536 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.target_position,
-                        )
-                    }
-                    537 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(&mut self.home_offset)
-                    }
-                    538 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.software_position_limit_number_of_entries,
-                        )
-                    }
-                    539 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.software_position_limit_min_position_limit,
-                        )
-                    }
-                    540 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.software_position_limit_max_position_limit,
-                        )
-                    }
-                    541 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.profile_velocity,
-                        )
-                    }
-                    542 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.profile_acceleration,
-                        )
-                    }
-                    543 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.profile_deceleration,
-                        )
-                    }
-                    544 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.position_encoder_resolution_number_of_entries,
-                        )
-                    }
-                    545 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.position_encoder_resolution_encoder_increments,
-                        )
-                    }
-                    546 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.position_encoder_resolution_motor_revolutions,
-                        )
-                    }
-                    547 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.gear_ratio_number_of_entries,
-                        )
-                    }
-                    548 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.gear_ratio_motor_shaft_revolutions,
-                        )
-                    }
-                    549 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.gear_ratio_driving_shaft_revolutions,
-                        )
-                    }
-                    550 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.feed_constant_number_of_entries,
-                        )
-                    }
-                    551 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.feed_constant_feed,
-                        )
-                    }
-                    552 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.feed_constant_shaft_revolutions,
-                        )
-                    }
-                    553 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(&mut self.homing_method)
-                    }
-                    554 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.homing_speeds_number_of_entries,
-                        )
-                    }
-                    555 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speeds_speed_during_search_for_switch,
-                        )
-                    }
-                    556 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speeds_speed_during_search_for_zero,
-                        )
-                    }
-                    557 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_acceleration,
-                        )
-                    }
-                    558 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.velocity_offset,
-                        )
-                    }
-                    559 => {
-                        ::od_runtime::__private_v1::SlotMut::I16(&mut self.torque_offset)
-                    }
-                    560 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.touch_probe_function,
-                        )
-                    }
-                    561 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.touch_probe_status,
-                        )
-                    }
-                    562 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.touch_probe_1_positive_edge,
-                        )
-                    }
-                    563 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.touch_probe_1_negative_edge,
-                        )
-                    }
-                    564 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.touch_probe_2_positive_edge,
-                        )
-                    }
-                    565 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.touch_probe_2_negative_edge,
-                        )
-                    }
-                    566 => {
-                        ::od_runtime::__private_v1::SlotMut::I16(
-                            &mut self.interpolation_sub_mode_select,
-                        )
-                    }
-                    567 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.interpolation_data_record_number_of_entries,
-                        )
-                    }
-                    568 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .interpolation_data_record_interpolation_target_position,
-                        )
-                    }
-                    569 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.interpolation_data_record_interpolation_time,
-                        )
-                    }
-                    570 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self
-                                .interpolation_data_record_interpolation_target_velocity,
-                        )
-                    }
-                    571 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.interpolation_time_period_number_of_entries,
-                        )
-                    }
-                    572 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.interpolation_time_period_value,
-                        )
-                    }
-                    573 => {
-                        ::od_runtime::__private_v1::SlotMut::I16(
-                            &mut self.interpolation_time_period_interpolation_time_index,
-                        )
-                    }
-                    574 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.interpolation_data_configuration_number_of_entries,
-                        )
-                    }
-                    575 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .interpolation_data_configuration_maximum_buffer_size,
-                        )
-                    }
-                    576 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.interpolation_data_configuration_actual_buffer_size,
-                        )
-                    }
-                    577 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .interpolation_data_configuration_buffer_organization,
-                        )
-                    }
-                    578 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.interpolation_data_configuration_buffer_position,
-                        )
-                    }
-                    579 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .interpolation_data_configuration_size_of_data_record,
-                        )
-                    }
-                    580 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.interpolation_data_configuration_buffer_clear,
-                        )
-                    }
-                    581 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.touch_probe_source_number_of_entries,
-                        )
-                    }
-                    582 => {
-                        ::od_runtime::__private_v1::SlotMut::I16(
-                            &mut self.touch_probe_source_touch_probe_1_source,
-                        )
-                    }
-                    583 => {
-                        ::od_runtime::__private_v1::SlotMut::I16(
-                            &mut self.touch_probe_source_touch_probe_2_source,
-                        )
-                    }
-                    584 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.following_error_actual_value,
-                        )
-                    }
-                    585 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_inputs,
-                        )
-                    }
-                    586 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.digital_outputs_number_of_entries,
-                        )
-                    }
-                    587 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_outputs_physical_outputs,
-                        )
-                    }
-                    588 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.digital_outputs_bit_mask,
-                        )
-                    }
-                    589 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.target_velocity,
-                        )
-                    }
-                    590 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.supported_drive_modes,
-                        )
-                    }
-                    _ => return None,
-                },
-            )
+        ) -> Option<::od_runtime::__private_v2::SlotMut<'_>> {
+            ::od_runtime::__private_v2::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -20704,8 +18850,8 @@ Denotation=MOTOR.BRAKEIMM
         fn read_at(&self, pos: usize) -> [u8; 8] {
             match self.slot(pos) {
                 Some(slot) => {
-                    ::od_runtime::__private_v1::first8(
-                        || ENTRIES.get(pos).map_or(0, |e| e.bits),
+                    ::od_runtime::__private_v2::first8(
+                        || ENTRIES.get(pos).map_or(0, |e| e.bits()),
                         slot,
                     )
                 }
@@ -20723,7 +18869,7 @@ Denotation=MOTOR.BRAKEIMM
             let (real_low, real_high) = (None, None);
             match (ENTRIES.get(pos), self.slot_mut(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::write(
+                    ::od_runtime::__private_v2::write(
                         info,
                         slot,
                         data,
@@ -20742,7 +18888,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v2::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -20752,7 +18898,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v2::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -20762,7 +18908,7 @@ Denotation=MOTOR.BRAKEIMM
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
@@ -20773,7 +18919,7 @@ Denotation=MOTOR.BRAKEIMM
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
@@ -31616,9 +29762,19 @@ Denotation=MOTOR.BRAKEIMM
             Ok(())
         }
     }
+    unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
+        #[inline(always)]
+        fn entries() -> &'static [::od_runtime::od::EntryInfo] {
+            &ENTRIES
+        }
+    }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
         fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
+        }
+        #[cfg(feature = "names")]
+        fn name(&self, index: u16, sub: u8) -> Option<&'static str> {
+            Self::position(index, sub).ok().and_then(|pos| NAMES.get(pos).copied())
         }
         #[inline]
         fn info(
@@ -31638,7 +29794,7 @@ Denotation=MOTOR.BRAKEIMM
             let pos = Self::position(index, sub)?;
             match (ENTRIES.get(pos), self.slot(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::read(info, slot, buf)
+                    ::od_runtime::__private_v2::read(info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -31655,7 +29811,7 @@ Denotation=MOTOR.BRAKEIMM
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, info) in ENTRIES.iter().enumerate() {
                 if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v1::set_default(info, slot, node_id);
+                    ::od_runtime::__private_v2::set_default(info, slot, node_id);
                 }
             }
         }
@@ -31671,10 +29827,10 @@ Denotation=MOTOR.BRAKEIMM
         }
         #[inline]
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-            ::od_runtime::__private_v1::pack_mapped(
+            ::od_runtime::__private_v2::pack_mapped(
                 map,
                 |h| match self.slot(h.get() as usize) {
-                    Some(slot) => ::od_runtime::__private_v1::first8(|| 64, slot),
+                    Some(slot) => ::od_runtime::__private_v2::first8(|| 64, slot),
                     None => [0; 8],
                 },
             )
@@ -31688,11 +29844,29 @@ Denotation=MOTOR.BRAKEIMM
             self.write_at(h.get() as usize, data)
         }
     }
+    /// The SDO server's buffer: the largest entry, in bytes (at least 8).
+    pub const SDO_BUFFER: usize = 32;
+    /// PDOs per direction the device has (`NrOfRXPDO`/`NrOfTXPDO`, or its PDO objects).
+    pub const PDOS: usize = 4;
+    /// Entries a PDO can map: the mapping objects' sub-objects, at most 64 bits at the
+    /// EDS's `Granularity`.
+    pub const MAPPED_PER_PDO: usize = 8;
+    /// The device runtime around this dictionary, sized for it: [`SDO_BUFFER`], [`PDOS`],
+    /// [`MAPPED_PER_PDO`]. Build it with `Device::with_capacity` (a `const fn`, so it can
+    /// initialise a `static`).
+    pub type Device<A, S = ::od_runtime::NoStorage> = ::od_runtime::Device<
+        Dictionary,
+        A,
+        S,
+        SDO_BUFFER,
+        PDOS,
+        MAPPED_PER_PDO,
+    >;
     /// Typed layouts of the device's default PDO mappings.
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
         #[doc(inline)]
-        pub use ::od_runtime::__private_v1::PdoLengthError as LengthError;
+        pub use ::od_runtime::__private_v2::PdoLengthError as LengthError;
         /// RPDO 1 (received by the device), default mapping of `0x1600`: 16 bits in 2 bytes.
         ///
         /// | bits | object | field |
@@ -31721,7 +29895,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                 })
@@ -31774,7 +29948,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 3)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 3)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     modes_of_operation: (((((w >> 16) & 0xFF) << 56) as i64) >> 56) as i8,
@@ -31830,7 +30004,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 6)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     target_position: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64) >> 32)
@@ -31887,7 +30061,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 6)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     target_velocity: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64) >> 32)
@@ -31940,7 +30114,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                 })
@@ -31993,7 +30167,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 3)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 3)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     modes_of_operation_display: (((((w >> 16) & 0xFF) << 56) as i64)
@@ -32050,7 +30224,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 6)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     position_actual_value: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64)
@@ -32107,7 +30281,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 6)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     velocity_actual_value: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64)
@@ -32137,7 +30311,7 @@ Denotation=MOTOR.BRAKEIMM
     /// module docs for the arithmetic).
     pub mod units {
         #[doc(inline)]
-        pub use ::od_runtime::__private_v1::Ratio;
+        pub use ::od_runtime::__private_v2::Ratio;
         /// A physical unit.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         pub enum Unit {
@@ -32280,7 +30454,7 @@ Denotation=MOTOR.BRAKEIMM
             system: System,
             /// Physical value per raw unit (prepared for fast exact conversions both ways),
             /// and the physical unit, per dimension.
-            factor: [Option<(::od_runtime::__private_v1::Scale, Unit)>; 6],
+            factor: [Option<(::od_runtime::__private_v2::Scale, Unit)>; 6],
             /// Internal value (increments or motor revolutions) per raw unit, per dimension.
             internal: [Option<Ratio>; 6],
         }
@@ -32308,7 +30482,7 @@ Denotation=MOTOR.BRAKEIMM
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::UserUnit,
                             ));
                             internal[0] = Some(g.reduced());
@@ -32322,7 +30496,7 @@ Denotation=MOTOR.BRAKEIMM
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::UserUnitPerSecond,
                             ));
                             internal[1] = Some(g.reduced());
@@ -32336,7 +30510,7 @@ Denotation=MOTOR.BRAKEIMM
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::UserUnitPerSecond2,
                             ));
                             internal[2] = Some(g.reduced());
@@ -32344,21 +30518,21 @@ Denotation=MOTOR.BRAKEIMM
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::PermilleRatedTorque,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[4] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MilliAmpere,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[5] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -32379,7 +30553,7 @@ Denotation=MOTOR.BRAKEIMM
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::UserUnit,
                             ));
                             internal[0] = Some(g.reduced());
@@ -32402,7 +30576,7 @@ Denotation=MOTOR.BRAKEIMM
                                 .checked_mul(Self::velocity_factor(od)?)
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::UserUnitPerSecond,
                             ));
                             internal[1] = Some(g.reduced());
@@ -32422,7 +30596,7 @@ Denotation=MOTOR.BRAKEIMM
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::UserUnitPerSecond2,
                             ));
                             internal[2] = Some(g.reduced());
@@ -32430,21 +30604,21 @@ Denotation=MOTOR.BRAKEIMM
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::PermilleRatedTorque,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[4] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MilliAmpere,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[5] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -32491,7 +30665,7 @@ Denotation=MOTOR.BRAKEIMM
                 &self,
                 d: Dimension,
                 q: &Quantity,
-            ) -> Result<&::od_runtime::__private_v1::Scale, UnitError> {
+            ) -> Result<&::od_runtime::__private_v2::Scale, UnitError> {
                 match self.factor.get(d.slot()) {
                     Some(Some((f, unit))) if *unit == q.unit => Ok(f),
                     Some(Some((_, unit))) => {

@@ -3081,7 +3081,6 @@ PDOMapping=0
         /// `0x67FF` Single device type.
         pub const SINGLE_DEVICE_TYPE: u16 = 0x67FF;
     }
-    /// The index of every object, sorted (the lookup's page table is computed from it).
     static OBJECTS: [u16; 94] = [
         0x1000, 0x1001, 0x1002, 0x1003, 0x1005, 0x1006, 0x1007, 0x1008, 0x1009, 0x100A,
         0x100C, 0x100D, 0x1010, 0x1011, 0x1012, 0x1014, 0x1015, 0x1017, 0x1018, 0x1019,
@@ -3094,47 +3093,49 @@ PDOMapping=0
         0x607E, 0x6081, 0x6083, 0x6084, 0x608F, 0x6091, 0x6092, 0x6098, 0x6099, 0x60FF,
         0x6402, 0x6404, 0x6502, 0x67FF,
     ];
-    /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
-    /// the index to its object, then the sub-index in the object's run of entries (`runs`:
-    /// `0xFFFFFFLL`, the object's first entry `FFFFFF` and its last position in the run `LL`;
-    /// `subs`: every entry's sub-index).
-    static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
-        pages: ::od_runtime::__private_v1::pages(&OBJECTS),
-        slots: &::od_runtime::__private_v1::slots::<3584>(&OBJECTS),
-        runs: &[
-            0x00000000, 0x00000100, 0x00000200, 0x00000308, 0x00000C00, 0x00000D00,
-            0x00000E00, 0x00000F00, 0x00001000, 0x00001100, 0x00001200, 0x00001300,
-            0x00001401, 0x00001601, 0x00001800, 0x00001900, 0x00001A00, 0x00001B00,
-            0x00001C04, 0x00002100, 0x00002202, 0x00002502, 0x00002802, 0x00002B02,
-            0x00002E02, 0x00003102, 0x00003402, 0x00003702, 0x00003A02, 0x00003D02,
-            0x00004008, 0x00004908, 0x00005208, 0x00005B08, 0x00006408, 0x00006D08,
-            0x00007608, 0x00007F08, 0x00008805, 0x00008E05, 0x00009405, 0x00009A05,
-            0x0000A005, 0x0000A605, 0x0000AC05, 0x0000B205, 0x0000B808, 0x0000C108,
-            0x0000CA08, 0x0000D308, 0x0000DC08, 0x0000E508, 0x0000EE08, 0x0000F708,
-            0x00010000, 0x00010102, 0x00010400, 0x00010500, 0x00010600, 0x00010700,
-            0x00010800, 0x00010900, 0x00010A00, 0x00010B00, 0x00010C00, 0x00010D00,
-            0x00010E00, 0x00010F00, 0x00011000, 0x00011100, 0x00011200, 0x00011300,
-            0x00011400, 0x00011500, 0x00011600, 0x00011700, 0x00011800, 0x00011900,
-            0x00011A00, 0x00011B02, 0x00011E00, 0x00011F00, 0x00012000, 0x00012100,
-            0x00012202, 0x00012502, 0x00012802, 0x00012B00, 0x00012C02, 0x00012F00,
-            0x00013000, 0x00013100, 0x00013200, 0x00013300,
+    static LOOKUP: ::od_runtime::__private_v2::Lookup = ::od_runtime::__private_v2::Lookup {
+        pages: ::od_runtime::__private_v2::pages(&OBJECTS),
+        bits: &::od_runtime::__private_v2::bits::<13>(&OBJECTS),
+        ranks: &[
+            [0, 37, 37, 37],
+            [37, 40, 40, 40],
+            [40, 64, 64, 64],
+            [64, 136, 136, 136],
+            [136, 184, 184, 184],
+            [184, 256, 256, 256],
+            [256, 256, 256, 257],
+            [257, 264, 264, 264],
+            [264, 268, 268, 268],
+            [268, 269, 287, 303],
+            [304, 306, 306, 306],
+            [306, 307, 307, 307],
+            [307, 307, 307, 307],
         ],
-        subs: &[
-            0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 1, 0, 0,
-            0, 0, 0, 1, 2, 3, 4, 0, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2,
-            0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4,
-            5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3,
-            4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2,
-            3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1,
-            2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3,
-            4, 5, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5,
-            6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4,
-            5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 0, 1, 2,
-            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2,
-            0, 0, 0, 0, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 0, 1, 2, 0, 0, 0, 0, 0,
+        objects: &[
+            [0, 21, 21, 21],
+            [21, 22, 22, 22],
+            [22, 30, 30, 30],
+            [30, 38, 38, 38],
+            [38, 46, 46, 46],
+            [46, 54, 54, 54],
+            [54, 54, 54, 55],
+            [55, 60, 60, 60],
+            [60, 64, 64, 64],
+            [64, 65, 81, 89],
+            [90, 92, 92, 92],
+            [92, 93, 93, 93],
+            [93, 93, 93, 93],
         ],
+        extra: &[
+            0, 0, 0, 0, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 10, 10, 10, 10, 10, 14, 14, 0, 0,
+            2, 4, 6, 8, 10, 12, 14, 0, 8, 16, 24, 32, 40, 48, 56, 0, 5, 10, 15, 20, 25,
+            30, 35, 0, 8, 16, 24, 32, 40, 48, 56, 0, 0, 2, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 0, 0, 0, 0, 2, 4, 6, 6, 0, 0, 0, 0,
+            0,
+        ],
+        entries: &ENTRIES,
     };
-    /// Metadata of every entry, sorted by `(index, sub)`.
+    /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
     pub static ENTRIES: [::od_runtime::od::EntryInfo; 308] = [
         ::od_runtime::od::EntryInfo {
             index: 0x1000,
@@ -3142,11 +3143,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF7C0192),
-            name: "Device type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, device_type),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[0]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1001,
@@ -3154,11 +3158,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Error register",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, error_register),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1002,
@@ -3166,11 +3173,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Manufacturer status register",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_status_register),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3178,11 +3188,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Pre-defined error field: Number of errors",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_number_of_errors
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3190,11 +3205,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3202,11 +3222,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3214,11 +3239,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3226,11 +3256,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3238,11 +3273,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3250,11 +3290,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3262,11 +3307,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3274,11 +3324,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1005,
@@ -3286,11 +3341,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80),
-            name: "COB-ID SYNC",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, cob_id_sync),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[1]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1006,
@@ -3298,11 +3356,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Communication cycle period",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, communication_cycle_period),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1007,
@@ -3310,11 +3371,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Synchronous window length",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, synchronous_window_length),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1008,
@@ -3322,11 +3386,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"DRCS"),
-            name: "Manufacturer device name",
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_device_name),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[2]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1009,
@@ -3334,11 +3401,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"1"),
-            name: "Manufacturer hardware version",
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_hardware_version),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[3]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x100A,
@@ -3346,11 +3416,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"1.18"),
-            name: "Manufacturer software version",
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_software_version),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[4]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x100C,
@@ -3358,11 +3431,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Guard time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, guard_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x100D,
@@ -3370,11 +3446,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Life time factor",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, life_time_factor),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1010,
@@ -3382,11 +3461,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Store parameter field: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, store_parameter_field_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1010,
@@ -3394,11 +3478,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x1),
-            name: "Store parameter field: Save all parameters",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, store_parameter_field_save_all_parameters
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1011,
@@ -3406,11 +3495,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Restore default parameters: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, restore_default_parameters_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1011,
@@ -3418,11 +3512,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x1),
-            name: "Restore default parameters: Restore all default parameters",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, restore_default_parameters_restore_all_default_parameters
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1012,
@@ -3430,11 +3529,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000100),
-            name: "COB-ID time stamp",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, cob_id_time_stamp),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1014,
@@ -3442,11 +3544,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80),
-            name: "COB-ID EMCY",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, cob_id_emcy),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[7]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1015,
@@ -3454,11 +3559,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Inhibit time emergency",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, inhibit_time_emergency),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1017,
@@ -3466,11 +3574,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Producer heartbeat time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, producer_heartbeat_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -3478,11 +3589,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(4),
-            name: "Identity object: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -3490,11 +3604,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x151),
-            name: "Identity object: Vendor ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_vendor_id),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[9]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -3502,11 +3619,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x5A),
-            name: "Identity object: Product code",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_product_code),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -3514,11 +3634,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x1),
-            name: "Identity object: Revision number",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_revision_number),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -3526,11 +3649,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Identity object: Serial number",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_serial_number),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1019,
@@ -3538,11 +3664,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: Some(240),
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Synchronous counter overflow value",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, synchronous_counter_overflow_value),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[11]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1020,
@@ -3550,11 +3679,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Verify configuration: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, verify_configuration_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1020,
@@ -3562,11 +3696,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Verify configuration: Configuration date",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, verify_configuration_date),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1020,
@@ -3574,11 +3711,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Verify configuration: Configuration time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, verify_configuration_time),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1200,
@@ -3586,11 +3726,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Server SDO parameter: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, server_sdo_parameter_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1200,
@@ -3598,11 +3743,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x600),
-            name: "Server SDO parameter: COB-ID client to server",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, server_sdo_parameter_cob_id_client_to_server
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1200,
@@ -3610,11 +3760,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x580),
-            name: "Server SDO parameter: COB-ID server to client",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, server_sdo_parameter_cob_id_server_to_client
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[14]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -3622,11 +3777,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 1: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_1_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -3634,11 +3795,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
-            name: "Rx PDO communication parameter 1: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_1_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[15]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -3646,11 +3812,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 1: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_1_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1401,
@@ -3658,11 +3829,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 2: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_2_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1401,
@@ -3670,11 +3847,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000300),
-            name: "Rx PDO communication parameter 2: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_2_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1401,
@@ -3682,11 +3864,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 2: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_2_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1402,
@@ -3694,11 +3881,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 3: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_3_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1402,
@@ -3706,11 +3899,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000400),
-            name: "Rx PDO communication parameter 3: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_3_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[18]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1402,
@@ -3718,11 +3916,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 3: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_3_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1403,
@@ -3730,11 +3933,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 4: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_4_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1403,
@@ -3742,11 +3951,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000500),
-            name: "Rx PDO communication parameter 4: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_4_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1403,
@@ -3754,11 +3968,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 4: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_4_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1404,
@@ -3766,11 +3985,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 5: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_5_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1404,
@@ -3778,11 +4003,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Rx PDO communication parameter 5: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_5_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1404,
@@ -3790,11 +4020,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 5: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_5_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1405,
@@ -3802,11 +4037,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 6: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_6_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1405,
@@ -3814,11 +4055,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Rx PDO communication parameter 6: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_6_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1405,
@@ -3826,11 +4072,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 6: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_6_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1406,
@@ -3838,11 +4089,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 7: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_7_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1406,
@@ -3850,11 +4107,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Rx PDO communication parameter 7: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_7_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1406,
@@ -3862,11 +4124,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 7: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_7_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1407,
@@ -3874,11 +4141,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Rx PDO communication parameter 8: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rx_pdo_communication_parameter_8_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1407,
@@ -3886,11 +4159,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Rx PDO communication parameter 8: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_8_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1407,
@@ -3898,11 +4176,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Rx PDO communication parameter 8: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_communication_parameter_8_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3910,11 +4193,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Rx PDO mapping parameter 1: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3922,11 +4210,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
-            name: "Rx PDO mapping parameter 1: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[21]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3934,11 +4227,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 1: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3946,11 +4244,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 1: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3958,11 +4261,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 1: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3970,11 +4278,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 1: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3982,11 +4295,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 1: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3994,11 +4312,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 1: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -4006,11 +4329,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 1: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4018,11 +4346,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rx PDO mapping parameter 2: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4030,11 +4363,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4042,11 +4380,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4054,11 +4397,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4066,11 +4414,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4078,11 +4431,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4090,11 +4448,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4102,11 +4465,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4114,11 +4482,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 2: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4126,11 +4499,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rx PDO mapping parameter 3: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4138,11 +4516,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4150,11 +4533,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4162,11 +4550,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4174,11 +4567,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4186,11 +4584,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4198,11 +4601,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4210,11 +4618,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4222,11 +4635,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 3: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4234,11 +4652,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rx PDO mapping parameter 4: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4246,11 +4669,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4258,11 +4686,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4270,11 +4703,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4282,11 +4720,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4294,11 +4737,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4306,11 +4754,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4318,11 +4771,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4330,11 +4788,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 4: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4342,11 +4805,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rx PDO mapping parameter 5: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4354,11 +4822,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4366,11 +4839,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4378,11 +4856,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4390,11 +4873,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4402,11 +4890,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4414,11 +4907,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4426,11 +4924,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4438,11 +4941,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 5: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4450,11 +4958,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rx PDO mapping parameter 6: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4462,11 +4975,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4474,11 +4992,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4486,11 +5009,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4498,11 +5026,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4510,11 +5043,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4522,11 +5060,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4534,11 +5077,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4546,11 +5094,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 6: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4558,11 +5111,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rx PDO mapping parameter 7: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4570,11 +5128,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4582,11 +5145,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4594,11 +5162,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4606,11 +5179,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4618,11 +5196,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4630,11 +5213,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4642,11 +5230,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4654,11 +5247,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 7: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4666,11 +5264,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Rx PDO mapping parameter 8: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4678,11 +5281,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4690,11 +5298,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4702,11 +5315,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4714,11 +5332,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4726,11 +5349,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4738,11 +5366,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4750,11 +5383,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4762,11 +5400,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Rx PDO mapping parameter 8: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4774,11 +5417,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 1: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_1_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[22]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4786,11 +5435,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
-            name: "Tx PDO communication parameter 1: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_1_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[23]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4798,11 +5452,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 1: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_1_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4810,11 +5469,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 1: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_1_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4822,11 +5486,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 1: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_1_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4834,11 +5503,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 1: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_1_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4846,11 +5520,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 2: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_2_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[22]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4858,11 +5538,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000280),
-            name: "Tx PDO communication parameter 2: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_2_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[24]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4870,11 +5555,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 2: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_2_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4882,11 +5572,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 2: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_2_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4894,11 +5589,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 2: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_2_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4906,11 +5606,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 2: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_2_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4918,11 +5623,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 3: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_3_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[22]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4930,11 +5641,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000380),
-            name: "Tx PDO communication parameter 3: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_3_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[25]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4942,11 +5658,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 3: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_3_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4954,11 +5675,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 3: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_3_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4966,11 +5692,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 3: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_3_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4978,11 +5709,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 3: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_3_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -4990,11 +5726,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 4: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_4_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[22]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -5002,11 +5744,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000480),
-            name: "Tx PDO communication parameter 4: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_4_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[26]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -5014,11 +5761,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 4: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_4_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -5026,11 +5778,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 4: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_4_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -5038,11 +5795,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 4: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_4_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -5050,11 +5812,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 4: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_4_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -5062,11 +5829,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 5: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_5_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[22]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -5074,11 +5847,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Tx PDO communication parameter 5: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_5_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -5086,11 +5864,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 5: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_5_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -5098,11 +5881,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 5: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_5_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -5110,11 +5898,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 5: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_5_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -5122,11 +5915,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 5: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_5_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5134,11 +5932,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 6: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_6_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[22]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5146,11 +5950,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Tx PDO communication parameter 6: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_6_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5158,11 +5967,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 6: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_6_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5170,11 +5984,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 6: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_6_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5182,11 +6001,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 6: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_6_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5194,11 +6018,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 6: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_6_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5206,11 +6035,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 7: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_7_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[22]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5218,11 +6053,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Tx PDO communication parameter 7: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_7_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5230,11 +6070,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 7: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_7_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5242,11 +6087,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 7: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_7_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5254,11 +6104,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 7: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_7_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5266,11 +6121,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 7: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_7_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5278,11 +6138,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Tx PDO communication parameter 8: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tx_pdo_communication_parameter_8_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[22]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5290,11 +6156,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Tx PDO communication parameter 8: COB-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_8_cob_id
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5302,11 +6173,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Tx PDO communication parameter 8: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_8_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5314,11 +6190,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 8: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_8_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5326,11 +6207,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 8: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_8_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5338,11 +6224,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO communication parameter 8: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_communication_parameter_8_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5350,11 +6241,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Tx PDO mapping parameter 1: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5362,11 +6258,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
-            name: "Tx PDO mapping parameter 1: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[27]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5374,11 +6275,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 1: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5386,11 +6292,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 1: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5398,11 +6309,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 1: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5410,11 +6326,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 1: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5422,11 +6343,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 1: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5434,11 +6360,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 1: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5446,11 +6377,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 1: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5458,11 +6394,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO mapping parameter 2: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5470,11 +6411,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5482,11 +6428,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5494,11 +6445,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5506,11 +6462,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5518,11 +6479,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5530,11 +6496,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5542,11 +6513,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5554,11 +6530,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 2: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5566,11 +6547,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO mapping parameter 3: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5578,11 +6564,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5590,11 +6581,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5602,11 +6598,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5614,11 +6615,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5626,11 +6632,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5638,11 +6649,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5650,11 +6666,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5662,11 +6683,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 3: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5674,11 +6700,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO mapping parameter 4: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5686,11 +6717,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5698,11 +6734,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5710,11 +6751,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5722,11 +6768,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5734,11 +6785,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5746,11 +6802,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5758,11 +6819,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5770,11 +6836,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 4: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5782,11 +6853,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO mapping parameter 5: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5794,11 +6870,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5806,11 +6887,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5818,11 +6904,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5830,11 +6921,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5842,11 +6938,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5854,11 +6955,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5866,11 +6972,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5878,11 +6989,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 5: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5890,11 +7006,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO mapping parameter 6: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5902,11 +7023,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5914,11 +7040,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5926,11 +7057,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5938,11 +7074,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5950,11 +7091,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5962,11 +7108,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5974,11 +7125,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5986,11 +7142,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 6: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -5998,11 +7159,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO mapping parameter 7: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6010,11 +7176,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6022,11 +7193,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6034,11 +7210,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6046,11 +7227,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6058,11 +7244,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6070,11 +7261,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6082,11 +7278,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6094,11 +7295,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 7: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6106,11 +7312,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Tx PDO mapping parameter 8: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6118,11 +7329,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6130,11 +7346,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6142,11 +7363,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6154,11 +7380,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6166,11 +7397,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6178,11 +7414,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6190,11 +7431,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6202,11 +7448,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Tx PDO mapping parameter 8: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1F80,
@@ -6214,11 +7465,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x4),
-            name: "NMT startup",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, nmt_startup),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2001,
@@ -6226,11 +7480,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Feed converter: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, feed_converter_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2001,
@@ -6238,11 +7497,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Feed converter: Numerator",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feed_converter_numerator),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2001,
@@ -6250,11 +7512,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Feed converter: Denominator",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feed_converter_denominator),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2002,
@@ -6262,11 +7527,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Input status",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, input_status),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2003,
@@ -6274,11 +7542,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Output status",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, output_status),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2004,
@@ -6286,11 +7557,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing status",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_status),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2005,
@@ -6298,11 +7572,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Brake",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, brake),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2100,
@@ -6310,11 +7587,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Total time off",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, total_time_off),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2101,
@@ -6322,11 +7602,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Total time on",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, total_time_on),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2102,
@@ -6334,11 +7617,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Total time run",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, total_time_run),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2103,
@@ -6346,11 +7632,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Total stroke",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, total_stroke),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x603F,
@@ -6358,11 +7647,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Error code",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, error_code),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6040,
@@ -6370,11 +7662,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Controlword",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, controlword),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6041,
@@ -6382,11 +7677,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Statusword",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, statusword),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6060,
@@ -6394,11 +7692,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Modes of operation",
+            slot: ::od_runtime::__private_v2::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, modes_of_operation),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6061,
@@ -6406,11 +7707,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Modes of operation display",
+            slot: ::od_runtime::__private_v2::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, modes_of_operation_display),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6062,
@@ -6418,11 +7722,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position demand value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_demand_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6064,
@@ -6430,11 +7737,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position actual value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_actual_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606B,
@@ -6442,11 +7752,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity demand value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_demand_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606C,
@@ -6454,11 +7767,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity actual value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_actual_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606D,
@@ -6466,11 +7782,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity window",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_window),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606E,
@@ -6478,11 +7797,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity window time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_window_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606F,
@@ -6490,11 +7812,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity threshold",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_threshold),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6070,
@@ -6502,11 +7827,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity threshold time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_threshold_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607A,
@@ -6514,11 +7842,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Target position",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, target_position),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607C,
@@ -6526,11 +7857,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Home offset",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, home_offset),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607D,
@@ -6538,11 +7872,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Software position limit: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, software_position_limit_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607D,
@@ -6550,11 +7889,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Software position limit: Min software position limit",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, software_position_limit_min_software_position_limit
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607D,
@@ -6562,11 +7906,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1000),
-            name: "Software position limit: Max software position limit",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, software_position_limit_max_software_position_limit
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: Some(&EXTRAS[28]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607E,
@@ -6574,11 +7923,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Polarity",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, polarity),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6081,
@@ -6586,11 +7938,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Profile velocity in pp-mode",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, profile_velocity_in_pp_mode),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6083,
@@ -6598,11 +7953,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Profile acceleration",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, profile_acceleration),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6084,
@@ -6610,11 +7968,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Profile deceleration",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, profile_deceleration),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x608F,
@@ -6622,11 +7983,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Position encoder resolution: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, position_encoder_resolution_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x608F,
@@ -6634,11 +8000,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1000),
-            name: "Position encoder resolution: Encoder increments",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, position_encoder_resolution_encoder_increments
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[28]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x608F,
@@ -6646,11 +8017,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Position encoder resolution: Motor revolutions",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, position_encoder_resolution_motor_revolutions
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6091,
@@ -6658,11 +8034,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Gear ratio: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, gear_ratio_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6091,
@@ -6670,11 +8051,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Gear ratio: Motor revolutions",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, gear_ratio_motor_revolutions),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6091,
@@ -6682,11 +8066,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Gear ratio: Shaft revolutions",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, gear_ratio_shaft_revolutions),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6092,
@@ -6694,11 +8081,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Feed constant: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, feed_constant_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6092,
@@ -6706,11 +8098,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(70),
-            name: "Feed constant: Feed",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feed_constant_feed),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[29]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6092,
@@ -6718,11 +8113,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Feed constant: Shaft revolutions",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feed_constant_shaft_revolutions),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6098,
@@ -6730,11 +8128,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(17),
-            name: "Homing method",
+            slot: ::od_runtime::__private_v2::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_method),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: Some(&EXTRAS[30]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -6742,11 +8143,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Homing speed: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, homing_speed_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -6754,11 +8160,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing speed: Fast homing speed",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_speed_fast_homing_speed),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -6766,11 +8175,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing speed: Slow homing speed",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_speed_slow_homing_speed),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60FF,
@@ -6778,11 +8190,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Target velocity",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, target_velocity),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6402,
@@ -6790,11 +8205,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x9),
-            name: "Motor type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_type),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: Some(&EXTRAS[31]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6404,
@@ -6802,11 +8220,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"Camozzi"),
-            name: "Motor manufacturer",
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, motor_manufacturer),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[32]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6502,
@@ -6814,11 +8235,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x25),
-            name: "Supported drive modes",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, supported_drive_modes),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[33]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x67FF,
@@ -6826,12 +8250,514 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x440192),
-            name: "Single device type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, single_device_type),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[34]),
         },
+    ];
+    /// Capacities, defaults other than zero and limits, each distinct one once
+    /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
+    pub static EXTRAS: [::od_runtime::od::EntryExtras; 35] = [
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0xFF7C0192),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x80),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"DRCS"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"1"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"1.18"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x80000100),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(4),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x151),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x5A),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::None,
+            limits: Some(&LIMITS[0]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(2),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x600),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x580),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0xFF),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000300),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000400),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000500),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(5),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000280),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000380),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000480),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1000),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(70),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(17),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x9),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"Camozzi"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x25),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x440192),
+            limits: None,
+        },
+    ];
+    /// The limits of the entries that have any, each distinct one once.
+    pub static LIMITS: [::od_runtime::od::Limits; 1] = [
+        ::od_runtime::od::Limits {
+            low: 0,
+            high: 240,
+        },
+    ];
+    /// The name of every entry (`ParameterName`, `Object: Sub-object` for sub-entries), in
+    /// [`ENTRIES`] order.
+    #[cfg(feature = "names")]
+    pub static NAMES: [&str; 308] = [
+        "Device type",
+        "Error register",
+        "Manufacturer status register",
+        "Pre-defined error field: Number of errors",
+        "Pre-defined error field: Standard error field 1",
+        "Pre-defined error field: Standard error field 2",
+        "Pre-defined error field: Standard error field 3",
+        "Pre-defined error field: Standard error field 4",
+        "Pre-defined error field: Standard error field 5",
+        "Pre-defined error field: Standard error field 6",
+        "Pre-defined error field: Standard error field 7",
+        "Pre-defined error field: Standard error field 8",
+        "COB-ID SYNC",
+        "Communication cycle period",
+        "Synchronous window length",
+        "Manufacturer device name",
+        "Manufacturer hardware version",
+        "Manufacturer software version",
+        "Guard time",
+        "Life time factor",
+        "Store parameter field: Highest sub-index supported",
+        "Store parameter field: Save all parameters",
+        "Restore default parameters: Highest sub-index supported",
+        "Restore default parameters: Restore all default parameters",
+        "COB-ID time stamp",
+        "COB-ID EMCY",
+        "Inhibit time emergency",
+        "Producer heartbeat time",
+        "Identity object: Number of entries",
+        "Identity object: Vendor ID",
+        "Identity object: Product code",
+        "Identity object: Revision number",
+        "Identity object: Serial number",
+        "Synchronous counter overflow value",
+        "Verify configuration: Highest sub-index supported",
+        "Verify configuration: Configuration date",
+        "Verify configuration: Configuration time",
+        "Server SDO parameter: Highest sub-index supported",
+        "Server SDO parameter: COB-ID client to server",
+        "Server SDO parameter: COB-ID server to client",
+        "Rx PDO communication parameter 1: Highest sub-index supported",
+        "Rx PDO communication parameter 1: COB-ID",
+        "Rx PDO communication parameter 1: Transmission type",
+        "Rx PDO communication parameter 2: Highest sub-index supported",
+        "Rx PDO communication parameter 2: COB-ID",
+        "Rx PDO communication parameter 2: Transmission type",
+        "Rx PDO communication parameter 3: Highest sub-index supported",
+        "Rx PDO communication parameter 3: COB-ID",
+        "Rx PDO communication parameter 3: Transmission type",
+        "Rx PDO communication parameter 4: Highest sub-index supported",
+        "Rx PDO communication parameter 4: COB-ID",
+        "Rx PDO communication parameter 4: Transmission type",
+        "Rx PDO communication parameter 5: Highest sub-index supported",
+        "Rx PDO communication parameter 5: COB-ID",
+        "Rx PDO communication parameter 5: Transmission type",
+        "Rx PDO communication parameter 6: Highest sub-index supported",
+        "Rx PDO communication parameter 6: COB-ID",
+        "Rx PDO communication parameter 6: Transmission type",
+        "Rx PDO communication parameter 7: Highest sub-index supported",
+        "Rx PDO communication parameter 7: COB-ID",
+        "Rx PDO communication parameter 7: Transmission type",
+        "Rx PDO communication parameter 8: Highest sub-index supported",
+        "Rx PDO communication parameter 8: COB-ID",
+        "Rx PDO communication parameter 8: Transmission type",
+        "Rx PDO mapping parameter 1: Number of mapped objects",
+        "Rx PDO mapping parameter 1: Mapping entry 1",
+        "Rx PDO mapping parameter 1: Mapping entry 2",
+        "Rx PDO mapping parameter 1: Mapping entry 3",
+        "Rx PDO mapping parameter 1: Mapping entry 4",
+        "Rx PDO mapping parameter 1: Mapping entry 5",
+        "Rx PDO mapping parameter 1: Mapping entry 6",
+        "Rx PDO mapping parameter 1: Mapping entry 7",
+        "Rx PDO mapping parameter 1: Mapping entry 8",
+        "Rx PDO mapping parameter 2: Number of mapped objects",
+        "Rx PDO mapping parameter 2: Mapping entry 1",
+        "Rx PDO mapping parameter 2: Mapping entry 2",
+        "Rx PDO mapping parameter 2: Mapping entry 3",
+        "Rx PDO mapping parameter 2: Mapping entry 4",
+        "Rx PDO mapping parameter 2: Mapping entry 5",
+        "Rx PDO mapping parameter 2: Mapping entry 6",
+        "Rx PDO mapping parameter 2: Mapping entry 7",
+        "Rx PDO mapping parameter 2: Mapping entry 8",
+        "Rx PDO mapping parameter 3: Number of mapped objects",
+        "Rx PDO mapping parameter 3: Mapping entry 1",
+        "Rx PDO mapping parameter 3: Mapping entry 2",
+        "Rx PDO mapping parameter 3: Mapping entry 3",
+        "Rx PDO mapping parameter 3: Mapping entry 4",
+        "Rx PDO mapping parameter 3: Mapping entry 5",
+        "Rx PDO mapping parameter 3: Mapping entry 6",
+        "Rx PDO mapping parameter 3: Mapping entry 7",
+        "Rx PDO mapping parameter 3: Mapping entry 8",
+        "Rx PDO mapping parameter 4: Number of mapped objects",
+        "Rx PDO mapping parameter 4: Mapping entry 1",
+        "Rx PDO mapping parameter 4: Mapping entry 2",
+        "Rx PDO mapping parameter 4: Mapping entry 3",
+        "Rx PDO mapping parameter 4: Mapping entry 4",
+        "Rx PDO mapping parameter 4: Mapping entry 5",
+        "Rx PDO mapping parameter 4: Mapping entry 6",
+        "Rx PDO mapping parameter 4: Mapping entry 7",
+        "Rx PDO mapping parameter 4: Mapping entry 8",
+        "Rx PDO mapping parameter 5: Number of mapped objects",
+        "Rx PDO mapping parameter 5: Mapping entry 1",
+        "Rx PDO mapping parameter 5: Mapping entry 2",
+        "Rx PDO mapping parameter 5: Mapping entry 3",
+        "Rx PDO mapping parameter 5: Mapping entry 4",
+        "Rx PDO mapping parameter 5: Mapping entry 5",
+        "Rx PDO mapping parameter 5: Mapping entry 6",
+        "Rx PDO mapping parameter 5: Mapping entry 7",
+        "Rx PDO mapping parameter 5: Mapping entry 8",
+        "Rx PDO mapping parameter 6: Number of mapped objects",
+        "Rx PDO mapping parameter 6: Mapping entry 1",
+        "Rx PDO mapping parameter 6: Mapping entry 2",
+        "Rx PDO mapping parameter 6: Mapping entry 3",
+        "Rx PDO mapping parameter 6: Mapping entry 4",
+        "Rx PDO mapping parameter 6: Mapping entry 5",
+        "Rx PDO mapping parameter 6: Mapping entry 6",
+        "Rx PDO mapping parameter 6: Mapping entry 7",
+        "Rx PDO mapping parameter 6: Mapping entry 8",
+        "Rx PDO mapping parameter 7: Number of mapped objects",
+        "Rx PDO mapping parameter 7: Mapping entry 1",
+        "Rx PDO mapping parameter 7: Mapping entry 2",
+        "Rx PDO mapping parameter 7: Mapping entry 3",
+        "Rx PDO mapping parameter 7: Mapping entry 4",
+        "Rx PDO mapping parameter 7: Mapping entry 5",
+        "Rx PDO mapping parameter 7: Mapping entry 6",
+        "Rx PDO mapping parameter 7: Mapping entry 7",
+        "Rx PDO mapping parameter 7: Mapping entry 8",
+        "Rx PDO mapping parameter 8: Number of mapped objects",
+        "Rx PDO mapping parameter 8: Mapping entry 1",
+        "Rx PDO mapping parameter 8: Mapping entry 2",
+        "Rx PDO mapping parameter 8: Mapping entry 3",
+        "Rx PDO mapping parameter 8: Mapping entry 4",
+        "Rx PDO mapping parameter 8: Mapping entry 5",
+        "Rx PDO mapping parameter 8: Mapping entry 6",
+        "Rx PDO mapping parameter 8: Mapping entry 7",
+        "Rx PDO mapping parameter 8: Mapping entry 8",
+        "Tx PDO communication parameter 1: Highest sub-index supported",
+        "Tx PDO communication parameter 1: COB-ID",
+        "Tx PDO communication parameter 1: Transmission type",
+        "Tx PDO communication parameter 1: Inhibit time",
+        "Tx PDO communication parameter 1: Compatibility entry",
+        "Tx PDO communication parameter 1: Event timer",
+        "Tx PDO communication parameter 2: Highest sub-index supported",
+        "Tx PDO communication parameter 2: COB-ID",
+        "Tx PDO communication parameter 2: Transmission type",
+        "Tx PDO communication parameter 2: Inhibit time",
+        "Tx PDO communication parameter 2: Compatibility entry",
+        "Tx PDO communication parameter 2: Event timer",
+        "Tx PDO communication parameter 3: Highest sub-index supported",
+        "Tx PDO communication parameter 3: COB-ID",
+        "Tx PDO communication parameter 3: Transmission type",
+        "Tx PDO communication parameter 3: Inhibit time",
+        "Tx PDO communication parameter 3: Compatibility entry",
+        "Tx PDO communication parameter 3: Event timer",
+        "Tx PDO communication parameter 4: Highest sub-index supported",
+        "Tx PDO communication parameter 4: COB-ID",
+        "Tx PDO communication parameter 4: Transmission type",
+        "Tx PDO communication parameter 4: Inhibit time",
+        "Tx PDO communication parameter 4: Compatibility entry",
+        "Tx PDO communication parameter 4: Event timer",
+        "Tx PDO communication parameter 5: Highest sub-index supported",
+        "Tx PDO communication parameter 5: COB-ID",
+        "Tx PDO communication parameter 5: Transmission type",
+        "Tx PDO communication parameter 5: Inhibit time",
+        "Tx PDO communication parameter 5: Compatibility entry",
+        "Tx PDO communication parameter 5: Event timer",
+        "Tx PDO communication parameter 6: Highest sub-index supported",
+        "Tx PDO communication parameter 6: COB-ID",
+        "Tx PDO communication parameter 6: Transmission type",
+        "Tx PDO communication parameter 6: Inhibit time",
+        "Tx PDO communication parameter 6: Compatibility entry",
+        "Tx PDO communication parameter 6: Event timer",
+        "Tx PDO communication parameter 7: Highest sub-index supported",
+        "Tx PDO communication parameter 7: COB-ID",
+        "Tx PDO communication parameter 7: Transmission type",
+        "Tx PDO communication parameter 7: Inhibit time",
+        "Tx PDO communication parameter 7: Compatibility entry",
+        "Tx PDO communication parameter 7: Event timer",
+        "Tx PDO communication parameter 8: Highest sub-index supported",
+        "Tx PDO communication parameter 8: COB-ID",
+        "Tx PDO communication parameter 8: Transmission type",
+        "Tx PDO communication parameter 8: Inhibit time",
+        "Tx PDO communication parameter 8: Compatibility entry",
+        "Tx PDO communication parameter 8: Event timer",
+        "Tx PDO mapping parameter 1: Number of mapped objects",
+        "Tx PDO mapping parameter 1: Mapping entry 1",
+        "Tx PDO mapping parameter 1: Mapping entry 2",
+        "Tx PDO mapping parameter 1: Mapping entry 3",
+        "Tx PDO mapping parameter 1: Mapping entry 4",
+        "Tx PDO mapping parameter 1: Mapping entry 5",
+        "Tx PDO mapping parameter 1: Mapping entry 6",
+        "Tx PDO mapping parameter 1: Mapping entry 7",
+        "Tx PDO mapping parameter 1: Mapping entry 8",
+        "Tx PDO mapping parameter 2: Number of mapped objects",
+        "Tx PDO mapping parameter 2: Mapping entry 1",
+        "Tx PDO mapping parameter 2: Mapping entry 2",
+        "Tx PDO mapping parameter 2: Mapping entry 3",
+        "Tx PDO mapping parameter 2: Mapping entry 4",
+        "Tx PDO mapping parameter 2: Mapping entry 5",
+        "Tx PDO mapping parameter 2: Mapping entry 6",
+        "Tx PDO mapping parameter 2: Mapping entry 7",
+        "Tx PDO mapping parameter 2: Mapping entry 8",
+        "Tx PDO mapping parameter 3: Number of mapped objects",
+        "Tx PDO mapping parameter 3: Mapping entry 1",
+        "Tx PDO mapping parameter 3: Mapping entry 2",
+        "Tx PDO mapping parameter 3: Mapping entry 3",
+        "Tx PDO mapping parameter 3: Mapping entry 4",
+        "Tx PDO mapping parameter 3: Mapping entry 5",
+        "Tx PDO mapping parameter 3: Mapping entry 6",
+        "Tx PDO mapping parameter 3: Mapping entry 7",
+        "Tx PDO mapping parameter 3: Mapping entry 8",
+        "Tx PDO mapping parameter 4: Number of mapped objects",
+        "Tx PDO mapping parameter 4: Mapping entry 1",
+        "Tx PDO mapping parameter 4: Mapping entry 2",
+        "Tx PDO mapping parameter 4: Mapping entry 3",
+        "Tx PDO mapping parameter 4: Mapping entry 4",
+        "Tx PDO mapping parameter 4: Mapping entry 5",
+        "Tx PDO mapping parameter 4: Mapping entry 6",
+        "Tx PDO mapping parameter 4: Mapping entry 7",
+        "Tx PDO mapping parameter 4: Mapping entry 8",
+        "Tx PDO mapping parameter 5: Number of mapped objects",
+        "Tx PDO mapping parameter 5: Mapping entry 1",
+        "Tx PDO mapping parameter 5: Mapping entry 2",
+        "Tx PDO mapping parameter 5: Mapping entry 3",
+        "Tx PDO mapping parameter 5: Mapping entry 4",
+        "Tx PDO mapping parameter 5: Mapping entry 5",
+        "Tx PDO mapping parameter 5: Mapping entry 6",
+        "Tx PDO mapping parameter 5: Mapping entry 7",
+        "Tx PDO mapping parameter 5: Mapping entry 8",
+        "Tx PDO mapping parameter 6: Number of mapped objects",
+        "Tx PDO mapping parameter 6: Mapping entry 1",
+        "Tx PDO mapping parameter 6: Mapping entry 2",
+        "Tx PDO mapping parameter 6: Mapping entry 3",
+        "Tx PDO mapping parameter 6: Mapping entry 4",
+        "Tx PDO mapping parameter 6: Mapping entry 5",
+        "Tx PDO mapping parameter 6: Mapping entry 6",
+        "Tx PDO mapping parameter 6: Mapping entry 7",
+        "Tx PDO mapping parameter 6: Mapping entry 8",
+        "Tx PDO mapping parameter 7: Number of mapped objects",
+        "Tx PDO mapping parameter 7: Mapping entry 1",
+        "Tx PDO mapping parameter 7: Mapping entry 2",
+        "Tx PDO mapping parameter 7: Mapping entry 3",
+        "Tx PDO mapping parameter 7: Mapping entry 4",
+        "Tx PDO mapping parameter 7: Mapping entry 5",
+        "Tx PDO mapping parameter 7: Mapping entry 6",
+        "Tx PDO mapping parameter 7: Mapping entry 7",
+        "Tx PDO mapping parameter 7: Mapping entry 8",
+        "Tx PDO mapping parameter 8: Number of mapped objects",
+        "Tx PDO mapping parameter 8: Mapping entry 1",
+        "Tx PDO mapping parameter 8: Mapping entry 2",
+        "Tx PDO mapping parameter 8: Mapping entry 3",
+        "Tx PDO mapping parameter 8: Mapping entry 4",
+        "Tx PDO mapping parameter 8: Mapping entry 5",
+        "Tx PDO mapping parameter 8: Mapping entry 6",
+        "Tx PDO mapping parameter 8: Mapping entry 7",
+        "Tx PDO mapping parameter 8: Mapping entry 8",
+        "NMT startup",
+        "Feed converter: Highest sub-index supported",
+        "Feed converter: Numerator",
+        "Feed converter: Denominator",
+        "Input status",
+        "Output status",
+        "Homing status",
+        "Brake",
+        "Total time off",
+        "Total time on",
+        "Total time run",
+        "Total stroke",
+        "Error code",
+        "Controlword",
+        "Statusword",
+        "Modes of operation",
+        "Modes of operation display",
+        "Position demand value",
+        "Position actual value",
+        "Velocity demand value",
+        "Velocity actual value",
+        "Velocity window",
+        "Velocity window time",
+        "Velocity threshold",
+        "Velocity threshold time",
+        "Target position",
+        "Home offset",
+        "Software position limit: Highest sub-index supported",
+        "Software position limit: Min software position limit",
+        "Software position limit: Max software position limit",
+        "Polarity",
+        "Profile velocity in pp-mode",
+        "Profile acceleration",
+        "Profile deceleration",
+        "Position encoder resolution: Highest sub-index supported",
+        "Position encoder resolution: Encoder increments",
+        "Position encoder resolution: Motor revolutions",
+        "Gear ratio: Highest sub-index supported",
+        "Gear ratio: Motor revolutions",
+        "Gear ratio: Shaft revolutions",
+        "Feed constant: Highest sub-index supported",
+        "Feed constant: Feed",
+        "Feed constant: Shaft revolutions",
+        "Homing method",
+        "Homing speed: Highest sub-index supported",
+        "Homing speed: Fast homing speed",
+        "Homing speed: Slow homing speed",
+        "Target velocity",
+        "Motor type",
+        "Motor manufacturer",
+        "Supported drive modes",
+        "Single device type",
     ];
     /// The object dictionary of the DRCS (Camozzi Automation S.p.A.): the current value of every entry.
     ///
@@ -6853,9 +8779,9 @@ PDOMapping=0
         cob_id_sync: u32,
         communication_cycle_period: u32,
         synchronous_window_length: u32,
-        manufacturer_device_name: ::od_runtime::__private_v1::Bytes<32>,
-        manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes<32>,
-        manufacturer_software_version: ::od_runtime::__private_v1::Bytes<32>,
+        manufacturer_device_name: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_software_version: ::od_runtime::__private_v2::Bytes<32>,
         guard_time: u16,
         life_time_factor: u8,
         store_parameter_field_highest_sub_index_supported: u8,
@@ -7143,7 +9069,7 @@ PDOMapping=0
         homing_speed_slow_homing_speed: u32,
         target_velocity: i32,
         motor_type: u16,
-        motor_manufacturer: ::od_runtime::__private_v1::Bytes<32>,
+        motor_manufacturer: ::od_runtime::__private_v2::Bytes<32>,
         supported_drive_modes: u32,
         single_device_type: u32,
     }
@@ -7166,13 +9092,13 @@ PDOMapping=0
                 cob_id_sync: 0x80,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
-                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"DRCS",
                 ),
-                manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"1",
                 ),
-                manufacturer_software_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"1.18",
                 ),
                 guard_time: 0,
@@ -7472,11 +9398,332 @@ PDOMapping=0
                 homing_speed_slow_homing_speed: 0,
                 target_velocity: 0,
                 motor_type: 0x9,
-                motor_manufacturer: ::od_runtime::__private_v1::Bytes::from_slice(
+                motor_manufacturer: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"Camozzi",
                 ),
                 supported_drive_modes: 0x25,
                 single_device_type: 0x440192,
+            }
+        }
+        /// Every value zero, every buffer empty. A device's first poll (its reset node)
+        /// restores the defaults, so a firmware can start from this: its device then
+        /// needs no image of the defaults in flash besides the entry table's.
+        pub const fn zeroed() -> Self {
+            Dictionary {
+                device_type: 0,
+                error_register: 0,
+                manufacturer_status_register: 0,
+                pre_defined_error_field_number_of_errors: 0,
+                pre_defined_error_field_standard_error_field_1: 0,
+                pre_defined_error_field_standard_error_field_2: 0,
+                pre_defined_error_field_standard_error_field_3: 0,
+                pre_defined_error_field_standard_error_field_4: 0,
+                pre_defined_error_field_standard_error_field_5: 0,
+                pre_defined_error_field_standard_error_field_6: 0,
+                pre_defined_error_field_standard_error_field_7: 0,
+                pre_defined_error_field_standard_error_field_8: 0,
+                cob_id_sync: 0,
+                communication_cycle_period: 0,
+                synchronous_window_length: 0,
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
+                    &[],
+                ),
+                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                    &[],
+                ),
+                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                    &[],
+                ),
+                guard_time: 0,
+                life_time_factor: 0,
+                store_parameter_field_highest_sub_index_supported: 0,
+                store_parameter_field_save_all_parameters: 0,
+                restore_default_parameters_highest_sub_index_supported: 0,
+                restore_default_parameters_restore_all_default_parameters: 0,
+                cob_id_time_stamp: 0,
+                cob_id_emcy: 0,
+                inhibit_time_emergency: 0,
+                producer_heartbeat_time: 0,
+                identity_object_number_of_entries: 0,
+                identity_object_vendor_id: 0,
+                identity_object_product_code: 0,
+                identity_object_revision_number: 0,
+                identity_object_serial_number: 0,
+                synchronous_counter_overflow_value: 0,
+                verify_configuration_highest_sub_index_supported: 0,
+                verify_configuration_date: 0,
+                verify_configuration_time: 0,
+                server_sdo_parameter_highest_sub_index_supported: 0,
+                server_sdo_parameter_cob_id_client_to_server: 0,
+                server_sdo_parameter_cob_id_server_to_client: 0,
+                rx_pdo_communication_parameter_1_highest_sub_index_supported: 0,
+                rx_pdo_communication_parameter_1_cob_id: 0,
+                rx_pdo_communication_parameter_1_transmission_type: 0,
+                rx_pdo_communication_parameter_2_highest_sub_index_supported: 0,
+                rx_pdo_communication_parameter_2_cob_id: 0,
+                rx_pdo_communication_parameter_2_transmission_type: 0,
+                rx_pdo_communication_parameter_3_highest_sub_index_supported: 0,
+                rx_pdo_communication_parameter_3_cob_id: 0,
+                rx_pdo_communication_parameter_3_transmission_type: 0,
+                rx_pdo_communication_parameter_4_highest_sub_index_supported: 0,
+                rx_pdo_communication_parameter_4_cob_id: 0,
+                rx_pdo_communication_parameter_4_transmission_type: 0,
+                rx_pdo_communication_parameter_5_highest_sub_index_supported: 0,
+                rx_pdo_communication_parameter_5_cob_id: 0,
+                rx_pdo_communication_parameter_5_transmission_type: 0,
+                rx_pdo_communication_parameter_6_highest_sub_index_supported: 0,
+                rx_pdo_communication_parameter_6_cob_id: 0,
+                rx_pdo_communication_parameter_6_transmission_type: 0,
+                rx_pdo_communication_parameter_7_highest_sub_index_supported: 0,
+                rx_pdo_communication_parameter_7_cob_id: 0,
+                rx_pdo_communication_parameter_7_transmission_type: 0,
+                rx_pdo_communication_parameter_8_highest_sub_index_supported: 0,
+                rx_pdo_communication_parameter_8_cob_id: 0,
+                rx_pdo_communication_parameter_8_transmission_type: 0,
+                rx_pdo_mapping_parameter_1_number_of_mapped_objects: 0,
+                rx_pdo_mapping_parameter_1_mapping_entry_1: 0,
+                rx_pdo_mapping_parameter_1_mapping_entry_2: 0,
+                rx_pdo_mapping_parameter_1_mapping_entry_3: 0,
+                rx_pdo_mapping_parameter_1_mapping_entry_4: 0,
+                rx_pdo_mapping_parameter_1_mapping_entry_5: 0,
+                rx_pdo_mapping_parameter_1_mapping_entry_6: 0,
+                rx_pdo_mapping_parameter_1_mapping_entry_7: 0,
+                rx_pdo_mapping_parameter_1_mapping_entry_8: 0,
+                rx_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
+                rx_pdo_mapping_parameter_2_mapping_entry_1: 0,
+                rx_pdo_mapping_parameter_2_mapping_entry_2: 0,
+                rx_pdo_mapping_parameter_2_mapping_entry_3: 0,
+                rx_pdo_mapping_parameter_2_mapping_entry_4: 0,
+                rx_pdo_mapping_parameter_2_mapping_entry_5: 0,
+                rx_pdo_mapping_parameter_2_mapping_entry_6: 0,
+                rx_pdo_mapping_parameter_2_mapping_entry_7: 0,
+                rx_pdo_mapping_parameter_2_mapping_entry_8: 0,
+                rx_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
+                rx_pdo_mapping_parameter_3_mapping_entry_1: 0,
+                rx_pdo_mapping_parameter_3_mapping_entry_2: 0,
+                rx_pdo_mapping_parameter_3_mapping_entry_3: 0,
+                rx_pdo_mapping_parameter_3_mapping_entry_4: 0,
+                rx_pdo_mapping_parameter_3_mapping_entry_5: 0,
+                rx_pdo_mapping_parameter_3_mapping_entry_6: 0,
+                rx_pdo_mapping_parameter_3_mapping_entry_7: 0,
+                rx_pdo_mapping_parameter_3_mapping_entry_8: 0,
+                rx_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
+                rx_pdo_mapping_parameter_4_mapping_entry_1: 0,
+                rx_pdo_mapping_parameter_4_mapping_entry_2: 0,
+                rx_pdo_mapping_parameter_4_mapping_entry_3: 0,
+                rx_pdo_mapping_parameter_4_mapping_entry_4: 0,
+                rx_pdo_mapping_parameter_4_mapping_entry_5: 0,
+                rx_pdo_mapping_parameter_4_mapping_entry_6: 0,
+                rx_pdo_mapping_parameter_4_mapping_entry_7: 0,
+                rx_pdo_mapping_parameter_4_mapping_entry_8: 0,
+                rx_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
+                rx_pdo_mapping_parameter_5_mapping_entry_1: 0,
+                rx_pdo_mapping_parameter_5_mapping_entry_2: 0,
+                rx_pdo_mapping_parameter_5_mapping_entry_3: 0,
+                rx_pdo_mapping_parameter_5_mapping_entry_4: 0,
+                rx_pdo_mapping_parameter_5_mapping_entry_5: 0,
+                rx_pdo_mapping_parameter_5_mapping_entry_6: 0,
+                rx_pdo_mapping_parameter_5_mapping_entry_7: 0,
+                rx_pdo_mapping_parameter_5_mapping_entry_8: 0,
+                rx_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
+                rx_pdo_mapping_parameter_6_mapping_entry_1: 0,
+                rx_pdo_mapping_parameter_6_mapping_entry_2: 0,
+                rx_pdo_mapping_parameter_6_mapping_entry_3: 0,
+                rx_pdo_mapping_parameter_6_mapping_entry_4: 0,
+                rx_pdo_mapping_parameter_6_mapping_entry_5: 0,
+                rx_pdo_mapping_parameter_6_mapping_entry_6: 0,
+                rx_pdo_mapping_parameter_6_mapping_entry_7: 0,
+                rx_pdo_mapping_parameter_6_mapping_entry_8: 0,
+                rx_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
+                rx_pdo_mapping_parameter_7_mapping_entry_1: 0,
+                rx_pdo_mapping_parameter_7_mapping_entry_2: 0,
+                rx_pdo_mapping_parameter_7_mapping_entry_3: 0,
+                rx_pdo_mapping_parameter_7_mapping_entry_4: 0,
+                rx_pdo_mapping_parameter_7_mapping_entry_5: 0,
+                rx_pdo_mapping_parameter_7_mapping_entry_6: 0,
+                rx_pdo_mapping_parameter_7_mapping_entry_7: 0,
+                rx_pdo_mapping_parameter_7_mapping_entry_8: 0,
+                rx_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
+                rx_pdo_mapping_parameter_8_mapping_entry_1: 0,
+                rx_pdo_mapping_parameter_8_mapping_entry_2: 0,
+                rx_pdo_mapping_parameter_8_mapping_entry_3: 0,
+                rx_pdo_mapping_parameter_8_mapping_entry_4: 0,
+                rx_pdo_mapping_parameter_8_mapping_entry_5: 0,
+                rx_pdo_mapping_parameter_8_mapping_entry_6: 0,
+                rx_pdo_mapping_parameter_8_mapping_entry_7: 0,
+                rx_pdo_mapping_parameter_8_mapping_entry_8: 0,
+                tx_pdo_communication_parameter_1_highest_sub_index_supported: 0,
+                tx_pdo_communication_parameter_1_cob_id: 0,
+                tx_pdo_communication_parameter_1_transmission_type: 0,
+                tx_pdo_communication_parameter_1_inhibit_time: 0,
+                tx_pdo_communication_parameter_1_compatibility_entry: 0,
+                tx_pdo_communication_parameter_1_event_timer: 0,
+                tx_pdo_communication_parameter_2_highest_sub_index_supported: 0,
+                tx_pdo_communication_parameter_2_cob_id: 0,
+                tx_pdo_communication_parameter_2_transmission_type: 0,
+                tx_pdo_communication_parameter_2_inhibit_time: 0,
+                tx_pdo_communication_parameter_2_compatibility_entry: 0,
+                tx_pdo_communication_parameter_2_event_timer: 0,
+                tx_pdo_communication_parameter_3_highest_sub_index_supported: 0,
+                tx_pdo_communication_parameter_3_cob_id: 0,
+                tx_pdo_communication_parameter_3_transmission_type: 0,
+                tx_pdo_communication_parameter_3_inhibit_time: 0,
+                tx_pdo_communication_parameter_3_compatibility_entry: 0,
+                tx_pdo_communication_parameter_3_event_timer: 0,
+                tx_pdo_communication_parameter_4_highest_sub_index_supported: 0,
+                tx_pdo_communication_parameter_4_cob_id: 0,
+                tx_pdo_communication_parameter_4_transmission_type: 0,
+                tx_pdo_communication_parameter_4_inhibit_time: 0,
+                tx_pdo_communication_parameter_4_compatibility_entry: 0,
+                tx_pdo_communication_parameter_4_event_timer: 0,
+                tx_pdo_communication_parameter_5_highest_sub_index_supported: 0,
+                tx_pdo_communication_parameter_5_cob_id: 0,
+                tx_pdo_communication_parameter_5_transmission_type: 0,
+                tx_pdo_communication_parameter_5_inhibit_time: 0,
+                tx_pdo_communication_parameter_5_compatibility_entry: 0,
+                tx_pdo_communication_parameter_5_event_timer: 0,
+                tx_pdo_communication_parameter_6_highest_sub_index_supported: 0,
+                tx_pdo_communication_parameter_6_cob_id: 0,
+                tx_pdo_communication_parameter_6_transmission_type: 0,
+                tx_pdo_communication_parameter_6_inhibit_time: 0,
+                tx_pdo_communication_parameter_6_compatibility_entry: 0,
+                tx_pdo_communication_parameter_6_event_timer: 0,
+                tx_pdo_communication_parameter_7_highest_sub_index_supported: 0,
+                tx_pdo_communication_parameter_7_cob_id: 0,
+                tx_pdo_communication_parameter_7_transmission_type: 0,
+                tx_pdo_communication_parameter_7_inhibit_time: 0,
+                tx_pdo_communication_parameter_7_compatibility_entry: 0,
+                tx_pdo_communication_parameter_7_event_timer: 0,
+                tx_pdo_communication_parameter_8_highest_sub_index_supported: 0,
+                tx_pdo_communication_parameter_8_cob_id: 0,
+                tx_pdo_communication_parameter_8_transmission_type: 0,
+                tx_pdo_communication_parameter_8_inhibit_time: 0,
+                tx_pdo_communication_parameter_8_compatibility_entry: 0,
+                tx_pdo_communication_parameter_8_event_timer: 0,
+                tx_pdo_mapping_parameter_1_number_of_mapped_objects: 0,
+                tx_pdo_mapping_parameter_1_mapping_entry_1: 0,
+                tx_pdo_mapping_parameter_1_mapping_entry_2: 0,
+                tx_pdo_mapping_parameter_1_mapping_entry_3: 0,
+                tx_pdo_mapping_parameter_1_mapping_entry_4: 0,
+                tx_pdo_mapping_parameter_1_mapping_entry_5: 0,
+                tx_pdo_mapping_parameter_1_mapping_entry_6: 0,
+                tx_pdo_mapping_parameter_1_mapping_entry_7: 0,
+                tx_pdo_mapping_parameter_1_mapping_entry_8: 0,
+                tx_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
+                tx_pdo_mapping_parameter_2_mapping_entry_1: 0,
+                tx_pdo_mapping_parameter_2_mapping_entry_2: 0,
+                tx_pdo_mapping_parameter_2_mapping_entry_3: 0,
+                tx_pdo_mapping_parameter_2_mapping_entry_4: 0,
+                tx_pdo_mapping_parameter_2_mapping_entry_5: 0,
+                tx_pdo_mapping_parameter_2_mapping_entry_6: 0,
+                tx_pdo_mapping_parameter_2_mapping_entry_7: 0,
+                tx_pdo_mapping_parameter_2_mapping_entry_8: 0,
+                tx_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
+                tx_pdo_mapping_parameter_3_mapping_entry_1: 0,
+                tx_pdo_mapping_parameter_3_mapping_entry_2: 0,
+                tx_pdo_mapping_parameter_3_mapping_entry_3: 0,
+                tx_pdo_mapping_parameter_3_mapping_entry_4: 0,
+                tx_pdo_mapping_parameter_3_mapping_entry_5: 0,
+                tx_pdo_mapping_parameter_3_mapping_entry_6: 0,
+                tx_pdo_mapping_parameter_3_mapping_entry_7: 0,
+                tx_pdo_mapping_parameter_3_mapping_entry_8: 0,
+                tx_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
+                tx_pdo_mapping_parameter_4_mapping_entry_1: 0,
+                tx_pdo_mapping_parameter_4_mapping_entry_2: 0,
+                tx_pdo_mapping_parameter_4_mapping_entry_3: 0,
+                tx_pdo_mapping_parameter_4_mapping_entry_4: 0,
+                tx_pdo_mapping_parameter_4_mapping_entry_5: 0,
+                tx_pdo_mapping_parameter_4_mapping_entry_6: 0,
+                tx_pdo_mapping_parameter_4_mapping_entry_7: 0,
+                tx_pdo_mapping_parameter_4_mapping_entry_8: 0,
+                tx_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
+                tx_pdo_mapping_parameter_5_mapping_entry_1: 0,
+                tx_pdo_mapping_parameter_5_mapping_entry_2: 0,
+                tx_pdo_mapping_parameter_5_mapping_entry_3: 0,
+                tx_pdo_mapping_parameter_5_mapping_entry_4: 0,
+                tx_pdo_mapping_parameter_5_mapping_entry_5: 0,
+                tx_pdo_mapping_parameter_5_mapping_entry_6: 0,
+                tx_pdo_mapping_parameter_5_mapping_entry_7: 0,
+                tx_pdo_mapping_parameter_5_mapping_entry_8: 0,
+                tx_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
+                tx_pdo_mapping_parameter_6_mapping_entry_1: 0,
+                tx_pdo_mapping_parameter_6_mapping_entry_2: 0,
+                tx_pdo_mapping_parameter_6_mapping_entry_3: 0,
+                tx_pdo_mapping_parameter_6_mapping_entry_4: 0,
+                tx_pdo_mapping_parameter_6_mapping_entry_5: 0,
+                tx_pdo_mapping_parameter_6_mapping_entry_6: 0,
+                tx_pdo_mapping_parameter_6_mapping_entry_7: 0,
+                tx_pdo_mapping_parameter_6_mapping_entry_8: 0,
+                tx_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
+                tx_pdo_mapping_parameter_7_mapping_entry_1: 0,
+                tx_pdo_mapping_parameter_7_mapping_entry_2: 0,
+                tx_pdo_mapping_parameter_7_mapping_entry_3: 0,
+                tx_pdo_mapping_parameter_7_mapping_entry_4: 0,
+                tx_pdo_mapping_parameter_7_mapping_entry_5: 0,
+                tx_pdo_mapping_parameter_7_mapping_entry_6: 0,
+                tx_pdo_mapping_parameter_7_mapping_entry_7: 0,
+                tx_pdo_mapping_parameter_7_mapping_entry_8: 0,
+                tx_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
+                tx_pdo_mapping_parameter_8_mapping_entry_1: 0,
+                tx_pdo_mapping_parameter_8_mapping_entry_2: 0,
+                tx_pdo_mapping_parameter_8_mapping_entry_3: 0,
+                tx_pdo_mapping_parameter_8_mapping_entry_4: 0,
+                tx_pdo_mapping_parameter_8_mapping_entry_5: 0,
+                tx_pdo_mapping_parameter_8_mapping_entry_6: 0,
+                tx_pdo_mapping_parameter_8_mapping_entry_7: 0,
+                tx_pdo_mapping_parameter_8_mapping_entry_8: 0,
+                nmt_startup: 0,
+                feed_converter_highest_sub_index_supported: 0,
+                feed_converter_numerator: 0,
+                feed_converter_denominator: 0,
+                input_status: 0,
+                output_status: 0,
+                homing_status: 0,
+                brake: 0,
+                total_time_off: 0,
+                total_time_on: 0,
+                total_time_run: 0,
+                total_stroke: 0,
+                error_code: 0,
+                controlword: 0,
+                statusword: 0,
+                modes_of_operation: 0,
+                modes_of_operation_display: 0,
+                position_demand_value: 0,
+                position_actual_value: 0,
+                velocity_demand_value: 0,
+                velocity_actual_value: 0,
+                velocity_window: 0,
+                velocity_window_time: 0,
+                velocity_threshold: 0,
+                velocity_threshold_time: 0,
+                target_position: 0,
+                home_offset: 0,
+                software_position_limit_highest_sub_index_supported: 0,
+                software_position_limit_min_software_position_limit: 0,
+                software_position_limit_max_software_position_limit: 0,
+                polarity: 0,
+                profile_velocity_in_pp_mode: 0,
+                profile_acceleration: 0,
+                profile_deceleration: 0,
+                position_encoder_resolution_highest_sub_index_supported: 0,
+                position_encoder_resolution_encoder_increments: 0,
+                position_encoder_resolution_motor_revolutions: 0,
+                gear_ratio_highest_sub_index_supported: 0,
+                gear_ratio_motor_revolutions: 0,
+                gear_ratio_shaft_revolutions: 0,
+                feed_constant_highest_sub_index_supported: 0,
+                feed_constant_feed: 0,
+                feed_constant_shaft_revolutions: 0,
+                homing_method: 0,
+                homing_speed_highest_sub_index_supported: 0,
+                homing_speed_fast_homing_speed: 0,
+                homing_speed_slow_homing_speed: 0,
+                target_velocity: 0,
+                motor_type: 0,
+                motor_manufacturer: ::od_runtime::__private_v2::Bytes::from_slice(&[]),
+                supported_drive_modes: 0,
+                single_device_type: 0,
             }
         }
         /// Position of `(index, sub)` in [`ENTRIES`]: `Err(NO_OBJECT)` if the index is absent,
@@ -7486,2958 +9733,19 @@ PDOMapping=0
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
+            ::od_runtime::__private_v2::position(&LOOKUP, index, sub)
         }
+        /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
-        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v1::Slot::U32(&self.device_type),
-                    1 => ::od_runtime::__private_v1::Slot::U8(&self.error_register),
-                    2 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.manufacturer_status_register,
-                        )
-                    }
-                    3 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.pre_defined_error_field_number_of_errors,
-                        )
-                    }
-                    4 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_1,
-                        )
-                    }
-                    5 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_2,
-                        )
-                    }
-                    6 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_3,
-                        )
-                    }
-                    7 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_4,
-                        )
-                    }
-                    8 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_5,
-                        )
-                    }
-                    9 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_6,
-                        )
-                    }
-                    10 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_7,
-                        )
-                    }
-                    11 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_8,
-                        )
-                    }
-                    12 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_sync),
-                    13 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.communication_cycle_period,
-                        )
-                    }
-                    14 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.synchronous_window_length,
-                        )
-                    }
-                    15 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.manufacturer_device_name.as_slice(),
-                        )
-                    }
-                    16 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.manufacturer_hardware_version.as_slice(),
-                        )
-                    }
-                    17 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.manufacturer_software_version.as_slice(),
-                        )
-                    }
-                    18 => ::od_runtime::__private_v1::Slot::U16(&self.guard_time),
-                    19 => ::od_runtime::__private_v1::Slot::U8(&self.life_time_factor),
-                    20 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.store_parameter_field_highest_sub_index_supported,
-                        )
-                    }
-                    21 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.store_parameter_field_save_all_parameters,
-                        )
-                    }
-                    22 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.restore_default_parameters_highest_sub_index_supported,
-                        )
-                    }
-                    23 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .restore_default_parameters_restore_all_default_parameters,
-                        )
-                    }
-                    24 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_time_stamp),
-                    25 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_emcy),
-                    26 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.inhibit_time_emergency,
-                        )
-                    }
-                    27 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.producer_heartbeat_time,
-                        )
-                    }
-                    28 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.identity_object_number_of_entries,
-                        )
-                    }
-                    29 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_vendor_id,
-                        )
-                    }
-                    30 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_product_code,
-                        )
-                    }
-                    31 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_revision_number,
-                        )
-                    }
-                    32 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_serial_number,
-                        )
-                    }
-                    33 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.synchronous_counter_overflow_value,
-                        )
-                    }
-                    34 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.verify_configuration_highest_sub_index_supported,
-                        )
-                    }
-                    35 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.verify_configuration_date,
-                        )
-                    }
-                    36 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.verify_configuration_time,
-                        )
-                    }
-                    37 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.server_sdo_parameter_highest_sub_index_supported,
-                        )
-                    }
-                    38 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.server_sdo_parameter_cob_id_client_to_server,
-                        )
-                    }
-                    39 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.server_sdo_parameter_cob_id_server_to_client,
-                        )
-                    }
-                    40 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    41 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_1_cob_id,
-                        )
-                    }
-                    42 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    43 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_2_highest_sub_index_supported,
-                        )
-                    }
-                    44 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_2_cob_id,
-                        )
-                    }
-                    45 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_2_transmission_type,
-                        )
-                    }
-                    46 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_3_highest_sub_index_supported,
-                        )
-                    }
-                    47 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_3_cob_id,
-                        )
-                    }
-                    48 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_3_transmission_type,
-                        )
-                    }
-                    49 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_4_highest_sub_index_supported,
-                        )
-                    }
-                    50 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_4_cob_id,
-                        )
-                    }
-                    51 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_4_transmission_type,
-                        )
-                    }
-                    52 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_5_highest_sub_index_supported,
-                        )
-                    }
-                    53 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_5_cob_id,
-                        )
-                    }
-                    54 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_5_transmission_type,
-                        )
-                    }
-                    55 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_6_highest_sub_index_supported,
-                        )
-                    }
-                    56 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_6_cob_id,
-                        )
-                    }
-                    57 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_6_transmission_type,
-                        )
-                    }
-                    58 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_7_highest_sub_index_supported,
-                        )
-                    }
-                    59 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_7_cob_id,
-                        )
-                    }
-                    60 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_7_transmission_type,
-                        )
-                    }
-                    61 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rx_pdo_communication_parameter_8_highest_sub_index_supported,
-                        )
-                    }
-                    62 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_communication_parameter_8_cob_id,
-                        )
-                    }
-                    63 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_communication_parameter_8_transmission_type,
-                        )
-                    }
-                    64 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    65 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_1,
-                        )
-                    }
-                    66 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_2,
-                        )
-                    }
-                    67 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_3,
-                        )
-                    }
-                    68 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_4,
-                        )
-                    }
-                    69 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_5,
-                        )
-                    }
-                    70 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_6,
-                        )
-                    }
-                    71 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_7,
-                        )
-                    }
-                    72 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_8,
-                        )
-                    }
-                    73 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    74 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_1,
-                        )
-                    }
-                    75 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_2,
-                        )
-                    }
-                    76 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_3,
-                        )
-                    }
-                    77 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_4,
-                        )
-                    }
-                    78 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_5,
-                        )
-                    }
-                    79 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_6,
-                        )
-                    }
-                    80 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_7,
-                        )
-                    }
-                    81 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_8,
-                        )
-                    }
-                    82 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_3_number_of_mapped_objects,
-                        )
-                    }
-                    83 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_1,
-                        )
-                    }
-                    84 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_2,
-                        )
-                    }
-                    85 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_3,
-                        )
-                    }
-                    86 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_4,
-                        )
-                    }
-                    87 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_5,
-                        )
-                    }
-                    88 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_6,
-                        )
-                    }
-                    89 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_7,
-                        )
-                    }
-                    90 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_8,
-                        )
-                    }
-                    91 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_4_number_of_mapped_objects,
-                        )
-                    }
-                    92 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_1,
-                        )
-                    }
-                    93 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_2,
-                        )
-                    }
-                    94 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_3,
-                        )
-                    }
-                    95 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_4,
-                        )
-                    }
-                    96 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_5,
-                        )
-                    }
-                    97 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_6,
-                        )
-                    }
-                    98 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_7,
-                        )
-                    }
-                    99 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_8,
-                        )
-                    }
-                    100 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_5_number_of_mapped_objects,
-                        )
-                    }
-                    101 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_1,
-                        )
-                    }
-                    102 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_2,
-                        )
-                    }
-                    103 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_3,
-                        )
-                    }
-                    104 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_4,
-                        )
-                    }
-                    105 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_5,
-                        )
-                    }
-                    106 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_6,
-                        )
-                    }
-                    107 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_7,
-                        )
-                    }
-                    108 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_8,
-                        )
-                    }
-                    109 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_6_number_of_mapped_objects,
-                        )
-                    }
-                    110 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_1,
-                        )
-                    }
-                    111 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_2,
-                        )
-                    }
-                    112 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_3,
-                        )
-                    }
-                    113 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_4,
-                        )
-                    }
-                    114 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_5,
-                        )
-                    }
-                    115 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_6,
-                        )
-                    }
-                    116 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_7,
-                        )
-                    }
-                    117 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_8,
-                        )
-                    }
-                    118 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_7_number_of_mapped_objects,
-                        )
-                    }
-                    119 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_1,
-                        )
-                    }
-                    120 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_2,
-                        )
-                    }
-                    121 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_3,
-                        )
-                    }
-                    122 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_4,
-                        )
-                    }
-                    123 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_5,
-                        )
-                    }
-                    124 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_6,
-                        )
-                    }
-                    125 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_7,
-                        )
-                    }
-                    126 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_8,
-                        )
-                    }
-                    127 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rx_pdo_mapping_parameter_8_number_of_mapped_objects,
-                        )
-                    }
-                    128 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_1,
-                        )
-                    }
-                    129 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_2,
-                        )
-                    }
-                    130 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_3,
-                        )
-                    }
-                    131 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_4,
-                        )
-                    }
-                    132 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_5,
-                        )
-                    }
-                    133 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_6,
-                        )
-                    }
-                    134 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_7,
-                        )
-                    }
-                    135 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_8,
-                        )
-                    }
-                    136 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    137 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_1_cob_id,
-                        )
-                    }
-                    138 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    139 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_1_inhibit_time,
-                        )
-                    }
-                    140 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_1_compatibility_entry,
-                        )
-                    }
-                    141 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_1_event_timer,
-                        )
-                    }
-                    142 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_2_highest_sub_index_supported,
-                        )
-                    }
-                    143 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_2_cob_id,
-                        )
-                    }
-                    144 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_2_transmission_type,
-                        )
-                    }
-                    145 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_2_inhibit_time,
-                        )
-                    }
-                    146 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_2_compatibility_entry,
-                        )
-                    }
-                    147 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_2_event_timer,
-                        )
-                    }
-                    148 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_3_highest_sub_index_supported,
-                        )
-                    }
-                    149 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_3_cob_id,
-                        )
-                    }
-                    150 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_3_transmission_type,
-                        )
-                    }
-                    151 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_3_inhibit_time,
-                        )
-                    }
-                    152 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_3_compatibility_entry,
-                        )
-                    }
-                    153 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_3_event_timer,
-                        )
-                    }
-                    154 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_4_highest_sub_index_supported,
-                        )
-                    }
-                    155 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_4_cob_id,
-                        )
-                    }
-                    156 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_4_transmission_type,
-                        )
-                    }
-                    157 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_4_inhibit_time,
-                        )
-                    }
-                    158 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_4_compatibility_entry,
-                        )
-                    }
-                    159 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_4_event_timer,
-                        )
-                    }
-                    160 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_5_highest_sub_index_supported,
-                        )
-                    }
-                    161 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_5_cob_id,
-                        )
-                    }
-                    162 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_5_transmission_type,
-                        )
-                    }
-                    163 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_5_inhibit_time,
-                        )
-                    }
-                    164 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_5_compatibility_entry,
-                        )
-                    }
-                    165 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_5_event_timer,
-                        )
-                    }
-                    166 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_6_highest_sub_index_supported,
-                        )
-                    }
-                    167 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_6_cob_id,
-                        )
-                    }
-                    168 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_6_transmission_type,
-                        )
-                    }
-                    169 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_6_inhibit_time,
-                        )
-                    }
-                    170 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_6_compatibility_entry,
-                        )
-                    }
-                    171 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_6_event_timer,
-                        )
-                    }
-                    172 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_7_highest_sub_index_supported,
-                        )
-                    }
-                    173 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_7_cob_id,
-                        )
-                    }
-                    174 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_7_transmission_type,
-                        )
-                    }
-                    175 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_7_inhibit_time,
-                        )
-                    }
-                    176 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_7_compatibility_entry,
-                        )
-                    }
-                    177 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_7_event_timer,
-                        )
-                    }
-                    178 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tx_pdo_communication_parameter_8_highest_sub_index_supported,
-                        )
-                    }
-                    179 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_communication_parameter_8_cob_id,
-                        )
-                    }
-                    180 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_8_transmission_type,
-                        )
-                    }
-                    181 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_8_inhibit_time,
-                        )
-                    }
-                    182 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_communication_parameter_8_compatibility_entry,
-                        )
-                    }
-                    183 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.tx_pdo_communication_parameter_8_event_timer,
-                        )
-                    }
-                    184 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    185 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_1,
-                        )
-                    }
-                    186 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_2,
-                        )
-                    }
-                    187 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_3,
-                        )
-                    }
-                    188 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_4,
-                        )
-                    }
-                    189 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_5,
-                        )
-                    }
-                    190 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_6,
-                        )
-                    }
-                    191 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_7,
-                        )
-                    }
-                    192 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_8,
-                        )
-                    }
-                    193 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    194 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_1,
-                        )
-                    }
-                    195 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_2,
-                        )
-                    }
-                    196 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_3,
-                        )
-                    }
-                    197 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_4,
-                        )
-                    }
-                    198 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_5,
-                        )
-                    }
-                    199 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_6,
-                        )
-                    }
-                    200 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_7,
-                        )
-                    }
-                    201 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_8,
-                        )
-                    }
-                    202 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_3_number_of_mapped_objects,
-                        )
-                    }
-                    203 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_1,
-                        )
-                    }
-                    204 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_2,
-                        )
-                    }
-                    205 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_3,
-                        )
-                    }
-                    206 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_4,
-                        )
-                    }
-                    207 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_5,
-                        )
-                    }
-                    208 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_6,
-                        )
-                    }
-                    209 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_7,
-                        )
-                    }
-                    210 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_8,
-                        )
-                    }
-                    211 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_4_number_of_mapped_objects,
-                        )
-                    }
-                    212 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_1,
-                        )
-                    }
-                    213 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_2,
-                        )
-                    }
-                    214 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_3,
-                        )
-                    }
-                    215 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_4,
-                        )
-                    }
-                    216 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_5,
-                        )
-                    }
-                    217 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_6,
-                        )
-                    }
-                    218 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_7,
-                        )
-                    }
-                    219 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_8,
-                        )
-                    }
-                    220 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_5_number_of_mapped_objects,
-                        )
-                    }
-                    221 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_1,
-                        )
-                    }
-                    222 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_2,
-                        )
-                    }
-                    223 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_3,
-                        )
-                    }
-                    224 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_4,
-                        )
-                    }
-                    225 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_5,
-                        )
-                    }
-                    226 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_6,
-                        )
-                    }
-                    227 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_7,
-                        )
-                    }
-                    228 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_8,
-                        )
-                    }
-                    229 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_6_number_of_mapped_objects,
-                        )
-                    }
-                    230 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_1,
-                        )
-                    }
-                    231 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_2,
-                        )
-                    }
-                    232 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_3,
-                        )
-                    }
-                    233 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_4,
-                        )
-                    }
-                    234 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_5,
-                        )
-                    }
-                    235 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_6,
-                        )
-                    }
-                    236 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_7,
-                        )
-                    }
-                    237 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_8,
-                        )
-                    }
-                    238 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_7_number_of_mapped_objects,
-                        )
-                    }
-                    239 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_1,
-                        )
-                    }
-                    240 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_2,
-                        )
-                    }
-                    241 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_3,
-                        )
-                    }
-                    242 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_4,
-                        )
-                    }
-                    243 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_5,
-                        )
-                    }
-                    244 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_6,
-                        )
-                    }
-                    245 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_7,
-                        )
-                    }
-                    246 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_8,
-                        )
-                    }
-                    247 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tx_pdo_mapping_parameter_8_number_of_mapped_objects,
-                        )
-                    }
-                    248 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_1,
-                        )
-                    }
-                    249 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_2,
-                        )
-                    }
-                    250 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_3,
-                        )
-                    }
-                    251 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_4,
-                        )
-                    }
-                    252 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_5,
-                        )
-                    }
-                    253 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_6,
-                        )
-                    }
-                    254 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_7,
-                        )
-                    }
-                    255 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_8,
-                        )
-                    }
-                    256 => ::od_runtime::__private_v1::Slot::U32(&self.nmt_startup),
-                    257 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.feed_converter_highest_sub_index_supported,
-                        )
-                    }
-                    258 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.feed_converter_numerator,
-                        )
-                    }
-                    259 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.feed_converter_denominator,
-                        )
-                    }
-                    260 => ::od_runtime::__private_v1::Slot::U32(&self.input_status),
-                    261 => ::od_runtime::__private_v1::Slot::U32(&self.output_status),
-                    262 => ::od_runtime::__private_v1::Slot::U8(&self.homing_status),
-                    263 => ::od_runtime::__private_v1::Slot::U8(&self.brake),
-                    264 => ::od_runtime::__private_v1::Slot::U32(&self.total_time_off),
-                    265 => ::od_runtime::__private_v1::Slot::U32(&self.total_time_on),
-                    266 => ::od_runtime::__private_v1::Slot::U32(&self.total_time_run),
-                    267 => ::od_runtime::__private_v1::Slot::U32(&self.total_stroke),
-                    268 => ::od_runtime::__private_v1::Slot::U16(&self.error_code),
-                    269 => ::od_runtime::__private_v1::Slot::U16(&self.controlword),
-                    270 => ::od_runtime::__private_v1::Slot::U16(&self.statusword),
-                    271 => ::od_runtime::__private_v1::Slot::I8(&self.modes_of_operation),
-                    272 => {
-                        ::od_runtime::__private_v1::Slot::I8(
-                            &self.modes_of_operation_display,
-                        )
-                    }
-                    273 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.position_demand_value,
-                        )
-                    }
-                    274 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.position_actual_value,
-                        )
-                    }
-                    275 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.velocity_demand_value,
-                        )
-                    }
-                    276 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.velocity_actual_value,
-                        )
-                    }
-                    277 => ::od_runtime::__private_v1::Slot::U16(&self.velocity_window),
-                    278 => {
-                        ::od_runtime::__private_v1::Slot::U16(&self.velocity_window_time)
-                    }
-                    279 => {
-                        ::od_runtime::__private_v1::Slot::U16(&self.velocity_threshold)
-                    }
-                    280 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.velocity_threshold_time,
-                        )
-                    }
-                    281 => ::od_runtime::__private_v1::Slot::I32(&self.target_position),
-                    282 => ::od_runtime::__private_v1::Slot::I32(&self.home_offset),
-                    283 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.software_position_limit_highest_sub_index_supported,
-                        )
-                    }
-                    284 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.software_position_limit_min_software_position_limit,
-                        )
-                    }
-                    285 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.software_position_limit_max_software_position_limit,
-                        )
-                    }
-                    286 => ::od_runtime::__private_v1::Slot::U8(&self.polarity),
-                    287 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.profile_velocity_in_pp_mode,
-                        )
-                    }
-                    288 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.profile_acceleration)
-                    }
-                    289 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.profile_deceleration)
-                    }
-                    290 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.position_encoder_resolution_highest_sub_index_supported,
-                        )
-                    }
-                    291 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.position_encoder_resolution_encoder_increments,
-                        )
-                    }
-                    292 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.position_encoder_resolution_motor_revolutions,
-                        )
-                    }
-                    293 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.gear_ratio_highest_sub_index_supported,
-                        )
-                    }
-                    294 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.gear_ratio_motor_revolutions,
-                        )
-                    }
-                    295 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.gear_ratio_shaft_revolutions,
-                        )
-                    }
-                    296 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.feed_constant_highest_sub_index_supported,
-                        )
-                    }
-                    297 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.feed_constant_feed)
-                    }
-                    298 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.feed_constant_shaft_revolutions,
-                        )
-                    }
-                    299 => ::od_runtime::__private_v1::Slot::I8(&self.homing_method),
-                    300 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.homing_speed_highest_sub_index_supported,
-                        )
-                    }
-                    301 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speed_fast_homing_speed,
-                        )
-                    }
-                    302 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speed_slow_homing_speed,
-                        )
-                    }
-                    303 => ::od_runtime::__private_v1::Slot::I32(&self.target_velocity),
-                    304 => ::od_runtime::__private_v1::Slot::U16(&self.motor_type),
-                    305 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.motor_manufacturer.as_slice(),
-                        )
-                    }
-                    306 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.supported_drive_modes,
-                        )
-                    }
-                    307 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.single_device_type)
-                    }
-                    _ => return None,
-                },
-            )
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v2::Slot<'_>> {
+            ::od_runtime::__private_v2::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
-        ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.device_type),
-                    1 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(&mut self.error_register)
-                    }
-                    2 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.manufacturer_status_register,
-                        )
-                    }
-                    3 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.pre_defined_error_field_number_of_errors,
-                        )
-                    }
-                    4 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_1,
-                        )
-                    }
-                    5 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_2,
-                        )
-                    }
-                    6 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_3,
-                        )
-                    }
-                    7 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_4,
-                        )
-                    }
-                    8 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_5,
-                        )
-                    }
-                    9 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_6,
-                        )
-                    }
-                    10 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_7,
-                        )
-                    }
-                    11 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_8,
-                        )
-                    }
-                    12 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.cob_id_sync),
-                    13 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.communication_cycle_period,
-                        )
-                    }
-                    14 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.synchronous_window_length,
-                        )
-                    }
-                    15 => self.manufacturer_device_name.slot_mut(),
-                    16 => self.manufacturer_hardware_version.slot_mut(),
-                    17 => self.manufacturer_software_version.slot_mut(),
-                    18 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.guard_time),
-                    19 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.life_time_factor,
-                        )
-                    }
-                    20 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.store_parameter_field_highest_sub_index_supported,
-                        )
-                    }
-                    21 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.store_parameter_field_save_all_parameters,
-                        )
-                    }
-                    22 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .restore_default_parameters_highest_sub_index_supported,
-                        )
-                    }
-                    23 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .restore_default_parameters_restore_all_default_parameters,
-                        )
-                    }
-                    24 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.cob_id_time_stamp,
-                        )
-                    }
-                    25 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.cob_id_emcy),
-                    26 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.inhibit_time_emergency,
-                        )
-                    }
-                    27 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.producer_heartbeat_time,
-                        )
-                    }
-                    28 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.identity_object_number_of_entries,
-                        )
-                    }
-                    29 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_vendor_id,
-                        )
-                    }
-                    30 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_product_code,
-                        )
-                    }
-                    31 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_revision_number,
-                        )
-                    }
-                    32 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_serial_number,
-                        )
-                    }
-                    33 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.synchronous_counter_overflow_value,
-                        )
-                    }
-                    34 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.verify_configuration_highest_sub_index_supported,
-                        )
-                    }
-                    35 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.verify_configuration_date,
-                        )
-                    }
-                    36 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.verify_configuration_time,
-                        )
-                    }
-                    37 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.server_sdo_parameter_highest_sub_index_supported,
-                        )
-                    }
-                    38 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.server_sdo_parameter_cob_id_client_to_server,
-                        )
-                    }
-                    39 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.server_sdo_parameter_cob_id_server_to_client,
-                        )
-                    }
-                    40 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    41 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_1_cob_id,
-                        )
-                    }
-                    42 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    43 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_2_highest_sub_index_supported,
-                        )
-                    }
-                    44 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_2_cob_id,
-                        )
-                    }
-                    45 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_2_transmission_type,
-                        )
-                    }
-                    46 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_3_highest_sub_index_supported,
-                        )
-                    }
-                    47 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_3_cob_id,
-                        )
-                    }
-                    48 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_3_transmission_type,
-                        )
-                    }
-                    49 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_4_highest_sub_index_supported,
-                        )
-                    }
-                    50 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_4_cob_id,
-                        )
-                    }
-                    51 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_4_transmission_type,
-                        )
-                    }
-                    52 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_5_highest_sub_index_supported,
-                        )
-                    }
-                    53 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_5_cob_id,
-                        )
-                    }
-                    54 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_5_transmission_type,
-                        )
-                    }
-                    55 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_6_highest_sub_index_supported,
-                        )
-                    }
-                    56 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_6_cob_id,
-                        )
-                    }
-                    57 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_6_transmission_type,
-                        )
-                    }
-                    58 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_7_highest_sub_index_supported,
-                        )
-                    }
-                    59 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_7_cob_id,
-                        )
-                    }
-                    60 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_7_transmission_type,
-                        )
-                    }
-                    61 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rx_pdo_communication_parameter_8_highest_sub_index_supported,
-                        )
-                    }
-                    62 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_communication_parameter_8_cob_id,
-                        )
-                    }
-                    63 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_communication_parameter_8_transmission_type,
-                        )
-                    }
-                    64 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    65 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_1,
-                        )
-                    }
-                    66 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_2,
-                        )
-                    }
-                    67 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_3,
-                        )
-                    }
-                    68 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_4,
-                        )
-                    }
-                    69 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_5,
-                        )
-                    }
-                    70 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_6,
-                        )
-                    }
-                    71 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_7,
-                        )
-                    }
-                    72 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_8,
-                        )
-                    }
-                    73 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    74 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_1,
-                        )
-                    }
-                    75 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_2,
-                        )
-                    }
-                    76 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_3,
-                        )
-                    }
-                    77 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_4,
-                        )
-                    }
-                    78 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_5,
-                        )
-                    }
-                    79 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_6,
-                        )
-                    }
-                    80 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_7,
-                        )
-                    }
-                    81 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_8,
-                        )
-                    }
-                    82 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_3_number_of_mapped_objects,
-                        )
-                    }
-                    83 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_1,
-                        )
-                    }
-                    84 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_2,
-                        )
-                    }
-                    85 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_3,
-                        )
-                    }
-                    86 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_4,
-                        )
-                    }
-                    87 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_5,
-                        )
-                    }
-                    88 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_6,
-                        )
-                    }
-                    89 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_7,
-                        )
-                    }
-                    90 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_8,
-                        )
-                    }
-                    91 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_4_number_of_mapped_objects,
-                        )
-                    }
-                    92 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_1,
-                        )
-                    }
-                    93 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_2,
-                        )
-                    }
-                    94 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_3,
-                        )
-                    }
-                    95 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_4,
-                        )
-                    }
-                    96 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_5,
-                        )
-                    }
-                    97 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_6,
-                        )
-                    }
-                    98 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_7,
-                        )
-                    }
-                    99 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_8,
-                        )
-                    }
-                    100 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_5_number_of_mapped_objects,
-                        )
-                    }
-                    101 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_1,
-                        )
-                    }
-                    102 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_2,
-                        )
-                    }
-                    103 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_3,
-                        )
-                    }
-                    104 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_4,
-                        )
-                    }
-                    105 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_5,
-                        )
-                    }
-                    106 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_6,
-                        )
-                    }
-                    107 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_7,
-                        )
-                    }
-                    108 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_8,
-                        )
-                    }
-                    109 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_6_number_of_mapped_objects,
-                        )
-                    }
-                    110 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_1,
-                        )
-                    }
-                    111 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_2,
-                        )
-                    }
-                    112 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_3,
-                        )
-                    }
-                    113 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_4,
-                        )
-                    }
-                    114 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_5,
-                        )
-                    }
-                    115 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_6,
-                        )
-                    }
-                    116 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_7,
-                        )
-                    }
-                    117 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_8,
-                        )
-                    }
-                    118 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_7_number_of_mapped_objects,
-                        )
-                    }
-                    119 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_1,
-                        )
-                    }
-                    120 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_2,
-                        )
-                    }
-                    121 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_3,
-                        )
-                    }
-                    122 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_4,
-                        )
-                    }
-                    123 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_5,
-                        )
-                    }
-                    124 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_6,
-                        )
-                    }
-                    125 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_7,
-                        )
-                    }
-                    126 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_8,
-                        )
-                    }
-                    127 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rx_pdo_mapping_parameter_8_number_of_mapped_objects,
-                        )
-                    }
-                    128 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_1,
-                        )
-                    }
-                    129 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_2,
-                        )
-                    }
-                    130 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_3,
-                        )
-                    }
-                    131 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_4,
-                        )
-                    }
-                    132 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_5,
-                        )
-                    }
-                    133 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_6,
-                        )
-                    }
-                    134 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_7,
-                        )
-                    }
-                    135 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_8,
-                        )
-                    }
-                    136 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    137 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_1_cob_id,
-                        )
-                    }
-                    138 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    139 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_1_inhibit_time,
-                        )
-                    }
-                    140 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_1_compatibility_entry,
-                        )
-                    }
-                    141 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_1_event_timer,
-                        )
-                    }
-                    142 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_2_highest_sub_index_supported,
-                        )
-                    }
-                    143 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_2_cob_id,
-                        )
-                    }
-                    144 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_2_transmission_type,
-                        )
-                    }
-                    145 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_2_inhibit_time,
-                        )
-                    }
-                    146 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_2_compatibility_entry,
-                        )
-                    }
-                    147 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_2_event_timer,
-                        )
-                    }
-                    148 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_3_highest_sub_index_supported,
-                        )
-                    }
-                    149 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_3_cob_id,
-                        )
-                    }
-                    150 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_3_transmission_type,
-                        )
-                    }
-                    151 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_3_inhibit_time,
-                        )
-                    }
-                    152 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_3_compatibility_entry,
-                        )
-                    }
-                    153 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_3_event_timer,
-                        )
-                    }
-                    154 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_4_highest_sub_index_supported,
-                        )
-                    }
-                    155 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_4_cob_id,
-                        )
-                    }
-                    156 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_4_transmission_type,
-                        )
-                    }
-                    157 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_4_inhibit_time,
-                        )
-                    }
-                    158 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_4_compatibility_entry,
-                        )
-                    }
-                    159 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_4_event_timer,
-                        )
-                    }
-                    160 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_5_highest_sub_index_supported,
-                        )
-                    }
-                    161 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_5_cob_id,
-                        )
-                    }
-                    162 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_5_transmission_type,
-                        )
-                    }
-                    163 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_5_inhibit_time,
-                        )
-                    }
-                    164 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_5_compatibility_entry,
-                        )
-                    }
-                    165 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_5_event_timer,
-                        )
-                    }
-                    166 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_6_highest_sub_index_supported,
-                        )
-                    }
-                    167 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_6_cob_id,
-                        )
-                    }
-                    168 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_6_transmission_type,
-                        )
-                    }
-                    169 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_6_inhibit_time,
-                        )
-                    }
-                    170 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_6_compatibility_entry,
-                        )
-                    }
-                    171 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_6_event_timer,
-                        )
-                    }
-                    172 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_7_highest_sub_index_supported,
-                        )
-                    }
-                    173 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_7_cob_id,
-                        )
-                    }
-                    174 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_7_transmission_type,
-                        )
-                    }
-                    175 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_7_inhibit_time,
-                        )
-                    }
-                    176 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_7_compatibility_entry,
-                        )
-                    }
-                    177 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_7_event_timer,
-                        )
-                    }
-                    178 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_8_highest_sub_index_supported,
-                        )
-                    }
-                    179 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_communication_parameter_8_cob_id,
-                        )
-                    }
-                    180 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_communication_parameter_8_transmission_type,
-                        )
-                    }
-                    181 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_8_inhibit_time,
-                        )
-                    }
-                    182 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tx_pdo_communication_parameter_8_compatibility_entry,
-                        )
-                    }
-                    183 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.tx_pdo_communication_parameter_8_event_timer,
-                        )
-                    }
-                    184 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    185 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_1,
-                        )
-                    }
-                    186 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_2,
-                        )
-                    }
-                    187 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_3,
-                        )
-                    }
-                    188 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_4,
-                        )
-                    }
-                    189 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_5,
-                        )
-                    }
-                    190 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_6,
-                        )
-                    }
-                    191 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_7,
-                        )
-                    }
-                    192 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_8,
-                        )
-                    }
-                    193 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    194 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_1,
-                        )
-                    }
-                    195 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_2,
-                        )
-                    }
-                    196 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_3,
-                        )
-                    }
-                    197 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_4,
-                        )
-                    }
-                    198 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_5,
-                        )
-                    }
-                    199 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_6,
-                        )
-                    }
-                    200 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_7,
-                        )
-                    }
-                    201 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_8,
-                        )
-                    }
-                    202 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_3_number_of_mapped_objects,
-                        )
-                    }
-                    203 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_1,
-                        )
-                    }
-                    204 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_2,
-                        )
-                    }
-                    205 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_3,
-                        )
-                    }
-                    206 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_4,
-                        )
-                    }
-                    207 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_5,
-                        )
-                    }
-                    208 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_6,
-                        )
-                    }
-                    209 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_7,
-                        )
-                    }
-                    210 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_8,
-                        )
-                    }
-                    211 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_4_number_of_mapped_objects,
-                        )
-                    }
-                    212 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_1,
-                        )
-                    }
-                    213 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_2,
-                        )
-                    }
-                    214 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_3,
-                        )
-                    }
-                    215 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_4,
-                        )
-                    }
-                    216 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_5,
-                        )
-                    }
-                    217 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_6,
-                        )
-                    }
-                    218 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_7,
-                        )
-                    }
-                    219 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_8,
-                        )
-                    }
-                    220 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_5_number_of_mapped_objects,
-                        )
-                    }
-                    221 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_1,
-                        )
-                    }
-                    222 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_2,
-                        )
-                    }
-                    223 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_3,
-                        )
-                    }
-                    224 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_4,
-                        )
-                    }
-                    225 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_5,
-                        )
-                    }
-                    226 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_6,
-                        )
-                    }
-                    227 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_7,
-                        )
-                    }
-                    228 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_8,
-                        )
-                    }
-                    229 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_6_number_of_mapped_objects,
-                        )
-                    }
-                    230 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_1,
-                        )
-                    }
-                    231 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_2,
-                        )
-                    }
-                    232 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_3,
-                        )
-                    }
-                    233 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_4,
-                        )
-                    }
-                    234 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_5,
-                        )
-                    }
-                    235 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_6,
-                        )
-                    }
-                    236 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_7,
-                        )
-                    }
-                    237 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_8,
-                        )
-                    }
-                    238 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_7_number_of_mapped_objects,
-                        )
-                    }
-                    239 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_1,
-                        )
-                    }
-                    240 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_2,
-                        )
-                    }
-                    241 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_3,
-                        )
-                    }
-                    242 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_4,
-                        )
-                    }
-                    243 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_5,
-                        )
-                    }
-                    244 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_6,
-                        )
-                    }
-                    245 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_7,
-                        )
-                    }
-                    246 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_8,
-                        )
-                    }
-                    247 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tx_pdo_mapping_parameter_8_number_of_mapped_objects,
-                        )
-                    }
-                    248 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_1,
-                        )
-                    }
-                    249 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_2,
-                        )
-                    }
-                    250 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_3,
-                        )
-                    }
-                    251 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_4,
-                        )
-                    }
-                    252 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_5,
-                        )
-                    }
-                    253 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_6,
-                        )
-                    }
-                    254 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_7,
-                        )
-                    }
-                    255 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_8,
-                        )
-                    }
-                    256 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.nmt_startup)
-                    }
-                    257 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.feed_converter_highest_sub_index_supported,
-                        )
-                    }
-                    258 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.feed_converter_numerator,
-                        )
-                    }
-                    259 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.feed_converter_denominator,
-                        )
-                    }
-                    260 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.input_status)
-                    }
-                    261 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.output_status)
-                    }
-                    262 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(&mut self.homing_status)
-                    }
-                    263 => ::od_runtime::__private_v1::SlotMut::U8(&mut self.brake),
-                    264 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.total_time_off,
-                        )
-                    }
-                    265 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.total_time_on)
-                    }
-                    266 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.total_time_run,
-                        )
-                    }
-                    267 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.total_stroke)
-                    }
-                    268 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.error_code),
-                    269 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(&mut self.controlword)
-                    }
-                    270 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.statusword),
-                    271 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(
-                            &mut self.modes_of_operation,
-                        )
-                    }
-                    272 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(
-                            &mut self.modes_of_operation_display,
-                        )
-                    }
-                    273 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.position_demand_value,
-                        )
-                    }
-                    274 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.position_actual_value,
-                        )
-                    }
-                    275 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.velocity_demand_value,
-                        )
-                    }
-                    276 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.velocity_actual_value,
-                        )
-                    }
-                    277 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.velocity_window,
-                        )
-                    }
-                    278 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.velocity_window_time,
-                        )
-                    }
-                    279 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.velocity_threshold,
-                        )
-                    }
-                    280 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.velocity_threshold_time,
-                        )
-                    }
-                    281 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.target_position,
-                        )
-                    }
-                    282 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(&mut self.home_offset)
-                    }
-                    283 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.software_position_limit_highest_sub_index_supported,
-                        )
-                    }
-                    284 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.software_position_limit_min_software_position_limit,
-                        )
-                    }
-                    285 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.software_position_limit_max_software_position_limit,
-                        )
-                    }
-                    286 => ::od_runtime::__private_v1::SlotMut::U8(&mut self.polarity),
-                    287 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.profile_velocity_in_pp_mode,
-                        )
-                    }
-                    288 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.profile_acceleration,
-                        )
-                    }
-                    289 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.profile_deceleration,
-                        )
-                    }
-                    290 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .position_encoder_resolution_highest_sub_index_supported,
-                        )
-                    }
-                    291 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.position_encoder_resolution_encoder_increments,
-                        )
-                    }
-                    292 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.position_encoder_resolution_motor_revolutions,
-                        )
-                    }
-                    293 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.gear_ratio_highest_sub_index_supported,
-                        )
-                    }
-                    294 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.gear_ratio_motor_revolutions,
-                        )
-                    }
-                    295 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.gear_ratio_shaft_revolutions,
-                        )
-                    }
-                    296 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.feed_constant_highest_sub_index_supported,
-                        )
-                    }
-                    297 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.feed_constant_feed,
-                        )
-                    }
-                    298 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.feed_constant_shaft_revolutions,
-                        )
-                    }
-                    299 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(&mut self.homing_method)
-                    }
-                    300 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.homing_speed_highest_sub_index_supported,
-                        )
-                    }
-                    301 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speed_fast_homing_speed,
-                        )
-                    }
-                    302 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speed_slow_homing_speed,
-                        )
-                    }
-                    303 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.target_velocity,
-                        )
-                    }
-                    304 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.motor_type),
-                    305 => self.motor_manufacturer.slot_mut(),
-                    306 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.supported_drive_modes,
-                        )
-                    }
-                    307 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.single_device_type,
-                        )
-                    }
-                    _ => return None,
-                },
-            )
+        ) -> Option<::od_runtime::__private_v2::SlotMut<'_>> {
+            ::od_runtime::__private_v2::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -10445,8 +9753,8 @@ PDOMapping=0
         fn read_at(&self, pos: usize) -> [u8; 8] {
             match self.slot(pos) {
                 Some(slot) => {
-                    ::od_runtime::__private_v1::first8(
-                        || ENTRIES.get(pos).map_or(0, |e| e.bits),
+                    ::od_runtime::__private_v2::first8(
+                        || ENTRIES.get(pos).map_or(0, |e| e.bits()),
                         slot,
                     )
                 }
@@ -10464,7 +9772,7 @@ PDOMapping=0
             let (real_low, real_high) = (None, None);
             match (ENTRIES.get(pos), self.slot_mut(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::write(
+                    ::od_runtime::__private_v2::write(
                         info,
                         slot,
                         data,
@@ -10483,7 +9791,7 @@ PDOMapping=0
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v2::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -10493,7 +9801,7 @@ PDOMapping=0
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v2::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -10503,7 +9811,7 @@ PDOMapping=0
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
@@ -10514,7 +9822,7 @@ PDOMapping=0
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
@@ -15516,9 +14824,19 @@ PDOMapping=0
             Ok(())
         }
     }
+    unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
+        #[inline(always)]
+        fn entries() -> &'static [::od_runtime::od::EntryInfo] {
+            &ENTRIES
+        }
+    }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
         fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
+        }
+        #[cfg(feature = "names")]
+        fn name(&self, index: u16, sub: u8) -> Option<&'static str> {
+            Self::position(index, sub).ok().and_then(|pos| NAMES.get(pos).copied())
         }
         #[inline]
         fn info(
@@ -15538,7 +14856,7 @@ PDOMapping=0
             let pos = Self::position(index, sub)?;
             match (ENTRIES.get(pos), self.slot(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::read(info, slot, buf)
+                    ::od_runtime::__private_v2::read(info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -15555,7 +14873,7 @@ PDOMapping=0
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, info) in ENTRIES.iter().enumerate() {
                 if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v1::set_default(info, slot, node_id);
+                    ::od_runtime::__private_v2::set_default(info, slot, node_id);
                 }
             }
         }
@@ -15571,10 +14889,10 @@ PDOMapping=0
         }
         #[inline]
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-            ::od_runtime::__private_v1::pack_mapped(
+            ::od_runtime::__private_v2::pack_mapped(
                 map,
                 |h| match self.slot(h.get() as usize) {
-                    Some(slot) => ::od_runtime::__private_v1::first8(|| 64, slot),
+                    Some(slot) => ::od_runtime::__private_v2::first8(|| 64, slot),
                     None => [0; 8],
                 },
             )
@@ -15588,11 +14906,29 @@ PDOMapping=0
             self.write_at(h.get() as usize, data)
         }
     }
+    /// The SDO server's buffer: the largest entry, in bytes (at least 8).
+    pub const SDO_BUFFER: usize = 32;
+    /// PDOs per direction the device has (`NrOfRXPDO`/`NrOfTXPDO`, or its PDO objects).
+    pub const PDOS: usize = 8;
+    /// Entries a PDO can map: the mapping objects' sub-objects, at most 64 bits at the
+    /// EDS's `Granularity`.
+    pub const MAPPED_PER_PDO: usize = 8;
+    /// The device runtime around this dictionary, sized for it: [`SDO_BUFFER`], [`PDOS`],
+    /// [`MAPPED_PER_PDO`]. Build it with `Device::with_capacity` (a `const fn`, so it can
+    /// initialise a `static`).
+    pub type Device<A, S = ::od_runtime::NoStorage> = ::od_runtime::Device<
+        Dictionary,
+        A,
+        S,
+        SDO_BUFFER,
+        PDOS,
+        MAPPED_PER_PDO,
+    >;
     /// Typed layouts of the device's default PDO mappings.
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
         #[doc(inline)]
-        pub use ::od_runtime::__private_v1::PdoLengthError as LengthError;
+        pub use ::od_runtime::__private_v2::PdoLengthError as LengthError;
         /// RPDO 1 (received by the device), default mapping of `0x1600`: 16 bits in 2 bytes.
         ///
         /// | bits | object | field |
@@ -15621,7 +14957,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                 })
@@ -15670,7 +15006,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                 })
@@ -15696,7 +15032,7 @@ PDOMapping=0
     /// module docs for the arithmetic).
     pub mod units {
         #[doc(inline)]
-        pub use ::od_runtime::__private_v1::Ratio;
+        pub use ::od_runtime::__private_v2::Ratio;
         /// A physical unit.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         pub enum Unit {
@@ -15835,7 +15171,7 @@ PDOMapping=0
             system: System,
             /// Physical value per raw unit (prepared for fast exact conversions both ways),
             /// and the physical unit, per dimension.
-            factor: [Option<(::od_runtime::__private_v1::Scale, Unit)>; 4],
+            factor: [Option<(::od_runtime::__private_v2::Scale, Unit)>; 4],
             /// Internal value (increments or motor revolutions) per raw unit, per dimension.
             internal: [Option<Ratio>; 4],
         }
@@ -15864,7 +15200,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millimeter,
                             ));
                         }
@@ -15878,7 +15214,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MillimeterPerSecond,
                             ));
                         }
@@ -15892,14 +15228,14 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MillimeterPerSecond2,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -15915,7 +15251,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Degree,
                             ));
                         }
@@ -15929,7 +15265,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::DegreePerSecond,
                             ));
                         }
@@ -15943,14 +15279,14 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::DegreePerSecond2,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -15997,7 +15333,7 @@ PDOMapping=0
                 &self,
                 d: Dimension,
                 q: &Quantity,
-            ) -> Result<&::od_runtime::__private_v1::Scale, UnitError> {
+            ) -> Result<&::od_runtime::__private_v2::Scale, UnitError> {
                 match self.factor.get(d.slot()) {
                     Some(Some((f, unit))) if *unit == q.unit => Ok(f),
                     Some(Some((_, unit))) => {

@@ -3089,7 +3089,6 @@ PDOMapping=0
         /// `0x60FF` Target velocity.
         pub const TARGET_VELOCITY: u16 = 0x60FF;
     }
-    /// The index of every object, sorted (the lookup's page table is computed from it).
     static OBJECTS: [u16; 93] = [
         0x1000, 0x1001, 0x1002, 0x1003, 0x1005, 0x1006, 0x1007, 0x1008, 0x1009, 0x100A,
         0x100C, 0x100D, 0x1010, 0x1011, 0x1014, 0x1015, 0x1017, 0x1018, 0x1400, 0x1401,
@@ -3102,47 +3101,38 @@ PDOMapping=0
         0x607D, 0x607E, 0x607F, 0x6081, 0x6083, 0x6084, 0x6087, 0x6091, 0x6092, 0x6098,
         0x6099, 0x609A, 0x60FF,
     ];
-    /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
-    /// the index to its object, then the sub-index in the object's run of entries (`runs`:
-    /// `0xFFFFFFLL`, the object's first entry `FFFFFF` and its last position in the run `LL`;
-    /// `subs`: every entry's sub-index).
-    static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
-        pages: ::od_runtime::__private_v1::pages(&OBJECTS),
-        slots: &::od_runtime::__private_v1::slots::<2304>(&OBJECTS),
-        runs: &[
-            0x00000000, 0x00000100, 0x00000200, 0x00000308, 0x00000C00, 0x00000D00,
-            0x00000E00, 0x00000F00, 0x00001000, 0x00001100, 0x00001200, 0x00001300,
-            0x00001401, 0x00001601, 0x00001800, 0x00001900, 0x00001A00, 0x00001B04,
-            0x00002002, 0x00002302, 0x00002602, 0x00002902, 0x00002C02, 0x00002F02,
-            0x00003202, 0x00003502, 0x00003808, 0x00004108, 0x00004A08, 0x00005308,
-            0x00005C08, 0x00006508, 0x00006E08, 0x00007708, 0x00008005, 0x00008605,
-            0x00008C05, 0x00009205, 0x00009805, 0x00009E05, 0x0000A405, 0x0000AA05,
-            0x0000B008, 0x0000B908, 0x0000C208, 0x0000CB08, 0x0000D408, 0x0000DD08,
-            0x0000E608, 0x0000EF08, 0x0000F800, 0x0000F902, 0x0000FC00, 0x0000FD00,
-            0x0000FE00, 0x0000FF00, 0x00010000, 0x00010105, 0x00010702, 0x00010A00,
-            0x00010B00, 0x00010C00, 0x00010D00, 0x00010E00, 0x00010F00, 0x00011000,
-            0x00011100, 0x00011200, 0x00011300, 0x00011400, 0x00011500, 0x00011600,
-            0x00011700, 0x00011800, 0x00011900, 0x00011A00, 0x00011B00, 0x00011C00,
-            0x00011D00, 0x00011E00, 0x00011F02, 0x00012200, 0x00012300, 0x00012400,
-            0x00012500, 0x00012600, 0x00012700, 0x00012802, 0x00012B02, 0x00012E00,
-            0x00012F02, 0x00013200, 0x00013300,
+    static LOOKUP: ::od_runtime::__private_v2::Lookup = ::od_runtime::__private_v2::Lookup {
+        pages: ::od_runtime::__private_v2::pages(&OBJECTS),
+        bits: &::od_runtime::__private_v2::bits::<8>(&OBJECTS),
+        ranks: &[
+            [0, 32, 32, 32],
+            [32, 56, 56, 56],
+            [56, 128, 128, 128],
+            [128, 176, 176, 176],
+            [176, 248, 248, 248],
+            [248, 248, 248, 249],
+            [249, 269, 269, 269],
+            [269, 270, 292, 307],
         ],
-        subs: &[
-            0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 1, 0, 0,
-            0, 0, 1, 2, 3, 4, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1,
-            2, 0, 1, 2, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3,
-            4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2,
-            3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1,
-            2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3,
-            4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5,
-            6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4,
-            5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2, 3,
-            4, 5, 6, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 0, 1, 2, 0, 0, 0, 0, 0, 0, 1, 2,
-            3, 4, 5, 0, 1, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-            0, 0, 1, 2, 0, 0, 0, 0, 0, 0, 0, 1, 2, 0, 1, 2, 0, 0, 1, 2, 0, 0,
+        objects: &[
+            [0, 18, 18, 18],
+            [18, 26, 26, 26],
+            [26, 34, 34, 34],
+            [34, 42, 42, 42],
+            [42, 50, 50, 50],
+            [50, 50, 50, 51],
+            [51, 62, 62, 62],
+            [62, 63, 83, 92],
         ],
+        extra: &[
+            0, 0, 0, 0, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 10, 10, 10, 10, 0, 2, 4, 6, 8, 10,
+            12, 14, 0, 8, 16, 24, 32, 40, 48, 56, 0, 5, 10, 15, 20, 25, 30, 35, 0, 8, 16,
+            24, 32, 40, 48, 56, 0, 0, 2, 2, 2, 2, 2, 2, 7, 9, 9, 9, 0, 0, 0, 0, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 0, 0, 0, 0, 2, 4, 4, 6, 0,
+        ],
+        entries: &ENTRIES,
     };
-    /// Metadata of every entry, sorted by `(index, sub)`.
+    /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
     pub static ENTRIES: [::od_runtime::od::EntryInfo; 308] = [
         ::od_runtime::od::EntryInfo {
             index: 0x1000,
@@ -3150,11 +3140,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF7A0192),
-            name: "Device type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, device_type),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[0]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1001,
@@ -3162,11 +3155,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Error register",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, error_register),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1002,
@@ -3174,11 +3170,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Manufacturer status register",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_status_register),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3186,11 +3185,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Pre-defined error field: Number of errors",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_number_of_errors
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3198,11 +3202,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3210,11 +3219,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3222,11 +3236,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3234,11 +3253,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3246,11 +3270,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3258,11 +3287,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3270,11 +3304,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1003,
@@ -3282,11 +3321,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Pre-defined error field: Standard error field 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pre_defined_error_field_standard_error_field_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1005,
@@ -3294,11 +3338,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80),
-            name: "COB-ID SYNC",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, cob_id_sync),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[1]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1006,
@@ -3306,11 +3353,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Communication cycle period",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, communication_cycle_period),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1007,
@@ -3318,11 +3368,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Synchronous window length",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, synchronous_window_length),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1008,
@@ -3330,11 +3383,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"DRVI"),
-            name: "Manufacturer device name",
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_device_name),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[2]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1009,
@@ -3342,11 +3398,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"1"),
-            name: "Manufacturer hardware version",
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_hardware_version),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[3]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x100A,
@@ -3354,11 +3413,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"0"),
-            name: "Manufacturer software version",
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_software_version),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[4]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x100C,
@@ -3366,11 +3428,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Guard time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, guard_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x100D,
@@ -3378,11 +3443,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Life time factor",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, life_time_factor),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1010,
@@ -3390,11 +3458,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Store parameters: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, store_parameters_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1010,
@@ -3402,11 +3475,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Store parameters: Save all parameters",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, store_parameters_save_all_parameters
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1011,
@@ -3414,11 +3492,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Restore default parameters: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, restore_default_parameters_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1011,
@@ -3426,11 +3509,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Restore default parameters: Restore all default parameters",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, restore_default_parameters_restore_all_default_parameters
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1014,
@@ -3438,11 +3526,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80),
-            name: "COB-ID EMCY",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, cob_id_emcy),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1015,
@@ -3450,11 +3541,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Inhibit time EMCY",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, inhibit_time_emcy),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1017,
@@ -3462,11 +3556,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Producer heartbeat time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, producer_heartbeat_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -3474,11 +3571,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(4),
-            name: "Identity object: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[7]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -3486,11 +3586,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x97),
-            name: "Identity object: Vendor-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_vendor_id),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -3498,11 +3601,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x5A),
-            name: "Identity object: Product code",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_product_code),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[9]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -3510,11 +3616,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x1),
-            name: "Identity object: Revision number",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_revision_number),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -3522,11 +3631,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Identity object: Serial number",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_serial_number),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -3534,11 +3646,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Receive PDO communication parameter 1: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    receive_pdo_communication_param_1_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -3546,11 +3664,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
-            name: "Receive PDO communication parameter 1: COB-ID used by RPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_1_cob_id_used_by_rpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[11]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -3558,11 +3681,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Receive PDO communication parameter 1: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_1_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1401,
@@ -3570,11 +3698,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Receive PDO communication parameter 2: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    receive_pdo_communication_param_2_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1401,
@@ -3582,11 +3716,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000300),
-            name: "Receive PDO communication parameter 2: COB-ID used by RPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_2_cob_id_used_by_rpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1401,
@@ -3594,11 +3733,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Receive PDO communication parameter 2: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_2_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1402,
@@ -3606,11 +3750,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Receive PDO communication parameter 3: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    receive_pdo_communication_param_3_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1402,
@@ -3618,11 +3768,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000400),
-            name: "Receive PDO communication parameter 3: COB-ID used by RPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_3_cob_id_used_by_rpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[14]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1402,
@@ -3630,11 +3785,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Receive PDO communication parameter 3: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_3_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1403,
@@ -3642,11 +3802,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Receive PDO communication parameter 4: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    receive_pdo_communication_param_4_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1403,
@@ -3654,11 +3820,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000500),
-            name: "Receive PDO communication parameter 4: COB-ID used by RPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_4_cob_id_used_by_rpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[15]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1403,
@@ -3666,11 +3837,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Receive PDO communication parameter 4: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_4_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1404,
@@ -3678,11 +3854,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Receive PDO communication parameter 5: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    receive_pdo_communication_param_5_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1404,
@@ -3690,11 +3872,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000680),
-            name: "Receive PDO communication parameter 5: COB-ID used by RPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_5_cob_id_used_by_rpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1404,
@@ -3702,11 +3889,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Receive PDO communication parameter 5: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_5_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1405,
@@ -3714,11 +3906,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Receive PDO communication parameter 6: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    receive_pdo_communication_param_6_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1405,
@@ -3726,11 +3924,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Receive PDO communication parameter 6: COB-ID used by RPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_6_cob_id_used_by_rpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1405,
@@ -3738,11 +3941,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Receive PDO communication parameter 6: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_6_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1406,
@@ -3750,11 +3958,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Receive PDO communication parameter 7: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    receive_pdo_communication_param_7_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1406,
@@ -3762,11 +3976,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Receive PDO communication parameter 7: COB-ID used by RPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_7_cob_id_used_by_rpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1406,
@@ -3774,11 +3993,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Receive PDO communication parameter 7: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_7_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1407,
@@ -3786,11 +4010,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Receive PDO communication parameter 8: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    receive_pdo_communication_param_8_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1407,
@@ -3798,11 +4028,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Receive PDO communication parameter 8: COB-ID used by RPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_8_cob_id_used_by_rpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1407,
@@ -3810,11 +4045,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Receive PDO communication parameter 8: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_communication_parameter_8_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3822,11 +4062,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Receive PDO mapping parameter 1: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_1_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3834,11 +4079,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
-            name: "Receive PDO mapping parameter 1: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[18]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3846,11 +4096,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 1: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3858,11 +4113,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 1: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3870,11 +4130,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 1: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3882,11 +4147,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 1: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3894,11 +4164,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 1: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3906,11 +4181,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 1: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -3918,11 +4198,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 1: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -3930,11 +4215,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Receive PDO mapping parameter 2: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_2_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -3942,11 +4232,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 2: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -3954,11 +4249,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 2: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -3966,11 +4266,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 2: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -3978,11 +4283,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 2: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -3990,11 +4300,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 2: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4002,11 +4317,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 2: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4014,11 +4334,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 2: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1601,
@@ -4026,11 +4351,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 2: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4038,11 +4368,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Receive PDO mapping parameter 3: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_3_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4050,11 +4385,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 3: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4062,11 +4402,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 3: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4074,11 +4419,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 3: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4086,11 +4436,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 3: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4098,11 +4453,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 3: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4110,11 +4470,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 3: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4122,11 +4487,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 3: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1602,
@@ -4134,11 +4504,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 3: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4146,11 +4521,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Receive PDO mapping parameter 4: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_4_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4158,11 +4538,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 4: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4170,11 +4555,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 4: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4182,11 +4572,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 4: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4194,11 +4589,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 4: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4206,11 +4606,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 4: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4218,11 +4623,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 4: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4230,11 +4640,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 4: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1603,
@@ -4242,11 +4657,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 4: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4254,11 +4674,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Receive PDO mapping parameter 5: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_5_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4266,11 +4691,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 5: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4278,11 +4708,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 5: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4290,11 +4725,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 5: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4302,11 +4742,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 5: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4314,11 +4759,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 5: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4326,11 +4776,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 5: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4338,11 +4793,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 5: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1604,
@@ -4350,11 +4810,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 5: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4362,11 +4827,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Receive PDO mapping parameter 6: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_6_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4374,11 +4844,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 6: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4386,11 +4861,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 6: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4398,11 +4878,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 6: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4410,11 +4895,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 6: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4422,11 +4912,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 6: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4434,11 +4929,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 6: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4446,11 +4946,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 6: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1605,
@@ -4458,11 +4963,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 6: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4470,11 +4980,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Receive PDO mapping parameter 7: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_7_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4482,11 +4997,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 7: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4494,11 +5014,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 7: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4506,11 +5031,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 7: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4518,11 +5048,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 7: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4530,11 +5065,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 7: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4542,11 +5082,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 7: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4554,11 +5099,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 7: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1606,
@@ -4566,11 +5116,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 7: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4578,11 +5133,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Receive PDO mapping parameter 8: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_8_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4590,11 +5150,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 8: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4602,11 +5167,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 8: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4614,11 +5184,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 8: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4626,11 +5201,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 8: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4638,11 +5218,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 8: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4650,11 +5235,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 8: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4662,11 +5252,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 8: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1607,
@@ -4674,11 +5269,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Receive PDO mapping parameter 8: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4686,11 +5286,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Transmit PDO communication parameter 1: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_param_1_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4698,11 +5304,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
-            name: "Transmit PDO communication parameter 1: COB-ID used by TPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4710,11 +5322,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Transmit PDO communication parameter 1: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_1_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4722,11 +5339,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 1: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_1_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4734,11 +5356,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 1: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_1_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -4746,11 +5374,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(100),
-            name: "Transmit PDO communication parameter 1: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_1_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: Some(&EXTRAS[21]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4758,11 +5391,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Transmit PDO communication parameter 2: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_param_2_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4770,11 +5409,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000280),
-            name: "Transmit PDO communication parameter 2: COB-ID used by TPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_2_cob_id_used_by_tpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[22]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4782,11 +5427,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Transmit PDO communication parameter 2: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_2_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4794,11 +5444,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 2: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_2_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4806,11 +5461,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 2: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_2_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1801,
@@ -4818,11 +5479,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 2: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_2_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4830,11 +5496,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Transmit PDO communication parameter 3: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_param_3_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4842,11 +5514,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000380),
-            name: "Transmit PDO communication parameter 3: COB-ID used by TPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_3_cob_id_used_by_tpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[23]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4854,11 +5532,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Transmit PDO communication parameter 3: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_3_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4866,11 +5549,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 3: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_3_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4878,11 +5566,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 3: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_3_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1802,
@@ -4890,11 +5584,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 3: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_3_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -4902,11 +5601,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Transmit PDO communication parameter 4: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_param_4_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -4914,11 +5619,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000480),
-            name: "Transmit PDO communication parameter 4: COB-ID used by TPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_4_cob_id_used_by_tpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[24]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -4926,11 +5637,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Transmit PDO communication parameter 4: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_4_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -4938,11 +5654,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 4: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_4_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -4950,11 +5671,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 4: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_4_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1803,
@@ -4962,11 +5689,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 4: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_4_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -4974,11 +5706,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Transmit PDO communication parameter 5: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_param_5_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -4986,11 +5724,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Transmit PDO communication parameter 5: COB-ID used by TPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_5_cob_id_used_by_tpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -4998,11 +5742,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Transmit PDO communication parameter 5: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_5_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -5010,11 +5759,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 5: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_5_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -5022,11 +5776,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 5: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_5_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1804,
@@ -5034,11 +5794,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 5: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_5_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5046,11 +5811,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Transmit PDO communication parameter 6: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_param_6_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5058,11 +5829,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Transmit PDO communication parameter 6: COB-ID used by TPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_6_cob_id_used_by_tpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5070,11 +5847,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Transmit PDO communication parameter 6: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_6_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5082,11 +5864,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 6: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_6_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5094,11 +5881,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 6: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_6_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1805,
@@ -5106,11 +5899,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 6: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_6_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5118,11 +5916,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Transmit PDO communication parameter 7: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_param_7_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5130,11 +5934,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Transmit PDO communication parameter 7: COB-ID used by TPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_7_cob_id_used_by_tpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5142,11 +5952,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Transmit PDO communication parameter 7: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_7_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5154,11 +5969,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 7: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_7_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5166,11 +5986,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 7: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_7_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1806,
@@ -5178,11 +6004,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 7: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_7_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5190,11 +6021,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "Transmit PDO communication parameter 8: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_param_8_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5202,11 +6039,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
-            name: "Transmit PDO communication parameter 8: COB-ID used by TPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_8_cob_id_used_by_tpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5214,11 +6057,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
-            name: "Transmit PDO communication parameter 8: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_8_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5226,11 +6074,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 8: Inhibit time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_8_inhibit_time
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5238,11 +6091,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 8: Compatibility entry",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    transmit_pdo_communication_parameter_8_compatibility_entry
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1807,
@@ -5250,11 +6109,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO communication parameter 8: Event timer",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_communication_parameter_8_event_timer
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5262,11 +6126,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Transmit PDO mapping parameter 1: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_1_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5274,11 +6143,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
-            name: "Transmit PDO mapping parameter 1: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[25]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5286,11 +6160,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 1: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5298,11 +6177,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 1: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5310,11 +6194,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 1: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5322,11 +6211,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 1: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5334,11 +6228,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 1: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5346,11 +6245,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 1: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -5358,11 +6262,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 1: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5370,11 +6279,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO mapping parameter 2: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_2_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5382,11 +6296,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 2: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5394,11 +6313,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 2: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5406,11 +6330,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 2: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5418,11 +6347,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 2: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5430,11 +6364,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 2: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5442,11 +6381,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 2: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5454,11 +6398,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 2: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -5466,11 +6415,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 2: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5478,11 +6432,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO mapping parameter 3: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_3_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5490,11 +6449,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 3: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5502,11 +6466,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 3: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5514,11 +6483,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 3: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5526,11 +6500,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 3: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5538,11 +6517,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 3: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5550,11 +6534,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 3: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5562,11 +6551,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 3: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A02,
@@ -5574,11 +6568,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 3: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5586,11 +6585,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO mapping parameter 4: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_4_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5598,11 +6602,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 4: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5610,11 +6619,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 4: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5622,11 +6636,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 4: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5634,11 +6653,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 4: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5646,11 +6670,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 4: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5658,11 +6687,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 4: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5670,11 +6704,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 4: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A03,
@@ -5682,11 +6721,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 4: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5694,11 +6738,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO mapping parameter 5: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_5_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5706,11 +6755,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 5: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5718,11 +6772,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 5: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5730,11 +6789,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 5: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5742,11 +6806,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 5: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5754,11 +6823,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 5: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5766,11 +6840,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 5: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5778,11 +6857,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 5: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A04,
@@ -5790,11 +6874,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 5: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5802,11 +6891,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO mapping parameter 6: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_6_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5814,11 +6908,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 6: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5826,11 +6925,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 6: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5838,11 +6942,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 6: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5850,11 +6959,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 6: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5862,11 +6976,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 6: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5874,11 +6993,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 6: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5886,11 +7010,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 6: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A05,
@@ -5898,11 +7027,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 6: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -5910,11 +7044,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO mapping parameter 7: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_7_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -5922,11 +7061,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 7: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -5934,11 +7078,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 7: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -5946,11 +7095,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 7: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -5958,11 +7112,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 7: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -5970,11 +7129,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 7: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -5982,11 +7146,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 7: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -5994,11 +7163,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 7: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A06,
@@ -6006,11 +7180,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 7: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6018,11 +7197,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Transmit PDO mapping parameter 8: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_8_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6030,11 +7214,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 8: Mapping entry 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6042,11 +7231,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 8: Mapping entry 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6054,11 +7248,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 8: Mapping entry 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6066,11 +7265,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 8: Mapping entry 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6078,11 +7282,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 8: Mapping entry 5",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_5
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6090,11 +7299,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 8: Mapping entry 6",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_6
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6102,11 +7316,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 8: Mapping entry 7",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_7
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A07,
@@ -6114,11 +7333,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Transmit PDO mapping parameter 8: Mapping entry 8",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_8
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1F80,
@@ -6126,11 +7350,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x4),
-            name: "NMT startup",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, nmt_startup),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[7]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2001,
@@ -6138,11 +7365,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Feed converter: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, feed_converter_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2001,
@@ -6150,11 +7382,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Feed converter: Numerator",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feed_converter_numerator),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2001,
@@ -6162,11 +7397,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Feed converter: Denominator",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feed_converter_denominator),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2002,
@@ -6174,11 +7412,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Input status",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, input_status),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2003,
@@ -6186,11 +7427,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Output status",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, output_status),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2004,
@@ -6198,11 +7442,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing ok",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_ok),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2006,
@@ -6210,11 +7457,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Warnings",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, warnings),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2010,
@@ -6222,11 +7472,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: Some(1),
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Limits enable",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, limits_enable),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[26]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2011,
@@ -6234,11 +7487,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(5),
-            name: "PID parameters: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, pid_parameters_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2011,
@@ -6246,11 +7504,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: Some(4),
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "PID parameters: PID selection",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, pid_parameters_pid_selection),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: Some(&EXTRAS[27]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2011,
@@ -6258,11 +7519,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "PID parameters: Kp position",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, pid_parameters_kp_position),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2011,
@@ -6270,11 +7534,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(10000),
-            name: "PID parameters: Kp speed",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, pid_parameters_kp_speed),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: Some(&EXTRAS[28]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2011,
@@ -6282,11 +7549,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "PID parameters: Ki position",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, pid_parameters_ki_position),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2011,
@@ -6294,11 +7564,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(10),
-            name: "PID parameters: Ki speed",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, pid_parameters_ki_speed),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: Some(&EXTRAS[29]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2012,
@@ -6306,11 +7579,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Profile parameters: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, profile_parameters_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2012,
@@ -6318,11 +7596,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: Some(1),
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Profile parameters: Profile check",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, profile_parameters_profile_check),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[30]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2012,
@@ -6330,11 +7611,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(50),
-            name: "Profile parameters: Profile check timeout",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, profile_parameters_profile_check_timeout
+                ),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: Some(&EXTRAS[31]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2013,
@@ -6342,11 +7628,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: Some(100),
-            default: ::od_runtime::od::DefaultValue::Int(10),
-            name: "Homing torque limit",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_torque_limit),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: Some(&EXTRAS[32]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2014,
@@ -6354,11 +7643,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Actuator type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, actuator_type),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2015,
@@ -6366,11 +7658,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: Some(1),
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Torque limit enable",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, torque_limit_enable),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[26]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x603F,
@@ -6378,11 +7673,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Error code",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, error_code),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6040,
@@ -6390,11 +7688,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Controlword",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, controlword),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6041,
@@ -6402,11 +7703,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Statusword",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, statusword),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6060,
@@ -6414,11 +7718,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Modes of operation",
+            slot: ::od_runtime::__private_v2::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, modes_of_operation),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6061,
@@ -6426,11 +7733,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Modes of operation display",
+            slot: ::od_runtime::__private_v2::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, modes_of_operation_display),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6062,
@@ -6438,11 +7748,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position demand value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_demand_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6064,
@@ -6450,11 +7763,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position actual value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_actual_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6065,
@@ -6462,11 +7778,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Following error window",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, following_error_window),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6066,
@@ -6474,11 +7793,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Following error timeout",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, following_error_timeout),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606B,
@@ -6486,11 +7808,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity demand value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_demand_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606C,
@@ -6498,11 +7823,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity actual value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_actual_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606F,
@@ -6510,11 +7838,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity threshold",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_threshold),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6070,
@@ -6522,11 +7853,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity threshold time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_threshold_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6071,
@@ -6534,11 +7868,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 16,
-            low: Some(-15000),
-            high: Some(15000),
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Target torque",
+            slot: ::od_runtime::__private_v2::offset::<
+                i16,
+            >(
+                ::core::mem::offset_of!(Dictionary, target_torque),
+                ::od_runtime::od::DataType::Integer16,
+                0,
+            ),
+            extras: Some(&EXTRAS[33]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6074,
@@ -6546,11 +7883,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Torque demand value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i16,
+            >(
+                ::core::mem::offset_of!(Dictionary, torque_demand_value),
+                ::od_runtime::od::DataType::Integer16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6077,
@@ -6558,11 +7898,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Torque actual value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i16,
+            >(
+                ::core::mem::offset_of!(Dictionary, torque_actual_value),
+                ::od_runtime::od::DataType::Integer16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607A,
@@ -6570,11 +7913,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Target position",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, target_position),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607C,
@@ -6582,11 +7928,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Home offset",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, home_offset),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607D,
@@ -6594,11 +7943,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Software position limit: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, software_position_limit_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607D,
@@ -6606,11 +7960,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Software position limit: Min software position limit",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, software_position_limit_min_software_position_limit
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607D,
@@ -6618,11 +7977,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Software position limit: Max software position limit",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, software_position_limit_max_software_position_limit
+                ),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607E,
@@ -6630,11 +7994,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x0),
-            name: "Polarity",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, polarity),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607F,
@@ -6642,11 +8009,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(65535),
-            name: "Max profile velocity",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, max_profile_velocity),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[34]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6081,
@@ -6654,11 +8024,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Profile velocity",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, profile_velocity),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6083,
@@ -6666,11 +8039,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Profile acceleration",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, profile_acceleration),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6084,
@@ -6678,11 +8054,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Profile deceleration",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, profile_deceleration),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6087,
@@ -6690,11 +8069,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Torque slope",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, torque_slope),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6091,
@@ -6702,11 +8084,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Gear ratio: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, gear_ratio_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6091,
@@ -6714,11 +8101,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Gear ratio: Motor revolutions",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, gear_ratio_motor_revolutions),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6091,
@@ -6726,11 +8116,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Gear ratio: Shaft revolutions",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, gear_ratio_shaft_revolutions),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6092,
@@ -6738,11 +8131,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Feed constant: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, feed_constant_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6092,
@@ -6750,11 +8148,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(100),
-            name: "Feed constant: Feed",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feed_constant_feed),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[21]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6092,
@@ -6762,11 +8163,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Feed constant: Shaft revolutions",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, feed_constant_shaft_revolutions),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6098,
@@ -6774,11 +8178,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(37),
-            name: "Homing method",
+            slot: ::od_runtime::__private_v2::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_method),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: Some(&EXTRAS[35]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -6786,11 +8193,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Homing speeds: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, homing_speeds_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -6798,11 +8210,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing speeds: Fast homing speed",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_speeds_fast_homing_speed),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -6810,11 +8225,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing speeds: Slow homing speed",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_speeds_slow_homing_speed),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x609A,
@@ -6822,11 +8240,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: Some(65535),
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Homing acceleration",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_acceleration),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[36]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x60FF,
@@ -6834,12 +8255,540 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Target velocity",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, target_velocity),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
+    ];
+    /// Capacities, defaults other than zero and limits, each distinct one once
+    /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
+    pub static EXTRAS: [::od_runtime::od::EntryExtras; 37] = [
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0xFF7A0192),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x80),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"DRVI"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"1"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"0"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(4),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x97),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x5A),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(2),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0xFF),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000300),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000400),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000500),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000680),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(5),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(100),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000280),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000380),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000480),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::None,
+            limits: Some(&LIMITS[0]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1),
+            limits: Some(&LIMITS[1]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(10000),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(10),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1),
+            limits: Some(&LIMITS[0]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(50),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(10),
+            limits: Some(&LIMITS[2]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::None,
+            limits: Some(&LIMITS[3]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(65535),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(37),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::None,
+            limits: Some(&LIMITS[4]),
+        },
+    ];
+    /// The limits of the entries that have any, each distinct one once.
+    pub static LIMITS: [::od_runtime::od::Limits; 5] = [
+        ::od_runtime::od::Limits {
+            low: 0,
+            high: 1,
+        },
+        ::od_runtime::od::Limits {
+            low: 0,
+            high: 4,
+        },
+        ::od_runtime::od::Limits {
+            low: 0,
+            high: 100,
+        },
+        ::od_runtime::od::Limits {
+            low: -15000,
+            high: 15000,
+        },
+        ::od_runtime::od::Limits {
+            low: 0,
+            high: 65535,
+        },
+    ];
+    /// The name of every entry (`ParameterName`, `Object: Sub-object` for sub-entries), in
+    /// [`ENTRIES`] order.
+    #[cfg(feature = "names")]
+    pub static NAMES: [&str; 308] = [
+        "Device type",
+        "Error register",
+        "Manufacturer status register",
+        "Pre-defined error field: Number of errors",
+        "Pre-defined error field: Standard error field 1",
+        "Pre-defined error field: Standard error field 2",
+        "Pre-defined error field: Standard error field 3",
+        "Pre-defined error field: Standard error field 4",
+        "Pre-defined error field: Standard error field 5",
+        "Pre-defined error field: Standard error field 6",
+        "Pre-defined error field: Standard error field 7",
+        "Pre-defined error field: Standard error field 8",
+        "COB-ID SYNC",
+        "Communication cycle period",
+        "Synchronous window length",
+        "Manufacturer device name",
+        "Manufacturer hardware version",
+        "Manufacturer software version",
+        "Guard time",
+        "Life time factor",
+        "Store parameters: Highest sub-index supported",
+        "Store parameters: Save all parameters",
+        "Restore default parameters: Highest sub-index supported",
+        "Restore default parameters: Restore all default parameters",
+        "COB-ID EMCY",
+        "Inhibit time EMCY",
+        "Producer heartbeat time",
+        "Identity object: Number of entries",
+        "Identity object: Vendor-ID",
+        "Identity object: Product code",
+        "Identity object: Revision number",
+        "Identity object: Serial number",
+        "Receive PDO communication parameter 1: Highest sub-index supported",
+        "Receive PDO communication parameter 1: COB-ID used by RPDO",
+        "Receive PDO communication parameter 1: Transmission type",
+        "Receive PDO communication parameter 2: Highest sub-index supported",
+        "Receive PDO communication parameter 2: COB-ID used by RPDO",
+        "Receive PDO communication parameter 2: Transmission type",
+        "Receive PDO communication parameter 3: Highest sub-index supported",
+        "Receive PDO communication parameter 3: COB-ID used by RPDO",
+        "Receive PDO communication parameter 3: Transmission type",
+        "Receive PDO communication parameter 4: Highest sub-index supported",
+        "Receive PDO communication parameter 4: COB-ID used by RPDO",
+        "Receive PDO communication parameter 4: Transmission type",
+        "Receive PDO communication parameter 5: Highest sub-index supported",
+        "Receive PDO communication parameter 5: COB-ID used by RPDO",
+        "Receive PDO communication parameter 5: Transmission type",
+        "Receive PDO communication parameter 6: Highest sub-index supported",
+        "Receive PDO communication parameter 6: COB-ID used by RPDO",
+        "Receive PDO communication parameter 6: Transmission type",
+        "Receive PDO communication parameter 7: Highest sub-index supported",
+        "Receive PDO communication parameter 7: COB-ID used by RPDO",
+        "Receive PDO communication parameter 7: Transmission type",
+        "Receive PDO communication parameter 8: Highest sub-index supported",
+        "Receive PDO communication parameter 8: COB-ID used by RPDO",
+        "Receive PDO communication parameter 8: Transmission type",
+        "Receive PDO mapping parameter 1: Number of mapped objects",
+        "Receive PDO mapping parameter 1: Mapping entry 1",
+        "Receive PDO mapping parameter 1: Mapping entry 2",
+        "Receive PDO mapping parameter 1: Mapping entry 3",
+        "Receive PDO mapping parameter 1: Mapping entry 4",
+        "Receive PDO mapping parameter 1: Mapping entry 5",
+        "Receive PDO mapping parameter 1: Mapping entry 6",
+        "Receive PDO mapping parameter 1: Mapping entry 7",
+        "Receive PDO mapping parameter 1: Mapping entry 8",
+        "Receive PDO mapping parameter 2: Number of mapped objects",
+        "Receive PDO mapping parameter 2: Mapping entry 1",
+        "Receive PDO mapping parameter 2: Mapping entry 2",
+        "Receive PDO mapping parameter 2: Mapping entry 3",
+        "Receive PDO mapping parameter 2: Mapping entry 4",
+        "Receive PDO mapping parameter 2: Mapping entry 5",
+        "Receive PDO mapping parameter 2: Mapping entry 6",
+        "Receive PDO mapping parameter 2: Mapping entry 7",
+        "Receive PDO mapping parameter 2: Mapping entry 8",
+        "Receive PDO mapping parameter 3: Number of mapped objects",
+        "Receive PDO mapping parameter 3: Mapping entry 1",
+        "Receive PDO mapping parameter 3: Mapping entry 2",
+        "Receive PDO mapping parameter 3: Mapping entry 3",
+        "Receive PDO mapping parameter 3: Mapping entry 4",
+        "Receive PDO mapping parameter 3: Mapping entry 5",
+        "Receive PDO mapping parameter 3: Mapping entry 6",
+        "Receive PDO mapping parameter 3: Mapping entry 7",
+        "Receive PDO mapping parameter 3: Mapping entry 8",
+        "Receive PDO mapping parameter 4: Number of mapped objects",
+        "Receive PDO mapping parameter 4: Mapping entry 1",
+        "Receive PDO mapping parameter 4: Mapping entry 2",
+        "Receive PDO mapping parameter 4: Mapping entry 3",
+        "Receive PDO mapping parameter 4: Mapping entry 4",
+        "Receive PDO mapping parameter 4: Mapping entry 5",
+        "Receive PDO mapping parameter 4: Mapping entry 6",
+        "Receive PDO mapping parameter 4: Mapping entry 7",
+        "Receive PDO mapping parameter 4: Mapping entry 8",
+        "Receive PDO mapping parameter 5: Number of mapped objects",
+        "Receive PDO mapping parameter 5: Mapping entry 1",
+        "Receive PDO mapping parameter 5: Mapping entry 2",
+        "Receive PDO mapping parameter 5: Mapping entry 3",
+        "Receive PDO mapping parameter 5: Mapping entry 4",
+        "Receive PDO mapping parameter 5: Mapping entry 5",
+        "Receive PDO mapping parameter 5: Mapping entry 6",
+        "Receive PDO mapping parameter 5: Mapping entry 7",
+        "Receive PDO mapping parameter 5: Mapping entry 8",
+        "Receive PDO mapping parameter 6: Number of mapped objects",
+        "Receive PDO mapping parameter 6: Mapping entry 1",
+        "Receive PDO mapping parameter 6: Mapping entry 2",
+        "Receive PDO mapping parameter 6: Mapping entry 3",
+        "Receive PDO mapping parameter 6: Mapping entry 4",
+        "Receive PDO mapping parameter 6: Mapping entry 5",
+        "Receive PDO mapping parameter 6: Mapping entry 6",
+        "Receive PDO mapping parameter 6: Mapping entry 7",
+        "Receive PDO mapping parameter 6: Mapping entry 8",
+        "Receive PDO mapping parameter 7: Number of mapped objects",
+        "Receive PDO mapping parameter 7: Mapping entry 1",
+        "Receive PDO mapping parameter 7: Mapping entry 2",
+        "Receive PDO mapping parameter 7: Mapping entry 3",
+        "Receive PDO mapping parameter 7: Mapping entry 4",
+        "Receive PDO mapping parameter 7: Mapping entry 5",
+        "Receive PDO mapping parameter 7: Mapping entry 6",
+        "Receive PDO mapping parameter 7: Mapping entry 7",
+        "Receive PDO mapping parameter 7: Mapping entry 8",
+        "Receive PDO mapping parameter 8: Number of mapped objects",
+        "Receive PDO mapping parameter 8: Mapping entry 1",
+        "Receive PDO mapping parameter 8: Mapping entry 2",
+        "Receive PDO mapping parameter 8: Mapping entry 3",
+        "Receive PDO mapping parameter 8: Mapping entry 4",
+        "Receive PDO mapping parameter 8: Mapping entry 5",
+        "Receive PDO mapping parameter 8: Mapping entry 6",
+        "Receive PDO mapping parameter 8: Mapping entry 7",
+        "Receive PDO mapping parameter 8: Mapping entry 8",
+        "Transmit PDO communication parameter 1: Highest sub-index supported",
+        "Transmit PDO communication parameter 1: COB-ID used by TPDO",
+        "Transmit PDO communication parameter 1: Transmission type",
+        "Transmit PDO communication parameter 1: Inhibit time",
+        "Transmit PDO communication parameter 1: Compatibility entry",
+        "Transmit PDO communication parameter 1: Event timer",
+        "Transmit PDO communication parameter 2: Highest sub-index supported",
+        "Transmit PDO communication parameter 2: COB-ID used by TPDO",
+        "Transmit PDO communication parameter 2: Transmission type",
+        "Transmit PDO communication parameter 2: Inhibit time",
+        "Transmit PDO communication parameter 2: Compatibility entry",
+        "Transmit PDO communication parameter 2: Event timer",
+        "Transmit PDO communication parameter 3: Highest sub-index supported",
+        "Transmit PDO communication parameter 3: COB-ID used by TPDO",
+        "Transmit PDO communication parameter 3: Transmission type",
+        "Transmit PDO communication parameter 3: Inhibit time",
+        "Transmit PDO communication parameter 3: Compatibility entry",
+        "Transmit PDO communication parameter 3: Event timer",
+        "Transmit PDO communication parameter 4: Highest sub-index supported",
+        "Transmit PDO communication parameter 4: COB-ID used by TPDO",
+        "Transmit PDO communication parameter 4: Transmission type",
+        "Transmit PDO communication parameter 4: Inhibit time",
+        "Transmit PDO communication parameter 4: Compatibility entry",
+        "Transmit PDO communication parameter 4: Event timer",
+        "Transmit PDO communication parameter 5: Highest sub-index supported",
+        "Transmit PDO communication parameter 5: COB-ID used by TPDO",
+        "Transmit PDO communication parameter 5: Transmission type",
+        "Transmit PDO communication parameter 5: Inhibit time",
+        "Transmit PDO communication parameter 5: Compatibility entry",
+        "Transmit PDO communication parameter 5: Event timer",
+        "Transmit PDO communication parameter 6: Highest sub-index supported",
+        "Transmit PDO communication parameter 6: COB-ID used by TPDO",
+        "Transmit PDO communication parameter 6: Transmission type",
+        "Transmit PDO communication parameter 6: Inhibit time",
+        "Transmit PDO communication parameter 6: Compatibility entry",
+        "Transmit PDO communication parameter 6: Event timer",
+        "Transmit PDO communication parameter 7: Highest sub-index supported",
+        "Transmit PDO communication parameter 7: COB-ID used by TPDO",
+        "Transmit PDO communication parameter 7: Transmission type",
+        "Transmit PDO communication parameter 7: Inhibit time",
+        "Transmit PDO communication parameter 7: Compatibility entry",
+        "Transmit PDO communication parameter 7: Event timer",
+        "Transmit PDO communication parameter 8: Highest sub-index supported",
+        "Transmit PDO communication parameter 8: COB-ID used by TPDO",
+        "Transmit PDO communication parameter 8: Transmission type",
+        "Transmit PDO communication parameter 8: Inhibit time",
+        "Transmit PDO communication parameter 8: Compatibility entry",
+        "Transmit PDO communication parameter 8: Event timer",
+        "Transmit PDO mapping parameter 1: Number of mapped objects",
+        "Transmit PDO mapping parameter 1: Mapping entry 1",
+        "Transmit PDO mapping parameter 1: Mapping entry 2",
+        "Transmit PDO mapping parameter 1: Mapping entry 3",
+        "Transmit PDO mapping parameter 1: Mapping entry 4",
+        "Transmit PDO mapping parameter 1: Mapping entry 5",
+        "Transmit PDO mapping parameter 1: Mapping entry 6",
+        "Transmit PDO mapping parameter 1: Mapping entry 7",
+        "Transmit PDO mapping parameter 1: Mapping entry 8",
+        "Transmit PDO mapping parameter 2: Number of mapped objects",
+        "Transmit PDO mapping parameter 2: Mapping entry 1",
+        "Transmit PDO mapping parameter 2: Mapping entry 2",
+        "Transmit PDO mapping parameter 2: Mapping entry 3",
+        "Transmit PDO mapping parameter 2: Mapping entry 4",
+        "Transmit PDO mapping parameter 2: Mapping entry 5",
+        "Transmit PDO mapping parameter 2: Mapping entry 6",
+        "Transmit PDO mapping parameter 2: Mapping entry 7",
+        "Transmit PDO mapping parameter 2: Mapping entry 8",
+        "Transmit PDO mapping parameter 3: Number of mapped objects",
+        "Transmit PDO mapping parameter 3: Mapping entry 1",
+        "Transmit PDO mapping parameter 3: Mapping entry 2",
+        "Transmit PDO mapping parameter 3: Mapping entry 3",
+        "Transmit PDO mapping parameter 3: Mapping entry 4",
+        "Transmit PDO mapping parameter 3: Mapping entry 5",
+        "Transmit PDO mapping parameter 3: Mapping entry 6",
+        "Transmit PDO mapping parameter 3: Mapping entry 7",
+        "Transmit PDO mapping parameter 3: Mapping entry 8",
+        "Transmit PDO mapping parameter 4: Number of mapped objects",
+        "Transmit PDO mapping parameter 4: Mapping entry 1",
+        "Transmit PDO mapping parameter 4: Mapping entry 2",
+        "Transmit PDO mapping parameter 4: Mapping entry 3",
+        "Transmit PDO mapping parameter 4: Mapping entry 4",
+        "Transmit PDO mapping parameter 4: Mapping entry 5",
+        "Transmit PDO mapping parameter 4: Mapping entry 6",
+        "Transmit PDO mapping parameter 4: Mapping entry 7",
+        "Transmit PDO mapping parameter 4: Mapping entry 8",
+        "Transmit PDO mapping parameter 5: Number of mapped objects",
+        "Transmit PDO mapping parameter 5: Mapping entry 1",
+        "Transmit PDO mapping parameter 5: Mapping entry 2",
+        "Transmit PDO mapping parameter 5: Mapping entry 3",
+        "Transmit PDO mapping parameter 5: Mapping entry 4",
+        "Transmit PDO mapping parameter 5: Mapping entry 5",
+        "Transmit PDO mapping parameter 5: Mapping entry 6",
+        "Transmit PDO mapping parameter 5: Mapping entry 7",
+        "Transmit PDO mapping parameter 5: Mapping entry 8",
+        "Transmit PDO mapping parameter 6: Number of mapped objects",
+        "Transmit PDO mapping parameter 6: Mapping entry 1",
+        "Transmit PDO mapping parameter 6: Mapping entry 2",
+        "Transmit PDO mapping parameter 6: Mapping entry 3",
+        "Transmit PDO mapping parameter 6: Mapping entry 4",
+        "Transmit PDO mapping parameter 6: Mapping entry 5",
+        "Transmit PDO mapping parameter 6: Mapping entry 6",
+        "Transmit PDO mapping parameter 6: Mapping entry 7",
+        "Transmit PDO mapping parameter 6: Mapping entry 8",
+        "Transmit PDO mapping parameter 7: Number of mapped objects",
+        "Transmit PDO mapping parameter 7: Mapping entry 1",
+        "Transmit PDO mapping parameter 7: Mapping entry 2",
+        "Transmit PDO mapping parameter 7: Mapping entry 3",
+        "Transmit PDO mapping parameter 7: Mapping entry 4",
+        "Transmit PDO mapping parameter 7: Mapping entry 5",
+        "Transmit PDO mapping parameter 7: Mapping entry 6",
+        "Transmit PDO mapping parameter 7: Mapping entry 7",
+        "Transmit PDO mapping parameter 7: Mapping entry 8",
+        "Transmit PDO mapping parameter 8: Number of mapped objects",
+        "Transmit PDO mapping parameter 8: Mapping entry 1",
+        "Transmit PDO mapping parameter 8: Mapping entry 2",
+        "Transmit PDO mapping parameter 8: Mapping entry 3",
+        "Transmit PDO mapping parameter 8: Mapping entry 4",
+        "Transmit PDO mapping parameter 8: Mapping entry 5",
+        "Transmit PDO mapping parameter 8: Mapping entry 6",
+        "Transmit PDO mapping parameter 8: Mapping entry 7",
+        "Transmit PDO mapping parameter 8: Mapping entry 8",
+        "NMT startup",
+        "Feed converter: Highest sub-index supported",
+        "Feed converter: Numerator",
+        "Feed converter: Denominator",
+        "Input status",
+        "Output status",
+        "Homing ok",
+        "Warnings",
+        "Limits enable",
+        "PID parameters: Highest sub-index supported",
+        "PID parameters: PID selection",
+        "PID parameters: Kp position",
+        "PID parameters: Kp speed",
+        "PID parameters: Ki position",
+        "PID parameters: Ki speed",
+        "Profile parameters: Highest sub-index supported",
+        "Profile parameters: Profile check",
+        "Profile parameters: Profile check timeout",
+        "Homing torque limit",
+        "Actuator type",
+        "Torque limit enable",
+        "Error code",
+        "Controlword",
+        "Statusword",
+        "Modes of operation",
+        "Modes of operation display",
+        "Position demand value",
+        "Position actual value",
+        "Following error window",
+        "Following error timeout",
+        "Velocity demand value",
+        "Velocity actual value",
+        "Velocity threshold",
+        "Velocity threshold time",
+        "Target torque",
+        "Torque demand value",
+        "Torque actual value",
+        "Target position",
+        "Home offset",
+        "Software position limit: Highest sub-index supported",
+        "Software position limit: Min software position limit",
+        "Software position limit: Max software position limit",
+        "Polarity",
+        "Max profile velocity",
+        "Profile velocity",
+        "Profile acceleration",
+        "Profile deceleration",
+        "Torque slope",
+        "Gear ratio: Highest sub-index supported",
+        "Gear ratio: Motor revolutions",
+        "Gear ratio: Shaft revolutions",
+        "Feed constant: Highest sub-index supported",
+        "Feed constant: Feed",
+        "Feed constant: Shaft revolutions",
+        "Homing method",
+        "Homing speeds: Highest sub-index supported",
+        "Homing speeds: Fast homing speed",
+        "Homing speeds: Slow homing speed",
+        "Homing acceleration",
+        "Target velocity",
     ];
     /// The object dictionary of the DRVI (Camozzi Automation S.p.A.): the current value of every entry.
     ///
@@ -6861,9 +8810,9 @@ PDOMapping=0
         cob_id_sync: u32,
         communication_cycle_period: u32,
         synchronous_window_length: u32,
-        manufacturer_device_name: ::od_runtime::__private_v1::Bytes<32>,
-        manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes<32>,
-        manufacturer_software_version: ::od_runtime::__private_v1::Bytes<32>,
+        manufacturer_device_name: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_software_version: ::od_runtime::__private_v2::Bytes<32>,
         guard_time: u16,
         life_time_factor: u8,
         store_parameters_highest_sub_index_supported: u8,
@@ -7174,13 +9123,13 @@ PDOMapping=0
                 cob_id_sync: 0x80,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
-                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"DRVI",
                 ),
-                manufacturer_hardware_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"1",
                 ),
-                manufacturer_software_version: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"0",
                 ),
                 guard_time: 0,
@@ -7484,6 +9433,327 @@ PDOMapping=0
                 target_velocity: 0,
             }
         }
+        /// Every value zero, every buffer empty. A device's first poll (its reset node)
+        /// restores the defaults, so a firmware can start from this: its device then
+        /// needs no image of the defaults in flash besides the entry table's.
+        pub const fn zeroed() -> Self {
+            Dictionary {
+                device_type: 0,
+                error_register: 0,
+                manufacturer_status_register: 0,
+                pre_defined_error_field_number_of_errors: 0,
+                pre_defined_error_field_standard_error_field_1: 0,
+                pre_defined_error_field_standard_error_field_2: 0,
+                pre_defined_error_field_standard_error_field_3: 0,
+                pre_defined_error_field_standard_error_field_4: 0,
+                pre_defined_error_field_standard_error_field_5: 0,
+                pre_defined_error_field_standard_error_field_6: 0,
+                pre_defined_error_field_standard_error_field_7: 0,
+                pre_defined_error_field_standard_error_field_8: 0,
+                cob_id_sync: 0,
+                communication_cycle_period: 0,
+                synchronous_window_length: 0,
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
+                    &[],
+                ),
+                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                    &[],
+                ),
+                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                    &[],
+                ),
+                guard_time: 0,
+                life_time_factor: 0,
+                store_parameters_highest_sub_index_supported: 0,
+                store_parameters_save_all_parameters: 0,
+                restore_default_parameters_highest_sub_index_supported: 0,
+                restore_default_parameters_restore_all_default_parameters: 0,
+                cob_id_emcy: 0,
+                inhibit_time_emcy: 0,
+                producer_heartbeat_time: 0,
+                identity_object_number_of_entries: 0,
+                identity_object_vendor_id: 0,
+                identity_object_product_code: 0,
+                identity_object_revision_number: 0,
+                identity_object_serial_number: 0,
+                receive_pdo_communication_param_1_highest_sub_index_supported: 0,
+                receive_pdo_communication_parameter_1_cob_id_used_by_rpdo: 0,
+                receive_pdo_communication_parameter_1_transmission_type: 0,
+                receive_pdo_communication_param_2_highest_sub_index_supported: 0,
+                receive_pdo_communication_parameter_2_cob_id_used_by_rpdo: 0,
+                receive_pdo_communication_parameter_2_transmission_type: 0,
+                receive_pdo_communication_param_3_highest_sub_index_supported: 0,
+                receive_pdo_communication_parameter_3_cob_id_used_by_rpdo: 0,
+                receive_pdo_communication_parameter_3_transmission_type: 0,
+                receive_pdo_communication_param_4_highest_sub_index_supported: 0,
+                receive_pdo_communication_parameter_4_cob_id_used_by_rpdo: 0,
+                receive_pdo_communication_parameter_4_transmission_type: 0,
+                receive_pdo_communication_param_5_highest_sub_index_supported: 0,
+                receive_pdo_communication_parameter_5_cob_id_used_by_rpdo: 0,
+                receive_pdo_communication_parameter_5_transmission_type: 0,
+                receive_pdo_communication_param_6_highest_sub_index_supported: 0,
+                receive_pdo_communication_parameter_6_cob_id_used_by_rpdo: 0,
+                receive_pdo_communication_parameter_6_transmission_type: 0,
+                receive_pdo_communication_param_7_highest_sub_index_supported: 0,
+                receive_pdo_communication_parameter_7_cob_id_used_by_rpdo: 0,
+                receive_pdo_communication_parameter_7_transmission_type: 0,
+                receive_pdo_communication_param_8_highest_sub_index_supported: 0,
+                receive_pdo_communication_parameter_8_cob_id_used_by_rpdo: 0,
+                receive_pdo_communication_parameter_8_transmission_type: 0,
+                receive_pdo_mapping_parameter_1_number_of_mapped_objects: 0,
+                receive_pdo_mapping_parameter_1_mapping_entry_1: 0,
+                receive_pdo_mapping_parameter_1_mapping_entry_2: 0,
+                receive_pdo_mapping_parameter_1_mapping_entry_3: 0,
+                receive_pdo_mapping_parameter_1_mapping_entry_4: 0,
+                receive_pdo_mapping_parameter_1_mapping_entry_5: 0,
+                receive_pdo_mapping_parameter_1_mapping_entry_6: 0,
+                receive_pdo_mapping_parameter_1_mapping_entry_7: 0,
+                receive_pdo_mapping_parameter_1_mapping_entry_8: 0,
+                receive_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
+                receive_pdo_mapping_parameter_2_mapping_entry_1: 0,
+                receive_pdo_mapping_parameter_2_mapping_entry_2: 0,
+                receive_pdo_mapping_parameter_2_mapping_entry_3: 0,
+                receive_pdo_mapping_parameter_2_mapping_entry_4: 0,
+                receive_pdo_mapping_parameter_2_mapping_entry_5: 0,
+                receive_pdo_mapping_parameter_2_mapping_entry_6: 0,
+                receive_pdo_mapping_parameter_2_mapping_entry_7: 0,
+                receive_pdo_mapping_parameter_2_mapping_entry_8: 0,
+                receive_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
+                receive_pdo_mapping_parameter_3_mapping_entry_1: 0,
+                receive_pdo_mapping_parameter_3_mapping_entry_2: 0,
+                receive_pdo_mapping_parameter_3_mapping_entry_3: 0,
+                receive_pdo_mapping_parameter_3_mapping_entry_4: 0,
+                receive_pdo_mapping_parameter_3_mapping_entry_5: 0,
+                receive_pdo_mapping_parameter_3_mapping_entry_6: 0,
+                receive_pdo_mapping_parameter_3_mapping_entry_7: 0,
+                receive_pdo_mapping_parameter_3_mapping_entry_8: 0,
+                receive_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
+                receive_pdo_mapping_parameter_4_mapping_entry_1: 0,
+                receive_pdo_mapping_parameter_4_mapping_entry_2: 0,
+                receive_pdo_mapping_parameter_4_mapping_entry_3: 0,
+                receive_pdo_mapping_parameter_4_mapping_entry_4: 0,
+                receive_pdo_mapping_parameter_4_mapping_entry_5: 0,
+                receive_pdo_mapping_parameter_4_mapping_entry_6: 0,
+                receive_pdo_mapping_parameter_4_mapping_entry_7: 0,
+                receive_pdo_mapping_parameter_4_mapping_entry_8: 0,
+                receive_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
+                receive_pdo_mapping_parameter_5_mapping_entry_1: 0,
+                receive_pdo_mapping_parameter_5_mapping_entry_2: 0,
+                receive_pdo_mapping_parameter_5_mapping_entry_3: 0,
+                receive_pdo_mapping_parameter_5_mapping_entry_4: 0,
+                receive_pdo_mapping_parameter_5_mapping_entry_5: 0,
+                receive_pdo_mapping_parameter_5_mapping_entry_6: 0,
+                receive_pdo_mapping_parameter_5_mapping_entry_7: 0,
+                receive_pdo_mapping_parameter_5_mapping_entry_8: 0,
+                receive_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
+                receive_pdo_mapping_parameter_6_mapping_entry_1: 0,
+                receive_pdo_mapping_parameter_6_mapping_entry_2: 0,
+                receive_pdo_mapping_parameter_6_mapping_entry_3: 0,
+                receive_pdo_mapping_parameter_6_mapping_entry_4: 0,
+                receive_pdo_mapping_parameter_6_mapping_entry_5: 0,
+                receive_pdo_mapping_parameter_6_mapping_entry_6: 0,
+                receive_pdo_mapping_parameter_6_mapping_entry_7: 0,
+                receive_pdo_mapping_parameter_6_mapping_entry_8: 0,
+                receive_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
+                receive_pdo_mapping_parameter_7_mapping_entry_1: 0,
+                receive_pdo_mapping_parameter_7_mapping_entry_2: 0,
+                receive_pdo_mapping_parameter_7_mapping_entry_3: 0,
+                receive_pdo_mapping_parameter_7_mapping_entry_4: 0,
+                receive_pdo_mapping_parameter_7_mapping_entry_5: 0,
+                receive_pdo_mapping_parameter_7_mapping_entry_6: 0,
+                receive_pdo_mapping_parameter_7_mapping_entry_7: 0,
+                receive_pdo_mapping_parameter_7_mapping_entry_8: 0,
+                receive_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
+                receive_pdo_mapping_parameter_8_mapping_entry_1: 0,
+                receive_pdo_mapping_parameter_8_mapping_entry_2: 0,
+                receive_pdo_mapping_parameter_8_mapping_entry_3: 0,
+                receive_pdo_mapping_parameter_8_mapping_entry_4: 0,
+                receive_pdo_mapping_parameter_8_mapping_entry_5: 0,
+                receive_pdo_mapping_parameter_8_mapping_entry_6: 0,
+                receive_pdo_mapping_parameter_8_mapping_entry_7: 0,
+                receive_pdo_mapping_parameter_8_mapping_entry_8: 0,
+                transmit_pdo_communication_param_1_highest_sub_index_supported: 0,
+                transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo: 0,
+                transmit_pdo_communication_parameter_1_transmission_type: 0,
+                transmit_pdo_communication_parameter_1_inhibit_time: 0,
+                transmit_pdo_communication_parameter_1_compatibility_entry: 0,
+                transmit_pdo_communication_parameter_1_event_timer: 0,
+                transmit_pdo_communication_param_2_highest_sub_index_supported: 0,
+                transmit_pdo_communication_parameter_2_cob_id_used_by_tpdo: 0,
+                transmit_pdo_communication_parameter_2_transmission_type: 0,
+                transmit_pdo_communication_parameter_2_inhibit_time: 0,
+                transmit_pdo_communication_parameter_2_compatibility_entry: 0,
+                transmit_pdo_communication_parameter_2_event_timer: 0,
+                transmit_pdo_communication_param_3_highest_sub_index_supported: 0,
+                transmit_pdo_communication_parameter_3_cob_id_used_by_tpdo: 0,
+                transmit_pdo_communication_parameter_3_transmission_type: 0,
+                transmit_pdo_communication_parameter_3_inhibit_time: 0,
+                transmit_pdo_communication_parameter_3_compatibility_entry: 0,
+                transmit_pdo_communication_parameter_3_event_timer: 0,
+                transmit_pdo_communication_param_4_highest_sub_index_supported: 0,
+                transmit_pdo_communication_parameter_4_cob_id_used_by_tpdo: 0,
+                transmit_pdo_communication_parameter_4_transmission_type: 0,
+                transmit_pdo_communication_parameter_4_inhibit_time: 0,
+                transmit_pdo_communication_parameter_4_compatibility_entry: 0,
+                transmit_pdo_communication_parameter_4_event_timer: 0,
+                transmit_pdo_communication_param_5_highest_sub_index_supported: 0,
+                transmit_pdo_communication_parameter_5_cob_id_used_by_tpdo: 0,
+                transmit_pdo_communication_parameter_5_transmission_type: 0,
+                transmit_pdo_communication_parameter_5_inhibit_time: 0,
+                transmit_pdo_communication_parameter_5_compatibility_entry: 0,
+                transmit_pdo_communication_parameter_5_event_timer: 0,
+                transmit_pdo_communication_param_6_highest_sub_index_supported: 0,
+                transmit_pdo_communication_parameter_6_cob_id_used_by_tpdo: 0,
+                transmit_pdo_communication_parameter_6_transmission_type: 0,
+                transmit_pdo_communication_parameter_6_inhibit_time: 0,
+                transmit_pdo_communication_parameter_6_compatibility_entry: 0,
+                transmit_pdo_communication_parameter_6_event_timer: 0,
+                transmit_pdo_communication_param_7_highest_sub_index_supported: 0,
+                transmit_pdo_communication_parameter_7_cob_id_used_by_tpdo: 0,
+                transmit_pdo_communication_parameter_7_transmission_type: 0,
+                transmit_pdo_communication_parameter_7_inhibit_time: 0,
+                transmit_pdo_communication_parameter_7_compatibility_entry: 0,
+                transmit_pdo_communication_parameter_7_event_timer: 0,
+                transmit_pdo_communication_param_8_highest_sub_index_supported: 0,
+                transmit_pdo_communication_parameter_8_cob_id_used_by_tpdo: 0,
+                transmit_pdo_communication_parameter_8_transmission_type: 0,
+                transmit_pdo_communication_parameter_8_inhibit_time: 0,
+                transmit_pdo_communication_parameter_8_compatibility_entry: 0,
+                transmit_pdo_communication_parameter_8_event_timer: 0,
+                transmit_pdo_mapping_parameter_1_number_of_mapped_objects: 0,
+                transmit_pdo_mapping_parameter_1_mapping_entry_1: 0,
+                transmit_pdo_mapping_parameter_1_mapping_entry_2: 0,
+                transmit_pdo_mapping_parameter_1_mapping_entry_3: 0,
+                transmit_pdo_mapping_parameter_1_mapping_entry_4: 0,
+                transmit_pdo_mapping_parameter_1_mapping_entry_5: 0,
+                transmit_pdo_mapping_parameter_1_mapping_entry_6: 0,
+                transmit_pdo_mapping_parameter_1_mapping_entry_7: 0,
+                transmit_pdo_mapping_parameter_1_mapping_entry_8: 0,
+                transmit_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
+                transmit_pdo_mapping_parameter_2_mapping_entry_1: 0,
+                transmit_pdo_mapping_parameter_2_mapping_entry_2: 0,
+                transmit_pdo_mapping_parameter_2_mapping_entry_3: 0,
+                transmit_pdo_mapping_parameter_2_mapping_entry_4: 0,
+                transmit_pdo_mapping_parameter_2_mapping_entry_5: 0,
+                transmit_pdo_mapping_parameter_2_mapping_entry_6: 0,
+                transmit_pdo_mapping_parameter_2_mapping_entry_7: 0,
+                transmit_pdo_mapping_parameter_2_mapping_entry_8: 0,
+                transmit_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
+                transmit_pdo_mapping_parameter_3_mapping_entry_1: 0,
+                transmit_pdo_mapping_parameter_3_mapping_entry_2: 0,
+                transmit_pdo_mapping_parameter_3_mapping_entry_3: 0,
+                transmit_pdo_mapping_parameter_3_mapping_entry_4: 0,
+                transmit_pdo_mapping_parameter_3_mapping_entry_5: 0,
+                transmit_pdo_mapping_parameter_3_mapping_entry_6: 0,
+                transmit_pdo_mapping_parameter_3_mapping_entry_7: 0,
+                transmit_pdo_mapping_parameter_3_mapping_entry_8: 0,
+                transmit_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
+                transmit_pdo_mapping_parameter_4_mapping_entry_1: 0,
+                transmit_pdo_mapping_parameter_4_mapping_entry_2: 0,
+                transmit_pdo_mapping_parameter_4_mapping_entry_3: 0,
+                transmit_pdo_mapping_parameter_4_mapping_entry_4: 0,
+                transmit_pdo_mapping_parameter_4_mapping_entry_5: 0,
+                transmit_pdo_mapping_parameter_4_mapping_entry_6: 0,
+                transmit_pdo_mapping_parameter_4_mapping_entry_7: 0,
+                transmit_pdo_mapping_parameter_4_mapping_entry_8: 0,
+                transmit_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
+                transmit_pdo_mapping_parameter_5_mapping_entry_1: 0,
+                transmit_pdo_mapping_parameter_5_mapping_entry_2: 0,
+                transmit_pdo_mapping_parameter_5_mapping_entry_3: 0,
+                transmit_pdo_mapping_parameter_5_mapping_entry_4: 0,
+                transmit_pdo_mapping_parameter_5_mapping_entry_5: 0,
+                transmit_pdo_mapping_parameter_5_mapping_entry_6: 0,
+                transmit_pdo_mapping_parameter_5_mapping_entry_7: 0,
+                transmit_pdo_mapping_parameter_5_mapping_entry_8: 0,
+                transmit_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
+                transmit_pdo_mapping_parameter_6_mapping_entry_1: 0,
+                transmit_pdo_mapping_parameter_6_mapping_entry_2: 0,
+                transmit_pdo_mapping_parameter_6_mapping_entry_3: 0,
+                transmit_pdo_mapping_parameter_6_mapping_entry_4: 0,
+                transmit_pdo_mapping_parameter_6_mapping_entry_5: 0,
+                transmit_pdo_mapping_parameter_6_mapping_entry_6: 0,
+                transmit_pdo_mapping_parameter_6_mapping_entry_7: 0,
+                transmit_pdo_mapping_parameter_6_mapping_entry_8: 0,
+                transmit_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
+                transmit_pdo_mapping_parameter_7_mapping_entry_1: 0,
+                transmit_pdo_mapping_parameter_7_mapping_entry_2: 0,
+                transmit_pdo_mapping_parameter_7_mapping_entry_3: 0,
+                transmit_pdo_mapping_parameter_7_mapping_entry_4: 0,
+                transmit_pdo_mapping_parameter_7_mapping_entry_5: 0,
+                transmit_pdo_mapping_parameter_7_mapping_entry_6: 0,
+                transmit_pdo_mapping_parameter_7_mapping_entry_7: 0,
+                transmit_pdo_mapping_parameter_7_mapping_entry_8: 0,
+                transmit_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
+                transmit_pdo_mapping_parameter_8_mapping_entry_1: 0,
+                transmit_pdo_mapping_parameter_8_mapping_entry_2: 0,
+                transmit_pdo_mapping_parameter_8_mapping_entry_3: 0,
+                transmit_pdo_mapping_parameter_8_mapping_entry_4: 0,
+                transmit_pdo_mapping_parameter_8_mapping_entry_5: 0,
+                transmit_pdo_mapping_parameter_8_mapping_entry_6: 0,
+                transmit_pdo_mapping_parameter_8_mapping_entry_7: 0,
+                transmit_pdo_mapping_parameter_8_mapping_entry_8: 0,
+                nmt_startup: 0,
+                feed_converter_highest_sub_index_supported: 0,
+                feed_converter_numerator: 0,
+                feed_converter_denominator: 0,
+                input_status: 0,
+                output_status: 0,
+                homing_ok: 0,
+                warnings: 0,
+                limits_enable: 0,
+                pid_parameters_highest_sub_index_supported: 0,
+                pid_parameters_pid_selection: 0,
+                pid_parameters_kp_position: 0,
+                pid_parameters_kp_speed: 0,
+                pid_parameters_ki_position: 0,
+                pid_parameters_ki_speed: 0,
+                profile_parameters_highest_sub_index_supported: 0,
+                profile_parameters_profile_check: 0,
+                profile_parameters_profile_check_timeout: 0,
+                homing_torque_limit: 0,
+                actuator_type: 0,
+                torque_limit_enable: 0,
+                error_code: 0,
+                controlword: 0,
+                statusword: 0,
+                modes_of_operation: 0,
+                modes_of_operation_display: 0,
+                position_demand_value: 0,
+                position_actual_value: 0,
+                following_error_window: 0,
+                following_error_timeout: 0,
+                velocity_demand_value: 0,
+                velocity_actual_value: 0,
+                velocity_threshold: 0,
+                velocity_threshold_time: 0,
+                target_torque: 0,
+                torque_demand_value: 0,
+                torque_actual_value: 0,
+                target_position: 0,
+                home_offset: 0,
+                software_position_limit_highest_sub_index_supported: 0,
+                software_position_limit_min_software_position_limit: 0,
+                software_position_limit_max_software_position_limit: 0,
+                polarity: 0,
+                max_profile_velocity: 0,
+                profile_velocity: 0,
+                profile_acceleration: 0,
+                profile_deceleration: 0,
+                torque_slope: 0,
+                gear_ratio_highest_sub_index_supported: 0,
+                gear_ratio_motor_revolutions: 0,
+                gear_ratio_shaft_revolutions: 0,
+                feed_constant_highest_sub_index_supported: 0,
+                feed_constant_feed: 0,
+                feed_constant_shaft_revolutions: 0,
+                homing_method: 0,
+                homing_speeds_highest_sub_index_supported: 0,
+                homing_speeds_fast_homing_speed: 0,
+                homing_speeds_slow_homing_speed: 0,
+                homing_acceleration: 0,
+                target_velocity: 0,
+            }
+        }
         /// Position of `(index, sub)` in [`ENTRIES`]: `Err(NO_OBJECT)` if the index is absent,
         /// `Err(NO_SUB_INDEX)` if only the sub-index is.
         #[inline]
@@ -7491,3051 +9761,19 @@ PDOMapping=0
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
+            ::od_runtime::__private_v2::position(&LOOKUP, index, sub)
         }
+        /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
-        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v1::Slot::U32(&self.device_type),
-                    1 => ::od_runtime::__private_v1::Slot::U8(&self.error_register),
-                    2 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.manufacturer_status_register,
-                        )
-                    }
-                    3 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.pre_defined_error_field_number_of_errors,
-                        )
-                    }
-                    4 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_1,
-                        )
-                    }
-                    5 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_2,
-                        )
-                    }
-                    6 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_3,
-                        )
-                    }
-                    7 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_4,
-                        )
-                    }
-                    8 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_5,
-                        )
-                    }
-                    9 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_6,
-                        )
-                    }
-                    10 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_7,
-                        )
-                    }
-                    11 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_8,
-                        )
-                    }
-                    12 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_sync),
-                    13 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.communication_cycle_period,
-                        )
-                    }
-                    14 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.synchronous_window_length,
-                        )
-                    }
-                    15 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.manufacturer_device_name.as_slice(),
-                        )
-                    }
-                    16 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.manufacturer_hardware_version.as_slice(),
-                        )
-                    }
-                    17 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.manufacturer_software_version.as_slice(),
-                        )
-                    }
-                    18 => ::od_runtime::__private_v1::Slot::U16(&self.guard_time),
-                    19 => ::od_runtime::__private_v1::Slot::U8(&self.life_time_factor),
-                    20 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.store_parameters_highest_sub_index_supported,
-                        )
-                    }
-                    21 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.store_parameters_save_all_parameters,
-                        )
-                    }
-                    22 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.restore_default_parameters_highest_sub_index_supported,
-                        )
-                    }
-                    23 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .restore_default_parameters_restore_all_default_parameters,
-                        )
-                    }
-                    24 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_emcy),
-                    25 => ::od_runtime::__private_v1::Slot::U16(&self.inhibit_time_emcy),
-                    26 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.producer_heartbeat_time,
-                        )
-                    }
-                    27 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.identity_object_number_of_entries,
-                        )
-                    }
-                    28 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_vendor_id,
-                        )
-                    }
-                    29 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_product_code,
-                        )
-                    }
-                    30 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_revision_number,
-                        )
-                    }
-                    31 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_serial_number,
-                        )
-                    }
-                    32 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_communication_param_1_highest_sub_index_supported,
-                        )
-                    }
-                    33 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .receive_pdo_communication_parameter_1_cob_id_used_by_rpdo,
-                        )
-                    }
-                    34 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    35 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_communication_param_2_highest_sub_index_supported,
-                        )
-                    }
-                    36 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .receive_pdo_communication_parameter_2_cob_id_used_by_rpdo,
-                        )
-                    }
-                    37 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_communication_parameter_2_transmission_type,
-                        )
-                    }
-                    38 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_communication_param_3_highest_sub_index_supported,
-                        )
-                    }
-                    39 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .receive_pdo_communication_parameter_3_cob_id_used_by_rpdo,
-                        )
-                    }
-                    40 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_communication_parameter_3_transmission_type,
-                        )
-                    }
-                    41 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_communication_param_4_highest_sub_index_supported,
-                        )
-                    }
-                    42 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .receive_pdo_communication_parameter_4_cob_id_used_by_rpdo,
-                        )
-                    }
-                    43 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_communication_parameter_4_transmission_type,
-                        )
-                    }
-                    44 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_communication_param_5_highest_sub_index_supported,
-                        )
-                    }
-                    45 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .receive_pdo_communication_parameter_5_cob_id_used_by_rpdo,
-                        )
-                    }
-                    46 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_communication_parameter_5_transmission_type,
-                        )
-                    }
-                    47 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_communication_param_6_highest_sub_index_supported,
-                        )
-                    }
-                    48 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .receive_pdo_communication_parameter_6_cob_id_used_by_rpdo,
-                        )
-                    }
-                    49 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_communication_parameter_6_transmission_type,
-                        )
-                    }
-                    50 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_communication_param_7_highest_sub_index_supported,
-                        )
-                    }
-                    51 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .receive_pdo_communication_parameter_7_cob_id_used_by_rpdo,
-                        )
-                    }
-                    52 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_communication_parameter_7_transmission_type,
-                        )
-                    }
-                    53 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_communication_param_8_highest_sub_index_supported,
-                        )
-                    }
-                    54 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .receive_pdo_communication_parameter_8_cob_id_used_by_rpdo,
-                        )
-                    }
-                    55 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.receive_pdo_communication_parameter_8_transmission_type,
-                        )
-                    }
-                    56 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    57 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_1,
-                        )
-                    }
-                    58 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_2,
-                        )
-                    }
-                    59 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_3,
-                        )
-                    }
-                    60 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_4,
-                        )
-                    }
-                    61 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_5,
-                        )
-                    }
-                    62 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_6,
-                        )
-                    }
-                    63 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_7,
-                        )
-                    }
-                    64 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_8,
-                        )
-                    }
-                    65 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    66 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_1,
-                        )
-                    }
-                    67 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_2,
-                        )
-                    }
-                    68 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_3,
-                        )
-                    }
-                    69 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_4,
-                        )
-                    }
-                    70 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_5,
-                        )
-                    }
-                    71 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_6,
-                        )
-                    }
-                    72 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_7,
-                        )
-                    }
-                    73 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_8,
-                        )
-                    }
-                    74 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_mapping_parameter_3_number_of_mapped_objects,
-                        )
-                    }
-                    75 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_1,
-                        )
-                    }
-                    76 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_2,
-                        )
-                    }
-                    77 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_3,
-                        )
-                    }
-                    78 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_4,
-                        )
-                    }
-                    79 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_5,
-                        )
-                    }
-                    80 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_6,
-                        )
-                    }
-                    81 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_7,
-                        )
-                    }
-                    82 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_8,
-                        )
-                    }
-                    83 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_mapping_parameter_4_number_of_mapped_objects,
-                        )
-                    }
-                    84 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_1,
-                        )
-                    }
-                    85 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_2,
-                        )
-                    }
-                    86 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_3,
-                        )
-                    }
-                    87 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_4,
-                        )
-                    }
-                    88 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_5,
-                        )
-                    }
-                    89 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_6,
-                        )
-                    }
-                    90 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_7,
-                        )
-                    }
-                    91 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_8,
-                        )
-                    }
-                    92 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_mapping_parameter_5_number_of_mapped_objects,
-                        )
-                    }
-                    93 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_1,
-                        )
-                    }
-                    94 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_2,
-                        )
-                    }
-                    95 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_3,
-                        )
-                    }
-                    96 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_4,
-                        )
-                    }
-                    97 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_5,
-                        )
-                    }
-                    98 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_6,
-                        )
-                    }
-                    99 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_7,
-                        )
-                    }
-                    100 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_8,
-                        )
-                    }
-                    101 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_mapping_parameter_6_number_of_mapped_objects,
-                        )
-                    }
-                    102 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_1,
-                        )
-                    }
-                    103 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_2,
-                        )
-                    }
-                    104 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_3,
-                        )
-                    }
-                    105 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_4,
-                        )
-                    }
-                    106 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_5,
-                        )
-                    }
-                    107 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_6,
-                        )
-                    }
-                    108 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_7,
-                        )
-                    }
-                    109 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_8,
-                        )
-                    }
-                    110 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_mapping_parameter_7_number_of_mapped_objects,
-                        )
-                    }
-                    111 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_1,
-                        )
-                    }
-                    112 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_2,
-                        )
-                    }
-                    113 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_3,
-                        )
-                    }
-                    114 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_4,
-                        )
-                    }
-                    115 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_5,
-                        )
-                    }
-                    116 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_6,
-                        )
-                    }
-                    117 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_7,
-                        )
-                    }
-                    118 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_8,
-                        )
-                    }
-                    119 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .receive_pdo_mapping_parameter_8_number_of_mapped_objects,
-                        )
-                    }
-                    120 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_1,
-                        )
-                    }
-                    121 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_2,
-                        )
-                    }
-                    122 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_3,
-                        )
-                    }
-                    123 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_4,
-                        )
-                    }
-                    124 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_5,
-                        )
-                    }
-                    125 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_6,
-                        )
-                    }
-                    126 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_7,
-                        )
-                    }
-                    127 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_8,
-                        )
-                    }
-                    128 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_param_1_highest_sub_index_supported,
-                        )
-                    }
-                    129 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo,
-                        )
-                    }
-                    130 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    131 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_1_inhibit_time,
-                        )
-                    }
-                    132 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_1_compatibility_entry,
-                        )
-                    }
-                    133 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_1_event_timer,
-                        )
-                    }
-                    134 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_param_2_highest_sub_index_supported,
-                        )
-                    }
-                    135 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .transmit_pdo_communication_parameter_2_cob_id_used_by_tpdo,
-                        )
-                    }
-                    136 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_2_transmission_type,
-                        )
-                    }
-                    137 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_2_inhibit_time,
-                        )
-                    }
-                    138 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_2_compatibility_entry,
-                        )
-                    }
-                    139 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_2_event_timer,
-                        )
-                    }
-                    140 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_param_3_highest_sub_index_supported,
-                        )
-                    }
-                    141 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .transmit_pdo_communication_parameter_3_cob_id_used_by_tpdo,
-                        )
-                    }
-                    142 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_3_transmission_type,
-                        )
-                    }
-                    143 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_3_inhibit_time,
-                        )
-                    }
-                    144 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_3_compatibility_entry,
-                        )
-                    }
-                    145 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_3_event_timer,
-                        )
-                    }
-                    146 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_param_4_highest_sub_index_supported,
-                        )
-                    }
-                    147 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .transmit_pdo_communication_parameter_4_cob_id_used_by_tpdo,
-                        )
-                    }
-                    148 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_4_transmission_type,
-                        )
-                    }
-                    149 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_4_inhibit_time,
-                        )
-                    }
-                    150 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_4_compatibility_entry,
-                        )
-                    }
-                    151 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_4_event_timer,
-                        )
-                    }
-                    152 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_param_5_highest_sub_index_supported,
-                        )
-                    }
-                    153 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .transmit_pdo_communication_parameter_5_cob_id_used_by_tpdo,
-                        )
-                    }
-                    154 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_5_transmission_type,
-                        )
-                    }
-                    155 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_5_inhibit_time,
-                        )
-                    }
-                    156 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_5_compatibility_entry,
-                        )
-                    }
-                    157 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_5_event_timer,
-                        )
-                    }
-                    158 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_param_6_highest_sub_index_supported,
-                        )
-                    }
-                    159 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .transmit_pdo_communication_parameter_6_cob_id_used_by_tpdo,
-                        )
-                    }
-                    160 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_6_transmission_type,
-                        )
-                    }
-                    161 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_6_inhibit_time,
-                        )
-                    }
-                    162 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_6_compatibility_entry,
-                        )
-                    }
-                    163 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_6_event_timer,
-                        )
-                    }
-                    164 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_param_7_highest_sub_index_supported,
-                        )
-                    }
-                    165 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .transmit_pdo_communication_parameter_7_cob_id_used_by_tpdo,
-                        )
-                    }
-                    166 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_7_transmission_type,
-                        )
-                    }
-                    167 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_7_inhibit_time,
-                        )
-                    }
-                    168 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_7_compatibility_entry,
-                        )
-                    }
-                    169 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_7_event_timer,
-                        )
-                    }
-                    170 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_param_8_highest_sub_index_supported,
-                        )
-                    }
-                    171 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .transmit_pdo_communication_parameter_8_cob_id_used_by_tpdo,
-                        )
-                    }
-                    172 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_8_transmission_type,
-                        )
-                    }
-                    173 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_8_inhibit_time,
-                        )
-                    }
-                    174 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_communication_parameter_8_compatibility_entry,
-                        )
-                    }
-                    175 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.transmit_pdo_communication_parameter_8_event_timer,
-                        )
-                    }
-                    176 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    177 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_1,
-                        )
-                    }
-                    178 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_2,
-                        )
-                    }
-                    179 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_3,
-                        )
-                    }
-                    180 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_4,
-                        )
-                    }
-                    181 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_5,
-                        )
-                    }
-                    182 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_6,
-                        )
-                    }
-                    183 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_7,
-                        )
-                    }
-                    184 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_8,
-                        )
-                    }
-                    185 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    186 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_1,
-                        )
-                    }
-                    187 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_2,
-                        )
-                    }
-                    188 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_3,
-                        )
-                    }
-                    189 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_4,
-                        )
-                    }
-                    190 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_5,
-                        )
-                    }
-                    191 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_6,
-                        )
-                    }
-                    192 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_7,
-                        )
-                    }
-                    193 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_8,
-                        )
-                    }
-                    194 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_mapping_parameter_3_number_of_mapped_objects,
-                        )
-                    }
-                    195 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_1,
-                        )
-                    }
-                    196 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_2,
-                        )
-                    }
-                    197 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_3,
-                        )
-                    }
-                    198 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_4,
-                        )
-                    }
-                    199 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_5,
-                        )
-                    }
-                    200 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_6,
-                        )
-                    }
-                    201 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_7,
-                        )
-                    }
-                    202 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_8,
-                        )
-                    }
-                    203 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_mapping_parameter_4_number_of_mapped_objects,
-                        )
-                    }
-                    204 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_1,
-                        )
-                    }
-                    205 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_2,
-                        )
-                    }
-                    206 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_3,
-                        )
-                    }
-                    207 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_4,
-                        )
-                    }
-                    208 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_5,
-                        )
-                    }
-                    209 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_6,
-                        )
-                    }
-                    210 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_7,
-                        )
-                    }
-                    211 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_8,
-                        )
-                    }
-                    212 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_mapping_parameter_5_number_of_mapped_objects,
-                        )
-                    }
-                    213 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_1,
-                        )
-                    }
-                    214 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_2,
-                        )
-                    }
-                    215 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_3,
-                        )
-                    }
-                    216 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_4,
-                        )
-                    }
-                    217 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_5,
-                        )
-                    }
-                    218 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_6,
-                        )
-                    }
-                    219 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_7,
-                        )
-                    }
-                    220 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_8,
-                        )
-                    }
-                    221 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_mapping_parameter_6_number_of_mapped_objects,
-                        )
-                    }
-                    222 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_1,
-                        )
-                    }
-                    223 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_2,
-                        )
-                    }
-                    224 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_3,
-                        )
-                    }
-                    225 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_4,
-                        )
-                    }
-                    226 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_5,
-                        )
-                    }
-                    227 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_6,
-                        )
-                    }
-                    228 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_7,
-                        )
-                    }
-                    229 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_8,
-                        )
-                    }
-                    230 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_mapping_parameter_7_number_of_mapped_objects,
-                        )
-                    }
-                    231 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_1,
-                        )
-                    }
-                    232 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_2,
-                        )
-                    }
-                    233 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_3,
-                        )
-                    }
-                    234 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_4,
-                        )
-                    }
-                    235 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_5,
-                        )
-                    }
-                    236 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_6,
-                        )
-                    }
-                    237 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_7,
-                        )
-                    }
-                    238 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_8,
-                        )
-                    }
-                    239 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .transmit_pdo_mapping_parameter_8_number_of_mapped_objects,
-                        )
-                    }
-                    240 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_1,
-                        )
-                    }
-                    241 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_2,
-                        )
-                    }
-                    242 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_3,
-                        )
-                    }
-                    243 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_4,
-                        )
-                    }
-                    244 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_5,
-                        )
-                    }
-                    245 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_6,
-                        )
-                    }
-                    246 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_7,
-                        )
-                    }
-                    247 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_8,
-                        )
-                    }
-                    248 => ::od_runtime::__private_v1::Slot::U32(&self.nmt_startup),
-                    249 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.feed_converter_highest_sub_index_supported,
-                        )
-                    }
-                    250 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.feed_converter_numerator,
-                        )
-                    }
-                    251 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.feed_converter_denominator,
-                        )
-                    }
-                    252 => ::od_runtime::__private_v1::Slot::U32(&self.input_status),
-                    253 => ::od_runtime::__private_v1::Slot::U32(&self.output_status),
-                    254 => ::od_runtime::__private_v1::Slot::U8(&self.homing_ok),
-                    255 => ::od_runtime::__private_v1::Slot::U16(&self.warnings),
-                    256 => ::od_runtime::__private_v1::Slot::U8(&self.limits_enable),
-                    257 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.pid_parameters_highest_sub_index_supported,
-                        )
-                    }
-                    258 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.pid_parameters_pid_selection,
-                        )
-                    }
-                    259 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.pid_parameters_kp_position,
-                        )
-                    }
-                    260 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.pid_parameters_kp_speed,
-                        )
-                    }
-                    261 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.pid_parameters_ki_position,
-                        )
-                    }
-                    262 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.pid_parameters_ki_speed,
-                        )
-                    }
-                    263 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.profile_parameters_highest_sub_index_supported,
-                        )
-                    }
-                    264 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.profile_parameters_profile_check,
-                        )
-                    }
-                    265 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.profile_parameters_profile_check_timeout,
-                        )
-                    }
-                    266 => {
-                        ::od_runtime::__private_v1::Slot::U16(&self.homing_torque_limit)
-                    }
-                    267 => ::od_runtime::__private_v1::Slot::U8(&self.actuator_type),
-                    268 => {
-                        ::od_runtime::__private_v1::Slot::U8(&self.torque_limit_enable)
-                    }
-                    269 => ::od_runtime::__private_v1::Slot::U16(&self.error_code),
-                    270 => ::od_runtime::__private_v1::Slot::U16(&self.controlword),
-                    271 => ::od_runtime::__private_v1::Slot::U16(&self.statusword),
-                    272 => ::od_runtime::__private_v1::Slot::I8(&self.modes_of_operation),
-                    273 => {
-                        ::od_runtime::__private_v1::Slot::I8(
-                            &self.modes_of_operation_display,
-                        )
-                    }
-                    274 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.position_demand_value,
-                        )
-                    }
-                    275 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.position_actual_value,
-                        )
-                    }
-                    276 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.following_error_window,
-                        )
-                    }
-                    277 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.following_error_timeout,
-                        )
-                    }
-                    278 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.velocity_demand_value,
-                        )
-                    }
-                    279 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.velocity_actual_value,
-                        )
-                    }
-                    280 => {
-                        ::od_runtime::__private_v1::Slot::U16(&self.velocity_threshold)
-                    }
-                    281 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.velocity_threshold_time,
-                        )
-                    }
-                    282 => ::od_runtime::__private_v1::Slot::I16(&self.target_torque),
-                    283 => {
-                        ::od_runtime::__private_v1::Slot::I16(&self.torque_demand_value)
-                    }
-                    284 => {
-                        ::od_runtime::__private_v1::Slot::I16(&self.torque_actual_value)
-                    }
-                    285 => ::od_runtime::__private_v1::Slot::I32(&self.target_position),
-                    286 => ::od_runtime::__private_v1::Slot::I32(&self.home_offset),
-                    287 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.software_position_limit_highest_sub_index_supported,
-                        )
-                    }
-                    288 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.software_position_limit_min_software_position_limit,
-                        )
-                    }
-                    289 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.software_position_limit_max_software_position_limit,
-                        )
-                    }
-                    290 => ::od_runtime::__private_v1::Slot::U8(&self.polarity),
-                    291 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.max_profile_velocity)
-                    }
-                    292 => ::od_runtime::__private_v1::Slot::U32(&self.profile_velocity),
-                    293 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.profile_acceleration)
-                    }
-                    294 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.profile_deceleration)
-                    }
-                    295 => ::od_runtime::__private_v1::Slot::U32(&self.torque_slope),
-                    296 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.gear_ratio_highest_sub_index_supported,
-                        )
-                    }
-                    297 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.gear_ratio_motor_revolutions,
-                        )
-                    }
-                    298 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.gear_ratio_shaft_revolutions,
-                        )
-                    }
-                    299 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.feed_constant_highest_sub_index_supported,
-                        )
-                    }
-                    300 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.feed_constant_feed)
-                    }
-                    301 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.feed_constant_shaft_revolutions,
-                        )
-                    }
-                    302 => ::od_runtime::__private_v1::Slot::I8(&self.homing_method),
-                    303 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.homing_speeds_highest_sub_index_supported,
-                        )
-                    }
-                    304 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speeds_fast_homing_speed,
-                        )
-                    }
-                    305 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speeds_slow_homing_speed,
-                        )
-                    }
-                    306 => {
-                        ::od_runtime::__private_v1::Slot::U32(&self.homing_acceleration)
-                    }
-                    307 => ::od_runtime::__private_v1::Slot::I32(&self.target_velocity),
-                    _ => return None,
-                },
-            )
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v2::Slot<'_>> {
+            ::od_runtime::__private_v2::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
-        ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.device_type),
-                    1 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(&mut self.error_register)
-                    }
-                    2 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.manufacturer_status_register,
-                        )
-                    }
-                    3 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.pre_defined_error_field_number_of_errors,
-                        )
-                    }
-                    4 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_1,
-                        )
-                    }
-                    5 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_2,
-                        )
-                    }
-                    6 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_3,
-                        )
-                    }
-                    7 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_4,
-                        )
-                    }
-                    8 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_5,
-                        )
-                    }
-                    9 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_6,
-                        )
-                    }
-                    10 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_7,
-                        )
-                    }
-                    11 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_8,
-                        )
-                    }
-                    12 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.cob_id_sync),
-                    13 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.communication_cycle_period,
-                        )
-                    }
-                    14 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.synchronous_window_length,
-                        )
-                    }
-                    15 => self.manufacturer_device_name.slot_mut(),
-                    16 => self.manufacturer_hardware_version.slot_mut(),
-                    17 => self.manufacturer_software_version.slot_mut(),
-                    18 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.guard_time),
-                    19 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.life_time_factor,
-                        )
-                    }
-                    20 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.store_parameters_highest_sub_index_supported,
-                        )
-                    }
-                    21 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.store_parameters_save_all_parameters,
-                        )
-                    }
-                    22 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .restore_default_parameters_highest_sub_index_supported,
-                        )
-                    }
-                    23 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .restore_default_parameters_restore_all_default_parameters,
-                        )
-                    }
-                    24 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.cob_id_emcy),
-                    25 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.inhibit_time_emcy,
-                        )
-                    }
-                    26 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.producer_heartbeat_time,
-                        )
-                    }
-                    27 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.identity_object_number_of_entries,
-                        )
-                    }
-                    28 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_vendor_id,
-                        )
-                    }
-                    29 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_product_code,
-                        )
-                    }
-                    30 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_revision_number,
-                        )
-                    }
-                    31 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_serial_number,
-                        )
-                    }
-                    32 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_param_1_highest_sub_index_supported,
-                        )
-                    }
-                    33 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .receive_pdo_communication_parameter_1_cob_id_used_by_rpdo,
-                        )
-                    }
-                    34 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    35 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_param_2_highest_sub_index_supported,
-                        )
-                    }
-                    36 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .receive_pdo_communication_parameter_2_cob_id_used_by_rpdo,
-                        )
-                    }
-                    37 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_parameter_2_transmission_type,
-                        )
-                    }
-                    38 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_param_3_highest_sub_index_supported,
-                        )
-                    }
-                    39 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .receive_pdo_communication_parameter_3_cob_id_used_by_rpdo,
-                        )
-                    }
-                    40 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_parameter_3_transmission_type,
-                        )
-                    }
-                    41 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_param_4_highest_sub_index_supported,
-                        )
-                    }
-                    42 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .receive_pdo_communication_parameter_4_cob_id_used_by_rpdo,
-                        )
-                    }
-                    43 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_parameter_4_transmission_type,
-                        )
-                    }
-                    44 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_param_5_highest_sub_index_supported,
-                        )
-                    }
-                    45 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .receive_pdo_communication_parameter_5_cob_id_used_by_rpdo,
-                        )
-                    }
-                    46 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_parameter_5_transmission_type,
-                        )
-                    }
-                    47 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_param_6_highest_sub_index_supported,
-                        )
-                    }
-                    48 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .receive_pdo_communication_parameter_6_cob_id_used_by_rpdo,
-                        )
-                    }
-                    49 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_parameter_6_transmission_type,
-                        )
-                    }
-                    50 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_param_7_highest_sub_index_supported,
-                        )
-                    }
-                    51 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .receive_pdo_communication_parameter_7_cob_id_used_by_rpdo,
-                        )
-                    }
-                    52 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_parameter_7_transmission_type,
-                        )
-                    }
-                    53 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_param_8_highest_sub_index_supported,
-                        )
-                    }
-                    54 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .receive_pdo_communication_parameter_8_cob_id_used_by_rpdo,
-                        )
-                    }
-                    55 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_communication_parameter_8_transmission_type,
-                        )
-                    }
-                    56 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    57 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_1,
-                        )
-                    }
-                    58 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_2,
-                        )
-                    }
-                    59 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_3,
-                        )
-                    }
-                    60 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_4,
-                        )
-                    }
-                    61 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_5,
-                        )
-                    }
-                    62 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_6,
-                        )
-                    }
-                    63 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_7,
-                        )
-                    }
-                    64 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_8,
-                        )
-                    }
-                    65 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    66 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_1,
-                        )
-                    }
-                    67 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_2,
-                        )
-                    }
-                    68 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_3,
-                        )
-                    }
-                    69 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_4,
-                        )
-                    }
-                    70 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_5,
-                        )
-                    }
-                    71 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_6,
-                        )
-                    }
-                    72 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_7,
-                        )
-                    }
-                    73 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_8,
-                        )
-                    }
-                    74 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_mapping_parameter_3_number_of_mapped_objects,
-                        )
-                    }
-                    75 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_1,
-                        )
-                    }
-                    76 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_2,
-                        )
-                    }
-                    77 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_3,
-                        )
-                    }
-                    78 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_4,
-                        )
-                    }
-                    79 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_5,
-                        )
-                    }
-                    80 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_6,
-                        )
-                    }
-                    81 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_7,
-                        )
-                    }
-                    82 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_8,
-                        )
-                    }
-                    83 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_mapping_parameter_4_number_of_mapped_objects,
-                        )
-                    }
-                    84 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_1,
-                        )
-                    }
-                    85 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_2,
-                        )
-                    }
-                    86 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_3,
-                        )
-                    }
-                    87 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_4,
-                        )
-                    }
-                    88 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_5,
-                        )
-                    }
-                    89 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_6,
-                        )
-                    }
-                    90 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_7,
-                        )
-                    }
-                    91 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_8,
-                        )
-                    }
-                    92 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_mapping_parameter_5_number_of_mapped_objects,
-                        )
-                    }
-                    93 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_1,
-                        )
-                    }
-                    94 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_2,
-                        )
-                    }
-                    95 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_3,
-                        )
-                    }
-                    96 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_4,
-                        )
-                    }
-                    97 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_5,
-                        )
-                    }
-                    98 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_6,
-                        )
-                    }
-                    99 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_7,
-                        )
-                    }
-                    100 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_8,
-                        )
-                    }
-                    101 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_mapping_parameter_6_number_of_mapped_objects,
-                        )
-                    }
-                    102 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_1,
-                        )
-                    }
-                    103 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_2,
-                        )
-                    }
-                    104 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_3,
-                        )
-                    }
-                    105 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_4,
-                        )
-                    }
-                    106 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_5,
-                        )
-                    }
-                    107 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_6,
-                        )
-                    }
-                    108 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_7,
-                        )
-                    }
-                    109 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_8,
-                        )
-                    }
-                    110 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_mapping_parameter_7_number_of_mapped_objects,
-                        )
-                    }
-                    111 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_1,
-                        )
-                    }
-                    112 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_2,
-                        )
-                    }
-                    113 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_3,
-                        )
-                    }
-                    114 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_4,
-                        )
-                    }
-                    115 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_5,
-                        )
-                    }
-                    116 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_6,
-                        )
-                    }
-                    117 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_7,
-                        )
-                    }
-                    118 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_8,
-                        )
-                    }
-                    119 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .receive_pdo_mapping_parameter_8_number_of_mapped_objects,
-                        )
-                    }
-                    120 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_1,
-                        )
-                    }
-                    121 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_2,
-                        )
-                    }
-                    122 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_3,
-                        )
-                    }
-                    123 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_4,
-                        )
-                    }
-                    124 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_5,
-                        )
-                    }
-                    125 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_6,
-                        )
-                    }
-                    126 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_7,
-                        )
-                    }
-                    127 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_8,
-                        )
-                    }
-                    128 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_param_1_highest_sub_index_supported,
-                        )
-                    }
-                    129 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo,
-                        )
-                    }
-                    130 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    131 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_1_inhibit_time,
-                        )
-                    }
-                    132 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_1_compatibility_entry,
-                        )
-                    }
-                    133 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_1_event_timer,
-                        )
-                    }
-                    134 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_param_2_highest_sub_index_supported,
-                        )
-                    }
-                    135 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .transmit_pdo_communication_parameter_2_cob_id_used_by_tpdo,
-                        )
-                    }
-                    136 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_2_transmission_type,
-                        )
-                    }
-                    137 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_2_inhibit_time,
-                        )
-                    }
-                    138 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_2_compatibility_entry,
-                        )
-                    }
-                    139 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_2_event_timer,
-                        )
-                    }
-                    140 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_param_3_highest_sub_index_supported,
-                        )
-                    }
-                    141 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .transmit_pdo_communication_parameter_3_cob_id_used_by_tpdo,
-                        )
-                    }
-                    142 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_3_transmission_type,
-                        )
-                    }
-                    143 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_3_inhibit_time,
-                        )
-                    }
-                    144 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_3_compatibility_entry,
-                        )
-                    }
-                    145 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_3_event_timer,
-                        )
-                    }
-                    146 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_param_4_highest_sub_index_supported,
-                        )
-                    }
-                    147 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .transmit_pdo_communication_parameter_4_cob_id_used_by_tpdo,
-                        )
-                    }
-                    148 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_4_transmission_type,
-                        )
-                    }
-                    149 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_4_inhibit_time,
-                        )
-                    }
-                    150 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_4_compatibility_entry,
-                        )
-                    }
-                    151 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_4_event_timer,
-                        )
-                    }
-                    152 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_param_5_highest_sub_index_supported,
-                        )
-                    }
-                    153 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .transmit_pdo_communication_parameter_5_cob_id_used_by_tpdo,
-                        )
-                    }
-                    154 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_5_transmission_type,
-                        )
-                    }
-                    155 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_5_inhibit_time,
-                        )
-                    }
-                    156 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_5_compatibility_entry,
-                        )
-                    }
-                    157 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_5_event_timer,
-                        )
-                    }
-                    158 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_param_6_highest_sub_index_supported,
-                        )
-                    }
-                    159 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .transmit_pdo_communication_parameter_6_cob_id_used_by_tpdo,
-                        )
-                    }
-                    160 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_6_transmission_type,
-                        )
-                    }
-                    161 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_6_inhibit_time,
-                        )
-                    }
-                    162 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_6_compatibility_entry,
-                        )
-                    }
-                    163 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_6_event_timer,
-                        )
-                    }
-                    164 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_param_7_highest_sub_index_supported,
-                        )
-                    }
-                    165 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .transmit_pdo_communication_parameter_7_cob_id_used_by_tpdo,
-                        )
-                    }
-                    166 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_7_transmission_type,
-                        )
-                    }
-                    167 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_7_inhibit_time,
-                        )
-                    }
-                    168 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_7_compatibility_entry,
-                        )
-                    }
-                    169 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_7_event_timer,
-                        )
-                    }
-                    170 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_param_8_highest_sub_index_supported,
-                        )
-                    }
-                    171 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .transmit_pdo_communication_parameter_8_cob_id_used_by_tpdo,
-                        )
-                    }
-                    172 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_8_transmission_type,
-                        )
-                    }
-                    173 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_8_inhibit_time,
-                        )
-                    }
-                    174 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_communication_parameter_8_compatibility_entry,
-                        )
-                    }
-                    175 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.transmit_pdo_communication_parameter_8_event_timer,
-                        )
-                    }
-                    176 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    177 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_1,
-                        )
-                    }
-                    178 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_2,
-                        )
-                    }
-                    179 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_3,
-                        )
-                    }
-                    180 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_4,
-                        )
-                    }
-                    181 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_5,
-                        )
-                    }
-                    182 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_6,
-                        )
-                    }
-                    183 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_7,
-                        )
-                    }
-                    184 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_8,
-                        )
-                    }
-                    185 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    186 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_1,
-                        )
-                    }
-                    187 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_2,
-                        )
-                    }
-                    188 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_3,
-                        )
-                    }
-                    189 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_4,
-                        )
-                    }
-                    190 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_5,
-                        )
-                    }
-                    191 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_6,
-                        )
-                    }
-                    192 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_7,
-                        )
-                    }
-                    193 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_8,
-                        )
-                    }
-                    194 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_mapping_parameter_3_number_of_mapped_objects,
-                        )
-                    }
-                    195 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_1,
-                        )
-                    }
-                    196 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_2,
-                        )
-                    }
-                    197 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_3,
-                        )
-                    }
-                    198 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_4,
-                        )
-                    }
-                    199 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_5,
-                        )
-                    }
-                    200 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_6,
-                        )
-                    }
-                    201 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_7,
-                        )
-                    }
-                    202 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_8,
-                        )
-                    }
-                    203 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_mapping_parameter_4_number_of_mapped_objects,
-                        )
-                    }
-                    204 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_1,
-                        )
-                    }
-                    205 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_2,
-                        )
-                    }
-                    206 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_3,
-                        )
-                    }
-                    207 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_4,
-                        )
-                    }
-                    208 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_5,
-                        )
-                    }
-                    209 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_6,
-                        )
-                    }
-                    210 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_7,
-                        )
-                    }
-                    211 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_8,
-                        )
-                    }
-                    212 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_mapping_parameter_5_number_of_mapped_objects,
-                        )
-                    }
-                    213 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_1,
-                        )
-                    }
-                    214 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_2,
-                        )
-                    }
-                    215 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_3,
-                        )
-                    }
-                    216 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_4,
-                        )
-                    }
-                    217 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_5,
-                        )
-                    }
-                    218 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_6,
-                        )
-                    }
-                    219 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_7,
-                        )
-                    }
-                    220 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_8,
-                        )
-                    }
-                    221 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_mapping_parameter_6_number_of_mapped_objects,
-                        )
-                    }
-                    222 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_1,
-                        )
-                    }
-                    223 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_2,
-                        )
-                    }
-                    224 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_3,
-                        )
-                    }
-                    225 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_4,
-                        )
-                    }
-                    226 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_5,
-                        )
-                    }
-                    227 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_6,
-                        )
-                    }
-                    228 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_7,
-                        )
-                    }
-                    229 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_8,
-                        )
-                    }
-                    230 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_mapping_parameter_7_number_of_mapped_objects,
-                        )
-                    }
-                    231 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_1,
-                        )
-                    }
-                    232 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_2,
-                        )
-                    }
-                    233 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_3,
-                        )
-                    }
-                    234 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_4,
-                        )
-                    }
-                    235 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_5,
-                        )
-                    }
-                    236 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_6,
-                        )
-                    }
-                    237 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_7,
-                        )
-                    }
-                    238 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_8,
-                        )
-                    }
-                    239 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .transmit_pdo_mapping_parameter_8_number_of_mapped_objects,
-                        )
-                    }
-                    240 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_1,
-                        )
-                    }
-                    241 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_2,
-                        )
-                    }
-                    242 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_3,
-                        )
-                    }
-                    243 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_4,
-                        )
-                    }
-                    244 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_5,
-                        )
-                    }
-                    245 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_6,
-                        )
-                    }
-                    246 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_7,
-                        )
-                    }
-                    247 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_8,
-                        )
-                    }
-                    248 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.nmt_startup)
-                    }
-                    249 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.feed_converter_highest_sub_index_supported,
-                        )
-                    }
-                    250 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.feed_converter_numerator,
-                        )
-                    }
-                    251 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.feed_converter_denominator,
-                        )
-                    }
-                    252 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.input_status)
-                    }
-                    253 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.output_status)
-                    }
-                    254 => ::od_runtime::__private_v1::SlotMut::U8(&mut self.homing_ok),
-                    255 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.warnings),
-                    256 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(&mut self.limits_enable)
-                    }
-                    257 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.pid_parameters_highest_sub_index_supported,
-                        )
-                    }
-                    258 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.pid_parameters_pid_selection,
-                        )
-                    }
-                    259 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.pid_parameters_kp_position,
-                        )
-                    }
-                    260 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.pid_parameters_kp_speed,
-                        )
-                    }
-                    261 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.pid_parameters_ki_position,
-                        )
-                    }
-                    262 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.pid_parameters_ki_speed,
-                        )
-                    }
-                    263 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.profile_parameters_highest_sub_index_supported,
-                        )
-                    }
-                    264 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.profile_parameters_profile_check,
-                        )
-                    }
-                    265 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.profile_parameters_profile_check_timeout,
-                        )
-                    }
-                    266 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.homing_torque_limit,
-                        )
-                    }
-                    267 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(&mut self.actuator_type)
-                    }
-                    268 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.torque_limit_enable,
-                        )
-                    }
-                    269 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.error_code),
-                    270 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(&mut self.controlword)
-                    }
-                    271 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.statusword),
-                    272 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(
-                            &mut self.modes_of_operation,
-                        )
-                    }
-                    273 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(
-                            &mut self.modes_of_operation_display,
-                        )
-                    }
-                    274 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.position_demand_value,
-                        )
-                    }
-                    275 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.position_actual_value,
-                        )
-                    }
-                    276 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.following_error_window,
-                        )
-                    }
-                    277 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.following_error_timeout,
-                        )
-                    }
-                    278 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.velocity_demand_value,
-                        )
-                    }
-                    279 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.velocity_actual_value,
-                        )
-                    }
-                    280 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.velocity_threshold,
-                        )
-                    }
-                    281 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.velocity_threshold_time,
-                        )
-                    }
-                    282 => {
-                        ::od_runtime::__private_v1::SlotMut::I16(&mut self.target_torque)
-                    }
-                    283 => {
-                        ::od_runtime::__private_v1::SlotMut::I16(
-                            &mut self.torque_demand_value,
-                        )
-                    }
-                    284 => {
-                        ::od_runtime::__private_v1::SlotMut::I16(
-                            &mut self.torque_actual_value,
-                        )
-                    }
-                    285 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.target_position,
-                        )
-                    }
-                    286 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(&mut self.home_offset)
-                    }
-                    287 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.software_position_limit_highest_sub_index_supported,
-                        )
-                    }
-                    288 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.software_position_limit_min_software_position_limit,
-                        )
-                    }
-                    289 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.software_position_limit_max_software_position_limit,
-                        )
-                    }
-                    290 => ::od_runtime::__private_v1::SlotMut::U8(&mut self.polarity),
-                    291 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.max_profile_velocity,
-                        )
-                    }
-                    292 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.profile_velocity,
-                        )
-                    }
-                    293 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.profile_acceleration,
-                        )
-                    }
-                    294 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.profile_deceleration,
-                        )
-                    }
-                    295 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(&mut self.torque_slope)
-                    }
-                    296 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.gear_ratio_highest_sub_index_supported,
-                        )
-                    }
-                    297 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.gear_ratio_motor_revolutions,
-                        )
-                    }
-                    298 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.gear_ratio_shaft_revolutions,
-                        )
-                    }
-                    299 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.feed_constant_highest_sub_index_supported,
-                        )
-                    }
-                    300 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.feed_constant_feed,
-                        )
-                    }
-                    301 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.feed_constant_shaft_revolutions,
-                        )
-                    }
-                    302 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(&mut self.homing_method)
-                    }
-                    303 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.homing_speeds_highest_sub_index_supported,
-                        )
-                    }
-                    304 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speeds_fast_homing_speed,
-                        )
-                    }
-                    305 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speeds_slow_homing_speed,
-                        )
-                    }
-                    306 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_acceleration,
-                        )
-                    }
-                    307 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.target_velocity,
-                        )
-                    }
-                    _ => return None,
-                },
-            )
+        ) -> Option<::od_runtime::__private_v2::SlotMut<'_>> {
+            ::od_runtime::__private_v2::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -10543,8 +9781,8 @@ PDOMapping=0
         fn read_at(&self, pos: usize) -> [u8; 8] {
             match self.slot(pos) {
                 Some(slot) => {
-                    ::od_runtime::__private_v1::first8(
-                        || ENTRIES.get(pos).map_or(0, |e| e.bits),
+                    ::od_runtime::__private_v2::first8(
+                        || ENTRIES.get(pos).map_or(0, |e| e.bits()),
                         slot,
                     )
                 }
@@ -10562,7 +9800,7 @@ PDOMapping=0
             let (real_low, real_high) = (None, None);
             match (ENTRIES.get(pos), self.slot_mut(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::write(
+                    ::od_runtime::__private_v2::write(
                         info,
                         slot,
                         data,
@@ -10581,7 +9819,7 @@ PDOMapping=0
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v2::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -10591,7 +9829,7 @@ PDOMapping=0
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v2::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -10601,7 +9839,7 @@ PDOMapping=0
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
@@ -10612,7 +9850,7 @@ PDOMapping=0
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
@@ -15764,9 +15002,19 @@ PDOMapping=0
             Ok(())
         }
     }
+    unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
+        #[inline(always)]
+        fn entries() -> &'static [::od_runtime::od::EntryInfo] {
+            &ENTRIES
+        }
+    }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
         fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
+        }
+        #[cfg(feature = "names")]
+        fn name(&self, index: u16, sub: u8) -> Option<&'static str> {
+            Self::position(index, sub).ok().and_then(|pos| NAMES.get(pos).copied())
         }
         #[inline]
         fn info(
@@ -15786,7 +15034,7 @@ PDOMapping=0
             let pos = Self::position(index, sub)?;
             match (ENTRIES.get(pos), self.slot(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::read(info, slot, buf)
+                    ::od_runtime::__private_v2::read(info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -15803,7 +15051,7 @@ PDOMapping=0
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, info) in ENTRIES.iter().enumerate() {
                 if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v1::set_default(info, slot, node_id);
+                    ::od_runtime::__private_v2::set_default(info, slot, node_id);
                 }
             }
         }
@@ -15819,10 +15067,10 @@ PDOMapping=0
         }
         #[inline]
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-            ::od_runtime::__private_v1::pack_mapped(
+            ::od_runtime::__private_v2::pack_mapped(
                 map,
                 |h| match self.slot(h.get() as usize) {
-                    Some(slot) => ::od_runtime::__private_v1::first8(|| 64, slot),
+                    Some(slot) => ::od_runtime::__private_v2::first8(|| 64, slot),
                     None => [0; 8],
                 },
             )
@@ -15836,11 +15084,29 @@ PDOMapping=0
             self.write_at(h.get() as usize, data)
         }
     }
+    /// The SDO server's buffer: the largest entry, in bytes (at least 8).
+    pub const SDO_BUFFER: usize = 32;
+    /// PDOs per direction the device has (`NrOfRXPDO`/`NrOfTXPDO`, or its PDO objects).
+    pub const PDOS: usize = 8;
+    /// Entries a PDO can map: the mapping objects' sub-objects, at most 64 bits at the
+    /// EDS's `Granularity`.
+    pub const MAPPED_PER_PDO: usize = 8;
+    /// The device runtime around this dictionary, sized for it: [`SDO_BUFFER`], [`PDOS`],
+    /// [`MAPPED_PER_PDO`]. Build it with `Device::with_capacity` (a `const fn`, so it can
+    /// initialise a `static`).
+    pub type Device<A, S = ::od_runtime::NoStorage> = ::od_runtime::Device<
+        Dictionary,
+        A,
+        S,
+        SDO_BUFFER,
+        PDOS,
+        MAPPED_PER_PDO,
+    >;
     /// Typed layouts of the device's default PDO mappings.
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
         #[doc(inline)]
-        pub use ::od_runtime::__private_v1::PdoLengthError as LengthError;
+        pub use ::od_runtime::__private_v2::PdoLengthError as LengthError;
         /// RPDO 1 (received by the device), default mapping of `0x1600`: 16 bits in 2 bytes.
         ///
         /// | bits | object | field |
@@ -15869,7 +15135,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                 })
@@ -15918,7 +15184,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                 })
@@ -15944,7 +15210,7 @@ PDOMapping=0
     /// module docs for the arithmetic).
     pub mod units {
         #[doc(inline)]
-        pub use ::od_runtime::__private_v1::Ratio;
+        pub use ::od_runtime::__private_v2::Ratio;
         /// A physical unit.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         pub enum Unit {
@@ -16096,7 +15362,7 @@ PDOMapping=0
             system: System,
             /// Physical value per raw unit (prepared for fast exact conversions both ways),
             /// and the physical unit, per dimension.
-            factor: [Option<(::od_runtime::__private_v1::Scale, Unit)>; 6],
+            factor: [Option<(::od_runtime::__private_v2::Scale, Unit)>; 6],
             /// Internal value (increments or motor revolutions) per raw unit, per dimension.
             internal: [Option<Ratio>; 6],
         }
@@ -16125,7 +15391,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Degree,
                             ));
                         }
@@ -16139,7 +15405,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Rpm,
                             ));
                         }
@@ -16153,28 +15419,28 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::RpmPerSecond,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MilliAmpere,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[4] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MilliAmperePerSecond,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[5] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -16190,7 +15456,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millimeter,
                             ));
                         }
@@ -16204,7 +15470,7 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MillimeterPerSecond,
                             ));
                         }
@@ -16218,28 +15484,28 @@ PDOMapping=0
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MillimeterPerSecond2,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MilliAmpere,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[4] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MilliAmperePerSecond,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[5] = Some((
-                                ::od_runtime::__private_v1::Scale::new(f),
+                                ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -16286,7 +15552,7 @@ PDOMapping=0
                 &self,
                 d: Dimension,
                 q: &Quantity,
-            ) -> Result<&::od_runtime::__private_v1::Scale, UnitError> {
+            ) -> Result<&::od_runtime::__private_v2::Scale, UnitError> {
                 match self.factor.get(d.slot()) {
                     Some(Some((f, unit))) if *unit == q.unit => Ok(f),
                     Some(Some((_, unit))) => {

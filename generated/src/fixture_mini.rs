@@ -566,32 +566,38 @@ PDOMapping=0
         /// `0x6099` Homing speeds.
         pub const HOMING_SPEEDS: u16 = 0x6099;
     }
-    /// The index of every object, sorted (the lookup's page table is computed from it).
     static OBJECTS: [u16; 25] = [
         0x1000, 0x1001, 0x1008, 0x1017, 0x1018, 0x1400, 0x1600, 0x1800, 0x1A00, 0x1A01,
         0x2001, 0x2002, 0x2003, 0x2004, 0x2005, 0x2006, 0x2007, 0x6040, 0x6041, 0x6060,
         0x6061, 0x6064, 0x606C, 0x607A, 0x6099,
     ];
-    /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
-    /// the index to its object, then the sub-index in the object's run of entries (`runs`:
-    /// `0xFFFFFFLL`, the object's first entry `FFFFFF` and its last position in the run `LL`;
-    /// `subs`: every entry's sub-index).
-    static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
-        pages: ::od_runtime::__private_v1::pages(&OBJECTS),
-        slots: &::od_runtime::__private_v1::slots::<2048>(&OBJECTS),
-        runs: &[
-            0x00000000, 0x00000100, 0x00000200, 0x00000300, 0x00000404, 0x00000902,
-            0x00000C03, 0x00001002, 0x00001304, 0x00001802, 0x00001B00, 0x00001C00,
-            0x00001D00, 0x00001E00, 0x00001F00, 0x00002003, 0x00002400, 0x00002500,
-            0x00002600, 0x00002700, 0x00002800, 0x00002900, 0x00002A00, 0x00002B00,
-            0x00002C02,
+    static LOOKUP: ::od_runtime::__private_v2::Lookup = ::od_runtime::__private_v2::Lookup {
+        pages: ::od_runtime::__private_v2::pages(&OBJECTS),
+        bits: &::od_runtime::__private_v2::bits::<7>(&OBJECTS),
+        ranks: &[
+            [0, 9, 9, 9],
+            [9, 12, 12, 12],
+            [12, 16, 16, 16],
+            [16, 19, 19, 19],
+            [19, 27, 27, 27],
+            [27, 37, 37, 37],
+            [37, 37, 44, 47],
         ],
-        subs: &[
-            0, 0, 0, 0, 0, 1, 2, 3, 4, 0, 1, 2, 0, 1, 2, 3, 0, 1, 2, 0, 1, 2, 3, 4, 0, 1,
-            2, 0, 0, 0, 0, 0, 0, 1, 2, 3, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2,
+        objects: &[
+            [0, 5, 5, 5],
+            [5, 6, 6, 6],
+            [6, 7, 7, 7],
+            [7, 8, 8, 8],
+            [8, 10, 10, 10],
+            [10, 17, 17, 17],
+            [17, 17, 24, 25],
         ],
+        extra: &[
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 4, 0, 0, 0, 0, 0, 0, 3, 0, 0, 0, 0, 0, 0, 0, 0,
+        ],
+        entries: &ENTRIES,
     };
-    /// Metadata of every entry, sorted by `(index, sub)`.
+    /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
     pub static ENTRIES: [::od_runtime::od::EntryInfo; 47] = [
         ::od_runtime::od::EntryInfo {
             index: 0x1000,
@@ -599,11 +605,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x20192),
-            name: "Device type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, device_type),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[0]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1001,
@@ -611,11 +620,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Error register",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, error_register),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1008,
@@ -623,11 +635,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"Mini drive"),
-            name: "Manufacturer device name",
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, manufacturer_device_name),
+                ::od_runtime::od::DataType::VisibleString,
+                256,
+            ),
+            extras: Some(&EXTRAS[1]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1017,
@@ -635,11 +650,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Producer heartbeat time",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, producer_heartbeat_time),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -647,11 +665,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(4),
-            name: "Identity object: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, identity_object_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[2]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -659,11 +682,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x1234),
-            name: "Identity object: Vendor-ID",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_vendor_id),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[3]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -671,11 +697,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x1),
-            name: "Identity object: Product code",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_product_code),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[4]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -683,11 +712,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x1),
-            name: "Identity object: Revision number",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_revision_number),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[4]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1018,
@@ -695,11 +727,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Identity object: Serial number",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, identity_object_serial_number),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -707,11 +742,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "RPDO communication parameter 1: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    rpdo_communication_parameter_1_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -719,11 +760,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
-            name: "RPDO communication parameter 1: COB-ID used by RPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rpdo_communication_parameter_1_cob_id_used_by_rpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[6]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1400,
@@ -731,11 +777,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(255),
-            name: "RPDO communication parameter 1: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rpdo_communication_parameter_1_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[7]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -743,11 +794,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(3),
-            name: "RPDO mapping parameter 1: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rpdo_mapping_parameter_1_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -755,11 +811,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
-            name: "RPDO mapping parameter 1: Mapped object 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rpdo_mapping_parameter_1_mapped_object_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[9]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -767,11 +828,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x50008),
-            name: "RPDO mapping parameter 1: Mapped object 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rpdo_mapping_parameter_1_mapped_object_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[10]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1600,
@@ -779,11 +845,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60600008),
-            name: "RPDO mapping parameter 1: Mapped object 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, rpdo_mapping_parameter_1_mapped_object_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[11]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -791,11 +862,17 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "TPDO communication parameter 1: Highest sub-index supported",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary,
+                    tpdo_communication_parameter_1_highest_sub_index_supported
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -803,11 +880,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
-            name: "TPDO communication parameter 1: COB-ID used by TPDO",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_communication_parameter_1_cob_id_used_by_tpdo
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[12]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1800,
@@ -815,11 +897,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(255),
-            name: "TPDO communication parameter 1: Transmission type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_communication_parameter_1_transmission_type
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[7]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -827,11 +914,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(4),
-            name: "TPDO mapping parameter 1: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_1_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[2]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -839,11 +931,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
-            name: "TPDO mapping parameter 1: Mapped object 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_1_mapped_object_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[13]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -851,11 +948,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60610008),
-            name: "TPDO mapping parameter 1: Mapped object 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_1_mapped_object_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[14]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -863,11 +965,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x20010018),
-            name: "TPDO mapping parameter 1: Mapped object 3",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_1_mapped_object_3
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[15]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A00,
@@ -875,11 +982,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x20020001),
-            name: "TPDO mapping parameter 1: Mapped object 4",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_1_mapped_object_4
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[16]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -887,11 +999,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "TPDO mapping parameter 2: Number of mapped objects",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_2_number_of_mapped_objects
+                ),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -899,11 +1016,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x60640020),
-            name: "TPDO mapping parameter 2: Mapped object 1",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_2_mapped_object_1
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[17]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x1A01,
@@ -911,11 +1033,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x606C0020),
-            name: "TPDO mapping parameter 2: Mapped object 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, tpdo_mapping_parameter_2_mapped_object_2
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[18]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2001,
@@ -923,11 +1050,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer24,
             access: ::od_runtime::od::Access::Rwr,
             pdo_mappable: true,
-            bits: 24,
-            low: Some(-1000),
-            high: Some(1000),
-            default: ::od_runtime::od::DefaultValue::Int(-5),
-            name: "Signed 24",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, signed_24),
+                ::od_runtime::od::DataType::Integer24,
+                0,
+            ),
+            extras: Some(&EXTRAS[19]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2002,
@@ -935,11 +1065,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Boolean,
             access: ::od_runtime::od::Access::Rwr,
             pdo_mappable: true,
-            bits: 1,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Flag",
+            slot: ::od_runtime::__private_v2::offset::<
+                bool,
+            >(
+                ::core::mem::offset_of!(Dictionary, flag),
+                ::od_runtime::od::DataType::Boolean,
+                0,
+            ),
+            extras: Some(&EXTRAS[4]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2003,
@@ -947,11 +1080,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Real32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Real(1.5),
-            name: "Gain",
+            slot: ::od_runtime::__private_v2::offset::<
+                f32,
+            >(
+                ::core::mem::offset_of!(Dictionary, gain),
+                ::od_runtime::od::DataType::Real32,
+                0,
+            ),
+            extras: Some(&EXTRAS[20]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2004,
@@ -959,11 +1095,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::OctetString,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 256,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Bytes(b"\x01\x02"),
-            name: "Blob",
+            slot: ::od_runtime::__private_v2::offset::<
+                ::od_runtime::__private_v2::Bytes<32>,
+            >(
+                ::core::mem::offset_of!(Dictionary, blob),
+                ::od_runtime::od::DataType::OctetString,
+                256,
+            ),
+            extras: Some(&EXTRAS[21]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2005,
@@ -971,11 +1110,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned40,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 40,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0x123456789),
-            name: "Counter",
+            slot: ::od_runtime::__private_v2::offset::<
+                u64,
+            >(
+                ::core::mem::offset_of!(Dictionary, counter),
+                ::od_runtime::od::DataType::Unsigned40,
+                0,
+            ),
+            extras: Some(&EXTRAS[22]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2006,
@@ -983,11 +1125,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(3),
-            name: "Gains: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, gains_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2006,
@@ -995,11 +1140,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Gains: Type",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, gains_type),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: Some(&EXTRAS[4]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2006,
@@ -1007,11 +1155,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: Some(500),
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Gains: Gain 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, gains_gain_2_2),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: Some(&EXTRAS[23]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2006,
@@ -1019,11 +1170,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(3),
-            name: "Gains: Gain 2",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, gains_gain_2_3),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: Some(&EXTRAS[8]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x2007,
@@ -1031,11 +1185,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x10),
-            name: "Position window",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_window),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[24]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6040,
@@ -1043,11 +1200,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rww,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Controlword",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, controlword),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6041,
@@ -1055,11 +1215,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 16,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Statusword",
+            slot: ::od_runtime::__private_v2::offset::<
+                u16,
+            >(
+                ::core::mem::offset_of!(Dictionary, statusword),
+                ::od_runtime::od::DataType::Unsigned16,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6060,
@@ -1067,11 +1230,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rww,
             pdo_mappable: true,
-            bits: 8,
-            low: Some(-3),
-            high: Some(10),
-            default: ::od_runtime::od::DefaultValue::Int(1),
-            name: "Modes of operation",
+            slot: ::od_runtime::__private_v2::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, modes_of_operation),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: Some(&EXTRAS[25]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6061,
@@ -1079,11 +1245,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Modes of operation display",
+            slot: ::od_runtime::__private_v2::offset::<
+                i8,
+            >(
+                ::core::mem::offset_of!(Dictionary, modes_of_operation_display),
+                ::od_runtime::od::DataType::Integer8,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6064,
@@ -1091,11 +1260,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Position actual value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, position_actual_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x606C,
@@ -1103,11 +1275,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Velocity actual value",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, velocity_actual_value),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: None,
         },
         ::od_runtime::od::EntryInfo {
             index: 0x607A,
@@ -1115,11 +1290,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rww,
             pdo_mappable: true,
-            bits: 32,
-            low: Some(-1000000),
-            high: Some(1000000),
-            default: ::od_runtime::od::DefaultValue::Int(0),
-            name: "Target position",
+            slot: ::od_runtime::__private_v2::offset::<
+                i32,
+            >(
+                ::core::mem::offset_of!(Dictionary, target_position),
+                ::od_runtime::od::DataType::Integer32,
+                0,
+            ),
+            extras: Some(&EXTRAS[26]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -1127,11 +1305,14 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(2),
-            name: "Homing speeds: Number of entries",
+            slot: ::od_runtime::__private_v2::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, homing_speeds_number_of_entries),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[5]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -1139,11 +1320,16 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(1000),
-            name: "Homing speeds: Speed during search for switch",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, homing_speeds_speed_during_search_for_switch
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[27]),
         },
         ::od_runtime::od::EntryInfo {
             index: 0x6099,
@@ -1151,12 +1337,237 @@ PDOMapping=0
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: true,
-            bits: 32,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(100),
-            name: "Homing speeds: Speed during search for zero",
+            slot: ::od_runtime::__private_v2::offset::<
+                u32,
+            >(
+                ::core::mem::offset_of!(
+                    Dictionary, homing_speeds_speed_during_search_for_zero
+                ),
+                ::od_runtime::od::DataType::Unsigned32,
+                0,
+            ),
+            extras: Some(&EXTRAS[28]),
         },
+    ];
+    /// Capacities, defaults other than zero and limits, each distinct one once
+    /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
+    pub static EXTRAS: [::od_runtime::od::EntryExtras; 29] = [
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x20192),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"Mini drive"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(4),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x1234),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x1),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(2),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(255),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(3),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x50008),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60600008),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60610008),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x20010018),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x20020001),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x60640020),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x606C0020),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(-5),
+            limits: Some(&LIMITS[0]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Real32(1.5),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 256,
+            default: ::od_runtime::od::DefaultValue::Bytes(b"\x01\x02"),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(0x123456789),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(2),
+            limits: Some(&LIMITS[1]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x10),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1),
+            limits: Some(&LIMITS[2]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::None,
+            limits: Some(&LIMITS[3]),
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(1000),
+            limits: None,
+        },
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(100),
+            limits: None,
+        },
+    ];
+    /// The limits of the entries that have any, each distinct one once.
+    pub static LIMITS: [::od_runtime::od::Limits; 4] = [
+        ::od_runtime::od::Limits {
+            low: -1000,
+            high: 1000,
+        },
+        ::od_runtime::od::Limits {
+            low: 0,
+            high: 500,
+        },
+        ::od_runtime::od::Limits {
+            low: -3,
+            high: 10,
+        },
+        ::od_runtime::od::Limits {
+            low: -1000000,
+            high: 1000000,
+        },
+    ];
+    /// The name of every entry (`ParameterName`, `Object: Sub-object` for sub-entries), in
+    /// [`ENTRIES`] order.
+    #[cfg(feature = "names")]
+    pub static NAMES: [&str; 47] = [
+        "Device type",
+        "Error register",
+        "Manufacturer device name",
+        "Producer heartbeat time",
+        "Identity object: Highest sub-index supported",
+        "Identity object: Vendor-ID",
+        "Identity object: Product code",
+        "Identity object: Revision number",
+        "Identity object: Serial number",
+        "RPDO communication parameter 1: Highest sub-index supported",
+        "RPDO communication parameter 1: COB-ID used by RPDO",
+        "RPDO communication parameter 1: Transmission type",
+        "RPDO mapping parameter 1: Number of mapped objects",
+        "RPDO mapping parameter 1: Mapped object 1",
+        "RPDO mapping parameter 1: Mapped object 2",
+        "RPDO mapping parameter 1: Mapped object 3",
+        "TPDO communication parameter 1: Highest sub-index supported",
+        "TPDO communication parameter 1: COB-ID used by TPDO",
+        "TPDO communication parameter 1: Transmission type",
+        "TPDO mapping parameter 1: Number of mapped objects",
+        "TPDO mapping parameter 1: Mapped object 1",
+        "TPDO mapping parameter 1: Mapped object 2",
+        "TPDO mapping parameter 1: Mapped object 3",
+        "TPDO mapping parameter 1: Mapped object 4",
+        "TPDO mapping parameter 2: Number of mapped objects",
+        "TPDO mapping parameter 2: Mapped object 1",
+        "TPDO mapping parameter 2: Mapped object 2",
+        "Signed 24",
+        "Flag",
+        "Gain",
+        "Blob",
+        "Counter",
+        "Gains: Number of entries",
+        "Gains: Type",
+        "Gains: Gain 2",
+        "Gains: Gain 2",
+        "Position window",
+        "Controlword",
+        "Statusword",
+        "Modes of operation",
+        "Modes of operation display",
+        "Position actual value",
+        "Velocity actual value",
+        "Target position",
+        "Homing speeds: Number of entries",
+        "Homing speeds: Speed during search for switch",
+        "Homing speeds: Speed during search for zero",
     ];
     /// The object dictionary of the Mini drive (Fixture Works): the current value of every entry.
     ///
@@ -1165,7 +1576,7 @@ PDOMapping=0
     pub struct Dictionary {
         device_type: u32,
         error_register: u8,
-        manufacturer_device_name: ::od_runtime::__private_v1::Bytes<32>,
+        manufacturer_device_name: ::od_runtime::__private_v2::Bytes<32>,
         producer_heartbeat_time: u16,
         identity_object_highest_sub_index_supported: u8,
         identity_object_vendor_id: u32,
@@ -1193,7 +1604,7 @@ PDOMapping=0
         signed_24: i32,
         flag: bool,
         gain: f32,
-        blob: ::od_runtime::__private_v1::Bytes<32>,
+        blob: ::od_runtime::__private_v2::Bytes<32>,
         counter: u64,
         gains_number_of_entries: u8,
         gains_type: u16,
@@ -1217,7 +1628,7 @@ PDOMapping=0
             Dictionary {
                 device_type: 0x20192,
                 error_register: 0,
-                manufacturer_device_name: ::od_runtime::__private_v1::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"Mini drive",
                 ),
                 producer_heartbeat_time: 0,
@@ -1249,7 +1660,7 @@ PDOMapping=0
                 signed_24: -5,
                 flag: true,
                 gain: 1.5,
-                blob: ::od_runtime::__private_v1::Bytes::from_slice(b"\x01\x02"),
+                blob: ::od_runtime::__private_v2::Bytes::from_slice(b"\x01\x02"),
                 counter: 0x123456789,
                 gains_number_of_entries: 3,
                 gains_type: 1,
@@ -1268,6 +1679,62 @@ PDOMapping=0
                 homing_speeds_speed_during_search_for_zero: 100,
             }
         }
+        /// Every value zero, every buffer empty. A device's first poll (its reset node)
+        /// restores the defaults, so a firmware can start from this: its device then
+        /// needs no image of the defaults in flash besides the entry table's.
+        pub const fn zeroed() -> Self {
+            Dictionary {
+                device_type: 0,
+                error_register: 0,
+                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
+                    &[],
+                ),
+                producer_heartbeat_time: 0,
+                identity_object_highest_sub_index_supported: 0,
+                identity_object_vendor_id: 0,
+                identity_object_product_code: 0,
+                identity_object_revision_number: 0,
+                identity_object_serial_number: 0,
+                rpdo_communication_parameter_1_highest_sub_index_supported: 0,
+                rpdo_communication_parameter_1_cob_id_used_by_rpdo: 0,
+                rpdo_communication_parameter_1_transmission_type: 0,
+                rpdo_mapping_parameter_1_number_of_mapped_objects: 0,
+                rpdo_mapping_parameter_1_mapped_object_1: 0,
+                rpdo_mapping_parameter_1_mapped_object_2: 0,
+                rpdo_mapping_parameter_1_mapped_object_3: 0,
+                tpdo_communication_parameter_1_highest_sub_index_supported: 0,
+                tpdo_communication_parameter_1_cob_id_used_by_tpdo: 0,
+                tpdo_communication_parameter_1_transmission_type: 0,
+                tpdo_mapping_parameter_1_number_of_mapped_objects: 0,
+                tpdo_mapping_parameter_1_mapped_object_1: 0,
+                tpdo_mapping_parameter_1_mapped_object_2: 0,
+                tpdo_mapping_parameter_1_mapped_object_3: 0,
+                tpdo_mapping_parameter_1_mapped_object_4: 0,
+                tpdo_mapping_parameter_2_number_of_mapped_objects: 0,
+                tpdo_mapping_parameter_2_mapped_object_1: 0,
+                tpdo_mapping_parameter_2_mapped_object_2: 0,
+                signed_24: 0,
+                flag: false,
+                gain: 0.0,
+                blob: ::od_runtime::__private_v2::Bytes::from_slice(&[]),
+                counter: 0,
+                gains_number_of_entries: 0,
+                gains_type: 0,
+                gains_gain_2_2: 0,
+                gains_gain_2_3: 0,
+                position_window: 0,
+                controlword: 0,
+                statusword: 0,
+                modes_of_operation: 0,
+                modes_of_operation_display: 0,
+                position_actual_value: 0,
+                velocity_actual_value: 0,
+                target_position: 0,
+                homing_speeds_number_of_entries: 0,
+                homing_speeds_speed_during_search_for_switch: 0,
+                homing_speeds_speed_during_search_for_zero: 0,
+            }
+        }
         /// Position of `(index, sub)` in [`ENTRIES`]: `Err(NO_OBJECT)` if the index is absent,
         /// `Err(NO_SUB_INDEX)` if only the sub-index is.
         #[inline]
@@ -1275,398 +1742,19 @@ PDOMapping=0
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
+            ::od_runtime::__private_v2::position(&LOOKUP, index, sub)
         }
+        /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
-        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v1::Slot::U32(&self.device_type),
-                    1 => ::od_runtime::__private_v1::Slot::U8(&self.error_register),
-                    2 => {
-                        ::od_runtime::__private_v1::Slot::Bytes(
-                            self.manufacturer_device_name.as_slice(),
-                        )
-                    }
-                    3 => {
-                        ::od_runtime::__private_v1::Slot::U16(
-                            &self.producer_heartbeat_time,
-                        )
-                    }
-                    4 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.identity_object_highest_sub_index_supported,
-                        )
-                    }
-                    5 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_vendor_id,
-                        )
-                    }
-                    6 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_product_code,
-                        )
-                    }
-                    7 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_revision_number,
-                        )
-                    }
-                    8 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.identity_object_serial_number,
-                        )
-                    }
-                    9 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .rpdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    10 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rpdo_communication_parameter_1_cob_id_used_by_rpdo,
-                        )
-                    }
-                    11 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rpdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    12 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.rpdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    13 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rpdo_mapping_parameter_1_mapped_object_1,
-                        )
-                    }
-                    14 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rpdo_mapping_parameter_1_mapped_object_2,
-                        )
-                    }
-                    15 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.rpdo_mapping_parameter_1_mapped_object_3,
-                        )
-                    }
-                    16 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self
-                                .tpdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    17 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tpdo_communication_parameter_1_cob_id_used_by_tpdo,
-                        )
-                    }
-                    18 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tpdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    19 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tpdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    20 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tpdo_mapping_parameter_1_mapped_object_1,
-                        )
-                    }
-                    21 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tpdo_mapping_parameter_1_mapped_object_2,
-                        )
-                    }
-                    22 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tpdo_mapping_parameter_1_mapped_object_3,
-                        )
-                    }
-                    23 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tpdo_mapping_parameter_1_mapped_object_4,
-                        )
-                    }
-                    24 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.tpdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    25 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tpdo_mapping_parameter_2_mapped_object_1,
-                        )
-                    }
-                    26 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.tpdo_mapping_parameter_2_mapped_object_2,
-                        )
-                    }
-                    27 => ::od_runtime::__private_v1::Slot::I32(&self.signed_24),
-                    28 => ::od_runtime::__private_v1::Slot::Bool(&self.flag),
-                    29 => ::od_runtime::__private_v1::Slot::F32(&self.gain),
-                    30 => ::od_runtime::__private_v1::Slot::Bytes(self.blob.as_slice()),
-                    31 => ::od_runtime::__private_v1::Slot::U64(&self.counter),
-                    32 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.gains_number_of_entries,
-                        )
-                    }
-                    33 => ::od_runtime::__private_v1::Slot::U16(&self.gains_type),
-                    34 => ::od_runtime::__private_v1::Slot::U16(&self.gains_gain_2_2),
-                    35 => ::od_runtime::__private_v1::Slot::U16(&self.gains_gain_2_3),
-                    36 => ::od_runtime::__private_v1::Slot::U32(&self.position_window),
-                    37 => ::od_runtime::__private_v1::Slot::U16(&self.controlword),
-                    38 => ::od_runtime::__private_v1::Slot::U16(&self.statusword),
-                    39 => ::od_runtime::__private_v1::Slot::I8(&self.modes_of_operation),
-                    40 => {
-                        ::od_runtime::__private_v1::Slot::I8(
-                            &self.modes_of_operation_display,
-                        )
-                    }
-                    41 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.position_actual_value,
-                        )
-                    }
-                    42 => {
-                        ::od_runtime::__private_v1::Slot::I32(
-                            &self.velocity_actual_value,
-                        )
-                    }
-                    43 => ::od_runtime::__private_v1::Slot::I32(&self.target_position),
-                    44 => {
-                        ::od_runtime::__private_v1::Slot::U8(
-                            &self.homing_speeds_number_of_entries,
-                        )
-                    }
-                    45 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speeds_speed_during_search_for_switch,
-                        )
-                    }
-                    46 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speeds_speed_during_search_for_zero,
-                        )
-                    }
-                    _ => return None,
-                },
-            )
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v2::Slot<'_>> {
+            ::od_runtime::__private_v2::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
-        ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.device_type),
-                    1 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(&mut self.error_register)
-                    }
-                    2 => self.manufacturer_device_name.slot_mut(),
-                    3 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.producer_heartbeat_time,
-                        )
-                    }
-                    4 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.identity_object_highest_sub_index_supported,
-                        )
-                    }
-                    5 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_vendor_id,
-                        )
-                    }
-                    6 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_product_code,
-                        )
-                    }
-                    7 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_revision_number,
-                        )
-                    }
-                    8 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.identity_object_serial_number,
-                        )
-                    }
-                    9 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .rpdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    10 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rpdo_communication_parameter_1_cob_id_used_by_rpdo,
-                        )
-                    }
-                    11 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rpdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    12 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.rpdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    13 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rpdo_mapping_parameter_1_mapped_object_1,
-                        )
-                    }
-                    14 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rpdo_mapping_parameter_1_mapped_object_2,
-                        )
-                    }
-                    15 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rpdo_mapping_parameter_1_mapped_object_3,
-                        )
-                    }
-                    16 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self
-                                .tpdo_communication_parameter_1_highest_sub_index_supported,
-                        )
-                    }
-                    17 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tpdo_communication_parameter_1_cob_id_used_by_tpdo,
-                        )
-                    }
-                    18 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tpdo_communication_parameter_1_transmission_type,
-                        )
-                    }
-                    19 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tpdo_mapping_parameter_1_number_of_mapped_objects,
-                        )
-                    }
-                    20 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tpdo_mapping_parameter_1_mapped_object_1,
-                        )
-                    }
-                    21 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tpdo_mapping_parameter_1_mapped_object_2,
-                        )
-                    }
-                    22 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tpdo_mapping_parameter_1_mapped_object_3,
-                        )
-                    }
-                    23 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tpdo_mapping_parameter_1_mapped_object_4,
-                        )
-                    }
-                    24 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.tpdo_mapping_parameter_2_number_of_mapped_objects,
-                        )
-                    }
-                    25 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tpdo_mapping_parameter_2_mapped_object_1,
-                        )
-                    }
-                    26 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tpdo_mapping_parameter_2_mapped_object_2,
-                        )
-                    }
-                    27 => ::od_runtime::__private_v1::SlotMut::I32(&mut self.signed_24),
-                    28 => ::od_runtime::__private_v1::SlotMut::Bool(&mut self.flag),
-                    29 => ::od_runtime::__private_v1::SlotMut::F32(&mut self.gain),
-                    30 => self.blob.slot_mut(),
-                    31 => ::od_runtime::__private_v1::SlotMut::U64(&mut self.counter),
-                    32 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.gains_number_of_entries,
-                        )
-                    }
-                    33 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.gains_type),
-                    34 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.gains_gain_2_2,
-                        )
-                    }
-                    35 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.gains_gain_2_3,
-                        )
-                    }
-                    36 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.position_window,
-                        )
-                    }
-                    37 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.controlword),
-                    38 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.statusword),
-                    39 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(
-                            &mut self.modes_of_operation,
-                        )
-                    }
-                    40 => {
-                        ::od_runtime::__private_v1::SlotMut::I8(
-                            &mut self.modes_of_operation_display,
-                        )
-                    }
-                    41 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.position_actual_value,
-                        )
-                    }
-                    42 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.velocity_actual_value,
-                        )
-                    }
-                    43 => {
-                        ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.target_position,
-                        )
-                    }
-                    44 => {
-                        ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.homing_speeds_number_of_entries,
-                        )
-                    }
-                    45 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speeds_speed_during_search_for_switch,
-                        )
-                    }
-                    46 => {
-                        ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speeds_speed_during_search_for_zero,
-                        )
-                    }
-                    _ => return None,
-                },
-            )
+        ) -> Option<::od_runtime::__private_v2::SlotMut<'_>> {
+            ::od_runtime::__private_v2::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -1674,8 +1762,8 @@ PDOMapping=0
         fn read_at(&self, pos: usize) -> [u8; 8] {
             match self.slot(pos) {
                 Some(slot) => {
-                    ::od_runtime::__private_v1::first8(
-                        || ENTRIES.get(pos).map_or(0, |e| e.bits),
+                    ::od_runtime::__private_v2::first8(
+                        || ENTRIES.get(pos).map_or(0, |e| e.bits()),
                         slot,
                     )
                 }
@@ -1696,7 +1784,7 @@ PDOMapping=0
             };
             match (ENTRIES.get(pos), self.slot_mut(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::write(
+                    ::od_runtime::__private_v2::write(
                         info,
                         slot,
                         data,
@@ -1715,7 +1803,7 @@ PDOMapping=0
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v2::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -1725,7 +1813,7 @@ PDOMapping=0
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v2::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -1735,7 +1823,7 @@ PDOMapping=0
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
@@ -1746,7 +1834,7 @@ PDOMapping=0
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
@@ -2529,9 +2617,19 @@ PDOMapping=0
             Ok(())
         }
     }
+    unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
+        #[inline(always)]
+        fn entries() -> &'static [::od_runtime::od::EntryInfo] {
+            &ENTRIES
+        }
+    }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
         fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
+        }
+        #[cfg(feature = "names")]
+        fn name(&self, index: u16, sub: u8) -> Option<&'static str> {
+            Self::position(index, sub).ok().and_then(|pos| NAMES.get(pos).copied())
         }
         #[inline]
         fn info(
@@ -2551,7 +2649,7 @@ PDOMapping=0
             let pos = Self::position(index, sub)?;
             match (ENTRIES.get(pos), self.slot(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::read(info, slot, buf)
+                    ::od_runtime::__private_v2::read(info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -2568,7 +2666,7 @@ PDOMapping=0
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, info) in ENTRIES.iter().enumerate() {
                 if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v1::set_default(info, slot, node_id);
+                    ::od_runtime::__private_v2::set_default(info, slot, node_id);
                 }
             }
         }
@@ -2584,10 +2682,10 @@ PDOMapping=0
         }
         #[inline]
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-            ::od_runtime::__private_v1::pack_mapped(
+            ::od_runtime::__private_v2::pack_mapped(
                 map,
                 |h| match self.slot(h.get() as usize) {
-                    Some(slot) => ::od_runtime::__private_v1::first8(|| 64, slot),
+                    Some(slot) => ::od_runtime::__private_v2::first8(|| 64, slot),
                     None => [0; 8],
                 },
             )
@@ -2601,11 +2699,29 @@ PDOMapping=0
             self.write_at(h.get() as usize, data)
         }
     }
+    /// The SDO server's buffer: the largest entry, in bytes (at least 8).
+    pub const SDO_BUFFER: usize = 32;
+    /// PDOs per direction the device has (`NrOfRXPDO`/`NrOfTXPDO`, or its PDO objects).
+    pub const PDOS: usize = 2;
+    /// Entries a PDO can map: the mapping objects' sub-objects, at most 64 bits at the
+    /// EDS's `Granularity`.
+    pub const MAPPED_PER_PDO: usize = 4;
+    /// The device runtime around this dictionary, sized for it: [`SDO_BUFFER`], [`PDOS`],
+    /// [`MAPPED_PER_PDO`]. Build it with `Device::with_capacity` (a `const fn`, so it can
+    /// initialise a `static`).
+    pub type Device<A, S = ::od_runtime::NoStorage> = ::od_runtime::Device<
+        Dictionary,
+        A,
+        S,
+        SDO_BUFFER,
+        PDOS,
+        MAPPED_PER_PDO,
+    >;
     /// Typed layouts of the device's default PDO mappings.
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
         #[doc(inline)]
-        pub use ::od_runtime::__private_v1::PdoLengthError as LengthError;
+        pub use ::od_runtime::__private_v2::PdoLengthError as LengthError;
         /// RPDO 1 (received by the device), default mapping of `0x1600`: 32 bits in 4 bytes.
         ///
         /// | bits | object | field |
@@ -2639,7 +2755,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 4)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 4)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     modes_of_operation: (((((w >> 24) & 0xFF) << 56) as i64) >> 56) as i8,
@@ -2705,7 +2821,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 7)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 7)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     modes_of_operation_display: (((((w >> 16) & 0xFF) << 56) as i64)
@@ -2768,7 +2884,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v1::pdo_word(data, 8)?;
+                let w = ::od_runtime::__private_v2::pdo_word(data, 8)?;
                 Ok(Self {
                     position_actual_value: ((((w & 0xFFFFFFFF) << 32) as i64) >> 32)
                         as i32,

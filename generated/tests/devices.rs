@@ -18,7 +18,7 @@ fn mapping_entry(entries: &'static [od_runtime::od::EntryInfo]) -> impl Strategy
     prop_oneof![
         4 => (0..entries.len(), any::<bool>(), 0u32..=72).prop_map(move |(i, own, bits)| {
             let e = &entries[i];
-            let bits = if own { e.bits.min(255) } else { bits };
+            let bits = if own { e.bits().min(255) } else { bits };
             (u32::from(e.index) << 16) | (u32::from(e.sub) << 8) | bits
         }),
         1 => (1u32..=7, prop_oneof![Just(1u32), Just(8), Just(16), Just(32)]).prop_map(|(i, b)| (i << 16) | b),
@@ -41,8 +41,9 @@ macro_rules! device_tests {
                     if matches!(e.data_type, eds::model::DataType::Other(_)) || !matches!(obj.object_type, eds::model::ObjectType::Var | eds::model::ObjectType::Array | eds::model::ObjectType::Record | eds::model::ObjectType::Domain) {
                         continue;
                     }
-                    let info = od.info(obj.index.0, e.sub.0).unwrap();
-                    assert_eq!(info.name.rsplit(": ").next().unwrap(), e.name.trim());
+                    od.info(obj.index.0, e.sub.0).unwrap();
+                    let name = od.name(obj.index.0, e.sub.0).unwrap();
+                    assert_eq!(name.rsplit(": ").next().unwrap(), e.name.trim());
                 }
                 assert!(ENTRIES.windows(2).all(|w| (w[0].index, w[0].sub) < (w[1].index, w[1].sub)));
             }
@@ -115,7 +116,7 @@ macro_rules! device_tests {
             #[test]
             fn packed_mappings_agree_with_keyed_reads() {
                 use od_runtime::od::MappedHandle;
-                let raw = |e: &od_runtime::od::EntryInfo| (u32::from(e.index) << 16) | (u32::from(e.sub) << 8) | e.bits.min(255);
+                let raw = |e: &od_runtime::od::EntryInfo| (u32::from(e.index) << 16) | (u32::from(e.sub) << 8) | e.bits().min(255);
                 let mappable: Vec<&od_runtime::od::EntryInfo> =
                     ENTRIES.iter().filter(|e| Dictionary::check_tpdo_mapping(&[raw(e)]).is_ok()).collect();
                 let mut od = Dictionary::new(3);
@@ -139,12 +140,12 @@ macro_rules! device_tests {
                     let mut total = 0;
                     for _ in 0..(next() % 9) {
                         let e = mappable[(next() % mappable.len() as u64) as usize];
-                        if total + e.bits > 64 {
+                        if total + e.bits() > 64 {
                             break;
                         }
-                        total += e.bits;
+                        total += e.bits();
                         let handle = od.handle(e.index, e.sub).unwrap();
-                        map.push(MappedHandle { index: e.index, sub: e.sub, bits: e.bits as u8, handle });
+                        map.push(MappedHandle { index: e.index, sub: e.sub, bits: e.bits() as u8, handle });
                     }
                     let raws: Vec<u32> = map.iter().map(|m| (u32::from(m.index) << 16) | (u32::from(m.sub) << 8) | u32::from(m.bits)).collect();
                     assert_eq!(Dictionary::check_tpdo_mapping(&raws), Ok(total));

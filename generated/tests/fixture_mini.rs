@@ -32,8 +32,9 @@ fn defaults_and_node_id() {
 fn table_is_sorted_and_lookups_distinguish_missing_objects_from_missing_subs() {
     assert!(ENTRIES.windows(2).all(|w| (w[0].index, w[0].sub) < (w[1].index, w[1].sub)));
     let od = Dictionary::new(1);
-    assert_eq!(od.info(0x6040, 0).unwrap().name, "Controlword");
-    assert_eq!(od.info(0x1018, 4).unwrap().name, "Identity object: Serial number");
+    assert_eq!(od.name(0x6040, 0), Some("Controlword"));
+    assert_eq!(od.name(0x1018, 4), Some("Identity object: Serial number"));
+    assert_eq!(od.name(0x1018, 9), None);
     assert_eq!(od.info(0x1018, 5), Err(AbortCode::NO_SUB_INDEX));
     assert_eq!(od.info(0x1019, 0), Err(AbortCode::NO_OBJECT));
     assert_eq!(od.info(0x0000, 0), Err(AbortCode::NO_OBJECT));

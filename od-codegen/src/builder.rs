@@ -69,6 +69,7 @@ pub struct Builder {
     min_capacity: Option<usize>,
     strict: bool,
     embed_eds: bool,
+    names: Option<crate::Names>,
 }
 
 /// What went wrong in [`Builder::compile`].
@@ -248,6 +249,12 @@ impl Builder {
         self
     }
 
+    /// Whether the generated code keeps the entries' names (default [`crate::Names::Always`]).
+    pub fn names(mut self, names: crate::Names) -> Self {
+        self.names = Some(names);
+        self
+    }
+
     fn resolve(&self, p: &Path) -> PathBuf {
         match &self.root {
             Some(r) if p.is_relative() => r.join(p),
@@ -296,6 +303,9 @@ impl Builder {
         }
         if let Some(n) = self.min_capacity {
             options.min_capacity = n;
+        }
+        if let Some(n) = &self.names {
+            options.names = n.clone();
         }
         let sidecar_path = match &d.sidecar {
             SidecarSource::Beside => Some(path.with_extension("toml")).filter(|p| p.is_file()),

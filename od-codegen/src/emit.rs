@@ -30,26 +30,6 @@ pub(crate) fn rust_type(ty: Ty) -> TokenStream {
     }
 }
 
-fn slot_variant(ty: Ty) -> proc_macro2::Ident {
-    format_ident!(
-        "{}",
-        match ty {
-            Ty::Bool => "Bool",
-            Ty::U8 => "U8",
-            Ty::U16 => "U16",
-            Ty::U32 => "U32",
-            Ty::U64 => "U64",
-            Ty::I8 => "I8",
-            Ty::I16 => "I16",
-            Ty::I32 => "I32",
-            Ty::I64 => "I64",
-            Ty::F32 => "F32",
-            Ty::F64 => "F64",
-            Ty::Bytes(_) => "Bytes",
-        }
-    )
-}
-
 fn data_type_variant(dt: DataType) -> proc_macro2::Ident {
     use DataType as D;
     format_ident!(
@@ -201,20 +181,36 @@ pub(crate) fn index_consts(plan: &Plan<'_>) -> TokenStream {
     }
 }
 
+/// An `i64` literal holding `v`'s low 64 bits (an UNSIGNED64 above `i64::MAX` as its bits:
+/// a default is encoded by truncation, so the bytes are the same).
+fn int64(v: i128, hex: bool) -> TokenStream {
+    match i64::try_from(v) {
+        Ok(_) => lit::int_radix(v, hex),
+        Err(_) => {
+            let lit = syn::LitInt::new(&format!("0x{:016X}u64", v as u64), proc_macro2::Span::call_site());
+            quote!((#lit as i64))
+        }
+    }
+}
+
 fn default_value_tokens(e: &PEntry<'_>) -> TokenStream {
     match &e.default {
         Def::None => quote!(::od_runtime::od::DefaultValue::None),
         Def::Int(v, hex) => {
-            let v = lit::int_radix(*v, *hex);
+            let v = int64(*v, *hex);
             quote!(::od_runtime::od::DefaultValue::Int(#v))
         }
         Def::NodeId(o, hex) => {
-            let o = lit::int_radix(*o, *hex);
+            let o = int64(*o, *hex);
             quote!(::od_runtime::od::DefaultValue::NodeIdPlus(#o))
+        }
+        Def::Real(f) if e.dt == DataType::Real32 => {
+            let f = lit::real(*f, true);
+            quote!(::od_runtime::od::DefaultValue::Real32(#f))
         }
         Def::Real(f) => {
             let f = lit::real(*f, false);
-            quote!(::od_runtime::od::DefaultValue::Real(#f))
+            quote!(::od_runtime::od::DefaultValue::Real64(#f))
         }
         Def::Bytes(b) => {
             let b = lit::bytes(b);
@@ -223,8 +219,100 @@ fn default_value_tokens(e: &PEntry<'_>) -> TokenStream {
     }
 }
 
+/// Whether a default restores to zero bytes (then the entry needs no default in its extras).
+fn zero_default(e: &PEntry<'_>) -> bool {
+    match &e.default {
+        Def::None => true,
+        Def::Int(v, _) => *v == 0,
+        Def::Real(f) => f.to_bits() == 0,
+        Def::Bytes(b) => b.is_empty(),
+        Def::NodeId(..) => false,
+    }
+}
+
+/// The limits of an entry, if it has any.
+fn limits_tokens(e: &PEntry<'_>) -> Option<TokenStream> {
+    if e.low.is_none() && e.high.is_none() {
+        return None;
+    }
+    // The side without a limit is the type's end (a bound that refuses nothing).
+    let bits = e.bits.clamp(1, 64);
+    let (min, max) =
+        if e.dt.is_signed() { (-(1i128 << (bits - 1)), (1i128 << (bits - 1)) - 1) } else { (0, (1i128 << bits) - 1) };
+    let low = int64(e.low.unwrap_or(min), false);
+    let high = int64(e.high.unwrap_or(max), false);
+    Some(quote!(::od_runtime::od::Limits { low: #low, high: #high }))
+}
+
+/// The extras of an entry (capacity, default, the position of its limits in `LIMITS`), if it
+/// has any.
+fn extras_tokens(e: &PEntry<'_>, limits: Option<usize>) -> Option<TokenStream> {
+    let bits = if let Ty::Bytes(_) = e.ty { e.bits } else { 0 };
+    if bits == 0 && limits.is_none() && zero_default(e) {
+        return None;
+    }
+    let default = if zero_default(e) { quote!(::od_runtime::od::DefaultValue::None) } else { default_value_tokens(e) };
+    let bits = proc_macro2::Literal::u32_unsuffixed(bits);
+    let limits = match limits {
+        Some(i) => {
+            let i = proc_macro2::Literal::usize_unsuffixed(i);
+            quote!(Some(&LIMITS[#i]))
+        }
+        None => quote!(None),
+    };
+    Some(quote!(::od_runtime::od::EntryExtras { bits: #bits, default: #default, limits: #limits }))
+}
+
+/// Each distinct value of `items` once: the values, and each item's position among them.
+/// Values are told apart by their tokens with every integer literal read as a number, so
+/// `1` and `0x1` are one value.
+fn dedup(items: impl Iterator<Item = Option<TokenStream>>) -> (Vec<TokenStream>, Vec<Option<usize>>) {
+    fn canonical(t: TokenStream, out: &mut String) {
+        for tt in t {
+            match tt {
+                proc_macro2::TokenTree::Group(g) => {
+                    out.push('(');
+                    canonical(g.stream(), out);
+                    out.push(')');
+                }
+                proc_macro2::TokenTree::Literal(l) => {
+                    let text = l.to_string();
+                    match syn::parse_str::<syn::LitInt>(&text).ok().and_then(|i| i.base10_parse::<u128>().ok()) {
+                        Some(v) => out.push_str(&v.to_string()),
+                        None => out.push_str(&text),
+                    }
+                    out.push(' ');
+                }
+                other => {
+                    out.push_str(&other.to_string());
+                    out.push(' ');
+                }
+            }
+        }
+    }
+    let mut keys: Vec<String> = Vec::new();
+    let mut values = Vec::new();
+    let positions = items
+        .map(|t| {
+            t.map(|t| {
+                let mut key = String::new();
+                canonical(t.clone(), &mut key);
+                match keys.iter().position(|k| *k == key) {
+                    Some(i) => i,
+                    None => {
+                        keys.push(key);
+                        values.push(t);
+                        values.len() - 1
+                    }
+                }
+            })
+        })
+        .collect();
+    (values, positions)
+}
+
 /// `LOOKUP` and `ENTRIES`.
-pub(crate) fn tables(plan: &Plan<'_>, sink: &mut crate::diag::Sink) -> TokenStream {
+pub(crate) fn tables(plan: &Plan<'_>, names: &crate::Names, sink: &mut crate::diag::Sink) -> TokenStream {
     let n = proc_macro2::Literal::usize_unsuffixed(plan.entries.len());
     let keys: Vec<(u16, u8)> = plan.entries.iter().map(|e| (e.index, e.sub)).collect();
     let lookup = crate::lookup::tokens(&keys).unwrap_or_else(|| {
@@ -232,30 +320,34 @@ pub(crate) fn tables(plan: &Plan<'_>, sink: &mut crate::diag::Sink) -> TokenStre
             eds::diag::Severity::Error,
             crate::diag::TOO_MANY_OBJECTS,
             format!(
-                "the device has more than {} objects; the generated lookup table cannot number them",
-                crate::lookup::MAX_OBJECTS
+                "the device has more than {} objects, or objects in more than {} ranges of 256 \
+                 indices; the generated lookup table cannot number them",
+                crate::lookup::MAX_OBJECTS,
+                crate::lookup::MAX_PAGES
             ),
         );
         crate::lookup::tokens(&[]).unwrap_or_default()
     });
-    let infos = plan.entries.iter().map(|e| {
+    // Each distinct limits and extras value once; entries point at theirs.
+    let (limits, limits_of) = dedup(plan.entries.iter().map(limits_tokens));
+    let (extras, extras_of) = dedup(plan.entries.iter().zip(&limits_of).map(|(e, l)| extras_tokens(e, *l)));
+    let rt = rt();
+    let infos = plan.entries.iter().zip(&extras_of).map(|(e, x)| {
         let index = lit::hex(e.index as u64, 4);
         let sub = proc_macro2::Literal::u8_unsuffixed(e.sub);
         let dt = data_type_variant(e.dt);
         let access = access_variant(e.entry.access);
         let pdo = e.entry.pdo_mapping;
-        let bits = proc_macro2::Literal::u32_unsuffixed(e.bits);
-        let opt = |v: Option<i128>| match v {
-            Some(v) => {
-                let v = lit::int(v);
-                quote!(Some(#v))
+        let field = format_ident!("{}", e.field);
+        let ty = rust_type(e.ty);
+        let cap = proc_macro2::Literal::u32_unsuffixed(if let Ty::Bytes(_) = e.ty { e.bits } else { 0 });
+        let extras = match x {
+            Some(i) => {
+                let i = proc_macro2::Literal::usize_unsuffixed(*i);
+                quote!(Some(&EXTRAS[#i]))
             }
             None => quote!(None),
         };
-        let low = opt(e.low);
-        let high = opt(e.high);
-        let default = default_value_tokens(e);
-        let name = display_name(e);
         quote! {
             ::od_runtime::od::EntryInfo {
                 index: #index,
@@ -263,19 +355,46 @@ pub(crate) fn tables(plan: &Plan<'_>, sink: &mut crate::diag::Sink) -> TokenStre
                 data_type: ::od_runtime::od::DataType::#dt,
                 access: ::od_runtime::od::Access::#access,
                 pdo_mappable: #pdo,
-                bits: #bits,
-                low: #low,
-                high: #high,
-                default: #default,
-                name: #name,
+                slot: #rt::offset::<#ty>(::core::mem::offset_of!(Dictionary, #field), ::od_runtime::od::DataType::#dt, #cap),
+                extras: #extras,
             }
         }
     });
+    let nx = proc_macro2::Literal::usize_unsuffixed(extras.len());
+    let nl = proc_macro2::Literal::usize_unsuffixed(limits.len());
+    let names = names_table(plan, names);
     quote! {
         #lookup
 
-        /// Metadata of every entry, sorted by `(index, sub)`.
+        /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
         pub static ENTRIES: [::od_runtime::od::EntryInfo; #n] = [#(#infos),*];
+
+        /// Capacities, defaults other than zero and limits, each distinct one once
+        /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
+        pub static EXTRAS: [::od_runtime::od::EntryExtras; #nx] = [#(#extras),*];
+
+        /// The limits of the entries that have any, each distinct one once.
+        pub static LIMITS: [::od_runtime::od::Limits; #nl] = [#(#limits),*];
+
+        #names
+    }
+}
+
+/// `NAMES`, the display name of every entry in `ENTRIES` order, as the options say: always,
+/// never, or behind a cargo feature of the crate the code is compiled in.
+fn names_table(plan: &Plan<'_>, names: &crate::Names) -> TokenStream {
+    let cfg = match names {
+        crate::Names::Never => return TokenStream::new(),
+        crate::Names::Always => TokenStream::new(),
+        crate::Names::Feature(f) => quote!(#[cfg(feature = #f)]),
+    };
+    let n = proc_macro2::Literal::usize_unsuffixed(plan.entries.len());
+    let all = plan.entries.iter().map(display_name);
+    quote! {
+        /// The name of every entry (`ParameterName`, `Object: Sub-object` for sub-entries), in
+        /// [`ENTRIES`] order.
+        #cfg
+        pub static NAMES: [&str; #n] = [#(#all),*];
     }
 }
 
@@ -380,7 +499,12 @@ fn getter(e: &PEntry<'_>, sidecar: Option<&crate::sidecar::Sidecar>) -> TokenStr
 }
 
 /// The storage struct, its inherent methods and the trait implementation.
-pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&crate::sidecar::Sidecar>) -> TokenStream {
+pub(crate) fn dictionary(
+    model: &Model,
+    plan: &Plan<'_>,
+    names: &crate::Names,
+    sidecar: Option<&crate::sidecar::Sidecar>,
+) -> TokenStream {
     let product = model.device_info.product_name.as_deref().unwrap_or("device");
     let vendor = model.device_info.vendor_name.as_deref().unwrap_or("unknown vendor");
     let struct_doc = lit::doc(&[
@@ -408,33 +532,18 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&crate:
         let v = init_expr(e);
         quote!(#f: #v)
     });
+    let zeros = plan.entries.iter().map(|e| {
+        let f = format_ident!("{}", e.field);
+        let v = match e.ty {
+            Ty::Bytes(_) => {
+                let rt = rt();
+                quote!(#rt::Bytes::from_slice(&[]))
+            }
+            t => lit::int_of(0, t),
+        };
+        quote!(#f: #v)
+    });
     let rt = rt();
-    let slot_arms = plan.entries.iter().enumerate().map(|(i, e)| {
-        let i = proc_macro2::Literal::usize_unsuffixed(i);
-        let f = format_ident!("{}", e.field);
-        let v = slot_variant(e.ty);
-        match e.ty {
-            Ty::Bytes(_) => quote!(#i => #rt::Slot::Bytes(self.#f.as_slice())),
-            _ => quote!(#i => #rt::Slot::#v(&self.#f)),
-        }
-    });
-    let slot_mut_arms = plan.entries.iter().enumerate().map(|(i, e)| {
-        let i = proc_macro2::Literal::usize_unsuffixed(i);
-        let f = format_ident!("{}", e.field);
-        let v = slot_variant(e.ty);
-        match e.ty {
-            Ty::Bytes(_) => quote!(#i => self.#f.slot_mut()),
-            _ => quote!(#i => #rt::SlotMut::#v(&mut self.#f)),
-        }
-    });
-    let (slot_body, slot_mut_body) = if plan.entries.is_empty() {
-        (quote!(let _ = pos; None), quote!(let _ = pos; None))
-    } else {
-        (
-            quote!(Some(match pos { #(#slot_arms,)* _ => return None })),
-            quote!(Some(match pos { #(#slot_mut_arms,)* _ => return None })),
-        )
-    };
     let real_limited: Vec<&PEntry<'_>> =
         plan.entries.iter().filter(|e| e.real_low.is_some() || e.real_high.is_some()).collect();
     let real_limits = if real_limited.is_empty() {
@@ -456,6 +565,18 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&crate:
         );
         quote!(let (real_low, real_high) = match pos { #(#arms,)* _ => (None, None) };)
     };
+    let name_fn = {
+        let body = quote! {
+            fn name(&self, index: u16, sub: u8) -> Option<&'static str> {
+                Self::position(index, sub).ok().and_then(|pos| NAMES.get(pos).copied())
+            }
+        };
+        match names {
+            crate::Names::Never => TokenStream::new(),
+            crate::Names::Always => body,
+            crate::Names::Feature(f) => quote!(#[cfg(feature = #f)] #body),
+        }
+    };
     let accessors = plan.entries.iter().map(|e| {
         let g = getter(e, sidecar);
         let s = setter(e);
@@ -475,6 +596,13 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&crate:
                                 Dictionary { #(#inits,)* }
             }
 
+            /// Every value zero, every buffer empty. A device's first poll (its reset node)
+            /// restores the defaults, so a firmware can start from this: its device then
+            /// needs no image of the defaults in flash besides the entry table's.
+            pub const fn zeroed() -> Self {
+                Dictionary { #(#zeros,)* }
+            }
+
             /// Position of `(index, sub)` in [`ENTRIES`]: `Err(NO_OBJECT)` if the index is absent,
             /// `Err(NO_SUB_INDEX)` if only the sub-index is.
             #[inline]
@@ -482,14 +610,15 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&crate:
                 #rt::position(&LOOKUP, index, sub)
             }
 
+            /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
             #[inline(always)]
             fn slot(&self, pos: usize) -> Option<#rt::Slot<'_>> {
-                #slot_body
+                #rt::slot(self, pos)
             }
 
             #[inline(always)]
             fn slot_mut(&mut self, pos: usize) -> Option<#rt::SlotMut<'_>> {
-                #slot_mut_body
+                #rt::slot_mut(self, pos)
             }
 
             /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
@@ -497,7 +626,7 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&crate:
             #[inline(always)]
             fn read_at(&self, pos: usize) -> [u8; 8] {
                 match self.slot(pos) {
-                    Some(slot) => #rt::first8(|| ENTRIES.get(pos).map_or(0, |e| e.bits), slot),
+                    Some(slot) => #rt::first8(|| ENTRIES.get(pos).map_or(0, |e| e.bits()), slot),
                     None => [0; 8],
                 }
             }
@@ -542,10 +671,21 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&crate:
             #(#accessors)*
         }
 
+        // SAFETY: every slot in ENTRIES is `offset::<T>(offset_of!(Dictionary, field), …)` of
+        // the entry's own field, whose type `offset` checked at compile time.
+        unsafe impl #rt::Table for Dictionary {
+            #[inline(always)]
+            fn entries() -> &'static [::od_runtime::od::EntryInfo] {
+                &ENTRIES
+            }
+        }
+
         impl ::od_runtime::od::ObjectDictionary for Dictionary {
             fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
                 &ENTRIES
             }
+
+            #name_fn
 
             #[inline]
             fn info(&self, index: u16, sub: u8) -> Result<&'static ::od_runtime::od::EntryInfo, ::od_runtime::od::AbortCode> {
@@ -577,7 +717,7 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&crate:
             }
 
             // The PDO fast path: a handle is the entry's position in ENTRIES, so the runtime
-            // reaches a mapped entry with one `match` on it, without a lookup.
+            // reaches a mapped entry through its slot, without a lookup.
 
             #[inline]
             fn handle(&self, index: u16, sub: u8) -> Option<::od_runtime::od::Handle> {
@@ -589,7 +729,7 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&crate:
                 self.read_at(h.get() as usize)
             }
 
-            // The read inlined into the packing loop, as one jump table over the slots. It
+            // The read inlined into the packing loop, one jump on the storage kind. It
             // skips `read_handle`'s cut to the entry's length (which would look the entry up):
             // the loop cuts every value to its mapped length, which a loaded mapping makes
             // the entry's own.
@@ -606,5 +746,96 @@ pub(crate) fn dictionary(model: &Model, plan: &Plan<'_>, sidecar: Option<&crate:
                 self.write_at(h.get() as usize, data)
             }
         }
+    }
+}
+
+/// What the device needs of `od_runtime::Device`, from the description: how many PDOs, how
+/// many mapped entries per PDO, how large an SDO transfer can be.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Capacities {
+    /// PDOs per direction: `NrOfRXPDO`/`NrOfTXPDO`, or more if the file has more PDO objects.
+    pub pdos: usize,
+    /// Mapped entries per PDO: what the mapping objects hold (sub-objects after sub 0), but no
+    /// more than 64 bits at `Granularity` allow, and never fewer than a loadable default
+    /// mapping has.
+    pub mapped: usize,
+    /// The largest entry in bytes (at least 8): the SDO server's buffer, block transfers
+    /// included (a transfer is never larger than the entry it reads or writes).
+    pub sdo_buffer: usize,
+}
+
+pub(crate) fn capacities(model: &Model, plan: &Plan<'_>) -> Capacities {
+    use eds::model::Role;
+    let info = &model.device_info;
+    let mut pdos = usize::from(info.nr_of_rx_pdo.unwrap_or(0).max(info.nr_of_tx_pdo.unwrap_or(0)));
+    // Granularity g: at most 64 / g entries fit 64 bits (0 or absent: no statement, 64).
+    let by_granularity = match info.granularity {
+        Some(g) if g > 0 => 64 / usize::from(g),
+        _ => 64,
+    };
+    let mut mapped = 0usize;
+    let mut sdo_buffer = 8usize;
+    // Per mapping object: its default count (sub 0) and the bits of its default entries.
+    let mut defaults: Vec<(u16, usize, Vec<u32>)> = Vec::new();
+    for e in &plan.entries {
+        sdo_buffer = sdo_buffer.max((e.bits as usize).div_ceil(8));
+        let role = eds::model::Index(e.index).role();
+        match role {
+            Role::RpdoCommunication(n) | Role::TpdoCommunication(n) | Role::RpdoMapping(n) | Role::TpdoMapping(n) => {
+                pdos = pdos.max(usize::from(n) + 1);
+            }
+            _ => {}
+        }
+        if !matches!(role, Role::RpdoMapping(_) | Role::TpdoMapping(_)) {
+            continue;
+        }
+        if defaults.last().is_none_or(|d| d.0 != e.index) {
+            defaults.push((e.index, 0, Vec::new()));
+        }
+        let Some(d) = defaults.last_mut() else { continue };
+        let value = match e.default {
+            Def::Int(v, _) => usize::try_from(v).unwrap_or(0),
+            _ => 0,
+        };
+        if e.sub == 0 {
+            d.1 = value;
+        } else {
+            mapped = mapped.max(usize::from(e.sub).min(by_granularity));
+            d.2.push(value as u32 & 0xFF);
+        }
+    }
+    // A default mapping the device can load (its entries fit 64 bits) is kept whole, even
+    // with entries shorter than the granularity.
+    for (_, count, bits) in &defaults {
+        let total: u32 = bits.iter().take(*count).sum();
+        if *count <= bits.len() && total <= 64 {
+            mapped = mapped.max(*count);
+        }
+    }
+    Capacities { pdos: pdos.min(512), mapped: mapped.min(64), sdo_buffer }
+}
+
+/// `SDO_BUFFER`, `PDOS`, `MAPPED_PER_PDO` and the `Device` type sized with them.
+pub(crate) fn device_type(model: &Model, plan: &Plan<'_>) -> TokenStream {
+    let c = capacities(model, plan);
+    let (buf, pdos, mapped) = (
+        proc_macro2::Literal::usize_unsuffixed(c.sdo_buffer),
+        proc_macro2::Literal::usize_unsuffixed(c.pdos),
+        proc_macro2::Literal::usize_unsuffixed(c.mapped),
+    );
+    quote! {
+        /// The SDO server's buffer: the largest entry, in bytes (at least 8).
+        pub const SDO_BUFFER: usize = #buf;
+        /// PDOs per direction the device has (`NrOfRXPDO`/`NrOfTXPDO`, or its PDO objects).
+        pub const PDOS: usize = #pdos;
+        /// Entries a PDO can map: the mapping objects' sub-objects, at most 64 bits at the
+        /// EDS's `Granularity`.
+        pub const MAPPED_PER_PDO: usize = #mapped;
+
+        /// The device runtime around this dictionary, sized for it: [`SDO_BUFFER`], [`PDOS`],
+        /// [`MAPPED_PER_PDO`]. Build it with `Device::with_capacity` (a `const fn`, so it can
+        /// initialise a `static`).
+        pub type Device<A, S = ::od_runtime::NoStorage> =
+            ::od_runtime::Device<Dictionary, A, S, SDO_BUFFER, PDOS, MAPPED_PER_PDO>;
     }
 }

@@ -57,7 +57,7 @@
 //! compiles in `#![no_std]` crates and never allocates. The code is data-driven: the per-entry
 //! parts are tables, field declarations, inline accessors and two `match`es handing out field
 //! references; everything else is generic code in od-runtime's hidden, versioned support module
-//! `::od_runtime::__private_v1` ([`RUNTIME_PRIVATE`]). Code generated against another version
+//! `::od_runtime::__private_v2` ([`RUNTIME_PRIVATE`]). Code generated against another version
 //! of that module does not compile, with an error naming the module it expected: regenerate it.
 //!
 //! # Storage types
@@ -146,6 +146,21 @@ pub struct Options {
     pub min_capacity: usize,
     /// Strict mode: every deviation ([`diag::DEVIATIONS`]) is an error instead of a warning.
     pub strict: bool,
+    /// Whether to generate the entries' names (`NAMES`, `ObjectDictionary::name`).
+    pub names: Names,
+}
+
+/// Whether generated code holds the entries' names (about 40 bytes of flash per entry).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub enum Names {
+    /// Always (the default).
+    #[default]
+    Always,
+    /// Never: `ObjectDictionary::name` answers `None`.
+    Never,
+    /// When the crate the code is compiled in has this cargo feature enabled (the
+    /// `generated` crate: `names`, a default feature).
+    Feature(String),
 }
 
 impl Options {
@@ -158,6 +173,7 @@ impl Options {
             sidecar: None,
             min_capacity: DEFAULT_MIN_CAPACITY,
             strict: false,
+            names: Names::Always,
         }
     }
 }
@@ -214,8 +230,9 @@ pub fn expand(model: &Model, options: &Options) -> Generated {
         None => TokenStream::new(),
     };
     let index = emit::index_consts(&plan);
-    let tables = emit::tables(&plan, &mut sink);
-    let dictionary = emit::dictionary(model, &plan, options.sidecar.as_ref());
+    let tables = emit::tables(&plan, &options.names, &mut sink);
+    let dictionary = emit::dictionary(model, &plan, &options.names, options.sidecar.as_ref());
+    let device = emit::device_type(model, &plan);
     let pdo = pdo::module(model, &plan, &mut sink);
     let units = match &options.sidecar {
         Some(sc) => units::module(model, &plan, sc, &mut sink),
@@ -236,6 +253,7 @@ pub fn expand(model: &Model, options: &Options) -> Generated {
             #index
             #tables
             #dictionary
+            #device
             #pdo
             #units
         }

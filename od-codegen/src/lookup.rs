@@ -1,10 +1,12 @@
 //! The lookup tables of a generated dictionary: `(index, sub)` → position in `ENTRIES`.
 //!
 //! The generator computes the tables the runtime's `Lookup` walks (see
-//! `od_runtime::__private_v1::Lookup`): a two-level page table from an index to its object's
-//! number, then the sub-index within the object's run of entries. Building them here, once,
-//! keeps the lookup free of searches: a table read per step and, for the rare object whose
-//! sub-indices have gaps, a binary search of that object's few entries.
+//! `od_runtime::__private_v2::Lookup`): a page per high byte of the index, a 256-bit set per
+//! page with the rank of each 64-bit word, then the sub-index within the object's run of
+//! entries. Building them here, once, keeps the lookup free of searches: a few table reads
+//! and a bit count, and for the rare object whose sub-indices have gaps, a binary search of
+//! that object's few entries. At about 40 bytes per page of 256 indices the tables cost a
+//! firmware a byte or two per entry.
 
 use proc_macro2::{Literal, TokenStream};
 use quote::quote;
@@ -12,26 +14,28 @@ use quote::quote;
 use crate::lit;
 use crate::support::rt;
 
-/// The most objects the tables can number (slots hold `object + 1` in a `u16`). 65535 objects
-/// of at most 256 entries also keep every first entry below 2^24, as `runs` needs.
+/// The most entries (and so objects) the tables can number (ranks are `u16` positions).
 pub(crate) const MAX_OBJECTS: usize = u16::MAX as usize;
+
+/// The most pages (distinct high bytes of the indices; page numbers are a `u8` plus one).
+pub(crate) const MAX_PAGES: usize = 255;
 
 /// The tables for entries with keys `keys`, sorted by `(index, sub)` without duplicates.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub(crate) struct Tables {
-    /// `(high byte, offset of its page in slots)` for each high byte present; all others map to
-    /// page 0, a page of zeros (present unless all 256 high bytes are used).
-    pub pages: Vec<(u8, u16)>,
-    /// 256 slots per page: object number + 1, or 0.
-    pub slots: Vec<u16>,
-    /// Per object: `first << 8 | (count - 1)`.
-    pub runs: Vec<u32>,
-    /// Sub-index of every entry.
-    pub subs: Vec<u8>,
+    /// Per high byte: page number + 1, or 0.
+    pub pages: Vec<u8>,
+    /// Per page: the low bytes that have an object.
+    pub bits: Vec<[u64; 4]>,
+    /// Per page and word: the first entry at or after the word's first index.
+    pub ranks: Vec<[u16; 4]>,
+    /// Per page and word: the number of the first object at or after the word's first index.
+    pub objects: Vec<[u16; 4]>,
+    /// Per object: entries of the objects before it in its word beyond one each, at most 255.
+    pub extra: Vec<u8>,
 }
 
-/// Builds the tables, or `None` for more than [`MAX_OBJECTS`] objects. `keys` must be sorted by
-/// `(index, sub)` and free of duplicates (the planner guarantees both).
+/// The tables, or `None` past [`MAX_OBJECTS`] objects or [`MAX_PAGES`] pages.
 pub(crate) fn build(keys: &[(u16, u8)]) -> Option<Tables> {
     let mut objects: Vec<(u16, usize, usize)> = Vec::new(); // (index, first, count)
     for (pos, &(index, _)) in keys.iter().enumerate() {
@@ -40,58 +44,74 @@ pub(crate) fn build(keys: &[(u16, u8)]) -> Option<Tables> {
             _ => objects.push((index, pos, 1)),
         }
     }
-    if objects.len() > MAX_OBJECTS {
+    if objects.len() > MAX_OBJECTS || keys.len() > MAX_OBJECTS {
         return None;
     }
     let mut highs: Vec<u8> = objects.iter().map(|o| (o.0 >> 8) as u8).collect();
     highs.dedup();
-    let zero = usize::from(highs.len() < 256);
+    if highs.len() > MAX_PAGES {
+        return None;
+    }
+    let n = highs.len();
     let mut t = Tables {
-        pages: highs.iter().enumerate().map(|(k, h)| (*h, ((k + zero) * 256) as u16)).collect(),
-        slots: vec![0; (highs.len() + zero) * 256],
-        runs: Vec::with_capacity(objects.len()),
-        subs: keys.iter().map(|k| k.1).collect(),
+        pages: vec![0; 256],
+        bits: vec![[0; 4]; n],
+        ranks: vec![[0; 4]; n],
+        objects: vec![[0; 4]; n],
+        extra: Vec::with_capacity(objects.len()),
     };
-    for (n, &(index, first, count)) in objects.iter().enumerate() {
-        let high = (index >> 8) as u8;
-        let offset = t.pages.iter().find(|p| p.0 == high).map(|p| usize::from(p.1))?;
-        *t.slots.get_mut(offset + usize::from(index & 0xFF))? = u16::try_from(n + 1).ok()?;
-        let first = u32::try_from(first).ok().filter(|f| *f < 1 << 24)?;
-        let last = u32::try_from(count - 1).ok().filter(|l| *l < 256)?;
-        t.runs.push(first << 8 | last);
+    for (k, h) in highs.iter().enumerate() {
+        t.pages[usize::from(*h)] = u8::try_from(k + 1).ok()?;
+        for w in 0..4u16 {
+            let start = u16::from(*h) << 8 | w * 64;
+            t.ranks[k][usize::from(w)] = u16::try_from(keys.partition_point(|key| key.0 < start)).ok()?;
+            t.objects[k][usize::from(w)] = u16::try_from(objects.partition_point(|o| o.0 < start)).ok()?;
+        }
+    }
+    for (number, &(index, first, _)) in objects.iter().enumerate() {
+        let page = usize::from(t.pages[usize::from(index >> 8)]) - 1;
+        let low = usize::from(index & 0xFF);
+        t.bits[page][low / 64] |= 1 << (low % 64);
+        // `first` is `rank + k + extra`, with `k` the objects before it in its word.
+        let k = number - usize::from(t.objects[page][low / 64]);
+        let extra = first - usize::from(t.ranks[page][low / 64]) - k;
+        t.extra.push(u8::try_from(extra).unwrap_or(u8::MAX));
     }
     Some(t)
 }
 
-/// `OBJECTS` and `static LOOKUP: ::od_runtime::__private_v1::Lookup = …;`, or `None` for more
-/// than [`MAX_OBJECTS`] objects.
+/// `OBJECTS` and `LOOKUP` for entries with keys `keys`; `None` past the limits.
 ///
-/// The generated code lists the objects' indices, each object's run of entries and every
-/// entry's sub-index; the page table itself is computed from the index list at compile time by
-/// the runtime's `const fn`s (the same layout [`build`] describes, which the tests check).
+/// The page tables are computed in the generated code, from the object list, by the runtime's
+/// `const fn`s: the generated file holds one index per object instead of the tables.
 pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
     let t = build(keys)?;
     let rt = rt();
     let mut objects: Vec<u16> = keys.iter().map(|k| k.0).collect();
     objects.dedup();
     let n_objects = Literal::usize_unsuffixed(objects.len());
-    let n_slots = Literal::usize_unsuffixed(t.slots.len());
+    let n_pages = Literal::usize_unsuffixed(t.bits.len());
     let objects = objects.iter().map(|i| lit::hex(u64::from(*i), 4));
-    let runs = t.runs.iter().map(|r| lit::hex(u64::from(*r), 8));
-    let subs = t.subs.iter().map(|s| Literal::u8_unsuffixed(*s));
+    let words = |v: &[[u16; 4]]| -> Vec<TokenStream> {
+        v.iter()
+            .map(|r| {
+                let r = r.iter().map(|x| Literal::u16_unsuffixed(*x));
+                quote!([#(#r),*])
+            })
+            .collect()
+    };
+    let (ranks, numbers) = (words(&t.ranks), words(&t.objects));
+    let extra = t.extra.iter().map(|e| Literal::u8_unsuffixed(*e));
     Some(quote! {
-        /// The index of every object, sorted (the lookup's page table is computed from it).
         static OBJECTS: [u16; #n_objects] = [#(#objects),*];
 
-        /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
-        /// the index to its object, then the sub-index in the object's run of entries (`runs`:
-        /// `0xFFFFFFLL`, the object's first entry `FFFFFF` and its last position in the run `LL`;
-        /// `subs`: every entry's sub-index).
         static LOOKUP: #rt::Lookup = #rt::Lookup {
             pages: #rt::pages(&OBJECTS),
-            slots: &#rt::slots::<#n_slots>(&OBJECTS),
-            runs: &[#(#runs),*],
-            subs: &[#(#subs),*],
+            bits: &#rt::bits::<#n_pages>(&OBJECTS),
+            ranks: &[#(#ranks),*],
+            objects: &[#(#numbers),*],
+            extra: &[#(#extra),*],
+            entries: &ENTRIES,
         };
     })
 }
@@ -99,8 +119,8 @@ pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use od_runtime::__private_v1::{Lookup, position};
-    use od_runtime::od::AbortCode;
+    use od_runtime::__private_v2::{Lookup, position};
+    use od_runtime::od::{AbortCode, Access, DataType, EntryInfo};
     use proptest::prelude::*;
 
     fn leak<T>(v: Vec<T>) -> &'static [T] {
@@ -113,16 +133,22 @@ mod tests {
         let t = build(keys).unwrap();
         let mut objects: Vec<u16> = keys.iter().map(|k| k.0).collect();
         objects.dedup();
-        let mut pages = [0u16; 256];
-        for (h, g) in &t.pages {
-            pages[usize::from(*h)] = *g;
+        let pages: [u8; 256] = t.pages.clone().try_into().unwrap();
+        assert_eq!(od_runtime::__private_v2::pages(&objects), pages);
+        // The largest page count there is; the generator sizes the arrays exactly.
+        let bits = od_runtime::__private_v2::bits::<MAX_PAGES>(&objects);
+        assert_eq!(&bits[..t.bits.len()], &t.bits[..]);
+        assert!(bits[t.bits.len()..].iter().all(|b| *b == [0; 4]));
+        let entries =
+            keys.iter().map(|&(index, sub)| EntryInfo::new(index, sub, DataType::Unsigned8, Access::Ro, false));
+        Lookup {
+            pages,
+            bits: leak(t.bits),
+            ranks: leak(t.ranks),
+            objects: leak(t.objects),
+            extra: leak(t.extra),
+            entries: leak(entries.collect()),
         }
-        assert_eq!(od_runtime::__private_v1::pages(&objects), pages);
-        // The largest page count there is; the generator sizes the array exactly.
-        let slots = od_runtime::__private_v1::slots::<{ 256 * 256 }>(&objects);
-        assert_eq!(&slots[..t.slots.len()], &t.slots[..]);
-        assert!(slots[t.slots.len()..].iter().all(|s| *s == 0));
-        Lookup { pages, slots: leak(t.slots), runs: leak(t.runs), subs: leak(t.subs) }
     }
 
     /// What a binary search over the sorted keys says.
@@ -171,11 +197,33 @@ mod tests {
     }
 
     #[test]
-    fn at_most_65535_objects() {
+    fn objects_past_255_extra_entries_in_their_word_are_searched() {
+        // 0x2000 and 0x2001 with 256 entries each: 0x2002's extra is 510, kept as 255 ("more").
+        let mut keys: Vec<(u16, u8)> = (0..=255).map(|s| (0x2000, s)).collect();
+        keys.extend((0..=255).map(|s| (0x2001, s)));
+        keys.extend([(0x2002, 0), (0x2002, 1), (0x2003, 7), (0x2040, 0)]);
+        let t = build(&keys).unwrap();
+        assert_eq!(t.extra, [0, 255, 255, 255, 0]);
+        let l = lookup(&keys);
+        for (pos, &(index, sub)) in keys.iter().enumerate() {
+            assert_eq!(position(&l, index, sub), Ok(pos));
+        }
+        assert_eq!(position(&l, 0x2002, 2), Err(AbortCode::NO_SUB_INDEX));
+        assert_eq!(position(&l, 0x2003, 0), Err(AbortCode::NO_SUB_INDEX));
+        assert_eq!(position(&l, 0x2004, 0), Err(AbortCode::NO_OBJECT));
+    }
+
+    #[test]
+    fn at_most_65535_objects_in_255_pages() {
         let all: Vec<(u16, u8)> = (0..=u16::MAX).map(|i| (i, 0)).collect();
         assert_eq!(build(&all), None);
-        let l = lookup(&all[1..]);
-        assert_eq!(position(&l, 0xFFFF, 0), Ok(MAX_OBJECTS - 1));
-        assert_eq!(position(&l, 0, 0), Err(AbortCode::NO_OBJECT));
+        assert_eq!(build(&all[1..]), None, "256 pages");
+        assert_eq!(build(&[(0x1000, 0); 65536]), None, "65536 entries");
+        // 255 full pages: 65280 objects.
+        let l = lookup(&all[256..]);
+        assert_eq!(position(&l, 0xFFFF, 0), Ok(255 * 256 - 1));
+        assert_eq!(position(&l, 0x0100, 0), Ok(0));
+        assert_eq!(position(&l, 0x0040, 0), Err(AbortCode::NO_OBJECT));
+        assert_eq!(position(&l, 0x80C1, 0), Ok(0x80C1 - 256));
     }
 }

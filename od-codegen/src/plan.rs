@@ -134,6 +134,7 @@ pub(crate) struct Plan<'m> {
 /// them).
 pub(crate) const RESERVED_METHODS: &[&str] = &[
     "new",
+    "zeroed",
     "position",
     "info",
     "entries",

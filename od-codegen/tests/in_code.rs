@@ -230,3 +230,40 @@ fn the_eds_constant_is_optional_and_a_readable_raw_string() {
         &with[..with.find("pub mod index").unwrap_or(with.len())]
     );
 }
+
+/// `SDO_BUFFER`, `PDOS` and `MAPPED_PER_PDO` of the generated `Device` type, from the text.
+fn capacities(m: &eds::Model) -> (usize, usize, usize) {
+    let text = render(&expand(m, &Options::new("sample", "sample.eds")).tokens, "x").unwrap();
+    let get = |name: &str| -> usize {
+        let key = format!("pub const {name}: usize = ");
+        let at = text.find(&key).unwrap_or_else(|| panic!("no {name}"));
+        let rest = &text[at + key.len()..];
+        rest[..rest.find(';').unwrap()].parse().unwrap()
+    };
+    (get("SDO_BUFFER"), get("PDOS"), get("MAPPED_PER_PDO"))
+}
+
+#[test]
+fn device_capacities_follow_the_description() {
+    // Bit granularity: the mapping object's three entries (more would not be there to read).
+    let mut m = sample();
+    assert_eq!(capacities(&m), (32, 1, 3), "the string's 32-byte capacity");
+    // Byte granularity with a mapping object of 12 entries: at most 8 fit 64 bits.
+    let twelve: Vec<u32> = (0..12).map(|_| 0x6040_0010).collect();
+    m.objects.insert(eds::model::Index(0x1A03), mapping(0x1A03, &twelve));
+    m.device_info.granularity = Some(8);
+    assert_eq!(capacities(&m), (32, 4, 8));
+    // NrOfRXPDO beyond the objects present; a 40-byte string sizes the SDO buffer.
+    m.device_info.nr_of_rx_pdo = Some(6);
+    m.objects.insert(
+        eds::model::Index(0x2100),
+        var(0x2100, "Long", D::VisibleString, Access::Rw, Some(Value::Text("x".repeat(40))), false),
+    );
+    assert_eq!(capacities(&m), (40, 6, 8));
+    // A default mapping of more entries than the granularity allows, which fits 64 bits all
+    // the same, is kept whole (the device loads it); one that does not fit does not count.
+    m.device_info.granularity = Some(32);
+    assert_eq!(capacities(&m), (40, 6, 3), "the 1600h default: 3 entries, 41 bits");
+    m.objects.insert(eds::model::Index(0x1A04), mapping(0x1A04, &[0x2002_0001; 10]));
+    assert_eq!(capacities(&m), (40, 6, 10));
+}

@@ -170,7 +170,7 @@ const fn has_side_effects(index: u16) -> bool {
 }
 
 #[derive(Clone, Copy)]
-struct Tpdo {
+struct Tpdo<const M: usize> {
     present: bool,
     cob: u16,
     valid: bool,
@@ -181,7 +181,7 @@ struct Tpdo {
     sync_start: u8,
     ok: bool,
     count: u8,
-    map: [Mapped; MAX_MAPPED],
+    map: [Mapped; M],
     bytes: u8,
     /// Data sampled at the last SYNC (types 0..=240, 252).
     sample: [u8; 8],
@@ -198,7 +198,7 @@ struct Tpdo {
     requested: bool,
 }
 
-impl Tpdo {
+impl<const M: usize> Tpdo<M> {
     const EMPTY: Self = Self {
         present: false,
         cob: 0,
@@ -210,7 +210,7 @@ impl Tpdo {
         sync_start: 0,
         ok: false,
         count: 0,
-        map: [Mapped::EMPTY; MAX_MAPPED],
+        map: [Mapped::EMPTY; M],
         bytes: 0,
         sample: [0; 8],
         has_sample: false,
@@ -263,14 +263,14 @@ impl Tpdo {
 }
 
 #[derive(Clone, Copy)]
-struct Rpdo {
+struct Rpdo<const M: usize> {
     present: bool,
     cob: u16,
     valid: bool,
     ttype: u8,
     ok: bool,
     count: u8,
-    map: [Mapped; MAX_MAPPED],
+    map: [Mapped; M],
     bytes: u8,
     pending: Option<[u8; 8]>,
     /// Deadline monitoring: 0 = off.
@@ -279,7 +279,7 @@ struct Rpdo {
     expired: bool,
 }
 
-impl Rpdo {
+impl<const M: usize> Rpdo<M> {
     const EMPTY: Self = Self {
         present: false,
         cob: 0,
@@ -287,7 +287,7 @@ impl Rpdo {
         ttype: 0,
         ok: false,
         count: 0,
-        map: [Mapped::EMPTY; MAX_MAPPED],
+        map: [Mapped::EMPTY; M],
         bytes: 0,
         pending: None,
         timeout: 0,
@@ -300,7 +300,7 @@ impl Rpdo {
     }
 }
 
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 struct Consumer {
     node: u8,
     time: Micros,
@@ -308,8 +308,12 @@ struct Consumer {
     active: bool,
 }
 
+impl Consumer {
+    const EMPTY: Self = Self { node: 0, time: 0, last: 0, active: false };
+}
+
 /// Everything but the SDO server, so the server can borrow it as its [`ObjectAccess`].
-struct Core<OD, A, S, const P: usize> {
+struct Core<OD, A, S, const P: usize, const M: usize> {
     od: OD,
     app: A,
     storage: S,
@@ -344,8 +348,8 @@ struct Core<OD, A, S, const P: usize> {
     consumers: [Consumer; MAX_HEARTBEAT_CONSUMERS],
     /// `consumers[..consumers_len]` holds every configured consumer (node != 0).
     consumers_len: usize,
-    rpdo: [Rpdo; P],
-    tpdo: [Tpdo; P],
+    rpdo: [Rpdo<M>; P],
+    tpdo: [Tpdo<M>; P],
     /// Numbers of the active RPDOs (`rx_active[..rx_len]`), in order, so that frames, SYNCs and
     /// deadlines only visit the PDOs in use.
     rx_active: [u16; P],
@@ -395,9 +399,16 @@ struct Core<OD, A, S, const P: usize> {
 /// dev.on_frame(&Frame::new(0x000, &[0x01, 5]).unwrap(), 10); // NMT start
 /// assert_eq!(dev.nmt_state(), od_runtime::NmtState::Operational);
 /// ```
-pub struct Device<OD, A, S = crate::NoStorage, const BUF: usize = 1024, const PDOS: usize = 8> {
+pub struct Device<
+    OD,
+    A,
+    S = crate::NoStorage,
+    const BUF: usize = 1024,
+    const PDOS: usize = 8,
+    const MAP: usize = MAX_MAPPED,
+> {
     sdo: SdoServer<BUF>,
-    core: Core<OD, A, S, PDOS>,
+    core: Core<OD, A, S, PDOS, MAP>,
     node_id: NodeId,
     started: bool,
 }
@@ -439,7 +450,7 @@ fn pack<OD: ObjectDictionary, A: App<OD>>(od: &OD, app: &mut A, map: &[Mapped]) 
     data
 }
 
-impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S, P> {
+impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usize> Core<OD, A, S, P, M> {
     fn event(&mut self, e: Event) {
         self.app.on_event(&mut self.od, e);
     }
@@ -505,7 +516,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                     k += 1;
                 }
                 for c in &mut self.consumers[k..] {
-                    *c = Consumer::default();
+                    *c = Consumer::EMPTY;
                 }
                 // Polls and heartbeats visit the consumers up to the last configured one.
                 self.consumers_len = self.consumers.iter().rposition(|c| c.node != 0).map_or(0, |last| last + 1);
@@ -545,8 +556,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         let od = &self.od;
         let cob = read_uint(od, comm, 1);
         let ttype = read_uint(od, comm, 2).unwrap_or(255) as u8;
-        let count = read_uint(od, map, 0).unwrap_or(0).min(MAX_MAPPED as u32) as u8;
-        let mut values = [0u32; MAX_MAPPED];
+        let count = read_uint(od, map, 0).unwrap_or(0).min(M as u32) as u8;
+        let mut values = [0u32; M];
         let mut ok = true;
         for k in 0..count {
             match read_uint(od, map, k + 1) {
@@ -557,7 +568,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         let bits = pdo::check_mapping(dir, &values[..usize::from(count)], pdo_lookup(od));
         let mut ok = ok && bits.is_ok();
         let bytes = bits.unwrap_or(0).div_ceil(8) as u8;
-        let mut entries = [Mapped::EMPTY; MAX_MAPPED];
+        let mut entries = [Mapped::EMPTY; M];
         for (e, v) in entries.iter_mut().zip(&values[..usize::from(count)]) {
             let m = MapEntry::decode(*v);
             *e = Mapped { index: m.index, sub: m.sub, bits: m.bits, handle: Handle::new(0) };
@@ -701,10 +712,12 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
                 return Ok(()); // the dictionary reports the length error
             }
             let count = data[0];
-            if usize::from(count) > MAX_MAPPED {
+            // More entries than the device keeps per PDO (`MAP`, the EDS's Granularity
+            // allows no more in 64 bits), or than CiA 301 allows.
+            if usize::from(count) > M || usize::from(count) > MAX_MAPPED {
                 return Err(AbortCode::VALUE_TOO_HIGH);
             }
-            let mut values = [0u32; MAX_MAPPED];
+            let mut values = [0u32; M];
             for k in 0..count {
                 values[usize::from(k)] = read_uint(&self.od, index, k + 1).ok_or(AbortCode::VALUE_TOO_HIGH)?;
             }
@@ -939,7 +952,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         self.guard_reply = false;
         self.guard_last = None;
         self.guard_lost = false;
-        self.consumers = [Consumer::default(); MAX_HEARTBEAT_CONSUMERS];
+        self.consumers = [Consumer::EMPTY; MAX_HEARTBEAT_CONSUMERS];
         self.reload_all();
         self.sdo_reset = true;
         self.bootup = true;
@@ -1135,7 +1148,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
         let word = u64::from_le_bytes(data);
         let count = self.rpdo.get(n).map_or(0, |r| usize::from(r.count));
         let mut offset = 0u32;
-        for k in 0..count.min(MAX_MAPPED) {
+        for k in 0..count.min(M) {
             let e = self.rpdo[n].map[k];
             let bits = u32::from(e.bits);
             if !e.is_dummy() {
@@ -1328,7 +1341,9 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> Core<OD, A, S
     }
 }
 
-impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> ObjectAccess for Core<OD, A, S, P> {
+impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usize> ObjectAccess
+    for Core<OD, A, S, P, M>
+{
     fn info(&self, index: u16, sub: u8) -> Result<&'static EntryInfo, AbortCode> {
         self.od.info(index, sub)
     }
@@ -1346,19 +1361,28 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize> ObjectAccess 
 }
 
 impl<OD: ObjectDictionary, A: App<OD>, S: Storage> Device<OD, A, S> {
-    /// A device with a 1 KiB SDO buffer and room for 8 RPDOs and 8 TPDOs. Nothing happens
-    /// until the first [`Device::poll`] or [`Device::on_frame`], which runs the reset node
-    /// sequence (defaults, stored values) and queues the boot-up message.
-    pub fn new(od: OD, app: A, storage: S, node_id: NodeId) -> Self {
+    /// A device with a 1 KiB SDO buffer and room for 8 RPDOs and 8 TPDOs of up to 64 mapped
+    /// entries each. Nothing happens until the first [`Device::poll`] or [`Device::on_frame`],
+    /// which runs the reset node sequence (defaults, stored values) and queues the boot-up
+    /// message. A generated dictionary's module also has a `Device` type sized from its EDS.
+    pub const fn new(od: OD, app: A, storage: S, node_id: NodeId) -> Self {
         Self::with_capacity(od, app, storage, node_id)
     }
 }
 
-impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS: usize> Device<OD, A, S, BUF, PDOS> {
+impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS: usize, const MAP: usize>
+    Device<OD, A, S, BUF, PDOS, MAP>
+{
     /// Like [`Device::new`], for any buffer size and PDO capacity given as type parameters:
-    /// `Device::<_, _, _, 4096, 16>::with_capacity(..)`. PDOs the dictionary defines past
-    /// `PDOS` are not served.
-    pub fn with_capacity(od: OD, app: A, storage: S, node_id: NodeId) -> Self {
+    /// `Device::<_, _, _, 4096, 16, 8>::with_capacity(..)`. PDOs the dictionary defines past
+    /// `PDOS` are not served, and a mapping of more than `MAP` entries is refused
+    /// (`VALUE_TOO_HIGH` when written, not loaded when stored).
+    ///
+    /// A `const fn`, so a firmware can build the device in a `static` at compile time, with
+    /// no copy through the stack: `static DEV: Mutex<RefCell<Device<…>>> = …` or a
+    /// `static mut` initialised by this call.
+    #[inline(always)]
+    pub const fn with_capacity(od: OD, app: A, storage: S, node_id: NodeId) -> Self {
         let node = node_id.get();
         Self {
             sdo: SdoServer::new(),
@@ -1373,8 +1397,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
                 nmt: NmtState::Initialising,
                 bootup: false,
                 sdo_reset: false,
-                sdo_rx: 0x600 + u16::from(node),
-                sdo_tx: 0x580 + u16::from(node),
+                sdo_rx: 0x600 + node as u16,
+                sdo_tx: 0x580 + node as u16,
                 sdo_valid: true,
                 sync_cob: 0x80,
                 sync_producer: false,
@@ -1382,7 +1406,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
                 sync_overflow: 0,
                 sync_counter: 1,
                 sync_next: 0,
-                emcy_cob: 0x80 + u16::from(node),
+                emcy_cob: 0x80 + node as u16,
                 emcy_valid: true,
                 emcy_inhibit: 0,
                 emcy_last: None,
@@ -1396,7 +1420,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
                 guard_reply: false,
                 guard_last: None,
                 guard_lost: false,
-                consumers: [Consumer::default(); MAX_HEARTBEAT_CONSUMERS],
+                consumers: [Consumer::EMPTY; MAX_HEARTBEAT_CONSUMERS],
                 consumers_len: 0,
                 rpdo: [Rpdo::EMPTY; PDOS],
                 tpdo: [Tpdo::EMPTY; PDOS],
@@ -1413,6 +1437,145 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
                 quick_stop: None,
                 remote: true,
             },
+        }
+    }
+
+    /// Builds the device in `place` (a `static` of a firmware, typically) and returns it:
+    /// the same device as [`with_capacity`](Self::with_capacity), written field by field,
+    /// the PDO tables entry by entry, so that nothing of its size passes through the stack.
+    /// (Building it with `with_capacity` and moving it there may copy it through the stack;
+    /// `MaybeUninit::write` does not promise otherwise.)
+    ///
+    /// `od` is moved in: pass a value the compiler can write in place, such as a generated
+    /// dictionary's `zeroed()` (its first poll restores the defaults).
+    #[inline(always)]
+    pub fn init_in_place(
+        place: &mut core::mem::MaybeUninit<Self>,
+        od: OD,
+        app: A,
+        storage: S,
+        node_id: NodeId,
+    ) -> &mut Self {
+        use core::ptr::addr_of_mut;
+        /// Fails to compile when `Core` gains a field that the writes below do not cover.
+        #[allow(dead_code, clippy::too_many_lines)]
+        fn every_field_is_written<OD, A, S, const P: usize, const M: usize>(c: Core<OD, A, S, P, M>) {
+            let Core {
+                od: _,
+                app: _,
+                storage: _,
+                node: _,
+                now: _,
+                nmt: _,
+                bootup: _,
+                sdo_reset: _,
+                sdo_rx: _,
+                sdo_tx: _,
+                sdo_valid: _,
+                sync_cob: _,
+                sync_producer: _,
+                sync_period: _,
+                sync_overflow: _,
+                sync_counter: _,
+                sync_next: _,
+                emcy_cob: _,
+                emcy_valid: _,
+                emcy_inhibit: _,
+                emcy_last: _,
+                emcy_queue: _,
+                history_len: _,
+                hb_period: _,
+                hb_next: _,
+                guard_time: _,
+                life_factor: _,
+                guard_toggle: _,
+                guard_reply: _,
+                guard_last: _,
+                guard_lost: _,
+                consumers: _,
+                consumers_len: _,
+                rpdo: _,
+                tpdo: _,
+                rx_active: _,
+                rx_len: _,
+                tx_active: _,
+                tx_len: _,
+                tx_async: _,
+                tx_poll: _,
+                rx_deadlines: _,
+                rx_pending: _,
+                drive: _,
+                statusword: _,
+                quick_stop: _,
+                remote: _,
+            } = c;
+        }
+        let node = node_id.get();
+        let p = place.as_mut_ptr();
+        // SAFETY: every field of `*p` is written exactly once below (whole values, or every
+        // element of an array), through raw pointers into `place`, which is valid for writes
+        // and exclusively ours; `every_field_is_written` keeps the list complete for `Core`,
+        // and `Device` has the four fields written first. Then `*p` is initialised.
+        unsafe {
+            addr_of_mut!((*p).sdo).write(SdoServer::new());
+            addr_of_mut!((*p).node_id).write(node_id);
+            addr_of_mut!((*p).started).write(false);
+            let c = addr_of_mut!((*p).core);
+            addr_of_mut!((*c).od).write(od);
+            let rpdo = addr_of_mut!((*c).rpdo).cast::<Rpdo<MAP>>();
+            let tpdo = addr_of_mut!((*c).tpdo).cast::<Tpdo<MAP>>();
+            for i in 0..PDOS {
+                rpdo.add(i).write(Rpdo::EMPTY);
+                tpdo.add(i).write(Tpdo::EMPTY);
+            }
+            let consumers = addr_of_mut!((*c).consumers).cast::<Consumer>();
+            for i in 0..MAX_HEARTBEAT_CONSUMERS {
+                consumers.add(i).write(Consumer::EMPTY);
+            }
+            addr_of_mut!((*c).rx_active).write([0; PDOS]);
+            addr_of_mut!((*c).tx_active).write([0; PDOS]);
+            addr_of_mut!((*c).app).write(app);
+            addr_of_mut!((*c).storage).write(storage);
+            addr_of_mut!((*c).node).write(node);
+            addr_of_mut!((*c).now).write(0);
+            addr_of_mut!((*c).nmt).write(NmtState::Initialising);
+            addr_of_mut!((*c).bootup).write(false);
+            addr_of_mut!((*c).sdo_reset).write(false);
+            addr_of_mut!((*c).sdo_rx).write(0x600 + node as u16);
+            addr_of_mut!((*c).sdo_tx).write(0x580 + node as u16);
+            addr_of_mut!((*c).sdo_valid).write(true);
+            addr_of_mut!((*c).sync_cob).write(0x80);
+            addr_of_mut!((*c).sync_producer).write(false);
+            addr_of_mut!((*c).sync_period).write(0);
+            addr_of_mut!((*c).sync_overflow).write(0);
+            addr_of_mut!((*c).sync_counter).write(1);
+            addr_of_mut!((*c).sync_next).write(0);
+            addr_of_mut!((*c).emcy_cob).write(0x80 + node as u16);
+            addr_of_mut!((*c).emcy_valid).write(true);
+            addr_of_mut!((*c).emcy_inhibit).write(0);
+            addr_of_mut!((*c).emcy_last).write(None);
+            addr_of_mut!((*c).emcy_queue).write(Queue::new());
+            addr_of_mut!((*c).history_len).write(0);
+            addr_of_mut!((*c).hb_period).write(0);
+            addr_of_mut!((*c).hb_next).write(0);
+            addr_of_mut!((*c).guard_time).write(0);
+            addr_of_mut!((*c).life_factor).write(0);
+            addr_of_mut!((*c).guard_toggle).write(false);
+            addr_of_mut!((*c).guard_reply).write(false);
+            addr_of_mut!((*c).guard_last).write(None);
+            addr_of_mut!((*c).guard_lost).write(false);
+            addr_of_mut!((*c).consumers_len).write(0);
+            addr_of_mut!((*c).rx_len).write(0);
+            addr_of_mut!((*c).tx_len).write(0);
+            addr_of_mut!((*c).tx_async).write(false);
+            addr_of_mut!((*c).tx_poll).write(false);
+            addr_of_mut!((*c).rx_deadlines).write(false);
+            addr_of_mut!((*c).rx_pending).write(false);
+            addr_of_mut!((*c).drive).write(None);
+            addr_of_mut!((*c).statusword).write(None);
+            addr_of_mut!((*c).quick_stop).write(None);
+            addr_of_mut!((*c).remote).write(true);
+            place.assume_init_mut()
         }
     }
 

@@ -17,6 +17,10 @@ pub struct Frame {
 }
 
 impl Frame {
+    /// An empty data frame with identifier 0 (a placeholder in fixed-size queues).
+    #[cfg(feature = "embedded-can")]
+    pub(crate) const EMPTY: Self = Self { id: 0, rtr: false, len: 0, data: [0; 8] };
+
     /// A data frame. `None` if `id` does not fit in 11 bits or `data` is longer than 8 bytes.
     pub fn new(id: u16, data: &[u8]) -> Option<Self> {
         if id > 0x7FF || data.len() > 8 {

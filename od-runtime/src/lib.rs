@@ -33,8 +33,10 @@
 #![deny(missing_docs)]
 
 #[doc(hidden)]
-#[path = "private_v1.rs"]
-pub mod __private_v1; // support for generated code: not public API (see the module docs)
+#[path = "private_v2.rs"]
+pub mod __private_v2; // support for generated code: not public API (see the module docs)
+#[cfg(feature = "embedded-can")]
+pub mod can;
 pub mod cia402;
 pub mod crc;
 mod device;

@@ -78,7 +78,7 @@ impl AbortCode {
 
 /// CiA 301 data types, by their type index.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[repr(u16)]
+#[repr(u8)]
 #[allow(missing_docs)]
 pub enum DataType {
     Boolean = 0x01,
@@ -112,6 +112,23 @@ impl DataType {
     /// Whether values of this type have a variable length (strings, DOMAIN).
     pub const fn is_variable_length(self) -> bool {
         matches!(self, DataType::VisibleString | DataType::OctetString | DataType::UnicodeString | DataType::Domain)
+    }
+
+    /// Size in bits of a fixed-size value (1 for BOOLEAN); 0 for the variable-length types.
+    pub const fn bits(self) -> u32 {
+        use DataType as D;
+        match self {
+            D::Boolean => 1,
+            D::Integer8 | D::Unsigned8 => 8,
+            D::Integer16 | D::Unsigned16 => 16,
+            D::Integer24 | D::Unsigned24 => 24,
+            D::Integer32 | D::Unsigned32 | D::Real32 => 32,
+            D::Integer40 | D::Unsigned40 => 40,
+            D::Integer48 | D::Unsigned48 | D::TimeOfDay | D::TimeDifference => 48,
+            D::Integer56 | D::Unsigned56 => 56,
+            D::Integer64 | D::Unsigned64 | D::Real64 => 64,
+            D::VisibleString | D::OctetString | D::UnicodeString | D::Domain => 0,
+        }
     }
 }
 
@@ -155,21 +172,64 @@ impl Access {
 }
 
 /// The default value of an entry, as the device description gives it.
+///
+/// Integers are kept in 64 bits: every CiA 301 integer type fits, and an UNSIGNED64 above
+/// `i64::MAX` is kept as the same 64 bits (a default is encoded by truncation to the type's
+/// size, so the bytes are the same). REAL32 defaults stay `f32`, so a single-precision FPU
+/// never needs double-precision arithmetic to restore them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DefaultValue {
     /// No default given (zero / empty).
     None,
     /// An integer (BOOLEAN as 0/1).
-    Int(i128),
+    Int(i64),
     /// `$NODEID + offset`, resolved at start-up and on communication reset.
-    NodeIdPlus(i128),
-    /// A REAL32/REAL64 value.
-    Real(f64),
+    NodeIdPlus(i64),
+    /// A REAL32 value.
+    Real32(f32),
+    /// A REAL64 value.
+    Real64(f64),
     /// Bytes of a string, OCTET_STRING or DOMAIN.
     Bytes(&'static [u8]),
 }
 
-/// Static metadata of one `(index, sub-index)` entry.
+/// What only some entries have: a capacity (strings, DOMAIN), limits, a default other than
+/// zero. Kept apart from [`EntryInfo`] so that the entries without them pay one pointer, and
+/// shared by every entry with the same values (generated tables hold each distinct one once).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EntryExtras {
+    /// The capacity in bits of a variable-length value (0 for fixed-size types, whose size
+    /// follows from the data type).
+    pub bits: u32,
+    /// Default value.
+    pub default: DefaultValue,
+    /// The limits, for the few entries that have any.
+    pub limits: Option<&'static Limits>,
+}
+
+impl EntryExtras {
+    /// No capacity, no limits, no default.
+    pub const NONE: Self = Self { bits: 0, default: DefaultValue::None, limits: None };
+}
+
+/// The values an integer entry accepts from the bus (`LowLimit`, `HighLimit`), in 64 bits
+/// like [`DefaultValue::Int`]: a limit of an UNSIGNED64 above `i64::MAX` is kept as its 64
+/// bits, and [`EntryInfo::low`]/[`EntryInfo::high`] read it back as the unsigned number. An
+/// entry limited on one side only has its type's range on the other.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Limits {
+    /// Lowest value accepted.
+    pub low: i64,
+    /// Highest value accepted.
+    pub high: i64,
+}
+
+/// Static metadata of one `(index, sub-index)` entry: 12 bytes on a 32-bit target.
+///
+/// The rarely present data (capacity, limits, default) is behind [`EntryInfo::extras`] and
+/// read through [`bits`](Self::bits), [`low`](Self::low), [`high`](Self::high) and
+/// [`default`](Self::default); names are the dictionary's
+/// ([`ObjectDictionary::name`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EntryInfo {
     /// Object index.
@@ -182,17 +242,79 @@ pub struct EntryInfo {
     pub access: Access,
     /// `PDOMapping=1`.
     pub pdo_mappable: bool,
+    /// Where the dictionary stores the value, in a numbering of its own (generated
+    /// dictionaries: the byte offset of the value in their storage struct). Hand-written
+    /// dictionaries may leave it 0.
+    pub slot: u16,
+    /// Capacity, limits and default, if the entry has any.
+    pub extras: Option<&'static EntryExtras>,
+}
+
+impl EntryInfo {
+    /// An entry without capacity, limits or default, at slot 0.
+    pub const fn new(index: u16, sub: u8, data_type: DataType, access: Access, pdo_mappable: bool) -> Self {
+        Self { index, sub, data_type, access, pdo_mappable, slot: 0, extras: None }
+    }
+
+    /// This entry with `extras`.
+    pub const fn with_extras(mut self, extras: &'static EntryExtras) -> Self {
+        self.extras = Some(extras);
+        self
+    }
+
+    /// This entry at `slot`.
+    pub const fn with_slot(mut self, slot: u16) -> Self {
+        self.slot = slot;
+        self
+    }
+
     /// Size in bits for fixed-size types (1 for BOOLEAN); the capacity in bits for
     /// variable-length types.
-    pub bits: u32,
+    #[inline]
+    pub const fn bits(&self) -> u32 {
+        match self.extras {
+            Some(x) if x.bits != 0 => x.bits,
+            _ => self.data_type.bits(),
+        }
+    }
+
     /// Lowest value accepted from the bus, if limited.
-    pub low: Option<i128>,
+    #[inline]
+    pub const fn low(&self) -> Option<i128> {
+        match self.extras {
+            Some(EntryExtras { limits: Some(Limits { low, .. }), .. }) => Some(self.limit(*low)),
+            _ => None,
+        }
+    }
+
     /// Highest value accepted from the bus, if limited.
-    pub high: Option<i128>,
+    #[inline]
+    pub const fn high(&self) -> Option<i128> {
+        match self.extras {
+            Some(EntryExtras { limits: Some(Limits { high, .. }), .. }) => Some(self.limit(*high)),
+            _ => None,
+        }
+    }
+
+    /// A limit as the number it stands for: unsigned types read its 64 bits as unsigned.
+    const fn limit(&self, v: i64) -> i128 {
+        if self.data_type.is_signed() { v as i128 } else { v as u64 as i128 }
+    }
+
     /// Default value.
-    pub default: DefaultValue,
-    /// ParameterName (of the sub-object).
-    pub name: &'static str,
+    #[inline]
+    pub const fn default(&self) -> DefaultValue {
+        match self.extras {
+            Some(x) => x.default,
+            None => DefaultValue::None,
+        }
+    }
+
+    /// Whether the entry has integer limits.
+    #[inline]
+    const fn limited(&self) -> bool {
+        matches!(self.extras, Some(EntryExtras { limits: Some(_), .. }))
+    }
 }
 
 /// Which part of the dictionary a reset or store/restore covers.
@@ -344,6 +466,16 @@ pub trait ObjectDictionary {
     /// Sets every entry of `area` back to its default, resolving `$NODEID` with `node_id`.
     fn restore_defaults(&mut self, area: Area, node_id: u8);
 
+    /// The entry's name (`ParameterName`; `Object: Sub-object` for a sub-entry), if the
+    /// dictionary keeps names (generated ones do unless generated without; a firmware may
+    /// leave them out to save flash).
+    ///
+    /// Default: `None`.
+    fn name(&self, index: u16, sub: u8) -> Option<&'static str> {
+        let _ = (index, sub);
+        None
+    }
+
     /// Resolves `(index, sub)` for [`read_handle`](Self::read_handle) and
     /// [`write_handle`](Self::write_handle); `None` if the entry does not exist. A handle stays
     /// valid as long as the dictionary value does (the entries are a static table).
@@ -439,7 +571,7 @@ impl DataType {
 impl EntryInfo {
     /// Size in bytes of a fixed-size value, or the capacity in bytes of a variable-length one.
     pub const fn byte_len(&self) -> usize {
-        (self.bits as usize).div_ceil(8)
+        (self.bits() as usize).div_ceil(8)
     }
 
     /// Checks a value given as little-endian bytes against this entry: its length (exact for
@@ -454,11 +586,7 @@ impl EntryInfo {
     pub fn check_value(&self, data: &[u8]) -> Result<(), AbortCode> {
         // The common case first, inlined (an exact length, no limits, not a BOOLEAN), which
         // every rule of `check_value_slow` accepts: one comparison per field on the PDO path.
-        if data.len() == self.byte_len()
-            && self.low.is_none()
-            && self.high.is_none()
-            && self.data_type != DataType::Boolean
-        {
+        if data.len() == self.byte_len() && !self.limited() && !matches!(self.data_type, DataType::Boolean) {
             return Ok(());
         }
         self.check_value_slow(data)
@@ -479,19 +607,19 @@ impl EntryInfo {
         if !self.data_type.is_integer() || len > 16 {
             return Ok(());
         }
-        if self.low.is_none() && self.high.is_none() && self.data_type != DataType::Boolean {
+        if !self.limited() && self.data_type != DataType::Boolean {
             return Ok(());
         }
         let value = decode_int(data, self.data_type.is_signed());
         if self.data_type == DataType::Boolean && value > 1 {
             return Err(AbortCode::INVALID_VALUE);
         }
-        if let Some(high) = self.high
+        if let Some(high) = self.high()
             && value > high
         {
             return Err(AbortCode::VALUE_TOO_HIGH);
         }
-        if let Some(low) = self.low
+        if let Some(low) = self.low()
             && value < low
         {
             return Err(AbortCode::VALUE_TOO_LOW);
@@ -550,12 +678,12 @@ impl DefaultValue {
         match *self {
             DefaultValue::None => out.fill(0),
             DefaultValue::Int(v) => copy_int(v, out),
-            DefaultValue::NodeIdPlus(v) => copy_int(v.wrapping_add(i128::from(node_id)), out),
-            DefaultValue::Real(f) => match info.data_type {
-                DataType::Real32 if len == 4 => out.copy_from_slice(&(f as f32).to_le_bytes()),
-                DataType::Real64 if len == 8 => out.copy_from_slice(&f.to_le_bytes()),
-                _ => copy_int(f as i128, out),
-            },
+            DefaultValue::NodeIdPlus(v) => copy_int(v.wrapping_add(i64::from(node_id)), out),
+            // A real default of a real entry is its bits; of any other entry, its bits too
+            // (the generator never writes one; this keeps the method total without float
+            // conversions).
+            DefaultValue::Real32(f) => copy_int(i64::from(f.to_bits()), out),
+            DefaultValue::Real64(f) => copy_int(f.to_bits() as i64, out),
             DefaultValue::Bytes(b) => {
                 out.fill(0);
                 let n = b.len().min(len);
@@ -566,9 +694,11 @@ impl DefaultValue {
     }
 }
 
-fn copy_int(v: i128, out: &mut [u8]) {
+/// The low bytes of `v`, little-endian, sign-extended past 8 bytes.
+fn copy_int(v: i64, out: &mut [u8]) {
+    let fill = if v < 0 { 0xFF } else { 0 };
     let bytes = v.to_le_bytes();
-    for (o, b) in out.iter_mut().zip(bytes.iter().chain(core::iter::repeat(&0))) {
+    for (o, b) in out.iter_mut().zip(bytes.iter().chain(core::iter::repeat(&fill))) {
         *o = *b;
     }
 }

@@ -131,7 +131,7 @@ fn candidates(transmit: bool) -> Vec<(u16, u8, u8)> {
         if e.data_type.is_variable_length() {
             c.extend((1..=e.byte_len().min(8) as u8).map(|k| (e.index, e.sub, 8 * k)));
         } else {
-            c.push((e.index, e.sub, e.bits as u8));
+            c.push((e.index, e.sub, e.bits() as u8));
         }
     }
     if !transmit {

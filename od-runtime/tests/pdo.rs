@@ -292,3 +292,28 @@ fn rpdo_deadline_monitoring() {
     h.advance(50_000);
     assert_eq!(h.events(), [Event::RpdoTimeout { pdo: 0 }]);
 }
+
+#[test]
+fn a_mapping_longer_than_the_device_keeps_is_refused() {
+    use od_runtime::{Device, NodeId};
+    // Room for 3 mapped entries per PDO (MAP = 3), as a generated `Device` type sizes it.
+    let mut dev: Device<TestOd, Recorder, MemStorage, 1024, 8, 3> =
+        Device::with_capacity(TestOd::new(), Recorder::default(), MemStorage::default(), NodeId::new(NODE).unwrap());
+    let mut sdo = |index: u16, sub: u8, data: &[u8]| {
+        let mut b = vec![0x23 | ((4 - data.len() as u8) << 2), index as u8, (index >> 8) as u8, sub];
+        b.extend_from_slice(data);
+        b.resize(8, 0);
+        dev.on_frame(&frame(&format!("601 {}", hex(&b))), 0);
+        let mut out = Vec::new();
+        dev.poll(0, |f| out.push(f.to_string()));
+        out.into_iter().find(|f| f.starts_with("581 ")).unwrap()
+    };
+    sdo(0x1800, 1, &[0x81, 0x01, 0, 0x80]);
+    sdo(0x1A00, 0, &[0]);
+    for k in 1..=4u8 {
+        assert!(sdo(0x1A00, k, &[0x01, k, 0x04, 0x20]).starts_with("581 60"), "entry {k}");
+    }
+    assert_eq!(abort_code(&sdo(0x1A00, 0, &[4])), Some(0x0609_0031), "4 entries > MAP");
+    assert!(sdo(0x1A00, 0, &[3]).starts_with("581 60"));
+    assert!(sdo(0x1800, 1, &[0x81, 0x01, 0, 0]).starts_with("581 60"), "valid again with 3 entries");
+}

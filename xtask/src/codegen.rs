@@ -95,8 +95,14 @@ pub fn present_sources(root: &Path) -> Vec<Source> {
 pub fn expected_files(root: &Path) -> Result<Vec<(PathBuf, String)>, String> {
     let sources = present_sources(root);
     // Our own device files: strict (every deviation is an error), with the description embedded
-    // (`EDS`, which the simulated drives serve and parse).
-    let mut builder = od_codegen::Builder::new().root(root).cargo_metadata(false).strict().embed_eds(true);
+    // (`EDS`, which the simulated drives serve and parse), and the names behind the `names`
+    // feature of `generated` (a default feature): a firmware turns them off to save their flash.
+    let mut builder = od_codegen::Builder::new()
+        .root(root)
+        .cargo_metadata(false)
+        .strict()
+        .embed_eds(true)
+        .names(od_codegen::Names::Feature("names".to_owned()));
     for s in &sources {
         builder = builder.device(s.module, s.path);
     }

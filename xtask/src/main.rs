@@ -6,7 +6,9 @@ const USAGE: &str = "usage: cargo xtask <command>
 
 commands:
   gen [--check]   regenerate generated/ from the device files and network descriptions,
-                  printing what changed in each changed device file (--check: fail if stale)";
+                  printing what changed in each changed device file (--check: fail if stale)
+  size [--elf F]  build the example firmware for each device (thumbv7em-none-eabihf), print
+                  its sections, fail above the size budget or when core::fmt is linked";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -16,6 +18,7 @@ fn main() -> ExitCode {
     };
     let result = match cmd.as_str() {
         "gen" => xtask::codegen::main(rest),
+        "size" => xtask::size::main(rest),
         "help" | "--help" | "-h" => {
             println!("{USAGE}");
             Ok(())

@@ -948,7 +948,7 @@ const OUT_OF_RANGE: &str = "Error: value out of range";
 /// Whether `raw` fits integer entry `info`: its type's range (at most 64 bits) and its
 /// `low`/`high` limits.
 fn fits(info: &od_runtime::od::EntryInfo, raw: i128) -> bool {
-    let bits = info.bits;
+    let bits = info.bits();
     if !info.data_type.is_integer() || bits == 0 || bits > 64 {
         return false;
     }
@@ -957,7 +957,7 @@ fn fits(info: &od_runtime::od::EntryInfo, raw: i128) -> bool {
     } else {
         (0, (1i128 << bits) - 1)
     };
-    (lo..=hi).contains(&raw) && info.low.is_none_or(|l| raw >= l) && info.high.is_none_or(|h| raw <= h)
+    (lo..=hi).contains(&raw) && info.low().is_none_or(|l| raw >= l) && info.high().is_none_or(|h| raw <= h)
 }
 
 /// Why a parameter value was not taken.

@@ -157,7 +157,7 @@ fn encode(value: &eds::Value, info: &EntryInfo, node: Option<u8>) -> Result<Vec<
             let bytes = v.to_le_bytes();
             let data = bytes[..len.min(16)].to_vec();
             if od_runtime::od::decode_int(&data, t.is_signed()) != v {
-                return Err(format!("{v} does not fit in {} bits", info.bits));
+                return Err(format!("{v} does not fit in {} bits", info.bits()));
             }
             Ok(data)
         }

@@ -17,19 +17,16 @@ pub mod tiny {
         /// `0x2000` Speed.
         pub const SPEED: u16 = 0x2000;
     }
-    /// The index of every object, sorted (the lookup's page table is computed from it).
     static OBJECTS: [u16; 1] = [0x2000];
-    /// Finds `(index, sub)` in [`ENTRIES`] in a constant number of steps: a page table from
-    /// the index to its object, then the sub-index in the object's run of entries (`runs`:
-    /// `0xFFFFFFLL`, the object's first entry `FFFFFF` and its last position in the run `LL`;
-    /// `subs`: every entry's sub-index).
-    static LOOKUP: ::od_runtime::__private_v0::Lookup = ::od_runtime::__private_v0::Lookup {
-        pages: ::od_runtime::__private_v0::pages(&OBJECTS),
-        slots: &::od_runtime::__private_v0::slots::<512>(&OBJECTS),
-        runs: &[0x00000000],
-        subs: &[0],
+    static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
+        pages: ::od_runtime::__private_v1::pages(&OBJECTS),
+        bits: &::od_runtime::__private_v1::bits::<1>(&OBJECTS),
+        ranks: &[[0, 1, 1, 1]],
+        objects: &[[0, 1, 1, 1]],
+        extra: &[0],
+        entries: &ENTRIES,
     };
-    /// Metadata of every entry, sorted by `(index, sub)`.
+    /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
     pub static ENTRIES: [::od_runtime::od::EntryInfo; 1] = [
         ::od_runtime::od::EntryInfo {
             index: 0x2000,
@@ -37,13 +34,30 @@ pub mod tiny {
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
             pdo_mappable: false,
-            bits: 8,
-            low: None,
-            high: None,
-            default: ::od_runtime::od::DefaultValue::Int(7),
-            name: "Speed",
+            slot: ::od_runtime::__private_v1::offset::<
+                u8,
+            >(
+                ::core::mem::offset_of!(Dictionary, speed),
+                ::od_runtime::od::DataType::Unsigned8,
+                0,
+            ),
+            extras: Some(&EXTRAS[0]),
         },
     ];
+    /// Capacities, defaults other than zero and limits, each distinct one once
+    /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
+    pub static EXTRAS: [::od_runtime::od::EntryExtras; 1] = [
+        ::od_runtime::od::EntryExtras {
+            bits: 0,
+            default: ::od_runtime::od::DefaultValue::Int(7),
+            limits: None,
+        },
+    ];
+    /// The limits of the entries that have any, each distinct one once.
+    pub static LIMITS: [::od_runtime::od::Limits; 0] = [];
+    /// The name of every entry (`ParameterName`, `Object: Sub-object` for sub-entries), in
+    /// [`ENTRIES`] order.
+    pub static NAMES: [&str; 1] = ["Speed"];
     /// The object dictionary of the Test device (Tests): the current value of every entry.
     ///
     /// Build it with [`Dictionary::new`]; read and write entries with the typed accessors (the application side) or through [`ObjectDictionary`](::od_runtime::od::ObjectDictionary) (the bus side, as little-endian bytes).
@@ -56,6 +70,12 @@ pub mod tiny {
         pub const fn new(_node_id: u8) -> Self {
             Dictionary { speed: 7 }
         }
+        /// Every value zero, every buffer empty. A device's first poll (its reset node)
+        /// restores the defaults, so a firmware can start from this: its device then
+        /// needs no image of the defaults in flash besides the entry table's.
+        pub const fn zeroed() -> Self {
+            Dictionary { speed: 0 }
+        }
         /// Position of `(index, sub)` in [`ENTRIES`]: `Err(NO_OBJECT)` if the index is absent,
         /// `Err(NO_SUB_INDEX)` if only the sub-index is.
         #[inline]
@@ -63,28 +83,19 @@ pub mod tiny {
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v0::position(&LOOKUP, index, sub)
+            ::od_runtime::__private_v1::position(&LOOKUP, index, sub)
         }
+        /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
-        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v0::Slot<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v0::Slot::U8(&self.speed),
-                    _ => return None,
-                },
-            )
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
+            ::od_runtime::__private_v1::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
-        ) -> Option<::od_runtime::__private_v0::SlotMut<'_>> {
-            Some(
-                match pos {
-                    0 => ::od_runtime::__private_v0::SlotMut::U8(&mut self.speed),
-                    _ => return None,
-                },
-            )
+        ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
+            ::od_runtime::__private_v1::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -92,8 +103,8 @@ pub mod tiny {
         fn read_at(&self, pos: usize) -> [u8; 8] {
             match self.slot(pos) {
                 Some(slot) => {
-                    ::od_runtime::__private_v0::first8(
-                        || ENTRIES.get(pos).map_or(0, |e| e.bits),
+                    ::od_runtime::__private_v1::first8(
+                        || ENTRIES.get(pos).map_or(0, |e| e.bits()),
                         slot,
                     )
                 }
@@ -111,7 +122,7 @@ pub mod tiny {
             let (real_low, real_high) = (None, None);
             match (ENTRIES.get(pos), self.slot_mut(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v0::write(
+                    ::od_runtime::__private_v1::write(
                         info,
                         slot,
                         data,
@@ -130,7 +141,7 @@ pub mod tiny {
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v0::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v1::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -140,7 +151,7 @@ pub mod tiny {
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v0::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v1::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -150,7 +161,7 @@ pub mod tiny {
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v0::check_mapping(
+            ::od_runtime::__private_v1::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
@@ -161,7 +172,7 @@ pub mod tiny {
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v0::check_mapping(
+            ::od_runtime::__private_v1::check_mapping(
                 &ENTRIES,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
@@ -182,9 +193,18 @@ pub mod tiny {
             Ok(())
         }
     }
+    unsafe impl ::od_runtime::__private_v1::Table for Dictionary {
+        #[inline(always)]
+        fn entries() -> &'static [::od_runtime::od::EntryInfo] {
+            &ENTRIES
+        }
+    }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
         fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
+        }
+        fn name(&self, index: u16, sub: u8) -> Option<&'static str> {
+            Self::position(index, sub).ok().and_then(|pos| NAMES.get(pos).copied())
         }
         #[inline]
         fn info(
@@ -204,7 +224,7 @@ pub mod tiny {
             let pos = Self::position(index, sub)?;
             match (ENTRIES.get(pos), self.slot(pos)) {
                 (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v0::read(info, slot, buf)
+                    ::od_runtime::__private_v1::read(info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -221,7 +241,7 @@ pub mod tiny {
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, info) in ENTRIES.iter().enumerate() {
                 if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v0::set_default(info, slot, node_id);
+                    ::od_runtime::__private_v1::set_default(info, slot, node_id);
                 }
             }
         }
@@ -237,10 +257,10 @@ pub mod tiny {
         }
         #[inline]
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-            ::od_runtime::__private_v0::pack_mapped(
+            ::od_runtime::__private_v1::pack_mapped(
                 map,
                 |h| match self.slot(h.get() as usize) {
-                    Some(slot) => ::od_runtime::__private_v0::first8(|| 64, slot),
+                    Some(slot) => ::od_runtime::__private_v1::first8(|| 64, slot),
                     None => [0; 8],
                 },
             )
@@ -254,11 +274,29 @@ pub mod tiny {
             self.write_at(h.get() as usize, data)
         }
     }
+    /// The SDO server's buffer: the largest entry, in bytes (at least 8).
+    pub const SDO_BUFFER: usize = 8;
+    /// PDOs per direction the device has (`NrOfRXPDO`/`NrOfTXPDO`, or its PDO objects).
+    pub const PDOS: usize = 0;
+    /// Entries a PDO can map: the mapping objects' sub-objects, at most 64 bits at the
+    /// EDS's `Granularity`.
+    pub const MAPPED_PER_PDO: usize = 0;
+    /// The device runtime around this dictionary, sized for it: [`SDO_BUFFER`], [`PDOS`],
+    /// [`MAPPED_PER_PDO`]. Build it with `Device::with_capacity` (a `const fn`, so it can
+    /// initialise a `static`).
+    pub type Device<A, S = ::od_runtime::NoStorage> = ::od_runtime::Device<
+        Dictionary,
+        A,
+        S,
+        SDO_BUFFER,
+        PDOS,
+        MAPPED_PER_PDO,
+    >;
     /// Typed layouts of the device's default PDO mappings.
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
         #[doc(inline)]
-        pub use ::od_runtime::__private_v0::PdoLengthError as LengthError;
+        pub use ::od_runtime::__private_v1::PdoLengthError as LengthError;
     }
 }
 

@@ -3,7 +3,9 @@
 #![allow(dead_code)]
 
 use od_runtime::crc::crc16_ccitt;
-use od_runtime::od::{AbortCode, Access, Area, DataType, DefaultValue, EntryInfo, Handle, ObjectDictionary};
+use od_runtime::od::{
+    AbortCode, Access, Area, DataType, DefaultValue, EntryExtras, EntryInfo, Handle, Limits, ObjectDictionary,
+};
 use od_runtime::{App, Device, Event, Frame, Micros, NodeId, Storage, WriteSource};
 use std::collections::BTreeMap;
 
@@ -25,34 +27,34 @@ const fn bits_of(t: DataType) -> u32 {
     }
 }
 
-const fn e(index: u16, sub: u8, data_type: DataType, access: Access, pdo: bool, default: DefaultValue) -> EntryInfo {
-    EntryInfo {
-        index,
-        sub,
-        data_type,
-        access,
-        pdo_mappable: pdo,
-        bits: bits_of(data_type),
-        low: None,
-        high: None,
-        default,
-        name: "",
+/// An entry and its extras, as the table is written; [`ENTRIES`] links them.
+#[derive(Clone, Copy)]
+struct Row {
+    info: EntryInfo,
+    x: EntryExtras,
+    limits: Option<Limits>,
+}
+
+const fn e(index: u16, sub: u8, data_type: DataType, access: Access, pdo: bool, default: DefaultValue) -> Row {
+    Row {
+        info: EntryInfo::new(index, sub, data_type, access, pdo),
+        x: EntryExtras { default, ..EntryExtras::NONE },
+        limits: None,
     }
 }
 
 const fn int(v: i128) -> DefaultValue {
-    DefaultValue::Int(v)
+    DefaultValue::Int(v as i64)
 }
 
-const fn sized(mut x: EntryInfo, bytes: u32) -> EntryInfo {
-    x.bits = bytes * 8;
-    x
+const fn sized(mut r: Row, bytes: u32) -> Row {
+    r.x.bits = bytes * 8;
+    r
 }
 
-const fn limits(mut x: EntryInfo, low: i128, high: i128) -> EntryInfo {
-    x.low = Some(low);
-    x.high = Some(high);
-    x
+const fn limits(mut r: Row, low: i128, high: i128) -> Row {
+    r.limits = Some(Limits { low: low as i64, high: high as i64 });
+    r
 }
 
 /// Number of entries in [`ENTRIES`].
@@ -60,7 +62,7 @@ pub const N: usize = 182;
 /// Capacity of the DOMAIN 2003h in bytes (larger than the 1 KiB SDO buffer).
 pub const DOMAIN_CAP: u32 = 2048;
 
-const fn table() -> [EntryInfo; N] {
+const fn table() -> [Row; N] {
     let none = DefaultValue::None;
     let mut t = [e(0, 0, Unsigned8, Ro, false, DefaultValue::None); N];
     let mut i = 0;
@@ -119,7 +121,7 @@ const fn table() -> [EntryInfo; N] {
         let idx = 0x1400 + p as u16;
         let cob = 0x200 + 0x100 * p as i128 + if p >= 2 { 0x8000_0000 } else { 0 };
         push!(e(idx, 0, Unsigned8, Ro, false, int(5)));
-        push!(e(idx, 1, Unsigned32, Rw, false, DefaultValue::NodeIdPlus(cob)));
+        push!(e(idx, 1, Unsigned32, Rw, false, DefaultValue::NodeIdPlus(cob as i64)));
         push!(e(idx, 2, Unsigned8, Rw, false, int(255)));
         push!(e(idx, 5, Unsigned16, Rw, false, none));
         p += 1;
@@ -153,7 +155,7 @@ const fn table() -> [EntryInfo; N] {
         let cob = 0x180 + 0x100 * p as i128 + if p >= 2 { 0x8000_0000 } else { 0 };
         let ttype = if p == 1 { 1 } else { 255 };
         push!(e(idx, 0, Unsigned8, Ro, false, int(6)));
-        push!(e(idx, 1, Unsigned32, Rw, false, DefaultValue::NodeIdPlus(cob)));
+        push!(e(idx, 1, Unsigned32, Rw, false, DefaultValue::NodeIdPlus(cob as i64)));
         push!(e(idx, 2, Unsigned8, Rw, false, int(ttype)));
         push!(e(idx, 3, Unsigned16, Rw, false, none));
         push!(e(idx, 5, Unsigned16, Rw, false, none));
@@ -206,17 +208,61 @@ const fn table() -> [EntryInfo; N] {
     t
 }
 
+// A const, not a static: the const fns below read it (a static cannot be read there).
+#[allow(clippy::large_const_arrays)]
+const ROWS: [Row; N] = table();
+
+const fn limits_table() -> [Limits; N] {
+    let mut l = [Limits { low: 0, high: 0 }; N];
+    let mut i = 0;
+    while i < N {
+        if let Some(x) = ROWS[i].limits {
+            l[i] = x;
+        }
+        i += 1;
+    }
+    l
+}
+
+static LIMITS: [Limits; N] = limits_table();
+
+const fn extras(limits: &'static [Limits; N]) -> [EntryExtras; N] {
+    let mut x = [EntryExtras::NONE; N];
+    let mut i = 0;
+    while i < N {
+        x[i] = ROWS[i].x;
+        if ROWS[i].limits.is_some() {
+            x[i].limits = Some(&limits[i]);
+        }
+        i += 1;
+    }
+    x
+}
+
+/// Every entry's extras (one per entry: a hand-written table need not share them).
+static EXTRAS: [EntryExtras; N] = extras(&LIMITS);
+
+const fn link(x: &'static [EntryExtras; N]) -> [EntryInfo; N] {
+    let mut t = [EntryInfo::new(0, 0, Unsigned8, Ro, false); N];
+    let mut i = 0;
+    while i < N {
+        t[i] = ROWS[i].info.with_extras(&x[i]);
+        i += 1;
+    }
+    t
+}
+
 /// The entry table, sorted by (index, sub).
-pub static ENTRIES: [EntryInfo; N] = table();
+pub static ENTRIES: [EntryInfo; N] = link(&EXTRAS);
 
 const fn offsets() -> ([usize; N], usize) {
-    let t = table();
     let mut o = [0; N];
     let mut total = 0;
     let mut i = 0;
     while i < N {
         o[i] = total;
-        total += (t[i].bits as usize).div_ceil(8);
+        let bits = if ROWS[i].x.bits != 0 { ROWS[i].x.bits } else { bits_of(ROWS[i].info.data_type) };
+        total += (bits as usize).div_ceil(8);
         i += 1;
     }
     (o, total)
@@ -225,11 +271,10 @@ const fn offsets() -> ([usize; N], usize) {
 const LAYOUT: ([usize; N], usize) = offsets();
 
 const fn keys() -> [u32; N] {
-    let t = table();
     let mut k = [0; N];
     let mut i = 0;
     while i < N {
-        k[i] = (t[i].index as u32) << 8 | t[i].sub as u32;
+        k[i] = (ROWS[i].info.index as u32) << 8 | ROWS[i].info.sub as u32;
         i += 1;
     }
     k
@@ -317,7 +362,7 @@ impl ObjectDictionary for TestOd {
             if area.contains(e.index) {
                 let off = LAYOUT.0[i];
                 let cap = e.byte_len();
-                self.lens[i] = e.default.encode(e, node_id, &mut self.data[off..off + cap]) as u16;
+                self.lens[i] = e.default().encode(e, node_id, &mut self.data[off..off + cap]) as u16;
             }
         }
     }

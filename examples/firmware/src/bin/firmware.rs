@@ -1,0 +1,58 @@
+//! The example firmware: the DRCS device (node 5) on CAN1 of a Cortex-M4F at 500 kbit/s.
+//!
+//! Build: `cargo build -p firmware --bin firmware --features rt --profile firmware --target
+//! thumbv7em-none-eabihf`; `cargo xtask size` builds it and checks the size budget.
+#![no_std]
+#![no_main]
+
+use core::mem::MaybeUninit;
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use cortex_m_rt::{entry, exception};
+use firmware::Firmware;
+use firmware::bxcan::{BTR_500K_42MHZ, BxCan, CAN1};
+use od_runtime::NodeId;
+use panic_halt as _;
+
+/// Milliseconds since start, counted by the SysTick exception.
+static MILLIS: AtomicU32 = AtomicU32::new(0);
+
+/// SysTick registers (ARMv7-M architecture reference manual, B3.3).
+const SYST_CSR: *mut u32 = 0xE000_E010 as *mut u32;
+const SYST_RVR: *mut u32 = 0xE000_E014 as *mut u32;
+/// Core clock cycles per millisecond (16 MHz internal oscillator after reset).
+const CYCLES_PER_MS: u32 = 16_000;
+
+/// The node id, a configuration byte of the flash image (a board would read DIP switches or
+/// its parameter memory).
+#[unsafe(link_section = ".rodata.node_id")]
+static NODE_ID: u8 = 5;
+
+/// The firmware's state, in RAM beside the stack: zeroed at reset like `.bss`, built in place
+/// by `Firmware::init` (no image of it in flash, no copy through the stack).
+static mut FIRMWARE: MaybeUninit<Firmware> = MaybeUninit::uninit();
+
+#[exception]
+fn SysTick() {
+    MILLIS.fetch_add(1, Ordering::Relaxed);
+}
+
+#[entry]
+fn main() -> ! {
+    // SAFETY: the SysTick registers belong to this program alone; enable, interrupt, core clock.
+    unsafe {
+        SYST_RVR.write_volatile(CYCLES_PER_MS - 1);
+        SYST_CSR.write_volatile(0b111);
+    }
+    // SAFETY: CAN1 is used by this driver alone (clock and pins: the board's start-up code).
+    let Ok(mut can) = (unsafe { BxCan::new(CAN1, BTR_500K_42MHZ) }) else { loop {} };
+    // SAFETY: a plain byte of this image; read as the configuration it stands for.
+    let node = unsafe { (&raw const NODE_ID).read_volatile() };
+    let Some(node) = NodeId::new(node) else { loop {} };
+    // SAFETY: `main` runs once and is the only user of FIRMWARE; no interrupt touches it.
+    let fw = Firmware::init(unsafe { &mut *(&raw mut FIRMWARE) }, node);
+    loop {
+        let now = u64::from(MILLIS.load(Ordering::Relaxed)) * 1000;
+        fw.step(&mut can, now);
+    }
+}
