@@ -121,6 +121,10 @@ codes! {
     /// nor the number of elements); a writable sub-index 0 (a count of entries in use) is above
     /// it. PDO mapping objects are left to E0608.
     E0221 = Warning, true, "sub-index 0 does not match the sub-objects";
+    /// More implicit CompactSubObj elements than a file of its size may declare
+    /// ([`crate::lower::implicit_budget`]): a resource limit, so an error in either mode. The
+    /// arrays past the bound keep only sub-index 0 in the model.
+    E0222 = Error, false, "too many implicit CompactSubObj elements for the file's size";
 
     // ---- E03xx: values ----
     /// A value that cannot be read as the entry's data type.

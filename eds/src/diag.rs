@@ -115,50 +115,110 @@ pub fn render(d: &Diagnostic, source: &crate::source::SourceFile) -> String {
 
 /// [`render`], appended to `out` (a caller rendering many diagnostics reuses one buffer).
 pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::SourceFile) {
-    use std::fmt::Write as _;
-    let _ = writeln!(out, "{}[{}]: {}", d.severity, d.code, d.message);
+    // Written piece by piece into `out`, without a `format!` or temporary string per line: a
+    // folder's check renders thousands of these, and the allocations and formatting machinery
+    // were most of the cost of rendering one.
+    fn push_u32(out: &mut String, n: u32) {
+        let mut digits = [0u8; 10];
+        let mut i = digits.len();
+        let mut n = n;
+        loop {
+            i -= 1;
+            digits[i] = b'0' + (n % 10) as u8;
+            n /= 10;
+            if n == 0 {
+                break;
+            }
+        }
+        // (ASCII digits are always UTF-8.)
+        out.push_str(std::str::from_utf8(&digits[i..]).unwrap_or("0"));
+    }
+    fn push_n(out: &mut String, c: char, n: usize) {
+        out.extend(std::iter::repeat_n(c, n));
+    }
+    out.push_str(match d.severity {
+        Severity::Note => "note",
+        Severity::Warning => "warning",
+        Severity::Error => "error",
+    });
+    out.push('[');
+    out.push_str(d.code.0);
+    out.push_str("]: ");
+    out.push_str(&d.message);
+    out.push('\n');
     let at = d.span.map(|s| (s, d.at.unwrap_or_else(|| source.line_col(s.start))));
-    let gutter = at.map(|(_, lc)| lc.line.to_string().len()).unwrap_or(1);
-    let pad = " ".repeat(gutter);
+    let gutter = at.map(|(_, lc)| lc.line.checked_ilog10().unwrap_or(0) as usize + 1).unwrap_or(1);
     match at {
         Some((span, lc)) => {
-            let _ = writeln!(out, "{pad}--> {}:{}:{}", d.file, lc.line, lc.col);
+            push_n(out, ' ', gutter);
+            out.push_str("--> ");
+            out.push_str(&d.file);
+            out.push(':');
+            push_u32(out, lc.line);
+            out.push(':');
+            push_u32(out, lc.col);
+            out.push('\n');
             let line = source.line_text(lc.line);
-            let line_chars = line.chars().count() as u32;
+            let line_chars = if line.is_ascii() { line.len() as u32 } else { line.chars().count() as u32 };
             let start_col = lc.col.saturating_sub(1).min(line_chars);
             let span_text = source.slice(span);
-            let span_chars = span_text.split(['\n', '\r']).next().unwrap_or("").chars().count() as u32;
+            let first = span_text.split(['\n', '\r']).next().unwrap_or("");
+            let span_chars = if first.is_ascii() { first.len() as u32 } else { first.chars().count() as u32 };
             let width = span_chars.min(line_chars.saturating_sub(start_col)).max(1);
             // A long line is cut to a window around the span's start, marked with `…`.
             let (from, to) = quote_window(line_chars, start_col);
-            let mut shown = String::with_capacity((to - from) as usize + 8);
+            push_n(out, ' ', gutter);
+            out.push_str(" |\n");
+            push_u32(out, lc.line);
+            out.push_str(" | ");
+            let quoted_at = out.len();
             if from > 0 {
-                shown.push('…');
+                out.push('…');
             }
-            shown.extend(
+            out.extend(
                 line.chars().skip(from as usize).take((to - from) as usize).map(|c| if c == '\t' { ' ' } else { c }),
             );
-            let cut_end = to < line_chars;
-            if cut_end {
-                shown.push('…');
+            if to < line_chars {
+                out.push('…');
+            } else {
+                // (An uncut line is quoted without its trailing white space.)
+                let kept = out[quoted_at..].trim_end().len();
+                out.truncate(quoted_at + kept);
             }
-            let _ = writeln!(out, "{pad} |");
-            let _ = writeln!(out, "{} | {}", lc.line, if cut_end { shown.as_str() } else { shown.trim_end() });
+            out.push('\n');
             // Underline the part of the span that lies on this line and in the window (at
             // least one caret).
             let lead = start_col - from + u32::from(from > 0);
             let width = width.min(to.saturating_sub(start_col)).max(1);
-            let _ = writeln!(out, "{pad} | {}{}", " ".repeat(lead as usize), "^".repeat(width as usize));
+            push_n(out, ' ', gutter);
+            out.push_str(" | ");
+            push_n(out, ' ', lead as usize);
+            push_n(out, '^', width as usize);
+            out.push('\n');
         }
         None => {
-            let _ = writeln!(out, "{pad}--> {}", d.file);
+            push_n(out, ' ', gutter);
+            out.push_str("--> ");
+            out.push_str(&d.file);
+            out.push('\n');
         }
     }
     if !d.context.is_empty() {
-        let _ = writeln!(out, "{pad} = note: in {}", d.context.join(", "));
+        push_n(out, ' ', gutter);
+        out.push_str(" = note: in ");
+        for (i, c) in d.context.iter().enumerate() {
+            if i > 0 {
+                out.push_str(", ");
+            }
+            out.push_str(c);
+        }
+        out.push('\n');
     }
     if let Some(h) = &d.hint {
-        let _ = writeln!(out, "{pad} = help: {h}");
+        push_n(out, ' ', gutter);
+        out.push_str(" = help: ");
+        out.push_str(h);
+        out.push('\n');
     }
 }
 

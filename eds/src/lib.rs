@@ -115,7 +115,22 @@ pub fn read_bytes(path: &std::path::Path) -> std::io::Result<Vec<u8>> {
     if !m.is_file() {
         return Err(not_regular(&m));
     }
-    let mut bytes = Vec::with_capacity(usize::try_from(m.len()).unwrap_or(0).saturating_add(1));
-    file.read_to_end(&mut bytes)?;
+    // Read into a buffer of the size the file has, with one `read` for the file and one that
+    // finds its end. (`File::read_to_end` would ask the size and position again, a statx and
+    // an lseek per file; a plain `Read::read_to_end` reads in steps of a few KiB; reading into a
+    // zeroed buffer would zero every byte first.)
+    let len = usize::try_from(m.len()).unwrap_or(0);
+    let mut bytes = Vec::with_capacity(len.saturating_add(1));
+    (&mut file).take(len as u64).read_to_end(&mut bytes)?;
+    // Whatever is beyond the size the file had (it grew since), as it comes.
+    let mut probe = [0u8; 64];
+    loop {
+        match file.read(&mut probe) {
+            Ok(0) => break,
+            Ok(n) => bytes.extend_from_slice(&probe[..n]),
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
     Ok(bytes)
 }

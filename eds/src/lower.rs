@@ -139,6 +139,23 @@ pub(crate) struct Ctx<'a> {
     counts: Vec<(Code, u32, u32)>,
     /// What [`Ctx::emit`] hands out for a diagnostic that is not kept.
     scratch: Diagnostic,
+    /// How many more implicit CompactSubObj elements the model may hold ([`implicit_budget`]).
+    pub implicit_left: usize,
+    /// Whether the file has gone over [`implicit_budget`] (E0222 is reported once).
+    pub implicit_exceeded: bool,
+}
+
+/// Implicit CompactSubObj elements a file of `len` bytes may declare: 65,536 (256 full arrays;
+/// the real files we know declare at most about 2,100) and one per 64 bytes beyond that.
+///
+/// Each element is a model entry of about 100 bytes, and a tool holding the model and its
+/// output needs up to about 320 bytes per element (`odgen fmt`), while `CompactSubObj=255`
+/// declares 255 of them in 18 bytes: without a bound, 0.75 MB of such arrays is a model of
+/// 1.9 million entries and 230 to 600 MB. With it, the elements cost at most about 21 MB plus
+/// 5 bytes per input byte, within the tools' "10 x the input + 64 MB" budget. A file that asks
+/// for more gets E0222 (an error), and the arrays past the bound keep only sub-index 0.
+pub fn implicit_budget(len: usize) -> usize {
+    65_536 + len / 64
 }
 
 /// At most this many diagnostics of one code are kept for a file; the rest are counted, and
@@ -160,6 +177,8 @@ impl<'a> Ctx<'a> {
             file: None,
             counts: Vec::new(),
             scratch: Diagnostic::new(crate::codes::E0002, strictness, "", ""),
+            implicit_left: implicit_budget(src.text.len()),
+            implicit_exceeded: false,
         }
     }
 

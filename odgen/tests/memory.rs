@@ -3,9 +3,10 @@
 //! it fails, which aborts the process), so a run that needs more dies and the test fails.
 //! (scripts/peak_rss.py measures the peak resident sizes of the full-size inputs.)
 //!
-//! Not here: arrays of `CompactSubObj=255`, which the model keeps expanded (256 entries of about
-//! 100 bytes for a line of 17 bytes): 7,500 of them need 230 MB for 0.75 MB of input. The fix is
-//! a model that keeps compact arrays unexpanded; ARCHITECTURE.md ("Hostile input") says so.
+//! `compact-arrays.eds` is the outside run's shape at full size: 7,500 arrays of
+//! `CompactSubObj=255` (0.78 MB) declare 1.9 million implicit elements, which took 230 MB
+//! (`check`) to 600 MB (`fmt`) before the reader bounded them (`eds::lower::implicit_budget`,
+//! E0222).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -30,6 +31,19 @@ fn inputs(dir: &Path) -> Vec<PathBuf> {
         (
             "unknown-sections.eds",
             format!("{base}{}", (0..20_000).map(|i| format!("[Foo{i}]\nKey=v\n")).collect::<String>()),
+        ),
+        (
+            "compact-arrays.eds",
+            format!(
+                "{base}{}",
+                (0..7_500)
+                    .map(|i| format!(
+                        "[{:04X}]\nParameterName=A{i}\nObjectType=0x8\nDataType=0x0007\nAccessType=rw\n\
+                         CompactSubObj=255\nPDOMapping=0\n\n",
+                        0x3000 + i
+                    ))
+                    .collect::<String>()
+            ),
         ),
         (
             "cr-only.eds",

@@ -859,9 +859,13 @@ fn build_object(
         subs: SubMap::with_capacity(if !object_type.has_subs() {
             1
         } else {
-            // CompactSubObj=n adds sub-indices 0..=n (a sub-object section may override one).
+            // CompactSubObj=n adds sub-indices 0..=n (a sub-object section may override one),
+            // unless the file is past its bound of implicit elements (E0222): then no room is
+            // reserved for them either (7,500 arrays reserving 256 entries each are 200 MB).
             let compact = keys.get(K_COMPACT).and_then(|kv| value::parse_plain_uint(kv.value)).map_or(0, |(n, _)| n);
-            subs.len() + 1 + compact.min(0xFF) as usize
+            let compact = compact.min(0xFF) as usize;
+            let implied = if cx.implicit_exceeded || compact > cx.implicit_left { 0 } else { compact };
+            subs.len() + 1 + implied
         }),
         compact_sub_obj: None,
         object_links: Vec::new(),
@@ -955,6 +959,9 @@ fn build_object(
             None
         }
     });
+    // False when the implicit elements were not added (E0222): the checks of sub-index 0
+    // against the elements would only repeat that.
+    let mut expanded = true;
     if let Some(n) = compact {
         if object_type != ObjectType::Array
             && let Some(kv) = keys.get(K_COMPACT)
@@ -972,7 +979,7 @@ fn build_object(
             d.context = ctx.to_vec();
         }
         obj.compact_sub_obj = Some(n);
-        expand_compact(cx, builder, &mut obj, sec, &keys, n, names, values, ctx);
+        expanded = expand_compact(cx, builder, &mut obj, sec, &keys, n, names, values, ctx);
     } else {
         keep_entry_keys(cx, &keys, object_type, ctx, &mut obj.extra);
         for side in [names, values].into_iter().flatten() {
@@ -1011,9 +1018,11 @@ fn build_object(
             obj.subs.insert(SubIndex(sub), e);
         }
     }
-    check_structure(cx, &obj, sec, &keys, sub_number, compact, subs, ctx);
-    let highest_section = subs.iter().map(|&(sub, _)| sub).max();
-    super::validate::sub_index_zero(builder.secs, &obj, highest_section, cx);
+    if expanded {
+        check_structure(cx, &obj, sec, &keys, sub_number, compact, subs, ctx);
+        let highest_section = subs.iter().map(|&(sub, _)| sub).max();
+        super::validate::sub_index_zero(builder.secs, &obj, highest_section, cx);
+    }
     obj
 }
 
@@ -1028,7 +1037,7 @@ fn expand_compact(
     names: Option<&Section<'_>>,
     values: Option<&Section<'_>>,
     ctx: Crumbs<'_>,
-) {
+) -> bool {
     // Sub-index 0 holds the number of entries (named as lely-core and CiA 306 examples do).
     let sub0 = (
         SubIndex(0),
@@ -1048,9 +1057,32 @@ fn expand_compact(
         template_builder.build(cx, sec, keys, 1, Some(obj.name.clone()), EntryDefaults::default(), ctx)
     else {
         obj.subs.insert(sub0.0, sub0.1);
-        return;
+        return true;
     };
     obj.subs.insert(sub0.0, sub0.1);
+    if cx.implicit_left < n as usize || cx.implicit_exceeded {
+        if !cx.implicit_exceeded {
+            cx.implicit_exceeded = true;
+            let declared = super::implicit_budget(cx.src.text.len()) - cx.implicit_left + n as usize;
+            let span = keys.get(K_COMPACT).map(|kv| kv.value_span());
+            let d = cx.emit(
+                codes::E0222,
+                span,
+                format!(
+                    "CompactSubObj={n} brings the file's implicit elements to {declared}, more than a file of its size \
+                     may declare; this and later compact arrays keep only sub-index 0"
+                ),
+            );
+            d.hint = Some(
+                "a resource limit (65,536 implicit elements, and one per 64 bytes of file beyond that): write the \
+                 elements out as sub-object sections, or split the file"
+                    .into(),
+            );
+            d.context = ctx.to_vec();
+        }
+        return false;
+    }
+    cx.implicit_left -= n as usize;
     // Each element is the template with its own name and without the template's extra keys
     // (those stay with the object): copy the other fields, and clone no name or list only to
     // replace it. Most templates have no extras at all, and the elements then share nothing.
@@ -1113,6 +1145,7 @@ fn expand_compact(
             }
         }
     }
+    true
 }
 
 #[allow(clippy::too_many_arguments)]

@@ -110,7 +110,17 @@ pub fn run(args: Args) -> ExitCode {
         (None, false, _) => Level::Note,
     };
     let format = args.format;
-    let reports = super::par_map(&args.files, super::jobs(args.jobs), |path| {
+    let mut out = Stream::stdout();
+    let mut counts = Counts::default();
+    let mut unreadable: Vec<(String, String)> = Vec::new();
+    match args.format {
+        Format::Human => {}
+        Format::Json => out.push("{\"files\":["),
+        Format::Sarif => super::sarif::start(&mut out),
+    }
+    // Whether a JSON file object or a SARIF result was written (the next one needs a comma).
+    let mut any = false;
+    let read = |path: &PathBuf| {
         let parsed = eds::read_file(path, &options)?;
         let mut counts = Counts::default();
         counts.add(&parsed.diagnostics);
@@ -144,18 +154,8 @@ pub fn run(args: Args) -> ExitCode {
             }
         }
         Ok::<_, std::io::Error>(Report { text, counts })
-    });
-    let mut out = Stream::stdout();
-    let mut counts = Counts::default();
-    let mut unreadable: Vec<(String, String)> = Vec::new();
-    match args.format {
-        Format::Human => {}
-        Format::Json => out.push("{\"files\":["),
-        Format::Sarif => super::sarif::start(&mut out),
-    }
-    // Whether a JSON file object or a SARIF result was written (the next one needs a comma).
-    let mut any = false;
-    for (path, report) in args.files.iter().zip(reports) {
+    };
+    super::par_each(&args.files, super::jobs(args.jobs), read, |path, report| {
         let report = match report {
             Ok(r) => r,
             Err(e) => {
@@ -164,7 +164,7 @@ pub fn run(args: Args) -> ExitCode {
                     eprintln!("error: cannot read {name}: {e}");
                 }
                 unreadable.push((name, e.to_string()));
-                continue;
+                return;
             }
         };
         counts.errors += report.counts.errors;
@@ -175,7 +175,7 @@ pub fn run(args: Args) -> ExitCode {
             any = true;
         }
         out.push(&report.text);
-    }
+    });
     match args.format {
         Format::Human => {
             let files = args.files.len();

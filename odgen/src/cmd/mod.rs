@@ -33,34 +33,76 @@ pub fn jobs(requested: Option<usize>) -> usize {
     requested.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from)).max(1)
 }
 
-/// `f(i, &items[i])` for every item, on up to `jobs` threads, results in the items' order. Each
-/// thread takes the next unclaimed item, so one large file does not hold up the rest.
-pub fn par_map<T: Sync, R: Send>(items: &[T], jobs: usize, f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+/// `f(&items[i])` for every item on up to `jobs` threads, each result handed to `emit` on the
+/// calling thread in the items' order as soon as it and those before it are ready. Each thread
+/// takes the next unclaimed item, so one large file does not hold up the rest; the calling
+/// thread is one of them (a thread fewer to start, and the one whose memory is already in use:
+/// each new thread's allocations start on fresh pages, each a page fault), and it hands out
+/// what is ready between its own items, so results are written and freed as the run goes
+/// rather than all held to the end.
+pub fn par_each<T: Sync, R: Send>(items: &[T], jobs: usize, f: impl Fn(&T) -> R + Sync, mut emit: impl FnMut(&T, R)) {
     use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::{Condvar, Mutex};
     let jobs = jobs.clamp(1, items.len().max(1));
     if jobs == 1 {
-        return items.iter().map(f).collect();
+        for item in items {
+            emit(item, f(item));
+        }
+        return;
     }
     let next = AtomicUsize::new(0);
-    let mut done: Vec<(usize, R)> = std::thread::scope(|scope| {
-        let workers: Vec<_> = (0..jobs)
+    let slots: Mutex<Vec<Option<R>>> = Mutex::new(items.iter().map(|_| None).collect());
+    let filled = Condvar::new();
+    let put = |i: usize, r: R| {
+        let mut s = slots.lock().unwrap_or_else(|e| e.into_inner());
+        s[i] = Some(r);
+        filled.notify_one();
+    };
+    std::thread::scope(|scope| {
+        let workers: Vec<_> = (1..jobs)
             .map(|_| {
                 scope.spawn(|| {
-                    let mut mine = Vec::new();
                     loop {
                         let i = next.fetch_add(1, Ordering::Relaxed);
                         let Some(item) = items.get(i) else { break };
-                        mine.push((i, f(item)));
+                        put(i, f(item));
                     }
-                    mine
                 })
             })
             .collect();
+        // The first result not yet handed to `emit`.
+        let mut done = 0;
+        let take_ready = |wait: bool, done: &mut usize, emit: &mut dyn FnMut(&T, R)| {
+            let mut s = slots.lock().unwrap_or_else(|e| e.into_inner());
+            while *done < items.len() {
+                match s[*done].take() {
+                    Some(r) => {
+                        // (Emitted without the lock: writing may take a while.)
+                        drop(s);
+                        emit(&items[*done], r);
+                        *done += 1;
+                        s = slots.lock().unwrap_or_else(|e| e.into_inner());
+                    }
+                    None if wait => s = filled.wait(s).unwrap_or_else(|e| e.into_inner()),
+                    None => break,
+                }
+            }
+        };
+        loop {
+            let i = next.fetch_add(1, Ordering::Relaxed);
+            let Some(item) = items.get(i) else { break };
+            let r = f(item);
+            put(i, r);
+            take_ready(false, &mut done, &mut emit);
+        }
+        take_ready(true, &mut done, &mut emit);
         // A worker only panics if `f` does, which is a bug to surface, not an input error.
-        workers.into_iter().flat_map(|w| w.join().unwrap_or_else(|e| std::panic::resume_unwind(e))).collect()
+        for w in workers {
+            if let Err(e) = w.join() {
+                std::panic::resume_unwind(e);
+            }
+        }
     });
-    done.sort_unstable_by_key(|(i, _)| *i);
-    done.into_iter().map(|(_, r)| r).collect()
 }
 
 /// Set once standard output's reader has gone away.
