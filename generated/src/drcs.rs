@@ -6842,14 +6842,14 @@ PDOMapping=0
         error_register: u8,
         manufacturer_status_register: u32,
         pre_defined_error_field_number_of_errors: u8,
-        pre_defined_error_field_standard_error_field_1: u32,
-        pre_defined_error_field_standard_error_field_2: u32,
-        pre_defined_error_field_standard_error_field_3: u32,
-        pre_defined_error_field_standard_error_field_4: u32,
-        pre_defined_error_field_standard_error_field_5: u32,
-        pre_defined_error_field_standard_error_field_6: u32,
-        pre_defined_error_field_standard_error_field_7: u32,
-        pre_defined_error_field_standard_error_field_8: u32,
+        pre_defined_error_field_standard_1: u32,
+        pre_defined_error_field_standard_2: u32,
+        pre_defined_error_field_standard_3: u32,
+        pre_defined_error_field_standard_4: u32,
+        pre_defined_error_field_standard_5: u32,
+        pre_defined_error_field_standard_6: u32,
+        pre_defined_error_field_standard_7: u32,
+        pre_defined_error_field_standard_8: u32,
         cob_id_sync: u32,
         communication_cycle_period: u32,
         synchronous_window_length: u32,
@@ -6859,9 +6859,9 @@ PDOMapping=0
         guard_time: u16,
         life_time_factor: u8,
         store_parameter_field_highest_sub_index_supported: u8,
-        store_parameter_field_save_all_parameters: u32,
+        store_parameter_field_save_all: u32,
         restore_default_parameters_highest_sub_index_supported: u8,
-        restore_default_parameters_restore_all_default_parameters: u32,
+        restore_default_parameters_all: u32,
         cob_id_time_stamp: u32,
         cob_id_emcy: u32,
         inhibit_time_emergency: u16,
@@ -6903,77 +6903,77 @@ PDOMapping=0
         rx_pdo_communication_parameter_8_cob_id: u32,
         rx_pdo_communication_parameter_8_transmission_type: u8,
         rx_pdo_mapping_parameter_1_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_1_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_1_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_1_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_1_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_1_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_1_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_1_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_1_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_1_entry_1: u32,
+        rx_pdo_mapping_parameter_1_entry_2: u32,
+        rx_pdo_mapping_parameter_1_entry_3: u32,
+        rx_pdo_mapping_parameter_1_entry_4: u32,
+        rx_pdo_mapping_parameter_1_entry_5: u32,
+        rx_pdo_mapping_parameter_1_entry_6: u32,
+        rx_pdo_mapping_parameter_1_entry_7: u32,
+        rx_pdo_mapping_parameter_1_entry_8: u32,
         rx_pdo_mapping_parameter_2_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_2_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_2_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_2_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_2_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_2_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_2_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_2_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_2_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_2_entry_1: u32,
+        rx_pdo_mapping_parameter_2_entry_2: u32,
+        rx_pdo_mapping_parameter_2_entry_3: u32,
+        rx_pdo_mapping_parameter_2_entry_4: u32,
+        rx_pdo_mapping_parameter_2_entry_5: u32,
+        rx_pdo_mapping_parameter_2_entry_6: u32,
+        rx_pdo_mapping_parameter_2_entry_7: u32,
+        rx_pdo_mapping_parameter_2_entry_8: u32,
         rx_pdo_mapping_parameter_3_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_3_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_3_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_3_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_3_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_3_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_3_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_3_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_3_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_3_entry_1: u32,
+        rx_pdo_mapping_parameter_3_entry_2: u32,
+        rx_pdo_mapping_parameter_3_entry_3: u32,
+        rx_pdo_mapping_parameter_3_entry_4: u32,
+        rx_pdo_mapping_parameter_3_entry_5: u32,
+        rx_pdo_mapping_parameter_3_entry_6: u32,
+        rx_pdo_mapping_parameter_3_entry_7: u32,
+        rx_pdo_mapping_parameter_3_entry_8: u32,
         rx_pdo_mapping_parameter_4_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_4_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_4_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_4_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_4_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_4_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_4_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_4_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_4_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_4_entry_1: u32,
+        rx_pdo_mapping_parameter_4_entry_2: u32,
+        rx_pdo_mapping_parameter_4_entry_3: u32,
+        rx_pdo_mapping_parameter_4_entry_4: u32,
+        rx_pdo_mapping_parameter_4_entry_5: u32,
+        rx_pdo_mapping_parameter_4_entry_6: u32,
+        rx_pdo_mapping_parameter_4_entry_7: u32,
+        rx_pdo_mapping_parameter_4_entry_8: u32,
         rx_pdo_mapping_parameter_5_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_5_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_5_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_5_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_5_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_5_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_5_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_5_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_5_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_5_entry_1: u32,
+        rx_pdo_mapping_parameter_5_entry_2: u32,
+        rx_pdo_mapping_parameter_5_entry_3: u32,
+        rx_pdo_mapping_parameter_5_entry_4: u32,
+        rx_pdo_mapping_parameter_5_entry_5: u32,
+        rx_pdo_mapping_parameter_5_entry_6: u32,
+        rx_pdo_mapping_parameter_5_entry_7: u32,
+        rx_pdo_mapping_parameter_5_entry_8: u32,
         rx_pdo_mapping_parameter_6_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_6_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_6_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_6_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_6_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_6_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_6_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_6_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_6_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_6_entry_1: u32,
+        rx_pdo_mapping_parameter_6_entry_2: u32,
+        rx_pdo_mapping_parameter_6_entry_3: u32,
+        rx_pdo_mapping_parameter_6_entry_4: u32,
+        rx_pdo_mapping_parameter_6_entry_5: u32,
+        rx_pdo_mapping_parameter_6_entry_6: u32,
+        rx_pdo_mapping_parameter_6_entry_7: u32,
+        rx_pdo_mapping_parameter_6_entry_8: u32,
         rx_pdo_mapping_parameter_7_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_7_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_7_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_7_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_7_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_7_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_7_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_7_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_7_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_7_entry_1: u32,
+        rx_pdo_mapping_parameter_7_entry_2: u32,
+        rx_pdo_mapping_parameter_7_entry_3: u32,
+        rx_pdo_mapping_parameter_7_entry_4: u32,
+        rx_pdo_mapping_parameter_7_entry_5: u32,
+        rx_pdo_mapping_parameter_7_entry_6: u32,
+        rx_pdo_mapping_parameter_7_entry_7: u32,
+        rx_pdo_mapping_parameter_7_entry_8: u32,
         rx_pdo_mapping_parameter_8_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_8_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_8_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_8_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_8_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_8_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_8_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_8_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_8_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_8_entry_1: u32,
+        rx_pdo_mapping_parameter_8_entry_2: u32,
+        rx_pdo_mapping_parameter_8_entry_3: u32,
+        rx_pdo_mapping_parameter_8_entry_4: u32,
+        rx_pdo_mapping_parameter_8_entry_5: u32,
+        rx_pdo_mapping_parameter_8_entry_6: u32,
+        rx_pdo_mapping_parameter_8_entry_7: u32,
+        rx_pdo_mapping_parameter_8_entry_8: u32,
         tx_pdo_communication_parameter_1_highest_sub_index_supported: u8,
         tx_pdo_communication_parameter_1_cob_id: u32,
         tx_pdo_communication_parameter_1_transmission_type: u8,
@@ -7023,77 +7023,77 @@ PDOMapping=0
         tx_pdo_communication_parameter_8_compatibility_entry: u8,
         tx_pdo_communication_parameter_8_event_timer: u16,
         tx_pdo_mapping_parameter_1_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_1_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_1_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_1_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_1_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_1_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_1_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_1_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_1_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_1_entry_1: u32,
+        tx_pdo_mapping_parameter_1_entry_2: u32,
+        tx_pdo_mapping_parameter_1_entry_3: u32,
+        tx_pdo_mapping_parameter_1_entry_4: u32,
+        tx_pdo_mapping_parameter_1_entry_5: u32,
+        tx_pdo_mapping_parameter_1_entry_6: u32,
+        tx_pdo_mapping_parameter_1_entry_7: u32,
+        tx_pdo_mapping_parameter_1_entry_8: u32,
         tx_pdo_mapping_parameter_2_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_2_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_2_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_2_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_2_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_2_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_2_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_2_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_2_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_2_entry_1: u32,
+        tx_pdo_mapping_parameter_2_entry_2: u32,
+        tx_pdo_mapping_parameter_2_entry_3: u32,
+        tx_pdo_mapping_parameter_2_entry_4: u32,
+        tx_pdo_mapping_parameter_2_entry_5: u32,
+        tx_pdo_mapping_parameter_2_entry_6: u32,
+        tx_pdo_mapping_parameter_2_entry_7: u32,
+        tx_pdo_mapping_parameter_2_entry_8: u32,
         tx_pdo_mapping_parameter_3_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_3_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_3_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_3_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_3_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_3_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_3_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_3_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_3_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_3_entry_1: u32,
+        tx_pdo_mapping_parameter_3_entry_2: u32,
+        tx_pdo_mapping_parameter_3_entry_3: u32,
+        tx_pdo_mapping_parameter_3_entry_4: u32,
+        tx_pdo_mapping_parameter_3_entry_5: u32,
+        tx_pdo_mapping_parameter_3_entry_6: u32,
+        tx_pdo_mapping_parameter_3_entry_7: u32,
+        tx_pdo_mapping_parameter_3_entry_8: u32,
         tx_pdo_mapping_parameter_4_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_4_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_4_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_4_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_4_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_4_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_4_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_4_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_4_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_4_entry_1: u32,
+        tx_pdo_mapping_parameter_4_entry_2: u32,
+        tx_pdo_mapping_parameter_4_entry_3: u32,
+        tx_pdo_mapping_parameter_4_entry_4: u32,
+        tx_pdo_mapping_parameter_4_entry_5: u32,
+        tx_pdo_mapping_parameter_4_entry_6: u32,
+        tx_pdo_mapping_parameter_4_entry_7: u32,
+        tx_pdo_mapping_parameter_4_entry_8: u32,
         tx_pdo_mapping_parameter_5_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_5_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_5_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_5_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_5_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_5_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_5_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_5_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_5_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_5_entry_1: u32,
+        tx_pdo_mapping_parameter_5_entry_2: u32,
+        tx_pdo_mapping_parameter_5_entry_3: u32,
+        tx_pdo_mapping_parameter_5_entry_4: u32,
+        tx_pdo_mapping_parameter_5_entry_5: u32,
+        tx_pdo_mapping_parameter_5_entry_6: u32,
+        tx_pdo_mapping_parameter_5_entry_7: u32,
+        tx_pdo_mapping_parameter_5_entry_8: u32,
         tx_pdo_mapping_parameter_6_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_6_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_6_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_6_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_6_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_6_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_6_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_6_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_6_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_6_entry_1: u32,
+        tx_pdo_mapping_parameter_6_entry_2: u32,
+        tx_pdo_mapping_parameter_6_entry_3: u32,
+        tx_pdo_mapping_parameter_6_entry_4: u32,
+        tx_pdo_mapping_parameter_6_entry_5: u32,
+        tx_pdo_mapping_parameter_6_entry_6: u32,
+        tx_pdo_mapping_parameter_6_entry_7: u32,
+        tx_pdo_mapping_parameter_6_entry_8: u32,
         tx_pdo_mapping_parameter_7_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_7_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_7_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_7_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_7_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_7_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_7_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_7_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_7_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_7_entry_1: u32,
+        tx_pdo_mapping_parameter_7_entry_2: u32,
+        tx_pdo_mapping_parameter_7_entry_3: u32,
+        tx_pdo_mapping_parameter_7_entry_4: u32,
+        tx_pdo_mapping_parameter_7_entry_5: u32,
+        tx_pdo_mapping_parameter_7_entry_6: u32,
+        tx_pdo_mapping_parameter_7_entry_7: u32,
+        tx_pdo_mapping_parameter_7_entry_8: u32,
         tx_pdo_mapping_parameter_8_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_8_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_8_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_8_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_8_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_8_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_8_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_8_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_8_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_8_entry_1: u32,
+        tx_pdo_mapping_parameter_8_entry_2: u32,
+        tx_pdo_mapping_parameter_8_entry_3: u32,
+        tx_pdo_mapping_parameter_8_entry_4: u32,
+        tx_pdo_mapping_parameter_8_entry_5: u32,
+        tx_pdo_mapping_parameter_8_entry_6: u32,
+        tx_pdo_mapping_parameter_8_entry_7: u32,
+        tx_pdo_mapping_parameter_8_entry_8: u32,
         nmt_startup: u32,
         feed_converter_highest_sub_index_supported: u8,
         feed_converter_numerator: u32,
@@ -7122,14 +7122,14 @@ PDOMapping=0
         target_position: i32,
         home_offset: i32,
         software_position_limit_highest_sub_index_supported: u8,
-        software_position_limit_min_software_position_limit: i32,
-        software_position_limit_max_software_position_limit: i32,
+        software_position_limit_min: i32,
+        software_position_limit_max: i32,
         polarity: u8,
         profile_velocity_in_pp_mode: u32,
         profile_acceleration: u32,
         profile_deceleration: u32,
         position_encoder_resolution_highest_sub_index_supported: u8,
-        position_encoder_resolution_encoder_increments: u32,
+        position_encoder_resolution_increments: u32,
         position_encoder_resolution_motor_revolutions: u32,
         gear_ratio_highest_sub_index_supported: u8,
         gear_ratio_motor_revolutions: u32,
@@ -7139,8 +7139,8 @@ PDOMapping=0
         feed_constant_shaft_revolutions: u32,
         homing_method: i8,
         homing_speed_highest_sub_index_supported: u8,
-        homing_speed_fast_homing_speed: u32,
-        homing_speed_slow_homing_speed: u32,
+        homing_speed_fast: u32,
+        homing_speed_slow: u32,
         target_velocity: i32,
         motor_type: u16,
         motor_manufacturer: ::od_runtime::__private_v1::Bytes<32>,
@@ -7155,14 +7155,14 @@ PDOMapping=0
                 error_register: 0x0,
                 manufacturer_status_register: 0x0,
                 pre_defined_error_field_number_of_errors: 0,
-                pre_defined_error_field_standard_error_field_1: 0x0,
-                pre_defined_error_field_standard_error_field_2: 0x0,
-                pre_defined_error_field_standard_error_field_3: 0x0,
-                pre_defined_error_field_standard_error_field_4: 0x0,
-                pre_defined_error_field_standard_error_field_5: 0x0,
-                pre_defined_error_field_standard_error_field_6: 0x0,
-                pre_defined_error_field_standard_error_field_7: 0x0,
-                pre_defined_error_field_standard_error_field_8: 0x0,
+                pre_defined_error_field_standard_1: 0x0,
+                pre_defined_error_field_standard_2: 0x0,
+                pre_defined_error_field_standard_3: 0x0,
+                pre_defined_error_field_standard_4: 0x0,
+                pre_defined_error_field_standard_5: 0x0,
+                pre_defined_error_field_standard_6: 0x0,
+                pre_defined_error_field_standard_7: 0x0,
+                pre_defined_error_field_standard_8: 0x0,
                 cob_id_sync: 0x80,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
@@ -7178,9 +7178,9 @@ PDOMapping=0
                 guard_time: 0,
                 life_time_factor: 0,
                 store_parameter_field_highest_sub_index_supported: 1,
-                store_parameter_field_save_all_parameters: 0x1,
+                store_parameter_field_save_all: 0x1,
                 restore_default_parameters_highest_sub_index_supported: 1,
-                restore_default_parameters_restore_all_default_parameters: 0x1,
+                restore_default_parameters_all: 0x1,
                 cob_id_time_stamp: 0x80000100,
                 cob_id_emcy: (0x80 + node_id as i128) as u32,
                 inhibit_time_emergency: 0,
@@ -7228,77 +7228,77 @@ PDOMapping=0
                 rx_pdo_communication_parameter_8_cob_id: 0x80000000,
                 rx_pdo_communication_parameter_8_transmission_type: 0xFF,
                 rx_pdo_mapping_parameter_1_number_of_mapped_objects: 1,
-                rx_pdo_mapping_parameter_1_mapping_entry_1: 0x60400010,
-                rx_pdo_mapping_parameter_1_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_1_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_1_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_1_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_1_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_1_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_1_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_1_entry_1: 0x60400010,
+                rx_pdo_mapping_parameter_1_entry_2: 0x0,
+                rx_pdo_mapping_parameter_1_entry_3: 0x0,
+                rx_pdo_mapping_parameter_1_entry_4: 0x0,
+                rx_pdo_mapping_parameter_1_entry_5: 0x0,
+                rx_pdo_mapping_parameter_1_entry_6: 0x0,
+                rx_pdo_mapping_parameter_1_entry_7: 0x0,
+                rx_pdo_mapping_parameter_1_entry_8: 0x0,
                 rx_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_2_mapping_entry_1: 0x0,
-                rx_pdo_mapping_parameter_2_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_2_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_2_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_2_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_2_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_2_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_2_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_2_entry_1: 0x0,
+                rx_pdo_mapping_parameter_2_entry_2: 0x0,
+                rx_pdo_mapping_parameter_2_entry_3: 0x0,
+                rx_pdo_mapping_parameter_2_entry_4: 0x0,
+                rx_pdo_mapping_parameter_2_entry_5: 0x0,
+                rx_pdo_mapping_parameter_2_entry_6: 0x0,
+                rx_pdo_mapping_parameter_2_entry_7: 0x0,
+                rx_pdo_mapping_parameter_2_entry_8: 0x0,
                 rx_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_3_mapping_entry_1: 0x0,
-                rx_pdo_mapping_parameter_3_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_3_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_3_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_3_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_3_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_3_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_3_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_3_entry_1: 0x0,
+                rx_pdo_mapping_parameter_3_entry_2: 0x0,
+                rx_pdo_mapping_parameter_3_entry_3: 0x0,
+                rx_pdo_mapping_parameter_3_entry_4: 0x0,
+                rx_pdo_mapping_parameter_3_entry_5: 0x0,
+                rx_pdo_mapping_parameter_3_entry_6: 0x0,
+                rx_pdo_mapping_parameter_3_entry_7: 0x0,
+                rx_pdo_mapping_parameter_3_entry_8: 0x0,
                 rx_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_4_mapping_entry_1: 0x0,
-                rx_pdo_mapping_parameter_4_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_4_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_4_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_4_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_4_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_4_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_4_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_4_entry_1: 0x0,
+                rx_pdo_mapping_parameter_4_entry_2: 0x0,
+                rx_pdo_mapping_parameter_4_entry_3: 0x0,
+                rx_pdo_mapping_parameter_4_entry_4: 0x0,
+                rx_pdo_mapping_parameter_4_entry_5: 0x0,
+                rx_pdo_mapping_parameter_4_entry_6: 0x0,
+                rx_pdo_mapping_parameter_4_entry_7: 0x0,
+                rx_pdo_mapping_parameter_4_entry_8: 0x0,
                 rx_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_5_mapping_entry_1: 0x0,
-                rx_pdo_mapping_parameter_5_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_5_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_5_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_5_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_5_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_5_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_5_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_5_entry_1: 0x0,
+                rx_pdo_mapping_parameter_5_entry_2: 0x0,
+                rx_pdo_mapping_parameter_5_entry_3: 0x0,
+                rx_pdo_mapping_parameter_5_entry_4: 0x0,
+                rx_pdo_mapping_parameter_5_entry_5: 0x0,
+                rx_pdo_mapping_parameter_5_entry_6: 0x0,
+                rx_pdo_mapping_parameter_5_entry_7: 0x0,
+                rx_pdo_mapping_parameter_5_entry_8: 0x0,
                 rx_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_6_mapping_entry_1: 0x0,
-                rx_pdo_mapping_parameter_6_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_6_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_6_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_6_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_6_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_6_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_6_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_6_entry_1: 0x0,
+                rx_pdo_mapping_parameter_6_entry_2: 0x0,
+                rx_pdo_mapping_parameter_6_entry_3: 0x0,
+                rx_pdo_mapping_parameter_6_entry_4: 0x0,
+                rx_pdo_mapping_parameter_6_entry_5: 0x0,
+                rx_pdo_mapping_parameter_6_entry_6: 0x0,
+                rx_pdo_mapping_parameter_6_entry_7: 0x0,
+                rx_pdo_mapping_parameter_6_entry_8: 0x0,
                 rx_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_7_mapping_entry_1: 0x0,
-                rx_pdo_mapping_parameter_7_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_7_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_7_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_7_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_7_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_7_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_7_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_7_entry_1: 0x0,
+                rx_pdo_mapping_parameter_7_entry_2: 0x0,
+                rx_pdo_mapping_parameter_7_entry_3: 0x0,
+                rx_pdo_mapping_parameter_7_entry_4: 0x0,
+                rx_pdo_mapping_parameter_7_entry_5: 0x0,
+                rx_pdo_mapping_parameter_7_entry_6: 0x0,
+                rx_pdo_mapping_parameter_7_entry_7: 0x0,
+                rx_pdo_mapping_parameter_7_entry_8: 0x0,
                 rx_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_8_mapping_entry_1: 0x0,
-                rx_pdo_mapping_parameter_8_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_8_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_8_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_8_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_8_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_8_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_8_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_8_entry_1: 0x0,
+                rx_pdo_mapping_parameter_8_entry_2: 0x0,
+                rx_pdo_mapping_parameter_8_entry_3: 0x0,
+                rx_pdo_mapping_parameter_8_entry_4: 0x0,
+                rx_pdo_mapping_parameter_8_entry_5: 0x0,
+                rx_pdo_mapping_parameter_8_entry_6: 0x0,
+                rx_pdo_mapping_parameter_8_entry_7: 0x0,
+                rx_pdo_mapping_parameter_8_entry_8: 0x0,
                 tx_pdo_communication_parameter_1_highest_sub_index_supported: 5,
                 tx_pdo_communication_parameter_1_cob_id: (0x180 + node_id as i128)
                     as u32,
@@ -7352,77 +7352,77 @@ PDOMapping=0
                 tx_pdo_communication_parameter_8_compatibility_entry: 0,
                 tx_pdo_communication_parameter_8_event_timer: 0,
                 tx_pdo_mapping_parameter_1_number_of_mapped_objects: 1,
-                tx_pdo_mapping_parameter_1_mapping_entry_1: 0x60410010,
-                tx_pdo_mapping_parameter_1_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_1_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_1_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_1_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_1_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_1_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_1_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_1_entry_1: 0x60410010,
+                tx_pdo_mapping_parameter_1_entry_2: 0x0,
+                tx_pdo_mapping_parameter_1_entry_3: 0x0,
+                tx_pdo_mapping_parameter_1_entry_4: 0x0,
+                tx_pdo_mapping_parameter_1_entry_5: 0x0,
+                tx_pdo_mapping_parameter_1_entry_6: 0x0,
+                tx_pdo_mapping_parameter_1_entry_7: 0x0,
+                tx_pdo_mapping_parameter_1_entry_8: 0x0,
                 tx_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_2_mapping_entry_1: 0x0,
-                tx_pdo_mapping_parameter_2_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_2_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_2_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_2_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_2_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_2_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_2_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_2_entry_1: 0x0,
+                tx_pdo_mapping_parameter_2_entry_2: 0x0,
+                tx_pdo_mapping_parameter_2_entry_3: 0x0,
+                tx_pdo_mapping_parameter_2_entry_4: 0x0,
+                tx_pdo_mapping_parameter_2_entry_5: 0x0,
+                tx_pdo_mapping_parameter_2_entry_6: 0x0,
+                tx_pdo_mapping_parameter_2_entry_7: 0x0,
+                tx_pdo_mapping_parameter_2_entry_8: 0x0,
                 tx_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_3_mapping_entry_1: 0x0,
-                tx_pdo_mapping_parameter_3_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_3_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_3_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_3_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_3_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_3_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_3_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_3_entry_1: 0x0,
+                tx_pdo_mapping_parameter_3_entry_2: 0x0,
+                tx_pdo_mapping_parameter_3_entry_3: 0x0,
+                tx_pdo_mapping_parameter_3_entry_4: 0x0,
+                tx_pdo_mapping_parameter_3_entry_5: 0x0,
+                tx_pdo_mapping_parameter_3_entry_6: 0x0,
+                tx_pdo_mapping_parameter_3_entry_7: 0x0,
+                tx_pdo_mapping_parameter_3_entry_8: 0x0,
                 tx_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_4_mapping_entry_1: 0x0,
-                tx_pdo_mapping_parameter_4_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_4_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_4_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_4_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_4_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_4_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_4_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_4_entry_1: 0x0,
+                tx_pdo_mapping_parameter_4_entry_2: 0x0,
+                tx_pdo_mapping_parameter_4_entry_3: 0x0,
+                tx_pdo_mapping_parameter_4_entry_4: 0x0,
+                tx_pdo_mapping_parameter_4_entry_5: 0x0,
+                tx_pdo_mapping_parameter_4_entry_6: 0x0,
+                tx_pdo_mapping_parameter_4_entry_7: 0x0,
+                tx_pdo_mapping_parameter_4_entry_8: 0x0,
                 tx_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_5_mapping_entry_1: 0x0,
-                tx_pdo_mapping_parameter_5_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_5_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_5_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_5_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_5_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_5_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_5_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_5_entry_1: 0x0,
+                tx_pdo_mapping_parameter_5_entry_2: 0x0,
+                tx_pdo_mapping_parameter_5_entry_3: 0x0,
+                tx_pdo_mapping_parameter_5_entry_4: 0x0,
+                tx_pdo_mapping_parameter_5_entry_5: 0x0,
+                tx_pdo_mapping_parameter_5_entry_6: 0x0,
+                tx_pdo_mapping_parameter_5_entry_7: 0x0,
+                tx_pdo_mapping_parameter_5_entry_8: 0x0,
                 tx_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_6_mapping_entry_1: 0x0,
-                tx_pdo_mapping_parameter_6_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_6_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_6_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_6_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_6_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_6_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_6_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_6_entry_1: 0x0,
+                tx_pdo_mapping_parameter_6_entry_2: 0x0,
+                tx_pdo_mapping_parameter_6_entry_3: 0x0,
+                tx_pdo_mapping_parameter_6_entry_4: 0x0,
+                tx_pdo_mapping_parameter_6_entry_5: 0x0,
+                tx_pdo_mapping_parameter_6_entry_6: 0x0,
+                tx_pdo_mapping_parameter_6_entry_7: 0x0,
+                tx_pdo_mapping_parameter_6_entry_8: 0x0,
                 tx_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_7_mapping_entry_1: 0x0,
-                tx_pdo_mapping_parameter_7_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_7_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_7_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_7_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_7_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_7_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_7_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_7_entry_1: 0x0,
+                tx_pdo_mapping_parameter_7_entry_2: 0x0,
+                tx_pdo_mapping_parameter_7_entry_3: 0x0,
+                tx_pdo_mapping_parameter_7_entry_4: 0x0,
+                tx_pdo_mapping_parameter_7_entry_5: 0x0,
+                tx_pdo_mapping_parameter_7_entry_6: 0x0,
+                tx_pdo_mapping_parameter_7_entry_7: 0x0,
+                tx_pdo_mapping_parameter_7_entry_8: 0x0,
                 tx_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_8_mapping_entry_1: 0x0,
-                tx_pdo_mapping_parameter_8_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_8_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_8_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_8_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_8_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_8_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_8_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_8_entry_1: 0x0,
+                tx_pdo_mapping_parameter_8_entry_2: 0x0,
+                tx_pdo_mapping_parameter_8_entry_3: 0x0,
+                tx_pdo_mapping_parameter_8_entry_4: 0x0,
+                tx_pdo_mapping_parameter_8_entry_5: 0x0,
+                tx_pdo_mapping_parameter_8_entry_6: 0x0,
+                tx_pdo_mapping_parameter_8_entry_7: 0x0,
+                tx_pdo_mapping_parameter_8_entry_8: 0x0,
                 nmt_startup: 0x4,
                 feed_converter_highest_sub_index_supported: 2,
                 feed_converter_numerator: 1,
@@ -7451,14 +7451,14 @@ PDOMapping=0
                 target_position: 0,
                 home_offset: 0,
                 software_position_limit_highest_sub_index_supported: 2,
-                software_position_limit_min_software_position_limit: 0,
-                software_position_limit_max_software_position_limit: 1000,
+                software_position_limit_min: 0,
+                software_position_limit_max: 1000,
                 polarity: 0x0,
                 profile_velocity_in_pp_mode: 0,
                 profile_acceleration: 0,
                 profile_deceleration: 0,
                 position_encoder_resolution_highest_sub_index_supported: 2,
-                position_encoder_resolution_encoder_increments: 1000,
+                position_encoder_resolution_increments: 1000,
                 position_encoder_resolution_motor_revolutions: 1,
                 gear_ratio_highest_sub_index_supported: 2,
                 gear_ratio_motor_revolutions: 1,
@@ -7468,8 +7468,8 @@ PDOMapping=0
                 feed_constant_shaft_revolutions: 1,
                 homing_method: 17,
                 homing_speed_highest_sub_index_supported: 2,
-                homing_speed_fast_homing_speed: 0,
-                homing_speed_slow_homing_speed: 0,
+                homing_speed_fast: 0,
+                homing_speed_slow: 0,
                 target_velocity: 0,
                 motor_type: 0x9,
                 motor_manufacturer: ::od_runtime::__private_v1::Bytes::from_slice(
@@ -7506,42 +7506,42 @@ PDOMapping=0
                     }
                     4 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_1,
+                            &self.pre_defined_error_field_standard_1,
                         )
                     }
                     5 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_2,
+                            &self.pre_defined_error_field_standard_2,
                         )
                     }
                     6 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_3,
+                            &self.pre_defined_error_field_standard_3,
                         )
                     }
                     7 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_4,
+                            &self.pre_defined_error_field_standard_4,
                         )
                     }
                     8 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_5,
+                            &self.pre_defined_error_field_standard_5,
                         )
                     }
                     9 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_6,
+                            &self.pre_defined_error_field_standard_6,
                         )
                     }
                     10 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_7,
+                            &self.pre_defined_error_field_standard_7,
                         )
                     }
                     11 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_8,
+                            &self.pre_defined_error_field_standard_8,
                         )
                     }
                     12 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_sync),
@@ -7579,7 +7579,7 @@ PDOMapping=0
                     }
                     21 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.store_parameter_field_save_all_parameters,
+                            &self.store_parameter_field_save_all,
                         )
                     }
                     22 => {
@@ -7589,8 +7589,7 @@ PDOMapping=0
                     }
                     23 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .restore_default_parameters_restore_all_default_parameters,
+                            &self.restore_default_parameters_all,
                         )
                     }
                     24 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_time_stamp),
@@ -7800,42 +7799,42 @@ PDOMapping=0
                     }
                     65 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_1,
+                            &self.rx_pdo_mapping_parameter_1_entry_1,
                         )
                     }
                     66 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_2,
+                            &self.rx_pdo_mapping_parameter_1_entry_2,
                         )
                     }
                     67 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_3,
+                            &self.rx_pdo_mapping_parameter_1_entry_3,
                         )
                     }
                     68 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_4,
+                            &self.rx_pdo_mapping_parameter_1_entry_4,
                         )
                     }
                     69 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_5,
+                            &self.rx_pdo_mapping_parameter_1_entry_5,
                         )
                     }
                     70 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_6,
+                            &self.rx_pdo_mapping_parameter_1_entry_6,
                         )
                     }
                     71 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_7,
+                            &self.rx_pdo_mapping_parameter_1_entry_7,
                         )
                     }
                     72 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_1_mapping_entry_8,
+                            &self.rx_pdo_mapping_parameter_1_entry_8,
                         )
                     }
                     73 => {
@@ -7845,42 +7844,42 @@ PDOMapping=0
                     }
                     74 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_1,
+                            &self.rx_pdo_mapping_parameter_2_entry_1,
                         )
                     }
                     75 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_2,
+                            &self.rx_pdo_mapping_parameter_2_entry_2,
                         )
                     }
                     76 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_3,
+                            &self.rx_pdo_mapping_parameter_2_entry_3,
                         )
                     }
                     77 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_4,
+                            &self.rx_pdo_mapping_parameter_2_entry_4,
                         )
                     }
                     78 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_5,
+                            &self.rx_pdo_mapping_parameter_2_entry_5,
                         )
                     }
                     79 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_6,
+                            &self.rx_pdo_mapping_parameter_2_entry_6,
                         )
                     }
                     80 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_7,
+                            &self.rx_pdo_mapping_parameter_2_entry_7,
                         )
                     }
                     81 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_2_mapping_entry_8,
+                            &self.rx_pdo_mapping_parameter_2_entry_8,
                         )
                     }
                     82 => {
@@ -7890,42 +7889,42 @@ PDOMapping=0
                     }
                     83 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_1,
+                            &self.rx_pdo_mapping_parameter_3_entry_1,
                         )
                     }
                     84 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_2,
+                            &self.rx_pdo_mapping_parameter_3_entry_2,
                         )
                     }
                     85 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_3,
+                            &self.rx_pdo_mapping_parameter_3_entry_3,
                         )
                     }
                     86 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_4,
+                            &self.rx_pdo_mapping_parameter_3_entry_4,
                         )
                     }
                     87 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_5,
+                            &self.rx_pdo_mapping_parameter_3_entry_5,
                         )
                     }
                     88 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_6,
+                            &self.rx_pdo_mapping_parameter_3_entry_6,
                         )
                     }
                     89 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_7,
+                            &self.rx_pdo_mapping_parameter_3_entry_7,
                         )
                     }
                     90 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_3_mapping_entry_8,
+                            &self.rx_pdo_mapping_parameter_3_entry_8,
                         )
                     }
                     91 => {
@@ -7935,42 +7934,42 @@ PDOMapping=0
                     }
                     92 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_1,
+                            &self.rx_pdo_mapping_parameter_4_entry_1,
                         )
                     }
                     93 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_2,
+                            &self.rx_pdo_mapping_parameter_4_entry_2,
                         )
                     }
                     94 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_3,
+                            &self.rx_pdo_mapping_parameter_4_entry_3,
                         )
                     }
                     95 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_4,
+                            &self.rx_pdo_mapping_parameter_4_entry_4,
                         )
                     }
                     96 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_5,
+                            &self.rx_pdo_mapping_parameter_4_entry_5,
                         )
                     }
                     97 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_6,
+                            &self.rx_pdo_mapping_parameter_4_entry_6,
                         )
                     }
                     98 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_7,
+                            &self.rx_pdo_mapping_parameter_4_entry_7,
                         )
                     }
                     99 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_4_mapping_entry_8,
+                            &self.rx_pdo_mapping_parameter_4_entry_8,
                         )
                     }
                     100 => {
@@ -7980,42 +7979,42 @@ PDOMapping=0
                     }
                     101 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_1,
+                            &self.rx_pdo_mapping_parameter_5_entry_1,
                         )
                     }
                     102 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_2,
+                            &self.rx_pdo_mapping_parameter_5_entry_2,
                         )
                     }
                     103 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_3,
+                            &self.rx_pdo_mapping_parameter_5_entry_3,
                         )
                     }
                     104 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_4,
+                            &self.rx_pdo_mapping_parameter_5_entry_4,
                         )
                     }
                     105 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_5,
+                            &self.rx_pdo_mapping_parameter_5_entry_5,
                         )
                     }
                     106 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_6,
+                            &self.rx_pdo_mapping_parameter_5_entry_6,
                         )
                     }
                     107 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_7,
+                            &self.rx_pdo_mapping_parameter_5_entry_7,
                         )
                     }
                     108 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_5_mapping_entry_8,
+                            &self.rx_pdo_mapping_parameter_5_entry_8,
                         )
                     }
                     109 => {
@@ -8025,42 +8024,42 @@ PDOMapping=0
                     }
                     110 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_1,
+                            &self.rx_pdo_mapping_parameter_6_entry_1,
                         )
                     }
                     111 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_2,
+                            &self.rx_pdo_mapping_parameter_6_entry_2,
                         )
                     }
                     112 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_3,
+                            &self.rx_pdo_mapping_parameter_6_entry_3,
                         )
                     }
                     113 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_4,
+                            &self.rx_pdo_mapping_parameter_6_entry_4,
                         )
                     }
                     114 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_5,
+                            &self.rx_pdo_mapping_parameter_6_entry_5,
                         )
                     }
                     115 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_6,
+                            &self.rx_pdo_mapping_parameter_6_entry_6,
                         )
                     }
                     116 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_7,
+                            &self.rx_pdo_mapping_parameter_6_entry_7,
                         )
                     }
                     117 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_6_mapping_entry_8,
+                            &self.rx_pdo_mapping_parameter_6_entry_8,
                         )
                     }
                     118 => {
@@ -8070,42 +8069,42 @@ PDOMapping=0
                     }
                     119 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_1,
+                            &self.rx_pdo_mapping_parameter_7_entry_1,
                         )
                     }
                     120 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_2,
+                            &self.rx_pdo_mapping_parameter_7_entry_2,
                         )
                     }
                     121 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_3,
+                            &self.rx_pdo_mapping_parameter_7_entry_3,
                         )
                     }
                     122 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_4,
+                            &self.rx_pdo_mapping_parameter_7_entry_4,
                         )
                     }
                     123 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_5,
+                            &self.rx_pdo_mapping_parameter_7_entry_5,
                         )
                     }
                     124 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_6,
+                            &self.rx_pdo_mapping_parameter_7_entry_6,
                         )
                     }
                     125 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_7,
+                            &self.rx_pdo_mapping_parameter_7_entry_7,
                         )
                     }
                     126 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_7_mapping_entry_8,
+                            &self.rx_pdo_mapping_parameter_7_entry_8,
                         )
                     }
                     127 => {
@@ -8115,42 +8114,42 @@ PDOMapping=0
                     }
                     128 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_1,
+                            &self.rx_pdo_mapping_parameter_8_entry_1,
                         )
                     }
                     129 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_2,
+                            &self.rx_pdo_mapping_parameter_8_entry_2,
                         )
                     }
                     130 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_3,
+                            &self.rx_pdo_mapping_parameter_8_entry_3,
                         )
                     }
                     131 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_4,
+                            &self.rx_pdo_mapping_parameter_8_entry_4,
                         )
                     }
                     132 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_5,
+                            &self.rx_pdo_mapping_parameter_8_entry_5,
                         )
                     }
                     133 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_6,
+                            &self.rx_pdo_mapping_parameter_8_entry_6,
                         )
                     }
                     134 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_7,
+                            &self.rx_pdo_mapping_parameter_8_entry_7,
                         )
                     }
                     135 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rx_pdo_mapping_parameter_8_mapping_entry_8,
+                            &self.rx_pdo_mapping_parameter_8_entry_8,
                         )
                     }
                     136 => {
@@ -8408,42 +8407,42 @@ PDOMapping=0
                     }
                     185 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_1,
+                            &self.tx_pdo_mapping_parameter_1_entry_1,
                         )
                     }
                     186 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_2,
+                            &self.tx_pdo_mapping_parameter_1_entry_2,
                         )
                     }
                     187 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_3,
+                            &self.tx_pdo_mapping_parameter_1_entry_3,
                         )
                     }
                     188 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_4,
+                            &self.tx_pdo_mapping_parameter_1_entry_4,
                         )
                     }
                     189 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_5,
+                            &self.tx_pdo_mapping_parameter_1_entry_5,
                         )
                     }
                     190 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_6,
+                            &self.tx_pdo_mapping_parameter_1_entry_6,
                         )
                     }
                     191 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_7,
+                            &self.tx_pdo_mapping_parameter_1_entry_7,
                         )
                     }
                     192 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_1_mapping_entry_8,
+                            &self.tx_pdo_mapping_parameter_1_entry_8,
                         )
                     }
                     193 => {
@@ -8453,42 +8452,42 @@ PDOMapping=0
                     }
                     194 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_1,
+                            &self.tx_pdo_mapping_parameter_2_entry_1,
                         )
                     }
                     195 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_2,
+                            &self.tx_pdo_mapping_parameter_2_entry_2,
                         )
                     }
                     196 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_3,
+                            &self.tx_pdo_mapping_parameter_2_entry_3,
                         )
                     }
                     197 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_4,
+                            &self.tx_pdo_mapping_parameter_2_entry_4,
                         )
                     }
                     198 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_5,
+                            &self.tx_pdo_mapping_parameter_2_entry_5,
                         )
                     }
                     199 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_6,
+                            &self.tx_pdo_mapping_parameter_2_entry_6,
                         )
                     }
                     200 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_7,
+                            &self.tx_pdo_mapping_parameter_2_entry_7,
                         )
                     }
                     201 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_2_mapping_entry_8,
+                            &self.tx_pdo_mapping_parameter_2_entry_8,
                         )
                     }
                     202 => {
@@ -8498,42 +8497,42 @@ PDOMapping=0
                     }
                     203 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_1,
+                            &self.tx_pdo_mapping_parameter_3_entry_1,
                         )
                     }
                     204 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_2,
+                            &self.tx_pdo_mapping_parameter_3_entry_2,
                         )
                     }
                     205 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_3,
+                            &self.tx_pdo_mapping_parameter_3_entry_3,
                         )
                     }
                     206 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_4,
+                            &self.tx_pdo_mapping_parameter_3_entry_4,
                         )
                     }
                     207 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_5,
+                            &self.tx_pdo_mapping_parameter_3_entry_5,
                         )
                     }
                     208 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_6,
+                            &self.tx_pdo_mapping_parameter_3_entry_6,
                         )
                     }
                     209 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_7,
+                            &self.tx_pdo_mapping_parameter_3_entry_7,
                         )
                     }
                     210 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_3_mapping_entry_8,
+                            &self.tx_pdo_mapping_parameter_3_entry_8,
                         )
                     }
                     211 => {
@@ -8543,42 +8542,42 @@ PDOMapping=0
                     }
                     212 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_1,
+                            &self.tx_pdo_mapping_parameter_4_entry_1,
                         )
                     }
                     213 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_2,
+                            &self.tx_pdo_mapping_parameter_4_entry_2,
                         )
                     }
                     214 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_3,
+                            &self.tx_pdo_mapping_parameter_4_entry_3,
                         )
                     }
                     215 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_4,
+                            &self.tx_pdo_mapping_parameter_4_entry_4,
                         )
                     }
                     216 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_5,
+                            &self.tx_pdo_mapping_parameter_4_entry_5,
                         )
                     }
                     217 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_6,
+                            &self.tx_pdo_mapping_parameter_4_entry_6,
                         )
                     }
                     218 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_7,
+                            &self.tx_pdo_mapping_parameter_4_entry_7,
                         )
                     }
                     219 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_4_mapping_entry_8,
+                            &self.tx_pdo_mapping_parameter_4_entry_8,
                         )
                     }
                     220 => {
@@ -8588,42 +8587,42 @@ PDOMapping=0
                     }
                     221 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_1,
+                            &self.tx_pdo_mapping_parameter_5_entry_1,
                         )
                     }
                     222 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_2,
+                            &self.tx_pdo_mapping_parameter_5_entry_2,
                         )
                     }
                     223 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_3,
+                            &self.tx_pdo_mapping_parameter_5_entry_3,
                         )
                     }
                     224 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_4,
+                            &self.tx_pdo_mapping_parameter_5_entry_4,
                         )
                     }
                     225 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_5,
+                            &self.tx_pdo_mapping_parameter_5_entry_5,
                         )
                     }
                     226 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_6,
+                            &self.tx_pdo_mapping_parameter_5_entry_6,
                         )
                     }
                     227 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_7,
+                            &self.tx_pdo_mapping_parameter_5_entry_7,
                         )
                     }
                     228 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_5_mapping_entry_8,
+                            &self.tx_pdo_mapping_parameter_5_entry_8,
                         )
                     }
                     229 => {
@@ -8633,42 +8632,42 @@ PDOMapping=0
                     }
                     230 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_1,
+                            &self.tx_pdo_mapping_parameter_6_entry_1,
                         )
                     }
                     231 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_2,
+                            &self.tx_pdo_mapping_parameter_6_entry_2,
                         )
                     }
                     232 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_3,
+                            &self.tx_pdo_mapping_parameter_6_entry_3,
                         )
                     }
                     233 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_4,
+                            &self.tx_pdo_mapping_parameter_6_entry_4,
                         )
                     }
                     234 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_5,
+                            &self.tx_pdo_mapping_parameter_6_entry_5,
                         )
                     }
                     235 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_6,
+                            &self.tx_pdo_mapping_parameter_6_entry_6,
                         )
                     }
                     236 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_7,
+                            &self.tx_pdo_mapping_parameter_6_entry_7,
                         )
                     }
                     237 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_6_mapping_entry_8,
+                            &self.tx_pdo_mapping_parameter_6_entry_8,
                         )
                     }
                     238 => {
@@ -8678,42 +8677,42 @@ PDOMapping=0
                     }
                     239 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_1,
+                            &self.tx_pdo_mapping_parameter_7_entry_1,
                         )
                     }
                     240 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_2,
+                            &self.tx_pdo_mapping_parameter_7_entry_2,
                         )
                     }
                     241 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_3,
+                            &self.tx_pdo_mapping_parameter_7_entry_3,
                         )
                     }
                     242 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_4,
+                            &self.tx_pdo_mapping_parameter_7_entry_4,
                         )
                     }
                     243 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_5,
+                            &self.tx_pdo_mapping_parameter_7_entry_5,
                         )
                     }
                     244 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_6,
+                            &self.tx_pdo_mapping_parameter_7_entry_6,
                         )
                     }
                     245 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_7,
+                            &self.tx_pdo_mapping_parameter_7_entry_7,
                         )
                     }
                     246 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_7_mapping_entry_8,
+                            &self.tx_pdo_mapping_parameter_7_entry_8,
                         )
                     }
                     247 => {
@@ -8723,42 +8722,42 @@ PDOMapping=0
                     }
                     248 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_1,
+                            &self.tx_pdo_mapping_parameter_8_entry_1,
                         )
                     }
                     249 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_2,
+                            &self.tx_pdo_mapping_parameter_8_entry_2,
                         )
                     }
                     250 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_3,
+                            &self.tx_pdo_mapping_parameter_8_entry_3,
                         )
                     }
                     251 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_4,
+                            &self.tx_pdo_mapping_parameter_8_entry_4,
                         )
                     }
                     252 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_5,
+                            &self.tx_pdo_mapping_parameter_8_entry_5,
                         )
                     }
                     253 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_6,
+                            &self.tx_pdo_mapping_parameter_8_entry_6,
                         )
                     }
                     254 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_7,
+                            &self.tx_pdo_mapping_parameter_8_entry_7,
                         )
                     }
                     255 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tx_pdo_mapping_parameter_8_mapping_entry_8,
+                            &self.tx_pdo_mapping_parameter_8_entry_8,
                         )
                     }
                     256 => ::od_runtime::__private_v1::Slot::U32(&self.nmt_startup),
@@ -8835,12 +8834,12 @@ PDOMapping=0
                     }
                     284 => {
                         ::od_runtime::__private_v1::Slot::I32(
-                            &self.software_position_limit_min_software_position_limit,
+                            &self.software_position_limit_min,
                         )
                     }
                     285 => {
                         ::od_runtime::__private_v1::Slot::I32(
-                            &self.software_position_limit_max_software_position_limit,
+                            &self.software_position_limit_max,
                         )
                     }
                     286 => ::od_runtime::__private_v1::Slot::U8(&self.polarity),
@@ -8862,7 +8861,7 @@ PDOMapping=0
                     }
                     291 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.position_encoder_resolution_encoder_increments,
+                            &self.position_encoder_resolution_increments,
                         )
                     }
                     292 => {
@@ -8904,16 +8903,8 @@ PDOMapping=0
                             &self.homing_speed_highest_sub_index_supported,
                         )
                     }
-                    301 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speed_fast_homing_speed,
-                        )
-                    }
-                    302 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speed_slow_homing_speed,
-                        )
-                    }
+                    301 => ::od_runtime::__private_v1::Slot::U32(&self.homing_speed_fast),
+                    302 => ::od_runtime::__private_v1::Slot::U32(&self.homing_speed_slow),
                     303 => ::od_runtime::__private_v1::Slot::I32(&self.target_velocity),
                     304 => ::od_runtime::__private_v1::Slot::U16(&self.motor_type),
                     305 => {
@@ -8956,42 +8947,42 @@ PDOMapping=0
                     }
                     4 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_1,
+                            &mut self.pre_defined_error_field_standard_1,
                         )
                     }
                     5 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_2,
+                            &mut self.pre_defined_error_field_standard_2,
                         )
                     }
                     6 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_3,
+                            &mut self.pre_defined_error_field_standard_3,
                         )
                     }
                     7 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_4,
+                            &mut self.pre_defined_error_field_standard_4,
                         )
                     }
                     8 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_5,
+                            &mut self.pre_defined_error_field_standard_5,
                         )
                     }
                     9 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_6,
+                            &mut self.pre_defined_error_field_standard_6,
                         )
                     }
                     10 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_7,
+                            &mut self.pre_defined_error_field_standard_7,
                         )
                     }
                     11 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_8,
+                            &mut self.pre_defined_error_field_standard_8,
                         )
                     }
                     12 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.cob_id_sync),
@@ -9021,7 +9012,7 @@ PDOMapping=0
                     }
                     21 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.store_parameter_field_save_all_parameters,
+                            &mut self.store_parameter_field_save_all,
                         )
                     }
                     22 => {
@@ -9032,8 +9023,7 @@ PDOMapping=0
                     }
                     23 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .restore_default_parameters_restore_all_default_parameters,
+                            &mut self.restore_default_parameters_all,
                         )
                     }
                     24 => {
@@ -9247,42 +9237,42 @@ PDOMapping=0
                     }
                     65 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_1,
+                            &mut self.rx_pdo_mapping_parameter_1_entry_1,
                         )
                     }
                     66 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_2,
+                            &mut self.rx_pdo_mapping_parameter_1_entry_2,
                         )
                     }
                     67 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_3,
+                            &mut self.rx_pdo_mapping_parameter_1_entry_3,
                         )
                     }
                     68 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_4,
+                            &mut self.rx_pdo_mapping_parameter_1_entry_4,
                         )
                     }
                     69 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_5,
+                            &mut self.rx_pdo_mapping_parameter_1_entry_5,
                         )
                     }
                     70 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_6,
+                            &mut self.rx_pdo_mapping_parameter_1_entry_6,
                         )
                     }
                     71 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_7,
+                            &mut self.rx_pdo_mapping_parameter_1_entry_7,
                         )
                     }
                     72 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_1_mapping_entry_8,
+                            &mut self.rx_pdo_mapping_parameter_1_entry_8,
                         )
                     }
                     73 => {
@@ -9292,42 +9282,42 @@ PDOMapping=0
                     }
                     74 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_1,
+                            &mut self.rx_pdo_mapping_parameter_2_entry_1,
                         )
                     }
                     75 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_2,
+                            &mut self.rx_pdo_mapping_parameter_2_entry_2,
                         )
                     }
                     76 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_3,
+                            &mut self.rx_pdo_mapping_parameter_2_entry_3,
                         )
                     }
                     77 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_4,
+                            &mut self.rx_pdo_mapping_parameter_2_entry_4,
                         )
                     }
                     78 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_5,
+                            &mut self.rx_pdo_mapping_parameter_2_entry_5,
                         )
                     }
                     79 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_6,
+                            &mut self.rx_pdo_mapping_parameter_2_entry_6,
                         )
                     }
                     80 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_7,
+                            &mut self.rx_pdo_mapping_parameter_2_entry_7,
                         )
                     }
                     81 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_2_mapping_entry_8,
+                            &mut self.rx_pdo_mapping_parameter_2_entry_8,
                         )
                     }
                     82 => {
@@ -9337,42 +9327,42 @@ PDOMapping=0
                     }
                     83 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_1,
+                            &mut self.rx_pdo_mapping_parameter_3_entry_1,
                         )
                     }
                     84 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_2,
+                            &mut self.rx_pdo_mapping_parameter_3_entry_2,
                         )
                     }
                     85 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_3,
+                            &mut self.rx_pdo_mapping_parameter_3_entry_3,
                         )
                     }
                     86 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_4,
+                            &mut self.rx_pdo_mapping_parameter_3_entry_4,
                         )
                     }
                     87 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_5,
+                            &mut self.rx_pdo_mapping_parameter_3_entry_5,
                         )
                     }
                     88 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_6,
+                            &mut self.rx_pdo_mapping_parameter_3_entry_6,
                         )
                     }
                     89 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_7,
+                            &mut self.rx_pdo_mapping_parameter_3_entry_7,
                         )
                     }
                     90 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_3_mapping_entry_8,
+                            &mut self.rx_pdo_mapping_parameter_3_entry_8,
                         )
                     }
                     91 => {
@@ -9382,42 +9372,42 @@ PDOMapping=0
                     }
                     92 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_1,
+                            &mut self.rx_pdo_mapping_parameter_4_entry_1,
                         )
                     }
                     93 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_2,
+                            &mut self.rx_pdo_mapping_parameter_4_entry_2,
                         )
                     }
                     94 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_3,
+                            &mut self.rx_pdo_mapping_parameter_4_entry_3,
                         )
                     }
                     95 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_4,
+                            &mut self.rx_pdo_mapping_parameter_4_entry_4,
                         )
                     }
                     96 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_5,
+                            &mut self.rx_pdo_mapping_parameter_4_entry_5,
                         )
                     }
                     97 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_6,
+                            &mut self.rx_pdo_mapping_parameter_4_entry_6,
                         )
                     }
                     98 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_7,
+                            &mut self.rx_pdo_mapping_parameter_4_entry_7,
                         )
                     }
                     99 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_4_mapping_entry_8,
+                            &mut self.rx_pdo_mapping_parameter_4_entry_8,
                         )
                     }
                     100 => {
@@ -9427,42 +9417,42 @@ PDOMapping=0
                     }
                     101 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_1,
+                            &mut self.rx_pdo_mapping_parameter_5_entry_1,
                         )
                     }
                     102 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_2,
+                            &mut self.rx_pdo_mapping_parameter_5_entry_2,
                         )
                     }
                     103 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_3,
+                            &mut self.rx_pdo_mapping_parameter_5_entry_3,
                         )
                     }
                     104 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_4,
+                            &mut self.rx_pdo_mapping_parameter_5_entry_4,
                         )
                     }
                     105 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_5,
+                            &mut self.rx_pdo_mapping_parameter_5_entry_5,
                         )
                     }
                     106 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_6,
+                            &mut self.rx_pdo_mapping_parameter_5_entry_6,
                         )
                     }
                     107 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_7,
+                            &mut self.rx_pdo_mapping_parameter_5_entry_7,
                         )
                     }
                     108 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_5_mapping_entry_8,
+                            &mut self.rx_pdo_mapping_parameter_5_entry_8,
                         )
                     }
                     109 => {
@@ -9472,42 +9462,42 @@ PDOMapping=0
                     }
                     110 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_1,
+                            &mut self.rx_pdo_mapping_parameter_6_entry_1,
                         )
                     }
                     111 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_2,
+                            &mut self.rx_pdo_mapping_parameter_6_entry_2,
                         )
                     }
                     112 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_3,
+                            &mut self.rx_pdo_mapping_parameter_6_entry_3,
                         )
                     }
                     113 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_4,
+                            &mut self.rx_pdo_mapping_parameter_6_entry_4,
                         )
                     }
                     114 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_5,
+                            &mut self.rx_pdo_mapping_parameter_6_entry_5,
                         )
                     }
                     115 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_6,
+                            &mut self.rx_pdo_mapping_parameter_6_entry_6,
                         )
                     }
                     116 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_7,
+                            &mut self.rx_pdo_mapping_parameter_6_entry_7,
                         )
                     }
                     117 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_6_mapping_entry_8,
+                            &mut self.rx_pdo_mapping_parameter_6_entry_8,
                         )
                     }
                     118 => {
@@ -9517,42 +9507,42 @@ PDOMapping=0
                     }
                     119 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_1,
+                            &mut self.rx_pdo_mapping_parameter_7_entry_1,
                         )
                     }
                     120 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_2,
+                            &mut self.rx_pdo_mapping_parameter_7_entry_2,
                         )
                     }
                     121 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_3,
+                            &mut self.rx_pdo_mapping_parameter_7_entry_3,
                         )
                     }
                     122 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_4,
+                            &mut self.rx_pdo_mapping_parameter_7_entry_4,
                         )
                     }
                     123 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_5,
+                            &mut self.rx_pdo_mapping_parameter_7_entry_5,
                         )
                     }
                     124 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_6,
+                            &mut self.rx_pdo_mapping_parameter_7_entry_6,
                         )
                     }
                     125 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_7,
+                            &mut self.rx_pdo_mapping_parameter_7_entry_7,
                         )
                     }
                     126 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_7_mapping_entry_8,
+                            &mut self.rx_pdo_mapping_parameter_7_entry_8,
                         )
                     }
                     127 => {
@@ -9562,42 +9552,42 @@ PDOMapping=0
                     }
                     128 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_1,
+                            &mut self.rx_pdo_mapping_parameter_8_entry_1,
                         )
                     }
                     129 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_2,
+                            &mut self.rx_pdo_mapping_parameter_8_entry_2,
                         )
                     }
                     130 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_3,
+                            &mut self.rx_pdo_mapping_parameter_8_entry_3,
                         )
                     }
                     131 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_4,
+                            &mut self.rx_pdo_mapping_parameter_8_entry_4,
                         )
                     }
                     132 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_5,
+                            &mut self.rx_pdo_mapping_parameter_8_entry_5,
                         )
                     }
                     133 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_6,
+                            &mut self.rx_pdo_mapping_parameter_8_entry_6,
                         )
                     }
                     134 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_7,
+                            &mut self.rx_pdo_mapping_parameter_8_entry_7,
                         )
                     }
                     135 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rx_pdo_mapping_parameter_8_mapping_entry_8,
+                            &mut self.rx_pdo_mapping_parameter_8_entry_8,
                         )
                     }
                     136 => {
@@ -9863,42 +9853,42 @@ PDOMapping=0
                     }
                     185 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_1,
+                            &mut self.tx_pdo_mapping_parameter_1_entry_1,
                         )
                     }
                     186 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_2,
+                            &mut self.tx_pdo_mapping_parameter_1_entry_2,
                         )
                     }
                     187 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_3,
+                            &mut self.tx_pdo_mapping_parameter_1_entry_3,
                         )
                     }
                     188 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_4,
+                            &mut self.tx_pdo_mapping_parameter_1_entry_4,
                         )
                     }
                     189 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_5,
+                            &mut self.tx_pdo_mapping_parameter_1_entry_5,
                         )
                     }
                     190 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_6,
+                            &mut self.tx_pdo_mapping_parameter_1_entry_6,
                         )
                     }
                     191 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_7,
+                            &mut self.tx_pdo_mapping_parameter_1_entry_7,
                         )
                     }
                     192 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_1_mapping_entry_8,
+                            &mut self.tx_pdo_mapping_parameter_1_entry_8,
                         )
                     }
                     193 => {
@@ -9908,42 +9898,42 @@ PDOMapping=0
                     }
                     194 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_1,
+                            &mut self.tx_pdo_mapping_parameter_2_entry_1,
                         )
                     }
                     195 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_2,
+                            &mut self.tx_pdo_mapping_parameter_2_entry_2,
                         )
                     }
                     196 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_3,
+                            &mut self.tx_pdo_mapping_parameter_2_entry_3,
                         )
                     }
                     197 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_4,
+                            &mut self.tx_pdo_mapping_parameter_2_entry_4,
                         )
                     }
                     198 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_5,
+                            &mut self.tx_pdo_mapping_parameter_2_entry_5,
                         )
                     }
                     199 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_6,
+                            &mut self.tx_pdo_mapping_parameter_2_entry_6,
                         )
                     }
                     200 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_7,
+                            &mut self.tx_pdo_mapping_parameter_2_entry_7,
                         )
                     }
                     201 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_2_mapping_entry_8,
+                            &mut self.tx_pdo_mapping_parameter_2_entry_8,
                         )
                     }
                     202 => {
@@ -9953,42 +9943,42 @@ PDOMapping=0
                     }
                     203 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_1,
+                            &mut self.tx_pdo_mapping_parameter_3_entry_1,
                         )
                     }
                     204 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_2,
+                            &mut self.tx_pdo_mapping_parameter_3_entry_2,
                         )
                     }
                     205 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_3,
+                            &mut self.tx_pdo_mapping_parameter_3_entry_3,
                         )
                     }
                     206 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_4,
+                            &mut self.tx_pdo_mapping_parameter_3_entry_4,
                         )
                     }
                     207 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_5,
+                            &mut self.tx_pdo_mapping_parameter_3_entry_5,
                         )
                     }
                     208 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_6,
+                            &mut self.tx_pdo_mapping_parameter_3_entry_6,
                         )
                     }
                     209 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_7,
+                            &mut self.tx_pdo_mapping_parameter_3_entry_7,
                         )
                     }
                     210 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_3_mapping_entry_8,
+                            &mut self.tx_pdo_mapping_parameter_3_entry_8,
                         )
                     }
                     211 => {
@@ -9998,42 +9988,42 @@ PDOMapping=0
                     }
                     212 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_1,
+                            &mut self.tx_pdo_mapping_parameter_4_entry_1,
                         )
                     }
                     213 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_2,
+                            &mut self.tx_pdo_mapping_parameter_4_entry_2,
                         )
                     }
                     214 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_3,
+                            &mut self.tx_pdo_mapping_parameter_4_entry_3,
                         )
                     }
                     215 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_4,
+                            &mut self.tx_pdo_mapping_parameter_4_entry_4,
                         )
                     }
                     216 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_5,
+                            &mut self.tx_pdo_mapping_parameter_4_entry_5,
                         )
                     }
                     217 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_6,
+                            &mut self.tx_pdo_mapping_parameter_4_entry_6,
                         )
                     }
                     218 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_7,
+                            &mut self.tx_pdo_mapping_parameter_4_entry_7,
                         )
                     }
                     219 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_4_mapping_entry_8,
+                            &mut self.tx_pdo_mapping_parameter_4_entry_8,
                         )
                     }
                     220 => {
@@ -10043,42 +10033,42 @@ PDOMapping=0
                     }
                     221 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_1,
+                            &mut self.tx_pdo_mapping_parameter_5_entry_1,
                         )
                     }
                     222 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_2,
+                            &mut self.tx_pdo_mapping_parameter_5_entry_2,
                         )
                     }
                     223 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_3,
+                            &mut self.tx_pdo_mapping_parameter_5_entry_3,
                         )
                     }
                     224 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_4,
+                            &mut self.tx_pdo_mapping_parameter_5_entry_4,
                         )
                     }
                     225 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_5,
+                            &mut self.tx_pdo_mapping_parameter_5_entry_5,
                         )
                     }
                     226 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_6,
+                            &mut self.tx_pdo_mapping_parameter_5_entry_6,
                         )
                     }
                     227 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_7,
+                            &mut self.tx_pdo_mapping_parameter_5_entry_7,
                         )
                     }
                     228 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_5_mapping_entry_8,
+                            &mut self.tx_pdo_mapping_parameter_5_entry_8,
                         )
                     }
                     229 => {
@@ -10088,42 +10078,42 @@ PDOMapping=0
                     }
                     230 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_1,
+                            &mut self.tx_pdo_mapping_parameter_6_entry_1,
                         )
                     }
                     231 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_2,
+                            &mut self.tx_pdo_mapping_parameter_6_entry_2,
                         )
                     }
                     232 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_3,
+                            &mut self.tx_pdo_mapping_parameter_6_entry_3,
                         )
                     }
                     233 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_4,
+                            &mut self.tx_pdo_mapping_parameter_6_entry_4,
                         )
                     }
                     234 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_5,
+                            &mut self.tx_pdo_mapping_parameter_6_entry_5,
                         )
                     }
                     235 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_6,
+                            &mut self.tx_pdo_mapping_parameter_6_entry_6,
                         )
                     }
                     236 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_7,
+                            &mut self.tx_pdo_mapping_parameter_6_entry_7,
                         )
                     }
                     237 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_6_mapping_entry_8,
+                            &mut self.tx_pdo_mapping_parameter_6_entry_8,
                         )
                     }
                     238 => {
@@ -10133,42 +10123,42 @@ PDOMapping=0
                     }
                     239 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_1,
+                            &mut self.tx_pdo_mapping_parameter_7_entry_1,
                         )
                     }
                     240 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_2,
+                            &mut self.tx_pdo_mapping_parameter_7_entry_2,
                         )
                     }
                     241 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_3,
+                            &mut self.tx_pdo_mapping_parameter_7_entry_3,
                         )
                     }
                     242 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_4,
+                            &mut self.tx_pdo_mapping_parameter_7_entry_4,
                         )
                     }
                     243 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_5,
+                            &mut self.tx_pdo_mapping_parameter_7_entry_5,
                         )
                     }
                     244 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_6,
+                            &mut self.tx_pdo_mapping_parameter_7_entry_6,
                         )
                     }
                     245 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_7,
+                            &mut self.tx_pdo_mapping_parameter_7_entry_7,
                         )
                     }
                     246 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_7_mapping_entry_8,
+                            &mut self.tx_pdo_mapping_parameter_7_entry_8,
                         )
                     }
                     247 => {
@@ -10178,42 +10168,42 @@ PDOMapping=0
                     }
                     248 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_1,
+                            &mut self.tx_pdo_mapping_parameter_8_entry_1,
                         )
                     }
                     249 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_2,
+                            &mut self.tx_pdo_mapping_parameter_8_entry_2,
                         )
                     }
                     250 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_3,
+                            &mut self.tx_pdo_mapping_parameter_8_entry_3,
                         )
                     }
                     251 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_4,
+                            &mut self.tx_pdo_mapping_parameter_8_entry_4,
                         )
                     }
                     252 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_5,
+                            &mut self.tx_pdo_mapping_parameter_8_entry_5,
                         )
                     }
                     253 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_6,
+                            &mut self.tx_pdo_mapping_parameter_8_entry_6,
                         )
                     }
                     254 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_7,
+                            &mut self.tx_pdo_mapping_parameter_8_entry_7,
                         )
                     }
                     255 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tx_pdo_mapping_parameter_8_mapping_entry_8,
+                            &mut self.tx_pdo_mapping_parameter_8_entry_8,
                         )
                     }
                     256 => {
@@ -10330,12 +10320,12 @@ PDOMapping=0
                     }
                     284 => {
                         ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.software_position_limit_min_software_position_limit,
+                            &mut self.software_position_limit_min,
                         )
                     }
                     285 => {
                         ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.software_position_limit_max_software_position_limit,
+                            &mut self.software_position_limit_max,
                         )
                     }
                     286 => ::od_runtime::__private_v1::SlotMut::U8(&mut self.polarity),
@@ -10362,7 +10352,7 @@ PDOMapping=0
                     }
                     291 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.position_encoder_resolution_encoder_increments,
+                            &mut self.position_encoder_resolution_increments,
                         )
                     }
                     292 => {
@@ -10410,12 +10400,12 @@ PDOMapping=0
                     }
                     301 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speed_fast_homing_speed,
+                            &mut self.homing_speed_fast,
                         )
                     }
                     302 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speed_slow_homing_speed,
+                            &mut self.homing_speed_slow,
                         )
                     }
                     303 => {
@@ -10589,128 +10579,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_1(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_1
+        pub const fn pre_defined_error_field_standard_1(&self) -> u32 {
+            self.pre_defined_error_field_standard_1
         }
-        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1 (see [`Self::pre_defined_error_field_standard_error_field_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1 (see [`Self::pre_defined_error_field_standard_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_1(
+        pub fn set_pre_defined_error_field_standard_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_1 = v;
+            self.pre_defined_error_field_standard_1 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 2 Pre-defined error field: Standard error field 2.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_2(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_2
+        pub const fn pre_defined_error_field_standard_2(&self) -> u32 {
+            self.pre_defined_error_field_standard_2
         }
-        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2 (see [`Self::pre_defined_error_field_standard_error_field_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2 (see [`Self::pre_defined_error_field_standard_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_2(
+        pub fn set_pre_defined_error_field_standard_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_2 = v;
+            self.pre_defined_error_field_standard_2 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 3 Pre-defined error field: Standard error field 3.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_3(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_3
+        pub const fn pre_defined_error_field_standard_3(&self) -> u32 {
+            self.pre_defined_error_field_standard_3
         }
-        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3 (see [`Self::pre_defined_error_field_standard_error_field_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3 (see [`Self::pre_defined_error_field_standard_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_3(
+        pub fn set_pre_defined_error_field_standard_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_3 = v;
+            self.pre_defined_error_field_standard_3 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 4 Pre-defined error field: Standard error field 4.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_4(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_4
+        pub const fn pre_defined_error_field_standard_4(&self) -> u32 {
+            self.pre_defined_error_field_standard_4
         }
-        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4 (see [`Self::pre_defined_error_field_standard_error_field_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4 (see [`Self::pre_defined_error_field_standard_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_4(
+        pub fn set_pre_defined_error_field_standard_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_4 = v;
+            self.pre_defined_error_field_standard_4 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 5 Pre-defined error field: Standard error field 5.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_5(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_5
+        pub const fn pre_defined_error_field_standard_5(&self) -> u32 {
+            self.pre_defined_error_field_standard_5
         }
-        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5 (see [`Self::pre_defined_error_field_standard_error_field_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5 (see [`Self::pre_defined_error_field_standard_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_5(
+        pub fn set_pre_defined_error_field_standard_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_5 = v;
+            self.pre_defined_error_field_standard_5 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 6 Pre-defined error field: Standard error field 6.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_6(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_6
+        pub const fn pre_defined_error_field_standard_6(&self) -> u32 {
+            self.pre_defined_error_field_standard_6
         }
-        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6 (see [`Self::pre_defined_error_field_standard_error_field_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6 (see [`Self::pre_defined_error_field_standard_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_6(
+        pub fn set_pre_defined_error_field_standard_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_6 = v;
+            self.pre_defined_error_field_standard_6 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 7 Pre-defined error field: Standard error field 7.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_7(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_7
+        pub const fn pre_defined_error_field_standard_7(&self) -> u32 {
+            self.pre_defined_error_field_standard_7
         }
-        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7 (see [`Self::pre_defined_error_field_standard_error_field_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7 (see [`Self::pre_defined_error_field_standard_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_7(
+        pub fn set_pre_defined_error_field_standard_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_7 = v;
+            self.pre_defined_error_field_standard_7 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 8 Pre-defined error field: Standard error field 8.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_8(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_8
+        pub const fn pre_defined_error_field_standard_8(&self) -> u32 {
+            self.pre_defined_error_field_standard_8
         }
-        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8 (see [`Self::pre_defined_error_field_standard_error_field_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8 (see [`Self::pre_defined_error_field_standard_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_8(
+        pub fn set_pre_defined_error_field_standard_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_8 = v;
+            self.pre_defined_error_field_standard_8 = v;
             Ok(())
         }
         /// Reads `0x1005` COB-ID SYNC.
@@ -10855,16 +10845,16 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 1.
         #[inline]
-        pub const fn store_parameter_field_save_all_parameters(&self) -> u32 {
-            self.store_parameter_field_save_all_parameters
+        pub const fn store_parameter_field_save_all(&self) -> u32 {
+            self.store_parameter_field_save_all
         }
-        /// Sets `0x1010` sub 1 Store parameter field: Save all parameters (see [`Self::store_parameter_field_save_all_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1010` sub 1 Store parameter field: Save all parameters (see [`Self::store_parameter_field_save_all`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_store_parameter_field_save_all_parameters(
+        pub fn set_store_parameter_field_save_all(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.store_parameter_field_save_all_parameters = v;
+            self.store_parameter_field_save_all = v;
             Ok(())
         }
         /// Reads `0x1011` sub 0 Restore default parameters: Highest sub-index supported.
@@ -10889,18 +10879,16 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 1.
         #[inline]
-        pub const fn restore_default_parameters_restore_all_default_parameters(
-            &self,
-        ) -> u32 {
-            self.restore_default_parameters_restore_all_default_parameters
+        pub const fn restore_default_parameters_all(&self) -> u32 {
+            self.restore_default_parameters_all
         }
-        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters (see [`Self::restore_default_parameters_restore_all_default_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters (see [`Self::restore_default_parameters_all`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_restore_default_parameters_restore_all_default_parameters(
+        pub fn set_restore_default_parameters_all(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.restore_default_parameters_restore_all_default_parameters = v;
+            self.restore_default_parameters_all = v;
             Ok(())
         }
         /// Reads `0x1012` COB-ID time stamp.
@@ -11582,128 +11570,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 1614807056 (0x60400010).
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_1_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_1
         }
-        /// Sets `0x1600` sub 1 Rx PDO mapping parameter 1: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 1 Rx PDO mapping parameter 1: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_1_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_1_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 2 Rx PDO mapping parameter 1: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_1_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_2
         }
-        /// Sets `0x1600` sub 2 Rx PDO mapping parameter 1: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 2 Rx PDO mapping parameter 1: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_1_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_1_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 3 Rx PDO mapping parameter 1: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_1_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_3
         }
-        /// Sets `0x1600` sub 3 Rx PDO mapping parameter 1: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 3 Rx PDO mapping parameter 1: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_1_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_1_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 4 Rx PDO mapping parameter 1: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_1_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_4
         }
-        /// Sets `0x1600` sub 4 Rx PDO mapping parameter 1: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 4 Rx PDO mapping parameter 1: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_1_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_1_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 5 Rx PDO mapping parameter 1: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_1_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_5
         }
-        /// Sets `0x1600` sub 5 Rx PDO mapping parameter 1: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 5 Rx PDO mapping parameter 1: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_1_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_1_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 6 Rx PDO mapping parameter 1: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_1_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_6
         }
-        /// Sets `0x1600` sub 6 Rx PDO mapping parameter 1: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 6 Rx PDO mapping parameter 1: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_1_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_1_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 7 Rx PDO mapping parameter 1: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_1_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_7
         }
-        /// Sets `0x1600` sub 7 Rx PDO mapping parameter 1: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 7 Rx PDO mapping parameter 1: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_1_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_1_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 8 Rx PDO mapping parameter 1: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_1_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_8
         }
-        /// Sets `0x1600` sub 8 Rx PDO mapping parameter 1: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 8 Rx PDO mapping parameter 1: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_1_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_1_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 0 Rx PDO mapping parameter 2: Number of mapped objects.
@@ -11726,128 +11714,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_2_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_1
         }
-        /// Sets `0x1601` sub 1 Rx PDO mapping parameter 2: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 1 Rx PDO mapping parameter 2: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_2_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_2_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 2 Rx PDO mapping parameter 2: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_2_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_2
         }
-        /// Sets `0x1601` sub 2 Rx PDO mapping parameter 2: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 2 Rx PDO mapping parameter 2: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_2_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_2_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 3 Rx PDO mapping parameter 2: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_2_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_3
         }
-        /// Sets `0x1601` sub 3 Rx PDO mapping parameter 2: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 3 Rx PDO mapping parameter 2: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_2_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_2_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 4 Rx PDO mapping parameter 2: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_2_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_4
         }
-        /// Sets `0x1601` sub 4 Rx PDO mapping parameter 2: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 4 Rx PDO mapping parameter 2: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_2_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_2_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 5 Rx PDO mapping parameter 2: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_2_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_5
         }
-        /// Sets `0x1601` sub 5 Rx PDO mapping parameter 2: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 5 Rx PDO mapping parameter 2: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_2_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_2_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 6 Rx PDO mapping parameter 2: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_2_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_6
         }
-        /// Sets `0x1601` sub 6 Rx PDO mapping parameter 2: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 6 Rx PDO mapping parameter 2: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_2_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_2_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 7 Rx PDO mapping parameter 2: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_2_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_7
         }
-        /// Sets `0x1601` sub 7 Rx PDO mapping parameter 2: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 7 Rx PDO mapping parameter 2: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_2_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_2_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 8 Rx PDO mapping parameter 2: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_2_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_8
         }
-        /// Sets `0x1601` sub 8 Rx PDO mapping parameter 2: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 8 Rx PDO mapping parameter 2: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_2_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_2_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 0 Rx PDO mapping parameter 3: Number of mapped objects.
@@ -11870,128 +11858,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_3_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_1
         }
-        /// Sets `0x1602` sub 1 Rx PDO mapping parameter 3: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 1 Rx PDO mapping parameter 3: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_3_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_3_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 2 Rx PDO mapping parameter 3: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_3_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_2
         }
-        /// Sets `0x1602` sub 2 Rx PDO mapping parameter 3: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 2 Rx PDO mapping parameter 3: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_3_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_3_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 3 Rx PDO mapping parameter 3: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_3_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_3
         }
-        /// Sets `0x1602` sub 3 Rx PDO mapping parameter 3: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 3 Rx PDO mapping parameter 3: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_3_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_3_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 4 Rx PDO mapping parameter 3: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_3_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_4
         }
-        /// Sets `0x1602` sub 4 Rx PDO mapping parameter 3: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 4 Rx PDO mapping parameter 3: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_3_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_3_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 5 Rx PDO mapping parameter 3: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_3_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_5
         }
-        /// Sets `0x1602` sub 5 Rx PDO mapping parameter 3: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 5 Rx PDO mapping parameter 3: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_3_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_3_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 6 Rx PDO mapping parameter 3: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_3_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_6
         }
-        /// Sets `0x1602` sub 6 Rx PDO mapping parameter 3: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 6 Rx PDO mapping parameter 3: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_3_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_3_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 7 Rx PDO mapping parameter 3: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_3_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_7
         }
-        /// Sets `0x1602` sub 7 Rx PDO mapping parameter 3: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 7 Rx PDO mapping parameter 3: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_3_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_3_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 8 Rx PDO mapping parameter 3: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_3_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_8
         }
-        /// Sets `0x1602` sub 8 Rx PDO mapping parameter 3: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 8 Rx PDO mapping parameter 3: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_3_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_3_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 0 Rx PDO mapping parameter 4: Number of mapped objects.
@@ -12014,128 +12002,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_4_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_1
         }
-        /// Sets `0x1603` sub 1 Rx PDO mapping parameter 4: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 1 Rx PDO mapping parameter 4: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_4_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_4_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 2 Rx PDO mapping parameter 4: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_4_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_2
         }
-        /// Sets `0x1603` sub 2 Rx PDO mapping parameter 4: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 2 Rx PDO mapping parameter 4: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_4_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_4_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 3 Rx PDO mapping parameter 4: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_4_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_3
         }
-        /// Sets `0x1603` sub 3 Rx PDO mapping parameter 4: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 3 Rx PDO mapping parameter 4: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_4_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_4_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 4 Rx PDO mapping parameter 4: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_4_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_4
         }
-        /// Sets `0x1603` sub 4 Rx PDO mapping parameter 4: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 4 Rx PDO mapping parameter 4: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_4_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_4_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 5 Rx PDO mapping parameter 4: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_4_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_5
         }
-        /// Sets `0x1603` sub 5 Rx PDO mapping parameter 4: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 5 Rx PDO mapping parameter 4: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_4_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_4_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 6 Rx PDO mapping parameter 4: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_4_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_6
         }
-        /// Sets `0x1603` sub 6 Rx PDO mapping parameter 4: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 6 Rx PDO mapping parameter 4: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_4_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_4_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 7 Rx PDO mapping parameter 4: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_4_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_7
         }
-        /// Sets `0x1603` sub 7 Rx PDO mapping parameter 4: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 7 Rx PDO mapping parameter 4: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_4_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_4_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 8 Rx PDO mapping parameter 4: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_4_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_8
         }
-        /// Sets `0x1603` sub 8 Rx PDO mapping parameter 4: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 8 Rx PDO mapping parameter 4: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_4_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_4_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 0 Rx PDO mapping parameter 5: Number of mapped objects.
@@ -12158,128 +12146,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_5_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_1
         }
-        /// Sets `0x1604` sub 1 Rx PDO mapping parameter 5: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 1 Rx PDO mapping parameter 5: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_5_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_5_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 2 Rx PDO mapping parameter 5: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_5_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_2
         }
-        /// Sets `0x1604` sub 2 Rx PDO mapping parameter 5: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 2 Rx PDO mapping parameter 5: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_5_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_5_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 3 Rx PDO mapping parameter 5: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_5_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_3
         }
-        /// Sets `0x1604` sub 3 Rx PDO mapping parameter 5: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 3 Rx PDO mapping parameter 5: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_5_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_5_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 4 Rx PDO mapping parameter 5: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_5_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_4
         }
-        /// Sets `0x1604` sub 4 Rx PDO mapping parameter 5: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 4 Rx PDO mapping parameter 5: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_5_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_5_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 5 Rx PDO mapping parameter 5: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_5_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_5
         }
-        /// Sets `0x1604` sub 5 Rx PDO mapping parameter 5: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 5 Rx PDO mapping parameter 5: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_5_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_5_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 6 Rx PDO mapping parameter 5: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_5_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_6
         }
-        /// Sets `0x1604` sub 6 Rx PDO mapping parameter 5: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 6 Rx PDO mapping parameter 5: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_5_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_5_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 7 Rx PDO mapping parameter 5: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_5_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_7
         }
-        /// Sets `0x1604` sub 7 Rx PDO mapping parameter 5: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 7 Rx PDO mapping parameter 5: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_5_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_5_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 8 Rx PDO mapping parameter 5: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_5_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_8
         }
-        /// Sets `0x1604` sub 8 Rx PDO mapping parameter 5: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 8 Rx PDO mapping parameter 5: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_5_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_5_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 0 Rx PDO mapping parameter 6: Number of mapped objects.
@@ -12302,128 +12290,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_6_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_1
         }
-        /// Sets `0x1605` sub 1 Rx PDO mapping parameter 6: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 1 Rx PDO mapping parameter 6: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_6_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_6_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 2 Rx PDO mapping parameter 6: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_6_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_2
         }
-        /// Sets `0x1605` sub 2 Rx PDO mapping parameter 6: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 2 Rx PDO mapping parameter 6: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_6_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_6_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 3 Rx PDO mapping parameter 6: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_6_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_3
         }
-        /// Sets `0x1605` sub 3 Rx PDO mapping parameter 6: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 3 Rx PDO mapping parameter 6: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_6_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_6_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 4 Rx PDO mapping parameter 6: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_6_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_4
         }
-        /// Sets `0x1605` sub 4 Rx PDO mapping parameter 6: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 4 Rx PDO mapping parameter 6: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_6_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_6_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 5 Rx PDO mapping parameter 6: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_6_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_5
         }
-        /// Sets `0x1605` sub 5 Rx PDO mapping parameter 6: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 5 Rx PDO mapping parameter 6: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_6_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_6_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 6 Rx PDO mapping parameter 6: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_6_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_6
         }
-        /// Sets `0x1605` sub 6 Rx PDO mapping parameter 6: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 6 Rx PDO mapping parameter 6: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_6_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_6_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 7 Rx PDO mapping parameter 6: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_6_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_7
         }
-        /// Sets `0x1605` sub 7 Rx PDO mapping parameter 6: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 7 Rx PDO mapping parameter 6: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_6_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_6_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 8 Rx PDO mapping parameter 6: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_6_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_8
         }
-        /// Sets `0x1605` sub 8 Rx PDO mapping parameter 6: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 8 Rx PDO mapping parameter 6: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_6_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_6_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 0 Rx PDO mapping parameter 7: Number of mapped objects.
@@ -12446,128 +12434,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_7_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_1
         }
-        /// Sets `0x1606` sub 1 Rx PDO mapping parameter 7: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 1 Rx PDO mapping parameter 7: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_7_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_7_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 2 Rx PDO mapping parameter 7: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_7_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_2
         }
-        /// Sets `0x1606` sub 2 Rx PDO mapping parameter 7: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 2 Rx PDO mapping parameter 7: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_7_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_7_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 3 Rx PDO mapping parameter 7: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_7_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_3
         }
-        /// Sets `0x1606` sub 3 Rx PDO mapping parameter 7: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 3 Rx PDO mapping parameter 7: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_7_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_7_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 4 Rx PDO mapping parameter 7: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_7_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_4
         }
-        /// Sets `0x1606` sub 4 Rx PDO mapping parameter 7: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 4 Rx PDO mapping parameter 7: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_7_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_7_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 5 Rx PDO mapping parameter 7: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_7_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_5
         }
-        /// Sets `0x1606` sub 5 Rx PDO mapping parameter 7: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 5 Rx PDO mapping parameter 7: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_7_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_7_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 6 Rx PDO mapping parameter 7: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_7_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_6
         }
-        /// Sets `0x1606` sub 6 Rx PDO mapping parameter 7: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 6 Rx PDO mapping parameter 7: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_7_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_7_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 7 Rx PDO mapping parameter 7: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_7_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_7
         }
-        /// Sets `0x1606` sub 7 Rx PDO mapping parameter 7: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 7 Rx PDO mapping parameter 7: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_7_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_7_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 8 Rx PDO mapping parameter 7: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_7_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_8
         }
-        /// Sets `0x1606` sub 8 Rx PDO mapping parameter 7: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 8 Rx PDO mapping parameter 7: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_7_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_7_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 0 Rx PDO mapping parameter 8: Number of mapped objects.
@@ -12590,128 +12578,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_8_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_1
         }
-        /// Sets `0x1607` sub 1 Rx PDO mapping parameter 8: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 1 Rx PDO mapping parameter 8: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_8_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_8_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 2 Rx PDO mapping parameter 8: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_8_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_2
         }
-        /// Sets `0x1607` sub 2 Rx PDO mapping parameter 8: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 2 Rx PDO mapping parameter 8: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_8_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_8_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 3 Rx PDO mapping parameter 8: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_8_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_3
         }
-        /// Sets `0x1607` sub 3 Rx PDO mapping parameter 8: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 3 Rx PDO mapping parameter 8: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_8_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_8_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 4 Rx PDO mapping parameter 8: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_8_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_4
         }
-        /// Sets `0x1607` sub 4 Rx PDO mapping parameter 8: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 4 Rx PDO mapping parameter 8: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_8_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_8_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 5 Rx PDO mapping parameter 8: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_8_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_5
         }
-        /// Sets `0x1607` sub 5 Rx PDO mapping parameter 8: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 5 Rx PDO mapping parameter 8: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_8_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_8_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 6 Rx PDO mapping parameter 8: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_8_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_6
         }
-        /// Sets `0x1607` sub 6 Rx PDO mapping parameter 8: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 6 Rx PDO mapping parameter 8: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_8_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_8_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 7 Rx PDO mapping parameter 8: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_8_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_7
         }
-        /// Sets `0x1607` sub 7 Rx PDO mapping parameter 8: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 7 Rx PDO mapping parameter 8: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_8_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_8_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 8 Rx PDO mapping parameter 8: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_8_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_8
         }
-        /// Sets `0x1607` sub 8 Rx PDO mapping parameter 8: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 8 Rx PDO mapping parameter 8: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_8_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_8_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1800` sub 0 Tx PDO communication parameter 1: Highest sub-index supported.
@@ -13518,128 +13506,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 1614872592 (0x60410010).
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_1_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_1
         }
-        /// Sets `0x1A00` sub 1 Tx PDO mapping parameter 1: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 1 Tx PDO mapping parameter 1: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_1_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_1_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 2 Tx PDO mapping parameter 1: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_1_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_2
         }
-        /// Sets `0x1A00` sub 2 Tx PDO mapping parameter 1: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 2 Tx PDO mapping parameter 1: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_1_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_1_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 3 Tx PDO mapping parameter 1: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_1_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_3
         }
-        /// Sets `0x1A00` sub 3 Tx PDO mapping parameter 1: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 3 Tx PDO mapping parameter 1: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_1_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_1_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 4 Tx PDO mapping parameter 1: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_1_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_4
         }
-        /// Sets `0x1A00` sub 4 Tx PDO mapping parameter 1: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 4 Tx PDO mapping parameter 1: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_1_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_1_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 5 Tx PDO mapping parameter 1: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_1_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_5
         }
-        /// Sets `0x1A00` sub 5 Tx PDO mapping parameter 1: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 5 Tx PDO mapping parameter 1: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_1_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_1_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 6 Tx PDO mapping parameter 1: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_1_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_6
         }
-        /// Sets `0x1A00` sub 6 Tx PDO mapping parameter 1: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 6 Tx PDO mapping parameter 1: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_1_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_1_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 7 Tx PDO mapping parameter 1: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_1_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_7
         }
-        /// Sets `0x1A00` sub 7 Tx PDO mapping parameter 1: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 7 Tx PDO mapping parameter 1: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_1_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_1_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 8 Tx PDO mapping parameter 1: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_1_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_8
         }
-        /// Sets `0x1A00` sub 8 Tx PDO mapping parameter 1: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 8 Tx PDO mapping parameter 1: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_1_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_1_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 0 Tx PDO mapping parameter 2: Number of mapped objects.
@@ -13662,128 +13650,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_2_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_1
         }
-        /// Sets `0x1A01` sub 1 Tx PDO mapping parameter 2: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 1 Tx PDO mapping parameter 2: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_2_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_2_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 2 Tx PDO mapping parameter 2: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_2_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_2
         }
-        /// Sets `0x1A01` sub 2 Tx PDO mapping parameter 2: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 2 Tx PDO mapping parameter 2: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_2_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_2_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 3 Tx PDO mapping parameter 2: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_2_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_3
         }
-        /// Sets `0x1A01` sub 3 Tx PDO mapping parameter 2: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 3 Tx PDO mapping parameter 2: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_2_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_2_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 4 Tx PDO mapping parameter 2: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_2_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_4
         }
-        /// Sets `0x1A01` sub 4 Tx PDO mapping parameter 2: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 4 Tx PDO mapping parameter 2: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_2_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_2_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 5 Tx PDO mapping parameter 2: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_2_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_5
         }
-        /// Sets `0x1A01` sub 5 Tx PDO mapping parameter 2: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 5 Tx PDO mapping parameter 2: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_2_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_2_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 6 Tx PDO mapping parameter 2: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_2_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_6
         }
-        /// Sets `0x1A01` sub 6 Tx PDO mapping parameter 2: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 6 Tx PDO mapping parameter 2: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_2_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_2_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 7 Tx PDO mapping parameter 2: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_2_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_7
         }
-        /// Sets `0x1A01` sub 7 Tx PDO mapping parameter 2: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 7 Tx PDO mapping parameter 2: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_2_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_2_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 8 Tx PDO mapping parameter 2: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_2_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_8
         }
-        /// Sets `0x1A01` sub 8 Tx PDO mapping parameter 2: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 8 Tx PDO mapping parameter 2: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_2_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_2_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 0 Tx PDO mapping parameter 3: Number of mapped objects.
@@ -13806,128 +13794,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_3_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_1
         }
-        /// Sets `0x1A02` sub 1 Tx PDO mapping parameter 3: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 1 Tx PDO mapping parameter 3: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_3_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_3_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 2 Tx PDO mapping parameter 3: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_3_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_2
         }
-        /// Sets `0x1A02` sub 2 Tx PDO mapping parameter 3: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 2 Tx PDO mapping parameter 3: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_3_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_3_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 3 Tx PDO mapping parameter 3: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_3_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_3
         }
-        /// Sets `0x1A02` sub 3 Tx PDO mapping parameter 3: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 3 Tx PDO mapping parameter 3: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_3_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_3_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 4 Tx PDO mapping parameter 3: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_3_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_4
         }
-        /// Sets `0x1A02` sub 4 Tx PDO mapping parameter 3: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 4 Tx PDO mapping parameter 3: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_3_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_3_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 5 Tx PDO mapping parameter 3: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_3_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_5
         }
-        /// Sets `0x1A02` sub 5 Tx PDO mapping parameter 3: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 5 Tx PDO mapping parameter 3: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_3_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_3_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 6 Tx PDO mapping parameter 3: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_3_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_6
         }
-        /// Sets `0x1A02` sub 6 Tx PDO mapping parameter 3: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 6 Tx PDO mapping parameter 3: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_3_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_3_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 7 Tx PDO mapping parameter 3: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_3_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_7
         }
-        /// Sets `0x1A02` sub 7 Tx PDO mapping parameter 3: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 7 Tx PDO mapping parameter 3: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_3_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_3_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 8 Tx PDO mapping parameter 3: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_3_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_8
         }
-        /// Sets `0x1A02` sub 8 Tx PDO mapping parameter 3: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 8 Tx PDO mapping parameter 3: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_3_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_3_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 0 Tx PDO mapping parameter 4: Number of mapped objects.
@@ -13950,128 +13938,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_4_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_1
         }
-        /// Sets `0x1A03` sub 1 Tx PDO mapping parameter 4: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 1 Tx PDO mapping parameter 4: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_4_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_4_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 2 Tx PDO mapping parameter 4: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_4_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_2
         }
-        /// Sets `0x1A03` sub 2 Tx PDO mapping parameter 4: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 2 Tx PDO mapping parameter 4: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_4_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_4_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 3 Tx PDO mapping parameter 4: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_4_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_3
         }
-        /// Sets `0x1A03` sub 3 Tx PDO mapping parameter 4: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 3 Tx PDO mapping parameter 4: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_4_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_4_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 4 Tx PDO mapping parameter 4: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_4_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_4
         }
-        /// Sets `0x1A03` sub 4 Tx PDO mapping parameter 4: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 4 Tx PDO mapping parameter 4: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_4_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_4_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 5 Tx PDO mapping parameter 4: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_4_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_5
         }
-        /// Sets `0x1A03` sub 5 Tx PDO mapping parameter 4: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 5 Tx PDO mapping parameter 4: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_4_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_4_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 6 Tx PDO mapping parameter 4: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_4_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_6
         }
-        /// Sets `0x1A03` sub 6 Tx PDO mapping parameter 4: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 6 Tx PDO mapping parameter 4: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_4_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_4_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 7 Tx PDO mapping parameter 4: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_4_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_7
         }
-        /// Sets `0x1A03` sub 7 Tx PDO mapping parameter 4: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 7 Tx PDO mapping parameter 4: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_4_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_4_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 8 Tx PDO mapping parameter 4: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_4_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_8
         }
-        /// Sets `0x1A03` sub 8 Tx PDO mapping parameter 4: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 8 Tx PDO mapping parameter 4: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_4_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_4_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 0 Tx PDO mapping parameter 5: Number of mapped objects.
@@ -14094,128 +14082,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_5_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_1
         }
-        /// Sets `0x1A04` sub 1 Tx PDO mapping parameter 5: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 1 Tx PDO mapping parameter 5: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_5_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_5_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 2 Tx PDO mapping parameter 5: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_5_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_2
         }
-        /// Sets `0x1A04` sub 2 Tx PDO mapping parameter 5: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 2 Tx PDO mapping parameter 5: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_5_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_5_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 3 Tx PDO mapping parameter 5: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_5_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_3
         }
-        /// Sets `0x1A04` sub 3 Tx PDO mapping parameter 5: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 3 Tx PDO mapping parameter 5: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_5_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_5_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 4 Tx PDO mapping parameter 5: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_5_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_4
         }
-        /// Sets `0x1A04` sub 4 Tx PDO mapping parameter 5: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 4 Tx PDO mapping parameter 5: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_5_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_5_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 5 Tx PDO mapping parameter 5: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_5_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_5
         }
-        /// Sets `0x1A04` sub 5 Tx PDO mapping parameter 5: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 5 Tx PDO mapping parameter 5: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_5_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_5_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 6 Tx PDO mapping parameter 5: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_5_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_6
         }
-        /// Sets `0x1A04` sub 6 Tx PDO mapping parameter 5: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 6 Tx PDO mapping parameter 5: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_5_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_5_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 7 Tx PDO mapping parameter 5: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_5_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_7
         }
-        /// Sets `0x1A04` sub 7 Tx PDO mapping parameter 5: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 7 Tx PDO mapping parameter 5: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_5_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_5_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 8 Tx PDO mapping parameter 5: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_5_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_8
         }
-        /// Sets `0x1A04` sub 8 Tx PDO mapping parameter 5: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 8 Tx PDO mapping parameter 5: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_5_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_5_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 0 Tx PDO mapping parameter 6: Number of mapped objects.
@@ -14238,128 +14226,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_6_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_1
         }
-        /// Sets `0x1A05` sub 1 Tx PDO mapping parameter 6: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 1 Tx PDO mapping parameter 6: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_6_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_6_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 2 Tx PDO mapping parameter 6: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_6_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_2
         }
-        /// Sets `0x1A05` sub 2 Tx PDO mapping parameter 6: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 2 Tx PDO mapping parameter 6: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_6_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_6_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 3 Tx PDO mapping parameter 6: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_6_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_3
         }
-        /// Sets `0x1A05` sub 3 Tx PDO mapping parameter 6: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 3 Tx PDO mapping parameter 6: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_6_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_6_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 4 Tx PDO mapping parameter 6: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_6_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_4
         }
-        /// Sets `0x1A05` sub 4 Tx PDO mapping parameter 6: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 4 Tx PDO mapping parameter 6: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_6_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_6_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 5 Tx PDO mapping parameter 6: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_6_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_5
         }
-        /// Sets `0x1A05` sub 5 Tx PDO mapping parameter 6: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 5 Tx PDO mapping parameter 6: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_6_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_6_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 6 Tx PDO mapping parameter 6: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_6_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_6
         }
-        /// Sets `0x1A05` sub 6 Tx PDO mapping parameter 6: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 6 Tx PDO mapping parameter 6: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_6_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_6_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 7 Tx PDO mapping parameter 6: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_6_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_7
         }
-        /// Sets `0x1A05` sub 7 Tx PDO mapping parameter 6: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 7 Tx PDO mapping parameter 6: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_6_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_6_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 8 Tx PDO mapping parameter 6: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_6_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_8
         }
-        /// Sets `0x1A05` sub 8 Tx PDO mapping parameter 6: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 8 Tx PDO mapping parameter 6: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_6_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_6_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 0 Tx PDO mapping parameter 7: Number of mapped objects.
@@ -14382,128 +14370,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_7_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_1
         }
-        /// Sets `0x1A06` sub 1 Tx PDO mapping parameter 7: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 1 Tx PDO mapping parameter 7: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_7_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_7_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 2 Tx PDO mapping parameter 7: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_7_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_2
         }
-        /// Sets `0x1A06` sub 2 Tx PDO mapping parameter 7: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 2 Tx PDO mapping parameter 7: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_7_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_7_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 3 Tx PDO mapping parameter 7: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_7_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_3
         }
-        /// Sets `0x1A06` sub 3 Tx PDO mapping parameter 7: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 3 Tx PDO mapping parameter 7: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_7_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_7_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 4 Tx PDO mapping parameter 7: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_7_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_4
         }
-        /// Sets `0x1A06` sub 4 Tx PDO mapping parameter 7: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 4 Tx PDO mapping parameter 7: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_7_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_7_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 5 Tx PDO mapping parameter 7: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_7_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_5
         }
-        /// Sets `0x1A06` sub 5 Tx PDO mapping parameter 7: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 5 Tx PDO mapping parameter 7: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_7_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_7_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 6 Tx PDO mapping parameter 7: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_7_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_6
         }
-        /// Sets `0x1A06` sub 6 Tx PDO mapping parameter 7: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 6 Tx PDO mapping parameter 7: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_7_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_7_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 7 Tx PDO mapping parameter 7: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_7_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_7
         }
-        /// Sets `0x1A06` sub 7 Tx PDO mapping parameter 7: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 7 Tx PDO mapping parameter 7: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_7_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_7_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 8 Tx PDO mapping parameter 7: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_7_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_8
         }
-        /// Sets `0x1A06` sub 8 Tx PDO mapping parameter 7: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 8 Tx PDO mapping parameter 7: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_7_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_7_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 0 Tx PDO mapping parameter 8: Number of mapped objects.
@@ -14526,128 +14514,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_8_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_1
         }
-        /// Sets `0x1A07` sub 1 Tx PDO mapping parameter 8: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 1 Tx PDO mapping parameter 8: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_8_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_8_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 2 Tx PDO mapping parameter 8: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_8_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_2
         }
-        /// Sets `0x1A07` sub 2 Tx PDO mapping parameter 8: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 2 Tx PDO mapping parameter 8: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_8_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_8_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 3 Tx PDO mapping parameter 8: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_8_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_3
         }
-        /// Sets `0x1A07` sub 3 Tx PDO mapping parameter 8: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 3 Tx PDO mapping parameter 8: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_8_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_8_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 4 Tx PDO mapping parameter 8: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_8_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_4
         }
-        /// Sets `0x1A07` sub 4 Tx PDO mapping parameter 8: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 4 Tx PDO mapping parameter 8: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_8_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_8_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 5 Tx PDO mapping parameter 8: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_8_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_5
         }
-        /// Sets `0x1A07` sub 5 Tx PDO mapping parameter 8: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 5 Tx PDO mapping parameter 8: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_8_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_8_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 6 Tx PDO mapping parameter 8: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_8_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_6
         }
-        /// Sets `0x1A07` sub 6 Tx PDO mapping parameter 8: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 6 Tx PDO mapping parameter 8: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_8_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_8_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 7 Tx PDO mapping parameter 8: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_8_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_7
         }
-        /// Sets `0x1A07` sub 7 Tx PDO mapping parameter 8: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 7 Tx PDO mapping parameter 8: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_8_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_8_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 8 Tx PDO mapping parameter 8: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_8_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_8
         }
-        /// Sets `0x1A07` sub 8 Tx PDO mapping parameter 8: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 8 Tx PDO mapping parameter 8: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_8_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_8_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1F80` NMT startup.
@@ -15119,36 +15107,36 @@ PDOMapping=0
         ///
         /// INTEGER32, access `ro`. Default: 0.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_min_software_position_limit`).
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_min`).
         #[inline]
-        pub const fn software_position_limit_min_software_position_limit(&self) -> i32 {
-            self.software_position_limit_min_software_position_limit
+        pub const fn software_position_limit_min(&self) -> i32 {
+            self.software_position_limit_min
         }
-        /// Sets `0x607D` sub 1 Software position limit: Min software position limit (see [`Self::software_position_limit_min_software_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x607D` sub 1 Software position limit: Min software position limit (see [`Self::software_position_limit_min`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_software_position_limit_min_software_position_limit(
+        pub fn set_software_position_limit_min(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.software_position_limit_min_software_position_limit = v;
+            self.software_position_limit_min = v;
             Ok(())
         }
         /// Reads `0x607D` sub 2 Software position limit: Max software position limit.
         ///
         /// INTEGER32, access `ro`. Default: 1000.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_max_software_position_limit`).
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_max`).
         #[inline]
-        pub const fn software_position_limit_max_software_position_limit(&self) -> i32 {
-            self.software_position_limit_max_software_position_limit
+        pub const fn software_position_limit_max(&self) -> i32 {
+            self.software_position_limit_max
         }
-        /// Sets `0x607D` sub 2 Software position limit: Max software position limit (see [`Self::software_position_limit_max_software_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x607D` sub 2 Software position limit: Max software position limit (see [`Self::software_position_limit_max`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_software_position_limit_max_software_position_limit(
+        pub fn set_software_position_limit_max(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.software_position_limit_max_software_position_limit = v;
+            self.software_position_limit_max = v;
             Ok(())
         }
         /// Reads `0x607E` Polarity.
@@ -15243,16 +15231,16 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `ro`. Default: 1000 (0x3E8).
         #[inline]
-        pub const fn position_encoder_resolution_encoder_increments(&self) -> u32 {
-            self.position_encoder_resolution_encoder_increments
+        pub const fn position_encoder_resolution_increments(&self) -> u32 {
+            self.position_encoder_resolution_increments
         }
-        /// Sets `0x608F` sub 1 Position encoder resolution: Encoder increments (see [`Self::position_encoder_resolution_encoder_increments`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x608F` sub 1 Position encoder resolution: Encoder increments (see [`Self::position_encoder_resolution_increments`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_position_encoder_resolution_encoder_increments(
+        pub fn set_position_encoder_resolution_increments(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.position_encoder_resolution_encoder_increments = v;
+            self.position_encoder_resolution_increments = v;
             Ok(())
         }
         /// Reads `0x608F` sub 2 Position encoder resolution: Motor revolutions.
@@ -15403,36 +15391,36 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
         ///
-        /// Dimension: Velocity (typed conversion: `units::Units::homing_speed_fast_homing_speed`).
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speed_fast`).
         #[inline]
-        pub const fn homing_speed_fast_homing_speed(&self) -> u32 {
-            self.homing_speed_fast_homing_speed
+        pub const fn homing_speed_fast(&self) -> u32 {
+            self.homing_speed_fast
         }
-        /// Sets `0x6099` sub 1 Homing speed: Fast homing speed (see [`Self::homing_speed_fast_homing_speed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x6099` sub 1 Homing speed: Fast homing speed (see [`Self::homing_speed_fast`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_homing_speed_fast_homing_speed(
+        pub fn set_homing_speed_fast(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.homing_speed_fast_homing_speed = v;
+            self.homing_speed_fast = v;
             Ok(())
         }
         /// Reads `0x6099` sub 2 Homing speed: Slow homing speed.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
         ///
-        /// Dimension: Velocity (typed conversion: `units::Units::homing_speed_slow_homing_speed`).
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speed_slow`).
         #[inline]
-        pub const fn homing_speed_slow_homing_speed(&self) -> u32 {
-            self.homing_speed_slow_homing_speed
+        pub const fn homing_speed_slow(&self) -> u32 {
+            self.homing_speed_slow
         }
-        /// Sets `0x6099` sub 2 Homing speed: Slow homing speed (see [`Self::homing_speed_slow_homing_speed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x6099` sub 2 Homing speed: Slow homing speed (see [`Self::homing_speed_slow`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_homing_speed_slow_homing_speed(
+        pub fn set_homing_speed_slow(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.homing_speed_slow_homing_speed = v;
+            self.homing_speed_slow = v;
             Ok(())
         }
         /// Reads `0x60FF` Target velocity.
@@ -16088,7 +16076,7 @@ PDOMapping=0
                 od: &super::Dictionary,
             ) -> Result<Ratio, UnitError> {
                 let (t, b) = (
-                    (od.position_encoder_resolution_encoder_increments() as i128),
+                    (od.position_encoder_resolution_increments() as i128),
                     (od.position_encoder_resolution_motor_revolutions() as i128),
                 );
                 if t == 0 || b == 0 {
@@ -16269,46 +16257,44 @@ PDOMapping=0
                 od.set_home_offset(v).map_err(UnitError::Rejected)
             }
             /// `0x607D` sub 1 Software position limit: Min software position limit as a Position quantity.
-            pub fn software_position_limit_min_software_position_limit(
+            pub fn software_position_limit_min(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.software_position_limit_min_software_position_limit() as i64,
+                    od.software_position_limit_min() as i64,
                 )
             }
             /// Sets `0x607D` sub 1 Software position limit: Min software position limit from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_software_position_limit_min_software_position_limit(
+            pub fn set_software_position_limit_min(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_software_position_limit_min_software_position_limit(v)
-                    .map_err(UnitError::Rejected)
+                od.set_software_position_limit_min(v).map_err(UnitError::Rejected)
             }
             /// `0x607D` sub 2 Software position limit: Max software position limit as a Position quantity.
-            pub fn software_position_limit_max_software_position_limit(
+            pub fn software_position_limit_max(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.software_position_limit_max_software_position_limit() as i64,
+                    od.software_position_limit_max() as i64,
                 )
             }
             /// Sets `0x607D` sub 2 Software position limit: Max software position limit from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_software_position_limit_max_software_position_limit(
+            pub fn set_software_position_limit_max(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_software_position_limit_max_software_position_limit(v)
-                    .map_err(UnitError::Rejected)
+                od.set_software_position_limit_max(v).map_err(UnitError::Rejected)
             }
             /// `0x6081` Profile velocity in pp-mode as a Velocity quantity.
             pub fn profile_velocity_in_pp_mode(
@@ -16371,44 +16357,38 @@ PDOMapping=0
                 od.set_profile_deceleration(v).map_err(UnitError::Rejected)
             }
             /// `0x6099` sub 1 Homing speed: Fast homing speed as a Velocity quantity.
-            pub fn homing_speed_fast_homing_speed(
+            pub fn homing_speed_fast(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
-                self.to_physical(
-                    Dimension::Velocity,
-                    od.homing_speed_fast_homing_speed() as i64,
-                )
+                self.to_physical(Dimension::Velocity, od.homing_speed_fast() as i64)
             }
             /// Sets `0x6099` sub 1 Homing speed: Fast homing speed from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_homing_speed_fast_homing_speed(
+            pub fn set_homing_speed_fast(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Velocity, q)?;
                 let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_homing_speed_fast_homing_speed(v).map_err(UnitError::Rejected)
+                od.set_homing_speed_fast(v).map_err(UnitError::Rejected)
             }
             /// `0x6099` sub 2 Homing speed: Slow homing speed as a Velocity quantity.
-            pub fn homing_speed_slow_homing_speed(
+            pub fn homing_speed_slow(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
-                self.to_physical(
-                    Dimension::Velocity,
-                    od.homing_speed_slow_homing_speed() as i64,
-                )
+                self.to_physical(Dimension::Velocity, od.homing_speed_slow() as i64)
             }
             /// Sets `0x6099` sub 2 Homing speed: Slow homing speed from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_homing_speed_slow_homing_speed(
+            pub fn set_homing_speed_slow(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Velocity, q)?;
                 let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_homing_speed_slow_homing_speed(v).map_err(UnitError::Rejected)
+                od.set_homing_speed_slow(v).map_err(UnitError::Rejected)
             }
             /// `0x60FF` Target velocity as a Velocity quantity.
             pub fn target_velocity(

@@ -6850,14 +6850,14 @@ PDOMapping=0
         error_register: u8,
         manufacturer_status_register: u32,
         pre_defined_error_field_number_of_errors: u8,
-        pre_defined_error_field_standard_error_field_1: u32,
-        pre_defined_error_field_standard_error_field_2: u32,
-        pre_defined_error_field_standard_error_field_3: u32,
-        pre_defined_error_field_standard_error_field_4: u32,
-        pre_defined_error_field_standard_error_field_5: u32,
-        pre_defined_error_field_standard_error_field_6: u32,
-        pre_defined_error_field_standard_error_field_7: u32,
-        pre_defined_error_field_standard_error_field_8: u32,
+        pre_defined_error_field_standard_1: u32,
+        pre_defined_error_field_standard_2: u32,
+        pre_defined_error_field_standard_3: u32,
+        pre_defined_error_field_standard_4: u32,
+        pre_defined_error_field_standard_5: u32,
+        pre_defined_error_field_standard_6: u32,
+        pre_defined_error_field_standard_7: u32,
+        pre_defined_error_field_standard_8: u32,
         cob_id_sync: u32,
         communication_cycle_period: u32,
         synchronous_window_length: u32,
@@ -6867,9 +6867,9 @@ PDOMapping=0
         guard_time: u16,
         life_time_factor: u8,
         store_parameters_highest_sub_index_supported: u8,
-        store_parameters_save_all_parameters: u32,
+        store_parameters_save_all: u32,
         restore_default_parameters_highest_sub_index_supported: u8,
-        restore_default_parameters_restore_all_default_parameters: u32,
+        restore_default_parameters_all: u32,
         cob_id_emcy: u32,
         inhibit_time_emcy: u16,
         producer_heartbeat_time: u16,
@@ -6903,77 +6903,77 @@ PDOMapping=0
         receive_pdo_communication_parameter_8_cob_id_used_by_rpdo: u32,
         receive_pdo_communication_parameter_8_transmission_type: u8,
         receive_pdo_mapping_parameter_1_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_1_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_1_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_1_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_1_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_1_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_1_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_1_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_1_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_1_entry_1: u32,
+        receive_pdo_mapping_parameter_1_entry_2: u32,
+        receive_pdo_mapping_parameter_1_entry_3: u32,
+        receive_pdo_mapping_parameter_1_entry_4: u32,
+        receive_pdo_mapping_parameter_1_entry_5: u32,
+        receive_pdo_mapping_parameter_1_entry_6: u32,
+        receive_pdo_mapping_parameter_1_entry_7: u32,
+        receive_pdo_mapping_parameter_1_entry_8: u32,
         receive_pdo_mapping_parameter_2_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_2_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_2_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_2_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_2_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_2_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_2_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_2_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_2_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_2_entry_1: u32,
+        receive_pdo_mapping_parameter_2_entry_2: u32,
+        receive_pdo_mapping_parameter_2_entry_3: u32,
+        receive_pdo_mapping_parameter_2_entry_4: u32,
+        receive_pdo_mapping_parameter_2_entry_5: u32,
+        receive_pdo_mapping_parameter_2_entry_6: u32,
+        receive_pdo_mapping_parameter_2_entry_7: u32,
+        receive_pdo_mapping_parameter_2_entry_8: u32,
         receive_pdo_mapping_parameter_3_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_3_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_3_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_3_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_3_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_3_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_3_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_3_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_3_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_3_entry_1: u32,
+        receive_pdo_mapping_parameter_3_entry_2: u32,
+        receive_pdo_mapping_parameter_3_entry_3: u32,
+        receive_pdo_mapping_parameter_3_entry_4: u32,
+        receive_pdo_mapping_parameter_3_entry_5: u32,
+        receive_pdo_mapping_parameter_3_entry_6: u32,
+        receive_pdo_mapping_parameter_3_entry_7: u32,
+        receive_pdo_mapping_parameter_3_entry_8: u32,
         receive_pdo_mapping_parameter_4_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_4_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_4_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_4_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_4_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_4_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_4_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_4_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_4_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_4_entry_1: u32,
+        receive_pdo_mapping_parameter_4_entry_2: u32,
+        receive_pdo_mapping_parameter_4_entry_3: u32,
+        receive_pdo_mapping_parameter_4_entry_4: u32,
+        receive_pdo_mapping_parameter_4_entry_5: u32,
+        receive_pdo_mapping_parameter_4_entry_6: u32,
+        receive_pdo_mapping_parameter_4_entry_7: u32,
+        receive_pdo_mapping_parameter_4_entry_8: u32,
         receive_pdo_mapping_parameter_5_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_5_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_5_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_5_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_5_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_5_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_5_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_5_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_5_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_5_entry_1: u32,
+        receive_pdo_mapping_parameter_5_entry_2: u32,
+        receive_pdo_mapping_parameter_5_entry_3: u32,
+        receive_pdo_mapping_parameter_5_entry_4: u32,
+        receive_pdo_mapping_parameter_5_entry_5: u32,
+        receive_pdo_mapping_parameter_5_entry_6: u32,
+        receive_pdo_mapping_parameter_5_entry_7: u32,
+        receive_pdo_mapping_parameter_5_entry_8: u32,
         receive_pdo_mapping_parameter_6_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_6_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_6_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_6_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_6_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_6_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_6_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_6_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_6_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_6_entry_1: u32,
+        receive_pdo_mapping_parameter_6_entry_2: u32,
+        receive_pdo_mapping_parameter_6_entry_3: u32,
+        receive_pdo_mapping_parameter_6_entry_4: u32,
+        receive_pdo_mapping_parameter_6_entry_5: u32,
+        receive_pdo_mapping_parameter_6_entry_6: u32,
+        receive_pdo_mapping_parameter_6_entry_7: u32,
+        receive_pdo_mapping_parameter_6_entry_8: u32,
         receive_pdo_mapping_parameter_7_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_7_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_7_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_7_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_7_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_7_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_7_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_7_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_7_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_7_entry_1: u32,
+        receive_pdo_mapping_parameter_7_entry_2: u32,
+        receive_pdo_mapping_parameter_7_entry_3: u32,
+        receive_pdo_mapping_parameter_7_entry_4: u32,
+        receive_pdo_mapping_parameter_7_entry_5: u32,
+        receive_pdo_mapping_parameter_7_entry_6: u32,
+        receive_pdo_mapping_parameter_7_entry_7: u32,
+        receive_pdo_mapping_parameter_7_entry_8: u32,
         receive_pdo_mapping_parameter_8_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_8_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_8_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_8_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_8_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_8_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_8_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_8_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_8_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_8_entry_1: u32,
+        receive_pdo_mapping_parameter_8_entry_2: u32,
+        receive_pdo_mapping_parameter_8_entry_3: u32,
+        receive_pdo_mapping_parameter_8_entry_4: u32,
+        receive_pdo_mapping_parameter_8_entry_5: u32,
+        receive_pdo_mapping_parameter_8_entry_6: u32,
+        receive_pdo_mapping_parameter_8_entry_7: u32,
+        receive_pdo_mapping_parameter_8_entry_8: u32,
         transmit_pdo_communication_param_1_highest_sub_index_supported: u8,
         transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo: u32,
         transmit_pdo_communication_parameter_1_transmission_type: u8,
@@ -7023,77 +7023,77 @@ PDOMapping=0
         transmit_pdo_communication_parameter_8_compatibility_entry: u8,
         transmit_pdo_communication_parameter_8_event_timer: u16,
         transmit_pdo_mapping_parameter_1_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_1_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_1_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_1_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_1_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_1_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_1_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_1_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_1_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_1_entry_1: u32,
+        transmit_pdo_mapping_parameter_1_entry_2: u32,
+        transmit_pdo_mapping_parameter_1_entry_3: u32,
+        transmit_pdo_mapping_parameter_1_entry_4: u32,
+        transmit_pdo_mapping_parameter_1_entry_5: u32,
+        transmit_pdo_mapping_parameter_1_entry_6: u32,
+        transmit_pdo_mapping_parameter_1_entry_7: u32,
+        transmit_pdo_mapping_parameter_1_entry_8: u32,
         transmit_pdo_mapping_parameter_2_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_2_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_2_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_2_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_2_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_2_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_2_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_2_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_2_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_2_entry_1: u32,
+        transmit_pdo_mapping_parameter_2_entry_2: u32,
+        transmit_pdo_mapping_parameter_2_entry_3: u32,
+        transmit_pdo_mapping_parameter_2_entry_4: u32,
+        transmit_pdo_mapping_parameter_2_entry_5: u32,
+        transmit_pdo_mapping_parameter_2_entry_6: u32,
+        transmit_pdo_mapping_parameter_2_entry_7: u32,
+        transmit_pdo_mapping_parameter_2_entry_8: u32,
         transmit_pdo_mapping_parameter_3_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_3_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_3_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_3_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_3_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_3_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_3_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_3_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_3_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_3_entry_1: u32,
+        transmit_pdo_mapping_parameter_3_entry_2: u32,
+        transmit_pdo_mapping_parameter_3_entry_3: u32,
+        transmit_pdo_mapping_parameter_3_entry_4: u32,
+        transmit_pdo_mapping_parameter_3_entry_5: u32,
+        transmit_pdo_mapping_parameter_3_entry_6: u32,
+        transmit_pdo_mapping_parameter_3_entry_7: u32,
+        transmit_pdo_mapping_parameter_3_entry_8: u32,
         transmit_pdo_mapping_parameter_4_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_4_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_4_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_4_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_4_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_4_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_4_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_4_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_4_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_4_entry_1: u32,
+        transmit_pdo_mapping_parameter_4_entry_2: u32,
+        transmit_pdo_mapping_parameter_4_entry_3: u32,
+        transmit_pdo_mapping_parameter_4_entry_4: u32,
+        transmit_pdo_mapping_parameter_4_entry_5: u32,
+        transmit_pdo_mapping_parameter_4_entry_6: u32,
+        transmit_pdo_mapping_parameter_4_entry_7: u32,
+        transmit_pdo_mapping_parameter_4_entry_8: u32,
         transmit_pdo_mapping_parameter_5_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_5_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_5_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_5_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_5_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_5_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_5_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_5_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_5_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_5_entry_1: u32,
+        transmit_pdo_mapping_parameter_5_entry_2: u32,
+        transmit_pdo_mapping_parameter_5_entry_3: u32,
+        transmit_pdo_mapping_parameter_5_entry_4: u32,
+        transmit_pdo_mapping_parameter_5_entry_5: u32,
+        transmit_pdo_mapping_parameter_5_entry_6: u32,
+        transmit_pdo_mapping_parameter_5_entry_7: u32,
+        transmit_pdo_mapping_parameter_5_entry_8: u32,
         transmit_pdo_mapping_parameter_6_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_6_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_6_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_6_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_6_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_6_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_6_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_6_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_6_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_6_entry_1: u32,
+        transmit_pdo_mapping_parameter_6_entry_2: u32,
+        transmit_pdo_mapping_parameter_6_entry_3: u32,
+        transmit_pdo_mapping_parameter_6_entry_4: u32,
+        transmit_pdo_mapping_parameter_6_entry_5: u32,
+        transmit_pdo_mapping_parameter_6_entry_6: u32,
+        transmit_pdo_mapping_parameter_6_entry_7: u32,
+        transmit_pdo_mapping_parameter_6_entry_8: u32,
         transmit_pdo_mapping_parameter_7_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_7_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_7_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_7_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_7_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_7_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_7_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_7_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_7_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_7_entry_1: u32,
+        transmit_pdo_mapping_parameter_7_entry_2: u32,
+        transmit_pdo_mapping_parameter_7_entry_3: u32,
+        transmit_pdo_mapping_parameter_7_entry_4: u32,
+        transmit_pdo_mapping_parameter_7_entry_5: u32,
+        transmit_pdo_mapping_parameter_7_entry_6: u32,
+        transmit_pdo_mapping_parameter_7_entry_7: u32,
+        transmit_pdo_mapping_parameter_7_entry_8: u32,
         transmit_pdo_mapping_parameter_8_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_8_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_8_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_8_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_8_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_8_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_8_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_8_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_8_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_8_entry_1: u32,
+        transmit_pdo_mapping_parameter_8_entry_2: u32,
+        transmit_pdo_mapping_parameter_8_entry_3: u32,
+        transmit_pdo_mapping_parameter_8_entry_4: u32,
+        transmit_pdo_mapping_parameter_8_entry_5: u32,
+        transmit_pdo_mapping_parameter_8_entry_6: u32,
+        transmit_pdo_mapping_parameter_8_entry_7: u32,
+        transmit_pdo_mapping_parameter_8_entry_8: u32,
         nmt_startup: u32,
         feed_converter_highest_sub_index_supported: u8,
         feed_converter_numerator: u32,
@@ -7104,14 +7104,14 @@ PDOMapping=0
         warnings: u16,
         limits_enable: u8,
         pid_parameters_highest_sub_index_supported: u8,
-        pid_parameters_pid_selection: u16,
+        pid_parameters_selection: u16,
         pid_parameters_kp_position: u16,
         pid_parameters_kp_speed: u16,
         pid_parameters_ki_position: u16,
         pid_parameters_ki_speed: u16,
         profile_parameters_highest_sub_index_supported: u8,
-        profile_parameters_profile_check: u8,
-        profile_parameters_profile_check_timeout: u16,
+        profile_parameters_check: u8,
+        profile_parameters_check_timeout: u16,
         homing_torque_limit: u16,
         actuator_type: u8,
         torque_limit_enable: u8,
@@ -7134,8 +7134,8 @@ PDOMapping=0
         target_position: i32,
         home_offset: i32,
         software_position_limit_highest_sub_index_supported: u8,
-        software_position_limit_min_software_position_limit: i32,
-        software_position_limit_max_software_position_limit: i32,
+        software_position_limit_min: i32,
+        software_position_limit_max: i32,
         polarity: u8,
         max_profile_velocity: u32,
         profile_velocity: u32,
@@ -7150,8 +7150,8 @@ PDOMapping=0
         feed_constant_shaft_revolutions: u32,
         homing_method: i8,
         homing_speeds_highest_sub_index_supported: u8,
-        homing_speeds_fast_homing_speed: u32,
-        homing_speeds_slow_homing_speed: u32,
+        homing_speeds_fast: u32,
+        homing_speeds_slow: u32,
         homing_acceleration: u32,
         target_velocity: i32,
     }
@@ -7163,14 +7163,14 @@ PDOMapping=0
                 error_register: 0x0,
                 manufacturer_status_register: 0x0,
                 pre_defined_error_field_number_of_errors: 0,
-                pre_defined_error_field_standard_error_field_1: 0x0,
-                pre_defined_error_field_standard_error_field_2: 0x0,
-                pre_defined_error_field_standard_error_field_3: 0x0,
-                pre_defined_error_field_standard_error_field_4: 0x0,
-                pre_defined_error_field_standard_error_field_5: 0x0,
-                pre_defined_error_field_standard_error_field_6: 0x0,
-                pre_defined_error_field_standard_error_field_7: 0x0,
-                pre_defined_error_field_standard_error_field_8: 0x0,
+                pre_defined_error_field_standard_1: 0x0,
+                pre_defined_error_field_standard_2: 0x0,
+                pre_defined_error_field_standard_3: 0x0,
+                pre_defined_error_field_standard_4: 0x0,
+                pre_defined_error_field_standard_5: 0x0,
+                pre_defined_error_field_standard_6: 0x0,
+                pre_defined_error_field_standard_7: 0x0,
+                pre_defined_error_field_standard_8: 0x0,
                 cob_id_sync: 0x80,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
@@ -7186,9 +7186,9 @@ PDOMapping=0
                 guard_time: 0,
                 life_time_factor: 0,
                 store_parameters_highest_sub_index_supported: 1,
-                store_parameters_save_all_parameters: 0x0,
+                store_parameters_save_all: 0x0,
                 restore_default_parameters_highest_sub_index_supported: 1,
-                restore_default_parameters_restore_all_default_parameters: 0x0,
+                restore_default_parameters_all: 0x0,
                 cob_id_emcy: (0x80 + node_id as i128) as u32,
                 inhibit_time_emcy: 0,
                 producer_heartbeat_time: 0,
@@ -7227,77 +7227,77 @@ PDOMapping=0
                 receive_pdo_communication_parameter_8_cob_id_used_by_rpdo: 0x80000000,
                 receive_pdo_communication_parameter_8_transmission_type: 0xFF,
                 receive_pdo_mapping_parameter_1_number_of_mapped_objects: 1,
-                receive_pdo_mapping_parameter_1_mapping_entry_1: 0x60400010,
-                receive_pdo_mapping_parameter_1_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_1_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_1_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_1_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_1_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_1_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_1_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_1_entry_1: 0x60400010,
+                receive_pdo_mapping_parameter_1_entry_2: 0x0,
+                receive_pdo_mapping_parameter_1_entry_3: 0x0,
+                receive_pdo_mapping_parameter_1_entry_4: 0x0,
+                receive_pdo_mapping_parameter_1_entry_5: 0x0,
+                receive_pdo_mapping_parameter_1_entry_6: 0x0,
+                receive_pdo_mapping_parameter_1_entry_7: 0x0,
+                receive_pdo_mapping_parameter_1_entry_8: 0x0,
                 receive_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_2_mapping_entry_1: 0x0,
-                receive_pdo_mapping_parameter_2_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_2_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_2_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_2_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_2_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_2_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_2_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_2_entry_1: 0x0,
+                receive_pdo_mapping_parameter_2_entry_2: 0x0,
+                receive_pdo_mapping_parameter_2_entry_3: 0x0,
+                receive_pdo_mapping_parameter_2_entry_4: 0x0,
+                receive_pdo_mapping_parameter_2_entry_5: 0x0,
+                receive_pdo_mapping_parameter_2_entry_6: 0x0,
+                receive_pdo_mapping_parameter_2_entry_7: 0x0,
+                receive_pdo_mapping_parameter_2_entry_8: 0x0,
                 receive_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_3_mapping_entry_1: 0x0,
-                receive_pdo_mapping_parameter_3_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_3_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_3_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_3_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_3_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_3_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_3_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_3_entry_1: 0x0,
+                receive_pdo_mapping_parameter_3_entry_2: 0x0,
+                receive_pdo_mapping_parameter_3_entry_3: 0x0,
+                receive_pdo_mapping_parameter_3_entry_4: 0x0,
+                receive_pdo_mapping_parameter_3_entry_5: 0x0,
+                receive_pdo_mapping_parameter_3_entry_6: 0x0,
+                receive_pdo_mapping_parameter_3_entry_7: 0x0,
+                receive_pdo_mapping_parameter_3_entry_8: 0x0,
                 receive_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_4_mapping_entry_1: 0x0,
-                receive_pdo_mapping_parameter_4_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_4_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_4_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_4_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_4_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_4_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_4_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_4_entry_1: 0x0,
+                receive_pdo_mapping_parameter_4_entry_2: 0x0,
+                receive_pdo_mapping_parameter_4_entry_3: 0x0,
+                receive_pdo_mapping_parameter_4_entry_4: 0x0,
+                receive_pdo_mapping_parameter_4_entry_5: 0x0,
+                receive_pdo_mapping_parameter_4_entry_6: 0x0,
+                receive_pdo_mapping_parameter_4_entry_7: 0x0,
+                receive_pdo_mapping_parameter_4_entry_8: 0x0,
                 receive_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_5_mapping_entry_1: 0x0,
-                receive_pdo_mapping_parameter_5_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_5_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_5_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_5_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_5_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_5_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_5_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_5_entry_1: 0x0,
+                receive_pdo_mapping_parameter_5_entry_2: 0x0,
+                receive_pdo_mapping_parameter_5_entry_3: 0x0,
+                receive_pdo_mapping_parameter_5_entry_4: 0x0,
+                receive_pdo_mapping_parameter_5_entry_5: 0x0,
+                receive_pdo_mapping_parameter_5_entry_6: 0x0,
+                receive_pdo_mapping_parameter_5_entry_7: 0x0,
+                receive_pdo_mapping_parameter_5_entry_8: 0x0,
                 receive_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_6_mapping_entry_1: 0x0,
-                receive_pdo_mapping_parameter_6_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_6_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_6_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_6_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_6_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_6_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_6_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_6_entry_1: 0x0,
+                receive_pdo_mapping_parameter_6_entry_2: 0x0,
+                receive_pdo_mapping_parameter_6_entry_3: 0x0,
+                receive_pdo_mapping_parameter_6_entry_4: 0x0,
+                receive_pdo_mapping_parameter_6_entry_5: 0x0,
+                receive_pdo_mapping_parameter_6_entry_6: 0x0,
+                receive_pdo_mapping_parameter_6_entry_7: 0x0,
+                receive_pdo_mapping_parameter_6_entry_8: 0x0,
                 receive_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_7_mapping_entry_1: 0x0,
-                receive_pdo_mapping_parameter_7_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_7_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_7_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_7_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_7_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_7_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_7_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_7_entry_1: 0x0,
+                receive_pdo_mapping_parameter_7_entry_2: 0x0,
+                receive_pdo_mapping_parameter_7_entry_3: 0x0,
+                receive_pdo_mapping_parameter_7_entry_4: 0x0,
+                receive_pdo_mapping_parameter_7_entry_5: 0x0,
+                receive_pdo_mapping_parameter_7_entry_6: 0x0,
+                receive_pdo_mapping_parameter_7_entry_7: 0x0,
+                receive_pdo_mapping_parameter_7_entry_8: 0x0,
                 receive_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_8_mapping_entry_1: 0x0,
-                receive_pdo_mapping_parameter_8_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_8_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_8_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_8_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_8_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_8_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_8_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_8_entry_1: 0x0,
+                receive_pdo_mapping_parameter_8_entry_2: 0x0,
+                receive_pdo_mapping_parameter_8_entry_3: 0x0,
+                receive_pdo_mapping_parameter_8_entry_4: 0x0,
+                receive_pdo_mapping_parameter_8_entry_5: 0x0,
+                receive_pdo_mapping_parameter_8_entry_6: 0x0,
+                receive_pdo_mapping_parameter_8_entry_7: 0x0,
+                receive_pdo_mapping_parameter_8_entry_8: 0x0,
                 transmit_pdo_communication_param_1_highest_sub_index_supported: 5,
                 transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo: (0x180
                     + node_id as i128) as u32,
@@ -7351,77 +7351,77 @@ PDOMapping=0
                 transmit_pdo_communication_parameter_8_compatibility_entry: 0,
                 transmit_pdo_communication_parameter_8_event_timer: 0,
                 transmit_pdo_mapping_parameter_1_number_of_mapped_objects: 1,
-                transmit_pdo_mapping_parameter_1_mapping_entry_1: 0x60410010,
-                transmit_pdo_mapping_parameter_1_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_1_entry_1: 0x60410010,
+                transmit_pdo_mapping_parameter_1_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_1_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_1_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_1_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_1_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_1_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_1_entry_8: 0x0,
                 transmit_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_1: 0x0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_1: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_8: 0x0,
                 transmit_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_1: 0x0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_1: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_8: 0x0,
                 transmit_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_1: 0x0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_1: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_8: 0x0,
                 transmit_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_1: 0x0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_1: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_8: 0x0,
                 transmit_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_1: 0x0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_1: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_8: 0x0,
                 transmit_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_1: 0x0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_1: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_8: 0x0,
                 transmit_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_1: 0x0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_1: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_8: 0x0,
                 nmt_startup: 0x4,
                 feed_converter_highest_sub_index_supported: 2,
                 feed_converter_numerator: 1,
@@ -7432,14 +7432,14 @@ PDOMapping=0
                 warnings: 0x0,
                 limits_enable: 0,
                 pid_parameters_highest_sub_index_supported: 5,
-                pid_parameters_pid_selection: 1,
+                pid_parameters_selection: 1,
                 pid_parameters_kp_position: 1,
                 pid_parameters_kp_speed: 10000,
                 pid_parameters_ki_position: 0,
                 pid_parameters_ki_speed: 10,
                 profile_parameters_highest_sub_index_supported: 2,
-                profile_parameters_profile_check: 1,
-                profile_parameters_profile_check_timeout: 50,
+                profile_parameters_check: 1,
+                profile_parameters_check_timeout: 50,
                 homing_torque_limit: 10,
                 actuator_type: 0,
                 torque_limit_enable: 0,
@@ -7462,8 +7462,8 @@ PDOMapping=0
                 target_position: 0,
                 home_offset: 0,
                 software_position_limit_highest_sub_index_supported: 2,
-                software_position_limit_min_software_position_limit: 0,
-                software_position_limit_max_software_position_limit: 0,
+                software_position_limit_min: 0,
+                software_position_limit_max: 0,
                 polarity: 0x0,
                 max_profile_velocity: 65535,
                 profile_velocity: 0,
@@ -7478,8 +7478,8 @@ PDOMapping=0
                 feed_constant_shaft_revolutions: 1,
                 homing_method: 37,
                 homing_speeds_highest_sub_index_supported: 2,
-                homing_speeds_fast_homing_speed: 0,
-                homing_speeds_slow_homing_speed: 0,
+                homing_speeds_fast: 0,
+                homing_speeds_slow: 0,
                 homing_acceleration: 0,
                 target_velocity: 0,
             }
@@ -7511,42 +7511,42 @@ PDOMapping=0
                     }
                     4 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_1,
+                            &self.pre_defined_error_field_standard_1,
                         )
                     }
                     5 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_2,
+                            &self.pre_defined_error_field_standard_2,
                         )
                     }
                     6 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_3,
+                            &self.pre_defined_error_field_standard_3,
                         )
                     }
                     7 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_4,
+                            &self.pre_defined_error_field_standard_4,
                         )
                     }
                     8 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_5,
+                            &self.pre_defined_error_field_standard_5,
                         )
                     }
                     9 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_6,
+                            &self.pre_defined_error_field_standard_6,
                         )
                     }
                     10 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_7,
+                            &self.pre_defined_error_field_standard_7,
                         )
                     }
                     11 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.pre_defined_error_field_standard_error_field_8,
+                            &self.pre_defined_error_field_standard_8,
                         )
                     }
                     12 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_sync),
@@ -7584,7 +7584,7 @@ PDOMapping=0
                     }
                     21 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.store_parameters_save_all_parameters,
+                            &self.store_parameters_save_all,
                         )
                     }
                     22 => {
@@ -7594,8 +7594,7 @@ PDOMapping=0
                     }
                     23 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self
-                                .restore_default_parameters_restore_all_default_parameters,
+                            &self.restore_default_parameters_all,
                         )
                     }
                     24 => ::od_runtime::__private_v1::Slot::U32(&self.cob_id_emcy),
@@ -7774,42 +7773,42 @@ PDOMapping=0
                     }
                     57 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_1,
+                            &self.receive_pdo_mapping_parameter_1_entry_1,
                         )
                     }
                     58 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_2,
+                            &self.receive_pdo_mapping_parameter_1_entry_2,
                         )
                     }
                     59 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_3,
+                            &self.receive_pdo_mapping_parameter_1_entry_3,
                         )
                     }
                     60 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_4,
+                            &self.receive_pdo_mapping_parameter_1_entry_4,
                         )
                     }
                     61 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_5,
+                            &self.receive_pdo_mapping_parameter_1_entry_5,
                         )
                     }
                     62 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_6,
+                            &self.receive_pdo_mapping_parameter_1_entry_6,
                         )
                     }
                     63 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_7,
+                            &self.receive_pdo_mapping_parameter_1_entry_7,
                         )
                     }
                     64 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_1_mapping_entry_8,
+                            &self.receive_pdo_mapping_parameter_1_entry_8,
                         )
                     }
                     65 => {
@@ -7820,42 +7819,42 @@ PDOMapping=0
                     }
                     66 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_1,
+                            &self.receive_pdo_mapping_parameter_2_entry_1,
                         )
                     }
                     67 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_2,
+                            &self.receive_pdo_mapping_parameter_2_entry_2,
                         )
                     }
                     68 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_3,
+                            &self.receive_pdo_mapping_parameter_2_entry_3,
                         )
                     }
                     69 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_4,
+                            &self.receive_pdo_mapping_parameter_2_entry_4,
                         )
                     }
                     70 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_5,
+                            &self.receive_pdo_mapping_parameter_2_entry_5,
                         )
                     }
                     71 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_6,
+                            &self.receive_pdo_mapping_parameter_2_entry_6,
                         )
                     }
                     72 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_7,
+                            &self.receive_pdo_mapping_parameter_2_entry_7,
                         )
                     }
                     73 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_2_mapping_entry_8,
+                            &self.receive_pdo_mapping_parameter_2_entry_8,
                         )
                     }
                     74 => {
@@ -7866,42 +7865,42 @@ PDOMapping=0
                     }
                     75 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_1,
+                            &self.receive_pdo_mapping_parameter_3_entry_1,
                         )
                     }
                     76 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_2,
+                            &self.receive_pdo_mapping_parameter_3_entry_2,
                         )
                     }
                     77 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_3,
+                            &self.receive_pdo_mapping_parameter_3_entry_3,
                         )
                     }
                     78 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_4,
+                            &self.receive_pdo_mapping_parameter_3_entry_4,
                         )
                     }
                     79 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_5,
+                            &self.receive_pdo_mapping_parameter_3_entry_5,
                         )
                     }
                     80 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_6,
+                            &self.receive_pdo_mapping_parameter_3_entry_6,
                         )
                     }
                     81 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_7,
+                            &self.receive_pdo_mapping_parameter_3_entry_7,
                         )
                     }
                     82 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_3_mapping_entry_8,
+                            &self.receive_pdo_mapping_parameter_3_entry_8,
                         )
                     }
                     83 => {
@@ -7912,42 +7911,42 @@ PDOMapping=0
                     }
                     84 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_1,
+                            &self.receive_pdo_mapping_parameter_4_entry_1,
                         )
                     }
                     85 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_2,
+                            &self.receive_pdo_mapping_parameter_4_entry_2,
                         )
                     }
                     86 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_3,
+                            &self.receive_pdo_mapping_parameter_4_entry_3,
                         )
                     }
                     87 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_4,
+                            &self.receive_pdo_mapping_parameter_4_entry_4,
                         )
                     }
                     88 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_5,
+                            &self.receive_pdo_mapping_parameter_4_entry_5,
                         )
                     }
                     89 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_6,
+                            &self.receive_pdo_mapping_parameter_4_entry_6,
                         )
                     }
                     90 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_7,
+                            &self.receive_pdo_mapping_parameter_4_entry_7,
                         )
                     }
                     91 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_4_mapping_entry_8,
+                            &self.receive_pdo_mapping_parameter_4_entry_8,
                         )
                     }
                     92 => {
@@ -7958,42 +7957,42 @@ PDOMapping=0
                     }
                     93 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_1,
+                            &self.receive_pdo_mapping_parameter_5_entry_1,
                         )
                     }
                     94 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_2,
+                            &self.receive_pdo_mapping_parameter_5_entry_2,
                         )
                     }
                     95 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_3,
+                            &self.receive_pdo_mapping_parameter_5_entry_3,
                         )
                     }
                     96 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_4,
+                            &self.receive_pdo_mapping_parameter_5_entry_4,
                         )
                     }
                     97 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_5,
+                            &self.receive_pdo_mapping_parameter_5_entry_5,
                         )
                     }
                     98 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_6,
+                            &self.receive_pdo_mapping_parameter_5_entry_6,
                         )
                     }
                     99 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_7,
+                            &self.receive_pdo_mapping_parameter_5_entry_7,
                         )
                     }
                     100 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_5_mapping_entry_8,
+                            &self.receive_pdo_mapping_parameter_5_entry_8,
                         )
                     }
                     101 => {
@@ -8004,42 +8003,42 @@ PDOMapping=0
                     }
                     102 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_1,
+                            &self.receive_pdo_mapping_parameter_6_entry_1,
                         )
                     }
                     103 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_2,
+                            &self.receive_pdo_mapping_parameter_6_entry_2,
                         )
                     }
                     104 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_3,
+                            &self.receive_pdo_mapping_parameter_6_entry_3,
                         )
                     }
                     105 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_4,
+                            &self.receive_pdo_mapping_parameter_6_entry_4,
                         )
                     }
                     106 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_5,
+                            &self.receive_pdo_mapping_parameter_6_entry_5,
                         )
                     }
                     107 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_6,
+                            &self.receive_pdo_mapping_parameter_6_entry_6,
                         )
                     }
                     108 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_7,
+                            &self.receive_pdo_mapping_parameter_6_entry_7,
                         )
                     }
                     109 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_6_mapping_entry_8,
+                            &self.receive_pdo_mapping_parameter_6_entry_8,
                         )
                     }
                     110 => {
@@ -8050,42 +8049,42 @@ PDOMapping=0
                     }
                     111 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_1,
+                            &self.receive_pdo_mapping_parameter_7_entry_1,
                         )
                     }
                     112 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_2,
+                            &self.receive_pdo_mapping_parameter_7_entry_2,
                         )
                     }
                     113 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_3,
+                            &self.receive_pdo_mapping_parameter_7_entry_3,
                         )
                     }
                     114 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_4,
+                            &self.receive_pdo_mapping_parameter_7_entry_4,
                         )
                     }
                     115 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_5,
+                            &self.receive_pdo_mapping_parameter_7_entry_5,
                         )
                     }
                     116 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_6,
+                            &self.receive_pdo_mapping_parameter_7_entry_6,
                         )
                     }
                     117 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_7,
+                            &self.receive_pdo_mapping_parameter_7_entry_7,
                         )
                     }
                     118 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_7_mapping_entry_8,
+                            &self.receive_pdo_mapping_parameter_7_entry_8,
                         )
                     }
                     119 => {
@@ -8096,42 +8095,42 @@ PDOMapping=0
                     }
                     120 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_1,
+                            &self.receive_pdo_mapping_parameter_8_entry_1,
                         )
                     }
                     121 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_2,
+                            &self.receive_pdo_mapping_parameter_8_entry_2,
                         )
                     }
                     122 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_3,
+                            &self.receive_pdo_mapping_parameter_8_entry_3,
                         )
                     }
                     123 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_4,
+                            &self.receive_pdo_mapping_parameter_8_entry_4,
                         )
                     }
                     124 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_5,
+                            &self.receive_pdo_mapping_parameter_8_entry_5,
                         )
                     }
                     125 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_6,
+                            &self.receive_pdo_mapping_parameter_8_entry_6,
                         )
                     }
                     126 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_7,
+                            &self.receive_pdo_mapping_parameter_8_entry_7,
                         )
                     }
                     127 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.receive_pdo_mapping_parameter_8_mapping_entry_8,
+                            &self.receive_pdo_mapping_parameter_8_entry_8,
                         )
                     }
                     128 => {
@@ -8414,42 +8413,42 @@ PDOMapping=0
                     }
                     177 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_1,
+                            &self.transmit_pdo_mapping_parameter_1_entry_1,
                         )
                     }
                     178 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_2,
+                            &self.transmit_pdo_mapping_parameter_1_entry_2,
                         )
                     }
                     179 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_3,
+                            &self.transmit_pdo_mapping_parameter_1_entry_3,
                         )
                     }
                     180 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_4,
+                            &self.transmit_pdo_mapping_parameter_1_entry_4,
                         )
                     }
                     181 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_5,
+                            &self.transmit_pdo_mapping_parameter_1_entry_5,
                         )
                     }
                     182 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_6,
+                            &self.transmit_pdo_mapping_parameter_1_entry_6,
                         )
                     }
                     183 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_7,
+                            &self.transmit_pdo_mapping_parameter_1_entry_7,
                         )
                     }
                     184 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_1_mapping_entry_8,
+                            &self.transmit_pdo_mapping_parameter_1_entry_8,
                         )
                     }
                     185 => {
@@ -8460,42 +8459,42 @@ PDOMapping=0
                     }
                     186 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_1,
+                            &self.transmit_pdo_mapping_parameter_2_entry_1,
                         )
                     }
                     187 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_2,
+                            &self.transmit_pdo_mapping_parameter_2_entry_2,
                         )
                     }
                     188 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_3,
+                            &self.transmit_pdo_mapping_parameter_2_entry_3,
                         )
                     }
                     189 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_4,
+                            &self.transmit_pdo_mapping_parameter_2_entry_4,
                         )
                     }
                     190 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_5,
+                            &self.transmit_pdo_mapping_parameter_2_entry_5,
                         )
                     }
                     191 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_6,
+                            &self.transmit_pdo_mapping_parameter_2_entry_6,
                         )
                     }
                     192 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_7,
+                            &self.transmit_pdo_mapping_parameter_2_entry_7,
                         )
                     }
                     193 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_2_mapping_entry_8,
+                            &self.transmit_pdo_mapping_parameter_2_entry_8,
                         )
                     }
                     194 => {
@@ -8506,42 +8505,42 @@ PDOMapping=0
                     }
                     195 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_1,
+                            &self.transmit_pdo_mapping_parameter_3_entry_1,
                         )
                     }
                     196 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_2,
+                            &self.transmit_pdo_mapping_parameter_3_entry_2,
                         )
                     }
                     197 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_3,
+                            &self.transmit_pdo_mapping_parameter_3_entry_3,
                         )
                     }
                     198 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_4,
+                            &self.transmit_pdo_mapping_parameter_3_entry_4,
                         )
                     }
                     199 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_5,
+                            &self.transmit_pdo_mapping_parameter_3_entry_5,
                         )
                     }
                     200 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_6,
+                            &self.transmit_pdo_mapping_parameter_3_entry_6,
                         )
                     }
                     201 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_7,
+                            &self.transmit_pdo_mapping_parameter_3_entry_7,
                         )
                     }
                     202 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_3_mapping_entry_8,
+                            &self.transmit_pdo_mapping_parameter_3_entry_8,
                         )
                     }
                     203 => {
@@ -8552,42 +8551,42 @@ PDOMapping=0
                     }
                     204 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_1,
+                            &self.transmit_pdo_mapping_parameter_4_entry_1,
                         )
                     }
                     205 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_2,
+                            &self.transmit_pdo_mapping_parameter_4_entry_2,
                         )
                     }
                     206 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_3,
+                            &self.transmit_pdo_mapping_parameter_4_entry_3,
                         )
                     }
                     207 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_4,
+                            &self.transmit_pdo_mapping_parameter_4_entry_4,
                         )
                     }
                     208 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_5,
+                            &self.transmit_pdo_mapping_parameter_4_entry_5,
                         )
                     }
                     209 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_6,
+                            &self.transmit_pdo_mapping_parameter_4_entry_6,
                         )
                     }
                     210 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_7,
+                            &self.transmit_pdo_mapping_parameter_4_entry_7,
                         )
                     }
                     211 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_4_mapping_entry_8,
+                            &self.transmit_pdo_mapping_parameter_4_entry_8,
                         )
                     }
                     212 => {
@@ -8598,42 +8597,42 @@ PDOMapping=0
                     }
                     213 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_1,
+                            &self.transmit_pdo_mapping_parameter_5_entry_1,
                         )
                     }
                     214 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_2,
+                            &self.transmit_pdo_mapping_parameter_5_entry_2,
                         )
                     }
                     215 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_3,
+                            &self.transmit_pdo_mapping_parameter_5_entry_3,
                         )
                     }
                     216 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_4,
+                            &self.transmit_pdo_mapping_parameter_5_entry_4,
                         )
                     }
                     217 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_5,
+                            &self.transmit_pdo_mapping_parameter_5_entry_5,
                         )
                     }
                     218 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_6,
+                            &self.transmit_pdo_mapping_parameter_5_entry_6,
                         )
                     }
                     219 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_7,
+                            &self.transmit_pdo_mapping_parameter_5_entry_7,
                         )
                     }
                     220 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_5_mapping_entry_8,
+                            &self.transmit_pdo_mapping_parameter_5_entry_8,
                         )
                     }
                     221 => {
@@ -8644,42 +8643,42 @@ PDOMapping=0
                     }
                     222 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_1,
+                            &self.transmit_pdo_mapping_parameter_6_entry_1,
                         )
                     }
                     223 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_2,
+                            &self.transmit_pdo_mapping_parameter_6_entry_2,
                         )
                     }
                     224 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_3,
+                            &self.transmit_pdo_mapping_parameter_6_entry_3,
                         )
                     }
                     225 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_4,
+                            &self.transmit_pdo_mapping_parameter_6_entry_4,
                         )
                     }
                     226 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_5,
+                            &self.transmit_pdo_mapping_parameter_6_entry_5,
                         )
                     }
                     227 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_6,
+                            &self.transmit_pdo_mapping_parameter_6_entry_6,
                         )
                     }
                     228 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_7,
+                            &self.transmit_pdo_mapping_parameter_6_entry_7,
                         )
                     }
                     229 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_6_mapping_entry_8,
+                            &self.transmit_pdo_mapping_parameter_6_entry_8,
                         )
                     }
                     230 => {
@@ -8690,42 +8689,42 @@ PDOMapping=0
                     }
                     231 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_1,
+                            &self.transmit_pdo_mapping_parameter_7_entry_1,
                         )
                     }
                     232 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_2,
+                            &self.transmit_pdo_mapping_parameter_7_entry_2,
                         )
                     }
                     233 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_3,
+                            &self.transmit_pdo_mapping_parameter_7_entry_3,
                         )
                     }
                     234 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_4,
+                            &self.transmit_pdo_mapping_parameter_7_entry_4,
                         )
                     }
                     235 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_5,
+                            &self.transmit_pdo_mapping_parameter_7_entry_5,
                         )
                     }
                     236 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_6,
+                            &self.transmit_pdo_mapping_parameter_7_entry_6,
                         )
                     }
                     237 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_7,
+                            &self.transmit_pdo_mapping_parameter_7_entry_7,
                         )
                     }
                     238 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_7_mapping_entry_8,
+                            &self.transmit_pdo_mapping_parameter_7_entry_8,
                         )
                     }
                     239 => {
@@ -8736,42 +8735,42 @@ PDOMapping=0
                     }
                     240 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_1,
+                            &self.transmit_pdo_mapping_parameter_8_entry_1,
                         )
                     }
                     241 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_2,
+                            &self.transmit_pdo_mapping_parameter_8_entry_2,
                         )
                     }
                     242 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_3,
+                            &self.transmit_pdo_mapping_parameter_8_entry_3,
                         )
                     }
                     243 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_4,
+                            &self.transmit_pdo_mapping_parameter_8_entry_4,
                         )
                     }
                     244 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_5,
+                            &self.transmit_pdo_mapping_parameter_8_entry_5,
                         )
                     }
                     245 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_6,
+                            &self.transmit_pdo_mapping_parameter_8_entry_6,
                         )
                     }
                     246 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_7,
+                            &self.transmit_pdo_mapping_parameter_8_entry_7,
                         )
                     }
                     247 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.transmit_pdo_mapping_parameter_8_mapping_entry_8,
+                            &self.transmit_pdo_mapping_parameter_8_entry_8,
                         )
                     }
                     248 => ::od_runtime::__private_v1::Slot::U32(&self.nmt_startup),
@@ -8802,7 +8801,7 @@ PDOMapping=0
                     }
                     258 => {
                         ::od_runtime::__private_v1::Slot::U16(
-                            &self.pid_parameters_pid_selection,
+                            &self.pid_parameters_selection,
                         )
                     }
                     259 => {
@@ -8832,12 +8831,12 @@ PDOMapping=0
                     }
                     264 => {
                         ::od_runtime::__private_v1::Slot::U8(
-                            &self.profile_parameters_profile_check,
+                            &self.profile_parameters_check,
                         )
                     }
                     265 => {
                         ::od_runtime::__private_v1::Slot::U16(
-                            &self.profile_parameters_profile_check_timeout,
+                            &self.profile_parameters_check_timeout,
                         )
                     }
                     266 => {
@@ -8910,12 +8909,12 @@ PDOMapping=0
                     }
                     288 => {
                         ::od_runtime::__private_v1::Slot::I32(
-                            &self.software_position_limit_min_software_position_limit,
+                            &self.software_position_limit_min,
                         )
                     }
                     289 => {
                         ::od_runtime::__private_v1::Slot::I32(
-                            &self.software_position_limit_max_software_position_limit,
+                            &self.software_position_limit_max,
                         )
                     }
                     290 => ::od_runtime::__private_v1::Slot::U8(&self.polarity),
@@ -8965,14 +8964,10 @@ PDOMapping=0
                         )
                     }
                     304 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speeds_fast_homing_speed,
-                        )
+                        ::od_runtime::__private_v1::Slot::U32(&self.homing_speeds_fast)
                     }
                     305 => {
-                        ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speeds_slow_homing_speed,
-                        )
+                        ::od_runtime::__private_v1::Slot::U32(&self.homing_speeds_slow)
                     }
                     306 => {
                         ::od_runtime::__private_v1::Slot::U32(&self.homing_acceleration)
@@ -9005,42 +9000,42 @@ PDOMapping=0
                     }
                     4 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_1,
+                            &mut self.pre_defined_error_field_standard_1,
                         )
                     }
                     5 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_2,
+                            &mut self.pre_defined_error_field_standard_2,
                         )
                     }
                     6 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_3,
+                            &mut self.pre_defined_error_field_standard_3,
                         )
                     }
                     7 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_4,
+                            &mut self.pre_defined_error_field_standard_4,
                         )
                     }
                     8 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_5,
+                            &mut self.pre_defined_error_field_standard_5,
                         )
                     }
                     9 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_6,
+                            &mut self.pre_defined_error_field_standard_6,
                         )
                     }
                     10 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_7,
+                            &mut self.pre_defined_error_field_standard_7,
                         )
                     }
                     11 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.pre_defined_error_field_standard_error_field_8,
+                            &mut self.pre_defined_error_field_standard_8,
                         )
                     }
                     12 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.cob_id_sync),
@@ -9070,7 +9065,7 @@ PDOMapping=0
                     }
                     21 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.store_parameters_save_all_parameters,
+                            &mut self.store_parameters_save_all,
                         )
                     }
                     22 => {
@@ -9081,8 +9076,7 @@ PDOMapping=0
                     }
                     23 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self
-                                .restore_default_parameters_restore_all_default_parameters,
+                            &mut self.restore_default_parameters_all,
                         )
                     }
                     24 => ::od_runtime::__private_v1::SlotMut::U32(&mut self.cob_id_emcy),
@@ -9273,42 +9267,42 @@ PDOMapping=0
                     }
                     57 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_1,
+                            &mut self.receive_pdo_mapping_parameter_1_entry_1,
                         )
                     }
                     58 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_2,
+                            &mut self.receive_pdo_mapping_parameter_1_entry_2,
                         )
                     }
                     59 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_3,
+                            &mut self.receive_pdo_mapping_parameter_1_entry_3,
                         )
                     }
                     60 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_4,
+                            &mut self.receive_pdo_mapping_parameter_1_entry_4,
                         )
                     }
                     61 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_5,
+                            &mut self.receive_pdo_mapping_parameter_1_entry_5,
                         )
                     }
                     62 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_6,
+                            &mut self.receive_pdo_mapping_parameter_1_entry_6,
                         )
                     }
                     63 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_7,
+                            &mut self.receive_pdo_mapping_parameter_1_entry_7,
                         )
                     }
                     64 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_1_mapping_entry_8,
+                            &mut self.receive_pdo_mapping_parameter_1_entry_8,
                         )
                     }
                     65 => {
@@ -9319,42 +9313,42 @@ PDOMapping=0
                     }
                     66 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_1,
+                            &mut self.receive_pdo_mapping_parameter_2_entry_1,
                         )
                     }
                     67 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_2,
+                            &mut self.receive_pdo_mapping_parameter_2_entry_2,
                         )
                     }
                     68 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_3,
+                            &mut self.receive_pdo_mapping_parameter_2_entry_3,
                         )
                     }
                     69 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_4,
+                            &mut self.receive_pdo_mapping_parameter_2_entry_4,
                         )
                     }
                     70 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_5,
+                            &mut self.receive_pdo_mapping_parameter_2_entry_5,
                         )
                     }
                     71 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_6,
+                            &mut self.receive_pdo_mapping_parameter_2_entry_6,
                         )
                     }
                     72 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_7,
+                            &mut self.receive_pdo_mapping_parameter_2_entry_7,
                         )
                     }
                     73 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_2_mapping_entry_8,
+                            &mut self.receive_pdo_mapping_parameter_2_entry_8,
                         )
                     }
                     74 => {
@@ -9365,42 +9359,42 @@ PDOMapping=0
                     }
                     75 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_1,
+                            &mut self.receive_pdo_mapping_parameter_3_entry_1,
                         )
                     }
                     76 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_2,
+                            &mut self.receive_pdo_mapping_parameter_3_entry_2,
                         )
                     }
                     77 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_3,
+                            &mut self.receive_pdo_mapping_parameter_3_entry_3,
                         )
                     }
                     78 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_4,
+                            &mut self.receive_pdo_mapping_parameter_3_entry_4,
                         )
                     }
                     79 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_5,
+                            &mut self.receive_pdo_mapping_parameter_3_entry_5,
                         )
                     }
                     80 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_6,
+                            &mut self.receive_pdo_mapping_parameter_3_entry_6,
                         )
                     }
                     81 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_7,
+                            &mut self.receive_pdo_mapping_parameter_3_entry_7,
                         )
                     }
                     82 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_3_mapping_entry_8,
+                            &mut self.receive_pdo_mapping_parameter_3_entry_8,
                         )
                     }
                     83 => {
@@ -9411,42 +9405,42 @@ PDOMapping=0
                     }
                     84 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_1,
+                            &mut self.receive_pdo_mapping_parameter_4_entry_1,
                         )
                     }
                     85 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_2,
+                            &mut self.receive_pdo_mapping_parameter_4_entry_2,
                         )
                     }
                     86 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_3,
+                            &mut self.receive_pdo_mapping_parameter_4_entry_3,
                         )
                     }
                     87 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_4,
+                            &mut self.receive_pdo_mapping_parameter_4_entry_4,
                         )
                     }
                     88 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_5,
+                            &mut self.receive_pdo_mapping_parameter_4_entry_5,
                         )
                     }
                     89 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_6,
+                            &mut self.receive_pdo_mapping_parameter_4_entry_6,
                         )
                     }
                     90 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_7,
+                            &mut self.receive_pdo_mapping_parameter_4_entry_7,
                         )
                     }
                     91 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_4_mapping_entry_8,
+                            &mut self.receive_pdo_mapping_parameter_4_entry_8,
                         )
                     }
                     92 => {
@@ -9457,42 +9451,42 @@ PDOMapping=0
                     }
                     93 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_1,
+                            &mut self.receive_pdo_mapping_parameter_5_entry_1,
                         )
                     }
                     94 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_2,
+                            &mut self.receive_pdo_mapping_parameter_5_entry_2,
                         )
                     }
                     95 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_3,
+                            &mut self.receive_pdo_mapping_parameter_5_entry_3,
                         )
                     }
                     96 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_4,
+                            &mut self.receive_pdo_mapping_parameter_5_entry_4,
                         )
                     }
                     97 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_5,
+                            &mut self.receive_pdo_mapping_parameter_5_entry_5,
                         )
                     }
                     98 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_6,
+                            &mut self.receive_pdo_mapping_parameter_5_entry_6,
                         )
                     }
                     99 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_7,
+                            &mut self.receive_pdo_mapping_parameter_5_entry_7,
                         )
                     }
                     100 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_5_mapping_entry_8,
+                            &mut self.receive_pdo_mapping_parameter_5_entry_8,
                         )
                     }
                     101 => {
@@ -9503,42 +9497,42 @@ PDOMapping=0
                     }
                     102 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_1,
+                            &mut self.receive_pdo_mapping_parameter_6_entry_1,
                         )
                     }
                     103 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_2,
+                            &mut self.receive_pdo_mapping_parameter_6_entry_2,
                         )
                     }
                     104 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_3,
+                            &mut self.receive_pdo_mapping_parameter_6_entry_3,
                         )
                     }
                     105 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_4,
+                            &mut self.receive_pdo_mapping_parameter_6_entry_4,
                         )
                     }
                     106 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_5,
+                            &mut self.receive_pdo_mapping_parameter_6_entry_5,
                         )
                     }
                     107 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_6,
+                            &mut self.receive_pdo_mapping_parameter_6_entry_6,
                         )
                     }
                     108 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_7,
+                            &mut self.receive_pdo_mapping_parameter_6_entry_7,
                         )
                     }
                     109 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_6_mapping_entry_8,
+                            &mut self.receive_pdo_mapping_parameter_6_entry_8,
                         )
                     }
                     110 => {
@@ -9549,42 +9543,42 @@ PDOMapping=0
                     }
                     111 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_1,
+                            &mut self.receive_pdo_mapping_parameter_7_entry_1,
                         )
                     }
                     112 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_2,
+                            &mut self.receive_pdo_mapping_parameter_7_entry_2,
                         )
                     }
                     113 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_3,
+                            &mut self.receive_pdo_mapping_parameter_7_entry_3,
                         )
                     }
                     114 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_4,
+                            &mut self.receive_pdo_mapping_parameter_7_entry_4,
                         )
                     }
                     115 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_5,
+                            &mut self.receive_pdo_mapping_parameter_7_entry_5,
                         )
                     }
                     116 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_6,
+                            &mut self.receive_pdo_mapping_parameter_7_entry_6,
                         )
                     }
                     117 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_7,
+                            &mut self.receive_pdo_mapping_parameter_7_entry_7,
                         )
                     }
                     118 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_7_mapping_entry_8,
+                            &mut self.receive_pdo_mapping_parameter_7_entry_8,
                         )
                     }
                     119 => {
@@ -9595,42 +9589,42 @@ PDOMapping=0
                     }
                     120 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_1,
+                            &mut self.receive_pdo_mapping_parameter_8_entry_1,
                         )
                     }
                     121 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_2,
+                            &mut self.receive_pdo_mapping_parameter_8_entry_2,
                         )
                     }
                     122 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_3,
+                            &mut self.receive_pdo_mapping_parameter_8_entry_3,
                         )
                     }
                     123 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_4,
+                            &mut self.receive_pdo_mapping_parameter_8_entry_4,
                         )
                     }
                     124 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_5,
+                            &mut self.receive_pdo_mapping_parameter_8_entry_5,
                         )
                     }
                     125 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_6,
+                            &mut self.receive_pdo_mapping_parameter_8_entry_6,
                         )
                     }
                     126 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_7,
+                            &mut self.receive_pdo_mapping_parameter_8_entry_7,
                         )
                     }
                     127 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.receive_pdo_mapping_parameter_8_mapping_entry_8,
+                            &mut self.receive_pdo_mapping_parameter_8_entry_8,
                         )
                     }
                     128 => {
@@ -9913,42 +9907,42 @@ PDOMapping=0
                     }
                     177 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_1,
+                            &mut self.transmit_pdo_mapping_parameter_1_entry_1,
                         )
                     }
                     178 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_2,
+                            &mut self.transmit_pdo_mapping_parameter_1_entry_2,
                         )
                     }
                     179 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_3,
+                            &mut self.transmit_pdo_mapping_parameter_1_entry_3,
                         )
                     }
                     180 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_4,
+                            &mut self.transmit_pdo_mapping_parameter_1_entry_4,
                         )
                     }
                     181 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_5,
+                            &mut self.transmit_pdo_mapping_parameter_1_entry_5,
                         )
                     }
                     182 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_6,
+                            &mut self.transmit_pdo_mapping_parameter_1_entry_6,
                         )
                     }
                     183 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_7,
+                            &mut self.transmit_pdo_mapping_parameter_1_entry_7,
                         )
                     }
                     184 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_1_mapping_entry_8,
+                            &mut self.transmit_pdo_mapping_parameter_1_entry_8,
                         )
                     }
                     185 => {
@@ -9959,42 +9953,42 @@ PDOMapping=0
                     }
                     186 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_1,
+                            &mut self.transmit_pdo_mapping_parameter_2_entry_1,
                         )
                     }
                     187 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_2,
+                            &mut self.transmit_pdo_mapping_parameter_2_entry_2,
                         )
                     }
                     188 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_3,
+                            &mut self.transmit_pdo_mapping_parameter_2_entry_3,
                         )
                     }
                     189 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_4,
+                            &mut self.transmit_pdo_mapping_parameter_2_entry_4,
                         )
                     }
                     190 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_5,
+                            &mut self.transmit_pdo_mapping_parameter_2_entry_5,
                         )
                     }
                     191 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_6,
+                            &mut self.transmit_pdo_mapping_parameter_2_entry_6,
                         )
                     }
                     192 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_7,
+                            &mut self.transmit_pdo_mapping_parameter_2_entry_7,
                         )
                     }
                     193 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_2_mapping_entry_8,
+                            &mut self.transmit_pdo_mapping_parameter_2_entry_8,
                         )
                     }
                     194 => {
@@ -10005,42 +9999,42 @@ PDOMapping=0
                     }
                     195 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_1,
+                            &mut self.transmit_pdo_mapping_parameter_3_entry_1,
                         )
                     }
                     196 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_2,
+                            &mut self.transmit_pdo_mapping_parameter_3_entry_2,
                         )
                     }
                     197 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_3,
+                            &mut self.transmit_pdo_mapping_parameter_3_entry_3,
                         )
                     }
                     198 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_4,
+                            &mut self.transmit_pdo_mapping_parameter_3_entry_4,
                         )
                     }
                     199 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_5,
+                            &mut self.transmit_pdo_mapping_parameter_3_entry_5,
                         )
                     }
                     200 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_6,
+                            &mut self.transmit_pdo_mapping_parameter_3_entry_6,
                         )
                     }
                     201 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_7,
+                            &mut self.transmit_pdo_mapping_parameter_3_entry_7,
                         )
                     }
                     202 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_3_mapping_entry_8,
+                            &mut self.transmit_pdo_mapping_parameter_3_entry_8,
                         )
                     }
                     203 => {
@@ -10051,42 +10045,42 @@ PDOMapping=0
                     }
                     204 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_1,
+                            &mut self.transmit_pdo_mapping_parameter_4_entry_1,
                         )
                     }
                     205 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_2,
+                            &mut self.transmit_pdo_mapping_parameter_4_entry_2,
                         )
                     }
                     206 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_3,
+                            &mut self.transmit_pdo_mapping_parameter_4_entry_3,
                         )
                     }
                     207 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_4,
+                            &mut self.transmit_pdo_mapping_parameter_4_entry_4,
                         )
                     }
                     208 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_5,
+                            &mut self.transmit_pdo_mapping_parameter_4_entry_5,
                         )
                     }
                     209 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_6,
+                            &mut self.transmit_pdo_mapping_parameter_4_entry_6,
                         )
                     }
                     210 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_7,
+                            &mut self.transmit_pdo_mapping_parameter_4_entry_7,
                         )
                     }
                     211 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_4_mapping_entry_8,
+                            &mut self.transmit_pdo_mapping_parameter_4_entry_8,
                         )
                     }
                     212 => {
@@ -10097,42 +10091,42 @@ PDOMapping=0
                     }
                     213 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_1,
+                            &mut self.transmit_pdo_mapping_parameter_5_entry_1,
                         )
                     }
                     214 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_2,
+                            &mut self.transmit_pdo_mapping_parameter_5_entry_2,
                         )
                     }
                     215 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_3,
+                            &mut self.transmit_pdo_mapping_parameter_5_entry_3,
                         )
                     }
                     216 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_4,
+                            &mut self.transmit_pdo_mapping_parameter_5_entry_4,
                         )
                     }
                     217 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_5,
+                            &mut self.transmit_pdo_mapping_parameter_5_entry_5,
                         )
                     }
                     218 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_6,
+                            &mut self.transmit_pdo_mapping_parameter_5_entry_6,
                         )
                     }
                     219 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_7,
+                            &mut self.transmit_pdo_mapping_parameter_5_entry_7,
                         )
                     }
                     220 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_5_mapping_entry_8,
+                            &mut self.transmit_pdo_mapping_parameter_5_entry_8,
                         )
                     }
                     221 => {
@@ -10143,42 +10137,42 @@ PDOMapping=0
                     }
                     222 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_1,
+                            &mut self.transmit_pdo_mapping_parameter_6_entry_1,
                         )
                     }
                     223 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_2,
+                            &mut self.transmit_pdo_mapping_parameter_6_entry_2,
                         )
                     }
                     224 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_3,
+                            &mut self.transmit_pdo_mapping_parameter_6_entry_3,
                         )
                     }
                     225 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_4,
+                            &mut self.transmit_pdo_mapping_parameter_6_entry_4,
                         )
                     }
                     226 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_5,
+                            &mut self.transmit_pdo_mapping_parameter_6_entry_5,
                         )
                     }
                     227 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_6,
+                            &mut self.transmit_pdo_mapping_parameter_6_entry_6,
                         )
                     }
                     228 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_7,
+                            &mut self.transmit_pdo_mapping_parameter_6_entry_7,
                         )
                     }
                     229 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_6_mapping_entry_8,
+                            &mut self.transmit_pdo_mapping_parameter_6_entry_8,
                         )
                     }
                     230 => {
@@ -10189,42 +10183,42 @@ PDOMapping=0
                     }
                     231 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_1,
+                            &mut self.transmit_pdo_mapping_parameter_7_entry_1,
                         )
                     }
                     232 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_2,
+                            &mut self.transmit_pdo_mapping_parameter_7_entry_2,
                         )
                     }
                     233 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_3,
+                            &mut self.transmit_pdo_mapping_parameter_7_entry_3,
                         )
                     }
                     234 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_4,
+                            &mut self.transmit_pdo_mapping_parameter_7_entry_4,
                         )
                     }
                     235 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_5,
+                            &mut self.transmit_pdo_mapping_parameter_7_entry_5,
                         )
                     }
                     236 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_6,
+                            &mut self.transmit_pdo_mapping_parameter_7_entry_6,
                         )
                     }
                     237 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_7,
+                            &mut self.transmit_pdo_mapping_parameter_7_entry_7,
                         )
                     }
                     238 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_7_mapping_entry_8,
+                            &mut self.transmit_pdo_mapping_parameter_7_entry_8,
                         )
                     }
                     239 => {
@@ -10235,42 +10229,42 @@ PDOMapping=0
                     }
                     240 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_1,
+                            &mut self.transmit_pdo_mapping_parameter_8_entry_1,
                         )
                     }
                     241 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_2,
+                            &mut self.transmit_pdo_mapping_parameter_8_entry_2,
                         )
                     }
                     242 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_3,
+                            &mut self.transmit_pdo_mapping_parameter_8_entry_3,
                         )
                     }
                     243 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_4,
+                            &mut self.transmit_pdo_mapping_parameter_8_entry_4,
                         )
                     }
                     244 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_5,
+                            &mut self.transmit_pdo_mapping_parameter_8_entry_5,
                         )
                     }
                     245 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_6,
+                            &mut self.transmit_pdo_mapping_parameter_8_entry_6,
                         )
                     }
                     246 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_7,
+                            &mut self.transmit_pdo_mapping_parameter_8_entry_7,
                         )
                     }
                     247 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.transmit_pdo_mapping_parameter_8_mapping_entry_8,
+                            &mut self.transmit_pdo_mapping_parameter_8_entry_8,
                         )
                     }
                     248 => {
@@ -10309,7 +10303,7 @@ PDOMapping=0
                     }
                     258 => {
                         ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.pid_parameters_pid_selection,
+                            &mut self.pid_parameters_selection,
                         )
                     }
                     259 => {
@@ -10339,12 +10333,12 @@ PDOMapping=0
                     }
                     264 => {
                         ::od_runtime::__private_v1::SlotMut::U8(
-                            &mut self.profile_parameters_profile_check,
+                            &mut self.profile_parameters_check,
                         )
                     }
                     265 => {
                         ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.profile_parameters_profile_check_timeout,
+                            &mut self.profile_parameters_check_timeout,
                         )
                     }
                     266 => {
@@ -10443,12 +10437,12 @@ PDOMapping=0
                     }
                     288 => {
                         ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.software_position_limit_min_software_position_limit,
+                            &mut self.software_position_limit_min,
                         )
                     }
                     289 => {
                         ::od_runtime::__private_v1::SlotMut::I32(
-                            &mut self.software_position_limit_max_software_position_limit,
+                            &mut self.software_position_limit_max,
                         )
                     }
                     290 => ::od_runtime::__private_v1::SlotMut::U8(&mut self.polarity),
@@ -10515,12 +10509,12 @@ PDOMapping=0
                     }
                     304 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speeds_fast_homing_speed,
+                            &mut self.homing_speeds_fast,
                         )
                     }
                     305 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speeds_slow_homing_speed,
+                            &mut self.homing_speeds_slow,
                         )
                     }
                     306 => {
@@ -10687,128 +10681,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_1(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_1
+        pub const fn pre_defined_error_field_standard_1(&self) -> u32 {
+            self.pre_defined_error_field_standard_1
         }
-        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1 (see [`Self::pre_defined_error_field_standard_error_field_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1 (see [`Self::pre_defined_error_field_standard_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_1(
+        pub fn set_pre_defined_error_field_standard_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_1 = v;
+            self.pre_defined_error_field_standard_1 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 2 Pre-defined error field: Standard error field 2.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_2(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_2
+        pub const fn pre_defined_error_field_standard_2(&self) -> u32 {
+            self.pre_defined_error_field_standard_2
         }
-        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2 (see [`Self::pre_defined_error_field_standard_error_field_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2 (see [`Self::pre_defined_error_field_standard_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_2(
+        pub fn set_pre_defined_error_field_standard_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_2 = v;
+            self.pre_defined_error_field_standard_2 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 3 Pre-defined error field: Standard error field 3.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_3(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_3
+        pub const fn pre_defined_error_field_standard_3(&self) -> u32 {
+            self.pre_defined_error_field_standard_3
         }
-        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3 (see [`Self::pre_defined_error_field_standard_error_field_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3 (see [`Self::pre_defined_error_field_standard_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_3(
+        pub fn set_pre_defined_error_field_standard_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_3 = v;
+            self.pre_defined_error_field_standard_3 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 4 Pre-defined error field: Standard error field 4.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_4(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_4
+        pub const fn pre_defined_error_field_standard_4(&self) -> u32 {
+            self.pre_defined_error_field_standard_4
         }
-        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4 (see [`Self::pre_defined_error_field_standard_error_field_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4 (see [`Self::pre_defined_error_field_standard_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_4(
+        pub fn set_pre_defined_error_field_standard_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_4 = v;
+            self.pre_defined_error_field_standard_4 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 5 Pre-defined error field: Standard error field 5.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_5(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_5
+        pub const fn pre_defined_error_field_standard_5(&self) -> u32 {
+            self.pre_defined_error_field_standard_5
         }
-        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5 (see [`Self::pre_defined_error_field_standard_error_field_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5 (see [`Self::pre_defined_error_field_standard_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_5(
+        pub fn set_pre_defined_error_field_standard_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_5 = v;
+            self.pre_defined_error_field_standard_5 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 6 Pre-defined error field: Standard error field 6.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_6(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_6
+        pub const fn pre_defined_error_field_standard_6(&self) -> u32 {
+            self.pre_defined_error_field_standard_6
         }
-        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6 (see [`Self::pre_defined_error_field_standard_error_field_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6 (see [`Self::pre_defined_error_field_standard_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_6(
+        pub fn set_pre_defined_error_field_standard_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_6 = v;
+            self.pre_defined_error_field_standard_6 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 7 Pre-defined error field: Standard error field 7.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_7(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_7
+        pub const fn pre_defined_error_field_standard_7(&self) -> u32 {
+            self.pre_defined_error_field_standard_7
         }
-        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7 (see [`Self::pre_defined_error_field_standard_error_field_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7 (see [`Self::pre_defined_error_field_standard_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_7(
+        pub fn set_pre_defined_error_field_standard_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_7 = v;
+            self.pre_defined_error_field_standard_7 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 8 Pre-defined error field: Standard error field 8.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_8(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_8
+        pub const fn pre_defined_error_field_standard_8(&self) -> u32 {
+            self.pre_defined_error_field_standard_8
         }
-        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8 (see [`Self::pre_defined_error_field_standard_error_field_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8 (see [`Self::pre_defined_error_field_standard_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_8(
+        pub fn set_pre_defined_error_field_standard_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_8 = v;
+            self.pre_defined_error_field_standard_8 = v;
             Ok(())
         }
         /// Reads `0x1005` COB-ID SYNC.
@@ -10953,16 +10947,16 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn store_parameters_save_all_parameters(&self) -> u32 {
-            self.store_parameters_save_all_parameters
+        pub const fn store_parameters_save_all(&self) -> u32 {
+            self.store_parameters_save_all
         }
-        /// Sets `0x1010` sub 1 Store parameters: Save all parameters (see [`Self::store_parameters_save_all_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1010` sub 1 Store parameters: Save all parameters (see [`Self::store_parameters_save_all`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_store_parameters_save_all_parameters(
+        pub fn set_store_parameters_save_all(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.store_parameters_save_all_parameters = v;
+            self.store_parameters_save_all = v;
             Ok(())
         }
         /// Reads `0x1011` sub 0 Restore default parameters: Highest sub-index supported.
@@ -10987,18 +10981,16 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn restore_default_parameters_restore_all_default_parameters(
-            &self,
-        ) -> u32 {
-            self.restore_default_parameters_restore_all_default_parameters
+        pub const fn restore_default_parameters_all(&self) -> u32 {
+            self.restore_default_parameters_all
         }
-        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters (see [`Self::restore_default_parameters_restore_all_default_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters (see [`Self::restore_default_parameters_all`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_restore_default_parameters_restore_all_default_parameters(
+        pub fn set_restore_default_parameters_all(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.restore_default_parameters_restore_all_default_parameters = v;
+            self.restore_default_parameters_all = v;
             Ok(())
         }
         /// Reads `0x1014` COB-ID EMCY.
@@ -11583,128 +11575,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 1614807056 (0x60400010).
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_1_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_1
         }
-        /// Sets `0x1600` sub 1 Receive PDO mapping parameter 1: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 1 Receive PDO mapping parameter 1: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_1_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_1_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 2 Receive PDO mapping parameter 1: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_1_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_2
         }
-        /// Sets `0x1600` sub 2 Receive PDO mapping parameter 1: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 2 Receive PDO mapping parameter 1: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_1_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_1_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 3 Receive PDO mapping parameter 1: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_1_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_3
         }
-        /// Sets `0x1600` sub 3 Receive PDO mapping parameter 1: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 3 Receive PDO mapping parameter 1: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_1_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_1_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 4 Receive PDO mapping parameter 1: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_1_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_4
         }
-        /// Sets `0x1600` sub 4 Receive PDO mapping parameter 1: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 4 Receive PDO mapping parameter 1: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_1_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_1_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 5 Receive PDO mapping parameter 1: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_1_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_5
         }
-        /// Sets `0x1600` sub 5 Receive PDO mapping parameter 1: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 5 Receive PDO mapping parameter 1: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_1_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_1_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 6 Receive PDO mapping parameter 1: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_1_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_6
         }
-        /// Sets `0x1600` sub 6 Receive PDO mapping parameter 1: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 6 Receive PDO mapping parameter 1: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_1_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_1_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 7 Receive PDO mapping parameter 1: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_1_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_7
         }
-        /// Sets `0x1600` sub 7 Receive PDO mapping parameter 1: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 7 Receive PDO mapping parameter 1: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_1_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_1_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 8 Receive PDO mapping parameter 1: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_1_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_8
         }
-        /// Sets `0x1600` sub 8 Receive PDO mapping parameter 1: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 8 Receive PDO mapping parameter 1: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_1_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_1_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 0 Receive PDO mapping parameter 2: Number of mapped objects.
@@ -11729,128 +11721,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_2_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_1
         }
-        /// Sets `0x1601` sub 1 Receive PDO mapping parameter 2: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 1 Receive PDO mapping parameter 2: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_2_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_2_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 2 Receive PDO mapping parameter 2: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_2_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_2
         }
-        /// Sets `0x1601` sub 2 Receive PDO mapping parameter 2: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 2 Receive PDO mapping parameter 2: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_2_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_2_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 3 Receive PDO mapping parameter 2: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_2_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_3
         }
-        /// Sets `0x1601` sub 3 Receive PDO mapping parameter 2: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 3 Receive PDO mapping parameter 2: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_2_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_2_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 4 Receive PDO mapping parameter 2: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_2_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_4
         }
-        /// Sets `0x1601` sub 4 Receive PDO mapping parameter 2: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 4 Receive PDO mapping parameter 2: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_2_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_2_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 5 Receive PDO mapping parameter 2: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_2_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_5
         }
-        /// Sets `0x1601` sub 5 Receive PDO mapping parameter 2: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 5 Receive PDO mapping parameter 2: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_2_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_2_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 6 Receive PDO mapping parameter 2: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_2_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_6
         }
-        /// Sets `0x1601` sub 6 Receive PDO mapping parameter 2: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 6 Receive PDO mapping parameter 2: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_2_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_2_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 7 Receive PDO mapping parameter 2: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_2_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_7
         }
-        /// Sets `0x1601` sub 7 Receive PDO mapping parameter 2: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 7 Receive PDO mapping parameter 2: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_2_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_2_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 8 Receive PDO mapping parameter 2: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_2_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_8
         }
-        /// Sets `0x1601` sub 8 Receive PDO mapping parameter 2: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 8 Receive PDO mapping parameter 2: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_2_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_2_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 0 Receive PDO mapping parameter 3: Number of mapped objects.
@@ -11875,128 +11867,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_3_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_1
         }
-        /// Sets `0x1602` sub 1 Receive PDO mapping parameter 3: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 1 Receive PDO mapping parameter 3: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_3_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_3_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 2 Receive PDO mapping parameter 3: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_3_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_2
         }
-        /// Sets `0x1602` sub 2 Receive PDO mapping parameter 3: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 2 Receive PDO mapping parameter 3: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_3_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_3_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 3 Receive PDO mapping parameter 3: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_3_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_3
         }
-        /// Sets `0x1602` sub 3 Receive PDO mapping parameter 3: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 3 Receive PDO mapping parameter 3: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_3_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_3_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 4 Receive PDO mapping parameter 3: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_3_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_4
         }
-        /// Sets `0x1602` sub 4 Receive PDO mapping parameter 3: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 4 Receive PDO mapping parameter 3: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_3_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_3_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 5 Receive PDO mapping parameter 3: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_3_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_5
         }
-        /// Sets `0x1602` sub 5 Receive PDO mapping parameter 3: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 5 Receive PDO mapping parameter 3: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_3_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_3_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 6 Receive PDO mapping parameter 3: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_3_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_6
         }
-        /// Sets `0x1602` sub 6 Receive PDO mapping parameter 3: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 6 Receive PDO mapping parameter 3: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_3_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_3_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 7 Receive PDO mapping parameter 3: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_3_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_7
         }
-        /// Sets `0x1602` sub 7 Receive PDO mapping parameter 3: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 7 Receive PDO mapping parameter 3: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_3_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_3_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 8 Receive PDO mapping parameter 3: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_3_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_8
         }
-        /// Sets `0x1602` sub 8 Receive PDO mapping parameter 3: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 8 Receive PDO mapping parameter 3: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_3_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_3_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 0 Receive PDO mapping parameter 4: Number of mapped objects.
@@ -12021,128 +12013,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_4_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_1
         }
-        /// Sets `0x1603` sub 1 Receive PDO mapping parameter 4: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 1 Receive PDO mapping parameter 4: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_4_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_4_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 2 Receive PDO mapping parameter 4: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_4_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_2
         }
-        /// Sets `0x1603` sub 2 Receive PDO mapping parameter 4: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 2 Receive PDO mapping parameter 4: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_4_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_4_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 3 Receive PDO mapping parameter 4: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_4_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_3
         }
-        /// Sets `0x1603` sub 3 Receive PDO mapping parameter 4: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 3 Receive PDO mapping parameter 4: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_4_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_4_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 4 Receive PDO mapping parameter 4: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_4_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_4
         }
-        /// Sets `0x1603` sub 4 Receive PDO mapping parameter 4: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 4 Receive PDO mapping parameter 4: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_4_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_4_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 5 Receive PDO mapping parameter 4: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_4_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_5
         }
-        /// Sets `0x1603` sub 5 Receive PDO mapping parameter 4: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 5 Receive PDO mapping parameter 4: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_4_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_4_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 6 Receive PDO mapping parameter 4: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_4_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_6
         }
-        /// Sets `0x1603` sub 6 Receive PDO mapping parameter 4: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 6 Receive PDO mapping parameter 4: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_4_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_4_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 7 Receive PDO mapping parameter 4: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_4_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_7
         }
-        /// Sets `0x1603` sub 7 Receive PDO mapping parameter 4: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 7 Receive PDO mapping parameter 4: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_4_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_4_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 8 Receive PDO mapping parameter 4: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_4_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_8
         }
-        /// Sets `0x1603` sub 8 Receive PDO mapping parameter 4: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 8 Receive PDO mapping parameter 4: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_4_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_4_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 0 Receive PDO mapping parameter 5: Number of mapped objects.
@@ -12167,128 +12159,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_5_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_1
         }
-        /// Sets `0x1604` sub 1 Receive PDO mapping parameter 5: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 1 Receive PDO mapping parameter 5: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_5_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_5_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 2 Receive PDO mapping parameter 5: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_5_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_2
         }
-        /// Sets `0x1604` sub 2 Receive PDO mapping parameter 5: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 2 Receive PDO mapping parameter 5: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_5_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_5_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 3 Receive PDO mapping parameter 5: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_5_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_3
         }
-        /// Sets `0x1604` sub 3 Receive PDO mapping parameter 5: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 3 Receive PDO mapping parameter 5: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_5_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_5_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 4 Receive PDO mapping parameter 5: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_5_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_4
         }
-        /// Sets `0x1604` sub 4 Receive PDO mapping parameter 5: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 4 Receive PDO mapping parameter 5: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_5_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_5_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 5 Receive PDO mapping parameter 5: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_5_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_5
         }
-        /// Sets `0x1604` sub 5 Receive PDO mapping parameter 5: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 5 Receive PDO mapping parameter 5: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_5_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_5_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 6 Receive PDO mapping parameter 5: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_5_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_6
         }
-        /// Sets `0x1604` sub 6 Receive PDO mapping parameter 5: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 6 Receive PDO mapping parameter 5: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_5_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_5_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 7 Receive PDO mapping parameter 5: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_5_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_7
         }
-        /// Sets `0x1604` sub 7 Receive PDO mapping parameter 5: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 7 Receive PDO mapping parameter 5: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_5_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_5_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 8 Receive PDO mapping parameter 5: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_5_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_8
         }
-        /// Sets `0x1604` sub 8 Receive PDO mapping parameter 5: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 8 Receive PDO mapping parameter 5: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_5_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_5_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 0 Receive PDO mapping parameter 6: Number of mapped objects.
@@ -12313,128 +12305,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_6_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_1
         }
-        /// Sets `0x1605` sub 1 Receive PDO mapping parameter 6: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 1 Receive PDO mapping parameter 6: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_6_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_6_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 2 Receive PDO mapping parameter 6: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_6_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_2
         }
-        /// Sets `0x1605` sub 2 Receive PDO mapping parameter 6: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 2 Receive PDO mapping parameter 6: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_6_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_6_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 3 Receive PDO mapping parameter 6: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_6_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_3
         }
-        /// Sets `0x1605` sub 3 Receive PDO mapping parameter 6: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 3 Receive PDO mapping parameter 6: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_6_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_6_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 4 Receive PDO mapping parameter 6: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_6_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_4
         }
-        /// Sets `0x1605` sub 4 Receive PDO mapping parameter 6: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 4 Receive PDO mapping parameter 6: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_6_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_6_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 5 Receive PDO mapping parameter 6: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_6_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_5
         }
-        /// Sets `0x1605` sub 5 Receive PDO mapping parameter 6: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 5 Receive PDO mapping parameter 6: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_6_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_6_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 6 Receive PDO mapping parameter 6: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_6_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_6
         }
-        /// Sets `0x1605` sub 6 Receive PDO mapping parameter 6: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 6 Receive PDO mapping parameter 6: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_6_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_6_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 7 Receive PDO mapping parameter 6: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_6_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_7
         }
-        /// Sets `0x1605` sub 7 Receive PDO mapping parameter 6: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 7 Receive PDO mapping parameter 6: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_6_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_6_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 8 Receive PDO mapping parameter 6: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_6_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_8
         }
-        /// Sets `0x1605` sub 8 Receive PDO mapping parameter 6: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 8 Receive PDO mapping parameter 6: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_6_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_6_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 0 Receive PDO mapping parameter 7: Number of mapped objects.
@@ -12459,128 +12451,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_7_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_1
         }
-        /// Sets `0x1606` sub 1 Receive PDO mapping parameter 7: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 1 Receive PDO mapping parameter 7: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_7_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_7_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 2 Receive PDO mapping parameter 7: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_7_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_2
         }
-        /// Sets `0x1606` sub 2 Receive PDO mapping parameter 7: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 2 Receive PDO mapping parameter 7: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_7_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_7_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 3 Receive PDO mapping parameter 7: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_7_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_3
         }
-        /// Sets `0x1606` sub 3 Receive PDO mapping parameter 7: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 3 Receive PDO mapping parameter 7: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_7_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_7_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 4 Receive PDO mapping parameter 7: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_7_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_4
         }
-        /// Sets `0x1606` sub 4 Receive PDO mapping parameter 7: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 4 Receive PDO mapping parameter 7: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_7_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_7_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 5 Receive PDO mapping parameter 7: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_7_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_5
         }
-        /// Sets `0x1606` sub 5 Receive PDO mapping parameter 7: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 5 Receive PDO mapping parameter 7: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_7_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_7_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 6 Receive PDO mapping parameter 7: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_7_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_6
         }
-        /// Sets `0x1606` sub 6 Receive PDO mapping parameter 7: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 6 Receive PDO mapping parameter 7: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_7_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_7_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 7 Receive PDO mapping parameter 7: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_7_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_7
         }
-        /// Sets `0x1606` sub 7 Receive PDO mapping parameter 7: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 7 Receive PDO mapping parameter 7: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_7_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_7_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 8 Receive PDO mapping parameter 7: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_7_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_8
         }
-        /// Sets `0x1606` sub 8 Receive PDO mapping parameter 7: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 8 Receive PDO mapping parameter 7: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_7_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_7_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 0 Receive PDO mapping parameter 8: Number of mapped objects.
@@ -12605,128 +12597,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_8_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_1
         }
-        /// Sets `0x1607` sub 1 Receive PDO mapping parameter 8: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 1 Receive PDO mapping parameter 8: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_8_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_8_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 2 Receive PDO mapping parameter 8: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_8_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_2
         }
-        /// Sets `0x1607` sub 2 Receive PDO mapping parameter 8: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 2 Receive PDO mapping parameter 8: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_8_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_8_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 3 Receive PDO mapping parameter 8: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_8_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_3
         }
-        /// Sets `0x1607` sub 3 Receive PDO mapping parameter 8: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 3 Receive PDO mapping parameter 8: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_8_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_8_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 4 Receive PDO mapping parameter 8: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_8_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_4
         }
-        /// Sets `0x1607` sub 4 Receive PDO mapping parameter 8: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 4 Receive PDO mapping parameter 8: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_8_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_8_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 5 Receive PDO mapping parameter 8: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_8_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_5
         }
-        /// Sets `0x1607` sub 5 Receive PDO mapping parameter 8: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 5 Receive PDO mapping parameter 8: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_8_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_8_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 6 Receive PDO mapping parameter 8: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_8_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_6
         }
-        /// Sets `0x1607` sub 6 Receive PDO mapping parameter 8: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 6 Receive PDO mapping parameter 8: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_8_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_8_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 7 Receive PDO mapping parameter 8: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_8_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_7
         }
-        /// Sets `0x1607` sub 7 Receive PDO mapping parameter 8: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 7 Receive PDO mapping parameter 8: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_8_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_8_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 8 Receive PDO mapping parameter 8: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_8_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_8
         }
-        /// Sets `0x1607` sub 8 Receive PDO mapping parameter 8: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 8 Receive PDO mapping parameter 8: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_8_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_8_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1800` sub 0 Transmit PDO communication parameter 1: Highest sub-index supported.
@@ -13583,128 +13575,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 1614872592 (0x60410010).
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_1_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_1
         }
-        /// Sets `0x1A00` sub 1 Transmit PDO mapping parameter 1: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 1 Transmit PDO mapping parameter 1: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_1_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 2 Transmit PDO mapping parameter 1: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_1_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_2
         }
-        /// Sets `0x1A00` sub 2 Transmit PDO mapping parameter 1: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 2 Transmit PDO mapping parameter 1: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_1_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 3 Transmit PDO mapping parameter 1: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_1_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_3
         }
-        /// Sets `0x1A00` sub 3 Transmit PDO mapping parameter 1: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 3 Transmit PDO mapping parameter 1: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_1_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 4 Transmit PDO mapping parameter 1: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_1_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_4
         }
-        /// Sets `0x1A00` sub 4 Transmit PDO mapping parameter 1: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 4 Transmit PDO mapping parameter 1: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_1_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 5 Transmit PDO mapping parameter 1: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_1_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_5
         }
-        /// Sets `0x1A00` sub 5 Transmit PDO mapping parameter 1: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 5 Transmit PDO mapping parameter 1: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_1_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 6 Transmit PDO mapping parameter 1: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_1_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_6
         }
-        /// Sets `0x1A00` sub 6 Transmit PDO mapping parameter 1: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 6 Transmit PDO mapping parameter 1: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_1_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 7 Transmit PDO mapping parameter 1: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_1_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_7
         }
-        /// Sets `0x1A00` sub 7 Transmit PDO mapping parameter 1: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 7 Transmit PDO mapping parameter 1: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_1_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 8 Transmit PDO mapping parameter 1: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_1_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_8
         }
-        /// Sets `0x1A00` sub 8 Transmit PDO mapping parameter 1: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 8 Transmit PDO mapping parameter 1: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_1_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 0 Transmit PDO mapping parameter 2: Number of mapped objects.
@@ -13729,128 +13721,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_2_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_1
         }
-        /// Sets `0x1A01` sub 1 Transmit PDO mapping parameter 2: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 1 Transmit PDO mapping parameter 2: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_2_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 2 Transmit PDO mapping parameter 2: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_2_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_2
         }
-        /// Sets `0x1A01` sub 2 Transmit PDO mapping parameter 2: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 2 Transmit PDO mapping parameter 2: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_2_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 3 Transmit PDO mapping parameter 2: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_2_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_3
         }
-        /// Sets `0x1A01` sub 3 Transmit PDO mapping parameter 2: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 3 Transmit PDO mapping parameter 2: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_2_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 4 Transmit PDO mapping parameter 2: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_2_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_4
         }
-        /// Sets `0x1A01` sub 4 Transmit PDO mapping parameter 2: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 4 Transmit PDO mapping parameter 2: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_2_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 5 Transmit PDO mapping parameter 2: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_2_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_5
         }
-        /// Sets `0x1A01` sub 5 Transmit PDO mapping parameter 2: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 5 Transmit PDO mapping parameter 2: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_2_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 6 Transmit PDO mapping parameter 2: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_2_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_6
         }
-        /// Sets `0x1A01` sub 6 Transmit PDO mapping parameter 2: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 6 Transmit PDO mapping parameter 2: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_2_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 7 Transmit PDO mapping parameter 2: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_2_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_7
         }
-        /// Sets `0x1A01` sub 7 Transmit PDO mapping parameter 2: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 7 Transmit PDO mapping parameter 2: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_2_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 8 Transmit PDO mapping parameter 2: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_2_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_8
         }
-        /// Sets `0x1A01` sub 8 Transmit PDO mapping parameter 2: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 8 Transmit PDO mapping parameter 2: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_2_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 0 Transmit PDO mapping parameter 3: Number of mapped objects.
@@ -13875,128 +13867,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_3_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_1
         }
-        /// Sets `0x1A02` sub 1 Transmit PDO mapping parameter 3: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 1 Transmit PDO mapping parameter 3: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_3_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 2 Transmit PDO mapping parameter 3: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_3_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_2
         }
-        /// Sets `0x1A02` sub 2 Transmit PDO mapping parameter 3: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 2 Transmit PDO mapping parameter 3: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_3_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 3 Transmit PDO mapping parameter 3: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_3_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_3
         }
-        /// Sets `0x1A02` sub 3 Transmit PDO mapping parameter 3: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 3 Transmit PDO mapping parameter 3: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_3_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 4 Transmit PDO mapping parameter 3: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_3_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_4
         }
-        /// Sets `0x1A02` sub 4 Transmit PDO mapping parameter 3: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 4 Transmit PDO mapping parameter 3: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_3_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 5 Transmit PDO mapping parameter 3: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_3_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_5
         }
-        /// Sets `0x1A02` sub 5 Transmit PDO mapping parameter 3: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 5 Transmit PDO mapping parameter 3: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_3_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 6 Transmit PDO mapping parameter 3: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_3_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_6
         }
-        /// Sets `0x1A02` sub 6 Transmit PDO mapping parameter 3: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 6 Transmit PDO mapping parameter 3: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_3_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 7 Transmit PDO mapping parameter 3: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_3_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_7
         }
-        /// Sets `0x1A02` sub 7 Transmit PDO mapping parameter 3: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 7 Transmit PDO mapping parameter 3: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_3_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 8 Transmit PDO mapping parameter 3: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_3_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_8
         }
-        /// Sets `0x1A02` sub 8 Transmit PDO mapping parameter 3: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 8 Transmit PDO mapping parameter 3: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_3_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 0 Transmit PDO mapping parameter 4: Number of mapped objects.
@@ -14021,128 +14013,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_4_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_1
         }
-        /// Sets `0x1A03` sub 1 Transmit PDO mapping parameter 4: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 1 Transmit PDO mapping parameter 4: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_4_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 2 Transmit PDO mapping parameter 4: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_4_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_2
         }
-        /// Sets `0x1A03` sub 2 Transmit PDO mapping parameter 4: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 2 Transmit PDO mapping parameter 4: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_4_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 3 Transmit PDO mapping parameter 4: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_4_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_3
         }
-        /// Sets `0x1A03` sub 3 Transmit PDO mapping parameter 4: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 3 Transmit PDO mapping parameter 4: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_4_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 4 Transmit PDO mapping parameter 4: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_4_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_4
         }
-        /// Sets `0x1A03` sub 4 Transmit PDO mapping parameter 4: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 4 Transmit PDO mapping parameter 4: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_4_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 5 Transmit PDO mapping parameter 4: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_4_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_5
         }
-        /// Sets `0x1A03` sub 5 Transmit PDO mapping parameter 4: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 5 Transmit PDO mapping parameter 4: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_4_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 6 Transmit PDO mapping parameter 4: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_4_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_6
         }
-        /// Sets `0x1A03` sub 6 Transmit PDO mapping parameter 4: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 6 Transmit PDO mapping parameter 4: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_4_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 7 Transmit PDO mapping parameter 4: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_4_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_7
         }
-        /// Sets `0x1A03` sub 7 Transmit PDO mapping parameter 4: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 7 Transmit PDO mapping parameter 4: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_4_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 8 Transmit PDO mapping parameter 4: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_4_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_8
         }
-        /// Sets `0x1A03` sub 8 Transmit PDO mapping parameter 4: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 8 Transmit PDO mapping parameter 4: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_4_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 0 Transmit PDO mapping parameter 5: Number of mapped objects.
@@ -14167,128 +14159,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_5_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_1
         }
-        /// Sets `0x1A04` sub 1 Transmit PDO mapping parameter 5: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 1 Transmit PDO mapping parameter 5: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_5_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 2 Transmit PDO mapping parameter 5: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_5_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_2
         }
-        /// Sets `0x1A04` sub 2 Transmit PDO mapping parameter 5: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 2 Transmit PDO mapping parameter 5: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_5_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 3 Transmit PDO mapping parameter 5: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_5_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_3
         }
-        /// Sets `0x1A04` sub 3 Transmit PDO mapping parameter 5: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 3 Transmit PDO mapping parameter 5: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_5_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 4 Transmit PDO mapping parameter 5: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_5_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_4
         }
-        /// Sets `0x1A04` sub 4 Transmit PDO mapping parameter 5: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 4 Transmit PDO mapping parameter 5: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_5_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 5 Transmit PDO mapping parameter 5: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_5_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_5
         }
-        /// Sets `0x1A04` sub 5 Transmit PDO mapping parameter 5: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 5 Transmit PDO mapping parameter 5: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_5_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 6 Transmit PDO mapping parameter 5: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_5_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_6
         }
-        /// Sets `0x1A04` sub 6 Transmit PDO mapping parameter 5: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 6 Transmit PDO mapping parameter 5: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_5_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 7 Transmit PDO mapping parameter 5: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_5_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_7
         }
-        /// Sets `0x1A04` sub 7 Transmit PDO mapping parameter 5: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 7 Transmit PDO mapping parameter 5: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_5_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 8 Transmit PDO mapping parameter 5: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_5_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_8
         }
-        /// Sets `0x1A04` sub 8 Transmit PDO mapping parameter 5: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 8 Transmit PDO mapping parameter 5: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_5_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 0 Transmit PDO mapping parameter 6: Number of mapped objects.
@@ -14313,128 +14305,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_6_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_1
         }
-        /// Sets `0x1A05` sub 1 Transmit PDO mapping parameter 6: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 1 Transmit PDO mapping parameter 6: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_6_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 2 Transmit PDO mapping parameter 6: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_6_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_2
         }
-        /// Sets `0x1A05` sub 2 Transmit PDO mapping parameter 6: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 2 Transmit PDO mapping parameter 6: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_6_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 3 Transmit PDO mapping parameter 6: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_6_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_3
         }
-        /// Sets `0x1A05` sub 3 Transmit PDO mapping parameter 6: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 3 Transmit PDO mapping parameter 6: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_6_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 4 Transmit PDO mapping parameter 6: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_6_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_4
         }
-        /// Sets `0x1A05` sub 4 Transmit PDO mapping parameter 6: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 4 Transmit PDO mapping parameter 6: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_6_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 5 Transmit PDO mapping parameter 6: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_6_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_5
         }
-        /// Sets `0x1A05` sub 5 Transmit PDO mapping parameter 6: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 5 Transmit PDO mapping parameter 6: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_6_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 6 Transmit PDO mapping parameter 6: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_6_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_6
         }
-        /// Sets `0x1A05` sub 6 Transmit PDO mapping parameter 6: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 6 Transmit PDO mapping parameter 6: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_6_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 7 Transmit PDO mapping parameter 6: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_6_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_7
         }
-        /// Sets `0x1A05` sub 7 Transmit PDO mapping parameter 6: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 7 Transmit PDO mapping parameter 6: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_6_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 8 Transmit PDO mapping parameter 6: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_6_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_8
         }
-        /// Sets `0x1A05` sub 8 Transmit PDO mapping parameter 6: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 8 Transmit PDO mapping parameter 6: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_6_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 0 Transmit PDO mapping parameter 7: Number of mapped objects.
@@ -14459,128 +14451,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_7_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_1
         }
-        /// Sets `0x1A06` sub 1 Transmit PDO mapping parameter 7: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 1 Transmit PDO mapping parameter 7: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_7_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 2 Transmit PDO mapping parameter 7: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_7_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_2
         }
-        /// Sets `0x1A06` sub 2 Transmit PDO mapping parameter 7: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 2 Transmit PDO mapping parameter 7: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_7_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 3 Transmit PDO mapping parameter 7: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_7_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_3
         }
-        /// Sets `0x1A06` sub 3 Transmit PDO mapping parameter 7: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 3 Transmit PDO mapping parameter 7: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_7_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 4 Transmit PDO mapping parameter 7: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_7_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_4
         }
-        /// Sets `0x1A06` sub 4 Transmit PDO mapping parameter 7: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 4 Transmit PDO mapping parameter 7: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_7_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 5 Transmit PDO mapping parameter 7: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_7_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_5
         }
-        /// Sets `0x1A06` sub 5 Transmit PDO mapping parameter 7: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 5 Transmit PDO mapping parameter 7: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_7_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 6 Transmit PDO mapping parameter 7: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_7_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_6
         }
-        /// Sets `0x1A06` sub 6 Transmit PDO mapping parameter 7: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 6 Transmit PDO mapping parameter 7: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_7_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 7 Transmit PDO mapping parameter 7: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_7_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_7
         }
-        /// Sets `0x1A06` sub 7 Transmit PDO mapping parameter 7: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 7 Transmit PDO mapping parameter 7: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_7_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 8 Transmit PDO mapping parameter 7: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_7_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_8
         }
-        /// Sets `0x1A06` sub 8 Transmit PDO mapping parameter 7: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 8 Transmit PDO mapping parameter 7: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_7_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 0 Transmit PDO mapping parameter 8: Number of mapped objects.
@@ -14605,128 +14597,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_8_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_1
         }
-        /// Sets `0x1A07` sub 1 Transmit PDO mapping parameter 8: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 1 Transmit PDO mapping parameter 8: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_8_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 2 Transmit PDO mapping parameter 8: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_8_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_2
         }
-        /// Sets `0x1A07` sub 2 Transmit PDO mapping parameter 8: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 2 Transmit PDO mapping parameter 8: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_8_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 3 Transmit PDO mapping parameter 8: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_8_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_3
         }
-        /// Sets `0x1A07` sub 3 Transmit PDO mapping parameter 8: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 3 Transmit PDO mapping parameter 8: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_8_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 4 Transmit PDO mapping parameter 8: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_8_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_4
         }
-        /// Sets `0x1A07` sub 4 Transmit PDO mapping parameter 8: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 4 Transmit PDO mapping parameter 8: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_8_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 5 Transmit PDO mapping parameter 8: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_8_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_5
         }
-        /// Sets `0x1A07` sub 5 Transmit PDO mapping parameter 8: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 5 Transmit PDO mapping parameter 8: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_8_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 6 Transmit PDO mapping parameter 8: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_8_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_6
         }
-        /// Sets `0x1A07` sub 6 Transmit PDO mapping parameter 8: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 6 Transmit PDO mapping parameter 8: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_8_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 7 Transmit PDO mapping parameter 8: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_8_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_7
         }
-        /// Sets `0x1A07` sub 7 Transmit PDO mapping parameter 8: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 7 Transmit PDO mapping parameter 8: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_8_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 8 Transmit PDO mapping parameter 8: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_8_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_8
         }
-        /// Sets `0x1A07` sub 8 Transmit PDO mapping parameter 8: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 8 Transmit PDO mapping parameter 8: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_8_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1F80` NMT startup.
@@ -14896,19 +14888,19 @@ PDOMapping=0
         ///
         /// UNSIGNED16, access `rw`. Default: 1. At most 4.
         #[inline]
-        pub const fn pid_parameters_pid_selection(&self) -> u16 {
-            self.pid_parameters_pid_selection
+        pub const fn pid_parameters_selection(&self) -> u16 {
+            self.pid_parameters_selection
         }
-        /// Sets `0x2011` sub 1 PID parameters: PID selection (see [`Self::pid_parameters_pid_selection`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2011` sub 1 PID parameters: PID selection (see [`Self::pid_parameters_selection`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pid_parameters_pid_selection(
+        pub fn set_pid_parameters_selection(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             if v > 4 {
                 return Err(::od_runtime::od::AbortCode::VALUE_TOO_HIGH);
             }
-            self.pid_parameters_pid_selection = v;
+            self.pid_parameters_selection = v;
             Ok(())
         }
         /// Reads `0x2011` sub 2 PID parameters: Kp position.
@@ -14995,37 +14987,37 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `rw`. Default: 1. At most 1.
         #[inline]
-        pub const fn profile_parameters_profile_check(&self) -> u8 {
-            self.profile_parameters_profile_check
+        pub const fn profile_parameters_check(&self) -> u8 {
+            self.profile_parameters_check
         }
-        /// Sets `0x2012` sub 1 Profile parameters: Profile check (see [`Self::profile_parameters_profile_check`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2012` sub 1 Profile parameters: Profile check (see [`Self::profile_parameters_check`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_profile_parameters_profile_check(
+        pub fn set_profile_parameters_check(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             if v > 1 {
                 return Err(::od_runtime::od::AbortCode::VALUE_TOO_HIGH);
             }
-            self.profile_parameters_profile_check = v;
+            self.profile_parameters_check = v;
             Ok(())
         }
         /// Reads `0x2012` sub 2 Profile parameters: Profile check timeout.
         ///
         /// UNSIGNED16, access `rw`. Default: 50.
         ///
-        /// Dimension: Time (typed conversion: `units::Units::profile_parameters_profile_check_timeout`).
+        /// Dimension: Time (typed conversion: `units::Units::profile_parameters_check_timeout`).
         #[inline]
-        pub const fn profile_parameters_profile_check_timeout(&self) -> u16 {
-            self.profile_parameters_profile_check_timeout
+        pub const fn profile_parameters_check_timeout(&self) -> u16 {
+            self.profile_parameters_check_timeout
         }
-        /// Sets `0x2012` sub 2 Profile parameters: Profile check timeout (see [`Self::profile_parameters_profile_check_timeout`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2012` sub 2 Profile parameters: Profile check timeout (see [`Self::profile_parameters_check_timeout`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_profile_parameters_profile_check_timeout(
+        pub fn set_profile_parameters_check_timeout(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.profile_parameters_profile_check_timeout = v;
+            self.profile_parameters_check_timeout = v;
             Ok(())
         }
         /// Reads `0x2013` Homing torque limit.
@@ -15422,36 +15414,36 @@ PDOMapping=0
         ///
         /// INTEGER32, access `rw`. Default: 0.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_min_software_position_limit`).
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_min`).
         #[inline]
-        pub const fn software_position_limit_min_software_position_limit(&self) -> i32 {
-            self.software_position_limit_min_software_position_limit
+        pub const fn software_position_limit_min(&self) -> i32 {
+            self.software_position_limit_min
         }
-        /// Sets `0x607D` sub 1 Software position limit: Min software position limit (see [`Self::software_position_limit_min_software_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x607D` sub 1 Software position limit: Min software position limit (see [`Self::software_position_limit_min`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_software_position_limit_min_software_position_limit(
+        pub fn set_software_position_limit_min(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.software_position_limit_min_software_position_limit = v;
+            self.software_position_limit_min = v;
             Ok(())
         }
         /// Reads `0x607D` sub 2 Software position limit: Max software position limit.
         ///
         /// INTEGER32, access `rw`. Default: 0.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_max_software_position_limit`).
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_max`).
         #[inline]
-        pub const fn software_position_limit_max_software_position_limit(&self) -> i32 {
-            self.software_position_limit_max_software_position_limit
+        pub const fn software_position_limit_max(&self) -> i32 {
+            self.software_position_limit_max
         }
-        /// Sets `0x607D` sub 2 Software position limit: Max software position limit (see [`Self::software_position_limit_max_software_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x607D` sub 2 Software position limit: Max software position limit (see [`Self::software_position_limit_max`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_software_position_limit_max_software_position_limit(
+        pub fn set_software_position_limit_max(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.software_position_limit_max_software_position_limit = v;
+            self.software_position_limit_max = v;
             Ok(())
         }
         /// Reads `0x607E` Polarity.
@@ -15692,36 +15684,36 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
         ///
-        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_fast_homing_speed`).
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_fast`).
         #[inline]
-        pub const fn homing_speeds_fast_homing_speed(&self) -> u32 {
-            self.homing_speeds_fast_homing_speed
+        pub const fn homing_speeds_fast(&self) -> u32 {
+            self.homing_speeds_fast
         }
-        /// Sets `0x6099` sub 1 Homing speeds: Fast homing speed (see [`Self::homing_speeds_fast_homing_speed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x6099` sub 1 Homing speeds: Fast homing speed (see [`Self::homing_speeds_fast`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_homing_speeds_fast_homing_speed(
+        pub fn set_homing_speeds_fast(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.homing_speeds_fast_homing_speed = v;
+            self.homing_speeds_fast = v;
             Ok(())
         }
         /// Reads `0x6099` sub 2 Homing speeds: Slow homing speed.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
         ///
-        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_slow_homing_speed`).
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_slow`).
         #[inline]
-        pub const fn homing_speeds_slow_homing_speed(&self) -> u32 {
-            self.homing_speeds_slow_homing_speed
+        pub const fn homing_speeds_slow(&self) -> u32 {
+            self.homing_speeds_slow
         }
-        /// Sets `0x6099` sub 2 Homing speeds: Slow homing speed (see [`Self::homing_speeds_slow_homing_speed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x6099` sub 2 Homing speeds: Slow homing speed (see [`Self::homing_speeds_slow`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_homing_speeds_slow_homing_speed(
+        pub fn set_homing_speeds_slow(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.homing_speeds_slow_homing_speed = v;
+            self.homing_speeds_slow = v;
             Ok(())
         }
         /// Reads `0x609A` Homing acceleration.
@@ -16371,25 +16363,24 @@ PDOMapping=0
                 Ratio::new(t, b).ok_or(UnitError::Overflow)
             }
             /// `0x2012` sub 2 Profile parameters: Profile check timeout as a Time quantity.
-            pub fn profile_parameters_profile_check_timeout(
+            pub fn profile_parameters_check_timeout(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Time,
-                    od.profile_parameters_profile_check_timeout() as i64,
+                    od.profile_parameters_check_timeout() as i64,
                 )
             }
             /// Sets `0x2012` sub 2 Profile parameters: Profile check timeout from a Time quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_profile_parameters_profile_check_timeout(
+            pub fn set_profile_parameters_check_timeout(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Time, q)?;
                 let v = u16::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_profile_parameters_profile_check_timeout(v)
-                    .map_err(UnitError::Rejected)
+                od.set_profile_parameters_check_timeout(v).map_err(UnitError::Rejected)
             }
             /// `0x6062` Position demand value as a Position quantity.
             pub fn position_demand_value(
@@ -16613,46 +16604,44 @@ PDOMapping=0
                 od.set_home_offset(v).map_err(UnitError::Rejected)
             }
             /// `0x607D` sub 1 Software position limit: Min software position limit as a Position quantity.
-            pub fn software_position_limit_min_software_position_limit(
+            pub fn software_position_limit_min(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.software_position_limit_min_software_position_limit() as i64,
+                    od.software_position_limit_min() as i64,
                 )
             }
             /// Sets `0x607D` sub 1 Software position limit: Min software position limit from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_software_position_limit_min_software_position_limit(
+            pub fn set_software_position_limit_min(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_software_position_limit_min_software_position_limit(v)
-                    .map_err(UnitError::Rejected)
+                od.set_software_position_limit_min(v).map_err(UnitError::Rejected)
             }
             /// `0x607D` sub 2 Software position limit: Max software position limit as a Position quantity.
-            pub fn software_position_limit_max_software_position_limit(
+            pub fn software_position_limit_max(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.software_position_limit_max_software_position_limit() as i64,
+                    od.software_position_limit_max() as i64,
                 )
             }
             /// Sets `0x607D` sub 2 Software position limit: Max software position limit from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_software_position_limit_max_software_position_limit(
+            pub fn set_software_position_limit_max(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_software_position_limit_max_software_position_limit(v)
-                    .map_err(UnitError::Rejected)
+                od.set_software_position_limit_max(v).map_err(UnitError::Rejected)
             }
             /// `0x607F` Max profile velocity as a Velocity quantity.
             pub fn max_profile_velocity(
@@ -16746,44 +16735,38 @@ PDOMapping=0
                 od.set_torque_slope(v).map_err(UnitError::Rejected)
             }
             /// `0x6099` sub 1 Homing speeds: Fast homing speed as a Velocity quantity.
-            pub fn homing_speeds_fast_homing_speed(
+            pub fn homing_speeds_fast(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
-                self.to_physical(
-                    Dimension::Velocity,
-                    od.homing_speeds_fast_homing_speed() as i64,
-                )
+                self.to_physical(Dimension::Velocity, od.homing_speeds_fast() as i64)
             }
             /// Sets `0x6099` sub 1 Homing speeds: Fast homing speed from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_homing_speeds_fast_homing_speed(
+            pub fn set_homing_speeds_fast(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Velocity, q)?;
                 let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_homing_speeds_fast_homing_speed(v).map_err(UnitError::Rejected)
+                od.set_homing_speeds_fast(v).map_err(UnitError::Rejected)
             }
             /// `0x6099` sub 2 Homing speeds: Slow homing speed as a Velocity quantity.
-            pub fn homing_speeds_slow_homing_speed(
+            pub fn homing_speeds_slow(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
-                self.to_physical(
-                    Dimension::Velocity,
-                    od.homing_speeds_slow_homing_speed() as i64,
-                )
+                self.to_physical(Dimension::Velocity, od.homing_speeds_slow() as i64)
             }
             /// Sets `0x6099` sub 2 Homing speeds: Slow homing speed from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_homing_speeds_slow_homing_speed(
+            pub fn set_homing_speeds_slow(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Velocity, q)?;
                 let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_homing_speeds_slow_homing_speed(v).map_err(UnitError::Rejected)
+                od.set_homing_speeds_slow(v).map_err(UnitError::Rejected)
             }
             /// `0x609A` Homing acceleration as a Acceleration quantity.
             pub fn homing_acceleration(

@@ -1173,14 +1173,14 @@ PDOMapping=0
         identity_object_revision_number: u32,
         identity_object_serial_number: u32,
         rpdo_communication_parameter_1_highest_sub_index_supported: u8,
-        rpdo_communication_parameter_1_cob_id_used_by_rpdo: u32,
+        rpdo_communication_parameter_1_cob_id: u32,
         rpdo_communication_parameter_1_transmission_type: u8,
         rpdo_mapping_parameter_1_number_of_mapped_objects: u8,
         rpdo_mapping_parameter_1_mapped_object_1: u32,
         rpdo_mapping_parameter_1_mapped_object_2: u32,
         rpdo_mapping_parameter_1_mapped_object_3: u32,
         tpdo_communication_parameter_1_highest_sub_index_supported: u8,
-        tpdo_communication_parameter_1_cob_id_used_by_tpdo: u32,
+        tpdo_communication_parameter_1_cob_id: u32,
         tpdo_communication_parameter_1_transmission_type: u8,
         tpdo_mapping_parameter_1_number_of_mapped_objects: u8,
         tpdo_mapping_parameter_1_mapped_object_1: u32,
@@ -1197,8 +1197,8 @@ PDOMapping=0
         counter: u64,
         gains_number_of_entries: u8,
         gains_type: u16,
-        gains_gain_2_2: u16,
-        gains_gain_2_3: u16,
+        gains_2_2: u16,
+        gains_2_3: u16,
         position_window: u32,
         controlword: u16,
         statusword: u16,
@@ -1208,8 +1208,8 @@ PDOMapping=0
         velocity_actual_value: i32,
         target_position: i32,
         homing_speeds_number_of_entries: u8,
-        homing_speeds_speed_during_search_for_switch: u32,
-        homing_speeds_speed_during_search_for_zero: u32,
+        homing_speeds_during_search_for_switch: u32,
+        homing_speeds_during_search_for_zero: u32,
     }
     impl Dictionary {
         /// A dictionary holding every entry's default, with `$NODEID` resolved for `node_id`.
@@ -1227,16 +1227,14 @@ PDOMapping=0
                 identity_object_revision_number: 0x1,
                 identity_object_serial_number: 0,
                 rpdo_communication_parameter_1_highest_sub_index_supported: 2,
-                rpdo_communication_parameter_1_cob_id_used_by_rpdo: (0x200
-                    + node_id as i128) as u32,
+                rpdo_communication_parameter_1_cob_id: (0x200 + node_id as i128) as u32,
                 rpdo_communication_parameter_1_transmission_type: 255,
                 rpdo_mapping_parameter_1_number_of_mapped_objects: 3,
                 rpdo_mapping_parameter_1_mapped_object_1: 0x60400010,
                 rpdo_mapping_parameter_1_mapped_object_2: 0x50008,
                 rpdo_mapping_parameter_1_mapped_object_3: 0x60600008,
                 tpdo_communication_parameter_1_highest_sub_index_supported: 2,
-                tpdo_communication_parameter_1_cob_id_used_by_tpdo: (0x180
-                    + node_id as i128) as u32,
+                tpdo_communication_parameter_1_cob_id: (0x180 + node_id as i128) as u32,
                 tpdo_communication_parameter_1_transmission_type: 255,
                 tpdo_mapping_parameter_1_number_of_mapped_objects: 4,
                 tpdo_mapping_parameter_1_mapped_object_1: 0x60410010,
@@ -1253,8 +1251,8 @@ PDOMapping=0
                 counter: 0x123456789,
                 gains_number_of_entries: 3,
                 gains_type: 1,
-                gains_gain_2_2: 2,
-                gains_gain_2_3: 3,
+                gains_2_2: 2,
+                gains_2_3: 3,
                 position_window: (0x10 + node_id as i128) as u32,
                 controlword: 0,
                 statusword: 0,
@@ -1264,8 +1262,8 @@ PDOMapping=0
                 velocity_actual_value: 0,
                 target_position: 0,
                 homing_speeds_number_of_entries: 2,
-                homing_speeds_speed_during_search_for_switch: 1000,
-                homing_speeds_speed_during_search_for_zero: 100,
+                homing_speeds_during_search_for_switch: 1000,
+                homing_speeds_during_search_for_zero: 100,
             }
         }
         /// Position of `(index, sub)` in [`ENTRIES`]: `Err(NO_OBJECT)` if the index is absent,
@@ -1326,7 +1324,7 @@ PDOMapping=0
                     }
                     10 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.rpdo_communication_parameter_1_cob_id_used_by_rpdo,
+                            &self.rpdo_communication_parameter_1_cob_id,
                         )
                     }
                     11 => {
@@ -1362,7 +1360,7 @@ PDOMapping=0
                     }
                     17 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.tpdo_communication_parameter_1_cob_id_used_by_tpdo,
+                            &self.tpdo_communication_parameter_1_cob_id,
                         )
                     }
                     18 => {
@@ -1421,8 +1419,8 @@ PDOMapping=0
                         )
                     }
                     33 => ::od_runtime::__private_v1::Slot::U16(&self.gains_type),
-                    34 => ::od_runtime::__private_v1::Slot::U16(&self.gains_gain_2_2),
-                    35 => ::od_runtime::__private_v1::Slot::U16(&self.gains_gain_2_3),
+                    34 => ::od_runtime::__private_v1::Slot::U16(&self.gains_2_2),
+                    35 => ::od_runtime::__private_v1::Slot::U16(&self.gains_2_3),
                     36 => ::od_runtime::__private_v1::Slot::U32(&self.position_window),
                     37 => ::od_runtime::__private_v1::Slot::U16(&self.controlword),
                     38 => ::od_runtime::__private_v1::Slot::U16(&self.statusword),
@@ -1450,12 +1448,12 @@ PDOMapping=0
                     }
                     45 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speeds_speed_during_search_for_switch,
+                            &self.homing_speeds_during_search_for_switch,
                         )
                     }
                     46 => {
                         ::od_runtime::__private_v1::Slot::U32(
-                            &self.homing_speeds_speed_during_search_for_zero,
+                            &self.homing_speeds_during_search_for_zero,
                         )
                     }
                     _ => return None,
@@ -1512,7 +1510,7 @@ PDOMapping=0
                     }
                     10 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.rpdo_communication_parameter_1_cob_id_used_by_rpdo,
+                            &mut self.rpdo_communication_parameter_1_cob_id,
                         )
                     }
                     11 => {
@@ -1548,7 +1546,7 @@ PDOMapping=0
                     }
                     17 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.tpdo_communication_parameter_1_cob_id_used_by_tpdo,
+                            &mut self.tpdo_communication_parameter_1_cob_id,
                         )
                     }
                     18 => {
@@ -1607,16 +1605,8 @@ PDOMapping=0
                         )
                     }
                     33 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.gains_type),
-                    34 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.gains_gain_2_2,
-                        )
-                    }
-                    35 => {
-                        ::od_runtime::__private_v1::SlotMut::U16(
-                            &mut self.gains_gain_2_3,
-                        )
-                    }
+                    34 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.gains_2_2),
+                    35 => ::od_runtime::__private_v1::SlotMut::U16(&mut self.gains_2_3),
                     36 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
                             &mut self.position_window,
@@ -1656,12 +1646,12 @@ PDOMapping=0
                     }
                     45 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speeds_speed_during_search_for_switch,
+                            &mut self.homing_speeds_during_search_for_switch,
                         )
                     }
                     46 => {
                         ::od_runtime::__private_v1::SlotMut::U32(
-                            &mut self.homing_speeds_speed_during_search_for_zero,
+                            &mut self.homing_speeds_during_search_for_zero,
                         )
                     }
                     _ => return None,
@@ -1917,16 +1907,16 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: $NODEID + 0x200.
         #[inline]
-        pub const fn rpdo_communication_parameter_1_cob_id_used_by_rpdo(&self) -> u32 {
-            self.rpdo_communication_parameter_1_cob_id_used_by_rpdo
+        pub const fn rpdo_communication_parameter_1_cob_id(&self) -> u32 {
+            self.rpdo_communication_parameter_1_cob_id
         }
-        /// Sets `0x1400` sub 1 RPDO communication parameter 1: COB-ID used by RPDO (see [`Self::rpdo_communication_parameter_1_cob_id_used_by_rpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1400` sub 1 RPDO communication parameter 1: COB-ID used by RPDO (see [`Self::rpdo_communication_parameter_1_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rpdo_communication_parameter_1_cob_id_used_by_rpdo(
+        pub fn set_rpdo_communication_parameter_1_cob_id(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rpdo_communication_parameter_1_cob_id_used_by_rpdo = v;
+            self.rpdo_communication_parameter_1_cob_id = v;
             Ok(())
         }
         /// Reads `0x1400` sub 2 RPDO communication parameter 1: Transmission type.
@@ -2031,16 +2021,16 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: $NODEID + 0x180.
         #[inline]
-        pub const fn tpdo_communication_parameter_1_cob_id_used_by_tpdo(&self) -> u32 {
-            self.tpdo_communication_parameter_1_cob_id_used_by_tpdo
+        pub const fn tpdo_communication_parameter_1_cob_id(&self) -> u32 {
+            self.tpdo_communication_parameter_1_cob_id
         }
-        /// Sets `0x1800` sub 1 TPDO communication parameter 1: COB-ID used by TPDO (see [`Self::tpdo_communication_parameter_1_cob_id_used_by_tpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1800` sub 1 TPDO communication parameter 1: COB-ID used by TPDO (see [`Self::tpdo_communication_parameter_1_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tpdo_communication_parameter_1_cob_id_used_by_tpdo(
+        pub fn set_tpdo_communication_parameter_1_cob_id(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tpdo_communication_parameter_1_cob_id_used_by_tpdo = v;
+            self.tpdo_communication_parameter_1_cob_id = v;
             Ok(())
         }
         /// Reads `0x1800` sub 2 TPDO communication parameter 1: Transmission type.
@@ -2309,35 +2299,35 @@ PDOMapping=0
         ///
         /// UNSIGNED16, access `rw`. Default: 2. At most 500.
         #[inline]
-        pub const fn gains_gain_2_2(&self) -> u16 {
-            self.gains_gain_2_2
+        pub const fn gains_2_2(&self) -> u16 {
+            self.gains_2_2
         }
-        /// Sets `0x2006` sub 2 Gains: Gain 2 (see [`Self::gains_gain_2_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2006` sub 2 Gains: Gain 2 (see [`Self::gains_2_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_gains_gain_2_2(
+        pub fn set_gains_2_2(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             if v > 500 {
                 return Err(::od_runtime::od::AbortCode::VALUE_TOO_HIGH);
             }
-            self.gains_gain_2_2 = v;
+            self.gains_2_2 = v;
             Ok(())
         }
         /// Reads `0x2006` sub 3 Gains: Gain 2.
         ///
         /// UNSIGNED16, access `rw`. Default: 3.
         #[inline]
-        pub const fn gains_gain_2_3(&self) -> u16 {
-            self.gains_gain_2_3
+        pub const fn gains_2_3(&self) -> u16 {
+            self.gains_2_3
         }
-        /// Sets `0x2006` sub 3 Gains: Gain 2 (see [`Self::gains_gain_2_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2006` sub 3 Gains: Gain 2 (see [`Self::gains_2_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_gains_gain_2_3(
+        pub fn set_gains_2_3(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.gains_gain_2_3 = v;
+            self.gains_2_3 = v;
             Ok(())
         }
         /// Reads `0x2007` Position window.
@@ -2500,32 +2490,32 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 1000 (0x3E8).
         #[inline]
-        pub const fn homing_speeds_speed_during_search_for_switch(&self) -> u32 {
-            self.homing_speeds_speed_during_search_for_switch
+        pub const fn homing_speeds_during_search_for_switch(&self) -> u32 {
+            self.homing_speeds_during_search_for_switch
         }
-        /// Sets `0x6099` sub 1 Homing speeds: Speed during search for switch (see [`Self::homing_speeds_speed_during_search_for_switch`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x6099` sub 1 Homing speeds: Speed during search for switch (see [`Self::homing_speeds_during_search_for_switch`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_homing_speeds_speed_during_search_for_switch(
+        pub fn set_homing_speeds_during_search_for_switch(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.homing_speeds_speed_during_search_for_switch = v;
+            self.homing_speeds_during_search_for_switch = v;
             Ok(())
         }
         /// Reads `0x6099` sub 2 Homing speeds: Speed during search for zero.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 100.
         #[inline]
-        pub const fn homing_speeds_speed_during_search_for_zero(&self) -> u32 {
-            self.homing_speeds_speed_during_search_for_zero
+        pub const fn homing_speeds_during_search_for_zero(&self) -> u32 {
+            self.homing_speeds_during_search_for_zero
         }
-        /// Sets `0x6099` sub 2 Homing speeds: Speed during search for zero (see [`Self::homing_speeds_speed_during_search_for_zero`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x6099` sub 2 Homing speeds: Speed during search for zero (see [`Self::homing_speeds_during_search_for_zero`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_homing_speeds_speed_during_search_for_zero(
+        pub fn set_homing_speeds_during_search_for_zero(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.homing_speeds_speed_during_search_for_zero = v;
+            self.homing_speeds_during_search_for_zero = v;
             Ok(())
         }
     }
