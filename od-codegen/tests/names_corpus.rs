@@ -50,7 +50,9 @@ fn getters(text: &str) -> Vec<(String, u16, Option<u8>)> {
             let sub = rest[5..].strip_prefix(" sub ").and_then(|r| r.split(' ').next()).and_then(|s| s.parse().ok());
             at = index.map(|i| (i, sub));
         } else if let Some(rest) = line.strip_prefix("pub const fn ").or_else(|| line.strip_prefix("pub fn ")) {
-            if let (Some((i, s)), Some(name)) = (at.take(), rest.split_once("(&self)").map(|(n, _)| n)) {
+            // A long signature is wrapped: `pub const fn name(` with `&self,` on the next line.
+            let name = rest.split_once("(&self)").map(|(n, _)| n).or_else(|| rest.strip_suffix('('));
+            if let (Some((i, s)), Some(name)) = (at.take(), name) {
                 out.push((name.to_owned(), i, s));
             }
         }
