@@ -130,7 +130,7 @@ impl Master {
     fn units(&mut self) -> Units {
         let mut od = Dictionary::new(ID);
         od.set_fieldbus_configuration_bits(self.read(0x36E9, 0) as u32).unwrap();
-        od.set_position_encoder_resolution_encoder_increments(self.read(0x608F, 1) as u32).unwrap();
+        od.set_position_encoder_resolution_increments(self.read(0x608F, 1) as u32).unwrap();
         od.set_position_encoder_resolution_motor_revolutions(self.read(0x608F, 2) as u32).unwrap();
         od.set_gear_ratio_motor_shaft_revolutions(self.read(0x6091, 1) as u32).unwrap();
         od.set_gear_ratio_driving_shaft_revolutions(self.read(0x6091, 2) as u32).unwrap();

@@ -6691,9 +6691,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_1
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6708,9 +6706,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_2
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6725,9 +6721,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_3
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6742,9 +6736,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_4
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6759,9 +6751,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_5
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6776,9 +6766,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_6
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6793,9 +6781,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_7
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6810,9 +6796,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_8
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6827,9 +6811,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_9
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_9),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6844,9 +6826,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_10
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_10),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6981,9 +6961,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, store_parameters_save_all_parameters
-                ),
+                ::core::mem::offset_of!(Dictionary, store_parameters_save_all),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7015,9 +6993,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, restore_default_parameters_restore_all_default_parameters
-                ),
+                ::core::mem::offset_of!(Dictionary, restore_default_parameters_all),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7232,7 +7208,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_1_communication_parameter_cob_id_used_by_pdo
+                    Dictionary, receive_pdo_1_communication_parameter_cob_id
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7283,7 +7259,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_2_communication_parameter_cob_id_used_by_pdo
+                    Dictionary, receive_pdo_2_communication_parameter_cob_id
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7334,7 +7310,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_3_communication_parameter_cob_id_used_by_pdo
+                    Dictionary, receive_pdo_3_communication_parameter_cob_id
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7385,7 +7361,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_4_communication_parameter_cob_id_used_by_pdo
+                    Dictionary, receive_pdo_4_communication_parameter_cob_id
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -8048,7 +8024,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_1_communication_parameter_cob_id_used_by_pdo
+                    Dictionary, transmit_pdo_1_communication_parameter_cob_id
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -8150,7 +8126,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_2_communication_parameter_cob_id_used_by_pdo
+                    Dictionary, transmit_pdo_2_communication_parameter_cob_id
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -8252,7 +8228,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_3_communication_parameter_cob_id_used_by_pdo
+                    Dictionary, transmit_pdo_3_communication_parameter_cob_id
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -8354,7 +8330,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_4_communication_parameter_cob_id_used_by_pdo
+                    Dictionary, transmit_pdo_4_communication_parameter_cob_id
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9253,7 +9229,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
-                ::core::mem::offset_of!(Dictionary, firmware_version_major_version),
+                ::core::mem::offset_of!(Dictionary, firmware_version_major),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
@@ -9268,7 +9244,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
-                ::core::mem::offset_of!(Dictionary, firmware_version_minor_version),
+                ::core::mem::offset_of!(Dictionary, firmware_version_minor),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
@@ -9298,7 +9274,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
-                ::core::mem::offset_of!(Dictionary, firmware_version_derived_version),
+                ::core::mem::offset_of!(Dictionary, firmware_version_derived),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
@@ -9689,7 +9665,7 @@ Denotation=MOTOR.BRAKEIMM
             >(
                 ::core::mem::offset_of!(
                     Dictionary,
-                    vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency
+                    vel_loop_quad_filters_anti_resonance_1_pole_natural_frequency
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9707,7 +9683,7 @@ Denotation=MOTOR.BRAKEIMM
             >(
                 ::core::mem::offset_of!(
                     Dictionary,
-                    vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency
+                    vel_loop_quad_filters_anti_resonance_2_pole_natural_frequency
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9725,7 +9701,7 @@ Denotation=MOTOR.BRAKEIMM
             >(
                 ::core::mem::offset_of!(
                     Dictionary,
-                    vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency
+                    vel_loop_quad_filters_anti_resonance_3_pole_natural_frequency
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9743,7 +9719,7 @@ Denotation=MOTOR.BRAKEIMM
             >(
                 ::core::mem::offset_of!(
                     Dictionary,
-                    vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency
+                    vel_loop_quad_filters_anti_resonance_4_pole_natural_frequency
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9760,8 +9736,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q
+                    Dictionary, velocity_loop_bi_quad_filters_anti_resonance_1_pole_q
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9778,8 +9753,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q
+                    Dictionary, velocity_loop_bi_quad_filters_anti_resonance_2_pole_q
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9796,8 +9770,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q
+                    Dictionary, velocity_loop_bi_quad_filters_anti_resonance_3_pole_q
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9814,8 +9787,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q
+                    Dictionary, velocity_loop_bi_quad_filters_anti_resonance_4_pole_q
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9833,7 +9805,7 @@ Denotation=MOTOR.BRAKEIMM
             >(
                 ::core::mem::offset_of!(
                     Dictionary,
-                    vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency
+                    vel_loop_quad_filters_anti_resonance_1_zero_natural_frequency
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9851,7 +9823,7 @@ Denotation=MOTOR.BRAKEIMM
             >(
                 ::core::mem::offset_of!(
                     Dictionary,
-                    vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency
+                    vel_loop_quad_filters_anti_resonance_2_zero_natural_frequency
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9869,7 +9841,7 @@ Denotation=MOTOR.BRAKEIMM
             >(
                 ::core::mem::offset_of!(
                     Dictionary,
-                    vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency
+                    vel_loop_quad_filters_anti_resonance_3_zero_natural_frequency
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9887,7 +9859,7 @@ Denotation=MOTOR.BRAKEIMM
             >(
                 ::core::mem::offset_of!(
                     Dictionary,
-                    vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency
+                    vel_loop_quad_filters_anti_resonance_4_zero_natural_frequency
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9904,8 +9876,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q
+                    Dictionary, velocity_loop_bi_quad_filters_anti_resonance_1_zero_q
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9922,8 +9893,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q
+                    Dictionary, velocity_loop_bi_quad_filters_anti_resonance_2_zero_q
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9940,8 +9910,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q
+                    Dictionary, velocity_loop_bi_quad_filters_anti_resonance_3_zero_q
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -9958,8 +9927,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q
+                    Dictionary, velocity_loop_bi_quad_filters_anti_resonance_4_zero_q
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -10011,8 +9979,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    velocity_loop_filter_and_feedforward_velocity_feedforward_gain
+                    Dictionary, velocity_loop_filter_and_feedforward_gain
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -10046,7 +10013,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, velocity_loop_filter_and_feedforward_velocity_error
+                    Dictionary, velocity_loop_filter_and_feedforward_error
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -10250,9 +10217,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, motor_protection_parameters_motor_protection_mode
-                ),
+                ::core::mem::offset_of!(Dictionary, motor_protection_parameters_mode),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
@@ -10268,7 +10233,7 @@ Denotation=MOTOR.BRAKEIMM
                 u8,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, motor_protection_parameters_motor_i2t_warning_threshold
+                    Dictionary, motor_protection_parameters_i2t_warning_threshold
                 ),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
@@ -10285,7 +10250,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, motor_protection_parameters_motor_i2t_load
+                    Dictionary, motor_protection_parameters_i2t_load
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -10349,7 +10314,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, controlled_stop_parameters_controlled_stop_deceleration
+                    Dictionary, controlled_stop_parameters_deceleration
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -10366,8 +10331,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    controlled_stop_parameters_controlled_stop_velocity_threshold
+                    Dictionary, controlled_stop_parameters_velocity_threshold
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -10589,7 +10553,7 @@ Denotation=MOTOR.BRAKEIMM
                 i32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, induction_motor_parameters_induction_motor_rated_velocity
+                    Dictionary, induction_motor_parameters_rated_velocity
                 ),
                 ::od_runtime::od::DataType::Integer32,
                 0,
@@ -10606,7 +10570,7 @@ Denotation=MOTOR.BRAKEIMM
                 u16,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, induction_motor_parameters_induction_motor_rated_voltage
+                    Dictionary, induction_motor_parameters_rated_voltage
                 ),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
@@ -10658,7 +10622,7 @@ Denotation=MOTOR.BRAKEIMM
                 u8,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, capture_engine_parameters_capture_0_trigger_source
+                    Dictionary, capture_engine_parameters_0_trigger_source
                 ),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
@@ -10675,7 +10639,7 @@ Denotation=MOTOR.BRAKEIMM
                 u8,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, capture_engine_parameters_capture_1_trigger_source
+                    Dictionary, capture_engine_parameters_1_trigger_source
                 ),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
@@ -10691,9 +10655,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, capture_engine_parameters_capture_0_mode
-                ),
+                ::core::mem::offset_of!(Dictionary, capture_engine_parameters_0_mode),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
@@ -10708,9 +10670,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, capture_engine_parameters_capture_1_mode
-                ),
+                ::core::mem::offset_of!(Dictionary, capture_engine_parameters_1_mode),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
@@ -10726,7 +10686,7 @@ Denotation=MOTOR.BRAKEIMM
                 u8,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, capture_engine_parameters_capture_0_precondition_logic
+                    Dictionary, capture_engine_parameters_0_precondition_logic
                 ),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
@@ -10743,7 +10703,7 @@ Denotation=MOTOR.BRAKEIMM
                 u8,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, capture_engine_parameters_capture_1_precondition_logic
+                    Dictionary, capture_engine_parameters_1_precondition_logic
                 ),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
@@ -10760,7 +10720,7 @@ Denotation=MOTOR.BRAKEIMM
                 u8,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, capture_engine_parameters_capture_0_precondition_edge
+                    Dictionary, capture_engine_parameters_0_precondition_edge
                 ),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
@@ -10777,7 +10737,7 @@ Denotation=MOTOR.BRAKEIMM
                 u8,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, capture_engine_parameters_capture_1_precondition_edge
+                    Dictionary, capture_engine_parameters_1_precondition_edge
                 ),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
@@ -10794,7 +10754,7 @@ Denotation=MOTOR.BRAKEIMM
                 u8,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, capture_engine_parameters_capture_0_precondition_trigger
+                    Dictionary, capture_engine_parameters_0_precondition_trigger
                 ),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
@@ -10811,7 +10771,7 @@ Denotation=MOTOR.BRAKEIMM
                 u8,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, capture_engine_parameters_capture_1_precondition_trigger
+                    Dictionary, capture_engine_parameters_1_precondition_trigger
                 ),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
@@ -10845,7 +10805,7 @@ Denotation=MOTOR.BRAKEIMM
                 i8,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, analog_input_and_output_parameters_analog_output_mode
+                    Dictionary, analog_input_and_output_parameters_mode
                 ),
                 ::od_runtime::od::DataType::Integer8,
                 0,
@@ -10862,7 +10822,7 @@ Denotation=MOTOR.BRAKEIMM
                 i16,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, analog_input_and_output_parameters_analog_output_value
+                    Dictionary, analog_input_and_output_parameters_output_value
                 ),
                 ::od_runtime::od::DataType::Integer16,
                 0,
@@ -10896,7 +10856,7 @@ Denotation=MOTOR.BRAKEIMM
                 i16,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, analog_input_and_output_parameters_analog_input_value
+                    Dictionary, analog_input_and_output_parameters_input_value
                 ),
                 ::od_runtime::od::DataType::Integer16,
                 0,
@@ -10977,8 +10937,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    digital_input_parameters_digital_input_1_parameter_low_32_bits
+                    Dictionary, digital_input_parameters_1_low_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -10995,8 +10954,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    digital_input_parameters_digital_input_2_parameter_low_32_bits
+                    Dictionary, digital_input_parameters_2_low_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11013,8 +10971,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    digital_input_parameters_digital_input_3_parameter_low_32_bits
+                    Dictionary, digital_input_parameters_3_low_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11031,8 +10988,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    digital_input_parameters_digital_input_4_parameter_low_32_bits
+                    Dictionary, digital_input_parameters_4_low_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11049,8 +11005,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    digital_input_parameters_digital_input_5_parameter_low_32_bits
+                    Dictionary, digital_input_parameters_5_low_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11067,8 +11022,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    digital_input_parameters_digital_input_6_parameter_low_32_bits
+                    Dictionary, digital_input_parameters_6_low_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11085,8 +11039,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    digital_input_parameters_digital_input_7_parameter_low_32_bits
+                    Dictionary, digital_input_parameters_7_low_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11103,8 +11056,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    digital_input_parameters_digital_input_1_parameter_high_32_bits
+                    Dictionary, digital_input_parameters_1_high_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11121,8 +11073,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    digital_input_parameters_digital_input_2_parameter_high_32_bits
+                    Dictionary, digital_input_parameters_2_high_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11139,8 +11090,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    digital_input_parameters_digital_input_3_parameter_high_32_bits
+                    Dictionary, digital_input_parameters_3_high_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11157,8 +11107,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    digital_input_parameters_digital_input_4_parameter_high_32_bits
+                    Dictionary, digital_input_parameters_4_high_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11175,8 +11124,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    digital_input_parameters_digital_input_5_parameter_high_32_bits
+                    Dictionary, digital_input_parameters_5_high_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11193,8 +11141,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    digital_input_parameters_digital_input_6_parameter_high_32_bits
+                    Dictionary, digital_input_parameters_6_high_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11211,8 +11158,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    digital_input_parameters_digital_input_7_parameter_high_32_bits
+                    Dictionary, digital_input_parameters_7_high_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11246,7 +11192,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, digital_output_parameters_1_parameter_low_32_bits
+                    Dictionary, digital_output_parameters_1_low_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11263,7 +11209,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, digital_output_parameters_2_parameter_low_32_bits
+                    Dictionary, digital_output_parameters_2_low_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11280,7 +11226,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, digital_output_parameters_1_parameter_high_32_bits
+                    Dictionary, digital_output_parameters_1_high_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11297,7 +11243,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, digital_output_parameters_2_parameter_high_32_bits
+                    Dictionary, digital_output_parameters_2_high_32_bits
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11346,8 +11292,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    position_loop_integrator_saturation_integrator_input_saturation
+                    Dictionary, position_loop_integrator_saturation_input
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11505,7 +11450,7 @@ Denotation=MOTOR.BRAKEIMM
                 i16,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, wake_and_shake_parameters_wake_and_shake_maximum_current
+                    Dictionary, wake_and_shake_parameters_maximum_current
                 ),
                 ::od_runtime::od::DataType::Integer16,
                 0,
@@ -11522,7 +11467,7 @@ Denotation=MOTOR.BRAKEIMM
                 i32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, wake_and_shake_parameters_wake_and_shake_maximum_movement
+                    Dictionary, wake_and_shake_parameters_maximum_movement
                 ),
                 ::od_runtime::od::DataType::Integer32,
                 0,
@@ -11556,7 +11501,7 @@ Denotation=MOTOR.BRAKEIMM
                 i32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, wake_and_shake_parameters_wake_and_shake_maximum_velocity
+                    Dictionary, wake_and_shake_parameters_maximum_velocity
                 ),
                 ::od_runtime::od::DataType::Integer32,
                 0,
@@ -11572,9 +11517,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, wake_and_shake_parameters_wake_and_shake_state
-                ),
+                ::core::mem::offset_of!(Dictionary, wake_and_shake_parameters_state),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
@@ -11589,9 +11532,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, wake_and_shake_parameters_wake_and_shake_arm
-                ),
+                ::core::mem::offset_of!(Dictionary, wake_and_shake_parameters_arm),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
@@ -11658,8 +11599,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    fieldbus_synchronization_parameters_synchronization_window
+                    Dictionary, fieldbus_synchronization_parameters_window
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -11710,7 +11650,7 @@ Denotation=MOTOR.BRAKEIMM
                 i32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_positions_1_compare_position
+                    Dictionary, programmable_limit_switch_positions_1_compare
                 ),
                 ::od_runtime::od::DataType::Integer32,
                 0,
@@ -11727,7 +11667,7 @@ Denotation=MOTOR.BRAKEIMM
                 i32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_positions_2_compare_position
+                    Dictionary, programmable_limit_switch_positions_2_compare
                 ),
                 ::od_runtime::od::DataType::Integer32,
                 0,
@@ -11744,7 +11684,7 @@ Denotation=MOTOR.BRAKEIMM
                 i32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_positions_3_compare_position
+                    Dictionary, programmable_limit_switch_positions_3_compare
                 ),
                 ::od_runtime::od::DataType::Integer32,
                 0,
@@ -11761,7 +11701,7 @@ Denotation=MOTOR.BRAKEIMM
                 i32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_positions_4_compare_position
+                    Dictionary, programmable_limit_switch_positions_4_compare
                 ),
                 ::od_runtime::od::DataType::Integer32,
                 0,
@@ -11778,7 +11718,7 @@ Denotation=MOTOR.BRAKEIMM
                 i32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_positions_5_compare_position
+                    Dictionary, programmable_limit_switch_positions_5_compare
                 ),
                 ::od_runtime::od::DataType::Integer32,
                 0,
@@ -11795,7 +11735,7 @@ Denotation=MOTOR.BRAKEIMM
                 i32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_positions_6_compare_position
+                    Dictionary, programmable_limit_switch_positions_6_compare
                 ),
                 ::od_runtime::od::DataType::Integer32,
                 0,
@@ -11812,7 +11752,7 @@ Denotation=MOTOR.BRAKEIMM
                 i32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_positions_7_compare_position
+                    Dictionary, programmable_limit_switch_positions_7_compare
                 ),
                 ::od_runtime::od::DataType::Integer32,
                 0,
@@ -11829,7 +11769,7 @@ Denotation=MOTOR.BRAKEIMM
                 i32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_positions_8_compare_position
+                    Dictionary, programmable_limit_switch_positions_8_compare
                 ),
                 ::od_runtime::od::DataType::Integer32,
                 0,
@@ -11862,9 +11802,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_widths_limit_switch_1_width
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_1),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
@@ -11879,9 +11817,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_widths_limit_switch_2_width
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_2),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
@@ -11896,9 +11832,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_widths_limit_switch_3_width
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_3),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
@@ -11913,9 +11847,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_widths_limit_switch_4_width
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_4),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
@@ -11930,9 +11862,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_widths_limit_switch_5_width
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_5),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
@@ -11947,9 +11877,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_widths_limit_switch_6_width
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_6),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
@@ -11964,9 +11892,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_widths_limit_switch_7_width
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_7),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
@@ -11981,9 +11907,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_widths_limit_switch_8_width
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_8),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
@@ -12015,9 +11939,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_times_limit_switch_1_time
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_1),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
@@ -12032,9 +11954,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_times_limit_switch_2_time
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_2),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
@@ -12049,9 +11969,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_times_limit_switch_3_time
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_3),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
@@ -12066,9 +11984,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_times_limit_switch_4_time
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_4),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
@@ -12083,9 +11999,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_times_limit_switch_5_time
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_5),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
@@ -12100,9 +12014,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_times_limit_switch_6_time
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_6),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
@@ -12117,9 +12029,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_times_limit_switch_7_time
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_7),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
@@ -12134,9 +12044,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_times_limit_switch_8_time
-                ),
+                ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_8),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
@@ -12169,8 +12077,7 @@ Denotation=MOTOR.BRAKEIMM
                 u16,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    programmable_limit_switch_configuration_limit_switch_enable
+                    Dictionary, programmable_limit_switch_configuration_enable
                 ),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
@@ -12187,8 +12094,7 @@ Denotation=MOTOR.BRAKEIMM
                 u16,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    programmable_limit_switch_configuration_limit_switch_reset
+                    Dictionary, programmable_limit_switch_configuration_reset
                 ),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
@@ -12205,7 +12111,7 @@ Denotation=MOTOR.BRAKEIMM
                 u16,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, programmable_limit_switch_configuration_limit_switch_mode
+                    Dictionary, programmable_limit_switch_configuration_mode
                 ),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
@@ -12222,8 +12128,7 @@ Denotation=MOTOR.BRAKEIMM
                 u16,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary,
-                    programmable_limit_switch_configuration_limit_switch_state
+                    Dictionary, programmable_limit_switch_configuration_state
                 ),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
@@ -15283,9 +15188,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, software_position_limit_min_position_limit
-                ),
+                ::core::mem::offset_of!(Dictionary, software_position_limit_min),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
@@ -15300,9 +15203,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, software_position_limit_max_position_limit
-                ),
+                ::core::mem::offset_of!(Dictionary, software_position_limit_max),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
@@ -15380,7 +15281,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, position_encoder_resolution_encoder_increments
+                    Dictionary, position_encoder_resolution_increments
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -15536,7 +15437,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, homing_speeds_speed_during_search_for_switch
+                    Dictionary, homing_speeds_during_search_for_switch
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -15553,7 +15454,7 @@ Denotation=MOTOR.BRAKEIMM
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, homing_speeds_speed_during_search_for_zero
+                    Dictionary, homing_speeds_during_search_for_zero
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -15737,7 +15638,7 @@ Denotation=MOTOR.BRAKEIMM
                 i32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, interpolation_data_record_interpolation_target_position
+                    Dictionary, interpolation_data_record_target_position
                 ),
                 ::od_runtime::od::DataType::Integer32,
                 0,
@@ -15753,9 +15654,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, interpolation_data_record_interpolation_time
-                ),
+                ::core::mem::offset_of!(Dictionary, interpolation_data_record_time),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -15771,7 +15670,7 @@ Denotation=MOTOR.BRAKEIMM
                 i32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, interpolation_data_record_interpolation_target_velocity
+                    Dictionary, interpolation_data_record_target_velocity
                 ),
                 ::od_runtime::od::DataType::Integer32,
                 0,
@@ -15819,9 +15718,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, interpolation_time_period_interpolation_time_index
-                ),
+                ::core::mem::offset_of!(Dictionary, interpolation_time_period_index),
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
@@ -15972,9 +15869,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, touch_probe_source_touch_probe_1_source
-                ),
+                ::core::mem::offset_of!(Dictionary, touch_probe_source_1),
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
@@ -15989,9 +15884,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, touch_probe_source_touch_probe_2_source
-                ),
+                ::core::mem::offset_of!(Dictionary, touch_probe_source_2),
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
@@ -16051,7 +15944,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(Dictionary, digital_outputs_physical_outputs),
+                ::core::mem::offset_of!(Dictionary, digital_outputs_physical),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -17012,16 +16905,16 @@ Denotation=MOTOR.BRAKEIMM
         error_register: u8,
         manufacturer_status_register: u32,
         pre_defined_error_field_number_of_errors: u8,
-        pre_defined_error_field_standard_error_field_1: u32,
-        pre_defined_error_field_standard_error_field_2: u32,
-        pre_defined_error_field_standard_error_field_3: u32,
-        pre_defined_error_field_standard_error_field_4: u32,
-        pre_defined_error_field_standard_error_field_5: u32,
-        pre_defined_error_field_standard_error_field_6: u32,
-        pre_defined_error_field_standard_error_field_7: u32,
-        pre_defined_error_field_standard_error_field_8: u32,
-        pre_defined_error_field_standard_error_field_9: u32,
-        pre_defined_error_field_standard_error_field_10: u32,
+        pre_defined_error_field_standard_1: u32,
+        pre_defined_error_field_standard_2: u32,
+        pre_defined_error_field_standard_3: u32,
+        pre_defined_error_field_standard_4: u32,
+        pre_defined_error_field_standard_5: u32,
+        pre_defined_error_field_standard_6: u32,
+        pre_defined_error_field_standard_7: u32,
+        pre_defined_error_field_standard_8: u32,
+        pre_defined_error_field_standard_9: u32,
+        pre_defined_error_field_standard_10: u32,
         cob_id_sync_message: u32,
         communication_cycle_period: u32,
         manufacturer_device_name: ::od_runtime::__private_v2::Bytes<32>,
@@ -17030,9 +16923,9 @@ Denotation=MOTOR.BRAKEIMM
         guard_time: u16,
         life_time_factor: u8,
         store_parameters_number_of_entries: u8,
-        store_parameters_save_all_parameters: u32,
+        store_parameters_save_all: u32,
         restore_default_parameters_number_of_entries: u8,
-        restore_default_parameters_restore_all_default_parameters: u32,
+        restore_default_parameters_all: u32,
         cob_id_emcy: u32,
         consumer_heartbeat_time_number_of_entries: u8,
         consumer_heartbeat_time_1: u32,
@@ -17046,16 +16939,16 @@ Denotation=MOTOR.BRAKEIMM
         os_prompt_std_in: u8,
         os_prompt_std_out: u8,
         receive_pdo_1_communication_parameter_number_of_entries: u8,
-        receive_pdo_1_communication_parameter_cob_id_used_by_pdo: u32,
+        receive_pdo_1_communication_parameter_cob_id: u32,
         receive_pdo_1_communication_parameter_transmission_type: u8,
         receive_pdo_2_communication_parameter_number_of_entries: u8,
-        receive_pdo_2_communication_parameter_cob_id_used_by_pdo: u32,
+        receive_pdo_2_communication_parameter_cob_id: u32,
         receive_pdo_2_communication_parameter_transmission_type: u8,
         receive_pdo_3_communication_parameter_number_of_entries: u8,
-        receive_pdo_3_communication_parameter_cob_id_used_by_pdo: u32,
+        receive_pdo_3_communication_parameter_cob_id: u32,
         receive_pdo_3_communication_parameter_transmission_type: u8,
         receive_pdo_4_communication_parameter_number_of_entries: u8,
-        receive_pdo_4_communication_parameter_cob_id_used_by_pdo: u32,
+        receive_pdo_4_communication_parameter_cob_id: u32,
         receive_pdo_4_communication_parameter_transmission_type: u8,
         receive_pdo_1_mapping_parameter_number_of_mapped_objects: u8,
         receive_pdo_1_mapping_parameter_mapped_object_1: u32,
@@ -17094,25 +16987,25 @@ Denotation=MOTOR.BRAKEIMM
         receive_pdo_4_mapping_parameter_mapped_object_7: u32,
         receive_pdo_4_mapping_parameter_mapped_object_8: u32,
         transmit_pdo_1_communication_parameter_number_of_entries: u8,
-        transmit_pdo_1_communication_parameter_cob_id_used_by_pdo: u32,
+        transmit_pdo_1_communication_parameter_cob_id: u32,
         transmit_pdo_1_communication_parameter_transmission_type: u8,
         transmit_pdo_1_communication_parameter_inhibit_time: u16,
         transmit_pdo_1_communication_parameter_reserved: u8,
         transmit_pdo_1_communication_parameter_event_timer: u16,
         transmit_pdo_2_communication_parameter_number_of_entries: u8,
-        transmit_pdo_2_communication_parameter_cob_id_used_by_pdo: u32,
+        transmit_pdo_2_communication_parameter_cob_id: u32,
         transmit_pdo_2_communication_parameter_transmission_type: u8,
         transmit_pdo_2_communication_parameter_inhibit_time: u16,
         transmit_pdo_2_communication_parameter_reserved: u8,
         transmit_pdo_2_communication_parameter_event_timer: u16,
         transmit_pdo_3_communication_parameter_number_of_entries: u8,
-        transmit_pdo_3_communication_parameter_cob_id_used_by_pdo: u32,
+        transmit_pdo_3_communication_parameter_cob_id: u32,
         transmit_pdo_3_communication_parameter_transmission_type: u8,
         transmit_pdo_3_communication_parameter_inhibit_time: u16,
         transmit_pdo_3_communication_parameter_reserved: u8,
         transmit_pdo_3_communication_parameter_event_timer: u16,
         transmit_pdo_4_communication_parameter_number_of_entries: u8,
-        transmit_pdo_4_communication_parameter_cob_id_used_by_pdo: u32,
+        transmit_pdo_4_communication_parameter_cob_id: u32,
         transmit_pdo_4_communication_parameter_transmission_type: u8,
         transmit_pdo_4_communication_parameter_inhibit_time: u16,
         transmit_pdo_4_communication_parameter_reserved: u8,
@@ -17166,10 +17059,10 @@ Denotation=MOTOR.BRAKEIMM
         transmit_pdo_4_mask_bytes_0_to_3: u32,
         transmit_pdo_4_mask_bytes_4_to_7: u32,
         firmware_version_number_of_entries: u8,
-        firmware_version_major_version: u16,
-        firmware_version_minor_version: u16,
+        firmware_version_major: u16,
+        firmware_version_minor: u16,
         firmware_version_revision: u16,
-        firmware_version_derived_version: u16,
+        firmware_version_derived: u16,
         ascii_channel_number_of_entries: u8,
         ascii_channel_command: ::od_runtime::__private_v2::Bytes<32>,
         ascii_channel_response: ::od_runtime::__private_v2::Bytes<32>,
@@ -17194,27 +17087,27 @@ Denotation=MOTOR.BRAKEIMM
         velocity_loop_bi_quad_filter_types_3_calculation_method: u8,
         velocity_loop_bi_quad_filter_types_4_calculation_method: u8,
         velocity_loop_bi_quad_filters_number_of_entries: u8,
-        vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency: u32,
-        vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency: u32,
-        vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency: u32,
-        vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency: u32,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q: u32,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q: u32,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q: u32,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q: u32,
-        vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency: u32,
-        vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency: u32,
-        vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency: u32,
-        vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency: u32,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q: u32,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q: u32,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q: u32,
-        velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q: u32,
+        vel_loop_quad_filters_anti_resonance_1_pole_natural_frequency: u32,
+        vel_loop_quad_filters_anti_resonance_2_pole_natural_frequency: u32,
+        vel_loop_quad_filters_anti_resonance_3_pole_natural_frequency: u32,
+        vel_loop_quad_filters_anti_resonance_4_pole_natural_frequency: u32,
+        velocity_loop_bi_quad_filters_anti_resonance_1_pole_q: u32,
+        velocity_loop_bi_quad_filters_anti_resonance_2_pole_q: u32,
+        velocity_loop_bi_quad_filters_anti_resonance_3_pole_q: u32,
+        velocity_loop_bi_quad_filters_anti_resonance_4_pole_q: u32,
+        vel_loop_quad_filters_anti_resonance_1_zero_natural_frequency: u32,
+        vel_loop_quad_filters_anti_resonance_2_zero_natural_frequency: u32,
+        vel_loop_quad_filters_anti_resonance_3_zero_natural_frequency: u32,
+        vel_loop_quad_filters_anti_resonance_4_zero_natural_frequency: u32,
+        velocity_loop_bi_quad_filters_anti_resonance_1_zero_q: u32,
+        velocity_loop_bi_quad_filters_anti_resonance_2_zero_q: u32,
+        velocity_loop_bi_quad_filters_anti_resonance_3_zero_q: u32,
+        velocity_loop_bi_quad_filters_anti_resonance_4_zero_q: u32,
         velocity_loop_filter_and_feedforward_number_of_entries: u8,
         velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz: i32,
-        velocity_loop_filter_and_feedforward_velocity_feedforward_gain: u32,
+        velocity_loop_filter_and_feedforward_gain: u32,
         velocity_loop_filter_and_feedforward_acceleration_gain: u32,
-        velocity_loop_filter_and_feedforward_velocity_error: u32,
+        velocity_loop_filter_and_feedforward_error: u32,
         regen_resistor_type: i8,
         regen_resistor_fault_level: u8,
         regen_resistor_thermal_time_constant: u32,
@@ -17227,14 +17120,14 @@ Denotation=MOTOR.BRAKEIMM
         overall_foldback_current_limit: u32,
         current_loop_acceleration_feedforward_gain: u32,
         motor_protection_parameters_number_of_entries: u8,
-        motor_protection_parameters_motor_protection_mode: u8,
-        motor_protection_parameters_motor_i2t_warning_threshold: u8,
-        motor_protection_parameters_motor_i2t_load: u32,
+        motor_protection_parameters_mode: u8,
+        motor_protection_parameters_i2t_warning_threshold: u8,
+        motor_protection_parameters_i2t_load: u32,
         direction_for_absolute_motion_tasks: u8,
         motion_task_setting: u16,
         controlled_stop_parameters_number_of_entries: u8,
-        controlled_stop_parameters_controlled_stop_deceleration: u32,
-        controlled_stop_parameters_controlled_stop_velocity_threshold: u32,
+        controlled_stop_parameters_deceleration: u32,
+        controlled_stop_parameters_velocity_threshold: u32,
         controlled_stop_parameters_velocity_threshold_time: u32,
         controlled_stop_state: u8,
         drive_disable_cause: u16,
@@ -17248,51 +17141,51 @@ Denotation=MOTOR.BRAKEIMM
         motor_quadrature_inductance_line_to_line: u32,
         motor_stator_winding_resistance_phase_to_phase: u32,
         induction_motor_parameters_number_of_entries: u8,
-        induction_motor_parameters_induction_motor_rated_velocity: i32,
-        induction_motor_parameters_induction_motor_rated_voltage: u16,
+        induction_motor_parameters_rated_velocity: i32,
+        induction_motor_parameters_rated_voltage: u16,
         induction_motor_parameters_minimum_voltage_for_v_f_control: u16,
         capture_engine_parameters_number_of_entries: u8,
-        capture_engine_parameters_capture_0_trigger_source: u8,
-        capture_engine_parameters_capture_1_trigger_source: u8,
-        capture_engine_parameters_capture_0_mode: u8,
-        capture_engine_parameters_capture_1_mode: u8,
-        capture_engine_parameters_capture_0_precondition_logic: u8,
-        capture_engine_parameters_capture_1_precondition_logic: u8,
-        capture_engine_parameters_capture_0_precondition_edge: u8,
-        capture_engine_parameters_capture_1_precondition_edge: u8,
-        capture_engine_parameters_capture_0_precondition_trigger: u8,
-        capture_engine_parameters_capture_1_precondition_trigger: u8,
+        capture_engine_parameters_0_trigger_source: u8,
+        capture_engine_parameters_1_trigger_source: u8,
+        capture_engine_parameters_0_mode: u8,
+        capture_engine_parameters_1_mode: u8,
+        capture_engine_parameters_0_precondition_logic: u8,
+        capture_engine_parameters_1_precondition_logic: u8,
+        capture_engine_parameters_0_precondition_edge: u8,
+        capture_engine_parameters_1_precondition_edge: u8,
+        capture_engine_parameters_0_precondition_trigger: u8,
+        capture_engine_parameters_1_precondition_trigger: u8,
         analog_input_and_output_parameters_number_of_entries: u8,
-        analog_input_and_output_parameters_analog_output_mode: i8,
-        analog_input_and_output_parameters_analog_output_value: i16,
+        analog_input_and_output_parameters_mode: i8,
+        analog_input_and_output_parameters_output_value: i16,
         analog_input_and_output_parameters_value_user_units: i16,
-        analog_input_and_output_parameters_analog_input_value: i16,
+        analog_input_and_output_parameters_input_value: i16,
         analog_input_and_output_parameters_velocity_scale_factor: u32,
         analog_output_position_scale_factor: u32,
         analog_input_position_scale_factor: u32,
         digital_input_parameters_number_of_entries: u8,
-        digital_input_parameters_digital_input_1_parameter_low_32_bits: u32,
-        digital_input_parameters_digital_input_2_parameter_low_32_bits: u32,
-        digital_input_parameters_digital_input_3_parameter_low_32_bits: u32,
-        digital_input_parameters_digital_input_4_parameter_low_32_bits: u32,
-        digital_input_parameters_digital_input_5_parameter_low_32_bits: u32,
-        digital_input_parameters_digital_input_6_parameter_low_32_bits: u32,
-        digital_input_parameters_digital_input_7_parameter_low_32_bits: u32,
-        digital_input_parameters_digital_input_1_parameter_high_32_bits: u32,
-        digital_input_parameters_digital_input_2_parameter_high_32_bits: u32,
-        digital_input_parameters_digital_input_3_parameter_high_32_bits: u32,
-        digital_input_parameters_digital_input_4_parameter_high_32_bits: u32,
-        digital_input_parameters_digital_input_5_parameter_high_32_bits: u32,
-        digital_input_parameters_digital_input_6_parameter_high_32_bits: u32,
-        digital_input_parameters_digital_input_7_parameter_high_32_bits: u32,
+        digital_input_parameters_1_low_32_bits: u32,
+        digital_input_parameters_2_low_32_bits: u32,
+        digital_input_parameters_3_low_32_bits: u32,
+        digital_input_parameters_4_low_32_bits: u32,
+        digital_input_parameters_5_low_32_bits: u32,
+        digital_input_parameters_6_low_32_bits: u32,
+        digital_input_parameters_7_low_32_bits: u32,
+        digital_input_parameters_1_high_32_bits: u32,
+        digital_input_parameters_2_high_32_bits: u32,
+        digital_input_parameters_3_high_32_bits: u32,
+        digital_input_parameters_4_high_32_bits: u32,
+        digital_input_parameters_5_high_32_bits: u32,
+        digital_input_parameters_6_high_32_bits: u32,
+        digital_input_parameters_7_high_32_bits: u32,
         digital_output_parameters_number_of_entries: u8,
-        digital_output_parameters_1_parameter_low_32_bits: u32,
-        digital_output_parameters_2_parameter_low_32_bits: u32,
-        digital_output_parameters_1_parameter_high_32_bits: u32,
-        digital_output_parameters_2_parameter_high_32_bits: u32,
+        digital_output_parameters_1_low_32_bits: u32,
+        digital_output_parameters_2_low_32_bits: u32,
+        digital_output_parameters_1_high_32_bits: u32,
+        digital_output_parameters_2_high_32_bits: u32,
         position_loop_integral_gain: u32,
         position_loop_integrator_saturation_number_of_entries: u8,
-        position_loop_integrator_saturation_integrator_input_saturation: u32,
+        position_loop_integrator_saturation_input: u32,
         position_loop_integrator_saturation_output: u32,
         homing_maximum_following_error: i32,
         position_error_warning_level: i32,
@@ -17302,49 +17195,49 @@ Denotation=MOTOR.BRAKEIMM
         drive_motion_status: u32,
         emulated_encoder_output_direction: u8,
         wake_and_shake_parameters_number_of_entries: u8,
-        wake_and_shake_parameters_wake_and_shake_maximum_current: i16,
-        wake_and_shake_parameters_wake_and_shake_maximum_movement: i32,
+        wake_and_shake_parameters_maximum_current: i16,
+        wake_and_shake_parameters_maximum_movement: i32,
         wake_and_shake_parameters_delay_between_loops_in_mode_0: u16,
-        wake_and_shake_parameters_wake_and_shake_maximum_velocity: i32,
-        wake_and_shake_parameters_wake_and_shake_state: u8,
-        wake_and_shake_parameters_wake_and_shake_arm: u8,
+        wake_and_shake_parameters_maximum_velocity: i32,
+        wake_and_shake_parameters_state: u8,
+        wake_and_shake_parameters_arm: u8,
         fieldbus_synchronization_parameters_number_of_entries: u8,
         fieldbus_synchronization_parameters_expected_distance: u32,
         fieldbus_synchronization_parameters_actual_distance: u32,
-        fieldbus_synchronization_parameters_synchronization_window: u32,
+        fieldbus_synchronization_parameters_window: u32,
         fieldbus_synchronization_parameters_compensation_time: u32,
         programmable_limit_switch_positions_number_of_entries: u8,
-        programmable_limit_switch_positions_1_compare_position: i32,
-        programmable_limit_switch_positions_2_compare_position: i32,
-        programmable_limit_switch_positions_3_compare_position: i32,
-        programmable_limit_switch_positions_4_compare_position: i32,
-        programmable_limit_switch_positions_5_compare_position: i32,
-        programmable_limit_switch_positions_6_compare_position: i32,
-        programmable_limit_switch_positions_7_compare_position: i32,
-        programmable_limit_switch_positions_8_compare_position: i32,
+        programmable_limit_switch_positions_1_compare: i32,
+        programmable_limit_switch_positions_2_compare: i32,
+        programmable_limit_switch_positions_3_compare: i32,
+        programmable_limit_switch_positions_4_compare: i32,
+        programmable_limit_switch_positions_5_compare: i32,
+        programmable_limit_switch_positions_6_compare: i32,
+        programmable_limit_switch_positions_7_compare: i32,
+        programmable_limit_switch_positions_8_compare: i32,
         programmable_limit_switch_widths_number_of_entries: u8,
-        programmable_limit_switch_widths_limit_switch_1_width: i32,
-        programmable_limit_switch_widths_limit_switch_2_width: i32,
-        programmable_limit_switch_widths_limit_switch_3_width: i32,
-        programmable_limit_switch_widths_limit_switch_4_width: i32,
-        programmable_limit_switch_widths_limit_switch_5_width: i32,
-        programmable_limit_switch_widths_limit_switch_6_width: i32,
-        programmable_limit_switch_widths_limit_switch_7_width: i32,
-        programmable_limit_switch_widths_limit_switch_8_width: i32,
+        programmable_limit_switch_widths_1: i32,
+        programmable_limit_switch_widths_2: i32,
+        programmable_limit_switch_widths_3: i32,
+        programmable_limit_switch_widths_4: i32,
+        programmable_limit_switch_widths_5: i32,
+        programmable_limit_switch_widths_6: i32,
+        programmable_limit_switch_widths_7: i32,
+        programmable_limit_switch_widths_8: i32,
         programmable_limit_switch_times_number_of_entries: u8,
-        programmable_limit_switch_times_limit_switch_1_time: u16,
-        programmable_limit_switch_times_limit_switch_2_time: u16,
-        programmable_limit_switch_times_limit_switch_3_time: u16,
-        programmable_limit_switch_times_limit_switch_4_time: u16,
-        programmable_limit_switch_times_limit_switch_5_time: u16,
-        programmable_limit_switch_times_limit_switch_6_time: u16,
-        programmable_limit_switch_times_limit_switch_7_time: u16,
-        programmable_limit_switch_times_limit_switch_8_time: u16,
+        programmable_limit_switch_times_1: u16,
+        programmable_limit_switch_times_2: u16,
+        programmable_limit_switch_times_3: u16,
+        programmable_limit_switch_times_4: u16,
+        programmable_limit_switch_times_5: u16,
+        programmable_limit_switch_times_6: u16,
+        programmable_limit_switch_times_7: u16,
+        programmable_limit_switch_times_8: u16,
         programmable_limit_switch_configuration_number_of_entries: u8,
-        programmable_limit_switch_configuration_limit_switch_enable: u16,
-        programmable_limit_switch_configuration_limit_switch_reset: u16,
-        programmable_limit_switch_configuration_limit_switch_mode: u16,
-        programmable_limit_switch_configuration_limit_switch_state: u16,
+        programmable_limit_switch_configuration_enable: u16,
+        programmable_limit_switch_configuration_reset: u16,
+        programmable_limit_switch_configuration_mode: u16,
+        programmable_limit_switch_configuration_state: u16,
         programmable_limit_switch_units: u8,
         acceleration_ramp: i32,
         homing_and_jog_acceleration_ramp: i32,
@@ -17547,13 +17440,13 @@ Denotation=MOTOR.BRAKEIMM
         target_position: i32,
         home_offset: i32,
         software_position_limit_number_of_entries: u8,
-        software_position_limit_min_position_limit: i32,
-        software_position_limit_max_position_limit: i32,
+        software_position_limit_min: i32,
+        software_position_limit_max: i32,
         profile_velocity: u32,
         profile_acceleration: u32,
         profile_deceleration: u32,
         position_encoder_resolution_number_of_entries: u8,
-        position_encoder_resolution_encoder_increments: u32,
+        position_encoder_resolution_increments: u32,
         position_encoder_resolution_motor_revolutions: u32,
         gear_ratio_number_of_entries: u8,
         gear_ratio_motor_shaft_revolutions: u32,
@@ -17563,8 +17456,8 @@ Denotation=MOTOR.BRAKEIMM
         feed_constant_shaft_revolutions: u32,
         homing_method: i8,
         homing_speeds_number_of_entries: u8,
-        homing_speeds_speed_during_search_for_switch: u32,
-        homing_speeds_speed_during_search_for_zero: u32,
+        homing_speeds_during_search_for_switch: u32,
+        homing_speeds_during_search_for_zero: u32,
         homing_acceleration: u32,
         velocity_offset: i32,
         torque_offset: i16,
@@ -17576,12 +17469,12 @@ Denotation=MOTOR.BRAKEIMM
         touch_probe_2_negative_edge: i32,
         interpolation_sub_mode_select: i16,
         interpolation_data_record_number_of_entries: u8,
-        interpolation_data_record_interpolation_target_position: i32,
-        interpolation_data_record_interpolation_time: u32,
-        interpolation_data_record_interpolation_target_velocity: i32,
+        interpolation_data_record_target_position: i32,
+        interpolation_data_record_time: u32,
+        interpolation_data_record_target_velocity: i32,
         interpolation_time_period_number_of_entries: u8,
         interpolation_time_period_value: u8,
-        interpolation_time_period_interpolation_time_index: i16,
+        interpolation_time_period_index: i16,
         interpolation_data_configuration_number_of_entries: u8,
         interpolation_data_configuration_maximum_buffer_size: u32,
         interpolation_data_configuration_actual_buffer_size: u32,
@@ -17590,12 +17483,12 @@ Denotation=MOTOR.BRAKEIMM
         interpolation_data_configuration_size_of_data_record: u8,
         interpolation_data_configuration_buffer_clear: u8,
         touch_probe_source_number_of_entries: u8,
-        touch_probe_source_touch_probe_1_source: i16,
-        touch_probe_source_touch_probe_2_source: i16,
+        touch_probe_source_1: i16,
+        touch_probe_source_2: i16,
         following_error_actual_value: i32,
         digital_inputs: u32,
         digital_outputs_number_of_entries: u8,
-        digital_outputs_physical_outputs: u32,
+        digital_outputs_physical: u32,
         digital_outputs_bit_mask: u32,
         target_velocity: i32,
         supported_drive_modes: u32,
@@ -17608,16 +17501,16 @@ Denotation=MOTOR.BRAKEIMM
                 error_register: 0x0,
                 manufacturer_status_register: 0x0,
                 pre_defined_error_field_number_of_errors: 0,
-                pre_defined_error_field_standard_error_field_1: 0x0,
-                pre_defined_error_field_standard_error_field_2: 0x0,
-                pre_defined_error_field_standard_error_field_3: 0x0,
-                pre_defined_error_field_standard_error_field_4: 0x0,
-                pre_defined_error_field_standard_error_field_5: 0x0,
-                pre_defined_error_field_standard_error_field_6: 0x0,
-                pre_defined_error_field_standard_error_field_7: 0x0,
-                pre_defined_error_field_standard_error_field_8: 0x0,
-                pre_defined_error_field_standard_error_field_9: 0x0,
-                pre_defined_error_field_standard_error_field_10: 0x0,
+                pre_defined_error_field_standard_1: 0x0,
+                pre_defined_error_field_standard_2: 0x0,
+                pre_defined_error_field_standard_3: 0x0,
+                pre_defined_error_field_standard_4: 0x0,
+                pre_defined_error_field_standard_5: 0x0,
+                pre_defined_error_field_standard_6: 0x0,
+                pre_defined_error_field_standard_7: 0x0,
+                pre_defined_error_field_standard_8: 0x0,
+                pre_defined_error_field_standard_9: 0x0,
+                pre_defined_error_field_standard_10: 0x0,
                 cob_id_sync_message: 0x80,
                 communication_cycle_period: 0x0,
                 manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
@@ -17632,9 +17525,9 @@ Denotation=MOTOR.BRAKEIMM
                 guard_time: 0,
                 life_time_factor: 0,
                 store_parameters_number_of_entries: 1,
-                store_parameters_save_all_parameters: 0x1,
+                store_parameters_save_all: 0x1,
                 restore_default_parameters_number_of_entries: 1,
-                restore_default_parameters_restore_all_default_parameters: 0x1,
+                restore_default_parameters_all: 0x1,
                 cob_id_emcy: (0x80 + node_id as i128) as u32,
                 consumer_heartbeat_time_number_of_entries: 1,
                 consumer_heartbeat_time_1: 0x0,
@@ -17648,20 +17541,20 @@ Denotation=MOTOR.BRAKEIMM
                 os_prompt_std_in: 0,
                 os_prompt_std_out: 0,
                 receive_pdo_1_communication_parameter_number_of_entries: 2,
-                receive_pdo_1_communication_parameter_cob_id_used_by_pdo: (0x200
-                    + node_id as i128) as u32,
+                receive_pdo_1_communication_parameter_cob_id: (0x200 + node_id as i128)
+                    as u32,
                 receive_pdo_1_communication_parameter_transmission_type: 255,
                 receive_pdo_2_communication_parameter_number_of_entries: 2,
-                receive_pdo_2_communication_parameter_cob_id_used_by_pdo: (0x300
-                    + node_id as i128) as u32,
+                receive_pdo_2_communication_parameter_cob_id: (0x300 + node_id as i128)
+                    as u32,
                 receive_pdo_2_communication_parameter_transmission_type: 255,
                 receive_pdo_3_communication_parameter_number_of_entries: 2,
-                receive_pdo_3_communication_parameter_cob_id_used_by_pdo: (0x400
-                    + node_id as i128) as u32,
+                receive_pdo_3_communication_parameter_cob_id: (0x400 + node_id as i128)
+                    as u32,
                 receive_pdo_3_communication_parameter_transmission_type: 255,
                 receive_pdo_4_communication_parameter_number_of_entries: 2,
-                receive_pdo_4_communication_parameter_cob_id_used_by_pdo: (0x500
-                    + node_id as i128) as u32,
+                receive_pdo_4_communication_parameter_cob_id: (0x500 + node_id as i128)
+                    as u32,
                 receive_pdo_4_communication_parameter_transmission_type: 255,
                 receive_pdo_1_mapping_parameter_number_of_mapped_objects: 1,
                 receive_pdo_1_mapping_parameter_mapped_object_1: 0x60400010,
@@ -17700,29 +17593,29 @@ Denotation=MOTOR.BRAKEIMM
                 receive_pdo_4_mapping_parameter_mapped_object_7: 0x0,
                 receive_pdo_4_mapping_parameter_mapped_object_8: 0x0,
                 transmit_pdo_1_communication_parameter_number_of_entries: 5,
-                transmit_pdo_1_communication_parameter_cob_id_used_by_pdo: (0x180
-                    + node_id as i128) as u32,
+                transmit_pdo_1_communication_parameter_cob_id: (0x180 + node_id as i128)
+                    as u32,
                 transmit_pdo_1_communication_parameter_transmission_type: 255,
                 transmit_pdo_1_communication_parameter_inhibit_time: 0,
                 transmit_pdo_1_communication_parameter_reserved: 0,
                 transmit_pdo_1_communication_parameter_event_timer: 0,
                 transmit_pdo_2_communication_parameter_number_of_entries: 5,
-                transmit_pdo_2_communication_parameter_cob_id_used_by_pdo: (0x280
-                    + node_id as i128) as u32,
+                transmit_pdo_2_communication_parameter_cob_id: (0x280 + node_id as i128)
+                    as u32,
                 transmit_pdo_2_communication_parameter_transmission_type: 255,
                 transmit_pdo_2_communication_parameter_inhibit_time: 0,
                 transmit_pdo_2_communication_parameter_reserved: 0,
                 transmit_pdo_2_communication_parameter_event_timer: 0,
                 transmit_pdo_3_communication_parameter_number_of_entries: 5,
-                transmit_pdo_3_communication_parameter_cob_id_used_by_pdo: (0x380
-                    + node_id as i128) as u32,
+                transmit_pdo_3_communication_parameter_cob_id: (0x380 + node_id as i128)
+                    as u32,
                 transmit_pdo_3_communication_parameter_transmission_type: 255,
                 transmit_pdo_3_communication_parameter_inhibit_time: 0,
                 transmit_pdo_3_communication_parameter_reserved: 0,
                 transmit_pdo_3_communication_parameter_event_timer: 0,
                 transmit_pdo_4_communication_parameter_number_of_entries: 5,
-                transmit_pdo_4_communication_parameter_cob_id_used_by_pdo: (0x480
-                    + node_id as i128) as u32,
+                transmit_pdo_4_communication_parameter_cob_id: (0x480 + node_id as i128)
+                    as u32,
                 transmit_pdo_4_communication_parameter_transmission_type: 255,
                 transmit_pdo_4_communication_parameter_inhibit_time: 0,
                 transmit_pdo_4_communication_parameter_reserved: 0,
@@ -17776,10 +17669,10 @@ Denotation=MOTOR.BRAKEIMM
                 transmit_pdo_4_mask_bytes_0_to_3: 0xFFFFFFFF,
                 transmit_pdo_4_mask_bytes_4_to_7: 0xFFFFFFFF,
                 firmware_version_number_of_entries: 4,
-                firmware_version_major_version: 0,
-                firmware_version_minor_version: 0,
+                firmware_version_major: 0,
+                firmware_version_minor: 0,
                 firmware_version_revision: 0,
-                firmware_version_derived_version: 0,
+                firmware_version_derived: 0,
                 ascii_channel_number_of_entries: 2,
                 ascii_channel_command: ::od_runtime::__private_v2::Bytes::from_slice(
                     b"",
@@ -17808,27 +17701,27 @@ Denotation=MOTOR.BRAKEIMM
                 velocity_loop_bi_quad_filter_types_3_calculation_method: 0,
                 velocity_loop_bi_quad_filter_types_4_calculation_method: 0,
                 velocity_loop_bi_quad_filters_number_of_entries: 16,
-                vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency: 0,
-                vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency: 0,
-                vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency: 0,
-                vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q: 0,
-                vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency: 0,
-                vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency: 0,
-                vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency: 0,
-                vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q: 0,
+                vel_loop_quad_filters_anti_resonance_1_pole_natural_frequency: 0,
+                vel_loop_quad_filters_anti_resonance_2_pole_natural_frequency: 0,
+                vel_loop_quad_filters_anti_resonance_3_pole_natural_frequency: 0,
+                vel_loop_quad_filters_anti_resonance_4_pole_natural_frequency: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_1_pole_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_2_pole_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_3_pole_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_4_pole_q: 0,
+                vel_loop_quad_filters_anti_resonance_1_zero_natural_frequency: 0,
+                vel_loop_quad_filters_anti_resonance_2_zero_natural_frequency: 0,
+                vel_loop_quad_filters_anti_resonance_3_zero_natural_frequency: 0,
+                vel_loop_quad_filters_anti_resonance_4_zero_natural_frequency: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_1_zero_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_2_zero_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_3_zero_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_4_zero_q: 0,
                 velocity_loop_filter_and_feedforward_number_of_entries: 4,
                 velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz: 0,
-                velocity_loop_filter_and_feedforward_velocity_feedforward_gain: 0,
+                velocity_loop_filter_and_feedforward_gain: 0,
                 velocity_loop_filter_and_feedforward_acceleration_gain: 0,
-                velocity_loop_filter_and_feedforward_velocity_error: 0,
+                velocity_loop_filter_and_feedforward_error: 0,
                 regen_resistor_type: 0,
                 regen_resistor_fault_level: 0,
                 regen_resistor_thermal_time_constant: 0,
@@ -17841,14 +17734,14 @@ Denotation=MOTOR.BRAKEIMM
                 overall_foldback_current_limit: 0,
                 current_loop_acceleration_feedforward_gain: 0,
                 motor_protection_parameters_number_of_entries: 3,
-                motor_protection_parameters_motor_protection_mode: 0,
-                motor_protection_parameters_motor_i2t_warning_threshold: 0,
-                motor_protection_parameters_motor_i2t_load: 0,
+                motor_protection_parameters_mode: 0,
+                motor_protection_parameters_i2t_warning_threshold: 0,
+                motor_protection_parameters_i2t_load: 0,
                 direction_for_absolute_motion_tasks: 0,
                 motion_task_setting: 0,
                 controlled_stop_parameters_number_of_entries: 3,
-                controlled_stop_parameters_controlled_stop_deceleration: 0,
-                controlled_stop_parameters_controlled_stop_velocity_threshold: 0,
+                controlled_stop_parameters_deceleration: 0,
+                controlled_stop_parameters_velocity_threshold: 0,
                 controlled_stop_parameters_velocity_threshold_time: 0,
                 controlled_stop_state: 0,
                 drive_disable_cause: 0,
@@ -17862,51 +17755,51 @@ Denotation=MOTOR.BRAKEIMM
                 motor_quadrature_inductance_line_to_line: 0,
                 motor_stator_winding_resistance_phase_to_phase: 0,
                 induction_motor_parameters_number_of_entries: 3,
-                induction_motor_parameters_induction_motor_rated_velocity: 0,
-                induction_motor_parameters_induction_motor_rated_voltage: 0,
+                induction_motor_parameters_rated_velocity: 0,
+                induction_motor_parameters_rated_voltage: 0,
                 induction_motor_parameters_minimum_voltage_for_v_f_control: 0,
                 capture_engine_parameters_number_of_entries: 10,
-                capture_engine_parameters_capture_0_trigger_source: 0,
-                capture_engine_parameters_capture_1_trigger_source: 0,
-                capture_engine_parameters_capture_0_mode: 0,
-                capture_engine_parameters_capture_1_mode: 0,
-                capture_engine_parameters_capture_0_precondition_logic: 0,
-                capture_engine_parameters_capture_1_precondition_logic: 0,
-                capture_engine_parameters_capture_0_precondition_edge: 0,
-                capture_engine_parameters_capture_1_precondition_edge: 0,
-                capture_engine_parameters_capture_0_precondition_trigger: 0,
-                capture_engine_parameters_capture_1_precondition_trigger: 0,
+                capture_engine_parameters_0_trigger_source: 0,
+                capture_engine_parameters_1_trigger_source: 0,
+                capture_engine_parameters_0_mode: 0,
+                capture_engine_parameters_1_mode: 0,
+                capture_engine_parameters_0_precondition_logic: 0,
+                capture_engine_parameters_1_precondition_logic: 0,
+                capture_engine_parameters_0_precondition_edge: 0,
+                capture_engine_parameters_1_precondition_edge: 0,
+                capture_engine_parameters_0_precondition_trigger: 0,
+                capture_engine_parameters_1_precondition_trigger: 0,
                 analog_input_and_output_parameters_number_of_entries: 5,
-                analog_input_and_output_parameters_analog_output_mode: 0,
-                analog_input_and_output_parameters_analog_output_value: 0,
+                analog_input_and_output_parameters_mode: 0,
+                analog_input_and_output_parameters_output_value: 0,
                 analog_input_and_output_parameters_value_user_units: 0,
-                analog_input_and_output_parameters_analog_input_value: 0,
+                analog_input_and_output_parameters_input_value: 0,
                 analog_input_and_output_parameters_velocity_scale_factor: 0,
                 analog_output_position_scale_factor: 0,
                 analog_input_position_scale_factor: 0,
                 digital_input_parameters_number_of_entries: 14,
-                digital_input_parameters_digital_input_1_parameter_low_32_bits: 0,
-                digital_input_parameters_digital_input_2_parameter_low_32_bits: 0,
-                digital_input_parameters_digital_input_3_parameter_low_32_bits: 0,
-                digital_input_parameters_digital_input_4_parameter_low_32_bits: 0,
-                digital_input_parameters_digital_input_5_parameter_low_32_bits: 0,
-                digital_input_parameters_digital_input_6_parameter_low_32_bits: 0,
-                digital_input_parameters_digital_input_7_parameter_low_32_bits: 0,
-                digital_input_parameters_digital_input_1_parameter_high_32_bits: 0,
-                digital_input_parameters_digital_input_2_parameter_high_32_bits: 0,
-                digital_input_parameters_digital_input_3_parameter_high_32_bits: 0,
-                digital_input_parameters_digital_input_4_parameter_high_32_bits: 0,
-                digital_input_parameters_digital_input_5_parameter_high_32_bits: 0,
-                digital_input_parameters_digital_input_6_parameter_high_32_bits: 0,
-                digital_input_parameters_digital_input_7_parameter_high_32_bits: 0,
+                digital_input_parameters_1_low_32_bits: 0,
+                digital_input_parameters_2_low_32_bits: 0,
+                digital_input_parameters_3_low_32_bits: 0,
+                digital_input_parameters_4_low_32_bits: 0,
+                digital_input_parameters_5_low_32_bits: 0,
+                digital_input_parameters_6_low_32_bits: 0,
+                digital_input_parameters_7_low_32_bits: 0,
+                digital_input_parameters_1_high_32_bits: 0,
+                digital_input_parameters_2_high_32_bits: 0,
+                digital_input_parameters_3_high_32_bits: 0,
+                digital_input_parameters_4_high_32_bits: 0,
+                digital_input_parameters_5_high_32_bits: 0,
+                digital_input_parameters_6_high_32_bits: 0,
+                digital_input_parameters_7_high_32_bits: 0,
                 digital_output_parameters_number_of_entries: 4,
-                digital_output_parameters_1_parameter_low_32_bits: 0,
-                digital_output_parameters_2_parameter_low_32_bits: 0,
-                digital_output_parameters_1_parameter_high_32_bits: 0,
-                digital_output_parameters_2_parameter_high_32_bits: 0,
+                digital_output_parameters_1_low_32_bits: 0,
+                digital_output_parameters_2_low_32_bits: 0,
+                digital_output_parameters_1_high_32_bits: 0,
+                digital_output_parameters_2_high_32_bits: 0,
                 position_loop_integral_gain: 0,
                 position_loop_integrator_saturation_number_of_entries: 2,
-                position_loop_integrator_saturation_integrator_input_saturation: 0,
+                position_loop_integrator_saturation_input: 0,
                 position_loop_integrator_saturation_output: 0,
                 homing_maximum_following_error: 0,
                 position_error_warning_level: 0,
@@ -17916,49 +17809,49 @@ Denotation=MOTOR.BRAKEIMM
                 drive_motion_status: 0,
                 emulated_encoder_output_direction: 0,
                 wake_and_shake_parameters_number_of_entries: 6,
-                wake_and_shake_parameters_wake_and_shake_maximum_current: 0,
-                wake_and_shake_parameters_wake_and_shake_maximum_movement: 0,
+                wake_and_shake_parameters_maximum_current: 0,
+                wake_and_shake_parameters_maximum_movement: 0,
                 wake_and_shake_parameters_delay_between_loops_in_mode_0: 0,
-                wake_and_shake_parameters_wake_and_shake_maximum_velocity: 0,
-                wake_and_shake_parameters_wake_and_shake_state: 0,
-                wake_and_shake_parameters_wake_and_shake_arm: 0,
+                wake_and_shake_parameters_maximum_velocity: 0,
+                wake_and_shake_parameters_state: 0,
+                wake_and_shake_parameters_arm: 0,
                 fieldbus_synchronization_parameters_number_of_entries: 4,
                 fieldbus_synchronization_parameters_expected_distance: 320000,
                 fieldbus_synchronization_parameters_actual_distance: 320000,
-                fieldbus_synchronization_parameters_synchronization_window: 70000,
+                fieldbus_synchronization_parameters_window: 70000,
                 fieldbus_synchronization_parameters_compensation_time: 150,
                 programmable_limit_switch_positions_number_of_entries: 8,
-                programmable_limit_switch_positions_1_compare_position: 0,
-                programmable_limit_switch_positions_2_compare_position: 0,
-                programmable_limit_switch_positions_3_compare_position: 0,
-                programmable_limit_switch_positions_4_compare_position: 0,
-                programmable_limit_switch_positions_5_compare_position: 0,
-                programmable_limit_switch_positions_6_compare_position: 0,
-                programmable_limit_switch_positions_7_compare_position: 0,
-                programmable_limit_switch_positions_8_compare_position: 0,
+                programmable_limit_switch_positions_1_compare: 0,
+                programmable_limit_switch_positions_2_compare: 0,
+                programmable_limit_switch_positions_3_compare: 0,
+                programmable_limit_switch_positions_4_compare: 0,
+                programmable_limit_switch_positions_5_compare: 0,
+                programmable_limit_switch_positions_6_compare: 0,
+                programmable_limit_switch_positions_7_compare: 0,
+                programmable_limit_switch_positions_8_compare: 0,
                 programmable_limit_switch_widths_number_of_entries: 8,
-                programmable_limit_switch_widths_limit_switch_1_width: 0,
-                programmable_limit_switch_widths_limit_switch_2_width: 0,
-                programmable_limit_switch_widths_limit_switch_3_width: 0,
-                programmable_limit_switch_widths_limit_switch_4_width: 0,
-                programmable_limit_switch_widths_limit_switch_5_width: 0,
-                programmable_limit_switch_widths_limit_switch_6_width: 0,
-                programmable_limit_switch_widths_limit_switch_7_width: 0,
-                programmable_limit_switch_widths_limit_switch_8_width: 0,
+                programmable_limit_switch_widths_1: 0,
+                programmable_limit_switch_widths_2: 0,
+                programmable_limit_switch_widths_3: 0,
+                programmable_limit_switch_widths_4: 0,
+                programmable_limit_switch_widths_5: 0,
+                programmable_limit_switch_widths_6: 0,
+                programmable_limit_switch_widths_7: 0,
+                programmable_limit_switch_widths_8: 0,
                 programmable_limit_switch_times_number_of_entries: 8,
-                programmable_limit_switch_times_limit_switch_1_time: 0,
-                programmable_limit_switch_times_limit_switch_2_time: 0,
-                programmable_limit_switch_times_limit_switch_3_time: 0,
-                programmable_limit_switch_times_limit_switch_4_time: 0,
-                programmable_limit_switch_times_limit_switch_5_time: 0,
-                programmable_limit_switch_times_limit_switch_6_time: 0,
-                programmable_limit_switch_times_limit_switch_7_time: 0,
-                programmable_limit_switch_times_limit_switch_8_time: 0,
+                programmable_limit_switch_times_1: 0,
+                programmable_limit_switch_times_2: 0,
+                programmable_limit_switch_times_3: 0,
+                programmable_limit_switch_times_4: 0,
+                programmable_limit_switch_times_5: 0,
+                programmable_limit_switch_times_6: 0,
+                programmable_limit_switch_times_7: 0,
+                programmable_limit_switch_times_8: 0,
                 programmable_limit_switch_configuration_number_of_entries: 4,
-                programmable_limit_switch_configuration_limit_switch_enable: 0,
-                programmable_limit_switch_configuration_limit_switch_reset: 0,
-                programmable_limit_switch_configuration_limit_switch_mode: 0,
-                programmable_limit_switch_configuration_limit_switch_state: 0,
+                programmable_limit_switch_configuration_enable: 0,
+                programmable_limit_switch_configuration_reset: 0,
+                programmable_limit_switch_configuration_mode: 0,
+                programmable_limit_switch_configuration_state: 0,
                 programmable_limit_switch_units: 0,
                 acceleration_ramp: 0,
                 homing_and_jog_acceleration_ramp: 0,
@@ -18161,13 +18054,13 @@ Denotation=MOTOR.BRAKEIMM
                 target_position: 0,
                 home_offset: 0,
                 software_position_limit_number_of_entries: 2,
-                software_position_limit_min_position_limit: 0,
-                software_position_limit_max_position_limit: 0,
+                software_position_limit_min: 0,
+                software_position_limit_max: 0,
                 profile_velocity: 10,
                 profile_acceleration: 0,
                 profile_deceleration: 0,
                 position_encoder_resolution_number_of_entries: 2,
-                position_encoder_resolution_encoder_increments: 1048576,
+                position_encoder_resolution_increments: 1048576,
                 position_encoder_resolution_motor_revolutions: 1,
                 gear_ratio_number_of_entries: 2,
                 gear_ratio_motor_shaft_revolutions: 1,
@@ -18177,8 +18070,8 @@ Denotation=MOTOR.BRAKEIMM
                 feed_constant_shaft_revolutions: 1,
                 homing_method: 0,
                 homing_speeds_number_of_entries: 2,
-                homing_speeds_speed_during_search_for_switch: 1,
-                homing_speeds_speed_during_search_for_zero: 0,
+                homing_speeds_during_search_for_switch: 1,
+                homing_speeds_during_search_for_zero: 0,
                 homing_acceleration: 0,
                 velocity_offset: 0,
                 torque_offset: 0,
@@ -18190,12 +18083,12 @@ Denotation=MOTOR.BRAKEIMM
                 touch_probe_2_negative_edge: 0,
                 interpolation_sub_mode_select: 0,
                 interpolation_data_record_number_of_entries: 3,
-                interpolation_data_record_interpolation_target_position: 0,
-                interpolation_data_record_interpolation_time: 0,
-                interpolation_data_record_interpolation_target_velocity: 0,
+                interpolation_data_record_target_position: 0,
+                interpolation_data_record_time: 0,
+                interpolation_data_record_target_velocity: 0,
                 interpolation_time_period_number_of_entries: 2,
                 interpolation_time_period_value: 1,
-                interpolation_time_period_interpolation_time_index: -3,
+                interpolation_time_period_index: -3,
                 interpolation_data_configuration_number_of_entries: 6,
                 interpolation_data_configuration_maximum_buffer_size: 10,
                 interpolation_data_configuration_actual_buffer_size: 9,
@@ -18204,12 +18097,12 @@ Denotation=MOTOR.BRAKEIMM
                 interpolation_data_configuration_size_of_data_record: 1,
                 interpolation_data_configuration_buffer_clear: 0,
                 touch_probe_source_number_of_entries: 2,
-                touch_probe_source_touch_probe_1_source: 1,
-                touch_probe_source_touch_probe_2_source: 1,
+                touch_probe_source_1: 1,
+                touch_probe_source_2: 1,
                 following_error_actual_value: 0,
                 digital_inputs: 0x0,
                 digital_outputs_number_of_entries: 2,
-                digital_outputs_physical_outputs: 0x0,
+                digital_outputs_physical: 0x0,
                 digital_outputs_bit_mask: 0x0,
                 target_velocity: 0,
                 supported_drive_modes: 0x65,
@@ -18224,16 +18117,16 @@ Denotation=MOTOR.BRAKEIMM
                 error_register: 0,
                 manufacturer_status_register: 0,
                 pre_defined_error_field_number_of_errors: 0,
-                pre_defined_error_field_standard_error_field_1: 0,
-                pre_defined_error_field_standard_error_field_2: 0,
-                pre_defined_error_field_standard_error_field_3: 0,
-                pre_defined_error_field_standard_error_field_4: 0,
-                pre_defined_error_field_standard_error_field_5: 0,
-                pre_defined_error_field_standard_error_field_6: 0,
-                pre_defined_error_field_standard_error_field_7: 0,
-                pre_defined_error_field_standard_error_field_8: 0,
-                pre_defined_error_field_standard_error_field_9: 0,
-                pre_defined_error_field_standard_error_field_10: 0,
+                pre_defined_error_field_standard_1: 0,
+                pre_defined_error_field_standard_2: 0,
+                pre_defined_error_field_standard_3: 0,
+                pre_defined_error_field_standard_4: 0,
+                pre_defined_error_field_standard_5: 0,
+                pre_defined_error_field_standard_6: 0,
+                pre_defined_error_field_standard_7: 0,
+                pre_defined_error_field_standard_8: 0,
+                pre_defined_error_field_standard_9: 0,
+                pre_defined_error_field_standard_10: 0,
                 cob_id_sync_message: 0,
                 communication_cycle_period: 0,
                 manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
@@ -18248,9 +18141,9 @@ Denotation=MOTOR.BRAKEIMM
                 guard_time: 0,
                 life_time_factor: 0,
                 store_parameters_number_of_entries: 0,
-                store_parameters_save_all_parameters: 0,
+                store_parameters_save_all: 0,
                 restore_default_parameters_number_of_entries: 0,
-                restore_default_parameters_restore_all_default_parameters: 0,
+                restore_default_parameters_all: 0,
                 cob_id_emcy: 0,
                 consumer_heartbeat_time_number_of_entries: 0,
                 consumer_heartbeat_time_1: 0,
@@ -18264,16 +18157,16 @@ Denotation=MOTOR.BRAKEIMM
                 os_prompt_std_in: 0,
                 os_prompt_std_out: 0,
                 receive_pdo_1_communication_parameter_number_of_entries: 0,
-                receive_pdo_1_communication_parameter_cob_id_used_by_pdo: 0,
+                receive_pdo_1_communication_parameter_cob_id: 0,
                 receive_pdo_1_communication_parameter_transmission_type: 0,
                 receive_pdo_2_communication_parameter_number_of_entries: 0,
-                receive_pdo_2_communication_parameter_cob_id_used_by_pdo: 0,
+                receive_pdo_2_communication_parameter_cob_id: 0,
                 receive_pdo_2_communication_parameter_transmission_type: 0,
                 receive_pdo_3_communication_parameter_number_of_entries: 0,
-                receive_pdo_3_communication_parameter_cob_id_used_by_pdo: 0,
+                receive_pdo_3_communication_parameter_cob_id: 0,
                 receive_pdo_3_communication_parameter_transmission_type: 0,
                 receive_pdo_4_communication_parameter_number_of_entries: 0,
-                receive_pdo_4_communication_parameter_cob_id_used_by_pdo: 0,
+                receive_pdo_4_communication_parameter_cob_id: 0,
                 receive_pdo_4_communication_parameter_transmission_type: 0,
                 receive_pdo_1_mapping_parameter_number_of_mapped_objects: 0,
                 receive_pdo_1_mapping_parameter_mapped_object_1: 0,
@@ -18312,25 +18205,25 @@ Denotation=MOTOR.BRAKEIMM
                 receive_pdo_4_mapping_parameter_mapped_object_7: 0,
                 receive_pdo_4_mapping_parameter_mapped_object_8: 0,
                 transmit_pdo_1_communication_parameter_number_of_entries: 0,
-                transmit_pdo_1_communication_parameter_cob_id_used_by_pdo: 0,
+                transmit_pdo_1_communication_parameter_cob_id: 0,
                 transmit_pdo_1_communication_parameter_transmission_type: 0,
                 transmit_pdo_1_communication_parameter_inhibit_time: 0,
                 transmit_pdo_1_communication_parameter_reserved: 0,
                 transmit_pdo_1_communication_parameter_event_timer: 0,
                 transmit_pdo_2_communication_parameter_number_of_entries: 0,
-                transmit_pdo_2_communication_parameter_cob_id_used_by_pdo: 0,
+                transmit_pdo_2_communication_parameter_cob_id: 0,
                 transmit_pdo_2_communication_parameter_transmission_type: 0,
                 transmit_pdo_2_communication_parameter_inhibit_time: 0,
                 transmit_pdo_2_communication_parameter_reserved: 0,
                 transmit_pdo_2_communication_parameter_event_timer: 0,
                 transmit_pdo_3_communication_parameter_number_of_entries: 0,
-                transmit_pdo_3_communication_parameter_cob_id_used_by_pdo: 0,
+                transmit_pdo_3_communication_parameter_cob_id: 0,
                 transmit_pdo_3_communication_parameter_transmission_type: 0,
                 transmit_pdo_3_communication_parameter_inhibit_time: 0,
                 transmit_pdo_3_communication_parameter_reserved: 0,
                 transmit_pdo_3_communication_parameter_event_timer: 0,
                 transmit_pdo_4_communication_parameter_number_of_entries: 0,
-                transmit_pdo_4_communication_parameter_cob_id_used_by_pdo: 0,
+                transmit_pdo_4_communication_parameter_cob_id: 0,
                 transmit_pdo_4_communication_parameter_transmission_type: 0,
                 transmit_pdo_4_communication_parameter_inhibit_time: 0,
                 transmit_pdo_4_communication_parameter_reserved: 0,
@@ -18384,10 +18277,10 @@ Denotation=MOTOR.BRAKEIMM
                 transmit_pdo_4_mask_bytes_0_to_3: 0,
                 transmit_pdo_4_mask_bytes_4_to_7: 0,
                 firmware_version_number_of_entries: 0,
-                firmware_version_major_version: 0,
-                firmware_version_minor_version: 0,
+                firmware_version_major: 0,
+                firmware_version_minor: 0,
                 firmware_version_revision: 0,
-                firmware_version_derived_version: 0,
+                firmware_version_derived: 0,
                 ascii_channel_number_of_entries: 0,
                 ascii_channel_command: ::od_runtime::__private_v2::Bytes::from_slice(
                     &[],
@@ -18416,27 +18309,27 @@ Denotation=MOTOR.BRAKEIMM
                 velocity_loop_bi_quad_filter_types_3_calculation_method: 0,
                 velocity_loop_bi_quad_filter_types_4_calculation_method: 0,
                 velocity_loop_bi_quad_filters_number_of_entries: 0,
-                vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency: 0,
-                vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency: 0,
-                vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency: 0,
-                vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q: 0,
-                vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency: 0,
-                vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency: 0,
-                vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency: 0,
-                vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q: 0,
-                velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q: 0,
+                vel_loop_quad_filters_anti_resonance_1_pole_natural_frequency: 0,
+                vel_loop_quad_filters_anti_resonance_2_pole_natural_frequency: 0,
+                vel_loop_quad_filters_anti_resonance_3_pole_natural_frequency: 0,
+                vel_loop_quad_filters_anti_resonance_4_pole_natural_frequency: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_1_pole_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_2_pole_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_3_pole_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_4_pole_q: 0,
+                vel_loop_quad_filters_anti_resonance_1_zero_natural_frequency: 0,
+                vel_loop_quad_filters_anti_resonance_2_zero_natural_frequency: 0,
+                vel_loop_quad_filters_anti_resonance_3_zero_natural_frequency: 0,
+                vel_loop_quad_filters_anti_resonance_4_zero_natural_frequency: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_1_zero_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_2_zero_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_3_zero_q: 0,
+                velocity_loop_bi_quad_filters_anti_resonance_4_zero_q: 0,
                 velocity_loop_filter_and_feedforward_number_of_entries: 0,
                 velocity_loop_filter_and_feedforward_feedback_filtered_at_10_hz: 0,
-                velocity_loop_filter_and_feedforward_velocity_feedforward_gain: 0,
+                velocity_loop_filter_and_feedforward_gain: 0,
                 velocity_loop_filter_and_feedforward_acceleration_gain: 0,
-                velocity_loop_filter_and_feedforward_velocity_error: 0,
+                velocity_loop_filter_and_feedforward_error: 0,
                 regen_resistor_type: 0,
                 regen_resistor_fault_level: 0,
                 regen_resistor_thermal_time_constant: 0,
@@ -18449,14 +18342,14 @@ Denotation=MOTOR.BRAKEIMM
                 overall_foldback_current_limit: 0,
                 current_loop_acceleration_feedforward_gain: 0,
                 motor_protection_parameters_number_of_entries: 0,
-                motor_protection_parameters_motor_protection_mode: 0,
-                motor_protection_parameters_motor_i2t_warning_threshold: 0,
-                motor_protection_parameters_motor_i2t_load: 0,
+                motor_protection_parameters_mode: 0,
+                motor_protection_parameters_i2t_warning_threshold: 0,
+                motor_protection_parameters_i2t_load: 0,
                 direction_for_absolute_motion_tasks: 0,
                 motion_task_setting: 0,
                 controlled_stop_parameters_number_of_entries: 0,
-                controlled_stop_parameters_controlled_stop_deceleration: 0,
-                controlled_stop_parameters_controlled_stop_velocity_threshold: 0,
+                controlled_stop_parameters_deceleration: 0,
+                controlled_stop_parameters_velocity_threshold: 0,
                 controlled_stop_parameters_velocity_threshold_time: 0,
                 controlled_stop_state: 0,
                 drive_disable_cause: 0,
@@ -18470,51 +18363,51 @@ Denotation=MOTOR.BRAKEIMM
                 motor_quadrature_inductance_line_to_line: 0,
                 motor_stator_winding_resistance_phase_to_phase: 0,
                 induction_motor_parameters_number_of_entries: 0,
-                induction_motor_parameters_induction_motor_rated_velocity: 0,
-                induction_motor_parameters_induction_motor_rated_voltage: 0,
+                induction_motor_parameters_rated_velocity: 0,
+                induction_motor_parameters_rated_voltage: 0,
                 induction_motor_parameters_minimum_voltage_for_v_f_control: 0,
                 capture_engine_parameters_number_of_entries: 0,
-                capture_engine_parameters_capture_0_trigger_source: 0,
-                capture_engine_parameters_capture_1_trigger_source: 0,
-                capture_engine_parameters_capture_0_mode: 0,
-                capture_engine_parameters_capture_1_mode: 0,
-                capture_engine_parameters_capture_0_precondition_logic: 0,
-                capture_engine_parameters_capture_1_precondition_logic: 0,
-                capture_engine_parameters_capture_0_precondition_edge: 0,
-                capture_engine_parameters_capture_1_precondition_edge: 0,
-                capture_engine_parameters_capture_0_precondition_trigger: 0,
-                capture_engine_parameters_capture_1_precondition_trigger: 0,
+                capture_engine_parameters_0_trigger_source: 0,
+                capture_engine_parameters_1_trigger_source: 0,
+                capture_engine_parameters_0_mode: 0,
+                capture_engine_parameters_1_mode: 0,
+                capture_engine_parameters_0_precondition_logic: 0,
+                capture_engine_parameters_1_precondition_logic: 0,
+                capture_engine_parameters_0_precondition_edge: 0,
+                capture_engine_parameters_1_precondition_edge: 0,
+                capture_engine_parameters_0_precondition_trigger: 0,
+                capture_engine_parameters_1_precondition_trigger: 0,
                 analog_input_and_output_parameters_number_of_entries: 0,
-                analog_input_and_output_parameters_analog_output_mode: 0,
-                analog_input_and_output_parameters_analog_output_value: 0,
+                analog_input_and_output_parameters_mode: 0,
+                analog_input_and_output_parameters_output_value: 0,
                 analog_input_and_output_parameters_value_user_units: 0,
-                analog_input_and_output_parameters_analog_input_value: 0,
+                analog_input_and_output_parameters_input_value: 0,
                 analog_input_and_output_parameters_velocity_scale_factor: 0,
                 analog_output_position_scale_factor: 0,
                 analog_input_position_scale_factor: 0,
                 digital_input_parameters_number_of_entries: 0,
-                digital_input_parameters_digital_input_1_parameter_low_32_bits: 0,
-                digital_input_parameters_digital_input_2_parameter_low_32_bits: 0,
-                digital_input_parameters_digital_input_3_parameter_low_32_bits: 0,
-                digital_input_parameters_digital_input_4_parameter_low_32_bits: 0,
-                digital_input_parameters_digital_input_5_parameter_low_32_bits: 0,
-                digital_input_parameters_digital_input_6_parameter_low_32_bits: 0,
-                digital_input_parameters_digital_input_7_parameter_low_32_bits: 0,
-                digital_input_parameters_digital_input_1_parameter_high_32_bits: 0,
-                digital_input_parameters_digital_input_2_parameter_high_32_bits: 0,
-                digital_input_parameters_digital_input_3_parameter_high_32_bits: 0,
-                digital_input_parameters_digital_input_4_parameter_high_32_bits: 0,
-                digital_input_parameters_digital_input_5_parameter_high_32_bits: 0,
-                digital_input_parameters_digital_input_6_parameter_high_32_bits: 0,
-                digital_input_parameters_digital_input_7_parameter_high_32_bits: 0,
+                digital_input_parameters_1_low_32_bits: 0,
+                digital_input_parameters_2_low_32_bits: 0,
+                digital_input_parameters_3_low_32_bits: 0,
+                digital_input_parameters_4_low_32_bits: 0,
+                digital_input_parameters_5_low_32_bits: 0,
+                digital_input_parameters_6_low_32_bits: 0,
+                digital_input_parameters_7_low_32_bits: 0,
+                digital_input_parameters_1_high_32_bits: 0,
+                digital_input_parameters_2_high_32_bits: 0,
+                digital_input_parameters_3_high_32_bits: 0,
+                digital_input_parameters_4_high_32_bits: 0,
+                digital_input_parameters_5_high_32_bits: 0,
+                digital_input_parameters_6_high_32_bits: 0,
+                digital_input_parameters_7_high_32_bits: 0,
                 digital_output_parameters_number_of_entries: 0,
-                digital_output_parameters_1_parameter_low_32_bits: 0,
-                digital_output_parameters_2_parameter_low_32_bits: 0,
-                digital_output_parameters_1_parameter_high_32_bits: 0,
-                digital_output_parameters_2_parameter_high_32_bits: 0,
+                digital_output_parameters_1_low_32_bits: 0,
+                digital_output_parameters_2_low_32_bits: 0,
+                digital_output_parameters_1_high_32_bits: 0,
+                digital_output_parameters_2_high_32_bits: 0,
                 position_loop_integral_gain: 0,
                 position_loop_integrator_saturation_number_of_entries: 0,
-                position_loop_integrator_saturation_integrator_input_saturation: 0,
+                position_loop_integrator_saturation_input: 0,
                 position_loop_integrator_saturation_output: 0,
                 homing_maximum_following_error: 0,
                 position_error_warning_level: 0,
@@ -18524,49 +18417,49 @@ Denotation=MOTOR.BRAKEIMM
                 drive_motion_status: 0,
                 emulated_encoder_output_direction: 0,
                 wake_and_shake_parameters_number_of_entries: 0,
-                wake_and_shake_parameters_wake_and_shake_maximum_current: 0,
-                wake_and_shake_parameters_wake_and_shake_maximum_movement: 0,
+                wake_and_shake_parameters_maximum_current: 0,
+                wake_and_shake_parameters_maximum_movement: 0,
                 wake_and_shake_parameters_delay_between_loops_in_mode_0: 0,
-                wake_and_shake_parameters_wake_and_shake_maximum_velocity: 0,
-                wake_and_shake_parameters_wake_and_shake_state: 0,
-                wake_and_shake_parameters_wake_and_shake_arm: 0,
+                wake_and_shake_parameters_maximum_velocity: 0,
+                wake_and_shake_parameters_state: 0,
+                wake_and_shake_parameters_arm: 0,
                 fieldbus_synchronization_parameters_number_of_entries: 0,
                 fieldbus_synchronization_parameters_expected_distance: 0,
                 fieldbus_synchronization_parameters_actual_distance: 0,
-                fieldbus_synchronization_parameters_synchronization_window: 0,
+                fieldbus_synchronization_parameters_window: 0,
                 fieldbus_synchronization_parameters_compensation_time: 0,
                 programmable_limit_switch_positions_number_of_entries: 0,
-                programmable_limit_switch_positions_1_compare_position: 0,
-                programmable_limit_switch_positions_2_compare_position: 0,
-                programmable_limit_switch_positions_3_compare_position: 0,
-                programmable_limit_switch_positions_4_compare_position: 0,
-                programmable_limit_switch_positions_5_compare_position: 0,
-                programmable_limit_switch_positions_6_compare_position: 0,
-                programmable_limit_switch_positions_7_compare_position: 0,
-                programmable_limit_switch_positions_8_compare_position: 0,
+                programmable_limit_switch_positions_1_compare: 0,
+                programmable_limit_switch_positions_2_compare: 0,
+                programmable_limit_switch_positions_3_compare: 0,
+                programmable_limit_switch_positions_4_compare: 0,
+                programmable_limit_switch_positions_5_compare: 0,
+                programmable_limit_switch_positions_6_compare: 0,
+                programmable_limit_switch_positions_7_compare: 0,
+                programmable_limit_switch_positions_8_compare: 0,
                 programmable_limit_switch_widths_number_of_entries: 0,
-                programmable_limit_switch_widths_limit_switch_1_width: 0,
-                programmable_limit_switch_widths_limit_switch_2_width: 0,
-                programmable_limit_switch_widths_limit_switch_3_width: 0,
-                programmable_limit_switch_widths_limit_switch_4_width: 0,
-                programmable_limit_switch_widths_limit_switch_5_width: 0,
-                programmable_limit_switch_widths_limit_switch_6_width: 0,
-                programmable_limit_switch_widths_limit_switch_7_width: 0,
-                programmable_limit_switch_widths_limit_switch_8_width: 0,
+                programmable_limit_switch_widths_1: 0,
+                programmable_limit_switch_widths_2: 0,
+                programmable_limit_switch_widths_3: 0,
+                programmable_limit_switch_widths_4: 0,
+                programmable_limit_switch_widths_5: 0,
+                programmable_limit_switch_widths_6: 0,
+                programmable_limit_switch_widths_7: 0,
+                programmable_limit_switch_widths_8: 0,
                 programmable_limit_switch_times_number_of_entries: 0,
-                programmable_limit_switch_times_limit_switch_1_time: 0,
-                programmable_limit_switch_times_limit_switch_2_time: 0,
-                programmable_limit_switch_times_limit_switch_3_time: 0,
-                programmable_limit_switch_times_limit_switch_4_time: 0,
-                programmable_limit_switch_times_limit_switch_5_time: 0,
-                programmable_limit_switch_times_limit_switch_6_time: 0,
-                programmable_limit_switch_times_limit_switch_7_time: 0,
-                programmable_limit_switch_times_limit_switch_8_time: 0,
+                programmable_limit_switch_times_1: 0,
+                programmable_limit_switch_times_2: 0,
+                programmable_limit_switch_times_3: 0,
+                programmable_limit_switch_times_4: 0,
+                programmable_limit_switch_times_5: 0,
+                programmable_limit_switch_times_6: 0,
+                programmable_limit_switch_times_7: 0,
+                programmable_limit_switch_times_8: 0,
                 programmable_limit_switch_configuration_number_of_entries: 0,
-                programmable_limit_switch_configuration_limit_switch_enable: 0,
-                programmable_limit_switch_configuration_limit_switch_reset: 0,
-                programmable_limit_switch_configuration_limit_switch_mode: 0,
-                programmable_limit_switch_configuration_limit_switch_state: 0,
+                programmable_limit_switch_configuration_enable: 0,
+                programmable_limit_switch_configuration_reset: 0,
+                programmable_limit_switch_configuration_mode: 0,
+                programmable_limit_switch_configuration_state: 0,
                 programmable_limit_switch_units: 0,
                 acceleration_ramp: 0,
                 homing_and_jog_acceleration_ramp: 0,
@@ -18769,13 +18662,13 @@ Denotation=MOTOR.BRAKEIMM
                 target_position: 0,
                 home_offset: 0,
                 software_position_limit_number_of_entries: 0,
-                software_position_limit_min_position_limit: 0,
-                software_position_limit_max_position_limit: 0,
+                software_position_limit_min: 0,
+                software_position_limit_max: 0,
                 profile_velocity: 0,
                 profile_acceleration: 0,
                 profile_deceleration: 0,
                 position_encoder_resolution_number_of_entries: 0,
-                position_encoder_resolution_encoder_increments: 0,
+                position_encoder_resolution_increments: 0,
                 position_encoder_resolution_motor_revolutions: 0,
                 gear_ratio_number_of_entries: 0,
                 gear_ratio_motor_shaft_revolutions: 0,
@@ -18785,8 +18678,8 @@ Denotation=MOTOR.BRAKEIMM
                 feed_constant_shaft_revolutions: 0,
                 homing_method: 0,
                 homing_speeds_number_of_entries: 0,
-                homing_speeds_speed_during_search_for_switch: 0,
-                homing_speeds_speed_during_search_for_zero: 0,
+                homing_speeds_during_search_for_switch: 0,
+                homing_speeds_during_search_for_zero: 0,
                 homing_acceleration: 0,
                 velocity_offset: 0,
                 torque_offset: 0,
@@ -18798,12 +18691,12 @@ Denotation=MOTOR.BRAKEIMM
                 touch_probe_2_negative_edge: 0,
                 interpolation_sub_mode_select: 0,
                 interpolation_data_record_number_of_entries: 0,
-                interpolation_data_record_interpolation_target_position: 0,
-                interpolation_data_record_interpolation_time: 0,
-                interpolation_data_record_interpolation_target_velocity: 0,
+                interpolation_data_record_target_position: 0,
+                interpolation_data_record_time: 0,
+                interpolation_data_record_target_velocity: 0,
                 interpolation_time_period_number_of_entries: 0,
                 interpolation_time_period_value: 0,
-                interpolation_time_period_interpolation_time_index: 0,
+                interpolation_time_period_index: 0,
                 interpolation_data_configuration_number_of_entries: 0,
                 interpolation_data_configuration_maximum_buffer_size: 0,
                 interpolation_data_configuration_actual_buffer_size: 0,
@@ -18812,12 +18705,12 @@ Denotation=MOTOR.BRAKEIMM
                 interpolation_data_configuration_size_of_data_record: 0,
                 interpolation_data_configuration_buffer_clear: 0,
                 touch_probe_source_number_of_entries: 0,
-                touch_probe_source_touch_probe_1_source: 0,
-                touch_probe_source_touch_probe_2_source: 0,
+                touch_probe_source_1: 0,
+                touch_probe_source_2: 0,
                 following_error_actual_value: 0,
                 digital_inputs: 0,
                 digital_outputs_number_of_entries: 0,
-                digital_outputs_physical_outputs: 0,
+                digital_outputs_physical: 0,
                 digital_outputs_bit_mask: 0,
                 target_velocity: 0,
                 supported_drive_modes: 0,
@@ -18997,160 +18890,160 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_1(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_1
+        pub const fn pre_defined_error_field_standard_1(&self) -> u32 {
+            self.pre_defined_error_field_standard_1
         }
-        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1 (see [`Self::pre_defined_error_field_standard_error_field_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1 (see [`Self::pre_defined_error_field_standard_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_1(
+        pub fn set_pre_defined_error_field_standard_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_1 = v;
+            self.pre_defined_error_field_standard_1 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 2 Pre-defined error field: Standard error field 2.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_2(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_2
+        pub const fn pre_defined_error_field_standard_2(&self) -> u32 {
+            self.pre_defined_error_field_standard_2
         }
-        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2 (see [`Self::pre_defined_error_field_standard_error_field_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2 (see [`Self::pre_defined_error_field_standard_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_2(
+        pub fn set_pre_defined_error_field_standard_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_2 = v;
+            self.pre_defined_error_field_standard_2 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 3 Pre-defined error field: Standard error field 3.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_3(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_3
+        pub const fn pre_defined_error_field_standard_3(&self) -> u32 {
+            self.pre_defined_error_field_standard_3
         }
-        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3 (see [`Self::pre_defined_error_field_standard_error_field_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3 (see [`Self::pre_defined_error_field_standard_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_3(
+        pub fn set_pre_defined_error_field_standard_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_3 = v;
+            self.pre_defined_error_field_standard_3 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 4 Pre-defined error field: Standard error field 4.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_4(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_4
+        pub const fn pre_defined_error_field_standard_4(&self) -> u32 {
+            self.pre_defined_error_field_standard_4
         }
-        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4 (see [`Self::pre_defined_error_field_standard_error_field_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4 (see [`Self::pre_defined_error_field_standard_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_4(
+        pub fn set_pre_defined_error_field_standard_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_4 = v;
+            self.pre_defined_error_field_standard_4 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 5 Pre-defined error field: Standard error field 5.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_5(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_5
+        pub const fn pre_defined_error_field_standard_5(&self) -> u32 {
+            self.pre_defined_error_field_standard_5
         }
-        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5 (see [`Self::pre_defined_error_field_standard_error_field_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5 (see [`Self::pre_defined_error_field_standard_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_5(
+        pub fn set_pre_defined_error_field_standard_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_5 = v;
+            self.pre_defined_error_field_standard_5 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 6 Pre-defined error field: Standard error field 6.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_6(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_6
+        pub const fn pre_defined_error_field_standard_6(&self) -> u32 {
+            self.pre_defined_error_field_standard_6
         }
-        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6 (see [`Self::pre_defined_error_field_standard_error_field_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6 (see [`Self::pre_defined_error_field_standard_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_6(
+        pub fn set_pre_defined_error_field_standard_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_6 = v;
+            self.pre_defined_error_field_standard_6 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 7 Pre-defined error field: Standard error field 7.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_7(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_7
+        pub const fn pre_defined_error_field_standard_7(&self) -> u32 {
+            self.pre_defined_error_field_standard_7
         }
-        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7 (see [`Self::pre_defined_error_field_standard_error_field_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7 (see [`Self::pre_defined_error_field_standard_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_7(
+        pub fn set_pre_defined_error_field_standard_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_7 = v;
+            self.pre_defined_error_field_standard_7 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 8 Pre-defined error field: Standard error field 8.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_8(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_8
+        pub const fn pre_defined_error_field_standard_8(&self) -> u32 {
+            self.pre_defined_error_field_standard_8
         }
-        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8 (see [`Self::pre_defined_error_field_standard_error_field_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8 (see [`Self::pre_defined_error_field_standard_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_8(
+        pub fn set_pre_defined_error_field_standard_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_8 = v;
+            self.pre_defined_error_field_standard_8 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 9 Pre-defined error field: Standard error field 9.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_9(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_9
+        pub const fn pre_defined_error_field_standard_9(&self) -> u32 {
+            self.pre_defined_error_field_standard_9
         }
-        /// Sets `0x1003` sub 9 Pre-defined error field: Standard error field 9 (see [`Self::pre_defined_error_field_standard_error_field_9`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 9 Pre-defined error field: Standard error field 9 (see [`Self::pre_defined_error_field_standard_9`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_9(
+        pub fn set_pre_defined_error_field_standard_9(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_9 = v;
+            self.pre_defined_error_field_standard_9 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 10 Pre-defined error field: Standard error field 10.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_10(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_10
+        pub const fn pre_defined_error_field_standard_10(&self) -> u32 {
+            self.pre_defined_error_field_standard_10
         }
-        /// Sets `0x1003` sub 10 Pre-defined error field: Standard error field 10 (see [`Self::pre_defined_error_field_standard_error_field_10`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 10 Pre-defined error field: Standard error field 10 (see [`Self::pre_defined_error_field_standard_10`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_10(
+        pub fn set_pre_defined_error_field_standard_10(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_10 = v;
+            self.pre_defined_error_field_standard_10 = v;
             Ok(())
         }
         /// Reads `0x1005` COB-ID SYNC message.
@@ -19281,16 +19174,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DRV.NVSAVE`.
         #[inline]
-        pub const fn store_parameters_save_all_parameters(&self) -> u32 {
-            self.store_parameters_save_all_parameters
+        pub const fn store_parameters_save_all(&self) -> u32 {
+            self.store_parameters_save_all
         }
-        /// Sets `0x1010` sub 1 Store parameters: Save all parameters (see [`Self::store_parameters_save_all_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1010` sub 1 Store parameters: Save all parameters (see [`Self::store_parameters_save_all`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_store_parameters_save_all_parameters(
+        pub fn set_store_parameters_save_all(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.store_parameters_save_all_parameters = v;
+            self.store_parameters_save_all = v;
             Ok(())
         }
         /// Reads `0x1011` sub 0 Restore default parameters: Number of entries.
@@ -19315,18 +19208,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DRV.NVLOAD`.
         #[inline]
-        pub const fn restore_default_parameters_restore_all_default_parameters(
-            &self,
-        ) -> u32 {
-            self.restore_default_parameters_restore_all_default_parameters
+        pub const fn restore_default_parameters_all(&self) -> u32 {
+            self.restore_default_parameters_all
         }
-        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters (see [`Self::restore_default_parameters_restore_all_default_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters (see [`Self::restore_default_parameters_all`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_restore_default_parameters_restore_all_default_parameters(
+        pub fn set_restore_default_parameters_all(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.restore_default_parameters_restore_all_default_parameters = v;
+            self.restore_default_parameters_all = v;
             Ok(())
         }
         /// Reads `0x1014` COB-ID EMCY.
@@ -19543,18 +19434,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `rw`. Default: $NODEID + 0x200.
         #[inline]
-        pub const fn receive_pdo_1_communication_parameter_cob_id_used_by_pdo(
-            &self,
-        ) -> u32 {
-            self.receive_pdo_1_communication_parameter_cob_id_used_by_pdo
+        pub const fn receive_pdo_1_communication_parameter_cob_id(&self) -> u32 {
+            self.receive_pdo_1_communication_parameter_cob_id
         }
-        /// Sets `0x1400` sub 1 Receive PDO 1 communication parameter: COB-ID used by PDO (see [`Self::receive_pdo_1_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1400` sub 1 Receive PDO 1 communication parameter: COB-ID used by PDO (see [`Self::receive_pdo_1_communication_parameter_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_1_communication_parameter_cob_id_used_by_pdo(
+        pub fn set_receive_pdo_1_communication_parameter_cob_id(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_1_communication_parameter_cob_id_used_by_pdo = v;
+            self.receive_pdo_1_communication_parameter_cob_id = v;
             Ok(())
         }
         /// Reads `0x1400` sub 2 Receive PDO 1 communication parameter: Transmission type.
@@ -19597,18 +19486,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `rw`. Default: $NODEID + 0x300.
         #[inline]
-        pub const fn receive_pdo_2_communication_parameter_cob_id_used_by_pdo(
-            &self,
-        ) -> u32 {
-            self.receive_pdo_2_communication_parameter_cob_id_used_by_pdo
+        pub const fn receive_pdo_2_communication_parameter_cob_id(&self) -> u32 {
+            self.receive_pdo_2_communication_parameter_cob_id
         }
-        /// Sets `0x1401` sub 1 Receive PDO 2 communication parameter: COB-ID used by PDO (see [`Self::receive_pdo_2_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1401` sub 1 Receive PDO 2 communication parameter: COB-ID used by PDO (see [`Self::receive_pdo_2_communication_parameter_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_2_communication_parameter_cob_id_used_by_pdo(
+        pub fn set_receive_pdo_2_communication_parameter_cob_id(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_2_communication_parameter_cob_id_used_by_pdo = v;
+            self.receive_pdo_2_communication_parameter_cob_id = v;
             Ok(())
         }
         /// Reads `0x1401` sub 2 Receive PDO 2 communication parameter: Transmission type.
@@ -19651,18 +19538,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `rw`. Default: $NODEID + 0x400.
         #[inline]
-        pub const fn receive_pdo_3_communication_parameter_cob_id_used_by_pdo(
-            &self,
-        ) -> u32 {
-            self.receive_pdo_3_communication_parameter_cob_id_used_by_pdo
+        pub const fn receive_pdo_3_communication_parameter_cob_id(&self) -> u32 {
+            self.receive_pdo_3_communication_parameter_cob_id
         }
-        /// Sets `0x1402` sub 1 Receive PDO 3 communication parameter: COB-ID used by PDO (see [`Self::receive_pdo_3_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1402` sub 1 Receive PDO 3 communication parameter: COB-ID used by PDO (see [`Self::receive_pdo_3_communication_parameter_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_3_communication_parameter_cob_id_used_by_pdo(
+        pub fn set_receive_pdo_3_communication_parameter_cob_id(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_3_communication_parameter_cob_id_used_by_pdo = v;
+            self.receive_pdo_3_communication_parameter_cob_id = v;
             Ok(())
         }
         /// Reads `0x1402` sub 2 Receive PDO 3 communication parameter: Transmission type.
@@ -19705,18 +19590,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `rw`. Default: $NODEID + 0x500.
         #[inline]
-        pub const fn receive_pdo_4_communication_parameter_cob_id_used_by_pdo(
-            &self,
-        ) -> u32 {
-            self.receive_pdo_4_communication_parameter_cob_id_used_by_pdo
+        pub const fn receive_pdo_4_communication_parameter_cob_id(&self) -> u32 {
+            self.receive_pdo_4_communication_parameter_cob_id
         }
-        /// Sets `0x1403` sub 1 Receive PDO 4 communication parameter: COB-ID used by PDO (see [`Self::receive_pdo_4_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1403` sub 1 Receive PDO 4 communication parameter: COB-ID used by PDO (see [`Self::receive_pdo_4_communication_parameter_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_4_communication_parameter_cob_id_used_by_pdo(
+        pub fn set_receive_pdo_4_communication_parameter_cob_id(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_4_communication_parameter_cob_id_used_by_pdo = v;
+            self.receive_pdo_4_communication_parameter_cob_id = v;
             Ok(())
         }
         /// Reads `0x1403` sub 2 Receive PDO 4 communication parameter: Transmission type.
@@ -20355,18 +20238,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `rw`. Default: $NODEID + 0x180.
         #[inline]
-        pub const fn transmit_pdo_1_communication_parameter_cob_id_used_by_pdo(
-            &self,
-        ) -> u32 {
-            self.transmit_pdo_1_communication_parameter_cob_id_used_by_pdo
+        pub const fn transmit_pdo_1_communication_parameter_cob_id(&self) -> u32 {
+            self.transmit_pdo_1_communication_parameter_cob_id
         }
-        /// Sets `0x1800` sub 1 Transmit PDO 1 communication parameter: COB-ID used by PDO (see [`Self::transmit_pdo_1_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1800` sub 1 Transmit PDO 1 communication parameter: COB-ID used by PDO (see [`Self::transmit_pdo_1_communication_parameter_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_1_communication_parameter_cob_id_used_by_pdo(
+        pub fn set_transmit_pdo_1_communication_parameter_cob_id(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_1_communication_parameter_cob_id_used_by_pdo = v;
+            self.transmit_pdo_1_communication_parameter_cob_id = v;
             Ok(())
         }
         /// Reads `0x1800` sub 2 Transmit PDO 1 communication parameter: Transmission type.
@@ -20457,18 +20338,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `rw`. Default: $NODEID + 0x280.
         #[inline]
-        pub const fn transmit_pdo_2_communication_parameter_cob_id_used_by_pdo(
-            &self,
-        ) -> u32 {
-            self.transmit_pdo_2_communication_parameter_cob_id_used_by_pdo
+        pub const fn transmit_pdo_2_communication_parameter_cob_id(&self) -> u32 {
+            self.transmit_pdo_2_communication_parameter_cob_id
         }
-        /// Sets `0x1801` sub 1 Transmit PDO 2 communication parameter: COB-ID used by PDO (see [`Self::transmit_pdo_2_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1801` sub 1 Transmit PDO 2 communication parameter: COB-ID used by PDO (see [`Self::transmit_pdo_2_communication_parameter_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_2_communication_parameter_cob_id_used_by_pdo(
+        pub fn set_transmit_pdo_2_communication_parameter_cob_id(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_2_communication_parameter_cob_id_used_by_pdo = v;
+            self.transmit_pdo_2_communication_parameter_cob_id = v;
             Ok(())
         }
         /// Reads `0x1801` sub 2 Transmit PDO 2 communication parameter: Transmission type.
@@ -20559,18 +20438,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `rw`. Default: $NODEID + 0x380.
         #[inline]
-        pub const fn transmit_pdo_3_communication_parameter_cob_id_used_by_pdo(
-            &self,
-        ) -> u32 {
-            self.transmit_pdo_3_communication_parameter_cob_id_used_by_pdo
+        pub const fn transmit_pdo_3_communication_parameter_cob_id(&self) -> u32 {
+            self.transmit_pdo_3_communication_parameter_cob_id
         }
-        /// Sets `0x1802` sub 1 Transmit PDO 3 communication parameter: COB-ID used by PDO (see [`Self::transmit_pdo_3_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1802` sub 1 Transmit PDO 3 communication parameter: COB-ID used by PDO (see [`Self::transmit_pdo_3_communication_parameter_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_3_communication_parameter_cob_id_used_by_pdo(
+        pub fn set_transmit_pdo_3_communication_parameter_cob_id(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_3_communication_parameter_cob_id_used_by_pdo = v;
+            self.transmit_pdo_3_communication_parameter_cob_id = v;
             Ok(())
         }
         /// Reads `0x1802` sub 2 Transmit PDO 3 communication parameter: Transmission type.
@@ -20661,18 +20538,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `rw`. Default: $NODEID + 0x480.
         #[inline]
-        pub const fn transmit_pdo_4_communication_parameter_cob_id_used_by_pdo(
-            &self,
-        ) -> u32 {
-            self.transmit_pdo_4_communication_parameter_cob_id_used_by_pdo
+        pub const fn transmit_pdo_4_communication_parameter_cob_id(&self) -> u32 {
+            self.transmit_pdo_4_communication_parameter_cob_id
         }
-        /// Sets `0x1803` sub 1 Transmit PDO 4 communication parameter: COB-ID used by PDO (see [`Self::transmit_pdo_4_communication_parameter_cob_id_used_by_pdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1803` sub 1 Transmit PDO 4 communication parameter: COB-ID used by PDO (see [`Self::transmit_pdo_4_communication_parameter_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_4_communication_parameter_cob_id_used_by_pdo(
+        pub fn set_transmit_pdo_4_communication_parameter_cob_id(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_4_communication_parameter_cob_id_used_by_pdo = v;
+            self.transmit_pdo_4_communication_parameter_cob_id = v;
             Ok(())
         }
         /// Reads `0x1803` sub 2 Transmit PDO 4 communication parameter: Transmission type.
@@ -21549,32 +21424,32 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED16, access `const`. Default: 0.
         #[inline]
-        pub const fn firmware_version_major_version(&self) -> u16 {
-            self.firmware_version_major_version
+        pub const fn firmware_version_major(&self) -> u16 {
+            self.firmware_version_major
         }
-        /// Sets `0x2018` sub 1 Firmware version: Major version (see [`Self::firmware_version_major_version`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2018` sub 1 Firmware version: Major version (see [`Self::firmware_version_major`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_firmware_version_major_version(
+        pub fn set_firmware_version_major(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.firmware_version_major_version = v;
+            self.firmware_version_major = v;
             Ok(())
         }
         /// Reads `0x2018` sub 2 Firmware version: Minor version.
         ///
         /// UNSIGNED16, access `const`. Default: 0.
         #[inline]
-        pub const fn firmware_version_minor_version(&self) -> u16 {
-            self.firmware_version_minor_version
+        pub const fn firmware_version_minor(&self) -> u16 {
+            self.firmware_version_minor
         }
-        /// Sets `0x2018` sub 2 Firmware version: Minor version (see [`Self::firmware_version_minor_version`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2018` sub 2 Firmware version: Minor version (see [`Self::firmware_version_minor`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_firmware_version_minor_version(
+        pub fn set_firmware_version_minor(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.firmware_version_minor_version = v;
+            self.firmware_version_minor = v;
             Ok(())
         }
         /// Reads `0x2018` sub 3 Firmware version: Revision.
@@ -21597,16 +21472,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED16, access `const`. Default: 0.
         #[inline]
-        pub const fn firmware_version_derived_version(&self) -> u16 {
-            self.firmware_version_derived_version
+        pub const fn firmware_version_derived(&self) -> u16 {
+            self.firmware_version_derived
         }
-        /// Sets `0x2018` sub 4 Firmware version: Derived version (see [`Self::firmware_version_derived_version`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2018` sub 4 Firmware version: Derived version (see [`Self::firmware_version_derived`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_firmware_version_derived_version(
+        pub fn set_firmware_version_derived(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.firmware_version_derived_version = v;
+            self.firmware_version_derived = v;
             Ok(())
         }
         /// Reads `0x2026` sub 0 ASCII channel: Number of entries.
@@ -22055,18 +21930,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency(
+        pub const fn vel_loop_quad_filters_anti_resonance_1_pole_natural_frequency(
             &self,
         ) -> u32 {
-            self.vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency
+            self.vel_loop_quad_filters_anti_resonance_1_pole_natural_frequency
         }
-        /// Sets `0x3406` sub 1 Velocity loop BiQuad filters: Anti-resonance filter 1 pole natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 1 Velocity loop BiQuad filters: Anti-resonance filter 1 pole natural frequency (see [`Self::vel_loop_quad_filters_anti_resonance_1_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency(
+        pub fn set_vel_loop_quad_filters_anti_resonance_1_pole_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.vel_loop_filters_anti_resonance_filter_1_pole_natural_frequency = v;
+            self.vel_loop_quad_filters_anti_resonance_1_pole_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 2 Velocity loop BiQuad filters: Anti-resonance filter 2 pole natural frequency.
@@ -22077,18 +21952,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency(
+        pub const fn vel_loop_quad_filters_anti_resonance_2_pole_natural_frequency(
             &self,
         ) -> u32 {
-            self.vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency
+            self.vel_loop_quad_filters_anti_resonance_2_pole_natural_frequency
         }
-        /// Sets `0x3406` sub 2 Velocity loop BiQuad filters: Anti-resonance filter 2 pole natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 2 Velocity loop BiQuad filters: Anti-resonance filter 2 pole natural frequency (see [`Self::vel_loop_quad_filters_anti_resonance_2_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency(
+        pub fn set_vel_loop_quad_filters_anti_resonance_2_pole_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.vel_loop_filters_anti_resonance_filter_2_pole_natural_frequency = v;
+            self.vel_loop_quad_filters_anti_resonance_2_pole_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 3 Velocity loop BiQuad filters: Anti-resonance filter 3 pole natural frequency.
@@ -22099,18 +21974,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency(
+        pub const fn vel_loop_quad_filters_anti_resonance_3_pole_natural_frequency(
             &self,
         ) -> u32 {
-            self.vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency
+            self.vel_loop_quad_filters_anti_resonance_3_pole_natural_frequency
         }
-        /// Sets `0x3406` sub 3 Velocity loop BiQuad filters: Anti-resonance filter 3 pole natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 3 Velocity loop BiQuad filters: Anti-resonance filter 3 pole natural frequency (see [`Self::vel_loop_quad_filters_anti_resonance_3_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency(
+        pub fn set_vel_loop_quad_filters_anti_resonance_3_pole_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.vel_loop_filters_anti_resonance_filter_3_pole_natural_frequency = v;
+            self.vel_loop_quad_filters_anti_resonance_3_pole_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 4 Velocity loop BiQuad filters: Anti-resonance filter 4 pole natural frequency.
@@ -22121,18 +21996,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency(
+        pub const fn vel_loop_quad_filters_anti_resonance_4_pole_natural_frequency(
             &self,
         ) -> u32 {
-            self.vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency
+            self.vel_loop_quad_filters_anti_resonance_4_pole_natural_frequency
         }
-        /// Sets `0x3406` sub 4 Velocity loop BiQuad filters: Anti-resonance filter 4 pole natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 4 Velocity loop BiQuad filters: Anti-resonance filter 4 pole natural frequency (see [`Self::vel_loop_quad_filters_anti_resonance_4_pole_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency(
+        pub fn set_vel_loop_quad_filters_anti_resonance_4_pole_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.vel_loop_filters_anti_resonance_filter_4_pole_natural_frequency = v;
+            self.vel_loop_quad_filters_anti_resonance_4_pole_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 5 Velocity loop BiQuad filters: Anti-resonance filter 1 pole Q.
@@ -22143,18 +22018,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q(
+        pub const fn velocity_loop_bi_quad_filters_anti_resonance_1_pole_q(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q
+            self.velocity_loop_bi_quad_filters_anti_resonance_1_pole_q
         }
-        /// Sets `0x3406` sub 5 Velocity loop BiQuad filters: Anti-resonance filter 1 pole Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 5 Velocity loop BiQuad filters: Anti-resonance filter 1 pole Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_1_pole_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q(
+        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_1_pole_q(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_1_pole_q = v;
+            self.velocity_loop_bi_quad_filters_anti_resonance_1_pole_q = v;
             Ok(())
         }
         /// Reads `0x3406` sub 6 Velocity loop BiQuad filters: Anti-resonance filter 2 pole Q.
@@ -22165,18 +22040,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q(
+        pub const fn velocity_loop_bi_quad_filters_anti_resonance_2_pole_q(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q
+            self.velocity_loop_bi_quad_filters_anti_resonance_2_pole_q
         }
-        /// Sets `0x3406` sub 6 Velocity loop BiQuad filters: Anti-resonance filter 2 pole Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 6 Velocity loop BiQuad filters: Anti-resonance filter 2 pole Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_2_pole_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q(
+        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_2_pole_q(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_2_pole_q = v;
+            self.velocity_loop_bi_quad_filters_anti_resonance_2_pole_q = v;
             Ok(())
         }
         /// Reads `0x3406` sub 7 Velocity loop BiQuad filters: Anti-resonance filter 3 pole Q.
@@ -22187,18 +22062,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q(
+        pub const fn velocity_loop_bi_quad_filters_anti_resonance_3_pole_q(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q
+            self.velocity_loop_bi_quad_filters_anti_resonance_3_pole_q
         }
-        /// Sets `0x3406` sub 7 Velocity loop BiQuad filters: Anti-resonance filter 3 pole Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 7 Velocity loop BiQuad filters: Anti-resonance filter 3 pole Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_3_pole_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q(
+        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_3_pole_q(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_3_pole_q = v;
+            self.velocity_loop_bi_quad_filters_anti_resonance_3_pole_q = v;
             Ok(())
         }
         /// Reads `0x3406` sub 8 Velocity loop BiQuad filters: Anti-resonance filter 4 pole Q.
@@ -22209,18 +22084,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q(
+        pub const fn velocity_loop_bi_quad_filters_anti_resonance_4_pole_q(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q
+            self.velocity_loop_bi_quad_filters_anti_resonance_4_pole_q
         }
-        /// Sets `0x3406` sub 8 Velocity loop BiQuad filters: Anti-resonance filter 4 pole Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 8 Velocity loop BiQuad filters: Anti-resonance filter 4 pole Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_4_pole_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q(
+        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_4_pole_q(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_4_pole_q = v;
+            self.velocity_loop_bi_quad_filters_anti_resonance_4_pole_q = v;
             Ok(())
         }
         /// Reads `0x3406` sub 9 Velocity loop BiQuad filters: Anti-resonance filter 1 zero natural frequency.
@@ -22231,18 +22106,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency(
+        pub const fn vel_loop_quad_filters_anti_resonance_1_zero_natural_frequency(
             &self,
         ) -> u32 {
-            self.vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency
+            self.vel_loop_quad_filters_anti_resonance_1_zero_natural_frequency
         }
-        /// Sets `0x3406` sub 9 Velocity loop BiQuad filters: Anti-resonance filter 1 zero natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 9 Velocity loop BiQuad filters: Anti-resonance filter 1 zero natural frequency (see [`Self::vel_loop_quad_filters_anti_resonance_1_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency(
+        pub fn set_vel_loop_quad_filters_anti_resonance_1_zero_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.vel_loop_filters_anti_resonance_filter_1_zero_natural_frequency = v;
+            self.vel_loop_quad_filters_anti_resonance_1_zero_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 10 Velocity loop BiQuad filters: Anti-resonance filter 2 zero natural frequency.
@@ -22253,18 +22128,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency(
+        pub const fn vel_loop_quad_filters_anti_resonance_2_zero_natural_frequency(
             &self,
         ) -> u32 {
-            self.vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency
+            self.vel_loop_quad_filters_anti_resonance_2_zero_natural_frequency
         }
-        /// Sets `0x3406` sub 10 Velocity loop BiQuad filters: Anti-resonance filter 2 zero natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 10 Velocity loop BiQuad filters: Anti-resonance filter 2 zero natural frequency (see [`Self::vel_loop_quad_filters_anti_resonance_2_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency(
+        pub fn set_vel_loop_quad_filters_anti_resonance_2_zero_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.vel_loop_filters_anti_resonance_filter_2_zero_natural_frequency = v;
+            self.vel_loop_quad_filters_anti_resonance_2_zero_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 11 Velocity loop BiQuad filters: Anti-resonance filter 3 zero natural frequency.
@@ -22275,18 +22150,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency(
+        pub const fn vel_loop_quad_filters_anti_resonance_3_zero_natural_frequency(
             &self,
         ) -> u32 {
-            self.vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency
+            self.vel_loop_quad_filters_anti_resonance_3_zero_natural_frequency
         }
-        /// Sets `0x3406` sub 11 Velocity loop BiQuad filters: Anti-resonance filter 3 zero natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 11 Velocity loop BiQuad filters: Anti-resonance filter 3 zero natural frequency (see [`Self::vel_loop_quad_filters_anti_resonance_3_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency(
+        pub fn set_vel_loop_quad_filters_anti_resonance_3_zero_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.vel_loop_filters_anti_resonance_filter_3_zero_natural_frequency = v;
+            self.vel_loop_quad_filters_anti_resonance_3_zero_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 12 Velocity loop BiQuad filters: Anti-resonance filter 4 zero natural frequency.
@@ -22297,18 +22172,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency(
+        pub const fn vel_loop_quad_filters_anti_resonance_4_zero_natural_frequency(
             &self,
         ) -> u32 {
-            self.vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency
+            self.vel_loop_quad_filters_anti_resonance_4_zero_natural_frequency
         }
-        /// Sets `0x3406` sub 12 Velocity loop BiQuad filters: Anti-resonance filter 4 zero natural frequency (see [`Self::vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 12 Velocity loop BiQuad filters: Anti-resonance filter 4 zero natural frequency (see [`Self::vel_loop_quad_filters_anti_resonance_4_zero_natural_frequency`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency(
+        pub fn set_vel_loop_quad_filters_anti_resonance_4_zero_natural_frequency(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.vel_loop_filters_anti_resonance_filter_4_zero_natural_frequency = v;
+            self.vel_loop_quad_filters_anti_resonance_4_zero_natural_frequency = v;
             Ok(())
         }
         /// Reads `0x3406` sub 13 Velocity loop BiQuad filters: Anti-resonance filter 1 zero Q.
@@ -22319,18 +22194,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q(
+        pub const fn velocity_loop_bi_quad_filters_anti_resonance_1_zero_q(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q
+            self.velocity_loop_bi_quad_filters_anti_resonance_1_zero_q
         }
-        /// Sets `0x3406` sub 13 Velocity loop BiQuad filters: Anti-resonance filter 1 zero Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 13 Velocity loop BiQuad filters: Anti-resonance filter 1 zero Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_1_zero_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q(
+        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_1_zero_q(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_1_zero_q = v;
+            self.velocity_loop_bi_quad_filters_anti_resonance_1_zero_q = v;
             Ok(())
         }
         /// Reads `0x3406` sub 14 Velocity loop BiQuad filters: Anti-resonance filter 2 zero Q.
@@ -22341,18 +22216,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q(
+        pub const fn velocity_loop_bi_quad_filters_anti_resonance_2_zero_q(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q
+            self.velocity_loop_bi_quad_filters_anti_resonance_2_zero_q
         }
-        /// Sets `0x3406` sub 14 Velocity loop BiQuad filters: Anti-resonance filter 2 zero Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 14 Velocity loop BiQuad filters: Anti-resonance filter 2 zero Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_2_zero_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q(
+        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_2_zero_q(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_2_zero_q = v;
+            self.velocity_loop_bi_quad_filters_anti_resonance_2_zero_q = v;
             Ok(())
         }
         /// Reads `0x3406` sub 15 Velocity loop BiQuad filters: Anti-resonance filter 3 zero Q.
@@ -22363,18 +22238,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q(
+        pub const fn velocity_loop_bi_quad_filters_anti_resonance_3_zero_q(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q
+            self.velocity_loop_bi_quad_filters_anti_resonance_3_zero_q
         }
-        /// Sets `0x3406` sub 15 Velocity loop BiQuad filters: Anti-resonance filter 3 zero Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 15 Velocity loop BiQuad filters: Anti-resonance filter 3 zero Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_3_zero_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q(
+        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_3_zero_q(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_3_zero_q = v;
+            self.velocity_loop_bi_quad_filters_anti_resonance_3_zero_q = v;
             Ok(())
         }
         /// Reads `0x3406` sub 16 Velocity loop BiQuad filters: Anti-resonance filter 4 zero Q.
@@ -22385,18 +22260,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q(
+        pub const fn velocity_loop_bi_quad_filters_anti_resonance_4_zero_q(
             &self,
         ) -> u32 {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q
+            self.velocity_loop_bi_quad_filters_anti_resonance_4_zero_q
         }
-        /// Sets `0x3406` sub 16 Velocity loop BiQuad filters: Anti-resonance filter 4 zero Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3406` sub 16 Velocity loop BiQuad filters: Anti-resonance filter 4 zero Q (see [`Self::velocity_loop_bi_quad_filters_anti_resonance_4_zero_q`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q(
+        pub fn set_velocity_loop_bi_quad_filters_anti_resonance_4_zero_q(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.velocity_loop_bi_quad_filters_anti_resonance_filter_4_zero_q = v;
+            self.velocity_loop_bi_quad_filters_anti_resonance_4_zero_q = v;
             Ok(())
         }
         /// Reads `0x3407` sub 0 Velocity loop filter and feedforward: Number of entries.
@@ -22449,18 +22324,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn velocity_loop_filter_and_feedforward_velocity_feedforward_gain(
-            &self,
-        ) -> u32 {
-            self.velocity_loop_filter_and_feedforward_velocity_feedforward_gain
+        pub const fn velocity_loop_filter_and_feedforward_gain(&self) -> u32 {
+            self.velocity_loop_filter_and_feedforward_gain
         }
-        /// Sets `0x3407` sub 2 Velocity loop filter and feedforward: Velocity feedforward gain (see [`Self::velocity_loop_filter_and_feedforward_velocity_feedforward_gain`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3407` sub 2 Velocity loop filter and feedforward: Velocity feedforward gain (see [`Self::velocity_loop_filter_and_feedforward_gain`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_filter_and_feedforward_velocity_feedforward_gain(
+        pub fn set_velocity_loop_filter_and_feedforward_gain(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.velocity_loop_filter_and_feedforward_velocity_feedforward_gain = v;
+            self.velocity_loop_filter_and_feedforward_gain = v;
             Ok(())
         }
         /// Reads `0x3407` sub 3 Velocity loop filter and feedforward: Acceleration feedforward gain.
@@ -22489,20 +22362,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `VL.ERR`.
         ///
-        /// Dimension: Velocity (typed conversion: `units::Units::velocity_loop_filter_and_feedforward_velocity_error`).
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_loop_filter_and_feedforward_error`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn velocity_loop_filter_and_feedforward_velocity_error(&self) -> u32 {
-            self.velocity_loop_filter_and_feedforward_velocity_error
+        pub const fn velocity_loop_filter_and_feedforward_error(&self) -> u32 {
+            self.velocity_loop_filter_and_feedforward_error
         }
-        /// Sets `0x3407` sub 4 Velocity loop filter and feedforward: Velocity error (see [`Self::velocity_loop_filter_and_feedforward_velocity_error`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3407` sub 4 Velocity loop filter and feedforward: Velocity error (see [`Self::velocity_loop_filter_and_feedforward_error`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_velocity_loop_filter_and_feedforward_velocity_error(
+        pub fn set_velocity_loop_filter_and_feedforward_error(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.velocity_loop_filter_and_feedforward_velocity_error = v;
+            self.velocity_loop_filter_and_feedforward_error = v;
             Ok(())
         }
         /// Reads `0x3412` Regen resistor type.
@@ -22739,16 +22612,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `IL.MIMODE`.
         #[inline]
-        pub const fn motor_protection_parameters_motor_protection_mode(&self) -> u8 {
-            self.motor_protection_parameters_motor_protection_mode
+        pub const fn motor_protection_parameters_mode(&self) -> u8 {
+            self.motor_protection_parameters_mode
         }
-        /// Sets `0x3427` sub 1 Motor protection parameters: Motor protection mode (see [`Self::motor_protection_parameters_motor_protection_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3427` sub 1 Motor protection parameters: Motor protection mode (see [`Self::motor_protection_parameters_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_motor_protection_parameters_motor_protection_mode(
+        pub fn set_motor_protection_parameters_mode(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.motor_protection_parameters_motor_protection_mode = v;
+            self.motor_protection_parameters_mode = v;
             Ok(())
         }
         /// Reads `0x3427` sub 2 Motor protection parameters: Motor I2t warning threshold.
@@ -22757,18 +22630,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `IL.MI2TWTHRESH`.
         #[inline]
-        pub const fn motor_protection_parameters_motor_i2t_warning_threshold(
-            &self,
-        ) -> u8 {
-            self.motor_protection_parameters_motor_i2t_warning_threshold
+        pub const fn motor_protection_parameters_i2t_warning_threshold(&self) -> u8 {
+            self.motor_protection_parameters_i2t_warning_threshold
         }
-        /// Sets `0x3427` sub 2 Motor protection parameters: Motor I2t warning threshold (see [`Self::motor_protection_parameters_motor_i2t_warning_threshold`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3427` sub 2 Motor protection parameters: Motor I2t warning threshold (see [`Self::motor_protection_parameters_i2t_warning_threshold`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_motor_protection_parameters_motor_i2t_warning_threshold(
+        pub fn set_motor_protection_parameters_i2t_warning_threshold(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.motor_protection_parameters_motor_i2t_warning_threshold = v;
+            self.motor_protection_parameters_i2t_warning_threshold = v;
             Ok(())
         }
         /// Reads `0x3427` sub 3 Motor protection parameters: Motor I2t load.
@@ -22777,16 +22648,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `IL.MI2T`.
         #[inline]
-        pub const fn motor_protection_parameters_motor_i2t_load(&self) -> u32 {
-            self.motor_protection_parameters_motor_i2t_load
+        pub const fn motor_protection_parameters_i2t_load(&self) -> u32 {
+            self.motor_protection_parameters_i2t_load
         }
-        /// Sets `0x3427` sub 3 Motor protection parameters: Motor I2t load (see [`Self::motor_protection_parameters_motor_i2t_load`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3427` sub 3 Motor protection parameters: Motor I2t load (see [`Self::motor_protection_parameters_i2t_load`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_motor_protection_parameters_motor_i2t_load(
+        pub fn set_motor_protection_parameters_i2t_load(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.motor_protection_parameters_motor_i2t_load = v;
+            self.motor_protection_parameters_i2t_load = v;
             Ok(())
         }
         /// Reads `0x3430` Direction for absolute motion tasks.
@@ -22847,22 +22718,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `CS.DEC`.
         ///
-        /// Dimension: Acceleration (typed conversion: `units::Units::controlled_stop_parameters_controlled_stop_deceleration`).
+        /// Dimension: Acceleration (typed conversion: `units::Units::controlled_stop_parameters_deceleration`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn controlled_stop_parameters_controlled_stop_deceleration(
-            &self,
-        ) -> u32 {
-            self.controlled_stop_parameters_controlled_stop_deceleration
+        pub const fn controlled_stop_parameters_deceleration(&self) -> u32 {
+            self.controlled_stop_parameters_deceleration
         }
-        /// Sets `0x3440` sub 1 Controlled stop parameters: Controlled stop deceleration (see [`Self::controlled_stop_parameters_controlled_stop_deceleration`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3440` sub 1 Controlled stop parameters: Controlled stop deceleration (see [`Self::controlled_stop_parameters_deceleration`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_controlled_stop_parameters_controlled_stop_deceleration(
+        pub fn set_controlled_stop_parameters_deceleration(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.controlled_stop_parameters_controlled_stop_deceleration = v;
+            self.controlled_stop_parameters_deceleration = v;
             Ok(())
         }
         /// Reads `0x3440` sub 2 Controlled stop parameters: Controlled stop velocity threshold.
@@ -22871,22 +22740,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `CS.VTHRESH`.
         ///
-        /// Dimension: Velocity (typed conversion: `units::Units::controlled_stop_parameters_controlled_stop_velocity_threshold`).
+        /// Dimension: Velocity (typed conversion: `units::Units::controlled_stop_parameters_velocity_threshold`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn controlled_stop_parameters_controlled_stop_velocity_threshold(
-            &self,
-        ) -> u32 {
-            self.controlled_stop_parameters_controlled_stop_velocity_threshold
+        pub const fn controlled_stop_parameters_velocity_threshold(&self) -> u32 {
+            self.controlled_stop_parameters_velocity_threshold
         }
-        /// Sets `0x3440` sub 2 Controlled stop parameters: Controlled stop velocity threshold (see [`Self::controlled_stop_parameters_controlled_stop_velocity_threshold`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3440` sub 2 Controlled stop parameters: Controlled stop velocity threshold (see [`Self::controlled_stop_parameters_velocity_threshold`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_controlled_stop_parameters_controlled_stop_velocity_threshold(
+        pub fn set_controlled_stop_parameters_velocity_threshold(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.controlled_stop_parameters_controlled_stop_velocity_threshold = v;
+            self.controlled_stop_parameters_velocity_threshold = v;
             Ok(())
         }
         /// Reads `0x3440` sub 3 Controlled stop parameters: Controlled stop velocity threshold time.
@@ -23137,18 +23004,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn induction_motor_parameters_induction_motor_rated_velocity(
-            &self,
-        ) -> i32 {
-            self.induction_motor_parameters_induction_motor_rated_velocity
+        pub const fn induction_motor_parameters_rated_velocity(&self) -> i32 {
+            self.induction_motor_parameters_rated_velocity
         }
-        /// Sets `0x3457` sub 1 Induction motor parameters: Induction motor rated velocity (see [`Self::induction_motor_parameters_induction_motor_rated_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3457` sub 1 Induction motor parameters: Induction motor rated velocity (see [`Self::induction_motor_parameters_rated_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_induction_motor_parameters_induction_motor_rated_velocity(
+        pub fn set_induction_motor_parameters_rated_velocity(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.induction_motor_parameters_induction_motor_rated_velocity = v;
+            self.induction_motor_parameters_rated_velocity = v;
             Ok(())
         }
         /// Reads `0x3457` sub 2 Induction motor parameters: Induction motor rated voltage.
@@ -23157,18 +23022,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `MOTOR.VOLTRATED`.
         #[inline]
-        pub const fn induction_motor_parameters_induction_motor_rated_voltage(
-            &self,
-        ) -> u16 {
-            self.induction_motor_parameters_induction_motor_rated_voltage
+        pub const fn induction_motor_parameters_rated_voltage(&self) -> u16 {
+            self.induction_motor_parameters_rated_voltage
         }
-        /// Sets `0x3457` sub 2 Induction motor parameters: Induction motor rated voltage (see [`Self::induction_motor_parameters_induction_motor_rated_voltage`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3457` sub 2 Induction motor parameters: Induction motor rated voltage (see [`Self::induction_motor_parameters_rated_voltage`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_induction_motor_parameters_induction_motor_rated_voltage(
+        pub fn set_induction_motor_parameters_rated_voltage(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.induction_motor_parameters_induction_motor_rated_voltage = v;
+            self.induction_motor_parameters_rated_voltage = v;
             Ok(())
         }
         /// Reads `0x3457` sub 3 Induction motor parameters: Minimum voltage for V/f control.
@@ -23213,16 +23076,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `CAP0.TRIGGER`.
         #[inline]
-        pub const fn capture_engine_parameters_capture_0_trigger_source(&self) -> u8 {
-            self.capture_engine_parameters_capture_0_trigger_source
+        pub const fn capture_engine_parameters_0_trigger_source(&self) -> u8 {
+            self.capture_engine_parameters_0_trigger_source
         }
-        /// Sets `0x3460` sub 1 Capture engine parameters: Capture 0 trigger source (see [`Self::capture_engine_parameters_capture_0_trigger_source`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3460` sub 1 Capture engine parameters: Capture 0 trigger source (see [`Self::capture_engine_parameters_0_trigger_source`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_capture_engine_parameters_capture_0_trigger_source(
+        pub fn set_capture_engine_parameters_0_trigger_source(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.capture_engine_parameters_capture_0_trigger_source = v;
+            self.capture_engine_parameters_0_trigger_source = v;
             Ok(())
         }
         /// Reads `0x3460` sub 2 Capture engine parameters: Capture 1 trigger source.
@@ -23231,16 +23094,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `CAP1.TRIGGER`.
         #[inline]
-        pub const fn capture_engine_parameters_capture_1_trigger_source(&self) -> u8 {
-            self.capture_engine_parameters_capture_1_trigger_source
+        pub const fn capture_engine_parameters_1_trigger_source(&self) -> u8 {
+            self.capture_engine_parameters_1_trigger_source
         }
-        /// Sets `0x3460` sub 2 Capture engine parameters: Capture 1 trigger source (see [`Self::capture_engine_parameters_capture_1_trigger_source`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3460` sub 2 Capture engine parameters: Capture 1 trigger source (see [`Self::capture_engine_parameters_1_trigger_source`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_capture_engine_parameters_capture_1_trigger_source(
+        pub fn set_capture_engine_parameters_1_trigger_source(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.capture_engine_parameters_capture_1_trigger_source = v;
+            self.capture_engine_parameters_1_trigger_source = v;
             Ok(())
         }
         /// Reads `0x3460` sub 3 Capture engine parameters: Capture 0 mode.
@@ -23249,16 +23112,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `CAP0.MODE`.
         #[inline]
-        pub const fn capture_engine_parameters_capture_0_mode(&self) -> u8 {
-            self.capture_engine_parameters_capture_0_mode
+        pub const fn capture_engine_parameters_0_mode(&self) -> u8 {
+            self.capture_engine_parameters_0_mode
         }
-        /// Sets `0x3460` sub 3 Capture engine parameters: Capture 0 mode (see [`Self::capture_engine_parameters_capture_0_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3460` sub 3 Capture engine parameters: Capture 0 mode (see [`Self::capture_engine_parameters_0_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_capture_engine_parameters_capture_0_mode(
+        pub fn set_capture_engine_parameters_0_mode(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.capture_engine_parameters_capture_0_mode = v;
+            self.capture_engine_parameters_0_mode = v;
             Ok(())
         }
         /// Reads `0x3460` sub 4 Capture engine parameters: Capture 1 mode.
@@ -23267,16 +23130,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `CAP1.MODE`.
         #[inline]
-        pub const fn capture_engine_parameters_capture_1_mode(&self) -> u8 {
-            self.capture_engine_parameters_capture_1_mode
+        pub const fn capture_engine_parameters_1_mode(&self) -> u8 {
+            self.capture_engine_parameters_1_mode
         }
-        /// Sets `0x3460` sub 4 Capture engine parameters: Capture 1 mode (see [`Self::capture_engine_parameters_capture_1_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3460` sub 4 Capture engine parameters: Capture 1 mode (see [`Self::capture_engine_parameters_1_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_capture_engine_parameters_capture_1_mode(
+        pub fn set_capture_engine_parameters_1_mode(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.capture_engine_parameters_capture_1_mode = v;
+            self.capture_engine_parameters_1_mode = v;
             Ok(())
         }
         /// Reads `0x3460` sub 5 Capture engine parameters: Capture 0 precondition logic.
@@ -23285,18 +23148,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `CAP0.EVENT`.
         #[inline]
-        pub const fn capture_engine_parameters_capture_0_precondition_logic(
-            &self,
-        ) -> u8 {
-            self.capture_engine_parameters_capture_0_precondition_logic
+        pub const fn capture_engine_parameters_0_precondition_logic(&self) -> u8 {
+            self.capture_engine_parameters_0_precondition_logic
         }
-        /// Sets `0x3460` sub 5 Capture engine parameters: Capture 0 precondition logic (see [`Self::capture_engine_parameters_capture_0_precondition_logic`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3460` sub 5 Capture engine parameters: Capture 0 precondition logic (see [`Self::capture_engine_parameters_0_precondition_logic`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_capture_engine_parameters_capture_0_precondition_logic(
+        pub fn set_capture_engine_parameters_0_precondition_logic(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.capture_engine_parameters_capture_0_precondition_logic = v;
+            self.capture_engine_parameters_0_precondition_logic = v;
             Ok(())
         }
         /// Reads `0x3460` sub 6 Capture engine parameters: Capture 1 precondition logic.
@@ -23305,18 +23166,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `CAP1.EVENT`.
         #[inline]
-        pub const fn capture_engine_parameters_capture_1_precondition_logic(
-            &self,
-        ) -> u8 {
-            self.capture_engine_parameters_capture_1_precondition_logic
+        pub const fn capture_engine_parameters_1_precondition_logic(&self) -> u8 {
+            self.capture_engine_parameters_1_precondition_logic
         }
-        /// Sets `0x3460` sub 6 Capture engine parameters: Capture 1 precondition logic (see [`Self::capture_engine_parameters_capture_1_precondition_logic`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3460` sub 6 Capture engine parameters: Capture 1 precondition logic (see [`Self::capture_engine_parameters_1_precondition_logic`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_capture_engine_parameters_capture_1_precondition_logic(
+        pub fn set_capture_engine_parameters_1_precondition_logic(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.capture_engine_parameters_capture_1_precondition_logic = v;
+            self.capture_engine_parameters_1_precondition_logic = v;
             Ok(())
         }
         /// Reads `0x3460` sub 7 Capture engine parameters: Capture 0 precondition edge.
@@ -23325,16 +23184,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `CAP0.PREEDGE`.
         #[inline]
-        pub const fn capture_engine_parameters_capture_0_precondition_edge(&self) -> u8 {
-            self.capture_engine_parameters_capture_0_precondition_edge
+        pub const fn capture_engine_parameters_0_precondition_edge(&self) -> u8 {
+            self.capture_engine_parameters_0_precondition_edge
         }
-        /// Sets `0x3460` sub 7 Capture engine parameters: Capture 0 precondition edge (see [`Self::capture_engine_parameters_capture_0_precondition_edge`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3460` sub 7 Capture engine parameters: Capture 0 precondition edge (see [`Self::capture_engine_parameters_0_precondition_edge`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_capture_engine_parameters_capture_0_precondition_edge(
+        pub fn set_capture_engine_parameters_0_precondition_edge(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.capture_engine_parameters_capture_0_precondition_edge = v;
+            self.capture_engine_parameters_0_precondition_edge = v;
             Ok(())
         }
         /// Reads `0x3460` sub 8 Capture engine parameters: Capture 1 precondition edge.
@@ -23343,16 +23202,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `CAP1.PREEDGE`.
         #[inline]
-        pub const fn capture_engine_parameters_capture_1_precondition_edge(&self) -> u8 {
-            self.capture_engine_parameters_capture_1_precondition_edge
+        pub const fn capture_engine_parameters_1_precondition_edge(&self) -> u8 {
+            self.capture_engine_parameters_1_precondition_edge
         }
-        /// Sets `0x3460` sub 8 Capture engine parameters: Capture 1 precondition edge (see [`Self::capture_engine_parameters_capture_1_precondition_edge`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3460` sub 8 Capture engine parameters: Capture 1 precondition edge (see [`Self::capture_engine_parameters_1_precondition_edge`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_capture_engine_parameters_capture_1_precondition_edge(
+        pub fn set_capture_engine_parameters_1_precondition_edge(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.capture_engine_parameters_capture_1_precondition_edge = v;
+            self.capture_engine_parameters_1_precondition_edge = v;
             Ok(())
         }
         /// Reads `0x3460` sub 9 Capture engine parameters: Capture 0 precondition trigger.
@@ -23361,18 +23220,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `CAP0.PRESELECT`.
         #[inline]
-        pub const fn capture_engine_parameters_capture_0_precondition_trigger(
-            &self,
-        ) -> u8 {
-            self.capture_engine_parameters_capture_0_precondition_trigger
+        pub const fn capture_engine_parameters_0_precondition_trigger(&self) -> u8 {
+            self.capture_engine_parameters_0_precondition_trigger
         }
-        /// Sets `0x3460` sub 9 Capture engine parameters: Capture 0 precondition trigger (see [`Self::capture_engine_parameters_capture_0_precondition_trigger`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3460` sub 9 Capture engine parameters: Capture 0 precondition trigger (see [`Self::capture_engine_parameters_0_precondition_trigger`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_capture_engine_parameters_capture_0_precondition_trigger(
+        pub fn set_capture_engine_parameters_0_precondition_trigger(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.capture_engine_parameters_capture_0_precondition_trigger = v;
+            self.capture_engine_parameters_0_precondition_trigger = v;
             Ok(())
         }
         /// Reads `0x3460` sub 10 Capture engine parameters: Capture 1 precondition trigger.
@@ -23381,18 +23238,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `CAP1.PRESELECT`.
         #[inline]
-        pub const fn capture_engine_parameters_capture_1_precondition_trigger(
-            &self,
-        ) -> u8 {
-            self.capture_engine_parameters_capture_1_precondition_trigger
+        pub const fn capture_engine_parameters_1_precondition_trigger(&self) -> u8 {
+            self.capture_engine_parameters_1_precondition_trigger
         }
-        /// Sets `0x3460` sub 10 Capture engine parameters: Capture 1 precondition trigger (see [`Self::capture_engine_parameters_capture_1_precondition_trigger`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3460` sub 10 Capture engine parameters: Capture 1 precondition trigger (see [`Self::capture_engine_parameters_1_precondition_trigger`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_capture_engine_parameters_capture_1_precondition_trigger(
+        pub fn set_capture_engine_parameters_1_precondition_trigger(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.capture_engine_parameters_capture_1_precondition_trigger = v;
+            self.capture_engine_parameters_1_precondition_trigger = v;
             Ok(())
         }
         /// Reads `0x3470` sub 0 Analog input and output parameters: Number of entries.
@@ -23417,16 +23272,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `AOUT.MODE`.
         #[inline]
-        pub const fn analog_input_and_output_parameters_analog_output_mode(&self) -> i8 {
-            self.analog_input_and_output_parameters_analog_output_mode
+        pub const fn analog_input_and_output_parameters_mode(&self) -> i8 {
+            self.analog_input_and_output_parameters_mode
         }
-        /// Sets `0x3470` sub 1 Analog input and output parameters: Analog output mode (see [`Self::analog_input_and_output_parameters_analog_output_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3470` sub 1 Analog input and output parameters: Analog output mode (see [`Self::analog_input_and_output_parameters_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_analog_input_and_output_parameters_analog_output_mode(
+        pub fn set_analog_input_and_output_parameters_mode(
             &mut self,
             v: i8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.analog_input_and_output_parameters_analog_output_mode = v;
+            self.analog_input_and_output_parameters_mode = v;
             Ok(())
         }
         /// Reads `0x3470` sub 2 Analog input and output parameters: Analog output value.
@@ -23437,18 +23292,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn analog_input_and_output_parameters_analog_output_value(
-            &self,
-        ) -> i16 {
-            self.analog_input_and_output_parameters_analog_output_value
+        pub const fn analog_input_and_output_parameters_output_value(&self) -> i16 {
+            self.analog_input_and_output_parameters_output_value
         }
-        /// Sets `0x3470` sub 2 Analog input and output parameters: Analog output value (see [`Self::analog_input_and_output_parameters_analog_output_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3470` sub 2 Analog input and output parameters: Analog output value (see [`Self::analog_input_and_output_parameters_output_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_analog_input_and_output_parameters_analog_output_value(
+        pub fn set_analog_input_and_output_parameters_output_value(
             &mut self,
             v: i16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.analog_input_and_output_parameters_analog_output_value = v;
+            self.analog_input_and_output_parameters_output_value = v;
             Ok(())
         }
         /// Reads `0x3470` sub 3 Analog input and output parameters: Analog output value, user units.
@@ -23479,18 +23332,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn analog_input_and_output_parameters_analog_input_value(
-            &self,
-        ) -> i16 {
-            self.analog_input_and_output_parameters_analog_input_value
+        pub const fn analog_input_and_output_parameters_input_value(&self) -> i16 {
+            self.analog_input_and_output_parameters_input_value
         }
-        /// Sets `0x3470` sub 4 Analog input and output parameters: Analog input value (see [`Self::analog_input_and_output_parameters_analog_input_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3470` sub 4 Analog input and output parameters: Analog input value (see [`Self::analog_input_and_output_parameters_input_value`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_analog_input_and_output_parameters_analog_input_value(
+        pub fn set_analog_input_and_output_parameters_input_value(
             &mut self,
             v: i16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.analog_input_and_output_parameters_analog_input_value = v;
+            self.analog_input_and_output_parameters_input_value = v;
             Ok(())
         }
         /// Reads `0x3470` sub 5 Analog input and output parameters: Analog output velocity scale factor.
@@ -23577,18 +23428,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DIN1.PARAM`.
         #[inline]
-        pub const fn digital_input_parameters_digital_input_1_parameter_low_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_input_parameters_digital_input_1_parameter_low_32_bits
+        pub const fn digital_input_parameters_1_low_32_bits(&self) -> u32 {
+            self.digital_input_parameters_1_low_32_bits
         }
-        /// Sets `0x3474` sub 1 Digital input parameters: Digital input 1 parameter, low 32 bits (see [`Self::digital_input_parameters_digital_input_1_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3474` sub 1 Digital input parameters: Digital input 1 parameter, low 32 bits (see [`Self::digital_input_parameters_1_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_input_parameters_digital_input_1_parameter_low_32_bits(
+        pub fn set_digital_input_parameters_1_low_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_input_parameters_digital_input_1_parameter_low_32_bits = v;
+            self.digital_input_parameters_1_low_32_bits = v;
             Ok(())
         }
         /// Reads `0x3474` sub 2 Digital input parameters: Digital input 2 parameter, low 32 bits.
@@ -23597,18 +23446,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DIN2.PARAM`.
         #[inline]
-        pub const fn digital_input_parameters_digital_input_2_parameter_low_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_input_parameters_digital_input_2_parameter_low_32_bits
+        pub const fn digital_input_parameters_2_low_32_bits(&self) -> u32 {
+            self.digital_input_parameters_2_low_32_bits
         }
-        /// Sets `0x3474` sub 2 Digital input parameters: Digital input 2 parameter, low 32 bits (see [`Self::digital_input_parameters_digital_input_2_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3474` sub 2 Digital input parameters: Digital input 2 parameter, low 32 bits (see [`Self::digital_input_parameters_2_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_input_parameters_digital_input_2_parameter_low_32_bits(
+        pub fn set_digital_input_parameters_2_low_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_input_parameters_digital_input_2_parameter_low_32_bits = v;
+            self.digital_input_parameters_2_low_32_bits = v;
             Ok(())
         }
         /// Reads `0x3474` sub 3 Digital input parameters: Digital input 3 parameter, low 32 bits.
@@ -23617,18 +23464,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DIN3.PARAM`.
         #[inline]
-        pub const fn digital_input_parameters_digital_input_3_parameter_low_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_input_parameters_digital_input_3_parameter_low_32_bits
+        pub const fn digital_input_parameters_3_low_32_bits(&self) -> u32 {
+            self.digital_input_parameters_3_low_32_bits
         }
-        /// Sets `0x3474` sub 3 Digital input parameters: Digital input 3 parameter, low 32 bits (see [`Self::digital_input_parameters_digital_input_3_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3474` sub 3 Digital input parameters: Digital input 3 parameter, low 32 bits (see [`Self::digital_input_parameters_3_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_input_parameters_digital_input_3_parameter_low_32_bits(
+        pub fn set_digital_input_parameters_3_low_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_input_parameters_digital_input_3_parameter_low_32_bits = v;
+            self.digital_input_parameters_3_low_32_bits = v;
             Ok(())
         }
         /// Reads `0x3474` sub 4 Digital input parameters: Digital input 4 parameter, low 32 bits.
@@ -23637,18 +23482,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DIN4.PARAM`.
         #[inline]
-        pub const fn digital_input_parameters_digital_input_4_parameter_low_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_input_parameters_digital_input_4_parameter_low_32_bits
+        pub const fn digital_input_parameters_4_low_32_bits(&self) -> u32 {
+            self.digital_input_parameters_4_low_32_bits
         }
-        /// Sets `0x3474` sub 4 Digital input parameters: Digital input 4 parameter, low 32 bits (see [`Self::digital_input_parameters_digital_input_4_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3474` sub 4 Digital input parameters: Digital input 4 parameter, low 32 bits (see [`Self::digital_input_parameters_4_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_input_parameters_digital_input_4_parameter_low_32_bits(
+        pub fn set_digital_input_parameters_4_low_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_input_parameters_digital_input_4_parameter_low_32_bits = v;
+            self.digital_input_parameters_4_low_32_bits = v;
             Ok(())
         }
         /// Reads `0x3474` sub 5 Digital input parameters: Digital input 5 parameter, low 32 bits.
@@ -23657,18 +23500,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DIN5.PARAM`.
         #[inline]
-        pub const fn digital_input_parameters_digital_input_5_parameter_low_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_input_parameters_digital_input_5_parameter_low_32_bits
+        pub const fn digital_input_parameters_5_low_32_bits(&self) -> u32 {
+            self.digital_input_parameters_5_low_32_bits
         }
-        /// Sets `0x3474` sub 5 Digital input parameters: Digital input 5 parameter, low 32 bits (see [`Self::digital_input_parameters_digital_input_5_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3474` sub 5 Digital input parameters: Digital input 5 parameter, low 32 bits (see [`Self::digital_input_parameters_5_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_input_parameters_digital_input_5_parameter_low_32_bits(
+        pub fn set_digital_input_parameters_5_low_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_input_parameters_digital_input_5_parameter_low_32_bits = v;
+            self.digital_input_parameters_5_low_32_bits = v;
             Ok(())
         }
         /// Reads `0x3474` sub 6 Digital input parameters: Digital input 6 parameter, low 32 bits.
@@ -23677,18 +23518,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DIN6.PARAM`.
         #[inline]
-        pub const fn digital_input_parameters_digital_input_6_parameter_low_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_input_parameters_digital_input_6_parameter_low_32_bits
+        pub const fn digital_input_parameters_6_low_32_bits(&self) -> u32 {
+            self.digital_input_parameters_6_low_32_bits
         }
-        /// Sets `0x3474` sub 6 Digital input parameters: Digital input 6 parameter, low 32 bits (see [`Self::digital_input_parameters_digital_input_6_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3474` sub 6 Digital input parameters: Digital input 6 parameter, low 32 bits (see [`Self::digital_input_parameters_6_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_input_parameters_digital_input_6_parameter_low_32_bits(
+        pub fn set_digital_input_parameters_6_low_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_input_parameters_digital_input_6_parameter_low_32_bits = v;
+            self.digital_input_parameters_6_low_32_bits = v;
             Ok(())
         }
         /// Reads `0x3474` sub 7 Digital input parameters: Digital input 7 parameter, low 32 bits.
@@ -23697,18 +23536,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DIN7.PARAM`.
         #[inline]
-        pub const fn digital_input_parameters_digital_input_7_parameter_low_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_input_parameters_digital_input_7_parameter_low_32_bits
+        pub const fn digital_input_parameters_7_low_32_bits(&self) -> u32 {
+            self.digital_input_parameters_7_low_32_bits
         }
-        /// Sets `0x3474` sub 7 Digital input parameters: Digital input 7 parameter, low 32 bits (see [`Self::digital_input_parameters_digital_input_7_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3474` sub 7 Digital input parameters: Digital input 7 parameter, low 32 bits (see [`Self::digital_input_parameters_7_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_input_parameters_digital_input_7_parameter_low_32_bits(
+        pub fn set_digital_input_parameters_7_low_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_input_parameters_digital_input_7_parameter_low_32_bits = v;
+            self.digital_input_parameters_7_low_32_bits = v;
             Ok(())
         }
         /// Reads `0x3474` sub 8 Digital input parameters: Digital input 1 parameter, high 32 bits.
@@ -23717,18 +23554,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DIN1.PARAM`.
         #[inline]
-        pub const fn digital_input_parameters_digital_input_1_parameter_high_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_input_parameters_digital_input_1_parameter_high_32_bits
+        pub const fn digital_input_parameters_1_high_32_bits(&self) -> u32 {
+            self.digital_input_parameters_1_high_32_bits
         }
-        /// Sets `0x3474` sub 8 Digital input parameters: Digital input 1 parameter, high 32 bits (see [`Self::digital_input_parameters_digital_input_1_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3474` sub 8 Digital input parameters: Digital input 1 parameter, high 32 bits (see [`Self::digital_input_parameters_1_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_input_parameters_digital_input_1_parameter_high_32_bits(
+        pub fn set_digital_input_parameters_1_high_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_input_parameters_digital_input_1_parameter_high_32_bits = v;
+            self.digital_input_parameters_1_high_32_bits = v;
             Ok(())
         }
         /// Reads `0x3474` sub 9 Digital input parameters: Digital input 2 parameter, high 32 bits.
@@ -23737,18 +23572,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DIN2.PARAM`.
         #[inline]
-        pub const fn digital_input_parameters_digital_input_2_parameter_high_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_input_parameters_digital_input_2_parameter_high_32_bits
+        pub const fn digital_input_parameters_2_high_32_bits(&self) -> u32 {
+            self.digital_input_parameters_2_high_32_bits
         }
-        /// Sets `0x3474` sub 9 Digital input parameters: Digital input 2 parameter, high 32 bits (see [`Self::digital_input_parameters_digital_input_2_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3474` sub 9 Digital input parameters: Digital input 2 parameter, high 32 bits (see [`Self::digital_input_parameters_2_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_input_parameters_digital_input_2_parameter_high_32_bits(
+        pub fn set_digital_input_parameters_2_high_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_input_parameters_digital_input_2_parameter_high_32_bits = v;
+            self.digital_input_parameters_2_high_32_bits = v;
             Ok(())
         }
         /// Reads `0x3474` sub 10 Digital input parameters: Digital input 3 parameter, high 32 bits.
@@ -23757,18 +23590,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DIN3.PARAM`.
         #[inline]
-        pub const fn digital_input_parameters_digital_input_3_parameter_high_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_input_parameters_digital_input_3_parameter_high_32_bits
+        pub const fn digital_input_parameters_3_high_32_bits(&self) -> u32 {
+            self.digital_input_parameters_3_high_32_bits
         }
-        /// Sets `0x3474` sub 10 Digital input parameters: Digital input 3 parameter, high 32 bits (see [`Self::digital_input_parameters_digital_input_3_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3474` sub 10 Digital input parameters: Digital input 3 parameter, high 32 bits (see [`Self::digital_input_parameters_3_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_input_parameters_digital_input_3_parameter_high_32_bits(
+        pub fn set_digital_input_parameters_3_high_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_input_parameters_digital_input_3_parameter_high_32_bits = v;
+            self.digital_input_parameters_3_high_32_bits = v;
             Ok(())
         }
         /// Reads `0x3474` sub 11 Digital input parameters: Digital input 4 parameter, high 32 bits.
@@ -23777,18 +23608,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DIN4.PARAM`.
         #[inline]
-        pub const fn digital_input_parameters_digital_input_4_parameter_high_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_input_parameters_digital_input_4_parameter_high_32_bits
+        pub const fn digital_input_parameters_4_high_32_bits(&self) -> u32 {
+            self.digital_input_parameters_4_high_32_bits
         }
-        /// Sets `0x3474` sub 11 Digital input parameters: Digital input 4 parameter, high 32 bits (see [`Self::digital_input_parameters_digital_input_4_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3474` sub 11 Digital input parameters: Digital input 4 parameter, high 32 bits (see [`Self::digital_input_parameters_4_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_input_parameters_digital_input_4_parameter_high_32_bits(
+        pub fn set_digital_input_parameters_4_high_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_input_parameters_digital_input_4_parameter_high_32_bits = v;
+            self.digital_input_parameters_4_high_32_bits = v;
             Ok(())
         }
         /// Reads `0x3474` sub 12 Digital input parameters: Digital input 5 parameter, high 32 bits.
@@ -23797,18 +23626,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DIN5.PARAM`.
         #[inline]
-        pub const fn digital_input_parameters_digital_input_5_parameter_high_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_input_parameters_digital_input_5_parameter_high_32_bits
+        pub const fn digital_input_parameters_5_high_32_bits(&self) -> u32 {
+            self.digital_input_parameters_5_high_32_bits
         }
-        /// Sets `0x3474` sub 12 Digital input parameters: Digital input 5 parameter, high 32 bits (see [`Self::digital_input_parameters_digital_input_5_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3474` sub 12 Digital input parameters: Digital input 5 parameter, high 32 bits (see [`Self::digital_input_parameters_5_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_input_parameters_digital_input_5_parameter_high_32_bits(
+        pub fn set_digital_input_parameters_5_high_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_input_parameters_digital_input_5_parameter_high_32_bits = v;
+            self.digital_input_parameters_5_high_32_bits = v;
             Ok(())
         }
         /// Reads `0x3474` sub 13 Digital input parameters: Digital input 6 parameter, high 32 bits.
@@ -23817,18 +23644,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DIN6.PARAM`.
         #[inline]
-        pub const fn digital_input_parameters_digital_input_6_parameter_high_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_input_parameters_digital_input_6_parameter_high_32_bits
+        pub const fn digital_input_parameters_6_high_32_bits(&self) -> u32 {
+            self.digital_input_parameters_6_high_32_bits
         }
-        /// Sets `0x3474` sub 13 Digital input parameters: Digital input 6 parameter, high 32 bits (see [`Self::digital_input_parameters_digital_input_6_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3474` sub 13 Digital input parameters: Digital input 6 parameter, high 32 bits (see [`Self::digital_input_parameters_6_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_input_parameters_digital_input_6_parameter_high_32_bits(
+        pub fn set_digital_input_parameters_6_high_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_input_parameters_digital_input_6_parameter_high_32_bits = v;
+            self.digital_input_parameters_6_high_32_bits = v;
             Ok(())
         }
         /// Reads `0x3474` sub 14 Digital input parameters: Digital input 7 parameter, high 32 bits.
@@ -23837,18 +23662,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DIN7.PARAM`.
         #[inline]
-        pub const fn digital_input_parameters_digital_input_7_parameter_high_32_bits(
-            &self,
-        ) -> u32 {
-            self.digital_input_parameters_digital_input_7_parameter_high_32_bits
+        pub const fn digital_input_parameters_7_high_32_bits(&self) -> u32 {
+            self.digital_input_parameters_7_high_32_bits
         }
-        /// Sets `0x3474` sub 14 Digital input parameters: Digital input 7 parameter, high 32 bits (see [`Self::digital_input_parameters_digital_input_7_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3474` sub 14 Digital input parameters: Digital input 7 parameter, high 32 bits (see [`Self::digital_input_parameters_7_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_input_parameters_digital_input_7_parameter_high_32_bits(
+        pub fn set_digital_input_parameters_7_high_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_input_parameters_digital_input_7_parameter_high_32_bits = v;
+            self.digital_input_parameters_7_high_32_bits = v;
             Ok(())
         }
         /// Reads `0x3475` sub 0 Digital output parameters: Number of entries.
@@ -23873,16 +23696,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DOUT1.PARAM`.
         #[inline]
-        pub const fn digital_output_parameters_1_parameter_low_32_bits(&self) -> u32 {
-            self.digital_output_parameters_1_parameter_low_32_bits
+        pub const fn digital_output_parameters_1_low_32_bits(&self) -> u32 {
+            self.digital_output_parameters_1_low_32_bits
         }
-        /// Sets `0x3475` sub 1 Digital output parameters: Digital output 1 parameter, low 32 bits (see [`Self::digital_output_parameters_1_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3475` sub 1 Digital output parameters: Digital output 1 parameter, low 32 bits (see [`Self::digital_output_parameters_1_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_output_parameters_1_parameter_low_32_bits(
+        pub fn set_digital_output_parameters_1_low_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_output_parameters_1_parameter_low_32_bits = v;
+            self.digital_output_parameters_1_low_32_bits = v;
             Ok(())
         }
         /// Reads `0x3475` sub 2 Digital output parameters: Digital output 2 parameter, low 32 bits.
@@ -23891,16 +23714,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DOUT2.PARAM`.
         #[inline]
-        pub const fn digital_output_parameters_2_parameter_low_32_bits(&self) -> u32 {
-            self.digital_output_parameters_2_parameter_low_32_bits
+        pub const fn digital_output_parameters_2_low_32_bits(&self) -> u32 {
+            self.digital_output_parameters_2_low_32_bits
         }
-        /// Sets `0x3475` sub 2 Digital output parameters: Digital output 2 parameter, low 32 bits (see [`Self::digital_output_parameters_2_parameter_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3475` sub 2 Digital output parameters: Digital output 2 parameter, low 32 bits (see [`Self::digital_output_parameters_2_low_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_output_parameters_2_parameter_low_32_bits(
+        pub fn set_digital_output_parameters_2_low_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_output_parameters_2_parameter_low_32_bits = v;
+            self.digital_output_parameters_2_low_32_bits = v;
             Ok(())
         }
         /// Reads `0x3475` sub 3 Digital output parameters: Digital output 1 parameter, high 32 bits.
@@ -23909,16 +23732,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DOUT1.PARAM`.
         #[inline]
-        pub const fn digital_output_parameters_1_parameter_high_32_bits(&self) -> u32 {
-            self.digital_output_parameters_1_parameter_high_32_bits
+        pub const fn digital_output_parameters_1_high_32_bits(&self) -> u32 {
+            self.digital_output_parameters_1_high_32_bits
         }
-        /// Sets `0x3475` sub 3 Digital output parameters: Digital output 1 parameter, high 32 bits (see [`Self::digital_output_parameters_1_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3475` sub 3 Digital output parameters: Digital output 1 parameter, high 32 bits (see [`Self::digital_output_parameters_1_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_output_parameters_1_parameter_high_32_bits(
+        pub fn set_digital_output_parameters_1_high_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_output_parameters_1_parameter_high_32_bits = v;
+            self.digital_output_parameters_1_high_32_bits = v;
             Ok(())
         }
         /// Reads `0x3475` sub 4 Digital output parameters: Digital output 2 parameter, high 32 bits.
@@ -23927,16 +23750,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `DOUT2.PARAM`.
         #[inline]
-        pub const fn digital_output_parameters_2_parameter_high_32_bits(&self) -> u32 {
-            self.digital_output_parameters_2_parameter_high_32_bits
+        pub const fn digital_output_parameters_2_high_32_bits(&self) -> u32 {
+            self.digital_output_parameters_2_high_32_bits
         }
-        /// Sets `0x3475` sub 4 Digital output parameters: Digital output 2 parameter, high 32 bits (see [`Self::digital_output_parameters_2_parameter_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3475` sub 4 Digital output parameters: Digital output 2 parameter, high 32 bits (see [`Self::digital_output_parameters_2_high_32_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_output_parameters_2_parameter_high_32_bits(
+        pub fn set_digital_output_parameters_2_high_32_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_output_parameters_2_parameter_high_32_bits = v;
+            self.digital_output_parameters_2_high_32_bits = v;
             Ok(())
         }
         /// Reads `0x3480` Position loop integral gain.
@@ -23983,18 +23806,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn position_loop_integrator_saturation_integrator_input_saturation(
-            &self,
-        ) -> u32 {
-            self.position_loop_integrator_saturation_integrator_input_saturation
+        pub const fn position_loop_integrator_saturation_input(&self) -> u32 {
+            self.position_loop_integrator_saturation_input
         }
-        /// Sets `0x3481` sub 1 Position loop integrator saturation: Integrator input saturation (see [`Self::position_loop_integrator_saturation_integrator_input_saturation`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3481` sub 1 Position loop integrator saturation: Integrator input saturation (see [`Self::position_loop_integrator_saturation_input`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_position_loop_integrator_saturation_integrator_input_saturation(
+        pub fn set_position_loop_integrator_saturation_input(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.position_loop_integrator_saturation_integrator_input_saturation = v;
+            self.position_loop_integrator_saturation_input = v;
             Ok(())
         }
         /// Reads `0x3481` sub 2 Position loop integrator saturation: Integrator output saturation.
@@ -24183,18 +24004,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Bus scaling 1000:1 (bus value = vendor tool value × 1000).
         #[inline]
-        pub const fn wake_and_shake_parameters_wake_and_shake_maximum_current(
-            &self,
-        ) -> i16 {
-            self.wake_and_shake_parameters_wake_and_shake_maximum_current
+        pub const fn wake_and_shake_parameters_maximum_current(&self) -> i16 {
+            self.wake_and_shake_parameters_maximum_current
         }
-        /// Sets `0x3494` sub 1 Wake and shake parameters: Wake and shake maximum current (see [`Self::wake_and_shake_parameters_wake_and_shake_maximum_current`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3494` sub 1 Wake and shake parameters: Wake and shake maximum current (see [`Self::wake_and_shake_parameters_maximum_current`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_wake_and_shake_parameters_wake_and_shake_maximum_current(
+        pub fn set_wake_and_shake_parameters_maximum_current(
             &mut self,
             v: i16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.wake_and_shake_parameters_wake_and_shake_maximum_current = v;
+            self.wake_and_shake_parameters_maximum_current = v;
             Ok(())
         }
         /// Reads `0x3494` sub 2 Wake and shake parameters: Wake and shake maximum movement.
@@ -24203,22 +24022,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `WS.DISTMAX`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::wake_and_shake_parameters_wake_and_shake_maximum_movement`).
+        /// Dimension: Position (typed conversion: `units::Units::wake_and_shake_parameters_maximum_movement`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn wake_and_shake_parameters_wake_and_shake_maximum_movement(
-            &self,
-        ) -> i32 {
-            self.wake_and_shake_parameters_wake_and_shake_maximum_movement
+        pub const fn wake_and_shake_parameters_maximum_movement(&self) -> i32 {
+            self.wake_and_shake_parameters_maximum_movement
         }
-        /// Sets `0x3494` sub 2 Wake and shake parameters: Wake and shake maximum movement (see [`Self::wake_and_shake_parameters_wake_and_shake_maximum_movement`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3494` sub 2 Wake and shake parameters: Wake and shake maximum movement (see [`Self::wake_and_shake_parameters_maximum_movement`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_wake_and_shake_parameters_wake_and_shake_maximum_movement(
+        pub fn set_wake_and_shake_parameters_maximum_movement(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.wake_and_shake_parameters_wake_and_shake_maximum_movement = v;
+            self.wake_and_shake_parameters_maximum_movement = v;
             Ok(())
         }
         /// Reads `0x3494` sub 3 Wake and shake parameters: Wake and shake delay between loops in mode 0.
@@ -24247,22 +24064,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `WS.VTHRESH`.
         ///
-        /// Dimension: Velocity (typed conversion: `units::Units::wake_and_shake_parameters_wake_and_shake_maximum_velocity`).
+        /// Dimension: Velocity (typed conversion: `units::Units::wake_and_shake_parameters_maximum_velocity`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn wake_and_shake_parameters_wake_and_shake_maximum_velocity(
-            &self,
-        ) -> i32 {
-            self.wake_and_shake_parameters_wake_and_shake_maximum_velocity
+        pub const fn wake_and_shake_parameters_maximum_velocity(&self) -> i32 {
+            self.wake_and_shake_parameters_maximum_velocity
         }
-        /// Sets `0x3494` sub 4 Wake and shake parameters: Wake and shake maximum velocity (see [`Self::wake_and_shake_parameters_wake_and_shake_maximum_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3494` sub 4 Wake and shake parameters: Wake and shake maximum velocity (see [`Self::wake_and_shake_parameters_maximum_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_wake_and_shake_parameters_wake_and_shake_maximum_velocity(
+        pub fn set_wake_and_shake_parameters_maximum_velocity(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.wake_and_shake_parameters_wake_and_shake_maximum_velocity = v;
+            self.wake_and_shake_parameters_maximum_velocity = v;
             Ok(())
         }
         /// Reads `0x3494` sub 5 Wake and shake parameters: Wake and shake state.
@@ -24271,16 +24086,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `WS.STATE`.
         #[inline]
-        pub const fn wake_and_shake_parameters_wake_and_shake_state(&self) -> u8 {
-            self.wake_and_shake_parameters_wake_and_shake_state
+        pub const fn wake_and_shake_parameters_state(&self) -> u8 {
+            self.wake_and_shake_parameters_state
         }
-        /// Sets `0x3494` sub 5 Wake and shake parameters: Wake and shake state (see [`Self::wake_and_shake_parameters_wake_and_shake_state`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3494` sub 5 Wake and shake parameters: Wake and shake state (see [`Self::wake_and_shake_parameters_state`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_wake_and_shake_parameters_wake_and_shake_state(
+        pub fn set_wake_and_shake_parameters_state(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.wake_and_shake_parameters_wake_and_shake_state = v;
+            self.wake_and_shake_parameters_state = v;
             Ok(())
         }
         /// Reads `0x3494` sub 6 Wake and shake parameters: Wake and shake arm.
@@ -24289,16 +24104,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `WS.ARM`.
         #[inline]
-        pub const fn wake_and_shake_parameters_wake_and_shake_arm(&self) -> u8 {
-            self.wake_and_shake_parameters_wake_and_shake_arm
+        pub const fn wake_and_shake_parameters_arm(&self) -> u8 {
+            self.wake_and_shake_parameters_arm
         }
-        /// Sets `0x3494` sub 6 Wake and shake parameters: Wake and shake arm (see [`Self::wake_and_shake_parameters_wake_and_shake_arm`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3494` sub 6 Wake and shake parameters: Wake and shake arm (see [`Self::wake_and_shake_parameters_arm`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_wake_and_shake_parameters_wake_and_shake_arm(
+        pub fn set_wake_and_shake_parameters_arm(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.wake_and_shake_parameters_wake_and_shake_arm = v;
+            self.wake_and_shake_parameters_arm = v;
             Ok(())
         }
         /// Reads `0x3496` sub 0 Fieldbus synchronization parameters: Number of entries.
@@ -24361,18 +24176,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `FBUS.SYNCWND`.
         #[inline]
-        pub const fn fieldbus_synchronization_parameters_synchronization_window(
-            &self,
-        ) -> u32 {
-            self.fieldbus_synchronization_parameters_synchronization_window
+        pub const fn fieldbus_synchronization_parameters_window(&self) -> u32 {
+            self.fieldbus_synchronization_parameters_window
         }
-        /// Sets `0x3496` sub 3 Fieldbus synchronization parameters: Synchronization window (see [`Self::fieldbus_synchronization_parameters_synchronization_window`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x3496` sub 3 Fieldbus synchronization parameters: Synchronization window (see [`Self::fieldbus_synchronization_parameters_window`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_fieldbus_synchronization_parameters_synchronization_window(
+        pub fn set_fieldbus_synchronization_parameters_window(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.fieldbus_synchronization_parameters_synchronization_window = v;
+            self.fieldbus_synchronization_parameters_window = v;
             Ok(())
         }
         /// Reads `0x3496` sub 4 Fieldbus synchronization parameters: Compensation time.
@@ -24417,22 +24230,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P1`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_1_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_1_compare`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_1_compare_position(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_positions_1_compare_position
+        pub const fn programmable_limit_switch_positions_1_compare(&self) -> i32 {
+            self.programmable_limit_switch_positions_1_compare
         }
-        /// Sets `0x34A0` sub 1 Programmable limit switch positions: Limit switch 1 compare position (see [`Self::programmable_limit_switch_positions_1_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 1 Programmable limit switch positions: Limit switch 1 compare position (see [`Self::programmable_limit_switch_positions_1_compare`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_1_compare_position(
+        pub fn set_programmable_limit_switch_positions_1_compare(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_1_compare_position = v;
+            self.programmable_limit_switch_positions_1_compare = v;
             Ok(())
         }
         /// Reads `0x34A0` sub 2 Programmable limit switch positions: Limit switch 2 compare position.
@@ -24441,22 +24252,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P2`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_2_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_2_compare`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_2_compare_position(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_positions_2_compare_position
+        pub const fn programmable_limit_switch_positions_2_compare(&self) -> i32 {
+            self.programmable_limit_switch_positions_2_compare
         }
-        /// Sets `0x34A0` sub 2 Programmable limit switch positions: Limit switch 2 compare position (see [`Self::programmable_limit_switch_positions_2_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 2 Programmable limit switch positions: Limit switch 2 compare position (see [`Self::programmable_limit_switch_positions_2_compare`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_2_compare_position(
+        pub fn set_programmable_limit_switch_positions_2_compare(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_2_compare_position = v;
+            self.programmable_limit_switch_positions_2_compare = v;
             Ok(())
         }
         /// Reads `0x34A0` sub 3 Programmable limit switch positions: Limit switch 3 compare position.
@@ -24465,22 +24274,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P3`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_3_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_3_compare`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_3_compare_position(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_positions_3_compare_position
+        pub const fn programmable_limit_switch_positions_3_compare(&self) -> i32 {
+            self.programmable_limit_switch_positions_3_compare
         }
-        /// Sets `0x34A0` sub 3 Programmable limit switch positions: Limit switch 3 compare position (see [`Self::programmable_limit_switch_positions_3_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 3 Programmable limit switch positions: Limit switch 3 compare position (see [`Self::programmable_limit_switch_positions_3_compare`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_3_compare_position(
+        pub fn set_programmable_limit_switch_positions_3_compare(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_3_compare_position = v;
+            self.programmable_limit_switch_positions_3_compare = v;
             Ok(())
         }
         /// Reads `0x34A0` sub 4 Programmable limit switch positions: Limit switch 4 compare position.
@@ -24489,22 +24296,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P4`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_4_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_4_compare`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_4_compare_position(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_positions_4_compare_position
+        pub const fn programmable_limit_switch_positions_4_compare(&self) -> i32 {
+            self.programmable_limit_switch_positions_4_compare
         }
-        /// Sets `0x34A0` sub 4 Programmable limit switch positions: Limit switch 4 compare position (see [`Self::programmable_limit_switch_positions_4_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 4 Programmable limit switch positions: Limit switch 4 compare position (see [`Self::programmable_limit_switch_positions_4_compare`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_4_compare_position(
+        pub fn set_programmable_limit_switch_positions_4_compare(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_4_compare_position = v;
+            self.programmable_limit_switch_positions_4_compare = v;
             Ok(())
         }
         /// Reads `0x34A0` sub 5 Programmable limit switch positions: Limit switch 5 compare position.
@@ -24513,22 +24318,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P5`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_5_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_5_compare`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_5_compare_position(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_positions_5_compare_position
+        pub const fn programmable_limit_switch_positions_5_compare(&self) -> i32 {
+            self.programmable_limit_switch_positions_5_compare
         }
-        /// Sets `0x34A0` sub 5 Programmable limit switch positions: Limit switch 5 compare position (see [`Self::programmable_limit_switch_positions_5_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 5 Programmable limit switch positions: Limit switch 5 compare position (see [`Self::programmable_limit_switch_positions_5_compare`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_5_compare_position(
+        pub fn set_programmable_limit_switch_positions_5_compare(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_5_compare_position = v;
+            self.programmable_limit_switch_positions_5_compare = v;
             Ok(())
         }
         /// Reads `0x34A0` sub 6 Programmable limit switch positions: Limit switch 6 compare position.
@@ -24537,22 +24340,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P6`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_6_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_6_compare`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_6_compare_position(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_positions_6_compare_position
+        pub const fn programmable_limit_switch_positions_6_compare(&self) -> i32 {
+            self.programmable_limit_switch_positions_6_compare
         }
-        /// Sets `0x34A0` sub 6 Programmable limit switch positions: Limit switch 6 compare position (see [`Self::programmable_limit_switch_positions_6_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 6 Programmable limit switch positions: Limit switch 6 compare position (see [`Self::programmable_limit_switch_positions_6_compare`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_6_compare_position(
+        pub fn set_programmable_limit_switch_positions_6_compare(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_6_compare_position = v;
+            self.programmable_limit_switch_positions_6_compare = v;
             Ok(())
         }
         /// Reads `0x34A0` sub 7 Programmable limit switch positions: Limit switch 7 compare position.
@@ -24561,22 +24362,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P7`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_7_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_7_compare`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_7_compare_position(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_positions_7_compare_position
+        pub const fn programmable_limit_switch_positions_7_compare(&self) -> i32 {
+            self.programmable_limit_switch_positions_7_compare
         }
-        /// Sets `0x34A0` sub 7 Programmable limit switch positions: Limit switch 7 compare position (see [`Self::programmable_limit_switch_positions_7_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 7 Programmable limit switch positions: Limit switch 7 compare position (see [`Self::programmable_limit_switch_positions_7_compare`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_7_compare_position(
+        pub fn set_programmable_limit_switch_positions_7_compare(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_7_compare_position = v;
+            self.programmable_limit_switch_positions_7_compare = v;
             Ok(())
         }
         /// Reads `0x34A0` sub 8 Programmable limit switch positions: Limit switch 8 compare position.
@@ -24585,22 +24384,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.P8`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_8_compare_position`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_positions_8_compare`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_positions_8_compare_position(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_positions_8_compare_position
+        pub const fn programmable_limit_switch_positions_8_compare(&self) -> i32 {
+            self.programmable_limit_switch_positions_8_compare
         }
-        /// Sets `0x34A0` sub 8 Programmable limit switch positions: Limit switch 8 compare position (see [`Self::programmable_limit_switch_positions_8_compare_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A0` sub 8 Programmable limit switch positions: Limit switch 8 compare position (see [`Self::programmable_limit_switch_positions_8_compare`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_positions_8_compare_position(
+        pub fn set_programmable_limit_switch_positions_8_compare(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_positions_8_compare_position = v;
+            self.programmable_limit_switch_positions_8_compare = v;
             Ok(())
         }
         /// Reads `0x34A1` sub 0 Programmable limit switch widths: Number of entries.
@@ -24625,22 +24422,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.WIDTH1`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_1_width`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_1`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_widths_limit_switch_1_width(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_widths_limit_switch_1_width
+        pub const fn programmable_limit_switch_widths_1(&self) -> i32 {
+            self.programmable_limit_switch_widths_1
         }
-        /// Sets `0x34A1` sub 1 Programmable limit switch widths: Limit switch 1 width (see [`Self::programmable_limit_switch_widths_limit_switch_1_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A1` sub 1 Programmable limit switch widths: Limit switch 1 width (see [`Self::programmable_limit_switch_widths_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_widths_limit_switch_1_width(
+        pub fn set_programmable_limit_switch_widths_1(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_widths_limit_switch_1_width = v;
+            self.programmable_limit_switch_widths_1 = v;
             Ok(())
         }
         /// Reads `0x34A1` sub 2 Programmable limit switch widths: Limit switch 2 width.
@@ -24649,22 +24444,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.WIDTH2`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_2_width`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_2`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_widths_limit_switch_2_width(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_widths_limit_switch_2_width
+        pub const fn programmable_limit_switch_widths_2(&self) -> i32 {
+            self.programmable_limit_switch_widths_2
         }
-        /// Sets `0x34A1` sub 2 Programmable limit switch widths: Limit switch 2 width (see [`Self::programmable_limit_switch_widths_limit_switch_2_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A1` sub 2 Programmable limit switch widths: Limit switch 2 width (see [`Self::programmable_limit_switch_widths_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_widths_limit_switch_2_width(
+        pub fn set_programmable_limit_switch_widths_2(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_widths_limit_switch_2_width = v;
+            self.programmable_limit_switch_widths_2 = v;
             Ok(())
         }
         /// Reads `0x34A1` sub 3 Programmable limit switch widths: Limit switch 3 width.
@@ -24673,22 +24466,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.WIDTH3`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_3_width`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_3`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_widths_limit_switch_3_width(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_widths_limit_switch_3_width
+        pub const fn programmable_limit_switch_widths_3(&self) -> i32 {
+            self.programmable_limit_switch_widths_3
         }
-        /// Sets `0x34A1` sub 3 Programmable limit switch widths: Limit switch 3 width (see [`Self::programmable_limit_switch_widths_limit_switch_3_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A1` sub 3 Programmable limit switch widths: Limit switch 3 width (see [`Self::programmable_limit_switch_widths_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_widths_limit_switch_3_width(
+        pub fn set_programmable_limit_switch_widths_3(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_widths_limit_switch_3_width = v;
+            self.programmable_limit_switch_widths_3 = v;
             Ok(())
         }
         /// Reads `0x34A1` sub 4 Programmable limit switch widths: Limit switch 4 width.
@@ -24697,22 +24488,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.WIDTH4`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_4_width`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_4`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_widths_limit_switch_4_width(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_widths_limit_switch_4_width
+        pub const fn programmable_limit_switch_widths_4(&self) -> i32 {
+            self.programmable_limit_switch_widths_4
         }
-        /// Sets `0x34A1` sub 4 Programmable limit switch widths: Limit switch 4 width (see [`Self::programmable_limit_switch_widths_limit_switch_4_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A1` sub 4 Programmable limit switch widths: Limit switch 4 width (see [`Self::programmable_limit_switch_widths_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_widths_limit_switch_4_width(
+        pub fn set_programmable_limit_switch_widths_4(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_widths_limit_switch_4_width = v;
+            self.programmable_limit_switch_widths_4 = v;
             Ok(())
         }
         /// Reads `0x34A1` sub 5 Programmable limit switch widths: Limit switch 5 width.
@@ -24721,22 +24510,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.WIDTH5`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_5_width`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_5`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_widths_limit_switch_5_width(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_widths_limit_switch_5_width
+        pub const fn programmable_limit_switch_widths_5(&self) -> i32 {
+            self.programmable_limit_switch_widths_5
         }
-        /// Sets `0x34A1` sub 5 Programmable limit switch widths: Limit switch 5 width (see [`Self::programmable_limit_switch_widths_limit_switch_5_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A1` sub 5 Programmable limit switch widths: Limit switch 5 width (see [`Self::programmable_limit_switch_widths_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_widths_limit_switch_5_width(
+        pub fn set_programmable_limit_switch_widths_5(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_widths_limit_switch_5_width = v;
+            self.programmable_limit_switch_widths_5 = v;
             Ok(())
         }
         /// Reads `0x34A1` sub 6 Programmable limit switch widths: Limit switch 6 width.
@@ -24745,22 +24532,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.WIDTH6`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_6_width`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_6`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_widths_limit_switch_6_width(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_widths_limit_switch_6_width
+        pub const fn programmable_limit_switch_widths_6(&self) -> i32 {
+            self.programmable_limit_switch_widths_6
         }
-        /// Sets `0x34A1` sub 6 Programmable limit switch widths: Limit switch 6 width (see [`Self::programmable_limit_switch_widths_limit_switch_6_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A1` sub 6 Programmable limit switch widths: Limit switch 6 width (see [`Self::programmable_limit_switch_widths_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_widths_limit_switch_6_width(
+        pub fn set_programmable_limit_switch_widths_6(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_widths_limit_switch_6_width = v;
+            self.programmable_limit_switch_widths_6 = v;
             Ok(())
         }
         /// Reads `0x34A1` sub 7 Programmable limit switch widths: Limit switch 7 width.
@@ -24769,22 +24554,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.WIDTH7`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_7_width`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_7`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_widths_limit_switch_7_width(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_widths_limit_switch_7_width
+        pub const fn programmable_limit_switch_widths_7(&self) -> i32 {
+            self.programmable_limit_switch_widths_7
         }
-        /// Sets `0x34A1` sub 7 Programmable limit switch widths: Limit switch 7 width (see [`Self::programmable_limit_switch_widths_limit_switch_7_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A1` sub 7 Programmable limit switch widths: Limit switch 7 width (see [`Self::programmable_limit_switch_widths_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_widths_limit_switch_7_width(
+        pub fn set_programmable_limit_switch_widths_7(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_widths_limit_switch_7_width = v;
+            self.programmable_limit_switch_widths_7 = v;
             Ok(())
         }
         /// Reads `0x34A1` sub 8 Programmable limit switch widths: Limit switch 8 width.
@@ -24793,22 +24576,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.WIDTH8`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_limit_switch_8_width`).
+        /// Dimension: Position (typed conversion: `units::Units::programmable_limit_switch_widths_8`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn programmable_limit_switch_widths_limit_switch_8_width(
-            &self,
-        ) -> i32 {
-            self.programmable_limit_switch_widths_limit_switch_8_width
+        pub const fn programmable_limit_switch_widths_8(&self) -> i32 {
+            self.programmable_limit_switch_widths_8
         }
-        /// Sets `0x34A1` sub 8 Programmable limit switch widths: Limit switch 8 width (see [`Self::programmable_limit_switch_widths_limit_switch_8_width`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A1` sub 8 Programmable limit switch widths: Limit switch 8 width (see [`Self::programmable_limit_switch_widths_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_widths_limit_switch_8_width(
+        pub fn set_programmable_limit_switch_widths_8(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_widths_limit_switch_8_width = v;
+            self.programmable_limit_switch_widths_8 = v;
             Ok(())
         }
         /// Reads `0x34A2` sub 0 Programmable limit switch times: Number of entries.
@@ -24833,16 +24614,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.T1`.
         #[inline]
-        pub const fn programmable_limit_switch_times_limit_switch_1_time(&self) -> u16 {
-            self.programmable_limit_switch_times_limit_switch_1_time
+        pub const fn programmable_limit_switch_times_1(&self) -> u16 {
+            self.programmable_limit_switch_times_1
         }
-        /// Sets `0x34A2` sub 1 Programmable limit switch times: Limit switch 1 time (see [`Self::programmable_limit_switch_times_limit_switch_1_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A2` sub 1 Programmable limit switch times: Limit switch 1 time (see [`Self::programmable_limit_switch_times_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_times_limit_switch_1_time(
+        pub fn set_programmable_limit_switch_times_1(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_times_limit_switch_1_time = v;
+            self.programmable_limit_switch_times_1 = v;
             Ok(())
         }
         /// Reads `0x34A2` sub 2 Programmable limit switch times: Limit switch 2 time.
@@ -24851,16 +24632,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.T2`.
         #[inline]
-        pub const fn programmable_limit_switch_times_limit_switch_2_time(&self) -> u16 {
-            self.programmable_limit_switch_times_limit_switch_2_time
+        pub const fn programmable_limit_switch_times_2(&self) -> u16 {
+            self.programmable_limit_switch_times_2
         }
-        /// Sets `0x34A2` sub 2 Programmable limit switch times: Limit switch 2 time (see [`Self::programmable_limit_switch_times_limit_switch_2_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A2` sub 2 Programmable limit switch times: Limit switch 2 time (see [`Self::programmable_limit_switch_times_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_times_limit_switch_2_time(
+        pub fn set_programmable_limit_switch_times_2(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_times_limit_switch_2_time = v;
+            self.programmable_limit_switch_times_2 = v;
             Ok(())
         }
         /// Reads `0x34A2` sub 3 Programmable limit switch times: Limit switch 3 time.
@@ -24869,16 +24650,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.T3`.
         #[inline]
-        pub const fn programmable_limit_switch_times_limit_switch_3_time(&self) -> u16 {
-            self.programmable_limit_switch_times_limit_switch_3_time
+        pub const fn programmable_limit_switch_times_3(&self) -> u16 {
+            self.programmable_limit_switch_times_3
         }
-        /// Sets `0x34A2` sub 3 Programmable limit switch times: Limit switch 3 time (see [`Self::programmable_limit_switch_times_limit_switch_3_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A2` sub 3 Programmable limit switch times: Limit switch 3 time (see [`Self::programmable_limit_switch_times_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_times_limit_switch_3_time(
+        pub fn set_programmable_limit_switch_times_3(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_times_limit_switch_3_time = v;
+            self.programmable_limit_switch_times_3 = v;
             Ok(())
         }
         /// Reads `0x34A2` sub 4 Programmable limit switch times: Limit switch 4 time.
@@ -24887,16 +24668,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.T4`.
         #[inline]
-        pub const fn programmable_limit_switch_times_limit_switch_4_time(&self) -> u16 {
-            self.programmable_limit_switch_times_limit_switch_4_time
+        pub const fn programmable_limit_switch_times_4(&self) -> u16 {
+            self.programmable_limit_switch_times_4
         }
-        /// Sets `0x34A2` sub 4 Programmable limit switch times: Limit switch 4 time (see [`Self::programmable_limit_switch_times_limit_switch_4_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A2` sub 4 Programmable limit switch times: Limit switch 4 time (see [`Self::programmable_limit_switch_times_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_times_limit_switch_4_time(
+        pub fn set_programmable_limit_switch_times_4(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_times_limit_switch_4_time = v;
+            self.programmable_limit_switch_times_4 = v;
             Ok(())
         }
         /// Reads `0x34A2` sub 5 Programmable limit switch times: Limit switch 5 time.
@@ -24905,16 +24686,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.T5`.
         #[inline]
-        pub const fn programmable_limit_switch_times_limit_switch_5_time(&self) -> u16 {
-            self.programmable_limit_switch_times_limit_switch_5_time
+        pub const fn programmable_limit_switch_times_5(&self) -> u16 {
+            self.programmable_limit_switch_times_5
         }
-        /// Sets `0x34A2` sub 5 Programmable limit switch times: Limit switch 5 time (see [`Self::programmable_limit_switch_times_limit_switch_5_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A2` sub 5 Programmable limit switch times: Limit switch 5 time (see [`Self::programmable_limit_switch_times_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_times_limit_switch_5_time(
+        pub fn set_programmable_limit_switch_times_5(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_times_limit_switch_5_time = v;
+            self.programmable_limit_switch_times_5 = v;
             Ok(())
         }
         /// Reads `0x34A2` sub 6 Programmable limit switch times: Limit switch 6 time.
@@ -24923,16 +24704,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.T6`.
         #[inline]
-        pub const fn programmable_limit_switch_times_limit_switch_6_time(&self) -> u16 {
-            self.programmable_limit_switch_times_limit_switch_6_time
+        pub const fn programmable_limit_switch_times_6(&self) -> u16 {
+            self.programmable_limit_switch_times_6
         }
-        /// Sets `0x34A2` sub 6 Programmable limit switch times: Limit switch 6 time (see [`Self::programmable_limit_switch_times_limit_switch_6_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A2` sub 6 Programmable limit switch times: Limit switch 6 time (see [`Self::programmable_limit_switch_times_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_times_limit_switch_6_time(
+        pub fn set_programmable_limit_switch_times_6(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_times_limit_switch_6_time = v;
+            self.programmable_limit_switch_times_6 = v;
             Ok(())
         }
         /// Reads `0x34A2` sub 7 Programmable limit switch times: Limit switch 7 time.
@@ -24941,16 +24722,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.T7`.
         #[inline]
-        pub const fn programmable_limit_switch_times_limit_switch_7_time(&self) -> u16 {
-            self.programmable_limit_switch_times_limit_switch_7_time
+        pub const fn programmable_limit_switch_times_7(&self) -> u16 {
+            self.programmable_limit_switch_times_7
         }
-        /// Sets `0x34A2` sub 7 Programmable limit switch times: Limit switch 7 time (see [`Self::programmable_limit_switch_times_limit_switch_7_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A2` sub 7 Programmable limit switch times: Limit switch 7 time (see [`Self::programmable_limit_switch_times_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_times_limit_switch_7_time(
+        pub fn set_programmable_limit_switch_times_7(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_times_limit_switch_7_time = v;
+            self.programmable_limit_switch_times_7 = v;
             Ok(())
         }
         /// Reads `0x34A2` sub 8 Programmable limit switch times: Limit switch 8 time.
@@ -24959,16 +24740,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.T8`.
         #[inline]
-        pub const fn programmable_limit_switch_times_limit_switch_8_time(&self) -> u16 {
-            self.programmable_limit_switch_times_limit_switch_8_time
+        pub const fn programmable_limit_switch_times_8(&self) -> u16 {
+            self.programmable_limit_switch_times_8
         }
-        /// Sets `0x34A2` sub 8 Programmable limit switch times: Limit switch 8 time (see [`Self::programmable_limit_switch_times_limit_switch_8_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A2` sub 8 Programmable limit switch times: Limit switch 8 time (see [`Self::programmable_limit_switch_times_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_times_limit_switch_8_time(
+        pub fn set_programmable_limit_switch_times_8(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_times_limit_switch_8_time = v;
+            self.programmable_limit_switch_times_8 = v;
             Ok(())
         }
         /// Reads `0x34A3` sub 0 Programmable limit switch configuration: Number of entries.
@@ -24995,18 +24776,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.EN`.
         #[inline]
-        pub const fn programmable_limit_switch_configuration_limit_switch_enable(
-            &self,
-        ) -> u16 {
-            self.programmable_limit_switch_configuration_limit_switch_enable
+        pub const fn programmable_limit_switch_configuration_enable(&self) -> u16 {
+            self.programmable_limit_switch_configuration_enable
         }
-        /// Sets `0x34A3` sub 1 Programmable limit switch configuration: Limit switch enable (see [`Self::programmable_limit_switch_configuration_limit_switch_enable`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A3` sub 1 Programmable limit switch configuration: Limit switch enable (see [`Self::programmable_limit_switch_configuration_enable`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_configuration_limit_switch_enable(
+        pub fn set_programmable_limit_switch_configuration_enable(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_configuration_limit_switch_enable = v;
+            self.programmable_limit_switch_configuration_enable = v;
             Ok(())
         }
         /// Reads `0x34A3` sub 2 Programmable limit switch configuration: Limit switch reset.
@@ -25015,18 +24794,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.RESET`.
         #[inline]
-        pub const fn programmable_limit_switch_configuration_limit_switch_reset(
-            &self,
-        ) -> u16 {
-            self.programmable_limit_switch_configuration_limit_switch_reset
+        pub const fn programmable_limit_switch_configuration_reset(&self) -> u16 {
+            self.programmable_limit_switch_configuration_reset
         }
-        /// Sets `0x34A3` sub 2 Programmable limit switch configuration: Limit switch reset (see [`Self::programmable_limit_switch_configuration_limit_switch_reset`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A3` sub 2 Programmable limit switch configuration: Limit switch reset (see [`Self::programmable_limit_switch_configuration_reset`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_configuration_limit_switch_reset(
+        pub fn set_programmable_limit_switch_configuration_reset(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_configuration_limit_switch_reset = v;
+            self.programmable_limit_switch_configuration_reset = v;
             Ok(())
         }
         /// Reads `0x34A3` sub 3 Programmable limit switch configuration: Limit switch mode.
@@ -25035,18 +24812,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.MODE`.
         #[inline]
-        pub const fn programmable_limit_switch_configuration_limit_switch_mode(
-            &self,
-        ) -> u16 {
-            self.programmable_limit_switch_configuration_limit_switch_mode
+        pub const fn programmable_limit_switch_configuration_mode(&self) -> u16 {
+            self.programmable_limit_switch_configuration_mode
         }
-        /// Sets `0x34A3` sub 3 Programmable limit switch configuration: Limit switch mode (see [`Self::programmable_limit_switch_configuration_limit_switch_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A3` sub 3 Programmable limit switch configuration: Limit switch mode (see [`Self::programmable_limit_switch_configuration_mode`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_configuration_limit_switch_mode(
+        pub fn set_programmable_limit_switch_configuration_mode(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_configuration_limit_switch_mode = v;
+            self.programmable_limit_switch_configuration_mode = v;
             Ok(())
         }
         /// Reads `0x34A3` sub 4 Programmable limit switch configuration: Limit switch state.
@@ -25055,18 +24830,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `PLS.STATE`.
         #[inline]
-        pub const fn programmable_limit_switch_configuration_limit_switch_state(
-            &self,
-        ) -> u16 {
-            self.programmable_limit_switch_configuration_limit_switch_state
+        pub const fn programmable_limit_switch_configuration_state(&self) -> u16 {
+            self.programmable_limit_switch_configuration_state
         }
-        /// Sets `0x34A3` sub 4 Programmable limit switch configuration: Limit switch state (see [`Self::programmable_limit_switch_configuration_limit_switch_state`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x34A3` sub 4 Programmable limit switch configuration: Limit switch state (see [`Self::programmable_limit_switch_configuration_state`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_programmable_limit_switch_configuration_limit_switch_state(
+        pub fn set_programmable_limit_switch_configuration_state(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.programmable_limit_switch_configuration_limit_switch_state = v;
+            self.programmable_limit_switch_configuration_state = v;
             Ok(())
         }
         /// Reads `0x34A4` Programmable limit switch units.
@@ -28824,20 +28597,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `SWLS.LIMIT0`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_min_position_limit`).
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_min`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn software_position_limit_min_position_limit(&self) -> i32 {
-            self.software_position_limit_min_position_limit
+        pub const fn software_position_limit_min(&self) -> i32 {
+            self.software_position_limit_min
         }
-        /// Sets `0x607D` sub 1 Software position limit: Min position limit (see [`Self::software_position_limit_min_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x607D` sub 1 Software position limit: Min position limit (see [`Self::software_position_limit_min`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_software_position_limit_min_position_limit(
+        pub fn set_software_position_limit_min(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.software_position_limit_min_position_limit = v;
+            self.software_position_limit_min = v;
             Ok(())
         }
         /// Reads `0x607D` sub 2 Software position limit: Max position limit.
@@ -28846,20 +28619,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `SWLS.LIMIT1`.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_max_position_limit`).
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_max`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn software_position_limit_max_position_limit(&self) -> i32 {
-            self.software_position_limit_max_position_limit
+        pub const fn software_position_limit_max(&self) -> i32 {
+            self.software_position_limit_max
         }
-        /// Sets `0x607D` sub 2 Software position limit: Max position limit (see [`Self::software_position_limit_max_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x607D` sub 2 Software position limit: Max position limit (see [`Self::software_position_limit_max`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_software_position_limit_max_position_limit(
+        pub fn set_software_position_limit_max(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.software_position_limit_max_position_limit = v;
+            self.software_position_limit_max = v;
             Ok(())
         }
         /// Reads `0x6081` Profile velocity.
@@ -28948,16 +28721,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `rw`. Default: 1048576 (0x100000).
         #[inline]
-        pub const fn position_encoder_resolution_encoder_increments(&self) -> u32 {
-            self.position_encoder_resolution_encoder_increments
+        pub const fn position_encoder_resolution_increments(&self) -> u32 {
+            self.position_encoder_resolution_increments
         }
-        /// Sets `0x608F` sub 1 Position encoder resolution: Encoder increments (see [`Self::position_encoder_resolution_encoder_increments`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x608F` sub 1 Position encoder resolution: Encoder increments (see [`Self::position_encoder_resolution_increments`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_position_encoder_resolution_encoder_increments(
+        pub fn set_position_encoder_resolution_increments(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.position_encoder_resolution_encoder_increments = v;
+            self.position_encoder_resolution_increments = v;
             Ok(())
         }
         /// Reads `0x608F` sub 2 Position encoder resolution: Motor revolutions.
@@ -29116,20 +28889,20 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `HOME.V`.
         ///
-        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_speed_during_search_for_switch`).
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_during_search_for_switch`).
         ///
         /// Bus scaling 1:1 (bus value = vendor tool value × 1).
         #[inline]
-        pub const fn homing_speeds_speed_during_search_for_switch(&self) -> u32 {
-            self.homing_speeds_speed_during_search_for_switch
+        pub const fn homing_speeds_during_search_for_switch(&self) -> u32 {
+            self.homing_speeds_during_search_for_switch
         }
-        /// Sets `0x6099` sub 1 Homing speeds: Speed during search for switch (see [`Self::homing_speeds_speed_during_search_for_switch`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x6099` sub 1 Homing speeds: Speed during search for switch (see [`Self::homing_speeds_during_search_for_switch`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_homing_speeds_speed_during_search_for_switch(
+        pub fn set_homing_speeds_during_search_for_switch(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.homing_speeds_speed_during_search_for_switch = v;
+            self.homing_speeds_during_search_for_switch = v;
             Ok(())
         }
         /// Reads `0x6099` sub 2 Homing speeds: Speed during search for zero.
@@ -29138,18 +28911,18 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `HOME.FEEDRATE`.
         ///
-        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_speed_during_search_for_zero`).
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_during_search_for_zero`).
         #[inline]
-        pub const fn homing_speeds_speed_during_search_for_zero(&self) -> u32 {
-            self.homing_speeds_speed_during_search_for_zero
+        pub const fn homing_speeds_during_search_for_zero(&self) -> u32 {
+            self.homing_speeds_during_search_for_zero
         }
-        /// Sets `0x6099` sub 2 Homing speeds: Speed during search for zero (see [`Self::homing_speeds_speed_during_search_for_zero`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x6099` sub 2 Homing speeds: Speed during search for zero (see [`Self::homing_speeds_during_search_for_zero`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_homing_speeds_speed_during_search_for_zero(
+        pub fn set_homing_speeds_during_search_for_zero(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.homing_speeds_speed_during_search_for_zero = v;
+            self.homing_speeds_during_search_for_zero = v;
             Ok(())
         }
         /// Reads `0x609A` Homing acceleration.
@@ -29360,54 +29133,50 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
         #[inline]
-        pub const fn interpolation_data_record_interpolation_target_position(
-            &self,
-        ) -> i32 {
-            self.interpolation_data_record_interpolation_target_position
+        pub const fn interpolation_data_record_target_position(&self) -> i32 {
+            self.interpolation_data_record_target_position
         }
-        /// Sets `0x60C1` sub 1 Interpolation data record: Interpolation target position (see [`Self::interpolation_data_record_interpolation_target_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x60C1` sub 1 Interpolation data record: Interpolation target position (see [`Self::interpolation_data_record_target_position`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_interpolation_data_record_interpolation_target_position(
+        pub fn set_interpolation_data_record_target_position(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.interpolation_data_record_interpolation_target_position = v;
+            self.interpolation_data_record_target_position = v;
             Ok(())
         }
         /// Reads `0x60C1` sub 2 Interpolation data record: Interpolation time.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
         ///
-        /// Dimension: Time (typed conversion: `units::Units::interpolation_data_record_interpolation_time`).
+        /// Dimension: Time (typed conversion: `units::Units::interpolation_data_record_time`).
         #[inline]
-        pub const fn interpolation_data_record_interpolation_time(&self) -> u32 {
-            self.interpolation_data_record_interpolation_time
+        pub const fn interpolation_data_record_time(&self) -> u32 {
+            self.interpolation_data_record_time
         }
-        /// Sets `0x60C1` sub 2 Interpolation data record: Interpolation time (see [`Self::interpolation_data_record_interpolation_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x60C1` sub 2 Interpolation data record: Interpolation time (see [`Self::interpolation_data_record_time`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_interpolation_data_record_interpolation_time(
+        pub fn set_interpolation_data_record_time(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.interpolation_data_record_interpolation_time = v;
+            self.interpolation_data_record_time = v;
             Ok(())
         }
         /// Reads `0x60C1` sub 3 Interpolation data record: Interpolation target velocity.
         ///
         /// INTEGER32, access `rw`, PDO-mappable. Default: 0.
         #[inline]
-        pub const fn interpolation_data_record_interpolation_target_velocity(
-            &self,
-        ) -> i32 {
-            self.interpolation_data_record_interpolation_target_velocity
+        pub const fn interpolation_data_record_target_velocity(&self) -> i32 {
+            self.interpolation_data_record_target_velocity
         }
-        /// Sets `0x60C1` sub 3 Interpolation data record: Interpolation target velocity (see [`Self::interpolation_data_record_interpolation_target_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x60C1` sub 3 Interpolation data record: Interpolation target velocity (see [`Self::interpolation_data_record_target_velocity`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_interpolation_data_record_interpolation_target_velocity(
+        pub fn set_interpolation_data_record_target_velocity(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.interpolation_data_record_interpolation_target_velocity = v;
+            self.interpolation_data_record_target_velocity = v;
             Ok(())
         }
         /// Reads `0x60C2` sub 0 Interpolation time period: Number of entries.
@@ -29446,16 +29215,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// INTEGER16, access `rw`. Default: -3.
         #[inline]
-        pub const fn interpolation_time_period_interpolation_time_index(&self) -> i16 {
-            self.interpolation_time_period_interpolation_time_index
+        pub const fn interpolation_time_period_index(&self) -> i16 {
+            self.interpolation_time_period_index
         }
-        /// Sets `0x60C2` sub 2 Interpolation time period: Interpolation time index (see [`Self::interpolation_time_period_interpolation_time_index`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x60C2` sub 2 Interpolation time period: Interpolation time index (see [`Self::interpolation_time_period_index`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_interpolation_time_period_interpolation_time_index(
+        pub fn set_interpolation_time_period_index(
             &mut self,
             v: i16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.interpolation_time_period_interpolation_time_index = v;
+            self.interpolation_time_period_index = v;
             Ok(())
         }
         /// Reads `0x60C4` sub 0 Interpolation data configuration: Number of entries.
@@ -29599,12 +29368,12 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// INTEGER16, access `rw`. Default: 1. Range -11..=5.
         #[inline]
-        pub const fn touch_probe_source_touch_probe_1_source(&self) -> i16 {
-            self.touch_probe_source_touch_probe_1_source
+        pub const fn touch_probe_source_1(&self) -> i16 {
+            self.touch_probe_source_1
         }
-        /// Sets `0x60D0` sub 1 Touch probe source: Touch probe 1 source (see [`Self::touch_probe_source_touch_probe_1_source`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x60D0` sub 1 Touch probe source: Touch probe 1 source (see [`Self::touch_probe_source_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_touch_probe_source_touch_probe_1_source(
+        pub fn set_touch_probe_source_1(
             &mut self,
             v: i16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
@@ -29614,19 +29383,19 @@ Denotation=MOTOR.BRAKEIMM
             if v > 5 {
                 return Err(::od_runtime::od::AbortCode::VALUE_TOO_HIGH);
             }
-            self.touch_probe_source_touch_probe_1_source = v;
+            self.touch_probe_source_1 = v;
             Ok(())
         }
         /// Reads `0x60D0` sub 2 Touch probe source: Touch probe 2 source.
         ///
         /// INTEGER16, access `rw`. Default: 1. Range -11..=5.
         #[inline]
-        pub const fn touch_probe_source_touch_probe_2_source(&self) -> i16 {
-            self.touch_probe_source_touch_probe_2_source
+        pub const fn touch_probe_source_2(&self) -> i16 {
+            self.touch_probe_source_2
         }
-        /// Sets `0x60D0` sub 2 Touch probe source: Touch probe 2 source (see [`Self::touch_probe_source_touch_probe_2_source`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x60D0` sub 2 Touch probe source: Touch probe 2 source (see [`Self::touch_probe_source_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_touch_probe_source_touch_probe_2_source(
+        pub fn set_touch_probe_source_2(
             &mut self,
             v: i16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
@@ -29636,7 +29405,7 @@ Denotation=MOTOR.BRAKEIMM
             if v > 5 {
                 return Err(::od_runtime::od::AbortCode::VALUE_TOO_HIGH);
             }
-            self.touch_probe_source_touch_probe_2_source = v;
+            self.touch_probe_source_2 = v;
             Ok(())
         }
         /// Reads `0x60F4` Following error actual value.
@@ -29697,16 +29466,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
         #[inline]
-        pub const fn digital_outputs_physical_outputs(&self) -> u32 {
-            self.digital_outputs_physical_outputs
+        pub const fn digital_outputs_physical(&self) -> u32 {
+            self.digital_outputs_physical
         }
-        /// Sets `0x60FE` sub 1 Digital outputs: Physical outputs (see [`Self::digital_outputs_physical_outputs`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x60FE` sub 1 Digital outputs: Physical outputs (see [`Self::digital_outputs_physical`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_digital_outputs_physical_outputs(
+        pub fn set_digital_outputs_physical(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.digital_outputs_physical_outputs = v;
+            self.digital_outputs_physical = v;
             Ok(())
         }
         /// Reads `0x60FE` sub 2 Digital outputs: Bit mask.
@@ -30715,7 +30484,7 @@ Denotation=MOTOR.BRAKEIMM
                 od: &super::Dictionary,
             ) -> Result<Ratio, UnitError> {
                 let (t, b) = (
-                    (od.position_encoder_resolution_encoder_increments() as i128),
+                    (od.position_encoder_resolution_increments() as i128),
                     (od.position_encoder_resolution_motor_revolutions() as i128),
                 );
                 if t == 0 || b == 0 {
@@ -30843,67 +30612,66 @@ Denotation=MOTOR.BRAKEIMM
                     .map_err(UnitError::Rejected)
             }
             /// `0x3407` sub 4 Velocity loop filter and feedforward: Velocity error as a Velocity quantity.
-            pub fn velocity_loop_filter_and_feedforward_velocity_error(
+            pub fn velocity_loop_filter_and_feedforward_error(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Velocity,
-                    od.velocity_loop_filter_and_feedforward_velocity_error() as i64,
+                    od.velocity_loop_filter_and_feedforward_error() as i64,
                 )
             }
             /// Sets `0x3407` sub 4 Velocity loop filter and feedforward: Velocity error from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_velocity_loop_filter_and_feedforward_velocity_error(
+            pub fn set_velocity_loop_filter_and_feedforward_error(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Velocity, q)?;
                 let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_velocity_loop_filter_and_feedforward_velocity_error(v)
+                od.set_velocity_loop_filter_and_feedforward_error(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x3440` sub 1 Controlled stop parameters: Controlled stop deceleration as a Acceleration quantity.
-            pub fn controlled_stop_parameters_controlled_stop_deceleration(
+            pub fn controlled_stop_parameters_deceleration(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Acceleration,
-                    od.controlled_stop_parameters_controlled_stop_deceleration() as i64,
+                    od.controlled_stop_parameters_deceleration() as i64,
                 )
             }
             /// Sets `0x3440` sub 1 Controlled stop parameters: Controlled stop deceleration from a Acceleration quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_controlled_stop_parameters_controlled_stop_deceleration(
+            pub fn set_controlled_stop_parameters_deceleration(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Acceleration, q)?;
                 let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_controlled_stop_parameters_controlled_stop_deceleration(v)
+                od.set_controlled_stop_parameters_deceleration(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x3440` sub 2 Controlled stop parameters: Controlled stop velocity threshold as a Velocity quantity.
-            pub fn controlled_stop_parameters_controlled_stop_velocity_threshold(
+            pub fn controlled_stop_parameters_velocity_threshold(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Velocity,
-                    od.controlled_stop_parameters_controlled_stop_velocity_threshold()
-                        as i64,
+                    od.controlled_stop_parameters_velocity_threshold() as i64,
                 )
             }
             /// Sets `0x3440` sub 2 Controlled stop parameters: Controlled stop velocity threshold from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_controlled_stop_parameters_controlled_stop_velocity_threshold(
+            pub fn set_controlled_stop_parameters_velocity_threshold(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Velocity, q)?;
                 let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_controlled_stop_parameters_controlled_stop_velocity_threshold(v)
+                od.set_controlled_stop_parameters_velocity_threshold(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x3482` Homing maximum following error as a Position quantity.
@@ -30987,382 +30755,374 @@ Denotation=MOTOR.BRAKEIMM
                 od.set_feedback_position_offset(v).map_err(UnitError::Rejected)
             }
             /// `0x3494` sub 2 Wake and shake parameters: Wake and shake maximum movement as a Position quantity.
-            pub fn wake_and_shake_parameters_wake_and_shake_maximum_movement(
+            pub fn wake_and_shake_parameters_maximum_movement(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.wake_and_shake_parameters_wake_and_shake_maximum_movement() as i64,
+                    od.wake_and_shake_parameters_maximum_movement() as i64,
                 )
             }
             /// Sets `0x3494` sub 2 Wake and shake parameters: Wake and shake maximum movement from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_wake_and_shake_parameters_wake_and_shake_maximum_movement(
+            pub fn set_wake_and_shake_parameters_maximum_movement(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_wake_and_shake_parameters_wake_and_shake_maximum_movement(v)
+                od.set_wake_and_shake_parameters_maximum_movement(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x3494` sub 4 Wake and shake parameters: Wake and shake maximum velocity as a Velocity quantity.
-            pub fn wake_and_shake_parameters_wake_and_shake_maximum_velocity(
+            pub fn wake_and_shake_parameters_maximum_velocity(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Velocity,
-                    od.wake_and_shake_parameters_wake_and_shake_maximum_velocity() as i64,
+                    od.wake_and_shake_parameters_maximum_velocity() as i64,
                 )
             }
             /// Sets `0x3494` sub 4 Wake and shake parameters: Wake and shake maximum velocity from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_wake_and_shake_parameters_wake_and_shake_maximum_velocity(
+            pub fn set_wake_and_shake_parameters_maximum_velocity(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Velocity, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_wake_and_shake_parameters_wake_and_shake_maximum_velocity(v)
+                od.set_wake_and_shake_parameters_maximum_velocity(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 1 Programmable limit switch positions: Limit switch 1 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_1_compare_position(
+            pub fn programmable_limit_switch_positions_1_compare(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_positions_1_compare_position() as i64,
+                    od.programmable_limit_switch_positions_1_compare() as i64,
                 )
             }
             /// Sets `0x34A0` sub 1 Programmable limit switch positions: Limit switch 1 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_1_compare_position(
+            pub fn set_programmable_limit_switch_positions_1_compare(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_1_compare_position(v)
+                od.set_programmable_limit_switch_positions_1_compare(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 2 Programmable limit switch positions: Limit switch 2 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_2_compare_position(
+            pub fn programmable_limit_switch_positions_2_compare(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_positions_2_compare_position() as i64,
+                    od.programmable_limit_switch_positions_2_compare() as i64,
                 )
             }
             /// Sets `0x34A0` sub 2 Programmable limit switch positions: Limit switch 2 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_2_compare_position(
+            pub fn set_programmable_limit_switch_positions_2_compare(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_2_compare_position(v)
+                od.set_programmable_limit_switch_positions_2_compare(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 3 Programmable limit switch positions: Limit switch 3 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_3_compare_position(
+            pub fn programmable_limit_switch_positions_3_compare(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_positions_3_compare_position() as i64,
+                    od.programmable_limit_switch_positions_3_compare() as i64,
                 )
             }
             /// Sets `0x34A0` sub 3 Programmable limit switch positions: Limit switch 3 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_3_compare_position(
+            pub fn set_programmable_limit_switch_positions_3_compare(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_3_compare_position(v)
+                od.set_programmable_limit_switch_positions_3_compare(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 4 Programmable limit switch positions: Limit switch 4 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_4_compare_position(
+            pub fn programmable_limit_switch_positions_4_compare(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_positions_4_compare_position() as i64,
+                    od.programmable_limit_switch_positions_4_compare() as i64,
                 )
             }
             /// Sets `0x34A0` sub 4 Programmable limit switch positions: Limit switch 4 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_4_compare_position(
+            pub fn set_programmable_limit_switch_positions_4_compare(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_4_compare_position(v)
+                od.set_programmable_limit_switch_positions_4_compare(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 5 Programmable limit switch positions: Limit switch 5 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_5_compare_position(
+            pub fn programmable_limit_switch_positions_5_compare(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_positions_5_compare_position() as i64,
+                    od.programmable_limit_switch_positions_5_compare() as i64,
                 )
             }
             /// Sets `0x34A0` sub 5 Programmable limit switch positions: Limit switch 5 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_5_compare_position(
+            pub fn set_programmable_limit_switch_positions_5_compare(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_5_compare_position(v)
+                od.set_programmable_limit_switch_positions_5_compare(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 6 Programmable limit switch positions: Limit switch 6 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_6_compare_position(
+            pub fn programmable_limit_switch_positions_6_compare(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_positions_6_compare_position() as i64,
+                    od.programmable_limit_switch_positions_6_compare() as i64,
                 )
             }
             /// Sets `0x34A0` sub 6 Programmable limit switch positions: Limit switch 6 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_6_compare_position(
+            pub fn set_programmable_limit_switch_positions_6_compare(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_6_compare_position(v)
+                od.set_programmable_limit_switch_positions_6_compare(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 7 Programmable limit switch positions: Limit switch 7 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_7_compare_position(
+            pub fn programmable_limit_switch_positions_7_compare(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_positions_7_compare_position() as i64,
+                    od.programmable_limit_switch_positions_7_compare() as i64,
                 )
             }
             /// Sets `0x34A0` sub 7 Programmable limit switch positions: Limit switch 7 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_7_compare_position(
+            pub fn set_programmable_limit_switch_positions_7_compare(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_7_compare_position(v)
+                od.set_programmable_limit_switch_positions_7_compare(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A0` sub 8 Programmable limit switch positions: Limit switch 8 compare position as a Position quantity.
-            pub fn programmable_limit_switch_positions_8_compare_position(
+            pub fn programmable_limit_switch_positions_8_compare(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_positions_8_compare_position() as i64,
+                    od.programmable_limit_switch_positions_8_compare() as i64,
                 )
             }
             /// Sets `0x34A0` sub 8 Programmable limit switch positions: Limit switch 8 compare position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_positions_8_compare_position(
+            pub fn set_programmable_limit_switch_positions_8_compare(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_positions_8_compare_position(v)
+                od.set_programmable_limit_switch_positions_8_compare(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x34A1` sub 1 Programmable limit switch widths: Limit switch 1 width as a Position quantity.
-            pub fn programmable_limit_switch_widths_limit_switch_1_width(
+            pub fn programmable_limit_switch_widths_1(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_widths_limit_switch_1_width() as i64,
+                    od.programmable_limit_switch_widths_1() as i64,
                 )
             }
             /// Sets `0x34A1` sub 1 Programmable limit switch widths: Limit switch 1 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_widths_limit_switch_1_width(
+            pub fn set_programmable_limit_switch_widths_1(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_widths_limit_switch_1_width(v)
-                    .map_err(UnitError::Rejected)
+                od.set_programmable_limit_switch_widths_1(v).map_err(UnitError::Rejected)
             }
             /// `0x34A1` sub 2 Programmable limit switch widths: Limit switch 2 width as a Position quantity.
-            pub fn programmable_limit_switch_widths_limit_switch_2_width(
+            pub fn programmable_limit_switch_widths_2(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_widths_limit_switch_2_width() as i64,
+                    od.programmable_limit_switch_widths_2() as i64,
                 )
             }
             /// Sets `0x34A1` sub 2 Programmable limit switch widths: Limit switch 2 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_widths_limit_switch_2_width(
+            pub fn set_programmable_limit_switch_widths_2(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_widths_limit_switch_2_width(v)
-                    .map_err(UnitError::Rejected)
+                od.set_programmable_limit_switch_widths_2(v).map_err(UnitError::Rejected)
             }
             /// `0x34A1` sub 3 Programmable limit switch widths: Limit switch 3 width as a Position quantity.
-            pub fn programmable_limit_switch_widths_limit_switch_3_width(
+            pub fn programmable_limit_switch_widths_3(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_widths_limit_switch_3_width() as i64,
+                    od.programmable_limit_switch_widths_3() as i64,
                 )
             }
             /// Sets `0x34A1` sub 3 Programmable limit switch widths: Limit switch 3 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_widths_limit_switch_3_width(
+            pub fn set_programmable_limit_switch_widths_3(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_widths_limit_switch_3_width(v)
-                    .map_err(UnitError::Rejected)
+                od.set_programmable_limit_switch_widths_3(v).map_err(UnitError::Rejected)
             }
             /// `0x34A1` sub 4 Programmable limit switch widths: Limit switch 4 width as a Position quantity.
-            pub fn programmable_limit_switch_widths_limit_switch_4_width(
+            pub fn programmable_limit_switch_widths_4(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_widths_limit_switch_4_width() as i64,
+                    od.programmable_limit_switch_widths_4() as i64,
                 )
             }
             /// Sets `0x34A1` sub 4 Programmable limit switch widths: Limit switch 4 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_widths_limit_switch_4_width(
+            pub fn set_programmable_limit_switch_widths_4(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_widths_limit_switch_4_width(v)
-                    .map_err(UnitError::Rejected)
+                od.set_programmable_limit_switch_widths_4(v).map_err(UnitError::Rejected)
             }
             /// `0x34A1` sub 5 Programmable limit switch widths: Limit switch 5 width as a Position quantity.
-            pub fn programmable_limit_switch_widths_limit_switch_5_width(
+            pub fn programmable_limit_switch_widths_5(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_widths_limit_switch_5_width() as i64,
+                    od.programmable_limit_switch_widths_5() as i64,
                 )
             }
             /// Sets `0x34A1` sub 5 Programmable limit switch widths: Limit switch 5 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_widths_limit_switch_5_width(
+            pub fn set_programmable_limit_switch_widths_5(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_widths_limit_switch_5_width(v)
-                    .map_err(UnitError::Rejected)
+                od.set_programmable_limit_switch_widths_5(v).map_err(UnitError::Rejected)
             }
             /// `0x34A1` sub 6 Programmable limit switch widths: Limit switch 6 width as a Position quantity.
-            pub fn programmable_limit_switch_widths_limit_switch_6_width(
+            pub fn programmable_limit_switch_widths_6(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_widths_limit_switch_6_width() as i64,
+                    od.programmable_limit_switch_widths_6() as i64,
                 )
             }
             /// Sets `0x34A1` sub 6 Programmable limit switch widths: Limit switch 6 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_widths_limit_switch_6_width(
+            pub fn set_programmable_limit_switch_widths_6(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_widths_limit_switch_6_width(v)
-                    .map_err(UnitError::Rejected)
+                od.set_programmable_limit_switch_widths_6(v).map_err(UnitError::Rejected)
             }
             /// `0x34A1` sub 7 Programmable limit switch widths: Limit switch 7 width as a Position quantity.
-            pub fn programmable_limit_switch_widths_limit_switch_7_width(
+            pub fn programmable_limit_switch_widths_7(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_widths_limit_switch_7_width() as i64,
+                    od.programmable_limit_switch_widths_7() as i64,
                 )
             }
             /// Sets `0x34A1` sub 7 Programmable limit switch widths: Limit switch 7 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_widths_limit_switch_7_width(
+            pub fn set_programmable_limit_switch_widths_7(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_widths_limit_switch_7_width(v)
-                    .map_err(UnitError::Rejected)
+                od.set_programmable_limit_switch_widths_7(v).map_err(UnitError::Rejected)
             }
             /// `0x34A1` sub 8 Programmable limit switch widths: Limit switch 8 width as a Position quantity.
-            pub fn programmable_limit_switch_widths_limit_switch_8_width(
+            pub fn programmable_limit_switch_widths_8(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.programmable_limit_switch_widths_limit_switch_8_width() as i64,
+                    od.programmable_limit_switch_widths_8() as i64,
                 )
             }
             /// Sets `0x34A1` sub 8 Programmable limit switch widths: Limit switch 8 width from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_programmable_limit_switch_widths_limit_switch_8_width(
+            pub fn set_programmable_limit_switch_widths_8(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_programmable_limit_switch_widths_limit_switch_8_width(v)
-                    .map_err(UnitError::Rejected)
+                od.set_programmable_limit_switch_widths_8(v).map_err(UnitError::Rejected)
             }
             /// `0x3501` Acceleration ramp as a Acceleration quantity.
             pub fn acceleration_ramp(
@@ -31817,46 +31577,44 @@ Denotation=MOTOR.BRAKEIMM
                 od.set_home_offset(v).map_err(UnitError::Rejected)
             }
             /// `0x607D` sub 1 Software position limit: Min position limit as a Position quantity.
-            pub fn software_position_limit_min_position_limit(
+            pub fn software_position_limit_min(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.software_position_limit_min_position_limit() as i64,
+                    od.software_position_limit_min() as i64,
                 )
             }
             /// Sets `0x607D` sub 1 Software position limit: Min position limit from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_software_position_limit_min_position_limit(
+            pub fn set_software_position_limit_min(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_software_position_limit_min_position_limit(v)
-                    .map_err(UnitError::Rejected)
+                od.set_software_position_limit_min(v).map_err(UnitError::Rejected)
             }
             /// `0x607D` sub 2 Software position limit: Max position limit as a Position quantity.
-            pub fn software_position_limit_max_position_limit(
+            pub fn software_position_limit_max(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.software_position_limit_max_position_limit() as i64,
+                    od.software_position_limit_max() as i64,
                 )
             }
             /// Sets `0x607D` sub 2 Software position limit: Max position limit from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_software_position_limit_max_position_limit(
+            pub fn set_software_position_limit_max(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_software_position_limit_max_position_limit(v)
-                    .map_err(UnitError::Rejected)
+                od.set_software_position_limit_max(v).map_err(UnitError::Rejected)
             }
             /// `0x6081` Profile velocity as a Velocity quantity.
             pub fn profile_velocity(
@@ -31916,45 +31674,45 @@ Denotation=MOTOR.BRAKEIMM
                 od.set_profile_deceleration(v).map_err(UnitError::Rejected)
             }
             /// `0x6099` sub 1 Homing speeds: Speed during search for switch as a Velocity quantity.
-            pub fn homing_speeds_speed_during_search_for_switch(
+            pub fn homing_speeds_during_search_for_switch(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Velocity,
-                    od.homing_speeds_speed_during_search_for_switch() as i64,
+                    od.homing_speeds_during_search_for_switch() as i64,
                 )
             }
             /// Sets `0x6099` sub 1 Homing speeds: Speed during search for switch from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_homing_speeds_speed_during_search_for_switch(
+            pub fn set_homing_speeds_during_search_for_switch(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Velocity, q)?;
                 let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_homing_speeds_speed_during_search_for_switch(v)
+                od.set_homing_speeds_during_search_for_switch(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x6099` sub 2 Homing speeds: Speed during search for zero as a Velocity quantity.
-            pub fn homing_speeds_speed_during_search_for_zero(
+            pub fn homing_speeds_during_search_for_zero(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Velocity,
-                    od.homing_speeds_speed_during_search_for_zero() as i64,
+                    od.homing_speeds_during_search_for_zero() as i64,
                 )
             }
             /// Sets `0x6099` sub 2 Homing speeds: Speed during search for zero from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_homing_speeds_speed_during_search_for_zero(
+            pub fn set_homing_speeds_during_search_for_zero(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Velocity, q)?;
                 let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_homing_speeds_speed_during_search_for_zero(v)
+                od.set_homing_speeds_during_search_for_zero(v)
                     .map_err(UnitError::Rejected)
             }
             /// `0x609A` Homing acceleration as a Acceleration quantity.
@@ -32092,25 +31850,24 @@ Denotation=MOTOR.BRAKEIMM
                 od.set_touch_probe_2_negative_edge(v).map_err(UnitError::Rejected)
             }
             /// `0x60C1` sub 2 Interpolation data record: Interpolation time as a Time quantity.
-            pub fn interpolation_data_record_interpolation_time(
+            pub fn interpolation_data_record_time(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Time,
-                    od.interpolation_data_record_interpolation_time() as i64,
+                    od.interpolation_data_record_time() as i64,
                 )
             }
             /// Sets `0x60C1` sub 2 Interpolation data record: Interpolation time from a Time quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_interpolation_data_record_interpolation_time(
+            pub fn set_interpolation_data_record_time(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Time, q)?;
                 let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_interpolation_data_record_interpolation_time(v)
-                    .map_err(UnitError::Rejected)
+                od.set_interpolation_data_record_time(v).map_err(UnitError::Rejected)
             }
             /// `0x60F4` Following error actual value as a Position quantity.
             pub fn following_error_actual_value(

@@ -3208,9 +3208,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_1
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3225,9 +3223,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_2
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3242,9 +3238,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_3
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3259,9 +3253,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_4
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3276,9 +3268,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_5
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3293,9 +3283,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_6
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3310,9 +3298,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_7
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3327,9 +3313,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_8
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3481,9 +3465,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, store_parameter_field_save_all_parameters
-                ),
+                ::core::mem::offset_of!(Dictionary, store_parameter_field_save_all),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3515,9 +3497,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, restore_default_parameters_restore_all_default_parameters
-                ),
+                ::core::mem::offset_of!(Dictionary, restore_default_parameters_all),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4213,9 +4193,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4230,9 +4208,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4247,9 +4223,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4264,9 +4238,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4281,9 +4253,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4298,9 +4268,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4315,9 +4283,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4332,9 +4298,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_1_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4366,9 +4330,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4383,9 +4345,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4400,9 +4360,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4417,9 +4375,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4434,9 +4390,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4451,9 +4405,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4468,9 +4420,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4485,9 +4435,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_2_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4519,9 +4467,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4536,9 +4482,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4553,9 +4497,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4570,9 +4512,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4587,9 +4527,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4604,9 +4542,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4621,9 +4557,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4638,9 +4572,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_3_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4672,9 +4604,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4689,9 +4619,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4706,9 +4634,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4723,9 +4649,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4740,9 +4664,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4757,9 +4679,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4774,9 +4694,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4791,9 +4709,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_4_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4825,9 +4741,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4842,9 +4756,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4859,9 +4771,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4876,9 +4786,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4893,9 +4801,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4910,9 +4816,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4927,9 +4831,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4944,9 +4846,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_5_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4978,9 +4878,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4995,9 +4893,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5012,9 +4908,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5029,9 +4923,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5046,9 +4938,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5063,9 +4953,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5080,9 +4968,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5097,9 +4983,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_6_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5131,9 +5015,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5148,9 +5030,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5165,9 +5045,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5182,9 +5060,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5199,9 +5075,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5216,9 +5090,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5233,9 +5105,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5250,9 +5120,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_7_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5284,9 +5152,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5301,9 +5167,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5318,9 +5182,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5335,9 +5197,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5352,9 +5212,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5369,9 +5227,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5386,9 +5242,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -5403,9 +5257,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, rx_pdo_mapping_parameter_8_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6261,9 +6113,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6278,9 +6128,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6295,9 +6143,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6312,9 +6158,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6329,9 +6173,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6346,9 +6188,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6363,9 +6203,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6380,9 +6218,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_1_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6414,9 +6250,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6431,9 +6265,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6448,9 +6280,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6465,9 +6295,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6482,9 +6310,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6499,9 +6325,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6516,9 +6340,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6533,9 +6355,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_2_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6567,9 +6387,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6584,9 +6402,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6601,9 +6417,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6618,9 +6432,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6635,9 +6447,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6652,9 +6462,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6669,9 +6477,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6686,9 +6492,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_3_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6720,9 +6524,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6737,9 +6539,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6754,9 +6554,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6771,9 +6569,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6788,9 +6584,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6805,9 +6599,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6822,9 +6614,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6839,9 +6629,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_4_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6873,9 +6661,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6890,9 +6676,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6907,9 +6691,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6924,9 +6706,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6941,9 +6721,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6958,9 +6736,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6975,9 +6751,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -6992,9 +6766,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_5_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7026,9 +6798,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7043,9 +6813,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7060,9 +6828,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7077,9 +6843,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7094,9 +6858,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7111,9 +6873,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7128,9 +6888,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7145,9 +6903,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_6_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7179,9 +6935,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7196,9 +6950,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7213,9 +6965,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7230,9 +6980,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7247,9 +6995,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7264,9 +7010,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7281,9 +7025,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7298,9 +7040,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_7_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7332,9 +7072,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_1
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7349,9 +7087,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_2
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7366,9 +7102,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_3
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7383,9 +7117,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_4
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7400,9 +7132,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_5
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7417,9 +7147,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_6
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7434,9 +7162,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_7
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7451,9 +7177,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, tx_pdo_mapping_parameter_8_mapping_entry_8
-                ),
+                ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -7892,9 +7616,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, software_position_limit_min_software_position_limit
-                ),
+                ::core::mem::offset_of!(Dictionary, software_position_limit_min),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
@@ -7909,9 +7631,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, software_position_limit_max_software_position_limit
-                ),
+                ::core::mem::offset_of!(Dictionary, software_position_limit_max),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
@@ -8004,7 +7724,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, position_encoder_resolution_encoder_increments
+                    Dictionary, position_encoder_resolution_increments
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -8163,7 +7883,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(Dictionary, homing_speed_fast_homing_speed),
+                ::core::mem::offset_of!(Dictionary, homing_speed_fast),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -8178,7 +7898,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(Dictionary, homing_speed_slow_homing_speed),
+                ::core::mem::offset_of!(Dictionary, homing_speed_slow),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -8768,14 +8488,14 @@ PDOMapping=0
         error_register: u8,
         manufacturer_status_register: u32,
         pre_defined_error_field_number_of_errors: u8,
-        pre_defined_error_field_standard_error_field_1: u32,
-        pre_defined_error_field_standard_error_field_2: u32,
-        pre_defined_error_field_standard_error_field_3: u32,
-        pre_defined_error_field_standard_error_field_4: u32,
-        pre_defined_error_field_standard_error_field_5: u32,
-        pre_defined_error_field_standard_error_field_6: u32,
-        pre_defined_error_field_standard_error_field_7: u32,
-        pre_defined_error_field_standard_error_field_8: u32,
+        pre_defined_error_field_standard_1: u32,
+        pre_defined_error_field_standard_2: u32,
+        pre_defined_error_field_standard_3: u32,
+        pre_defined_error_field_standard_4: u32,
+        pre_defined_error_field_standard_5: u32,
+        pre_defined_error_field_standard_6: u32,
+        pre_defined_error_field_standard_7: u32,
+        pre_defined_error_field_standard_8: u32,
         cob_id_sync: u32,
         communication_cycle_period: u32,
         synchronous_window_length: u32,
@@ -8785,9 +8505,9 @@ PDOMapping=0
         guard_time: u16,
         life_time_factor: u8,
         store_parameter_field_highest_sub_index_supported: u8,
-        store_parameter_field_save_all_parameters: u32,
+        store_parameter_field_save_all: u32,
         restore_default_parameters_highest_sub_index_supported: u8,
-        restore_default_parameters_restore_all_default_parameters: u32,
+        restore_default_parameters_all: u32,
         cob_id_time_stamp: u32,
         cob_id_emcy: u32,
         inhibit_time_emergency: u16,
@@ -8829,77 +8549,77 @@ PDOMapping=0
         rx_pdo_communication_parameter_8_cob_id: u32,
         rx_pdo_communication_parameter_8_transmission_type: u8,
         rx_pdo_mapping_parameter_1_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_1_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_1_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_1_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_1_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_1_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_1_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_1_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_1_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_1_entry_1: u32,
+        rx_pdo_mapping_parameter_1_entry_2: u32,
+        rx_pdo_mapping_parameter_1_entry_3: u32,
+        rx_pdo_mapping_parameter_1_entry_4: u32,
+        rx_pdo_mapping_parameter_1_entry_5: u32,
+        rx_pdo_mapping_parameter_1_entry_6: u32,
+        rx_pdo_mapping_parameter_1_entry_7: u32,
+        rx_pdo_mapping_parameter_1_entry_8: u32,
         rx_pdo_mapping_parameter_2_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_2_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_2_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_2_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_2_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_2_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_2_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_2_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_2_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_2_entry_1: u32,
+        rx_pdo_mapping_parameter_2_entry_2: u32,
+        rx_pdo_mapping_parameter_2_entry_3: u32,
+        rx_pdo_mapping_parameter_2_entry_4: u32,
+        rx_pdo_mapping_parameter_2_entry_5: u32,
+        rx_pdo_mapping_parameter_2_entry_6: u32,
+        rx_pdo_mapping_parameter_2_entry_7: u32,
+        rx_pdo_mapping_parameter_2_entry_8: u32,
         rx_pdo_mapping_parameter_3_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_3_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_3_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_3_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_3_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_3_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_3_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_3_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_3_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_3_entry_1: u32,
+        rx_pdo_mapping_parameter_3_entry_2: u32,
+        rx_pdo_mapping_parameter_3_entry_3: u32,
+        rx_pdo_mapping_parameter_3_entry_4: u32,
+        rx_pdo_mapping_parameter_3_entry_5: u32,
+        rx_pdo_mapping_parameter_3_entry_6: u32,
+        rx_pdo_mapping_parameter_3_entry_7: u32,
+        rx_pdo_mapping_parameter_3_entry_8: u32,
         rx_pdo_mapping_parameter_4_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_4_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_4_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_4_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_4_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_4_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_4_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_4_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_4_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_4_entry_1: u32,
+        rx_pdo_mapping_parameter_4_entry_2: u32,
+        rx_pdo_mapping_parameter_4_entry_3: u32,
+        rx_pdo_mapping_parameter_4_entry_4: u32,
+        rx_pdo_mapping_parameter_4_entry_5: u32,
+        rx_pdo_mapping_parameter_4_entry_6: u32,
+        rx_pdo_mapping_parameter_4_entry_7: u32,
+        rx_pdo_mapping_parameter_4_entry_8: u32,
         rx_pdo_mapping_parameter_5_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_5_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_5_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_5_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_5_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_5_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_5_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_5_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_5_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_5_entry_1: u32,
+        rx_pdo_mapping_parameter_5_entry_2: u32,
+        rx_pdo_mapping_parameter_5_entry_3: u32,
+        rx_pdo_mapping_parameter_5_entry_4: u32,
+        rx_pdo_mapping_parameter_5_entry_5: u32,
+        rx_pdo_mapping_parameter_5_entry_6: u32,
+        rx_pdo_mapping_parameter_5_entry_7: u32,
+        rx_pdo_mapping_parameter_5_entry_8: u32,
         rx_pdo_mapping_parameter_6_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_6_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_6_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_6_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_6_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_6_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_6_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_6_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_6_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_6_entry_1: u32,
+        rx_pdo_mapping_parameter_6_entry_2: u32,
+        rx_pdo_mapping_parameter_6_entry_3: u32,
+        rx_pdo_mapping_parameter_6_entry_4: u32,
+        rx_pdo_mapping_parameter_6_entry_5: u32,
+        rx_pdo_mapping_parameter_6_entry_6: u32,
+        rx_pdo_mapping_parameter_6_entry_7: u32,
+        rx_pdo_mapping_parameter_6_entry_8: u32,
         rx_pdo_mapping_parameter_7_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_7_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_7_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_7_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_7_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_7_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_7_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_7_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_7_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_7_entry_1: u32,
+        rx_pdo_mapping_parameter_7_entry_2: u32,
+        rx_pdo_mapping_parameter_7_entry_3: u32,
+        rx_pdo_mapping_parameter_7_entry_4: u32,
+        rx_pdo_mapping_parameter_7_entry_5: u32,
+        rx_pdo_mapping_parameter_7_entry_6: u32,
+        rx_pdo_mapping_parameter_7_entry_7: u32,
+        rx_pdo_mapping_parameter_7_entry_8: u32,
         rx_pdo_mapping_parameter_8_number_of_mapped_objects: u8,
-        rx_pdo_mapping_parameter_8_mapping_entry_1: u32,
-        rx_pdo_mapping_parameter_8_mapping_entry_2: u32,
-        rx_pdo_mapping_parameter_8_mapping_entry_3: u32,
-        rx_pdo_mapping_parameter_8_mapping_entry_4: u32,
-        rx_pdo_mapping_parameter_8_mapping_entry_5: u32,
-        rx_pdo_mapping_parameter_8_mapping_entry_6: u32,
-        rx_pdo_mapping_parameter_8_mapping_entry_7: u32,
-        rx_pdo_mapping_parameter_8_mapping_entry_8: u32,
+        rx_pdo_mapping_parameter_8_entry_1: u32,
+        rx_pdo_mapping_parameter_8_entry_2: u32,
+        rx_pdo_mapping_parameter_8_entry_3: u32,
+        rx_pdo_mapping_parameter_8_entry_4: u32,
+        rx_pdo_mapping_parameter_8_entry_5: u32,
+        rx_pdo_mapping_parameter_8_entry_6: u32,
+        rx_pdo_mapping_parameter_8_entry_7: u32,
+        rx_pdo_mapping_parameter_8_entry_8: u32,
         tx_pdo_communication_parameter_1_highest_sub_index_supported: u8,
         tx_pdo_communication_parameter_1_cob_id: u32,
         tx_pdo_communication_parameter_1_transmission_type: u8,
@@ -8949,77 +8669,77 @@ PDOMapping=0
         tx_pdo_communication_parameter_8_compatibility_entry: u8,
         tx_pdo_communication_parameter_8_event_timer: u16,
         tx_pdo_mapping_parameter_1_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_1_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_1_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_1_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_1_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_1_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_1_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_1_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_1_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_1_entry_1: u32,
+        tx_pdo_mapping_parameter_1_entry_2: u32,
+        tx_pdo_mapping_parameter_1_entry_3: u32,
+        tx_pdo_mapping_parameter_1_entry_4: u32,
+        tx_pdo_mapping_parameter_1_entry_5: u32,
+        tx_pdo_mapping_parameter_1_entry_6: u32,
+        tx_pdo_mapping_parameter_1_entry_7: u32,
+        tx_pdo_mapping_parameter_1_entry_8: u32,
         tx_pdo_mapping_parameter_2_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_2_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_2_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_2_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_2_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_2_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_2_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_2_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_2_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_2_entry_1: u32,
+        tx_pdo_mapping_parameter_2_entry_2: u32,
+        tx_pdo_mapping_parameter_2_entry_3: u32,
+        tx_pdo_mapping_parameter_2_entry_4: u32,
+        tx_pdo_mapping_parameter_2_entry_5: u32,
+        tx_pdo_mapping_parameter_2_entry_6: u32,
+        tx_pdo_mapping_parameter_2_entry_7: u32,
+        tx_pdo_mapping_parameter_2_entry_8: u32,
         tx_pdo_mapping_parameter_3_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_3_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_3_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_3_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_3_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_3_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_3_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_3_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_3_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_3_entry_1: u32,
+        tx_pdo_mapping_parameter_3_entry_2: u32,
+        tx_pdo_mapping_parameter_3_entry_3: u32,
+        tx_pdo_mapping_parameter_3_entry_4: u32,
+        tx_pdo_mapping_parameter_3_entry_5: u32,
+        tx_pdo_mapping_parameter_3_entry_6: u32,
+        tx_pdo_mapping_parameter_3_entry_7: u32,
+        tx_pdo_mapping_parameter_3_entry_8: u32,
         tx_pdo_mapping_parameter_4_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_4_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_4_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_4_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_4_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_4_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_4_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_4_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_4_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_4_entry_1: u32,
+        tx_pdo_mapping_parameter_4_entry_2: u32,
+        tx_pdo_mapping_parameter_4_entry_3: u32,
+        tx_pdo_mapping_parameter_4_entry_4: u32,
+        tx_pdo_mapping_parameter_4_entry_5: u32,
+        tx_pdo_mapping_parameter_4_entry_6: u32,
+        tx_pdo_mapping_parameter_4_entry_7: u32,
+        tx_pdo_mapping_parameter_4_entry_8: u32,
         tx_pdo_mapping_parameter_5_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_5_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_5_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_5_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_5_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_5_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_5_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_5_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_5_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_5_entry_1: u32,
+        tx_pdo_mapping_parameter_5_entry_2: u32,
+        tx_pdo_mapping_parameter_5_entry_3: u32,
+        tx_pdo_mapping_parameter_5_entry_4: u32,
+        tx_pdo_mapping_parameter_5_entry_5: u32,
+        tx_pdo_mapping_parameter_5_entry_6: u32,
+        tx_pdo_mapping_parameter_5_entry_7: u32,
+        tx_pdo_mapping_parameter_5_entry_8: u32,
         tx_pdo_mapping_parameter_6_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_6_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_6_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_6_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_6_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_6_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_6_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_6_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_6_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_6_entry_1: u32,
+        tx_pdo_mapping_parameter_6_entry_2: u32,
+        tx_pdo_mapping_parameter_6_entry_3: u32,
+        tx_pdo_mapping_parameter_6_entry_4: u32,
+        tx_pdo_mapping_parameter_6_entry_5: u32,
+        tx_pdo_mapping_parameter_6_entry_6: u32,
+        tx_pdo_mapping_parameter_6_entry_7: u32,
+        tx_pdo_mapping_parameter_6_entry_8: u32,
         tx_pdo_mapping_parameter_7_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_7_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_7_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_7_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_7_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_7_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_7_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_7_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_7_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_7_entry_1: u32,
+        tx_pdo_mapping_parameter_7_entry_2: u32,
+        tx_pdo_mapping_parameter_7_entry_3: u32,
+        tx_pdo_mapping_parameter_7_entry_4: u32,
+        tx_pdo_mapping_parameter_7_entry_5: u32,
+        tx_pdo_mapping_parameter_7_entry_6: u32,
+        tx_pdo_mapping_parameter_7_entry_7: u32,
+        tx_pdo_mapping_parameter_7_entry_8: u32,
         tx_pdo_mapping_parameter_8_number_of_mapped_objects: u8,
-        tx_pdo_mapping_parameter_8_mapping_entry_1: u32,
-        tx_pdo_mapping_parameter_8_mapping_entry_2: u32,
-        tx_pdo_mapping_parameter_8_mapping_entry_3: u32,
-        tx_pdo_mapping_parameter_8_mapping_entry_4: u32,
-        tx_pdo_mapping_parameter_8_mapping_entry_5: u32,
-        tx_pdo_mapping_parameter_8_mapping_entry_6: u32,
-        tx_pdo_mapping_parameter_8_mapping_entry_7: u32,
-        tx_pdo_mapping_parameter_8_mapping_entry_8: u32,
+        tx_pdo_mapping_parameter_8_entry_1: u32,
+        tx_pdo_mapping_parameter_8_entry_2: u32,
+        tx_pdo_mapping_parameter_8_entry_3: u32,
+        tx_pdo_mapping_parameter_8_entry_4: u32,
+        tx_pdo_mapping_parameter_8_entry_5: u32,
+        tx_pdo_mapping_parameter_8_entry_6: u32,
+        tx_pdo_mapping_parameter_8_entry_7: u32,
+        tx_pdo_mapping_parameter_8_entry_8: u32,
         nmt_startup: u32,
         feed_converter_highest_sub_index_supported: u8,
         feed_converter_numerator: u32,
@@ -9048,14 +8768,14 @@ PDOMapping=0
         target_position: i32,
         home_offset: i32,
         software_position_limit_highest_sub_index_supported: u8,
-        software_position_limit_min_software_position_limit: i32,
-        software_position_limit_max_software_position_limit: i32,
+        software_position_limit_min: i32,
+        software_position_limit_max: i32,
         polarity: u8,
         profile_velocity_in_pp_mode: u32,
         profile_acceleration: u32,
         profile_deceleration: u32,
         position_encoder_resolution_highest_sub_index_supported: u8,
-        position_encoder_resolution_encoder_increments: u32,
+        position_encoder_resolution_increments: u32,
         position_encoder_resolution_motor_revolutions: u32,
         gear_ratio_highest_sub_index_supported: u8,
         gear_ratio_motor_revolutions: u32,
@@ -9065,8 +8785,8 @@ PDOMapping=0
         feed_constant_shaft_revolutions: u32,
         homing_method: i8,
         homing_speed_highest_sub_index_supported: u8,
-        homing_speed_fast_homing_speed: u32,
-        homing_speed_slow_homing_speed: u32,
+        homing_speed_fast: u32,
+        homing_speed_slow: u32,
         target_velocity: i32,
         motor_type: u16,
         motor_manufacturer: ::od_runtime::__private_v2::Bytes<32>,
@@ -9081,14 +8801,14 @@ PDOMapping=0
                 error_register: 0x0,
                 manufacturer_status_register: 0x0,
                 pre_defined_error_field_number_of_errors: 0,
-                pre_defined_error_field_standard_error_field_1: 0x0,
-                pre_defined_error_field_standard_error_field_2: 0x0,
-                pre_defined_error_field_standard_error_field_3: 0x0,
-                pre_defined_error_field_standard_error_field_4: 0x0,
-                pre_defined_error_field_standard_error_field_5: 0x0,
-                pre_defined_error_field_standard_error_field_6: 0x0,
-                pre_defined_error_field_standard_error_field_7: 0x0,
-                pre_defined_error_field_standard_error_field_8: 0x0,
+                pre_defined_error_field_standard_1: 0x0,
+                pre_defined_error_field_standard_2: 0x0,
+                pre_defined_error_field_standard_3: 0x0,
+                pre_defined_error_field_standard_4: 0x0,
+                pre_defined_error_field_standard_5: 0x0,
+                pre_defined_error_field_standard_6: 0x0,
+                pre_defined_error_field_standard_7: 0x0,
+                pre_defined_error_field_standard_8: 0x0,
                 cob_id_sync: 0x80,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
@@ -9104,9 +8824,9 @@ PDOMapping=0
                 guard_time: 0,
                 life_time_factor: 0,
                 store_parameter_field_highest_sub_index_supported: 1,
-                store_parameter_field_save_all_parameters: 0x1,
+                store_parameter_field_save_all: 0x1,
                 restore_default_parameters_highest_sub_index_supported: 1,
-                restore_default_parameters_restore_all_default_parameters: 0x1,
+                restore_default_parameters_all: 0x1,
                 cob_id_time_stamp: 0x80000100,
                 cob_id_emcy: (0x80 + node_id as i128) as u32,
                 inhibit_time_emergency: 0,
@@ -9154,77 +8874,77 @@ PDOMapping=0
                 rx_pdo_communication_parameter_8_cob_id: 0x80000000,
                 rx_pdo_communication_parameter_8_transmission_type: 0xFF,
                 rx_pdo_mapping_parameter_1_number_of_mapped_objects: 1,
-                rx_pdo_mapping_parameter_1_mapping_entry_1: 0x60400010,
-                rx_pdo_mapping_parameter_1_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_1_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_1_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_1_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_1_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_1_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_1_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_1_entry_1: 0x60400010,
+                rx_pdo_mapping_parameter_1_entry_2: 0x0,
+                rx_pdo_mapping_parameter_1_entry_3: 0x0,
+                rx_pdo_mapping_parameter_1_entry_4: 0x0,
+                rx_pdo_mapping_parameter_1_entry_5: 0x0,
+                rx_pdo_mapping_parameter_1_entry_6: 0x0,
+                rx_pdo_mapping_parameter_1_entry_7: 0x0,
+                rx_pdo_mapping_parameter_1_entry_8: 0x0,
                 rx_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_2_mapping_entry_1: 0x0,
-                rx_pdo_mapping_parameter_2_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_2_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_2_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_2_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_2_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_2_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_2_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_2_entry_1: 0x0,
+                rx_pdo_mapping_parameter_2_entry_2: 0x0,
+                rx_pdo_mapping_parameter_2_entry_3: 0x0,
+                rx_pdo_mapping_parameter_2_entry_4: 0x0,
+                rx_pdo_mapping_parameter_2_entry_5: 0x0,
+                rx_pdo_mapping_parameter_2_entry_6: 0x0,
+                rx_pdo_mapping_parameter_2_entry_7: 0x0,
+                rx_pdo_mapping_parameter_2_entry_8: 0x0,
                 rx_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_3_mapping_entry_1: 0x0,
-                rx_pdo_mapping_parameter_3_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_3_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_3_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_3_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_3_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_3_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_3_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_3_entry_1: 0x0,
+                rx_pdo_mapping_parameter_3_entry_2: 0x0,
+                rx_pdo_mapping_parameter_3_entry_3: 0x0,
+                rx_pdo_mapping_parameter_3_entry_4: 0x0,
+                rx_pdo_mapping_parameter_3_entry_5: 0x0,
+                rx_pdo_mapping_parameter_3_entry_6: 0x0,
+                rx_pdo_mapping_parameter_3_entry_7: 0x0,
+                rx_pdo_mapping_parameter_3_entry_8: 0x0,
                 rx_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_4_mapping_entry_1: 0x0,
-                rx_pdo_mapping_parameter_4_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_4_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_4_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_4_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_4_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_4_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_4_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_4_entry_1: 0x0,
+                rx_pdo_mapping_parameter_4_entry_2: 0x0,
+                rx_pdo_mapping_parameter_4_entry_3: 0x0,
+                rx_pdo_mapping_parameter_4_entry_4: 0x0,
+                rx_pdo_mapping_parameter_4_entry_5: 0x0,
+                rx_pdo_mapping_parameter_4_entry_6: 0x0,
+                rx_pdo_mapping_parameter_4_entry_7: 0x0,
+                rx_pdo_mapping_parameter_4_entry_8: 0x0,
                 rx_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_5_mapping_entry_1: 0x0,
-                rx_pdo_mapping_parameter_5_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_5_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_5_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_5_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_5_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_5_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_5_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_5_entry_1: 0x0,
+                rx_pdo_mapping_parameter_5_entry_2: 0x0,
+                rx_pdo_mapping_parameter_5_entry_3: 0x0,
+                rx_pdo_mapping_parameter_5_entry_4: 0x0,
+                rx_pdo_mapping_parameter_5_entry_5: 0x0,
+                rx_pdo_mapping_parameter_5_entry_6: 0x0,
+                rx_pdo_mapping_parameter_5_entry_7: 0x0,
+                rx_pdo_mapping_parameter_5_entry_8: 0x0,
                 rx_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_6_mapping_entry_1: 0x0,
-                rx_pdo_mapping_parameter_6_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_6_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_6_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_6_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_6_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_6_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_6_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_6_entry_1: 0x0,
+                rx_pdo_mapping_parameter_6_entry_2: 0x0,
+                rx_pdo_mapping_parameter_6_entry_3: 0x0,
+                rx_pdo_mapping_parameter_6_entry_4: 0x0,
+                rx_pdo_mapping_parameter_6_entry_5: 0x0,
+                rx_pdo_mapping_parameter_6_entry_6: 0x0,
+                rx_pdo_mapping_parameter_6_entry_7: 0x0,
+                rx_pdo_mapping_parameter_6_entry_8: 0x0,
                 rx_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_7_mapping_entry_1: 0x0,
-                rx_pdo_mapping_parameter_7_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_7_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_7_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_7_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_7_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_7_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_7_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_7_entry_1: 0x0,
+                rx_pdo_mapping_parameter_7_entry_2: 0x0,
+                rx_pdo_mapping_parameter_7_entry_3: 0x0,
+                rx_pdo_mapping_parameter_7_entry_4: 0x0,
+                rx_pdo_mapping_parameter_7_entry_5: 0x0,
+                rx_pdo_mapping_parameter_7_entry_6: 0x0,
+                rx_pdo_mapping_parameter_7_entry_7: 0x0,
+                rx_pdo_mapping_parameter_7_entry_8: 0x0,
                 rx_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_8_mapping_entry_1: 0x0,
-                rx_pdo_mapping_parameter_8_mapping_entry_2: 0x0,
-                rx_pdo_mapping_parameter_8_mapping_entry_3: 0x0,
-                rx_pdo_mapping_parameter_8_mapping_entry_4: 0x0,
-                rx_pdo_mapping_parameter_8_mapping_entry_5: 0x0,
-                rx_pdo_mapping_parameter_8_mapping_entry_6: 0x0,
-                rx_pdo_mapping_parameter_8_mapping_entry_7: 0x0,
-                rx_pdo_mapping_parameter_8_mapping_entry_8: 0x0,
+                rx_pdo_mapping_parameter_8_entry_1: 0x0,
+                rx_pdo_mapping_parameter_8_entry_2: 0x0,
+                rx_pdo_mapping_parameter_8_entry_3: 0x0,
+                rx_pdo_mapping_parameter_8_entry_4: 0x0,
+                rx_pdo_mapping_parameter_8_entry_5: 0x0,
+                rx_pdo_mapping_parameter_8_entry_6: 0x0,
+                rx_pdo_mapping_parameter_8_entry_7: 0x0,
+                rx_pdo_mapping_parameter_8_entry_8: 0x0,
                 tx_pdo_communication_parameter_1_highest_sub_index_supported: 5,
                 tx_pdo_communication_parameter_1_cob_id: (0x180 + node_id as i128)
                     as u32,
@@ -9278,77 +8998,77 @@ PDOMapping=0
                 tx_pdo_communication_parameter_8_compatibility_entry: 0,
                 tx_pdo_communication_parameter_8_event_timer: 0,
                 tx_pdo_mapping_parameter_1_number_of_mapped_objects: 1,
-                tx_pdo_mapping_parameter_1_mapping_entry_1: 0x60410010,
-                tx_pdo_mapping_parameter_1_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_1_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_1_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_1_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_1_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_1_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_1_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_1_entry_1: 0x60410010,
+                tx_pdo_mapping_parameter_1_entry_2: 0x0,
+                tx_pdo_mapping_parameter_1_entry_3: 0x0,
+                tx_pdo_mapping_parameter_1_entry_4: 0x0,
+                tx_pdo_mapping_parameter_1_entry_5: 0x0,
+                tx_pdo_mapping_parameter_1_entry_6: 0x0,
+                tx_pdo_mapping_parameter_1_entry_7: 0x0,
+                tx_pdo_mapping_parameter_1_entry_8: 0x0,
                 tx_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_2_mapping_entry_1: 0x0,
-                tx_pdo_mapping_parameter_2_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_2_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_2_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_2_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_2_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_2_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_2_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_2_entry_1: 0x0,
+                tx_pdo_mapping_parameter_2_entry_2: 0x0,
+                tx_pdo_mapping_parameter_2_entry_3: 0x0,
+                tx_pdo_mapping_parameter_2_entry_4: 0x0,
+                tx_pdo_mapping_parameter_2_entry_5: 0x0,
+                tx_pdo_mapping_parameter_2_entry_6: 0x0,
+                tx_pdo_mapping_parameter_2_entry_7: 0x0,
+                tx_pdo_mapping_parameter_2_entry_8: 0x0,
                 tx_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_3_mapping_entry_1: 0x0,
-                tx_pdo_mapping_parameter_3_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_3_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_3_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_3_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_3_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_3_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_3_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_3_entry_1: 0x0,
+                tx_pdo_mapping_parameter_3_entry_2: 0x0,
+                tx_pdo_mapping_parameter_3_entry_3: 0x0,
+                tx_pdo_mapping_parameter_3_entry_4: 0x0,
+                tx_pdo_mapping_parameter_3_entry_5: 0x0,
+                tx_pdo_mapping_parameter_3_entry_6: 0x0,
+                tx_pdo_mapping_parameter_3_entry_7: 0x0,
+                tx_pdo_mapping_parameter_3_entry_8: 0x0,
                 tx_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_4_mapping_entry_1: 0x0,
-                tx_pdo_mapping_parameter_4_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_4_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_4_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_4_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_4_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_4_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_4_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_4_entry_1: 0x0,
+                tx_pdo_mapping_parameter_4_entry_2: 0x0,
+                tx_pdo_mapping_parameter_4_entry_3: 0x0,
+                tx_pdo_mapping_parameter_4_entry_4: 0x0,
+                tx_pdo_mapping_parameter_4_entry_5: 0x0,
+                tx_pdo_mapping_parameter_4_entry_6: 0x0,
+                tx_pdo_mapping_parameter_4_entry_7: 0x0,
+                tx_pdo_mapping_parameter_4_entry_8: 0x0,
                 tx_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_5_mapping_entry_1: 0x0,
-                tx_pdo_mapping_parameter_5_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_5_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_5_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_5_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_5_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_5_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_5_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_5_entry_1: 0x0,
+                tx_pdo_mapping_parameter_5_entry_2: 0x0,
+                tx_pdo_mapping_parameter_5_entry_3: 0x0,
+                tx_pdo_mapping_parameter_5_entry_4: 0x0,
+                tx_pdo_mapping_parameter_5_entry_5: 0x0,
+                tx_pdo_mapping_parameter_5_entry_6: 0x0,
+                tx_pdo_mapping_parameter_5_entry_7: 0x0,
+                tx_pdo_mapping_parameter_5_entry_8: 0x0,
                 tx_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_6_mapping_entry_1: 0x0,
-                tx_pdo_mapping_parameter_6_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_6_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_6_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_6_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_6_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_6_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_6_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_6_entry_1: 0x0,
+                tx_pdo_mapping_parameter_6_entry_2: 0x0,
+                tx_pdo_mapping_parameter_6_entry_3: 0x0,
+                tx_pdo_mapping_parameter_6_entry_4: 0x0,
+                tx_pdo_mapping_parameter_6_entry_5: 0x0,
+                tx_pdo_mapping_parameter_6_entry_6: 0x0,
+                tx_pdo_mapping_parameter_6_entry_7: 0x0,
+                tx_pdo_mapping_parameter_6_entry_8: 0x0,
                 tx_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_7_mapping_entry_1: 0x0,
-                tx_pdo_mapping_parameter_7_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_7_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_7_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_7_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_7_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_7_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_7_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_7_entry_1: 0x0,
+                tx_pdo_mapping_parameter_7_entry_2: 0x0,
+                tx_pdo_mapping_parameter_7_entry_3: 0x0,
+                tx_pdo_mapping_parameter_7_entry_4: 0x0,
+                tx_pdo_mapping_parameter_7_entry_5: 0x0,
+                tx_pdo_mapping_parameter_7_entry_6: 0x0,
+                tx_pdo_mapping_parameter_7_entry_7: 0x0,
+                tx_pdo_mapping_parameter_7_entry_8: 0x0,
                 tx_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_8_mapping_entry_1: 0x0,
-                tx_pdo_mapping_parameter_8_mapping_entry_2: 0x0,
-                tx_pdo_mapping_parameter_8_mapping_entry_3: 0x0,
-                tx_pdo_mapping_parameter_8_mapping_entry_4: 0x0,
-                tx_pdo_mapping_parameter_8_mapping_entry_5: 0x0,
-                tx_pdo_mapping_parameter_8_mapping_entry_6: 0x0,
-                tx_pdo_mapping_parameter_8_mapping_entry_7: 0x0,
-                tx_pdo_mapping_parameter_8_mapping_entry_8: 0x0,
+                tx_pdo_mapping_parameter_8_entry_1: 0x0,
+                tx_pdo_mapping_parameter_8_entry_2: 0x0,
+                tx_pdo_mapping_parameter_8_entry_3: 0x0,
+                tx_pdo_mapping_parameter_8_entry_4: 0x0,
+                tx_pdo_mapping_parameter_8_entry_5: 0x0,
+                tx_pdo_mapping_parameter_8_entry_6: 0x0,
+                tx_pdo_mapping_parameter_8_entry_7: 0x0,
+                tx_pdo_mapping_parameter_8_entry_8: 0x0,
                 nmt_startup: 0x4,
                 feed_converter_highest_sub_index_supported: 2,
                 feed_converter_numerator: 1,
@@ -9377,14 +9097,14 @@ PDOMapping=0
                 target_position: 0,
                 home_offset: 0,
                 software_position_limit_highest_sub_index_supported: 2,
-                software_position_limit_min_software_position_limit: 0,
-                software_position_limit_max_software_position_limit: 1000,
+                software_position_limit_min: 0,
+                software_position_limit_max: 1000,
                 polarity: 0x0,
                 profile_velocity_in_pp_mode: 0,
                 profile_acceleration: 0,
                 profile_deceleration: 0,
                 position_encoder_resolution_highest_sub_index_supported: 2,
-                position_encoder_resolution_encoder_increments: 1000,
+                position_encoder_resolution_increments: 1000,
                 position_encoder_resolution_motor_revolutions: 1,
                 gear_ratio_highest_sub_index_supported: 2,
                 gear_ratio_motor_revolutions: 1,
@@ -9394,8 +9114,8 @@ PDOMapping=0
                 feed_constant_shaft_revolutions: 1,
                 homing_method: 17,
                 homing_speed_highest_sub_index_supported: 2,
-                homing_speed_fast_homing_speed: 0,
-                homing_speed_slow_homing_speed: 0,
+                homing_speed_fast: 0,
+                homing_speed_slow: 0,
                 target_velocity: 0,
                 motor_type: 0x9,
                 motor_manufacturer: ::od_runtime::__private_v2::Bytes::from_slice(
@@ -9414,14 +9134,14 @@ PDOMapping=0
                 error_register: 0,
                 manufacturer_status_register: 0,
                 pre_defined_error_field_number_of_errors: 0,
-                pre_defined_error_field_standard_error_field_1: 0,
-                pre_defined_error_field_standard_error_field_2: 0,
-                pre_defined_error_field_standard_error_field_3: 0,
-                pre_defined_error_field_standard_error_field_4: 0,
-                pre_defined_error_field_standard_error_field_5: 0,
-                pre_defined_error_field_standard_error_field_6: 0,
-                pre_defined_error_field_standard_error_field_7: 0,
-                pre_defined_error_field_standard_error_field_8: 0,
+                pre_defined_error_field_standard_1: 0,
+                pre_defined_error_field_standard_2: 0,
+                pre_defined_error_field_standard_3: 0,
+                pre_defined_error_field_standard_4: 0,
+                pre_defined_error_field_standard_5: 0,
+                pre_defined_error_field_standard_6: 0,
+                pre_defined_error_field_standard_7: 0,
+                pre_defined_error_field_standard_8: 0,
                 cob_id_sync: 0,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
@@ -9437,9 +9157,9 @@ PDOMapping=0
                 guard_time: 0,
                 life_time_factor: 0,
                 store_parameter_field_highest_sub_index_supported: 0,
-                store_parameter_field_save_all_parameters: 0,
+                store_parameter_field_save_all: 0,
                 restore_default_parameters_highest_sub_index_supported: 0,
-                restore_default_parameters_restore_all_default_parameters: 0,
+                restore_default_parameters_all: 0,
                 cob_id_time_stamp: 0,
                 cob_id_emcy: 0,
                 inhibit_time_emergency: 0,
@@ -9481,77 +9201,77 @@ PDOMapping=0
                 rx_pdo_communication_parameter_8_cob_id: 0,
                 rx_pdo_communication_parameter_8_transmission_type: 0,
                 rx_pdo_mapping_parameter_1_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_1_mapping_entry_1: 0,
-                rx_pdo_mapping_parameter_1_mapping_entry_2: 0,
-                rx_pdo_mapping_parameter_1_mapping_entry_3: 0,
-                rx_pdo_mapping_parameter_1_mapping_entry_4: 0,
-                rx_pdo_mapping_parameter_1_mapping_entry_5: 0,
-                rx_pdo_mapping_parameter_1_mapping_entry_6: 0,
-                rx_pdo_mapping_parameter_1_mapping_entry_7: 0,
-                rx_pdo_mapping_parameter_1_mapping_entry_8: 0,
+                rx_pdo_mapping_parameter_1_entry_1: 0,
+                rx_pdo_mapping_parameter_1_entry_2: 0,
+                rx_pdo_mapping_parameter_1_entry_3: 0,
+                rx_pdo_mapping_parameter_1_entry_4: 0,
+                rx_pdo_mapping_parameter_1_entry_5: 0,
+                rx_pdo_mapping_parameter_1_entry_6: 0,
+                rx_pdo_mapping_parameter_1_entry_7: 0,
+                rx_pdo_mapping_parameter_1_entry_8: 0,
                 rx_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_2_mapping_entry_1: 0,
-                rx_pdo_mapping_parameter_2_mapping_entry_2: 0,
-                rx_pdo_mapping_parameter_2_mapping_entry_3: 0,
-                rx_pdo_mapping_parameter_2_mapping_entry_4: 0,
-                rx_pdo_mapping_parameter_2_mapping_entry_5: 0,
-                rx_pdo_mapping_parameter_2_mapping_entry_6: 0,
-                rx_pdo_mapping_parameter_2_mapping_entry_7: 0,
-                rx_pdo_mapping_parameter_2_mapping_entry_8: 0,
+                rx_pdo_mapping_parameter_2_entry_1: 0,
+                rx_pdo_mapping_parameter_2_entry_2: 0,
+                rx_pdo_mapping_parameter_2_entry_3: 0,
+                rx_pdo_mapping_parameter_2_entry_4: 0,
+                rx_pdo_mapping_parameter_2_entry_5: 0,
+                rx_pdo_mapping_parameter_2_entry_6: 0,
+                rx_pdo_mapping_parameter_2_entry_7: 0,
+                rx_pdo_mapping_parameter_2_entry_8: 0,
                 rx_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_3_mapping_entry_1: 0,
-                rx_pdo_mapping_parameter_3_mapping_entry_2: 0,
-                rx_pdo_mapping_parameter_3_mapping_entry_3: 0,
-                rx_pdo_mapping_parameter_3_mapping_entry_4: 0,
-                rx_pdo_mapping_parameter_3_mapping_entry_5: 0,
-                rx_pdo_mapping_parameter_3_mapping_entry_6: 0,
-                rx_pdo_mapping_parameter_3_mapping_entry_7: 0,
-                rx_pdo_mapping_parameter_3_mapping_entry_8: 0,
+                rx_pdo_mapping_parameter_3_entry_1: 0,
+                rx_pdo_mapping_parameter_3_entry_2: 0,
+                rx_pdo_mapping_parameter_3_entry_3: 0,
+                rx_pdo_mapping_parameter_3_entry_4: 0,
+                rx_pdo_mapping_parameter_3_entry_5: 0,
+                rx_pdo_mapping_parameter_3_entry_6: 0,
+                rx_pdo_mapping_parameter_3_entry_7: 0,
+                rx_pdo_mapping_parameter_3_entry_8: 0,
                 rx_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_4_mapping_entry_1: 0,
-                rx_pdo_mapping_parameter_4_mapping_entry_2: 0,
-                rx_pdo_mapping_parameter_4_mapping_entry_3: 0,
-                rx_pdo_mapping_parameter_4_mapping_entry_4: 0,
-                rx_pdo_mapping_parameter_4_mapping_entry_5: 0,
-                rx_pdo_mapping_parameter_4_mapping_entry_6: 0,
-                rx_pdo_mapping_parameter_4_mapping_entry_7: 0,
-                rx_pdo_mapping_parameter_4_mapping_entry_8: 0,
+                rx_pdo_mapping_parameter_4_entry_1: 0,
+                rx_pdo_mapping_parameter_4_entry_2: 0,
+                rx_pdo_mapping_parameter_4_entry_3: 0,
+                rx_pdo_mapping_parameter_4_entry_4: 0,
+                rx_pdo_mapping_parameter_4_entry_5: 0,
+                rx_pdo_mapping_parameter_4_entry_6: 0,
+                rx_pdo_mapping_parameter_4_entry_7: 0,
+                rx_pdo_mapping_parameter_4_entry_8: 0,
                 rx_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_5_mapping_entry_1: 0,
-                rx_pdo_mapping_parameter_5_mapping_entry_2: 0,
-                rx_pdo_mapping_parameter_5_mapping_entry_3: 0,
-                rx_pdo_mapping_parameter_5_mapping_entry_4: 0,
-                rx_pdo_mapping_parameter_5_mapping_entry_5: 0,
-                rx_pdo_mapping_parameter_5_mapping_entry_6: 0,
-                rx_pdo_mapping_parameter_5_mapping_entry_7: 0,
-                rx_pdo_mapping_parameter_5_mapping_entry_8: 0,
+                rx_pdo_mapping_parameter_5_entry_1: 0,
+                rx_pdo_mapping_parameter_5_entry_2: 0,
+                rx_pdo_mapping_parameter_5_entry_3: 0,
+                rx_pdo_mapping_parameter_5_entry_4: 0,
+                rx_pdo_mapping_parameter_5_entry_5: 0,
+                rx_pdo_mapping_parameter_5_entry_6: 0,
+                rx_pdo_mapping_parameter_5_entry_7: 0,
+                rx_pdo_mapping_parameter_5_entry_8: 0,
                 rx_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_6_mapping_entry_1: 0,
-                rx_pdo_mapping_parameter_6_mapping_entry_2: 0,
-                rx_pdo_mapping_parameter_6_mapping_entry_3: 0,
-                rx_pdo_mapping_parameter_6_mapping_entry_4: 0,
-                rx_pdo_mapping_parameter_6_mapping_entry_5: 0,
-                rx_pdo_mapping_parameter_6_mapping_entry_6: 0,
-                rx_pdo_mapping_parameter_6_mapping_entry_7: 0,
-                rx_pdo_mapping_parameter_6_mapping_entry_8: 0,
+                rx_pdo_mapping_parameter_6_entry_1: 0,
+                rx_pdo_mapping_parameter_6_entry_2: 0,
+                rx_pdo_mapping_parameter_6_entry_3: 0,
+                rx_pdo_mapping_parameter_6_entry_4: 0,
+                rx_pdo_mapping_parameter_6_entry_5: 0,
+                rx_pdo_mapping_parameter_6_entry_6: 0,
+                rx_pdo_mapping_parameter_6_entry_7: 0,
+                rx_pdo_mapping_parameter_6_entry_8: 0,
                 rx_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_7_mapping_entry_1: 0,
-                rx_pdo_mapping_parameter_7_mapping_entry_2: 0,
-                rx_pdo_mapping_parameter_7_mapping_entry_3: 0,
-                rx_pdo_mapping_parameter_7_mapping_entry_4: 0,
-                rx_pdo_mapping_parameter_7_mapping_entry_5: 0,
-                rx_pdo_mapping_parameter_7_mapping_entry_6: 0,
-                rx_pdo_mapping_parameter_7_mapping_entry_7: 0,
-                rx_pdo_mapping_parameter_7_mapping_entry_8: 0,
+                rx_pdo_mapping_parameter_7_entry_1: 0,
+                rx_pdo_mapping_parameter_7_entry_2: 0,
+                rx_pdo_mapping_parameter_7_entry_3: 0,
+                rx_pdo_mapping_parameter_7_entry_4: 0,
+                rx_pdo_mapping_parameter_7_entry_5: 0,
+                rx_pdo_mapping_parameter_7_entry_6: 0,
+                rx_pdo_mapping_parameter_7_entry_7: 0,
+                rx_pdo_mapping_parameter_7_entry_8: 0,
                 rx_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
-                rx_pdo_mapping_parameter_8_mapping_entry_1: 0,
-                rx_pdo_mapping_parameter_8_mapping_entry_2: 0,
-                rx_pdo_mapping_parameter_8_mapping_entry_3: 0,
-                rx_pdo_mapping_parameter_8_mapping_entry_4: 0,
-                rx_pdo_mapping_parameter_8_mapping_entry_5: 0,
-                rx_pdo_mapping_parameter_8_mapping_entry_6: 0,
-                rx_pdo_mapping_parameter_8_mapping_entry_7: 0,
-                rx_pdo_mapping_parameter_8_mapping_entry_8: 0,
+                rx_pdo_mapping_parameter_8_entry_1: 0,
+                rx_pdo_mapping_parameter_8_entry_2: 0,
+                rx_pdo_mapping_parameter_8_entry_3: 0,
+                rx_pdo_mapping_parameter_8_entry_4: 0,
+                rx_pdo_mapping_parameter_8_entry_5: 0,
+                rx_pdo_mapping_parameter_8_entry_6: 0,
+                rx_pdo_mapping_parameter_8_entry_7: 0,
+                rx_pdo_mapping_parameter_8_entry_8: 0,
                 tx_pdo_communication_parameter_1_highest_sub_index_supported: 0,
                 tx_pdo_communication_parameter_1_cob_id: 0,
                 tx_pdo_communication_parameter_1_transmission_type: 0,
@@ -9601,77 +9321,77 @@ PDOMapping=0
                 tx_pdo_communication_parameter_8_compatibility_entry: 0,
                 tx_pdo_communication_parameter_8_event_timer: 0,
                 tx_pdo_mapping_parameter_1_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_1_mapping_entry_1: 0,
-                tx_pdo_mapping_parameter_1_mapping_entry_2: 0,
-                tx_pdo_mapping_parameter_1_mapping_entry_3: 0,
-                tx_pdo_mapping_parameter_1_mapping_entry_4: 0,
-                tx_pdo_mapping_parameter_1_mapping_entry_5: 0,
-                tx_pdo_mapping_parameter_1_mapping_entry_6: 0,
-                tx_pdo_mapping_parameter_1_mapping_entry_7: 0,
-                tx_pdo_mapping_parameter_1_mapping_entry_8: 0,
+                tx_pdo_mapping_parameter_1_entry_1: 0,
+                tx_pdo_mapping_parameter_1_entry_2: 0,
+                tx_pdo_mapping_parameter_1_entry_3: 0,
+                tx_pdo_mapping_parameter_1_entry_4: 0,
+                tx_pdo_mapping_parameter_1_entry_5: 0,
+                tx_pdo_mapping_parameter_1_entry_6: 0,
+                tx_pdo_mapping_parameter_1_entry_7: 0,
+                tx_pdo_mapping_parameter_1_entry_8: 0,
                 tx_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_2_mapping_entry_1: 0,
-                tx_pdo_mapping_parameter_2_mapping_entry_2: 0,
-                tx_pdo_mapping_parameter_2_mapping_entry_3: 0,
-                tx_pdo_mapping_parameter_2_mapping_entry_4: 0,
-                tx_pdo_mapping_parameter_2_mapping_entry_5: 0,
-                tx_pdo_mapping_parameter_2_mapping_entry_6: 0,
-                tx_pdo_mapping_parameter_2_mapping_entry_7: 0,
-                tx_pdo_mapping_parameter_2_mapping_entry_8: 0,
+                tx_pdo_mapping_parameter_2_entry_1: 0,
+                tx_pdo_mapping_parameter_2_entry_2: 0,
+                tx_pdo_mapping_parameter_2_entry_3: 0,
+                tx_pdo_mapping_parameter_2_entry_4: 0,
+                tx_pdo_mapping_parameter_2_entry_5: 0,
+                tx_pdo_mapping_parameter_2_entry_6: 0,
+                tx_pdo_mapping_parameter_2_entry_7: 0,
+                tx_pdo_mapping_parameter_2_entry_8: 0,
                 tx_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_3_mapping_entry_1: 0,
-                tx_pdo_mapping_parameter_3_mapping_entry_2: 0,
-                tx_pdo_mapping_parameter_3_mapping_entry_3: 0,
-                tx_pdo_mapping_parameter_3_mapping_entry_4: 0,
-                tx_pdo_mapping_parameter_3_mapping_entry_5: 0,
-                tx_pdo_mapping_parameter_3_mapping_entry_6: 0,
-                tx_pdo_mapping_parameter_3_mapping_entry_7: 0,
-                tx_pdo_mapping_parameter_3_mapping_entry_8: 0,
+                tx_pdo_mapping_parameter_3_entry_1: 0,
+                tx_pdo_mapping_parameter_3_entry_2: 0,
+                tx_pdo_mapping_parameter_3_entry_3: 0,
+                tx_pdo_mapping_parameter_3_entry_4: 0,
+                tx_pdo_mapping_parameter_3_entry_5: 0,
+                tx_pdo_mapping_parameter_3_entry_6: 0,
+                tx_pdo_mapping_parameter_3_entry_7: 0,
+                tx_pdo_mapping_parameter_3_entry_8: 0,
                 tx_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_4_mapping_entry_1: 0,
-                tx_pdo_mapping_parameter_4_mapping_entry_2: 0,
-                tx_pdo_mapping_parameter_4_mapping_entry_3: 0,
-                tx_pdo_mapping_parameter_4_mapping_entry_4: 0,
-                tx_pdo_mapping_parameter_4_mapping_entry_5: 0,
-                tx_pdo_mapping_parameter_4_mapping_entry_6: 0,
-                tx_pdo_mapping_parameter_4_mapping_entry_7: 0,
-                tx_pdo_mapping_parameter_4_mapping_entry_8: 0,
+                tx_pdo_mapping_parameter_4_entry_1: 0,
+                tx_pdo_mapping_parameter_4_entry_2: 0,
+                tx_pdo_mapping_parameter_4_entry_3: 0,
+                tx_pdo_mapping_parameter_4_entry_4: 0,
+                tx_pdo_mapping_parameter_4_entry_5: 0,
+                tx_pdo_mapping_parameter_4_entry_6: 0,
+                tx_pdo_mapping_parameter_4_entry_7: 0,
+                tx_pdo_mapping_parameter_4_entry_8: 0,
                 tx_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_5_mapping_entry_1: 0,
-                tx_pdo_mapping_parameter_5_mapping_entry_2: 0,
-                tx_pdo_mapping_parameter_5_mapping_entry_3: 0,
-                tx_pdo_mapping_parameter_5_mapping_entry_4: 0,
-                tx_pdo_mapping_parameter_5_mapping_entry_5: 0,
-                tx_pdo_mapping_parameter_5_mapping_entry_6: 0,
-                tx_pdo_mapping_parameter_5_mapping_entry_7: 0,
-                tx_pdo_mapping_parameter_5_mapping_entry_8: 0,
+                tx_pdo_mapping_parameter_5_entry_1: 0,
+                tx_pdo_mapping_parameter_5_entry_2: 0,
+                tx_pdo_mapping_parameter_5_entry_3: 0,
+                tx_pdo_mapping_parameter_5_entry_4: 0,
+                tx_pdo_mapping_parameter_5_entry_5: 0,
+                tx_pdo_mapping_parameter_5_entry_6: 0,
+                tx_pdo_mapping_parameter_5_entry_7: 0,
+                tx_pdo_mapping_parameter_5_entry_8: 0,
                 tx_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_6_mapping_entry_1: 0,
-                tx_pdo_mapping_parameter_6_mapping_entry_2: 0,
-                tx_pdo_mapping_parameter_6_mapping_entry_3: 0,
-                tx_pdo_mapping_parameter_6_mapping_entry_4: 0,
-                tx_pdo_mapping_parameter_6_mapping_entry_5: 0,
-                tx_pdo_mapping_parameter_6_mapping_entry_6: 0,
-                tx_pdo_mapping_parameter_6_mapping_entry_7: 0,
-                tx_pdo_mapping_parameter_6_mapping_entry_8: 0,
+                tx_pdo_mapping_parameter_6_entry_1: 0,
+                tx_pdo_mapping_parameter_6_entry_2: 0,
+                tx_pdo_mapping_parameter_6_entry_3: 0,
+                tx_pdo_mapping_parameter_6_entry_4: 0,
+                tx_pdo_mapping_parameter_6_entry_5: 0,
+                tx_pdo_mapping_parameter_6_entry_6: 0,
+                tx_pdo_mapping_parameter_6_entry_7: 0,
+                tx_pdo_mapping_parameter_6_entry_8: 0,
                 tx_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_7_mapping_entry_1: 0,
-                tx_pdo_mapping_parameter_7_mapping_entry_2: 0,
-                tx_pdo_mapping_parameter_7_mapping_entry_3: 0,
-                tx_pdo_mapping_parameter_7_mapping_entry_4: 0,
-                tx_pdo_mapping_parameter_7_mapping_entry_5: 0,
-                tx_pdo_mapping_parameter_7_mapping_entry_6: 0,
-                tx_pdo_mapping_parameter_7_mapping_entry_7: 0,
-                tx_pdo_mapping_parameter_7_mapping_entry_8: 0,
+                tx_pdo_mapping_parameter_7_entry_1: 0,
+                tx_pdo_mapping_parameter_7_entry_2: 0,
+                tx_pdo_mapping_parameter_7_entry_3: 0,
+                tx_pdo_mapping_parameter_7_entry_4: 0,
+                tx_pdo_mapping_parameter_7_entry_5: 0,
+                tx_pdo_mapping_parameter_7_entry_6: 0,
+                tx_pdo_mapping_parameter_7_entry_7: 0,
+                tx_pdo_mapping_parameter_7_entry_8: 0,
                 tx_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
-                tx_pdo_mapping_parameter_8_mapping_entry_1: 0,
-                tx_pdo_mapping_parameter_8_mapping_entry_2: 0,
-                tx_pdo_mapping_parameter_8_mapping_entry_3: 0,
-                tx_pdo_mapping_parameter_8_mapping_entry_4: 0,
-                tx_pdo_mapping_parameter_8_mapping_entry_5: 0,
-                tx_pdo_mapping_parameter_8_mapping_entry_6: 0,
-                tx_pdo_mapping_parameter_8_mapping_entry_7: 0,
-                tx_pdo_mapping_parameter_8_mapping_entry_8: 0,
+                tx_pdo_mapping_parameter_8_entry_1: 0,
+                tx_pdo_mapping_parameter_8_entry_2: 0,
+                tx_pdo_mapping_parameter_8_entry_3: 0,
+                tx_pdo_mapping_parameter_8_entry_4: 0,
+                tx_pdo_mapping_parameter_8_entry_5: 0,
+                tx_pdo_mapping_parameter_8_entry_6: 0,
+                tx_pdo_mapping_parameter_8_entry_7: 0,
+                tx_pdo_mapping_parameter_8_entry_8: 0,
                 nmt_startup: 0,
                 feed_converter_highest_sub_index_supported: 0,
                 feed_converter_numerator: 0,
@@ -9700,14 +9420,14 @@ PDOMapping=0
                 target_position: 0,
                 home_offset: 0,
                 software_position_limit_highest_sub_index_supported: 0,
-                software_position_limit_min_software_position_limit: 0,
-                software_position_limit_max_software_position_limit: 0,
+                software_position_limit_min: 0,
+                software_position_limit_max: 0,
                 polarity: 0,
                 profile_velocity_in_pp_mode: 0,
                 profile_acceleration: 0,
                 profile_deceleration: 0,
                 position_encoder_resolution_highest_sub_index_supported: 0,
-                position_encoder_resolution_encoder_increments: 0,
+                position_encoder_resolution_increments: 0,
                 position_encoder_resolution_motor_revolutions: 0,
                 gear_ratio_highest_sub_index_supported: 0,
                 gear_ratio_motor_revolutions: 0,
@@ -9717,8 +9437,8 @@ PDOMapping=0
                 feed_constant_shaft_revolutions: 0,
                 homing_method: 0,
                 homing_speed_highest_sub_index_supported: 0,
-                homing_speed_fast_homing_speed: 0,
-                homing_speed_slow_homing_speed: 0,
+                homing_speed_fast: 0,
+                homing_speed_slow: 0,
                 target_velocity: 0,
                 motor_type: 0,
                 motor_manufacturer: ::od_runtime::__private_v2::Bytes::from_slice(&[]),
@@ -9897,128 +9617,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_1(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_1
+        pub const fn pre_defined_error_field_standard_1(&self) -> u32 {
+            self.pre_defined_error_field_standard_1
         }
-        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1 (see [`Self::pre_defined_error_field_standard_error_field_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1 (see [`Self::pre_defined_error_field_standard_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_1(
+        pub fn set_pre_defined_error_field_standard_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_1 = v;
+            self.pre_defined_error_field_standard_1 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 2 Pre-defined error field: Standard error field 2.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_2(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_2
+        pub const fn pre_defined_error_field_standard_2(&self) -> u32 {
+            self.pre_defined_error_field_standard_2
         }
-        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2 (see [`Self::pre_defined_error_field_standard_error_field_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2 (see [`Self::pre_defined_error_field_standard_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_2(
+        pub fn set_pre_defined_error_field_standard_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_2 = v;
+            self.pre_defined_error_field_standard_2 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 3 Pre-defined error field: Standard error field 3.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_3(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_3
+        pub const fn pre_defined_error_field_standard_3(&self) -> u32 {
+            self.pre_defined_error_field_standard_3
         }
-        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3 (see [`Self::pre_defined_error_field_standard_error_field_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3 (see [`Self::pre_defined_error_field_standard_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_3(
+        pub fn set_pre_defined_error_field_standard_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_3 = v;
+            self.pre_defined_error_field_standard_3 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 4 Pre-defined error field: Standard error field 4.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_4(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_4
+        pub const fn pre_defined_error_field_standard_4(&self) -> u32 {
+            self.pre_defined_error_field_standard_4
         }
-        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4 (see [`Self::pre_defined_error_field_standard_error_field_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4 (see [`Self::pre_defined_error_field_standard_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_4(
+        pub fn set_pre_defined_error_field_standard_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_4 = v;
+            self.pre_defined_error_field_standard_4 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 5 Pre-defined error field: Standard error field 5.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_5(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_5
+        pub const fn pre_defined_error_field_standard_5(&self) -> u32 {
+            self.pre_defined_error_field_standard_5
         }
-        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5 (see [`Self::pre_defined_error_field_standard_error_field_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5 (see [`Self::pre_defined_error_field_standard_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_5(
+        pub fn set_pre_defined_error_field_standard_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_5 = v;
+            self.pre_defined_error_field_standard_5 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 6 Pre-defined error field: Standard error field 6.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_6(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_6
+        pub const fn pre_defined_error_field_standard_6(&self) -> u32 {
+            self.pre_defined_error_field_standard_6
         }
-        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6 (see [`Self::pre_defined_error_field_standard_error_field_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6 (see [`Self::pre_defined_error_field_standard_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_6(
+        pub fn set_pre_defined_error_field_standard_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_6 = v;
+            self.pre_defined_error_field_standard_6 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 7 Pre-defined error field: Standard error field 7.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_7(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_7
+        pub const fn pre_defined_error_field_standard_7(&self) -> u32 {
+            self.pre_defined_error_field_standard_7
         }
-        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7 (see [`Self::pre_defined_error_field_standard_error_field_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7 (see [`Self::pre_defined_error_field_standard_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_7(
+        pub fn set_pre_defined_error_field_standard_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_7 = v;
+            self.pre_defined_error_field_standard_7 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 8 Pre-defined error field: Standard error field 8.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_8(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_8
+        pub const fn pre_defined_error_field_standard_8(&self) -> u32 {
+            self.pre_defined_error_field_standard_8
         }
-        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8 (see [`Self::pre_defined_error_field_standard_error_field_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8 (see [`Self::pre_defined_error_field_standard_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_8(
+        pub fn set_pre_defined_error_field_standard_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_8 = v;
+            self.pre_defined_error_field_standard_8 = v;
             Ok(())
         }
         /// Reads `0x1005` COB-ID SYNC.
@@ -10163,16 +9883,16 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 1.
         #[inline]
-        pub const fn store_parameter_field_save_all_parameters(&self) -> u32 {
-            self.store_parameter_field_save_all_parameters
+        pub const fn store_parameter_field_save_all(&self) -> u32 {
+            self.store_parameter_field_save_all
         }
-        /// Sets `0x1010` sub 1 Store parameter field: Save all parameters (see [`Self::store_parameter_field_save_all_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1010` sub 1 Store parameter field: Save all parameters (see [`Self::store_parameter_field_save_all`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_store_parameter_field_save_all_parameters(
+        pub fn set_store_parameter_field_save_all(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.store_parameter_field_save_all_parameters = v;
+            self.store_parameter_field_save_all = v;
             Ok(())
         }
         /// Reads `0x1011` sub 0 Restore default parameters: Highest sub-index supported.
@@ -10197,18 +9917,16 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 1.
         #[inline]
-        pub const fn restore_default_parameters_restore_all_default_parameters(
-            &self,
-        ) -> u32 {
-            self.restore_default_parameters_restore_all_default_parameters
+        pub const fn restore_default_parameters_all(&self) -> u32 {
+            self.restore_default_parameters_all
         }
-        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters (see [`Self::restore_default_parameters_restore_all_default_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters (see [`Self::restore_default_parameters_all`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_restore_default_parameters_restore_all_default_parameters(
+        pub fn set_restore_default_parameters_all(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.restore_default_parameters_restore_all_default_parameters = v;
+            self.restore_default_parameters_all = v;
             Ok(())
         }
         /// Reads `0x1012` COB-ID time stamp.
@@ -10890,128 +10608,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 1614807056 (0x60400010).
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_1_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_1
         }
-        /// Sets `0x1600` sub 1 Rx PDO mapping parameter 1: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 1 Rx PDO mapping parameter 1: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_1_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_1_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 2 Rx PDO mapping parameter 1: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_1_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_2
         }
-        /// Sets `0x1600` sub 2 Rx PDO mapping parameter 1: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 2 Rx PDO mapping parameter 1: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_1_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_1_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 3 Rx PDO mapping parameter 1: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_1_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_3
         }
-        /// Sets `0x1600` sub 3 Rx PDO mapping parameter 1: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 3 Rx PDO mapping parameter 1: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_1_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_1_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 4 Rx PDO mapping parameter 1: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_1_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_4
         }
-        /// Sets `0x1600` sub 4 Rx PDO mapping parameter 1: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 4 Rx PDO mapping parameter 1: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_1_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_1_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 5 Rx PDO mapping parameter 1: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_1_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_5
         }
-        /// Sets `0x1600` sub 5 Rx PDO mapping parameter 1: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 5 Rx PDO mapping parameter 1: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_1_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_1_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 6 Rx PDO mapping parameter 1: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_1_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_6
         }
-        /// Sets `0x1600` sub 6 Rx PDO mapping parameter 1: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 6 Rx PDO mapping parameter 1: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_1_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_1_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 7 Rx PDO mapping parameter 1: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_1_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_7
         }
-        /// Sets `0x1600` sub 7 Rx PDO mapping parameter 1: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 7 Rx PDO mapping parameter 1: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_1_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_1_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 8 Rx PDO mapping parameter 1: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_1_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_1_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_1_entry_8
         }
-        /// Sets `0x1600` sub 8 Rx PDO mapping parameter 1: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_1_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 8 Rx PDO mapping parameter 1: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_1_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_1_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_1_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_1_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_1_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 0 Rx PDO mapping parameter 2: Number of mapped objects.
@@ -11034,128 +10752,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_2_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_1
         }
-        /// Sets `0x1601` sub 1 Rx PDO mapping parameter 2: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 1 Rx PDO mapping parameter 2: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_2_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_2_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 2 Rx PDO mapping parameter 2: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_2_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_2
         }
-        /// Sets `0x1601` sub 2 Rx PDO mapping parameter 2: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 2 Rx PDO mapping parameter 2: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_2_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_2_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 3 Rx PDO mapping parameter 2: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_2_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_3
         }
-        /// Sets `0x1601` sub 3 Rx PDO mapping parameter 2: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 3 Rx PDO mapping parameter 2: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_2_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_2_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 4 Rx PDO mapping parameter 2: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_2_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_4
         }
-        /// Sets `0x1601` sub 4 Rx PDO mapping parameter 2: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 4 Rx PDO mapping parameter 2: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_2_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_2_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 5 Rx PDO mapping parameter 2: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_2_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_5
         }
-        /// Sets `0x1601` sub 5 Rx PDO mapping parameter 2: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 5 Rx PDO mapping parameter 2: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_2_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_2_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 6 Rx PDO mapping parameter 2: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_2_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_6
         }
-        /// Sets `0x1601` sub 6 Rx PDO mapping parameter 2: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 6 Rx PDO mapping parameter 2: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_2_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_2_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 7 Rx PDO mapping parameter 2: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_2_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_7
         }
-        /// Sets `0x1601` sub 7 Rx PDO mapping parameter 2: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 7 Rx PDO mapping parameter 2: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_2_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_2_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 8 Rx PDO mapping parameter 2: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_2_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_2_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_2_entry_8
         }
-        /// Sets `0x1601` sub 8 Rx PDO mapping parameter 2: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_2_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 8 Rx PDO mapping parameter 2: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_2_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_2_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_2_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_2_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_2_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 0 Rx PDO mapping parameter 3: Number of mapped objects.
@@ -11178,128 +10896,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_3_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_1
         }
-        /// Sets `0x1602` sub 1 Rx PDO mapping parameter 3: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 1 Rx PDO mapping parameter 3: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_3_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_3_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 2 Rx PDO mapping parameter 3: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_3_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_2
         }
-        /// Sets `0x1602` sub 2 Rx PDO mapping parameter 3: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 2 Rx PDO mapping parameter 3: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_3_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_3_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 3 Rx PDO mapping parameter 3: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_3_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_3
         }
-        /// Sets `0x1602` sub 3 Rx PDO mapping parameter 3: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 3 Rx PDO mapping parameter 3: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_3_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_3_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 4 Rx PDO mapping parameter 3: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_3_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_4
         }
-        /// Sets `0x1602` sub 4 Rx PDO mapping parameter 3: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 4 Rx PDO mapping parameter 3: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_3_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_3_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 5 Rx PDO mapping parameter 3: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_3_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_5
         }
-        /// Sets `0x1602` sub 5 Rx PDO mapping parameter 3: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 5 Rx PDO mapping parameter 3: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_3_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_3_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 6 Rx PDO mapping parameter 3: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_3_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_6
         }
-        /// Sets `0x1602` sub 6 Rx PDO mapping parameter 3: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 6 Rx PDO mapping parameter 3: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_3_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_3_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 7 Rx PDO mapping parameter 3: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_3_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_7
         }
-        /// Sets `0x1602` sub 7 Rx PDO mapping parameter 3: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 7 Rx PDO mapping parameter 3: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_3_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_3_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 8 Rx PDO mapping parameter 3: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_3_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_3_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_3_entry_8
         }
-        /// Sets `0x1602` sub 8 Rx PDO mapping parameter 3: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_3_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 8 Rx PDO mapping parameter 3: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_3_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_3_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_3_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_3_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_3_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 0 Rx PDO mapping parameter 4: Number of mapped objects.
@@ -11322,128 +11040,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_4_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_1
         }
-        /// Sets `0x1603` sub 1 Rx PDO mapping parameter 4: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 1 Rx PDO mapping parameter 4: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_4_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_4_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 2 Rx PDO mapping parameter 4: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_4_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_2
         }
-        /// Sets `0x1603` sub 2 Rx PDO mapping parameter 4: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 2 Rx PDO mapping parameter 4: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_4_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_4_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 3 Rx PDO mapping parameter 4: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_4_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_3
         }
-        /// Sets `0x1603` sub 3 Rx PDO mapping parameter 4: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 3 Rx PDO mapping parameter 4: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_4_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_4_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 4 Rx PDO mapping parameter 4: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_4_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_4
         }
-        /// Sets `0x1603` sub 4 Rx PDO mapping parameter 4: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 4 Rx PDO mapping parameter 4: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_4_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_4_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 5 Rx PDO mapping parameter 4: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_4_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_5
         }
-        /// Sets `0x1603` sub 5 Rx PDO mapping parameter 4: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 5 Rx PDO mapping parameter 4: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_4_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_4_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 6 Rx PDO mapping parameter 4: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_4_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_6
         }
-        /// Sets `0x1603` sub 6 Rx PDO mapping parameter 4: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 6 Rx PDO mapping parameter 4: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_4_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_4_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 7 Rx PDO mapping parameter 4: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_4_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_7
         }
-        /// Sets `0x1603` sub 7 Rx PDO mapping parameter 4: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 7 Rx PDO mapping parameter 4: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_4_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_4_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 8 Rx PDO mapping parameter 4: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_4_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_4_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_4_entry_8
         }
-        /// Sets `0x1603` sub 8 Rx PDO mapping parameter 4: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_4_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 8 Rx PDO mapping parameter 4: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_4_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_4_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_4_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_4_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_4_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 0 Rx PDO mapping parameter 5: Number of mapped objects.
@@ -11466,128 +11184,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_5_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_1
         }
-        /// Sets `0x1604` sub 1 Rx PDO mapping parameter 5: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 1 Rx PDO mapping parameter 5: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_5_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_5_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 2 Rx PDO mapping parameter 5: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_5_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_2
         }
-        /// Sets `0x1604` sub 2 Rx PDO mapping parameter 5: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 2 Rx PDO mapping parameter 5: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_5_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_5_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 3 Rx PDO mapping parameter 5: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_5_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_3
         }
-        /// Sets `0x1604` sub 3 Rx PDO mapping parameter 5: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 3 Rx PDO mapping parameter 5: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_5_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_5_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 4 Rx PDO mapping parameter 5: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_5_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_4
         }
-        /// Sets `0x1604` sub 4 Rx PDO mapping parameter 5: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 4 Rx PDO mapping parameter 5: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_5_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_5_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 5 Rx PDO mapping parameter 5: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_5_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_5
         }
-        /// Sets `0x1604` sub 5 Rx PDO mapping parameter 5: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 5 Rx PDO mapping parameter 5: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_5_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_5_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 6 Rx PDO mapping parameter 5: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_5_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_6
         }
-        /// Sets `0x1604` sub 6 Rx PDO mapping parameter 5: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 6 Rx PDO mapping parameter 5: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_5_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_5_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 7 Rx PDO mapping parameter 5: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_5_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_7
         }
-        /// Sets `0x1604` sub 7 Rx PDO mapping parameter 5: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 7 Rx PDO mapping parameter 5: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_5_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_5_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 8 Rx PDO mapping parameter 5: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_5_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_5_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_5_entry_8
         }
-        /// Sets `0x1604` sub 8 Rx PDO mapping parameter 5: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_5_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 8 Rx PDO mapping parameter 5: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_5_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_5_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_5_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_5_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_5_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 0 Rx PDO mapping parameter 6: Number of mapped objects.
@@ -11610,128 +11328,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_6_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_1
         }
-        /// Sets `0x1605` sub 1 Rx PDO mapping parameter 6: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 1 Rx PDO mapping parameter 6: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_6_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_6_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 2 Rx PDO mapping parameter 6: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_6_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_2
         }
-        /// Sets `0x1605` sub 2 Rx PDO mapping parameter 6: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 2 Rx PDO mapping parameter 6: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_6_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_6_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 3 Rx PDO mapping parameter 6: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_6_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_3
         }
-        /// Sets `0x1605` sub 3 Rx PDO mapping parameter 6: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 3 Rx PDO mapping parameter 6: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_6_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_6_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 4 Rx PDO mapping parameter 6: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_6_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_4
         }
-        /// Sets `0x1605` sub 4 Rx PDO mapping parameter 6: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 4 Rx PDO mapping parameter 6: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_6_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_6_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 5 Rx PDO mapping parameter 6: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_6_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_5
         }
-        /// Sets `0x1605` sub 5 Rx PDO mapping parameter 6: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 5 Rx PDO mapping parameter 6: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_6_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_6_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 6 Rx PDO mapping parameter 6: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_6_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_6
         }
-        /// Sets `0x1605` sub 6 Rx PDO mapping parameter 6: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 6 Rx PDO mapping parameter 6: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_6_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_6_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 7 Rx PDO mapping parameter 6: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_6_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_7
         }
-        /// Sets `0x1605` sub 7 Rx PDO mapping parameter 6: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 7 Rx PDO mapping parameter 6: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_6_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_6_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 8 Rx PDO mapping parameter 6: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_6_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_6_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_6_entry_8
         }
-        /// Sets `0x1605` sub 8 Rx PDO mapping parameter 6: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_6_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 8 Rx PDO mapping parameter 6: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_6_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_6_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_6_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_6_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_6_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 0 Rx PDO mapping parameter 7: Number of mapped objects.
@@ -11754,128 +11472,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_7_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_1
         }
-        /// Sets `0x1606` sub 1 Rx PDO mapping parameter 7: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 1 Rx PDO mapping parameter 7: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_7_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_7_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 2 Rx PDO mapping parameter 7: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_7_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_2
         }
-        /// Sets `0x1606` sub 2 Rx PDO mapping parameter 7: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 2 Rx PDO mapping parameter 7: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_7_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_7_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 3 Rx PDO mapping parameter 7: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_7_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_3
         }
-        /// Sets `0x1606` sub 3 Rx PDO mapping parameter 7: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 3 Rx PDO mapping parameter 7: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_7_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_7_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 4 Rx PDO mapping parameter 7: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_7_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_4
         }
-        /// Sets `0x1606` sub 4 Rx PDO mapping parameter 7: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 4 Rx PDO mapping parameter 7: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_7_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_7_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 5 Rx PDO mapping parameter 7: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_7_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_5
         }
-        /// Sets `0x1606` sub 5 Rx PDO mapping parameter 7: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 5 Rx PDO mapping parameter 7: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_7_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_7_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 6 Rx PDO mapping parameter 7: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_7_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_6
         }
-        /// Sets `0x1606` sub 6 Rx PDO mapping parameter 7: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 6 Rx PDO mapping parameter 7: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_7_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_7_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 7 Rx PDO mapping parameter 7: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_7_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_7
         }
-        /// Sets `0x1606` sub 7 Rx PDO mapping parameter 7: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 7 Rx PDO mapping parameter 7: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_7_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_7_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 8 Rx PDO mapping parameter 7: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_7_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_7_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_7_entry_8
         }
-        /// Sets `0x1606` sub 8 Rx PDO mapping parameter 7: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_7_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 8 Rx PDO mapping parameter 7: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_7_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_7_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_7_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_7_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_7_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 0 Rx PDO mapping parameter 8: Number of mapped objects.
@@ -11898,128 +11616,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_1(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_1
+        pub const fn rx_pdo_mapping_parameter_8_entry_1(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_1
         }
-        /// Sets `0x1607` sub 1 Rx PDO mapping parameter 8: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 1 Rx PDO mapping parameter 8: Mapping entry 1 (see [`Self::rx_pdo_mapping_parameter_8_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_1(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_1 = v;
+            self.rx_pdo_mapping_parameter_8_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 2 Rx PDO mapping parameter 8: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_2(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_2
+        pub const fn rx_pdo_mapping_parameter_8_entry_2(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_2
         }
-        /// Sets `0x1607` sub 2 Rx PDO mapping parameter 8: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 2 Rx PDO mapping parameter 8: Mapping entry 2 (see [`Self::rx_pdo_mapping_parameter_8_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_2(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_2 = v;
+            self.rx_pdo_mapping_parameter_8_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 3 Rx PDO mapping parameter 8: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_3(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_3
+        pub const fn rx_pdo_mapping_parameter_8_entry_3(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_3
         }
-        /// Sets `0x1607` sub 3 Rx PDO mapping parameter 8: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 3 Rx PDO mapping parameter 8: Mapping entry 3 (see [`Self::rx_pdo_mapping_parameter_8_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_3(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_3 = v;
+            self.rx_pdo_mapping_parameter_8_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 4 Rx PDO mapping parameter 8: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_4(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_4
+        pub const fn rx_pdo_mapping_parameter_8_entry_4(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_4
         }
-        /// Sets `0x1607` sub 4 Rx PDO mapping parameter 8: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 4 Rx PDO mapping parameter 8: Mapping entry 4 (see [`Self::rx_pdo_mapping_parameter_8_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_4(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_4 = v;
+            self.rx_pdo_mapping_parameter_8_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 5 Rx PDO mapping parameter 8: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_5(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_5
+        pub const fn rx_pdo_mapping_parameter_8_entry_5(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_5
         }
-        /// Sets `0x1607` sub 5 Rx PDO mapping parameter 8: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 5 Rx PDO mapping parameter 8: Mapping entry 5 (see [`Self::rx_pdo_mapping_parameter_8_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_5(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_5 = v;
+            self.rx_pdo_mapping_parameter_8_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 6 Rx PDO mapping parameter 8: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_6(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_6
+        pub const fn rx_pdo_mapping_parameter_8_entry_6(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_6
         }
-        /// Sets `0x1607` sub 6 Rx PDO mapping parameter 8: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 6 Rx PDO mapping parameter 8: Mapping entry 6 (see [`Self::rx_pdo_mapping_parameter_8_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_6(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_6 = v;
+            self.rx_pdo_mapping_parameter_8_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 7 Rx PDO mapping parameter 8: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_7(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_7
+        pub const fn rx_pdo_mapping_parameter_8_entry_7(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_7
         }
-        /// Sets `0x1607` sub 7 Rx PDO mapping parameter 8: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 7 Rx PDO mapping parameter 8: Mapping entry 7 (see [`Self::rx_pdo_mapping_parameter_8_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_7(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_7 = v;
+            self.rx_pdo_mapping_parameter_8_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 8 Rx PDO mapping parameter 8: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn rx_pdo_mapping_parameter_8_mapping_entry_8(&self) -> u32 {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_8
+        pub const fn rx_pdo_mapping_parameter_8_entry_8(&self) -> u32 {
+            self.rx_pdo_mapping_parameter_8_entry_8
         }
-        /// Sets `0x1607` sub 8 Rx PDO mapping parameter 8: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_8_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 8 Rx PDO mapping parameter 8: Mapping entry 8 (see [`Self::rx_pdo_mapping_parameter_8_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rx_pdo_mapping_parameter_8_mapping_entry_8(
+        pub fn set_rx_pdo_mapping_parameter_8_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rx_pdo_mapping_parameter_8_mapping_entry_8 = v;
+            self.rx_pdo_mapping_parameter_8_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1800` sub 0 Tx PDO communication parameter 1: Highest sub-index supported.
@@ -12826,128 +12544,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 1614872592 (0x60410010).
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_1_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_1
         }
-        /// Sets `0x1A00` sub 1 Tx PDO mapping parameter 1: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 1 Tx PDO mapping parameter 1: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_1_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_1_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 2 Tx PDO mapping parameter 1: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_1_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_2
         }
-        /// Sets `0x1A00` sub 2 Tx PDO mapping parameter 1: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 2 Tx PDO mapping parameter 1: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_1_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_1_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 3 Tx PDO mapping parameter 1: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_1_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_3
         }
-        /// Sets `0x1A00` sub 3 Tx PDO mapping parameter 1: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 3 Tx PDO mapping parameter 1: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_1_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_1_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 4 Tx PDO mapping parameter 1: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_1_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_4
         }
-        /// Sets `0x1A00` sub 4 Tx PDO mapping parameter 1: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 4 Tx PDO mapping parameter 1: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_1_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_1_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 5 Tx PDO mapping parameter 1: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_1_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_5
         }
-        /// Sets `0x1A00` sub 5 Tx PDO mapping parameter 1: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 5 Tx PDO mapping parameter 1: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_1_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_1_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 6 Tx PDO mapping parameter 1: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_1_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_6
         }
-        /// Sets `0x1A00` sub 6 Tx PDO mapping parameter 1: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 6 Tx PDO mapping parameter 1: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_1_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_1_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 7 Tx PDO mapping parameter 1: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_1_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_7
         }
-        /// Sets `0x1A00` sub 7 Tx PDO mapping parameter 1: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 7 Tx PDO mapping parameter 1: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_1_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_1_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 8 Tx PDO mapping parameter 1: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_1_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_1_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_1_entry_8
         }
-        /// Sets `0x1A00` sub 8 Tx PDO mapping parameter 1: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_1_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 8 Tx PDO mapping parameter 1: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_1_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_1_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_1_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_1_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_1_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 0 Tx PDO mapping parameter 2: Number of mapped objects.
@@ -12970,128 +12688,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_2_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_1
         }
-        /// Sets `0x1A01` sub 1 Tx PDO mapping parameter 2: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 1 Tx PDO mapping parameter 2: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_2_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_2_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 2 Tx PDO mapping parameter 2: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_2_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_2
         }
-        /// Sets `0x1A01` sub 2 Tx PDO mapping parameter 2: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 2 Tx PDO mapping parameter 2: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_2_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_2_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 3 Tx PDO mapping parameter 2: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_2_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_3
         }
-        /// Sets `0x1A01` sub 3 Tx PDO mapping parameter 2: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 3 Tx PDO mapping parameter 2: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_2_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_2_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 4 Tx PDO mapping parameter 2: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_2_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_4
         }
-        /// Sets `0x1A01` sub 4 Tx PDO mapping parameter 2: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 4 Tx PDO mapping parameter 2: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_2_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_2_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 5 Tx PDO mapping parameter 2: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_2_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_5
         }
-        /// Sets `0x1A01` sub 5 Tx PDO mapping parameter 2: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 5 Tx PDO mapping parameter 2: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_2_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_2_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 6 Tx PDO mapping parameter 2: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_2_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_6
         }
-        /// Sets `0x1A01` sub 6 Tx PDO mapping parameter 2: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 6 Tx PDO mapping parameter 2: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_2_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_2_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 7 Tx PDO mapping parameter 2: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_2_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_7
         }
-        /// Sets `0x1A01` sub 7 Tx PDO mapping parameter 2: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 7 Tx PDO mapping parameter 2: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_2_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_2_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 8 Tx PDO mapping parameter 2: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_2_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_2_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_2_entry_8
         }
-        /// Sets `0x1A01` sub 8 Tx PDO mapping parameter 2: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_2_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 8 Tx PDO mapping parameter 2: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_2_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_2_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_2_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_2_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_2_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 0 Tx PDO mapping parameter 3: Number of mapped objects.
@@ -13114,128 +12832,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_3_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_1
         }
-        /// Sets `0x1A02` sub 1 Tx PDO mapping parameter 3: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 1 Tx PDO mapping parameter 3: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_3_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_3_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 2 Tx PDO mapping parameter 3: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_3_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_2
         }
-        /// Sets `0x1A02` sub 2 Tx PDO mapping parameter 3: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 2 Tx PDO mapping parameter 3: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_3_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_3_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 3 Tx PDO mapping parameter 3: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_3_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_3
         }
-        /// Sets `0x1A02` sub 3 Tx PDO mapping parameter 3: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 3 Tx PDO mapping parameter 3: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_3_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_3_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 4 Tx PDO mapping parameter 3: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_3_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_4
         }
-        /// Sets `0x1A02` sub 4 Tx PDO mapping parameter 3: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 4 Tx PDO mapping parameter 3: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_3_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_3_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 5 Tx PDO mapping parameter 3: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_3_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_5
         }
-        /// Sets `0x1A02` sub 5 Tx PDO mapping parameter 3: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 5 Tx PDO mapping parameter 3: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_3_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_3_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 6 Tx PDO mapping parameter 3: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_3_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_6
         }
-        /// Sets `0x1A02` sub 6 Tx PDO mapping parameter 3: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 6 Tx PDO mapping parameter 3: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_3_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_3_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 7 Tx PDO mapping parameter 3: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_3_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_7
         }
-        /// Sets `0x1A02` sub 7 Tx PDO mapping parameter 3: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 7 Tx PDO mapping parameter 3: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_3_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_3_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 8 Tx PDO mapping parameter 3: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_3_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_3_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_3_entry_8
         }
-        /// Sets `0x1A02` sub 8 Tx PDO mapping parameter 3: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_3_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 8 Tx PDO mapping parameter 3: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_3_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_3_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_3_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_3_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_3_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 0 Tx PDO mapping parameter 4: Number of mapped objects.
@@ -13258,128 +12976,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_4_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_1
         }
-        /// Sets `0x1A03` sub 1 Tx PDO mapping parameter 4: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 1 Tx PDO mapping parameter 4: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_4_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_4_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 2 Tx PDO mapping parameter 4: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_4_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_2
         }
-        /// Sets `0x1A03` sub 2 Tx PDO mapping parameter 4: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 2 Tx PDO mapping parameter 4: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_4_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_4_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 3 Tx PDO mapping parameter 4: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_4_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_3
         }
-        /// Sets `0x1A03` sub 3 Tx PDO mapping parameter 4: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 3 Tx PDO mapping parameter 4: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_4_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_4_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 4 Tx PDO mapping parameter 4: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_4_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_4
         }
-        /// Sets `0x1A03` sub 4 Tx PDO mapping parameter 4: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 4 Tx PDO mapping parameter 4: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_4_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_4_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 5 Tx PDO mapping parameter 4: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_4_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_5
         }
-        /// Sets `0x1A03` sub 5 Tx PDO mapping parameter 4: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 5 Tx PDO mapping parameter 4: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_4_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_4_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 6 Tx PDO mapping parameter 4: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_4_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_6
         }
-        /// Sets `0x1A03` sub 6 Tx PDO mapping parameter 4: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 6 Tx PDO mapping parameter 4: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_4_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_4_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 7 Tx PDO mapping parameter 4: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_4_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_7
         }
-        /// Sets `0x1A03` sub 7 Tx PDO mapping parameter 4: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 7 Tx PDO mapping parameter 4: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_4_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_4_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 8 Tx PDO mapping parameter 4: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_4_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_4_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_4_entry_8
         }
-        /// Sets `0x1A03` sub 8 Tx PDO mapping parameter 4: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_4_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 8 Tx PDO mapping parameter 4: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_4_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_4_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_4_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_4_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_4_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 0 Tx PDO mapping parameter 5: Number of mapped objects.
@@ -13402,128 +13120,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_5_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_1
         }
-        /// Sets `0x1A04` sub 1 Tx PDO mapping parameter 5: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 1 Tx PDO mapping parameter 5: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_5_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_5_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 2 Tx PDO mapping parameter 5: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_5_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_2
         }
-        /// Sets `0x1A04` sub 2 Tx PDO mapping parameter 5: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 2 Tx PDO mapping parameter 5: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_5_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_5_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 3 Tx PDO mapping parameter 5: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_5_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_3
         }
-        /// Sets `0x1A04` sub 3 Tx PDO mapping parameter 5: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 3 Tx PDO mapping parameter 5: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_5_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_5_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 4 Tx PDO mapping parameter 5: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_5_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_4
         }
-        /// Sets `0x1A04` sub 4 Tx PDO mapping parameter 5: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 4 Tx PDO mapping parameter 5: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_5_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_5_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 5 Tx PDO mapping parameter 5: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_5_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_5
         }
-        /// Sets `0x1A04` sub 5 Tx PDO mapping parameter 5: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 5 Tx PDO mapping parameter 5: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_5_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_5_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 6 Tx PDO mapping parameter 5: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_5_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_6
         }
-        /// Sets `0x1A04` sub 6 Tx PDO mapping parameter 5: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 6 Tx PDO mapping parameter 5: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_5_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_5_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 7 Tx PDO mapping parameter 5: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_5_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_7
         }
-        /// Sets `0x1A04` sub 7 Tx PDO mapping parameter 5: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 7 Tx PDO mapping parameter 5: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_5_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_5_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 8 Tx PDO mapping parameter 5: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_5_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_5_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_5_entry_8
         }
-        /// Sets `0x1A04` sub 8 Tx PDO mapping parameter 5: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_5_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 8 Tx PDO mapping parameter 5: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_5_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_5_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_5_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_5_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_5_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 0 Tx PDO mapping parameter 6: Number of mapped objects.
@@ -13546,128 +13264,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_6_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_1
         }
-        /// Sets `0x1A05` sub 1 Tx PDO mapping parameter 6: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 1 Tx PDO mapping parameter 6: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_6_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_6_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 2 Tx PDO mapping parameter 6: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_6_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_2
         }
-        /// Sets `0x1A05` sub 2 Tx PDO mapping parameter 6: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 2 Tx PDO mapping parameter 6: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_6_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_6_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 3 Tx PDO mapping parameter 6: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_6_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_3
         }
-        /// Sets `0x1A05` sub 3 Tx PDO mapping parameter 6: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 3 Tx PDO mapping parameter 6: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_6_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_6_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 4 Tx PDO mapping parameter 6: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_6_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_4
         }
-        /// Sets `0x1A05` sub 4 Tx PDO mapping parameter 6: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 4 Tx PDO mapping parameter 6: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_6_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_6_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 5 Tx PDO mapping parameter 6: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_6_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_5
         }
-        /// Sets `0x1A05` sub 5 Tx PDO mapping parameter 6: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 5 Tx PDO mapping parameter 6: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_6_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_6_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 6 Tx PDO mapping parameter 6: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_6_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_6
         }
-        /// Sets `0x1A05` sub 6 Tx PDO mapping parameter 6: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 6 Tx PDO mapping parameter 6: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_6_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_6_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 7 Tx PDO mapping parameter 6: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_6_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_7
         }
-        /// Sets `0x1A05` sub 7 Tx PDO mapping parameter 6: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 7 Tx PDO mapping parameter 6: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_6_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_6_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 8 Tx PDO mapping parameter 6: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_6_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_6_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_6_entry_8
         }
-        /// Sets `0x1A05` sub 8 Tx PDO mapping parameter 6: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_6_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 8 Tx PDO mapping parameter 6: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_6_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_6_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_6_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_6_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_6_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 0 Tx PDO mapping parameter 7: Number of mapped objects.
@@ -13690,128 +13408,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_7_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_1
         }
-        /// Sets `0x1A06` sub 1 Tx PDO mapping parameter 7: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 1 Tx PDO mapping parameter 7: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_7_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_7_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 2 Tx PDO mapping parameter 7: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_7_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_2
         }
-        /// Sets `0x1A06` sub 2 Tx PDO mapping parameter 7: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 2 Tx PDO mapping parameter 7: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_7_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_7_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 3 Tx PDO mapping parameter 7: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_7_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_3
         }
-        /// Sets `0x1A06` sub 3 Tx PDO mapping parameter 7: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 3 Tx PDO mapping parameter 7: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_7_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_7_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 4 Tx PDO mapping parameter 7: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_7_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_4
         }
-        /// Sets `0x1A06` sub 4 Tx PDO mapping parameter 7: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 4 Tx PDO mapping parameter 7: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_7_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_7_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 5 Tx PDO mapping parameter 7: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_7_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_5
         }
-        /// Sets `0x1A06` sub 5 Tx PDO mapping parameter 7: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 5 Tx PDO mapping parameter 7: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_7_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_7_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 6 Tx PDO mapping parameter 7: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_7_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_6
         }
-        /// Sets `0x1A06` sub 6 Tx PDO mapping parameter 7: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 6 Tx PDO mapping parameter 7: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_7_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_7_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 7 Tx PDO mapping parameter 7: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_7_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_7
         }
-        /// Sets `0x1A06` sub 7 Tx PDO mapping parameter 7: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 7 Tx PDO mapping parameter 7: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_7_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_7_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 8 Tx PDO mapping parameter 7: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_7_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_7_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_7_entry_8
         }
-        /// Sets `0x1A06` sub 8 Tx PDO mapping parameter 7: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_7_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 8 Tx PDO mapping parameter 7: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_7_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_7_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_7_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_7_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_7_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 0 Tx PDO mapping parameter 8: Number of mapped objects.
@@ -13834,128 +13552,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_1(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_1
+        pub const fn tx_pdo_mapping_parameter_8_entry_1(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_1
         }
-        /// Sets `0x1A07` sub 1 Tx PDO mapping parameter 8: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 1 Tx PDO mapping parameter 8: Mapping entry 1 (see [`Self::tx_pdo_mapping_parameter_8_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_1(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_1 = v;
+            self.tx_pdo_mapping_parameter_8_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 2 Tx PDO mapping parameter 8: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_2(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_2
+        pub const fn tx_pdo_mapping_parameter_8_entry_2(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_2
         }
-        /// Sets `0x1A07` sub 2 Tx PDO mapping parameter 8: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 2 Tx PDO mapping parameter 8: Mapping entry 2 (see [`Self::tx_pdo_mapping_parameter_8_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_2(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_2 = v;
+            self.tx_pdo_mapping_parameter_8_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 3 Tx PDO mapping parameter 8: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_3(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_3
+        pub const fn tx_pdo_mapping_parameter_8_entry_3(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_3
         }
-        /// Sets `0x1A07` sub 3 Tx PDO mapping parameter 8: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 3 Tx PDO mapping parameter 8: Mapping entry 3 (see [`Self::tx_pdo_mapping_parameter_8_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_3(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_3 = v;
+            self.tx_pdo_mapping_parameter_8_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 4 Tx PDO mapping parameter 8: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_4(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_4
+        pub const fn tx_pdo_mapping_parameter_8_entry_4(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_4
         }
-        /// Sets `0x1A07` sub 4 Tx PDO mapping parameter 8: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 4 Tx PDO mapping parameter 8: Mapping entry 4 (see [`Self::tx_pdo_mapping_parameter_8_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_4(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_4 = v;
+            self.tx_pdo_mapping_parameter_8_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 5 Tx PDO mapping parameter 8: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_5(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_5
+        pub const fn tx_pdo_mapping_parameter_8_entry_5(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_5
         }
-        /// Sets `0x1A07` sub 5 Tx PDO mapping parameter 8: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 5 Tx PDO mapping parameter 8: Mapping entry 5 (see [`Self::tx_pdo_mapping_parameter_8_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_5(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_5 = v;
+            self.tx_pdo_mapping_parameter_8_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 6 Tx PDO mapping parameter 8: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_6(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_6
+        pub const fn tx_pdo_mapping_parameter_8_entry_6(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_6
         }
-        /// Sets `0x1A07` sub 6 Tx PDO mapping parameter 8: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 6 Tx PDO mapping parameter 8: Mapping entry 6 (see [`Self::tx_pdo_mapping_parameter_8_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_6(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_6 = v;
+            self.tx_pdo_mapping_parameter_8_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 7 Tx PDO mapping parameter 8: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_7(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_7
+        pub const fn tx_pdo_mapping_parameter_8_entry_7(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_7
         }
-        /// Sets `0x1A07` sub 7 Tx PDO mapping parameter 8: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 7 Tx PDO mapping parameter 8: Mapping entry 7 (see [`Self::tx_pdo_mapping_parameter_8_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_7(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_7 = v;
+            self.tx_pdo_mapping_parameter_8_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 8 Tx PDO mapping parameter 8: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn tx_pdo_mapping_parameter_8_mapping_entry_8(&self) -> u32 {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_8
+        pub const fn tx_pdo_mapping_parameter_8_entry_8(&self) -> u32 {
+            self.tx_pdo_mapping_parameter_8_entry_8
         }
-        /// Sets `0x1A07` sub 8 Tx PDO mapping parameter 8: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_8_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 8 Tx PDO mapping parameter 8: Mapping entry 8 (see [`Self::tx_pdo_mapping_parameter_8_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tx_pdo_mapping_parameter_8_mapping_entry_8(
+        pub fn set_tx_pdo_mapping_parameter_8_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tx_pdo_mapping_parameter_8_mapping_entry_8 = v;
+            self.tx_pdo_mapping_parameter_8_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1F80` NMT startup.
@@ -14427,36 +14145,36 @@ PDOMapping=0
         ///
         /// INTEGER32, access `ro`. Default: 0.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_min_software_position_limit`).
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_min`).
         #[inline]
-        pub const fn software_position_limit_min_software_position_limit(&self) -> i32 {
-            self.software_position_limit_min_software_position_limit
+        pub const fn software_position_limit_min(&self) -> i32 {
+            self.software_position_limit_min
         }
-        /// Sets `0x607D` sub 1 Software position limit: Min software position limit (see [`Self::software_position_limit_min_software_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x607D` sub 1 Software position limit: Min software position limit (see [`Self::software_position_limit_min`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_software_position_limit_min_software_position_limit(
+        pub fn set_software_position_limit_min(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.software_position_limit_min_software_position_limit = v;
+            self.software_position_limit_min = v;
             Ok(())
         }
         /// Reads `0x607D` sub 2 Software position limit: Max software position limit.
         ///
         /// INTEGER32, access `ro`. Default: 1000.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_max_software_position_limit`).
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_max`).
         #[inline]
-        pub const fn software_position_limit_max_software_position_limit(&self) -> i32 {
-            self.software_position_limit_max_software_position_limit
+        pub const fn software_position_limit_max(&self) -> i32 {
+            self.software_position_limit_max
         }
-        /// Sets `0x607D` sub 2 Software position limit: Max software position limit (see [`Self::software_position_limit_max_software_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x607D` sub 2 Software position limit: Max software position limit (see [`Self::software_position_limit_max`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_software_position_limit_max_software_position_limit(
+        pub fn set_software_position_limit_max(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.software_position_limit_max_software_position_limit = v;
+            self.software_position_limit_max = v;
             Ok(())
         }
         /// Reads `0x607E` Polarity.
@@ -14551,16 +14269,16 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `ro`. Default: 1000 (0x3E8).
         #[inline]
-        pub const fn position_encoder_resolution_encoder_increments(&self) -> u32 {
-            self.position_encoder_resolution_encoder_increments
+        pub const fn position_encoder_resolution_increments(&self) -> u32 {
+            self.position_encoder_resolution_increments
         }
-        /// Sets `0x608F` sub 1 Position encoder resolution: Encoder increments (see [`Self::position_encoder_resolution_encoder_increments`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x608F` sub 1 Position encoder resolution: Encoder increments (see [`Self::position_encoder_resolution_increments`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_position_encoder_resolution_encoder_increments(
+        pub fn set_position_encoder_resolution_increments(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.position_encoder_resolution_encoder_increments = v;
+            self.position_encoder_resolution_increments = v;
             Ok(())
         }
         /// Reads `0x608F` sub 2 Position encoder resolution: Motor revolutions.
@@ -14711,36 +14429,36 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
         ///
-        /// Dimension: Velocity (typed conversion: `units::Units::homing_speed_fast_homing_speed`).
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speed_fast`).
         #[inline]
-        pub const fn homing_speed_fast_homing_speed(&self) -> u32 {
-            self.homing_speed_fast_homing_speed
+        pub const fn homing_speed_fast(&self) -> u32 {
+            self.homing_speed_fast
         }
-        /// Sets `0x6099` sub 1 Homing speed: Fast homing speed (see [`Self::homing_speed_fast_homing_speed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x6099` sub 1 Homing speed: Fast homing speed (see [`Self::homing_speed_fast`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_homing_speed_fast_homing_speed(
+        pub fn set_homing_speed_fast(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.homing_speed_fast_homing_speed = v;
+            self.homing_speed_fast = v;
             Ok(())
         }
         /// Reads `0x6099` sub 2 Homing speed: Slow homing speed.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
         ///
-        /// Dimension: Velocity (typed conversion: `units::Units::homing_speed_slow_homing_speed`).
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speed_slow`).
         #[inline]
-        pub const fn homing_speed_slow_homing_speed(&self) -> u32 {
-            self.homing_speed_slow_homing_speed
+        pub const fn homing_speed_slow(&self) -> u32 {
+            self.homing_speed_slow
         }
-        /// Sets `0x6099` sub 2 Homing speed: Slow homing speed (see [`Self::homing_speed_slow_homing_speed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x6099` sub 2 Homing speed: Slow homing speed (see [`Self::homing_speed_slow`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_homing_speed_slow_homing_speed(
+        pub fn set_homing_speed_slow(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.homing_speed_slow_homing_speed = v;
+            self.homing_speed_slow = v;
             Ok(())
         }
         /// Reads `0x60FF` Target velocity.
@@ -15424,7 +15142,7 @@ PDOMapping=0
                 od: &super::Dictionary,
             ) -> Result<Ratio, UnitError> {
                 let (t, b) = (
-                    (od.position_encoder_resolution_encoder_increments() as i128),
+                    (od.position_encoder_resolution_increments() as i128),
                     (od.position_encoder_resolution_motor_revolutions() as i128),
                 );
                 if t == 0 || b == 0 {
@@ -15605,46 +15323,44 @@ PDOMapping=0
                 od.set_home_offset(v).map_err(UnitError::Rejected)
             }
             /// `0x607D` sub 1 Software position limit: Min software position limit as a Position quantity.
-            pub fn software_position_limit_min_software_position_limit(
+            pub fn software_position_limit_min(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.software_position_limit_min_software_position_limit() as i64,
+                    od.software_position_limit_min() as i64,
                 )
             }
             /// Sets `0x607D` sub 1 Software position limit: Min software position limit from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_software_position_limit_min_software_position_limit(
+            pub fn set_software_position_limit_min(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_software_position_limit_min_software_position_limit(v)
-                    .map_err(UnitError::Rejected)
+                od.set_software_position_limit_min(v).map_err(UnitError::Rejected)
             }
             /// `0x607D` sub 2 Software position limit: Max software position limit as a Position quantity.
-            pub fn software_position_limit_max_software_position_limit(
+            pub fn software_position_limit_max(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.software_position_limit_max_software_position_limit() as i64,
+                    od.software_position_limit_max() as i64,
                 )
             }
             /// Sets `0x607D` sub 2 Software position limit: Max software position limit from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_software_position_limit_max_software_position_limit(
+            pub fn set_software_position_limit_max(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_software_position_limit_max_software_position_limit(v)
-                    .map_err(UnitError::Rejected)
+                od.set_software_position_limit_max(v).map_err(UnitError::Rejected)
             }
             /// `0x6081` Profile velocity in pp-mode as a Velocity quantity.
             pub fn profile_velocity_in_pp_mode(
@@ -15707,44 +15423,38 @@ PDOMapping=0
                 od.set_profile_deceleration(v).map_err(UnitError::Rejected)
             }
             /// `0x6099` sub 1 Homing speed: Fast homing speed as a Velocity quantity.
-            pub fn homing_speed_fast_homing_speed(
+            pub fn homing_speed_fast(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
-                self.to_physical(
-                    Dimension::Velocity,
-                    od.homing_speed_fast_homing_speed() as i64,
-                )
+                self.to_physical(Dimension::Velocity, od.homing_speed_fast() as i64)
             }
             /// Sets `0x6099` sub 1 Homing speed: Fast homing speed from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_homing_speed_fast_homing_speed(
+            pub fn set_homing_speed_fast(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Velocity, q)?;
                 let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_homing_speed_fast_homing_speed(v).map_err(UnitError::Rejected)
+                od.set_homing_speed_fast(v).map_err(UnitError::Rejected)
             }
             /// `0x6099` sub 2 Homing speed: Slow homing speed as a Velocity quantity.
-            pub fn homing_speed_slow_homing_speed(
+            pub fn homing_speed_slow(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
-                self.to_physical(
-                    Dimension::Velocity,
-                    od.homing_speed_slow_homing_speed() as i64,
-                )
+                self.to_physical(Dimension::Velocity, od.homing_speed_slow() as i64)
             }
             /// Sets `0x6099` sub 2 Homing speed: Slow homing speed from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_homing_speed_slow_homing_speed(
+            pub fn set_homing_speed_slow(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Velocity, q)?;
                 let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_homing_speed_slow_homing_speed(v).map_err(UnitError::Rejected)
+                od.set_homing_speed_slow(v).map_err(UnitError::Rejected)
             }
             /// `0x60FF` Target velocity as a Velocity quantity.
             pub fn target_velocity(

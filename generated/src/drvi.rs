@@ -3205,9 +3205,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_1
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3222,9 +3220,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_2
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3239,9 +3235,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_3
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3256,9 +3250,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_4
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3273,9 +3265,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_5
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3290,9 +3280,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_6
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3307,9 +3295,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_7
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3324,9 +3310,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, pre_defined_error_field_standard_error_field_8
-                ),
+                ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3478,9 +3462,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, store_parameters_save_all_parameters
-                ),
+                ::core::mem::offset_of!(Dictionary, store_parameters_save_all),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -3512,9 +3494,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, restore_default_parameters_restore_all_default_parameters
-                ),
+                ::core::mem::offset_of!(Dictionary, restore_default_parameters_all),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -4083,7 +4063,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_1
+                    Dictionary, receive_pdo_mapping_parameter_1_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4100,7 +4080,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_2
+                    Dictionary, receive_pdo_mapping_parameter_1_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4117,7 +4097,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_3
+                    Dictionary, receive_pdo_mapping_parameter_1_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4134,7 +4114,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_4
+                    Dictionary, receive_pdo_mapping_parameter_1_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4151,7 +4131,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_5
+                    Dictionary, receive_pdo_mapping_parameter_1_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4168,7 +4148,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_6
+                    Dictionary, receive_pdo_mapping_parameter_1_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4185,7 +4165,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_7
+                    Dictionary, receive_pdo_mapping_parameter_1_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4202,7 +4182,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_1_mapping_entry_8
+                    Dictionary, receive_pdo_mapping_parameter_1_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4236,7 +4216,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_1
+                    Dictionary, receive_pdo_mapping_parameter_2_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4253,7 +4233,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_2
+                    Dictionary, receive_pdo_mapping_parameter_2_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4270,7 +4250,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_3
+                    Dictionary, receive_pdo_mapping_parameter_2_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4287,7 +4267,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_4
+                    Dictionary, receive_pdo_mapping_parameter_2_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4304,7 +4284,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_5
+                    Dictionary, receive_pdo_mapping_parameter_2_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4321,7 +4301,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_6
+                    Dictionary, receive_pdo_mapping_parameter_2_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4338,7 +4318,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_7
+                    Dictionary, receive_pdo_mapping_parameter_2_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4355,7 +4335,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_2_mapping_entry_8
+                    Dictionary, receive_pdo_mapping_parameter_2_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4389,7 +4369,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_1
+                    Dictionary, receive_pdo_mapping_parameter_3_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4406,7 +4386,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_2
+                    Dictionary, receive_pdo_mapping_parameter_3_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4423,7 +4403,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_3
+                    Dictionary, receive_pdo_mapping_parameter_3_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4440,7 +4420,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_4
+                    Dictionary, receive_pdo_mapping_parameter_3_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4457,7 +4437,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_5
+                    Dictionary, receive_pdo_mapping_parameter_3_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4474,7 +4454,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_6
+                    Dictionary, receive_pdo_mapping_parameter_3_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4491,7 +4471,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_7
+                    Dictionary, receive_pdo_mapping_parameter_3_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4508,7 +4488,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_3_mapping_entry_8
+                    Dictionary, receive_pdo_mapping_parameter_3_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4542,7 +4522,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_1
+                    Dictionary, receive_pdo_mapping_parameter_4_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4559,7 +4539,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_2
+                    Dictionary, receive_pdo_mapping_parameter_4_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4576,7 +4556,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_3
+                    Dictionary, receive_pdo_mapping_parameter_4_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4593,7 +4573,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_4
+                    Dictionary, receive_pdo_mapping_parameter_4_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4610,7 +4590,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_5
+                    Dictionary, receive_pdo_mapping_parameter_4_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4627,7 +4607,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_6
+                    Dictionary, receive_pdo_mapping_parameter_4_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4644,7 +4624,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_7
+                    Dictionary, receive_pdo_mapping_parameter_4_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4661,7 +4641,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_4_mapping_entry_8
+                    Dictionary, receive_pdo_mapping_parameter_4_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4695,7 +4675,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_1
+                    Dictionary, receive_pdo_mapping_parameter_5_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4712,7 +4692,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_2
+                    Dictionary, receive_pdo_mapping_parameter_5_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4729,7 +4709,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_3
+                    Dictionary, receive_pdo_mapping_parameter_5_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4746,7 +4726,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_4
+                    Dictionary, receive_pdo_mapping_parameter_5_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4763,7 +4743,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_5
+                    Dictionary, receive_pdo_mapping_parameter_5_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4780,7 +4760,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_6
+                    Dictionary, receive_pdo_mapping_parameter_5_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4797,7 +4777,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_7
+                    Dictionary, receive_pdo_mapping_parameter_5_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4814,7 +4794,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_5_mapping_entry_8
+                    Dictionary, receive_pdo_mapping_parameter_5_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4848,7 +4828,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_1
+                    Dictionary, receive_pdo_mapping_parameter_6_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4865,7 +4845,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_2
+                    Dictionary, receive_pdo_mapping_parameter_6_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4882,7 +4862,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_3
+                    Dictionary, receive_pdo_mapping_parameter_6_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4899,7 +4879,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_4
+                    Dictionary, receive_pdo_mapping_parameter_6_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4916,7 +4896,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_5
+                    Dictionary, receive_pdo_mapping_parameter_6_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4933,7 +4913,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_6
+                    Dictionary, receive_pdo_mapping_parameter_6_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4950,7 +4930,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_7
+                    Dictionary, receive_pdo_mapping_parameter_6_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -4967,7 +4947,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_6_mapping_entry_8
+                    Dictionary, receive_pdo_mapping_parameter_6_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5001,7 +4981,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_1
+                    Dictionary, receive_pdo_mapping_parameter_7_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5018,7 +4998,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_2
+                    Dictionary, receive_pdo_mapping_parameter_7_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5035,7 +5015,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_3
+                    Dictionary, receive_pdo_mapping_parameter_7_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5052,7 +5032,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_4
+                    Dictionary, receive_pdo_mapping_parameter_7_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5069,7 +5049,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_5
+                    Dictionary, receive_pdo_mapping_parameter_7_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5086,7 +5066,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_6
+                    Dictionary, receive_pdo_mapping_parameter_7_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5103,7 +5083,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_7
+                    Dictionary, receive_pdo_mapping_parameter_7_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5120,7 +5100,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_7_mapping_entry_8
+                    Dictionary, receive_pdo_mapping_parameter_7_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5154,7 +5134,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_1
+                    Dictionary, receive_pdo_mapping_parameter_8_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5171,7 +5151,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_2
+                    Dictionary, receive_pdo_mapping_parameter_8_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5188,7 +5168,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_3
+                    Dictionary, receive_pdo_mapping_parameter_8_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5205,7 +5185,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_4
+                    Dictionary, receive_pdo_mapping_parameter_8_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5222,7 +5202,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_5
+                    Dictionary, receive_pdo_mapping_parameter_8_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5239,7 +5219,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_6
+                    Dictionary, receive_pdo_mapping_parameter_8_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5256,7 +5236,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_7
+                    Dictionary, receive_pdo_mapping_parameter_8_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -5273,7 +5253,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, receive_pdo_mapping_parameter_8_mapping_entry_8
+                    Dictionary, receive_pdo_mapping_parameter_8_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6147,7 +6127,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_1
+                    Dictionary, transmit_pdo_mapping_parameter_1_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6164,7 +6144,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_2
+                    Dictionary, transmit_pdo_mapping_parameter_1_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6181,7 +6161,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_3
+                    Dictionary, transmit_pdo_mapping_parameter_1_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6198,7 +6178,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_4
+                    Dictionary, transmit_pdo_mapping_parameter_1_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6215,7 +6195,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_5
+                    Dictionary, transmit_pdo_mapping_parameter_1_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6232,7 +6212,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_6
+                    Dictionary, transmit_pdo_mapping_parameter_1_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6249,7 +6229,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_7
+                    Dictionary, transmit_pdo_mapping_parameter_1_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6266,7 +6246,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_1_mapping_entry_8
+                    Dictionary, transmit_pdo_mapping_parameter_1_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6300,7 +6280,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_1
+                    Dictionary, transmit_pdo_mapping_parameter_2_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6317,7 +6297,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_2
+                    Dictionary, transmit_pdo_mapping_parameter_2_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6334,7 +6314,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_3
+                    Dictionary, transmit_pdo_mapping_parameter_2_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6351,7 +6331,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_4
+                    Dictionary, transmit_pdo_mapping_parameter_2_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6368,7 +6348,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_5
+                    Dictionary, transmit_pdo_mapping_parameter_2_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6385,7 +6365,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_6
+                    Dictionary, transmit_pdo_mapping_parameter_2_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6402,7 +6382,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_7
+                    Dictionary, transmit_pdo_mapping_parameter_2_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6419,7 +6399,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_2_mapping_entry_8
+                    Dictionary, transmit_pdo_mapping_parameter_2_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6453,7 +6433,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_1
+                    Dictionary, transmit_pdo_mapping_parameter_3_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6470,7 +6450,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_2
+                    Dictionary, transmit_pdo_mapping_parameter_3_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6487,7 +6467,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_3
+                    Dictionary, transmit_pdo_mapping_parameter_3_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6504,7 +6484,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_4
+                    Dictionary, transmit_pdo_mapping_parameter_3_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6521,7 +6501,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_5
+                    Dictionary, transmit_pdo_mapping_parameter_3_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6538,7 +6518,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_6
+                    Dictionary, transmit_pdo_mapping_parameter_3_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6555,7 +6535,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_7
+                    Dictionary, transmit_pdo_mapping_parameter_3_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6572,7 +6552,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_3_mapping_entry_8
+                    Dictionary, transmit_pdo_mapping_parameter_3_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6606,7 +6586,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_1
+                    Dictionary, transmit_pdo_mapping_parameter_4_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6623,7 +6603,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_2
+                    Dictionary, transmit_pdo_mapping_parameter_4_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6640,7 +6620,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_3
+                    Dictionary, transmit_pdo_mapping_parameter_4_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6657,7 +6637,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_4
+                    Dictionary, transmit_pdo_mapping_parameter_4_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6674,7 +6654,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_5
+                    Dictionary, transmit_pdo_mapping_parameter_4_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6691,7 +6671,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_6
+                    Dictionary, transmit_pdo_mapping_parameter_4_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6708,7 +6688,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_7
+                    Dictionary, transmit_pdo_mapping_parameter_4_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6725,7 +6705,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_4_mapping_entry_8
+                    Dictionary, transmit_pdo_mapping_parameter_4_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6759,7 +6739,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_1
+                    Dictionary, transmit_pdo_mapping_parameter_5_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6776,7 +6756,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_2
+                    Dictionary, transmit_pdo_mapping_parameter_5_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6793,7 +6773,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_3
+                    Dictionary, transmit_pdo_mapping_parameter_5_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6810,7 +6790,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_4
+                    Dictionary, transmit_pdo_mapping_parameter_5_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6827,7 +6807,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_5
+                    Dictionary, transmit_pdo_mapping_parameter_5_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6844,7 +6824,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_6
+                    Dictionary, transmit_pdo_mapping_parameter_5_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6861,7 +6841,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_7
+                    Dictionary, transmit_pdo_mapping_parameter_5_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6878,7 +6858,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_5_mapping_entry_8
+                    Dictionary, transmit_pdo_mapping_parameter_5_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6912,7 +6892,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_1
+                    Dictionary, transmit_pdo_mapping_parameter_6_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6929,7 +6909,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_2
+                    Dictionary, transmit_pdo_mapping_parameter_6_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6946,7 +6926,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_3
+                    Dictionary, transmit_pdo_mapping_parameter_6_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6963,7 +6943,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_4
+                    Dictionary, transmit_pdo_mapping_parameter_6_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6980,7 +6960,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_5
+                    Dictionary, transmit_pdo_mapping_parameter_6_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -6997,7 +6977,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_6
+                    Dictionary, transmit_pdo_mapping_parameter_6_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7014,7 +6994,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_7
+                    Dictionary, transmit_pdo_mapping_parameter_6_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7031,7 +7011,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_6_mapping_entry_8
+                    Dictionary, transmit_pdo_mapping_parameter_6_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7065,7 +7045,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_1
+                    Dictionary, transmit_pdo_mapping_parameter_7_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7082,7 +7062,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_2
+                    Dictionary, transmit_pdo_mapping_parameter_7_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7099,7 +7079,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_3
+                    Dictionary, transmit_pdo_mapping_parameter_7_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7116,7 +7096,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_4
+                    Dictionary, transmit_pdo_mapping_parameter_7_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7133,7 +7113,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_5
+                    Dictionary, transmit_pdo_mapping_parameter_7_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7150,7 +7130,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_6
+                    Dictionary, transmit_pdo_mapping_parameter_7_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7167,7 +7147,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_7
+                    Dictionary, transmit_pdo_mapping_parameter_7_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7184,7 +7164,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_7_mapping_entry_8
+                    Dictionary, transmit_pdo_mapping_parameter_7_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7218,7 +7198,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_1
+                    Dictionary, transmit_pdo_mapping_parameter_8_entry_1
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7235,7 +7215,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_2
+                    Dictionary, transmit_pdo_mapping_parameter_8_entry_2
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7252,7 +7232,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_3
+                    Dictionary, transmit_pdo_mapping_parameter_8_entry_3
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7269,7 +7249,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_4
+                    Dictionary, transmit_pdo_mapping_parameter_8_entry_4
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7286,7 +7266,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_5
+                    Dictionary, transmit_pdo_mapping_parameter_8_entry_5
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7303,7 +7283,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_6
+                    Dictionary, transmit_pdo_mapping_parameter_8_entry_6
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7320,7 +7300,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_7
+                    Dictionary, transmit_pdo_mapping_parameter_8_entry_7
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7337,7 +7317,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, transmit_pdo_mapping_parameter_8_mapping_entry_8
+                    Dictionary, transmit_pdo_mapping_parameter_8_entry_8
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -7507,7 +7487,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
-                ::core::mem::offset_of!(Dictionary, pid_parameters_pid_selection),
+                ::core::mem::offset_of!(Dictionary, pid_parameters_selection),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
@@ -7599,7 +7579,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
-                ::core::mem::offset_of!(Dictionary, profile_parameters_profile_check),
+                ::core::mem::offset_of!(Dictionary, profile_parameters_check),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
@@ -7614,9 +7594,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, profile_parameters_profile_check_timeout
-                ),
+                ::core::mem::offset_of!(Dictionary, profile_parameters_check_timeout),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
@@ -7963,9 +7941,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, software_position_limit_min_software_position_limit
-                ),
+                ::core::mem::offset_of!(Dictionary, software_position_limit_min),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
@@ -7980,9 +7956,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
-                ::core::mem::offset_of!(
-                    Dictionary, software_position_limit_max_software_position_limit
-                ),
+                ::core::mem::offset_of!(Dictionary, software_position_limit_max),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
@@ -8213,7 +8187,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(Dictionary, homing_speeds_fast_homing_speed),
+                ::core::mem::offset_of!(Dictionary, homing_speeds_fast),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -8228,7 +8202,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(Dictionary, homing_speeds_slow_homing_speed),
+                ::core::mem::offset_of!(Dictionary, homing_speeds_slow),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -8799,14 +8773,14 @@ PDOMapping=0
         error_register: u8,
         manufacturer_status_register: u32,
         pre_defined_error_field_number_of_errors: u8,
-        pre_defined_error_field_standard_error_field_1: u32,
-        pre_defined_error_field_standard_error_field_2: u32,
-        pre_defined_error_field_standard_error_field_3: u32,
-        pre_defined_error_field_standard_error_field_4: u32,
-        pre_defined_error_field_standard_error_field_5: u32,
-        pre_defined_error_field_standard_error_field_6: u32,
-        pre_defined_error_field_standard_error_field_7: u32,
-        pre_defined_error_field_standard_error_field_8: u32,
+        pre_defined_error_field_standard_1: u32,
+        pre_defined_error_field_standard_2: u32,
+        pre_defined_error_field_standard_3: u32,
+        pre_defined_error_field_standard_4: u32,
+        pre_defined_error_field_standard_5: u32,
+        pre_defined_error_field_standard_6: u32,
+        pre_defined_error_field_standard_7: u32,
+        pre_defined_error_field_standard_8: u32,
         cob_id_sync: u32,
         communication_cycle_period: u32,
         synchronous_window_length: u32,
@@ -8816,9 +8790,9 @@ PDOMapping=0
         guard_time: u16,
         life_time_factor: u8,
         store_parameters_highest_sub_index_supported: u8,
-        store_parameters_save_all_parameters: u32,
+        store_parameters_save_all: u32,
         restore_default_parameters_highest_sub_index_supported: u8,
-        restore_default_parameters_restore_all_default_parameters: u32,
+        restore_default_parameters_all: u32,
         cob_id_emcy: u32,
         inhibit_time_emcy: u16,
         producer_heartbeat_time: u16,
@@ -8852,77 +8826,77 @@ PDOMapping=0
         receive_pdo_communication_parameter_8_cob_id_used_by_rpdo: u32,
         receive_pdo_communication_parameter_8_transmission_type: u8,
         receive_pdo_mapping_parameter_1_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_1_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_1_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_1_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_1_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_1_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_1_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_1_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_1_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_1_entry_1: u32,
+        receive_pdo_mapping_parameter_1_entry_2: u32,
+        receive_pdo_mapping_parameter_1_entry_3: u32,
+        receive_pdo_mapping_parameter_1_entry_4: u32,
+        receive_pdo_mapping_parameter_1_entry_5: u32,
+        receive_pdo_mapping_parameter_1_entry_6: u32,
+        receive_pdo_mapping_parameter_1_entry_7: u32,
+        receive_pdo_mapping_parameter_1_entry_8: u32,
         receive_pdo_mapping_parameter_2_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_2_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_2_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_2_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_2_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_2_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_2_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_2_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_2_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_2_entry_1: u32,
+        receive_pdo_mapping_parameter_2_entry_2: u32,
+        receive_pdo_mapping_parameter_2_entry_3: u32,
+        receive_pdo_mapping_parameter_2_entry_4: u32,
+        receive_pdo_mapping_parameter_2_entry_5: u32,
+        receive_pdo_mapping_parameter_2_entry_6: u32,
+        receive_pdo_mapping_parameter_2_entry_7: u32,
+        receive_pdo_mapping_parameter_2_entry_8: u32,
         receive_pdo_mapping_parameter_3_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_3_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_3_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_3_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_3_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_3_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_3_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_3_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_3_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_3_entry_1: u32,
+        receive_pdo_mapping_parameter_3_entry_2: u32,
+        receive_pdo_mapping_parameter_3_entry_3: u32,
+        receive_pdo_mapping_parameter_3_entry_4: u32,
+        receive_pdo_mapping_parameter_3_entry_5: u32,
+        receive_pdo_mapping_parameter_3_entry_6: u32,
+        receive_pdo_mapping_parameter_3_entry_7: u32,
+        receive_pdo_mapping_parameter_3_entry_8: u32,
         receive_pdo_mapping_parameter_4_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_4_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_4_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_4_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_4_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_4_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_4_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_4_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_4_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_4_entry_1: u32,
+        receive_pdo_mapping_parameter_4_entry_2: u32,
+        receive_pdo_mapping_parameter_4_entry_3: u32,
+        receive_pdo_mapping_parameter_4_entry_4: u32,
+        receive_pdo_mapping_parameter_4_entry_5: u32,
+        receive_pdo_mapping_parameter_4_entry_6: u32,
+        receive_pdo_mapping_parameter_4_entry_7: u32,
+        receive_pdo_mapping_parameter_4_entry_8: u32,
         receive_pdo_mapping_parameter_5_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_5_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_5_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_5_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_5_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_5_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_5_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_5_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_5_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_5_entry_1: u32,
+        receive_pdo_mapping_parameter_5_entry_2: u32,
+        receive_pdo_mapping_parameter_5_entry_3: u32,
+        receive_pdo_mapping_parameter_5_entry_4: u32,
+        receive_pdo_mapping_parameter_5_entry_5: u32,
+        receive_pdo_mapping_parameter_5_entry_6: u32,
+        receive_pdo_mapping_parameter_5_entry_7: u32,
+        receive_pdo_mapping_parameter_5_entry_8: u32,
         receive_pdo_mapping_parameter_6_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_6_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_6_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_6_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_6_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_6_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_6_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_6_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_6_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_6_entry_1: u32,
+        receive_pdo_mapping_parameter_6_entry_2: u32,
+        receive_pdo_mapping_parameter_6_entry_3: u32,
+        receive_pdo_mapping_parameter_6_entry_4: u32,
+        receive_pdo_mapping_parameter_6_entry_5: u32,
+        receive_pdo_mapping_parameter_6_entry_6: u32,
+        receive_pdo_mapping_parameter_6_entry_7: u32,
+        receive_pdo_mapping_parameter_6_entry_8: u32,
         receive_pdo_mapping_parameter_7_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_7_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_7_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_7_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_7_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_7_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_7_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_7_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_7_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_7_entry_1: u32,
+        receive_pdo_mapping_parameter_7_entry_2: u32,
+        receive_pdo_mapping_parameter_7_entry_3: u32,
+        receive_pdo_mapping_parameter_7_entry_4: u32,
+        receive_pdo_mapping_parameter_7_entry_5: u32,
+        receive_pdo_mapping_parameter_7_entry_6: u32,
+        receive_pdo_mapping_parameter_7_entry_7: u32,
+        receive_pdo_mapping_parameter_7_entry_8: u32,
         receive_pdo_mapping_parameter_8_number_of_mapped_objects: u8,
-        receive_pdo_mapping_parameter_8_mapping_entry_1: u32,
-        receive_pdo_mapping_parameter_8_mapping_entry_2: u32,
-        receive_pdo_mapping_parameter_8_mapping_entry_3: u32,
-        receive_pdo_mapping_parameter_8_mapping_entry_4: u32,
-        receive_pdo_mapping_parameter_8_mapping_entry_5: u32,
-        receive_pdo_mapping_parameter_8_mapping_entry_6: u32,
-        receive_pdo_mapping_parameter_8_mapping_entry_7: u32,
-        receive_pdo_mapping_parameter_8_mapping_entry_8: u32,
+        receive_pdo_mapping_parameter_8_entry_1: u32,
+        receive_pdo_mapping_parameter_8_entry_2: u32,
+        receive_pdo_mapping_parameter_8_entry_3: u32,
+        receive_pdo_mapping_parameter_8_entry_4: u32,
+        receive_pdo_mapping_parameter_8_entry_5: u32,
+        receive_pdo_mapping_parameter_8_entry_6: u32,
+        receive_pdo_mapping_parameter_8_entry_7: u32,
+        receive_pdo_mapping_parameter_8_entry_8: u32,
         transmit_pdo_communication_param_1_highest_sub_index_supported: u8,
         transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo: u32,
         transmit_pdo_communication_parameter_1_transmission_type: u8,
@@ -8972,77 +8946,77 @@ PDOMapping=0
         transmit_pdo_communication_parameter_8_compatibility_entry: u8,
         transmit_pdo_communication_parameter_8_event_timer: u16,
         transmit_pdo_mapping_parameter_1_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_1_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_1_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_1_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_1_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_1_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_1_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_1_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_1_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_1_entry_1: u32,
+        transmit_pdo_mapping_parameter_1_entry_2: u32,
+        transmit_pdo_mapping_parameter_1_entry_3: u32,
+        transmit_pdo_mapping_parameter_1_entry_4: u32,
+        transmit_pdo_mapping_parameter_1_entry_5: u32,
+        transmit_pdo_mapping_parameter_1_entry_6: u32,
+        transmit_pdo_mapping_parameter_1_entry_7: u32,
+        transmit_pdo_mapping_parameter_1_entry_8: u32,
         transmit_pdo_mapping_parameter_2_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_2_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_2_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_2_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_2_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_2_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_2_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_2_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_2_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_2_entry_1: u32,
+        transmit_pdo_mapping_parameter_2_entry_2: u32,
+        transmit_pdo_mapping_parameter_2_entry_3: u32,
+        transmit_pdo_mapping_parameter_2_entry_4: u32,
+        transmit_pdo_mapping_parameter_2_entry_5: u32,
+        transmit_pdo_mapping_parameter_2_entry_6: u32,
+        transmit_pdo_mapping_parameter_2_entry_7: u32,
+        transmit_pdo_mapping_parameter_2_entry_8: u32,
         transmit_pdo_mapping_parameter_3_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_3_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_3_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_3_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_3_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_3_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_3_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_3_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_3_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_3_entry_1: u32,
+        transmit_pdo_mapping_parameter_3_entry_2: u32,
+        transmit_pdo_mapping_parameter_3_entry_3: u32,
+        transmit_pdo_mapping_parameter_3_entry_4: u32,
+        transmit_pdo_mapping_parameter_3_entry_5: u32,
+        transmit_pdo_mapping_parameter_3_entry_6: u32,
+        transmit_pdo_mapping_parameter_3_entry_7: u32,
+        transmit_pdo_mapping_parameter_3_entry_8: u32,
         transmit_pdo_mapping_parameter_4_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_4_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_4_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_4_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_4_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_4_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_4_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_4_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_4_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_4_entry_1: u32,
+        transmit_pdo_mapping_parameter_4_entry_2: u32,
+        transmit_pdo_mapping_parameter_4_entry_3: u32,
+        transmit_pdo_mapping_parameter_4_entry_4: u32,
+        transmit_pdo_mapping_parameter_4_entry_5: u32,
+        transmit_pdo_mapping_parameter_4_entry_6: u32,
+        transmit_pdo_mapping_parameter_4_entry_7: u32,
+        transmit_pdo_mapping_parameter_4_entry_8: u32,
         transmit_pdo_mapping_parameter_5_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_5_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_5_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_5_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_5_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_5_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_5_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_5_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_5_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_5_entry_1: u32,
+        transmit_pdo_mapping_parameter_5_entry_2: u32,
+        transmit_pdo_mapping_parameter_5_entry_3: u32,
+        transmit_pdo_mapping_parameter_5_entry_4: u32,
+        transmit_pdo_mapping_parameter_5_entry_5: u32,
+        transmit_pdo_mapping_parameter_5_entry_6: u32,
+        transmit_pdo_mapping_parameter_5_entry_7: u32,
+        transmit_pdo_mapping_parameter_5_entry_8: u32,
         transmit_pdo_mapping_parameter_6_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_6_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_6_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_6_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_6_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_6_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_6_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_6_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_6_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_6_entry_1: u32,
+        transmit_pdo_mapping_parameter_6_entry_2: u32,
+        transmit_pdo_mapping_parameter_6_entry_3: u32,
+        transmit_pdo_mapping_parameter_6_entry_4: u32,
+        transmit_pdo_mapping_parameter_6_entry_5: u32,
+        transmit_pdo_mapping_parameter_6_entry_6: u32,
+        transmit_pdo_mapping_parameter_6_entry_7: u32,
+        transmit_pdo_mapping_parameter_6_entry_8: u32,
         transmit_pdo_mapping_parameter_7_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_7_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_7_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_7_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_7_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_7_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_7_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_7_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_7_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_7_entry_1: u32,
+        transmit_pdo_mapping_parameter_7_entry_2: u32,
+        transmit_pdo_mapping_parameter_7_entry_3: u32,
+        transmit_pdo_mapping_parameter_7_entry_4: u32,
+        transmit_pdo_mapping_parameter_7_entry_5: u32,
+        transmit_pdo_mapping_parameter_7_entry_6: u32,
+        transmit_pdo_mapping_parameter_7_entry_7: u32,
+        transmit_pdo_mapping_parameter_7_entry_8: u32,
         transmit_pdo_mapping_parameter_8_number_of_mapped_objects: u8,
-        transmit_pdo_mapping_parameter_8_mapping_entry_1: u32,
-        transmit_pdo_mapping_parameter_8_mapping_entry_2: u32,
-        transmit_pdo_mapping_parameter_8_mapping_entry_3: u32,
-        transmit_pdo_mapping_parameter_8_mapping_entry_4: u32,
-        transmit_pdo_mapping_parameter_8_mapping_entry_5: u32,
-        transmit_pdo_mapping_parameter_8_mapping_entry_6: u32,
-        transmit_pdo_mapping_parameter_8_mapping_entry_7: u32,
-        transmit_pdo_mapping_parameter_8_mapping_entry_8: u32,
+        transmit_pdo_mapping_parameter_8_entry_1: u32,
+        transmit_pdo_mapping_parameter_8_entry_2: u32,
+        transmit_pdo_mapping_parameter_8_entry_3: u32,
+        transmit_pdo_mapping_parameter_8_entry_4: u32,
+        transmit_pdo_mapping_parameter_8_entry_5: u32,
+        transmit_pdo_mapping_parameter_8_entry_6: u32,
+        transmit_pdo_mapping_parameter_8_entry_7: u32,
+        transmit_pdo_mapping_parameter_8_entry_8: u32,
         nmt_startup: u32,
         feed_converter_highest_sub_index_supported: u8,
         feed_converter_numerator: u32,
@@ -9053,14 +9027,14 @@ PDOMapping=0
         warnings: u16,
         limits_enable: u8,
         pid_parameters_highest_sub_index_supported: u8,
-        pid_parameters_pid_selection: u16,
+        pid_parameters_selection: u16,
         pid_parameters_kp_position: u16,
         pid_parameters_kp_speed: u16,
         pid_parameters_ki_position: u16,
         pid_parameters_ki_speed: u16,
         profile_parameters_highest_sub_index_supported: u8,
-        profile_parameters_profile_check: u8,
-        profile_parameters_profile_check_timeout: u16,
+        profile_parameters_check: u8,
+        profile_parameters_check_timeout: u16,
         homing_torque_limit: u16,
         actuator_type: u8,
         torque_limit_enable: u8,
@@ -9083,8 +9057,8 @@ PDOMapping=0
         target_position: i32,
         home_offset: i32,
         software_position_limit_highest_sub_index_supported: u8,
-        software_position_limit_min_software_position_limit: i32,
-        software_position_limit_max_software_position_limit: i32,
+        software_position_limit_min: i32,
+        software_position_limit_max: i32,
         polarity: u8,
         max_profile_velocity: u32,
         profile_velocity: u32,
@@ -9099,8 +9073,8 @@ PDOMapping=0
         feed_constant_shaft_revolutions: u32,
         homing_method: i8,
         homing_speeds_highest_sub_index_supported: u8,
-        homing_speeds_fast_homing_speed: u32,
-        homing_speeds_slow_homing_speed: u32,
+        homing_speeds_fast: u32,
+        homing_speeds_slow: u32,
         homing_acceleration: u32,
         target_velocity: i32,
     }
@@ -9112,14 +9086,14 @@ PDOMapping=0
                 error_register: 0x0,
                 manufacturer_status_register: 0x0,
                 pre_defined_error_field_number_of_errors: 0,
-                pre_defined_error_field_standard_error_field_1: 0x0,
-                pre_defined_error_field_standard_error_field_2: 0x0,
-                pre_defined_error_field_standard_error_field_3: 0x0,
-                pre_defined_error_field_standard_error_field_4: 0x0,
-                pre_defined_error_field_standard_error_field_5: 0x0,
-                pre_defined_error_field_standard_error_field_6: 0x0,
-                pre_defined_error_field_standard_error_field_7: 0x0,
-                pre_defined_error_field_standard_error_field_8: 0x0,
+                pre_defined_error_field_standard_1: 0x0,
+                pre_defined_error_field_standard_2: 0x0,
+                pre_defined_error_field_standard_3: 0x0,
+                pre_defined_error_field_standard_4: 0x0,
+                pre_defined_error_field_standard_5: 0x0,
+                pre_defined_error_field_standard_6: 0x0,
+                pre_defined_error_field_standard_7: 0x0,
+                pre_defined_error_field_standard_8: 0x0,
                 cob_id_sync: 0x80,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
@@ -9135,9 +9109,9 @@ PDOMapping=0
                 guard_time: 0,
                 life_time_factor: 0,
                 store_parameters_highest_sub_index_supported: 1,
-                store_parameters_save_all_parameters: 0x0,
+                store_parameters_save_all: 0x0,
                 restore_default_parameters_highest_sub_index_supported: 1,
-                restore_default_parameters_restore_all_default_parameters: 0x0,
+                restore_default_parameters_all: 0x0,
                 cob_id_emcy: (0x80 + node_id as i128) as u32,
                 inhibit_time_emcy: 0,
                 producer_heartbeat_time: 0,
@@ -9176,77 +9150,77 @@ PDOMapping=0
                 receive_pdo_communication_parameter_8_cob_id_used_by_rpdo: 0x80000000,
                 receive_pdo_communication_parameter_8_transmission_type: 0xFF,
                 receive_pdo_mapping_parameter_1_number_of_mapped_objects: 1,
-                receive_pdo_mapping_parameter_1_mapping_entry_1: 0x60400010,
-                receive_pdo_mapping_parameter_1_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_1_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_1_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_1_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_1_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_1_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_1_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_1_entry_1: 0x60400010,
+                receive_pdo_mapping_parameter_1_entry_2: 0x0,
+                receive_pdo_mapping_parameter_1_entry_3: 0x0,
+                receive_pdo_mapping_parameter_1_entry_4: 0x0,
+                receive_pdo_mapping_parameter_1_entry_5: 0x0,
+                receive_pdo_mapping_parameter_1_entry_6: 0x0,
+                receive_pdo_mapping_parameter_1_entry_7: 0x0,
+                receive_pdo_mapping_parameter_1_entry_8: 0x0,
                 receive_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_2_mapping_entry_1: 0x0,
-                receive_pdo_mapping_parameter_2_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_2_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_2_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_2_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_2_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_2_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_2_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_2_entry_1: 0x0,
+                receive_pdo_mapping_parameter_2_entry_2: 0x0,
+                receive_pdo_mapping_parameter_2_entry_3: 0x0,
+                receive_pdo_mapping_parameter_2_entry_4: 0x0,
+                receive_pdo_mapping_parameter_2_entry_5: 0x0,
+                receive_pdo_mapping_parameter_2_entry_6: 0x0,
+                receive_pdo_mapping_parameter_2_entry_7: 0x0,
+                receive_pdo_mapping_parameter_2_entry_8: 0x0,
                 receive_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_3_mapping_entry_1: 0x0,
-                receive_pdo_mapping_parameter_3_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_3_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_3_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_3_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_3_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_3_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_3_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_3_entry_1: 0x0,
+                receive_pdo_mapping_parameter_3_entry_2: 0x0,
+                receive_pdo_mapping_parameter_3_entry_3: 0x0,
+                receive_pdo_mapping_parameter_3_entry_4: 0x0,
+                receive_pdo_mapping_parameter_3_entry_5: 0x0,
+                receive_pdo_mapping_parameter_3_entry_6: 0x0,
+                receive_pdo_mapping_parameter_3_entry_7: 0x0,
+                receive_pdo_mapping_parameter_3_entry_8: 0x0,
                 receive_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_4_mapping_entry_1: 0x0,
-                receive_pdo_mapping_parameter_4_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_4_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_4_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_4_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_4_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_4_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_4_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_4_entry_1: 0x0,
+                receive_pdo_mapping_parameter_4_entry_2: 0x0,
+                receive_pdo_mapping_parameter_4_entry_3: 0x0,
+                receive_pdo_mapping_parameter_4_entry_4: 0x0,
+                receive_pdo_mapping_parameter_4_entry_5: 0x0,
+                receive_pdo_mapping_parameter_4_entry_6: 0x0,
+                receive_pdo_mapping_parameter_4_entry_7: 0x0,
+                receive_pdo_mapping_parameter_4_entry_8: 0x0,
                 receive_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_5_mapping_entry_1: 0x0,
-                receive_pdo_mapping_parameter_5_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_5_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_5_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_5_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_5_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_5_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_5_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_5_entry_1: 0x0,
+                receive_pdo_mapping_parameter_5_entry_2: 0x0,
+                receive_pdo_mapping_parameter_5_entry_3: 0x0,
+                receive_pdo_mapping_parameter_5_entry_4: 0x0,
+                receive_pdo_mapping_parameter_5_entry_5: 0x0,
+                receive_pdo_mapping_parameter_5_entry_6: 0x0,
+                receive_pdo_mapping_parameter_5_entry_7: 0x0,
+                receive_pdo_mapping_parameter_5_entry_8: 0x0,
                 receive_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_6_mapping_entry_1: 0x0,
-                receive_pdo_mapping_parameter_6_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_6_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_6_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_6_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_6_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_6_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_6_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_6_entry_1: 0x0,
+                receive_pdo_mapping_parameter_6_entry_2: 0x0,
+                receive_pdo_mapping_parameter_6_entry_3: 0x0,
+                receive_pdo_mapping_parameter_6_entry_4: 0x0,
+                receive_pdo_mapping_parameter_6_entry_5: 0x0,
+                receive_pdo_mapping_parameter_6_entry_6: 0x0,
+                receive_pdo_mapping_parameter_6_entry_7: 0x0,
+                receive_pdo_mapping_parameter_6_entry_8: 0x0,
                 receive_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_7_mapping_entry_1: 0x0,
-                receive_pdo_mapping_parameter_7_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_7_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_7_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_7_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_7_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_7_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_7_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_7_entry_1: 0x0,
+                receive_pdo_mapping_parameter_7_entry_2: 0x0,
+                receive_pdo_mapping_parameter_7_entry_3: 0x0,
+                receive_pdo_mapping_parameter_7_entry_4: 0x0,
+                receive_pdo_mapping_parameter_7_entry_5: 0x0,
+                receive_pdo_mapping_parameter_7_entry_6: 0x0,
+                receive_pdo_mapping_parameter_7_entry_7: 0x0,
+                receive_pdo_mapping_parameter_7_entry_8: 0x0,
                 receive_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_8_mapping_entry_1: 0x0,
-                receive_pdo_mapping_parameter_8_mapping_entry_2: 0x0,
-                receive_pdo_mapping_parameter_8_mapping_entry_3: 0x0,
-                receive_pdo_mapping_parameter_8_mapping_entry_4: 0x0,
-                receive_pdo_mapping_parameter_8_mapping_entry_5: 0x0,
-                receive_pdo_mapping_parameter_8_mapping_entry_6: 0x0,
-                receive_pdo_mapping_parameter_8_mapping_entry_7: 0x0,
-                receive_pdo_mapping_parameter_8_mapping_entry_8: 0x0,
+                receive_pdo_mapping_parameter_8_entry_1: 0x0,
+                receive_pdo_mapping_parameter_8_entry_2: 0x0,
+                receive_pdo_mapping_parameter_8_entry_3: 0x0,
+                receive_pdo_mapping_parameter_8_entry_4: 0x0,
+                receive_pdo_mapping_parameter_8_entry_5: 0x0,
+                receive_pdo_mapping_parameter_8_entry_6: 0x0,
+                receive_pdo_mapping_parameter_8_entry_7: 0x0,
+                receive_pdo_mapping_parameter_8_entry_8: 0x0,
                 transmit_pdo_communication_param_1_highest_sub_index_supported: 5,
                 transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo: (0x180
                     + node_id as i128) as u32,
@@ -9300,77 +9274,77 @@ PDOMapping=0
                 transmit_pdo_communication_parameter_8_compatibility_entry: 0,
                 transmit_pdo_communication_parameter_8_event_timer: 0,
                 transmit_pdo_mapping_parameter_1_number_of_mapped_objects: 1,
-                transmit_pdo_mapping_parameter_1_mapping_entry_1: 0x60410010,
-                transmit_pdo_mapping_parameter_1_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_1_entry_1: 0x60410010,
+                transmit_pdo_mapping_parameter_1_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_1_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_1_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_1_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_1_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_1_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_1_entry_8: 0x0,
                 transmit_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_1: 0x0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_1: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_2_entry_8: 0x0,
                 transmit_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_1: 0x0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_1: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_3_entry_8: 0x0,
                 transmit_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_1: 0x0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_1: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_4_entry_8: 0x0,
                 transmit_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_1: 0x0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_1: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_5_entry_8: 0x0,
                 transmit_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_1: 0x0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_1: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_6_entry_8: 0x0,
                 transmit_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_1: 0x0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_1: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_7_entry_8: 0x0,
                 transmit_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_1: 0x0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_2: 0x0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_3: 0x0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_4: 0x0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_5: 0x0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_6: 0x0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_7: 0x0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_8: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_1: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_2: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_3: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_4: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_5: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_6: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_7: 0x0,
+                transmit_pdo_mapping_parameter_8_entry_8: 0x0,
                 nmt_startup: 0x4,
                 feed_converter_highest_sub_index_supported: 2,
                 feed_converter_numerator: 1,
@@ -9381,14 +9355,14 @@ PDOMapping=0
                 warnings: 0x0,
                 limits_enable: 0,
                 pid_parameters_highest_sub_index_supported: 5,
-                pid_parameters_pid_selection: 1,
+                pid_parameters_selection: 1,
                 pid_parameters_kp_position: 1,
                 pid_parameters_kp_speed: 10000,
                 pid_parameters_ki_position: 0,
                 pid_parameters_ki_speed: 10,
                 profile_parameters_highest_sub_index_supported: 2,
-                profile_parameters_profile_check: 1,
-                profile_parameters_profile_check_timeout: 50,
+                profile_parameters_check: 1,
+                profile_parameters_check_timeout: 50,
                 homing_torque_limit: 10,
                 actuator_type: 0,
                 torque_limit_enable: 0,
@@ -9411,8 +9385,8 @@ PDOMapping=0
                 target_position: 0,
                 home_offset: 0,
                 software_position_limit_highest_sub_index_supported: 2,
-                software_position_limit_min_software_position_limit: 0,
-                software_position_limit_max_software_position_limit: 0,
+                software_position_limit_min: 0,
+                software_position_limit_max: 0,
                 polarity: 0x0,
                 max_profile_velocity: 65535,
                 profile_velocity: 0,
@@ -9427,8 +9401,8 @@ PDOMapping=0
                 feed_constant_shaft_revolutions: 1,
                 homing_method: 37,
                 homing_speeds_highest_sub_index_supported: 2,
-                homing_speeds_fast_homing_speed: 0,
-                homing_speeds_slow_homing_speed: 0,
+                homing_speeds_fast: 0,
+                homing_speeds_slow: 0,
                 homing_acceleration: 0,
                 target_velocity: 0,
             }
@@ -9442,14 +9416,14 @@ PDOMapping=0
                 error_register: 0,
                 manufacturer_status_register: 0,
                 pre_defined_error_field_number_of_errors: 0,
-                pre_defined_error_field_standard_error_field_1: 0,
-                pre_defined_error_field_standard_error_field_2: 0,
-                pre_defined_error_field_standard_error_field_3: 0,
-                pre_defined_error_field_standard_error_field_4: 0,
-                pre_defined_error_field_standard_error_field_5: 0,
-                pre_defined_error_field_standard_error_field_6: 0,
-                pre_defined_error_field_standard_error_field_7: 0,
-                pre_defined_error_field_standard_error_field_8: 0,
+                pre_defined_error_field_standard_1: 0,
+                pre_defined_error_field_standard_2: 0,
+                pre_defined_error_field_standard_3: 0,
+                pre_defined_error_field_standard_4: 0,
+                pre_defined_error_field_standard_5: 0,
+                pre_defined_error_field_standard_6: 0,
+                pre_defined_error_field_standard_7: 0,
+                pre_defined_error_field_standard_8: 0,
                 cob_id_sync: 0,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
@@ -9465,9 +9439,9 @@ PDOMapping=0
                 guard_time: 0,
                 life_time_factor: 0,
                 store_parameters_highest_sub_index_supported: 0,
-                store_parameters_save_all_parameters: 0,
+                store_parameters_save_all: 0,
                 restore_default_parameters_highest_sub_index_supported: 0,
-                restore_default_parameters_restore_all_default_parameters: 0,
+                restore_default_parameters_all: 0,
                 cob_id_emcy: 0,
                 inhibit_time_emcy: 0,
                 producer_heartbeat_time: 0,
@@ -9501,77 +9475,77 @@ PDOMapping=0
                 receive_pdo_communication_parameter_8_cob_id_used_by_rpdo: 0,
                 receive_pdo_communication_parameter_8_transmission_type: 0,
                 receive_pdo_mapping_parameter_1_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_1_mapping_entry_1: 0,
-                receive_pdo_mapping_parameter_1_mapping_entry_2: 0,
-                receive_pdo_mapping_parameter_1_mapping_entry_3: 0,
-                receive_pdo_mapping_parameter_1_mapping_entry_4: 0,
-                receive_pdo_mapping_parameter_1_mapping_entry_5: 0,
-                receive_pdo_mapping_parameter_1_mapping_entry_6: 0,
-                receive_pdo_mapping_parameter_1_mapping_entry_7: 0,
-                receive_pdo_mapping_parameter_1_mapping_entry_8: 0,
+                receive_pdo_mapping_parameter_1_entry_1: 0,
+                receive_pdo_mapping_parameter_1_entry_2: 0,
+                receive_pdo_mapping_parameter_1_entry_3: 0,
+                receive_pdo_mapping_parameter_1_entry_4: 0,
+                receive_pdo_mapping_parameter_1_entry_5: 0,
+                receive_pdo_mapping_parameter_1_entry_6: 0,
+                receive_pdo_mapping_parameter_1_entry_7: 0,
+                receive_pdo_mapping_parameter_1_entry_8: 0,
                 receive_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_2_mapping_entry_1: 0,
-                receive_pdo_mapping_parameter_2_mapping_entry_2: 0,
-                receive_pdo_mapping_parameter_2_mapping_entry_3: 0,
-                receive_pdo_mapping_parameter_2_mapping_entry_4: 0,
-                receive_pdo_mapping_parameter_2_mapping_entry_5: 0,
-                receive_pdo_mapping_parameter_2_mapping_entry_6: 0,
-                receive_pdo_mapping_parameter_2_mapping_entry_7: 0,
-                receive_pdo_mapping_parameter_2_mapping_entry_8: 0,
+                receive_pdo_mapping_parameter_2_entry_1: 0,
+                receive_pdo_mapping_parameter_2_entry_2: 0,
+                receive_pdo_mapping_parameter_2_entry_3: 0,
+                receive_pdo_mapping_parameter_2_entry_4: 0,
+                receive_pdo_mapping_parameter_2_entry_5: 0,
+                receive_pdo_mapping_parameter_2_entry_6: 0,
+                receive_pdo_mapping_parameter_2_entry_7: 0,
+                receive_pdo_mapping_parameter_2_entry_8: 0,
                 receive_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_3_mapping_entry_1: 0,
-                receive_pdo_mapping_parameter_3_mapping_entry_2: 0,
-                receive_pdo_mapping_parameter_3_mapping_entry_3: 0,
-                receive_pdo_mapping_parameter_3_mapping_entry_4: 0,
-                receive_pdo_mapping_parameter_3_mapping_entry_5: 0,
-                receive_pdo_mapping_parameter_3_mapping_entry_6: 0,
-                receive_pdo_mapping_parameter_3_mapping_entry_7: 0,
-                receive_pdo_mapping_parameter_3_mapping_entry_8: 0,
+                receive_pdo_mapping_parameter_3_entry_1: 0,
+                receive_pdo_mapping_parameter_3_entry_2: 0,
+                receive_pdo_mapping_parameter_3_entry_3: 0,
+                receive_pdo_mapping_parameter_3_entry_4: 0,
+                receive_pdo_mapping_parameter_3_entry_5: 0,
+                receive_pdo_mapping_parameter_3_entry_6: 0,
+                receive_pdo_mapping_parameter_3_entry_7: 0,
+                receive_pdo_mapping_parameter_3_entry_8: 0,
                 receive_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_4_mapping_entry_1: 0,
-                receive_pdo_mapping_parameter_4_mapping_entry_2: 0,
-                receive_pdo_mapping_parameter_4_mapping_entry_3: 0,
-                receive_pdo_mapping_parameter_4_mapping_entry_4: 0,
-                receive_pdo_mapping_parameter_4_mapping_entry_5: 0,
-                receive_pdo_mapping_parameter_4_mapping_entry_6: 0,
-                receive_pdo_mapping_parameter_4_mapping_entry_7: 0,
-                receive_pdo_mapping_parameter_4_mapping_entry_8: 0,
+                receive_pdo_mapping_parameter_4_entry_1: 0,
+                receive_pdo_mapping_parameter_4_entry_2: 0,
+                receive_pdo_mapping_parameter_4_entry_3: 0,
+                receive_pdo_mapping_parameter_4_entry_4: 0,
+                receive_pdo_mapping_parameter_4_entry_5: 0,
+                receive_pdo_mapping_parameter_4_entry_6: 0,
+                receive_pdo_mapping_parameter_4_entry_7: 0,
+                receive_pdo_mapping_parameter_4_entry_8: 0,
                 receive_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_5_mapping_entry_1: 0,
-                receive_pdo_mapping_parameter_5_mapping_entry_2: 0,
-                receive_pdo_mapping_parameter_5_mapping_entry_3: 0,
-                receive_pdo_mapping_parameter_5_mapping_entry_4: 0,
-                receive_pdo_mapping_parameter_5_mapping_entry_5: 0,
-                receive_pdo_mapping_parameter_5_mapping_entry_6: 0,
-                receive_pdo_mapping_parameter_5_mapping_entry_7: 0,
-                receive_pdo_mapping_parameter_5_mapping_entry_8: 0,
+                receive_pdo_mapping_parameter_5_entry_1: 0,
+                receive_pdo_mapping_parameter_5_entry_2: 0,
+                receive_pdo_mapping_parameter_5_entry_3: 0,
+                receive_pdo_mapping_parameter_5_entry_4: 0,
+                receive_pdo_mapping_parameter_5_entry_5: 0,
+                receive_pdo_mapping_parameter_5_entry_6: 0,
+                receive_pdo_mapping_parameter_5_entry_7: 0,
+                receive_pdo_mapping_parameter_5_entry_8: 0,
                 receive_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_6_mapping_entry_1: 0,
-                receive_pdo_mapping_parameter_6_mapping_entry_2: 0,
-                receive_pdo_mapping_parameter_6_mapping_entry_3: 0,
-                receive_pdo_mapping_parameter_6_mapping_entry_4: 0,
-                receive_pdo_mapping_parameter_6_mapping_entry_5: 0,
-                receive_pdo_mapping_parameter_6_mapping_entry_6: 0,
-                receive_pdo_mapping_parameter_6_mapping_entry_7: 0,
-                receive_pdo_mapping_parameter_6_mapping_entry_8: 0,
+                receive_pdo_mapping_parameter_6_entry_1: 0,
+                receive_pdo_mapping_parameter_6_entry_2: 0,
+                receive_pdo_mapping_parameter_6_entry_3: 0,
+                receive_pdo_mapping_parameter_6_entry_4: 0,
+                receive_pdo_mapping_parameter_6_entry_5: 0,
+                receive_pdo_mapping_parameter_6_entry_6: 0,
+                receive_pdo_mapping_parameter_6_entry_7: 0,
+                receive_pdo_mapping_parameter_6_entry_8: 0,
                 receive_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_7_mapping_entry_1: 0,
-                receive_pdo_mapping_parameter_7_mapping_entry_2: 0,
-                receive_pdo_mapping_parameter_7_mapping_entry_3: 0,
-                receive_pdo_mapping_parameter_7_mapping_entry_4: 0,
-                receive_pdo_mapping_parameter_7_mapping_entry_5: 0,
-                receive_pdo_mapping_parameter_7_mapping_entry_6: 0,
-                receive_pdo_mapping_parameter_7_mapping_entry_7: 0,
-                receive_pdo_mapping_parameter_7_mapping_entry_8: 0,
+                receive_pdo_mapping_parameter_7_entry_1: 0,
+                receive_pdo_mapping_parameter_7_entry_2: 0,
+                receive_pdo_mapping_parameter_7_entry_3: 0,
+                receive_pdo_mapping_parameter_7_entry_4: 0,
+                receive_pdo_mapping_parameter_7_entry_5: 0,
+                receive_pdo_mapping_parameter_7_entry_6: 0,
+                receive_pdo_mapping_parameter_7_entry_7: 0,
+                receive_pdo_mapping_parameter_7_entry_8: 0,
                 receive_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
-                receive_pdo_mapping_parameter_8_mapping_entry_1: 0,
-                receive_pdo_mapping_parameter_8_mapping_entry_2: 0,
-                receive_pdo_mapping_parameter_8_mapping_entry_3: 0,
-                receive_pdo_mapping_parameter_8_mapping_entry_4: 0,
-                receive_pdo_mapping_parameter_8_mapping_entry_5: 0,
-                receive_pdo_mapping_parameter_8_mapping_entry_6: 0,
-                receive_pdo_mapping_parameter_8_mapping_entry_7: 0,
-                receive_pdo_mapping_parameter_8_mapping_entry_8: 0,
+                receive_pdo_mapping_parameter_8_entry_1: 0,
+                receive_pdo_mapping_parameter_8_entry_2: 0,
+                receive_pdo_mapping_parameter_8_entry_3: 0,
+                receive_pdo_mapping_parameter_8_entry_4: 0,
+                receive_pdo_mapping_parameter_8_entry_5: 0,
+                receive_pdo_mapping_parameter_8_entry_6: 0,
+                receive_pdo_mapping_parameter_8_entry_7: 0,
+                receive_pdo_mapping_parameter_8_entry_8: 0,
                 transmit_pdo_communication_param_1_highest_sub_index_supported: 0,
                 transmit_pdo_communication_parameter_1_cob_id_used_by_tpdo: 0,
                 transmit_pdo_communication_parameter_1_transmission_type: 0,
@@ -9621,77 +9595,77 @@ PDOMapping=0
                 transmit_pdo_communication_parameter_8_compatibility_entry: 0,
                 transmit_pdo_communication_parameter_8_event_timer: 0,
                 transmit_pdo_mapping_parameter_1_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_1: 0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_2: 0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_3: 0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_4: 0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_5: 0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_6: 0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_7: 0,
-                transmit_pdo_mapping_parameter_1_mapping_entry_8: 0,
+                transmit_pdo_mapping_parameter_1_entry_1: 0,
+                transmit_pdo_mapping_parameter_1_entry_2: 0,
+                transmit_pdo_mapping_parameter_1_entry_3: 0,
+                transmit_pdo_mapping_parameter_1_entry_4: 0,
+                transmit_pdo_mapping_parameter_1_entry_5: 0,
+                transmit_pdo_mapping_parameter_1_entry_6: 0,
+                transmit_pdo_mapping_parameter_1_entry_7: 0,
+                transmit_pdo_mapping_parameter_1_entry_8: 0,
                 transmit_pdo_mapping_parameter_2_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_1: 0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_2: 0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_3: 0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_4: 0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_5: 0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_6: 0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_7: 0,
-                transmit_pdo_mapping_parameter_2_mapping_entry_8: 0,
+                transmit_pdo_mapping_parameter_2_entry_1: 0,
+                transmit_pdo_mapping_parameter_2_entry_2: 0,
+                transmit_pdo_mapping_parameter_2_entry_3: 0,
+                transmit_pdo_mapping_parameter_2_entry_4: 0,
+                transmit_pdo_mapping_parameter_2_entry_5: 0,
+                transmit_pdo_mapping_parameter_2_entry_6: 0,
+                transmit_pdo_mapping_parameter_2_entry_7: 0,
+                transmit_pdo_mapping_parameter_2_entry_8: 0,
                 transmit_pdo_mapping_parameter_3_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_1: 0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_2: 0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_3: 0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_4: 0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_5: 0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_6: 0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_7: 0,
-                transmit_pdo_mapping_parameter_3_mapping_entry_8: 0,
+                transmit_pdo_mapping_parameter_3_entry_1: 0,
+                transmit_pdo_mapping_parameter_3_entry_2: 0,
+                transmit_pdo_mapping_parameter_3_entry_3: 0,
+                transmit_pdo_mapping_parameter_3_entry_4: 0,
+                transmit_pdo_mapping_parameter_3_entry_5: 0,
+                transmit_pdo_mapping_parameter_3_entry_6: 0,
+                transmit_pdo_mapping_parameter_3_entry_7: 0,
+                transmit_pdo_mapping_parameter_3_entry_8: 0,
                 transmit_pdo_mapping_parameter_4_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_1: 0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_2: 0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_3: 0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_4: 0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_5: 0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_6: 0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_7: 0,
-                transmit_pdo_mapping_parameter_4_mapping_entry_8: 0,
+                transmit_pdo_mapping_parameter_4_entry_1: 0,
+                transmit_pdo_mapping_parameter_4_entry_2: 0,
+                transmit_pdo_mapping_parameter_4_entry_3: 0,
+                transmit_pdo_mapping_parameter_4_entry_4: 0,
+                transmit_pdo_mapping_parameter_4_entry_5: 0,
+                transmit_pdo_mapping_parameter_4_entry_6: 0,
+                transmit_pdo_mapping_parameter_4_entry_7: 0,
+                transmit_pdo_mapping_parameter_4_entry_8: 0,
                 transmit_pdo_mapping_parameter_5_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_1: 0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_2: 0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_3: 0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_4: 0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_5: 0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_6: 0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_7: 0,
-                transmit_pdo_mapping_parameter_5_mapping_entry_8: 0,
+                transmit_pdo_mapping_parameter_5_entry_1: 0,
+                transmit_pdo_mapping_parameter_5_entry_2: 0,
+                transmit_pdo_mapping_parameter_5_entry_3: 0,
+                transmit_pdo_mapping_parameter_5_entry_4: 0,
+                transmit_pdo_mapping_parameter_5_entry_5: 0,
+                transmit_pdo_mapping_parameter_5_entry_6: 0,
+                transmit_pdo_mapping_parameter_5_entry_7: 0,
+                transmit_pdo_mapping_parameter_5_entry_8: 0,
                 transmit_pdo_mapping_parameter_6_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_1: 0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_2: 0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_3: 0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_4: 0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_5: 0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_6: 0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_7: 0,
-                transmit_pdo_mapping_parameter_6_mapping_entry_8: 0,
+                transmit_pdo_mapping_parameter_6_entry_1: 0,
+                transmit_pdo_mapping_parameter_6_entry_2: 0,
+                transmit_pdo_mapping_parameter_6_entry_3: 0,
+                transmit_pdo_mapping_parameter_6_entry_4: 0,
+                transmit_pdo_mapping_parameter_6_entry_5: 0,
+                transmit_pdo_mapping_parameter_6_entry_6: 0,
+                transmit_pdo_mapping_parameter_6_entry_7: 0,
+                transmit_pdo_mapping_parameter_6_entry_8: 0,
                 transmit_pdo_mapping_parameter_7_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_1: 0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_2: 0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_3: 0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_4: 0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_5: 0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_6: 0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_7: 0,
-                transmit_pdo_mapping_parameter_7_mapping_entry_8: 0,
+                transmit_pdo_mapping_parameter_7_entry_1: 0,
+                transmit_pdo_mapping_parameter_7_entry_2: 0,
+                transmit_pdo_mapping_parameter_7_entry_3: 0,
+                transmit_pdo_mapping_parameter_7_entry_4: 0,
+                transmit_pdo_mapping_parameter_7_entry_5: 0,
+                transmit_pdo_mapping_parameter_7_entry_6: 0,
+                transmit_pdo_mapping_parameter_7_entry_7: 0,
+                transmit_pdo_mapping_parameter_7_entry_8: 0,
                 transmit_pdo_mapping_parameter_8_number_of_mapped_objects: 0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_1: 0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_2: 0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_3: 0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_4: 0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_5: 0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_6: 0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_7: 0,
-                transmit_pdo_mapping_parameter_8_mapping_entry_8: 0,
+                transmit_pdo_mapping_parameter_8_entry_1: 0,
+                transmit_pdo_mapping_parameter_8_entry_2: 0,
+                transmit_pdo_mapping_parameter_8_entry_3: 0,
+                transmit_pdo_mapping_parameter_8_entry_4: 0,
+                transmit_pdo_mapping_parameter_8_entry_5: 0,
+                transmit_pdo_mapping_parameter_8_entry_6: 0,
+                transmit_pdo_mapping_parameter_8_entry_7: 0,
+                transmit_pdo_mapping_parameter_8_entry_8: 0,
                 nmt_startup: 0,
                 feed_converter_highest_sub_index_supported: 0,
                 feed_converter_numerator: 0,
@@ -9702,14 +9676,14 @@ PDOMapping=0
                 warnings: 0,
                 limits_enable: 0,
                 pid_parameters_highest_sub_index_supported: 0,
-                pid_parameters_pid_selection: 0,
+                pid_parameters_selection: 0,
                 pid_parameters_kp_position: 0,
                 pid_parameters_kp_speed: 0,
                 pid_parameters_ki_position: 0,
                 pid_parameters_ki_speed: 0,
                 profile_parameters_highest_sub_index_supported: 0,
-                profile_parameters_profile_check: 0,
-                profile_parameters_profile_check_timeout: 0,
+                profile_parameters_check: 0,
+                profile_parameters_check_timeout: 0,
                 homing_torque_limit: 0,
                 actuator_type: 0,
                 torque_limit_enable: 0,
@@ -9732,8 +9706,8 @@ PDOMapping=0
                 target_position: 0,
                 home_offset: 0,
                 software_position_limit_highest_sub_index_supported: 0,
-                software_position_limit_min_software_position_limit: 0,
-                software_position_limit_max_software_position_limit: 0,
+                software_position_limit_min: 0,
+                software_position_limit_max: 0,
                 polarity: 0,
                 max_profile_velocity: 0,
                 profile_velocity: 0,
@@ -9748,8 +9722,8 @@ PDOMapping=0
                 feed_constant_shaft_revolutions: 0,
                 homing_method: 0,
                 homing_speeds_highest_sub_index_supported: 0,
-                homing_speeds_fast_homing_speed: 0,
-                homing_speeds_slow_homing_speed: 0,
+                homing_speeds_fast: 0,
+                homing_speeds_slow: 0,
                 homing_acceleration: 0,
                 target_velocity: 0,
             }
@@ -9925,128 +9899,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_1(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_1
+        pub const fn pre_defined_error_field_standard_1(&self) -> u32 {
+            self.pre_defined_error_field_standard_1
         }
-        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1 (see [`Self::pre_defined_error_field_standard_error_field_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 1 Pre-defined error field: Standard error field 1 (see [`Self::pre_defined_error_field_standard_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_1(
+        pub fn set_pre_defined_error_field_standard_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_1 = v;
+            self.pre_defined_error_field_standard_1 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 2 Pre-defined error field: Standard error field 2.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_2(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_2
+        pub const fn pre_defined_error_field_standard_2(&self) -> u32 {
+            self.pre_defined_error_field_standard_2
         }
-        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2 (see [`Self::pre_defined_error_field_standard_error_field_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 2 Pre-defined error field: Standard error field 2 (see [`Self::pre_defined_error_field_standard_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_2(
+        pub fn set_pre_defined_error_field_standard_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_2 = v;
+            self.pre_defined_error_field_standard_2 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 3 Pre-defined error field: Standard error field 3.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_3(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_3
+        pub const fn pre_defined_error_field_standard_3(&self) -> u32 {
+            self.pre_defined_error_field_standard_3
         }
-        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3 (see [`Self::pre_defined_error_field_standard_error_field_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 3 Pre-defined error field: Standard error field 3 (see [`Self::pre_defined_error_field_standard_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_3(
+        pub fn set_pre_defined_error_field_standard_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_3 = v;
+            self.pre_defined_error_field_standard_3 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 4 Pre-defined error field: Standard error field 4.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_4(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_4
+        pub const fn pre_defined_error_field_standard_4(&self) -> u32 {
+            self.pre_defined_error_field_standard_4
         }
-        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4 (see [`Self::pre_defined_error_field_standard_error_field_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 4 Pre-defined error field: Standard error field 4 (see [`Self::pre_defined_error_field_standard_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_4(
+        pub fn set_pre_defined_error_field_standard_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_4 = v;
+            self.pre_defined_error_field_standard_4 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 5 Pre-defined error field: Standard error field 5.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_5(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_5
+        pub const fn pre_defined_error_field_standard_5(&self) -> u32 {
+            self.pre_defined_error_field_standard_5
         }
-        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5 (see [`Self::pre_defined_error_field_standard_error_field_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 5 Pre-defined error field: Standard error field 5 (see [`Self::pre_defined_error_field_standard_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_5(
+        pub fn set_pre_defined_error_field_standard_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_5 = v;
+            self.pre_defined_error_field_standard_5 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 6 Pre-defined error field: Standard error field 6.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_6(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_6
+        pub const fn pre_defined_error_field_standard_6(&self) -> u32 {
+            self.pre_defined_error_field_standard_6
         }
-        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6 (see [`Self::pre_defined_error_field_standard_error_field_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 6 Pre-defined error field: Standard error field 6 (see [`Self::pre_defined_error_field_standard_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_6(
+        pub fn set_pre_defined_error_field_standard_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_6 = v;
+            self.pre_defined_error_field_standard_6 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 7 Pre-defined error field: Standard error field 7.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_7(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_7
+        pub const fn pre_defined_error_field_standard_7(&self) -> u32 {
+            self.pre_defined_error_field_standard_7
         }
-        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7 (see [`Self::pre_defined_error_field_standard_error_field_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 7 Pre-defined error field: Standard error field 7 (see [`Self::pre_defined_error_field_standard_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_7(
+        pub fn set_pre_defined_error_field_standard_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_7 = v;
+            self.pre_defined_error_field_standard_7 = v;
             Ok(())
         }
         /// Reads `0x1003` sub 8 Pre-defined error field: Standard error field 8.
         ///
         /// UNSIGNED32, access `ro`. Default: 0.
         #[inline]
-        pub const fn pre_defined_error_field_standard_error_field_8(&self) -> u32 {
-            self.pre_defined_error_field_standard_error_field_8
+        pub const fn pre_defined_error_field_standard_8(&self) -> u32 {
+            self.pre_defined_error_field_standard_8
         }
-        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8 (see [`Self::pre_defined_error_field_standard_error_field_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1003` sub 8 Pre-defined error field: Standard error field 8 (see [`Self::pre_defined_error_field_standard_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pre_defined_error_field_standard_error_field_8(
+        pub fn set_pre_defined_error_field_standard_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.pre_defined_error_field_standard_error_field_8 = v;
+            self.pre_defined_error_field_standard_8 = v;
             Ok(())
         }
         /// Reads `0x1005` COB-ID SYNC.
@@ -10191,16 +10165,16 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn store_parameters_save_all_parameters(&self) -> u32 {
-            self.store_parameters_save_all_parameters
+        pub const fn store_parameters_save_all(&self) -> u32 {
+            self.store_parameters_save_all
         }
-        /// Sets `0x1010` sub 1 Store parameters: Save all parameters (see [`Self::store_parameters_save_all_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1010` sub 1 Store parameters: Save all parameters (see [`Self::store_parameters_save_all`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_store_parameters_save_all_parameters(
+        pub fn set_store_parameters_save_all(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.store_parameters_save_all_parameters = v;
+            self.store_parameters_save_all = v;
             Ok(())
         }
         /// Reads `0x1011` sub 0 Restore default parameters: Highest sub-index supported.
@@ -10225,18 +10199,16 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn restore_default_parameters_restore_all_default_parameters(
-            &self,
-        ) -> u32 {
-            self.restore_default_parameters_restore_all_default_parameters
+        pub const fn restore_default_parameters_all(&self) -> u32 {
+            self.restore_default_parameters_all
         }
-        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters (see [`Self::restore_default_parameters_restore_all_default_parameters`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1011` sub 1 Restore default parameters: Restore all default parameters (see [`Self::restore_default_parameters_all`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_restore_default_parameters_restore_all_default_parameters(
+        pub fn set_restore_default_parameters_all(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.restore_default_parameters_restore_all_default_parameters = v;
+            self.restore_default_parameters_all = v;
             Ok(())
         }
         /// Reads `0x1014` COB-ID EMCY.
@@ -10821,128 +10793,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 1614807056 (0x60400010).
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_1_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_1
         }
-        /// Sets `0x1600` sub 1 Receive PDO mapping parameter 1: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 1 Receive PDO mapping parameter 1: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_1_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_1_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 2 Receive PDO mapping parameter 1: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_1_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_2
         }
-        /// Sets `0x1600` sub 2 Receive PDO mapping parameter 1: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 2 Receive PDO mapping parameter 1: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_1_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_1_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 3 Receive PDO mapping parameter 1: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_1_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_3
         }
-        /// Sets `0x1600` sub 3 Receive PDO mapping parameter 1: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 3 Receive PDO mapping parameter 1: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_1_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_1_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 4 Receive PDO mapping parameter 1: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_1_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_4
         }
-        /// Sets `0x1600` sub 4 Receive PDO mapping parameter 1: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 4 Receive PDO mapping parameter 1: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_1_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_1_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 5 Receive PDO mapping parameter 1: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_1_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_5
         }
-        /// Sets `0x1600` sub 5 Receive PDO mapping parameter 1: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 5 Receive PDO mapping parameter 1: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_1_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_1_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 6 Receive PDO mapping parameter 1: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_1_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_6
         }
-        /// Sets `0x1600` sub 6 Receive PDO mapping parameter 1: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 6 Receive PDO mapping parameter 1: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_1_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_1_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 7 Receive PDO mapping parameter 1: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_1_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_7
         }
-        /// Sets `0x1600` sub 7 Receive PDO mapping parameter 1: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 7 Receive PDO mapping parameter 1: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_1_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_1_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1600` sub 8 Receive PDO mapping parameter 1: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_1_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_1_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_1_entry_8
         }
-        /// Sets `0x1600` sub 8 Receive PDO mapping parameter 1: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_1_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1600` sub 8 Receive PDO mapping parameter 1: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_1_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_1_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_1_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_1_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_1_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 0 Receive PDO mapping parameter 2: Number of mapped objects.
@@ -10967,128 +10939,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_2_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_1
         }
-        /// Sets `0x1601` sub 1 Receive PDO mapping parameter 2: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 1 Receive PDO mapping parameter 2: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_2_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_2_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 2 Receive PDO mapping parameter 2: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_2_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_2
         }
-        /// Sets `0x1601` sub 2 Receive PDO mapping parameter 2: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 2 Receive PDO mapping parameter 2: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_2_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_2_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 3 Receive PDO mapping parameter 2: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_2_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_3
         }
-        /// Sets `0x1601` sub 3 Receive PDO mapping parameter 2: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 3 Receive PDO mapping parameter 2: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_2_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_2_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 4 Receive PDO mapping parameter 2: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_2_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_4
         }
-        /// Sets `0x1601` sub 4 Receive PDO mapping parameter 2: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 4 Receive PDO mapping parameter 2: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_2_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_2_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 5 Receive PDO mapping parameter 2: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_2_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_5
         }
-        /// Sets `0x1601` sub 5 Receive PDO mapping parameter 2: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 5 Receive PDO mapping parameter 2: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_2_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_2_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 6 Receive PDO mapping parameter 2: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_2_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_6
         }
-        /// Sets `0x1601` sub 6 Receive PDO mapping parameter 2: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 6 Receive PDO mapping parameter 2: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_2_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_2_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 7 Receive PDO mapping parameter 2: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_2_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_7
         }
-        /// Sets `0x1601` sub 7 Receive PDO mapping parameter 2: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 7 Receive PDO mapping parameter 2: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_2_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_2_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1601` sub 8 Receive PDO mapping parameter 2: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_2_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_2_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_2_entry_8
         }
-        /// Sets `0x1601` sub 8 Receive PDO mapping parameter 2: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_2_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1601` sub 8 Receive PDO mapping parameter 2: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_2_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_2_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_2_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_2_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_2_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 0 Receive PDO mapping parameter 3: Number of mapped objects.
@@ -11113,128 +11085,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_3_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_1
         }
-        /// Sets `0x1602` sub 1 Receive PDO mapping parameter 3: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 1 Receive PDO mapping parameter 3: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_3_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_3_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 2 Receive PDO mapping parameter 3: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_3_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_2
         }
-        /// Sets `0x1602` sub 2 Receive PDO mapping parameter 3: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 2 Receive PDO mapping parameter 3: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_3_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_3_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 3 Receive PDO mapping parameter 3: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_3_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_3
         }
-        /// Sets `0x1602` sub 3 Receive PDO mapping parameter 3: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 3 Receive PDO mapping parameter 3: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_3_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_3_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 4 Receive PDO mapping parameter 3: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_3_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_4
         }
-        /// Sets `0x1602` sub 4 Receive PDO mapping parameter 3: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 4 Receive PDO mapping parameter 3: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_3_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_3_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 5 Receive PDO mapping parameter 3: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_3_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_5
         }
-        /// Sets `0x1602` sub 5 Receive PDO mapping parameter 3: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 5 Receive PDO mapping parameter 3: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_3_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_3_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 6 Receive PDO mapping parameter 3: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_3_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_6
         }
-        /// Sets `0x1602` sub 6 Receive PDO mapping parameter 3: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 6 Receive PDO mapping parameter 3: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_3_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_3_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 7 Receive PDO mapping parameter 3: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_3_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_7
         }
-        /// Sets `0x1602` sub 7 Receive PDO mapping parameter 3: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 7 Receive PDO mapping parameter 3: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_3_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_3_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1602` sub 8 Receive PDO mapping parameter 3: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_3_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_3_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_3_entry_8
         }
-        /// Sets `0x1602` sub 8 Receive PDO mapping parameter 3: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_3_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1602` sub 8 Receive PDO mapping parameter 3: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_3_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_3_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_3_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_3_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_3_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 0 Receive PDO mapping parameter 4: Number of mapped objects.
@@ -11259,128 +11231,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_4_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_1
         }
-        /// Sets `0x1603` sub 1 Receive PDO mapping parameter 4: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 1 Receive PDO mapping parameter 4: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_4_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_4_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 2 Receive PDO mapping parameter 4: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_4_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_2
         }
-        /// Sets `0x1603` sub 2 Receive PDO mapping parameter 4: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 2 Receive PDO mapping parameter 4: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_4_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_4_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 3 Receive PDO mapping parameter 4: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_4_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_3
         }
-        /// Sets `0x1603` sub 3 Receive PDO mapping parameter 4: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 3 Receive PDO mapping parameter 4: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_4_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_4_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 4 Receive PDO mapping parameter 4: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_4_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_4
         }
-        /// Sets `0x1603` sub 4 Receive PDO mapping parameter 4: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 4 Receive PDO mapping parameter 4: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_4_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_4_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 5 Receive PDO mapping parameter 4: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_4_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_5
         }
-        /// Sets `0x1603` sub 5 Receive PDO mapping parameter 4: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 5 Receive PDO mapping parameter 4: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_4_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_4_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 6 Receive PDO mapping parameter 4: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_4_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_6
         }
-        /// Sets `0x1603` sub 6 Receive PDO mapping parameter 4: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 6 Receive PDO mapping parameter 4: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_4_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_4_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 7 Receive PDO mapping parameter 4: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_4_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_7
         }
-        /// Sets `0x1603` sub 7 Receive PDO mapping parameter 4: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 7 Receive PDO mapping parameter 4: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_4_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_4_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1603` sub 8 Receive PDO mapping parameter 4: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_4_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_4_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_4_entry_8
         }
-        /// Sets `0x1603` sub 8 Receive PDO mapping parameter 4: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_4_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1603` sub 8 Receive PDO mapping parameter 4: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_4_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_4_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_4_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_4_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_4_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 0 Receive PDO mapping parameter 5: Number of mapped objects.
@@ -11405,128 +11377,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_5_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_1
         }
-        /// Sets `0x1604` sub 1 Receive PDO mapping parameter 5: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 1 Receive PDO mapping parameter 5: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_5_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_5_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 2 Receive PDO mapping parameter 5: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_5_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_2
         }
-        /// Sets `0x1604` sub 2 Receive PDO mapping parameter 5: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 2 Receive PDO mapping parameter 5: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_5_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_5_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 3 Receive PDO mapping parameter 5: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_5_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_3
         }
-        /// Sets `0x1604` sub 3 Receive PDO mapping parameter 5: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 3 Receive PDO mapping parameter 5: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_5_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_5_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 4 Receive PDO mapping parameter 5: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_5_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_4
         }
-        /// Sets `0x1604` sub 4 Receive PDO mapping parameter 5: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 4 Receive PDO mapping parameter 5: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_5_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_5_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 5 Receive PDO mapping parameter 5: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_5_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_5
         }
-        /// Sets `0x1604` sub 5 Receive PDO mapping parameter 5: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 5 Receive PDO mapping parameter 5: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_5_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_5_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 6 Receive PDO mapping parameter 5: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_5_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_6
         }
-        /// Sets `0x1604` sub 6 Receive PDO mapping parameter 5: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 6 Receive PDO mapping parameter 5: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_5_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_5_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 7 Receive PDO mapping parameter 5: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_5_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_7
         }
-        /// Sets `0x1604` sub 7 Receive PDO mapping parameter 5: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 7 Receive PDO mapping parameter 5: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_5_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_5_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1604` sub 8 Receive PDO mapping parameter 5: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_5_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_5_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_5_entry_8
         }
-        /// Sets `0x1604` sub 8 Receive PDO mapping parameter 5: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_5_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1604` sub 8 Receive PDO mapping parameter 5: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_5_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_5_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_5_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_5_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_5_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 0 Receive PDO mapping parameter 6: Number of mapped objects.
@@ -11551,128 +11523,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_6_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_1
         }
-        /// Sets `0x1605` sub 1 Receive PDO mapping parameter 6: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 1 Receive PDO mapping parameter 6: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_6_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_6_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 2 Receive PDO mapping parameter 6: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_6_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_2
         }
-        /// Sets `0x1605` sub 2 Receive PDO mapping parameter 6: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 2 Receive PDO mapping parameter 6: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_6_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_6_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 3 Receive PDO mapping parameter 6: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_6_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_3
         }
-        /// Sets `0x1605` sub 3 Receive PDO mapping parameter 6: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 3 Receive PDO mapping parameter 6: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_6_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_6_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 4 Receive PDO mapping parameter 6: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_6_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_4
         }
-        /// Sets `0x1605` sub 4 Receive PDO mapping parameter 6: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 4 Receive PDO mapping parameter 6: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_6_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_6_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 5 Receive PDO mapping parameter 6: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_6_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_5
         }
-        /// Sets `0x1605` sub 5 Receive PDO mapping parameter 6: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 5 Receive PDO mapping parameter 6: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_6_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_6_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 6 Receive PDO mapping parameter 6: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_6_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_6
         }
-        /// Sets `0x1605` sub 6 Receive PDO mapping parameter 6: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 6 Receive PDO mapping parameter 6: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_6_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_6_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 7 Receive PDO mapping parameter 6: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_6_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_7
         }
-        /// Sets `0x1605` sub 7 Receive PDO mapping parameter 6: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 7 Receive PDO mapping parameter 6: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_6_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_6_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1605` sub 8 Receive PDO mapping parameter 6: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_6_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_6_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_6_entry_8
         }
-        /// Sets `0x1605` sub 8 Receive PDO mapping parameter 6: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_6_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1605` sub 8 Receive PDO mapping parameter 6: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_6_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_6_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_6_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_6_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_6_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 0 Receive PDO mapping parameter 7: Number of mapped objects.
@@ -11697,128 +11669,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_7_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_1
         }
-        /// Sets `0x1606` sub 1 Receive PDO mapping parameter 7: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 1 Receive PDO mapping parameter 7: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_7_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_7_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 2 Receive PDO mapping parameter 7: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_7_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_2
         }
-        /// Sets `0x1606` sub 2 Receive PDO mapping parameter 7: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 2 Receive PDO mapping parameter 7: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_7_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_7_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 3 Receive PDO mapping parameter 7: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_7_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_3
         }
-        /// Sets `0x1606` sub 3 Receive PDO mapping parameter 7: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 3 Receive PDO mapping parameter 7: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_7_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_7_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 4 Receive PDO mapping parameter 7: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_7_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_4
         }
-        /// Sets `0x1606` sub 4 Receive PDO mapping parameter 7: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 4 Receive PDO mapping parameter 7: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_7_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_7_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 5 Receive PDO mapping parameter 7: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_7_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_5
         }
-        /// Sets `0x1606` sub 5 Receive PDO mapping parameter 7: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 5 Receive PDO mapping parameter 7: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_7_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_7_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 6 Receive PDO mapping parameter 7: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_7_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_6
         }
-        /// Sets `0x1606` sub 6 Receive PDO mapping parameter 7: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 6 Receive PDO mapping parameter 7: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_7_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_7_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 7 Receive PDO mapping parameter 7: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_7_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_7
         }
-        /// Sets `0x1606` sub 7 Receive PDO mapping parameter 7: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 7 Receive PDO mapping parameter 7: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_7_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_7_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1606` sub 8 Receive PDO mapping parameter 7: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_7_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_7_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_7_entry_8
         }
-        /// Sets `0x1606` sub 8 Receive PDO mapping parameter 7: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_7_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1606` sub 8 Receive PDO mapping parameter 7: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_7_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_7_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_7_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_7_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_7_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 0 Receive PDO mapping parameter 8: Number of mapped objects.
@@ -11843,128 +11815,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_1(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_1
+        pub const fn receive_pdo_mapping_parameter_8_entry_1(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_1
         }
-        /// Sets `0x1607` sub 1 Receive PDO mapping parameter 8: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 1 Receive PDO mapping parameter 8: Mapping entry 1 (see [`Self::receive_pdo_mapping_parameter_8_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_1(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_1 = v;
+            self.receive_pdo_mapping_parameter_8_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 2 Receive PDO mapping parameter 8: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_2(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_2
+        pub const fn receive_pdo_mapping_parameter_8_entry_2(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_2
         }
-        /// Sets `0x1607` sub 2 Receive PDO mapping parameter 8: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 2 Receive PDO mapping parameter 8: Mapping entry 2 (see [`Self::receive_pdo_mapping_parameter_8_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_2(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_2 = v;
+            self.receive_pdo_mapping_parameter_8_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 3 Receive PDO mapping parameter 8: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_3(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_3
+        pub const fn receive_pdo_mapping_parameter_8_entry_3(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_3
         }
-        /// Sets `0x1607` sub 3 Receive PDO mapping parameter 8: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 3 Receive PDO mapping parameter 8: Mapping entry 3 (see [`Self::receive_pdo_mapping_parameter_8_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_3(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_3 = v;
+            self.receive_pdo_mapping_parameter_8_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 4 Receive PDO mapping parameter 8: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_4(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_4
+        pub const fn receive_pdo_mapping_parameter_8_entry_4(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_4
         }
-        /// Sets `0x1607` sub 4 Receive PDO mapping parameter 8: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 4 Receive PDO mapping parameter 8: Mapping entry 4 (see [`Self::receive_pdo_mapping_parameter_8_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_4(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_4 = v;
+            self.receive_pdo_mapping_parameter_8_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 5 Receive PDO mapping parameter 8: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_5(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_5
+        pub const fn receive_pdo_mapping_parameter_8_entry_5(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_5
         }
-        /// Sets `0x1607` sub 5 Receive PDO mapping parameter 8: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 5 Receive PDO mapping parameter 8: Mapping entry 5 (see [`Self::receive_pdo_mapping_parameter_8_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_5(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_5 = v;
+            self.receive_pdo_mapping_parameter_8_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 6 Receive PDO mapping parameter 8: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_6(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_6
+        pub const fn receive_pdo_mapping_parameter_8_entry_6(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_6
         }
-        /// Sets `0x1607` sub 6 Receive PDO mapping parameter 8: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 6 Receive PDO mapping parameter 8: Mapping entry 6 (see [`Self::receive_pdo_mapping_parameter_8_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_6(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_6 = v;
+            self.receive_pdo_mapping_parameter_8_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 7 Receive PDO mapping parameter 8: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_7(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_7
+        pub const fn receive_pdo_mapping_parameter_8_entry_7(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_7
         }
-        /// Sets `0x1607` sub 7 Receive PDO mapping parameter 8: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 7 Receive PDO mapping parameter 8: Mapping entry 7 (see [`Self::receive_pdo_mapping_parameter_8_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_7(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_7 = v;
+            self.receive_pdo_mapping_parameter_8_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1607` sub 8 Receive PDO mapping parameter 8: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn receive_pdo_mapping_parameter_8_mapping_entry_8(&self) -> u32 {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_8
+        pub const fn receive_pdo_mapping_parameter_8_entry_8(&self) -> u32 {
+            self.receive_pdo_mapping_parameter_8_entry_8
         }
-        /// Sets `0x1607` sub 8 Receive PDO mapping parameter 8: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_8_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1607` sub 8 Receive PDO mapping parameter 8: Mapping entry 8 (see [`Self::receive_pdo_mapping_parameter_8_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_receive_pdo_mapping_parameter_8_mapping_entry_8(
+        pub fn set_receive_pdo_mapping_parameter_8_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.receive_pdo_mapping_parameter_8_mapping_entry_8 = v;
+            self.receive_pdo_mapping_parameter_8_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1800` sub 0 Transmit PDO communication parameter 1: Highest sub-index supported.
@@ -12821,128 +12793,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 1614872592 (0x60410010).
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_1_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_1
         }
-        /// Sets `0x1A00` sub 1 Transmit PDO mapping parameter 1: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 1 Transmit PDO mapping parameter 1: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_1_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 2 Transmit PDO mapping parameter 1: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_1_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_2
         }
-        /// Sets `0x1A00` sub 2 Transmit PDO mapping parameter 1: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 2 Transmit PDO mapping parameter 1: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_1_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 3 Transmit PDO mapping parameter 1: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_1_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_3
         }
-        /// Sets `0x1A00` sub 3 Transmit PDO mapping parameter 1: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 3 Transmit PDO mapping parameter 1: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_1_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 4 Transmit PDO mapping parameter 1: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_1_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_4
         }
-        /// Sets `0x1A00` sub 4 Transmit PDO mapping parameter 1: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 4 Transmit PDO mapping parameter 1: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_1_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 5 Transmit PDO mapping parameter 1: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_1_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_5
         }
-        /// Sets `0x1A00` sub 5 Transmit PDO mapping parameter 1: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 5 Transmit PDO mapping parameter 1: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_1_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 6 Transmit PDO mapping parameter 1: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_1_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_6
         }
-        /// Sets `0x1A00` sub 6 Transmit PDO mapping parameter 1: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 6 Transmit PDO mapping parameter 1: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_1_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 7 Transmit PDO mapping parameter 1: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_1_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_7
         }
-        /// Sets `0x1A00` sub 7 Transmit PDO mapping parameter 1: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 7 Transmit PDO mapping parameter 1: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_1_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A00` sub 8 Transmit PDO mapping parameter 1: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_1_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_1_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_1_entry_8
         }
-        /// Sets `0x1A00` sub 8 Transmit PDO mapping parameter 1: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_1_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A00` sub 8 Transmit PDO mapping parameter 1: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_1_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_1_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_1_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_1_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_1_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 0 Transmit PDO mapping parameter 2: Number of mapped objects.
@@ -12967,128 +12939,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_2_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_1
         }
-        /// Sets `0x1A01` sub 1 Transmit PDO mapping parameter 2: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 1 Transmit PDO mapping parameter 2: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_2_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 2 Transmit PDO mapping parameter 2: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_2_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_2
         }
-        /// Sets `0x1A01` sub 2 Transmit PDO mapping parameter 2: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 2 Transmit PDO mapping parameter 2: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_2_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 3 Transmit PDO mapping parameter 2: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_2_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_3
         }
-        /// Sets `0x1A01` sub 3 Transmit PDO mapping parameter 2: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 3 Transmit PDO mapping parameter 2: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_2_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 4 Transmit PDO mapping parameter 2: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_2_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_4
         }
-        /// Sets `0x1A01` sub 4 Transmit PDO mapping parameter 2: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 4 Transmit PDO mapping parameter 2: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_2_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 5 Transmit PDO mapping parameter 2: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_2_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_5
         }
-        /// Sets `0x1A01` sub 5 Transmit PDO mapping parameter 2: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 5 Transmit PDO mapping parameter 2: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_2_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 6 Transmit PDO mapping parameter 2: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_2_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_6
         }
-        /// Sets `0x1A01` sub 6 Transmit PDO mapping parameter 2: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 6 Transmit PDO mapping parameter 2: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_2_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 7 Transmit PDO mapping parameter 2: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_2_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_7
         }
-        /// Sets `0x1A01` sub 7 Transmit PDO mapping parameter 2: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 7 Transmit PDO mapping parameter 2: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_2_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A01` sub 8 Transmit PDO mapping parameter 2: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_2_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_2_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_2_entry_8
         }
-        /// Sets `0x1A01` sub 8 Transmit PDO mapping parameter 2: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_2_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A01` sub 8 Transmit PDO mapping parameter 2: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_2_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_2_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_2_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_2_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_2_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 0 Transmit PDO mapping parameter 3: Number of mapped objects.
@@ -13113,128 +13085,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_3_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_1
         }
-        /// Sets `0x1A02` sub 1 Transmit PDO mapping parameter 3: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 1 Transmit PDO mapping parameter 3: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_3_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 2 Transmit PDO mapping parameter 3: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_3_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_2
         }
-        /// Sets `0x1A02` sub 2 Transmit PDO mapping parameter 3: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 2 Transmit PDO mapping parameter 3: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_3_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 3 Transmit PDO mapping parameter 3: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_3_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_3
         }
-        /// Sets `0x1A02` sub 3 Transmit PDO mapping parameter 3: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 3 Transmit PDO mapping parameter 3: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_3_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 4 Transmit PDO mapping parameter 3: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_3_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_4
         }
-        /// Sets `0x1A02` sub 4 Transmit PDO mapping parameter 3: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 4 Transmit PDO mapping parameter 3: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_3_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 5 Transmit PDO mapping parameter 3: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_3_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_5
         }
-        /// Sets `0x1A02` sub 5 Transmit PDO mapping parameter 3: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 5 Transmit PDO mapping parameter 3: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_3_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 6 Transmit PDO mapping parameter 3: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_3_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_6
         }
-        /// Sets `0x1A02` sub 6 Transmit PDO mapping parameter 3: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 6 Transmit PDO mapping parameter 3: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_3_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 7 Transmit PDO mapping parameter 3: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_3_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_7
         }
-        /// Sets `0x1A02` sub 7 Transmit PDO mapping parameter 3: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 7 Transmit PDO mapping parameter 3: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_3_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A02` sub 8 Transmit PDO mapping parameter 3: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_3_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_3_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_3_entry_8
         }
-        /// Sets `0x1A02` sub 8 Transmit PDO mapping parameter 3: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_3_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A02` sub 8 Transmit PDO mapping parameter 3: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_3_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_3_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_3_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_3_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_3_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 0 Transmit PDO mapping parameter 4: Number of mapped objects.
@@ -13259,128 +13231,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_4_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_1
         }
-        /// Sets `0x1A03` sub 1 Transmit PDO mapping parameter 4: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 1 Transmit PDO mapping parameter 4: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_4_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 2 Transmit PDO mapping parameter 4: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_4_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_2
         }
-        /// Sets `0x1A03` sub 2 Transmit PDO mapping parameter 4: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 2 Transmit PDO mapping parameter 4: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_4_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 3 Transmit PDO mapping parameter 4: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_4_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_3
         }
-        /// Sets `0x1A03` sub 3 Transmit PDO mapping parameter 4: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 3 Transmit PDO mapping parameter 4: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_4_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 4 Transmit PDO mapping parameter 4: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_4_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_4
         }
-        /// Sets `0x1A03` sub 4 Transmit PDO mapping parameter 4: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 4 Transmit PDO mapping parameter 4: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_4_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 5 Transmit PDO mapping parameter 4: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_4_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_5
         }
-        /// Sets `0x1A03` sub 5 Transmit PDO mapping parameter 4: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 5 Transmit PDO mapping parameter 4: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_4_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 6 Transmit PDO mapping parameter 4: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_4_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_6
         }
-        /// Sets `0x1A03` sub 6 Transmit PDO mapping parameter 4: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 6 Transmit PDO mapping parameter 4: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_4_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 7 Transmit PDO mapping parameter 4: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_4_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_7
         }
-        /// Sets `0x1A03` sub 7 Transmit PDO mapping parameter 4: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 7 Transmit PDO mapping parameter 4: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_4_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A03` sub 8 Transmit PDO mapping parameter 4: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_4_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_4_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_4_entry_8
         }
-        /// Sets `0x1A03` sub 8 Transmit PDO mapping parameter 4: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_4_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A03` sub 8 Transmit PDO mapping parameter 4: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_4_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_4_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_4_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_4_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_4_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 0 Transmit PDO mapping parameter 5: Number of mapped objects.
@@ -13405,128 +13377,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_5_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_1
         }
-        /// Sets `0x1A04` sub 1 Transmit PDO mapping parameter 5: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 1 Transmit PDO mapping parameter 5: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_5_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 2 Transmit PDO mapping parameter 5: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_5_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_2
         }
-        /// Sets `0x1A04` sub 2 Transmit PDO mapping parameter 5: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 2 Transmit PDO mapping parameter 5: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_5_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 3 Transmit PDO mapping parameter 5: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_5_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_3
         }
-        /// Sets `0x1A04` sub 3 Transmit PDO mapping parameter 5: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 3 Transmit PDO mapping parameter 5: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_5_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 4 Transmit PDO mapping parameter 5: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_5_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_4
         }
-        /// Sets `0x1A04` sub 4 Transmit PDO mapping parameter 5: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 4 Transmit PDO mapping parameter 5: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_5_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 5 Transmit PDO mapping parameter 5: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_5_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_5
         }
-        /// Sets `0x1A04` sub 5 Transmit PDO mapping parameter 5: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 5 Transmit PDO mapping parameter 5: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_5_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 6 Transmit PDO mapping parameter 5: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_5_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_6
         }
-        /// Sets `0x1A04` sub 6 Transmit PDO mapping parameter 5: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 6 Transmit PDO mapping parameter 5: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_5_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 7 Transmit PDO mapping parameter 5: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_5_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_7
         }
-        /// Sets `0x1A04` sub 7 Transmit PDO mapping parameter 5: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 7 Transmit PDO mapping parameter 5: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_5_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A04` sub 8 Transmit PDO mapping parameter 5: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_5_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_5_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_5_entry_8
         }
-        /// Sets `0x1A04` sub 8 Transmit PDO mapping parameter 5: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_5_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A04` sub 8 Transmit PDO mapping parameter 5: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_5_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_5_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_5_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_5_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_5_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 0 Transmit PDO mapping parameter 6: Number of mapped objects.
@@ -13551,128 +13523,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_6_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_1
         }
-        /// Sets `0x1A05` sub 1 Transmit PDO mapping parameter 6: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 1 Transmit PDO mapping parameter 6: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_6_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 2 Transmit PDO mapping parameter 6: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_6_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_2
         }
-        /// Sets `0x1A05` sub 2 Transmit PDO mapping parameter 6: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 2 Transmit PDO mapping parameter 6: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_6_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 3 Transmit PDO mapping parameter 6: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_6_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_3
         }
-        /// Sets `0x1A05` sub 3 Transmit PDO mapping parameter 6: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 3 Transmit PDO mapping parameter 6: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_6_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 4 Transmit PDO mapping parameter 6: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_6_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_4
         }
-        /// Sets `0x1A05` sub 4 Transmit PDO mapping parameter 6: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 4 Transmit PDO mapping parameter 6: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_6_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 5 Transmit PDO mapping parameter 6: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_6_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_5
         }
-        /// Sets `0x1A05` sub 5 Transmit PDO mapping parameter 6: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 5 Transmit PDO mapping parameter 6: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_6_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 6 Transmit PDO mapping parameter 6: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_6_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_6
         }
-        /// Sets `0x1A05` sub 6 Transmit PDO mapping parameter 6: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 6 Transmit PDO mapping parameter 6: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_6_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 7 Transmit PDO mapping parameter 6: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_6_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_7
         }
-        /// Sets `0x1A05` sub 7 Transmit PDO mapping parameter 6: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 7 Transmit PDO mapping parameter 6: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_6_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A05` sub 8 Transmit PDO mapping parameter 6: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_6_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_6_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_6_entry_8
         }
-        /// Sets `0x1A05` sub 8 Transmit PDO mapping parameter 6: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_6_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A05` sub 8 Transmit PDO mapping parameter 6: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_6_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_6_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_6_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_6_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_6_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 0 Transmit PDO mapping parameter 7: Number of mapped objects.
@@ -13697,128 +13669,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_7_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_1
         }
-        /// Sets `0x1A06` sub 1 Transmit PDO mapping parameter 7: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 1 Transmit PDO mapping parameter 7: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_7_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 2 Transmit PDO mapping parameter 7: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_7_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_2
         }
-        /// Sets `0x1A06` sub 2 Transmit PDO mapping parameter 7: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 2 Transmit PDO mapping parameter 7: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_7_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 3 Transmit PDO mapping parameter 7: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_7_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_3
         }
-        /// Sets `0x1A06` sub 3 Transmit PDO mapping parameter 7: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 3 Transmit PDO mapping parameter 7: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_7_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 4 Transmit PDO mapping parameter 7: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_7_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_4
         }
-        /// Sets `0x1A06` sub 4 Transmit PDO mapping parameter 7: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 4 Transmit PDO mapping parameter 7: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_7_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 5 Transmit PDO mapping parameter 7: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_7_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_5
         }
-        /// Sets `0x1A06` sub 5 Transmit PDO mapping parameter 7: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 5 Transmit PDO mapping parameter 7: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_7_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 6 Transmit PDO mapping parameter 7: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_7_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_6
         }
-        /// Sets `0x1A06` sub 6 Transmit PDO mapping parameter 7: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 6 Transmit PDO mapping parameter 7: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_7_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 7 Transmit PDO mapping parameter 7: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_7_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_7
         }
-        /// Sets `0x1A06` sub 7 Transmit PDO mapping parameter 7: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 7 Transmit PDO mapping parameter 7: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_7_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A06` sub 8 Transmit PDO mapping parameter 7: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_7_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_7_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_7_entry_8
         }
-        /// Sets `0x1A06` sub 8 Transmit PDO mapping parameter 7: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_7_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A06` sub 8 Transmit PDO mapping parameter 7: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_7_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_7_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_7_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_7_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_7_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 0 Transmit PDO mapping parameter 8: Number of mapped objects.
@@ -13843,128 +13815,128 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_1(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_1
+        pub const fn transmit_pdo_mapping_parameter_8_entry_1(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_1
         }
-        /// Sets `0x1A07` sub 1 Transmit PDO mapping parameter 8: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 1 Transmit PDO mapping parameter 8: Mapping entry 1 (see [`Self::transmit_pdo_mapping_parameter_8_entry_1`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_1(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_1(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_1 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_1 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 2 Transmit PDO mapping parameter 8: Mapping entry 2.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_2(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_2
+        pub const fn transmit_pdo_mapping_parameter_8_entry_2(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_2
         }
-        /// Sets `0x1A07` sub 2 Transmit PDO mapping parameter 8: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 2 Transmit PDO mapping parameter 8: Mapping entry 2 (see [`Self::transmit_pdo_mapping_parameter_8_entry_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_2(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_2(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_2 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_2 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 3 Transmit PDO mapping parameter 8: Mapping entry 3.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_3(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_3
+        pub const fn transmit_pdo_mapping_parameter_8_entry_3(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_3
         }
-        /// Sets `0x1A07` sub 3 Transmit PDO mapping parameter 8: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 3 Transmit PDO mapping parameter 8: Mapping entry 3 (see [`Self::transmit_pdo_mapping_parameter_8_entry_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_3(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_3(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_3 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_3 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 4 Transmit PDO mapping parameter 8: Mapping entry 4.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_4(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_4
+        pub const fn transmit_pdo_mapping_parameter_8_entry_4(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_4
         }
-        /// Sets `0x1A07` sub 4 Transmit PDO mapping parameter 8: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 4 Transmit PDO mapping parameter 8: Mapping entry 4 (see [`Self::transmit_pdo_mapping_parameter_8_entry_4`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_4(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_4(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_4 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_4 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 5 Transmit PDO mapping parameter 8: Mapping entry 5.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_5(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_5
+        pub const fn transmit_pdo_mapping_parameter_8_entry_5(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_5
         }
-        /// Sets `0x1A07` sub 5 Transmit PDO mapping parameter 8: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 5 Transmit PDO mapping parameter 8: Mapping entry 5 (see [`Self::transmit_pdo_mapping_parameter_8_entry_5`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_5(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_5(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_5 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_5 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 6 Transmit PDO mapping parameter 8: Mapping entry 6.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_6(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_6
+        pub const fn transmit_pdo_mapping_parameter_8_entry_6(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_6
         }
-        /// Sets `0x1A07` sub 6 Transmit PDO mapping parameter 8: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 6 Transmit PDO mapping parameter 8: Mapping entry 6 (see [`Self::transmit_pdo_mapping_parameter_8_entry_6`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_6(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_6(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_6 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_6 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 7 Transmit PDO mapping parameter 8: Mapping entry 7.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_7(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_7
+        pub const fn transmit_pdo_mapping_parameter_8_entry_7(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_7
         }
-        /// Sets `0x1A07` sub 7 Transmit PDO mapping parameter 8: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 7 Transmit PDO mapping parameter 8: Mapping entry 7 (see [`Self::transmit_pdo_mapping_parameter_8_entry_7`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_7(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_7(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_7 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_7 = v;
             Ok(())
         }
         /// Reads `0x1A07` sub 8 Transmit PDO mapping parameter 8: Mapping entry 8.
         ///
         /// UNSIGNED32, access `rw`. Default: 0.
         #[inline]
-        pub const fn transmit_pdo_mapping_parameter_8_mapping_entry_8(&self) -> u32 {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_8
+        pub const fn transmit_pdo_mapping_parameter_8_entry_8(&self) -> u32 {
+            self.transmit_pdo_mapping_parameter_8_entry_8
         }
-        /// Sets `0x1A07` sub 8 Transmit PDO mapping parameter 8: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_8_mapping_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1A07` sub 8 Transmit PDO mapping parameter 8: Mapping entry 8 (see [`Self::transmit_pdo_mapping_parameter_8_entry_8`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_transmit_pdo_mapping_parameter_8_mapping_entry_8(
+        pub fn set_transmit_pdo_mapping_parameter_8_entry_8(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.transmit_pdo_mapping_parameter_8_mapping_entry_8 = v;
+            self.transmit_pdo_mapping_parameter_8_entry_8 = v;
             Ok(())
         }
         /// Reads `0x1F80` NMT startup.
@@ -14134,19 +14106,19 @@ PDOMapping=0
         ///
         /// UNSIGNED16, access `rw`. Default: 1. At most 4.
         #[inline]
-        pub const fn pid_parameters_pid_selection(&self) -> u16 {
-            self.pid_parameters_pid_selection
+        pub const fn pid_parameters_selection(&self) -> u16 {
+            self.pid_parameters_selection
         }
-        /// Sets `0x2011` sub 1 PID parameters: PID selection (see [`Self::pid_parameters_pid_selection`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2011` sub 1 PID parameters: PID selection (see [`Self::pid_parameters_selection`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_pid_parameters_pid_selection(
+        pub fn set_pid_parameters_selection(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             if v > 4 {
                 return Err(::od_runtime::od::AbortCode::VALUE_TOO_HIGH);
             }
-            self.pid_parameters_pid_selection = v;
+            self.pid_parameters_selection = v;
             Ok(())
         }
         /// Reads `0x2011` sub 2 PID parameters: Kp position.
@@ -14233,37 +14205,37 @@ PDOMapping=0
         ///
         /// UNSIGNED8, access `rw`. Default: 1. At most 1.
         #[inline]
-        pub const fn profile_parameters_profile_check(&self) -> u8 {
-            self.profile_parameters_profile_check
+        pub const fn profile_parameters_check(&self) -> u8 {
+            self.profile_parameters_check
         }
-        /// Sets `0x2012` sub 1 Profile parameters: Profile check (see [`Self::profile_parameters_profile_check`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2012` sub 1 Profile parameters: Profile check (see [`Self::profile_parameters_check`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_profile_parameters_profile_check(
+        pub fn set_profile_parameters_check(
             &mut self,
             v: u8,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             if v > 1 {
                 return Err(::od_runtime::od::AbortCode::VALUE_TOO_HIGH);
             }
-            self.profile_parameters_profile_check = v;
+            self.profile_parameters_check = v;
             Ok(())
         }
         /// Reads `0x2012` sub 2 Profile parameters: Profile check timeout.
         ///
         /// UNSIGNED16, access `rw`. Default: 50.
         ///
-        /// Dimension: Time (typed conversion: `units::Units::profile_parameters_profile_check_timeout`).
+        /// Dimension: Time (typed conversion: `units::Units::profile_parameters_check_timeout`).
         #[inline]
-        pub const fn profile_parameters_profile_check_timeout(&self) -> u16 {
-            self.profile_parameters_profile_check_timeout
+        pub const fn profile_parameters_check_timeout(&self) -> u16 {
+            self.profile_parameters_check_timeout
         }
-        /// Sets `0x2012` sub 2 Profile parameters: Profile check timeout (see [`Self::profile_parameters_profile_check_timeout`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2012` sub 2 Profile parameters: Profile check timeout (see [`Self::profile_parameters_check_timeout`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_profile_parameters_profile_check_timeout(
+        pub fn set_profile_parameters_check_timeout(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.profile_parameters_profile_check_timeout = v;
+            self.profile_parameters_check_timeout = v;
             Ok(())
         }
         /// Reads `0x2013` Homing torque limit.
@@ -14660,36 +14632,36 @@ PDOMapping=0
         ///
         /// INTEGER32, access `rw`. Default: 0.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_min_software_position_limit`).
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_min`).
         #[inline]
-        pub const fn software_position_limit_min_software_position_limit(&self) -> i32 {
-            self.software_position_limit_min_software_position_limit
+        pub const fn software_position_limit_min(&self) -> i32 {
+            self.software_position_limit_min
         }
-        /// Sets `0x607D` sub 1 Software position limit: Min software position limit (see [`Self::software_position_limit_min_software_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x607D` sub 1 Software position limit: Min software position limit (see [`Self::software_position_limit_min`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_software_position_limit_min_software_position_limit(
+        pub fn set_software_position_limit_min(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.software_position_limit_min_software_position_limit = v;
+            self.software_position_limit_min = v;
             Ok(())
         }
         /// Reads `0x607D` sub 2 Software position limit: Max software position limit.
         ///
         /// INTEGER32, access `rw`. Default: 0.
         ///
-        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_max_software_position_limit`).
+        /// Dimension: Position (typed conversion: `units::Units::software_position_limit_max`).
         #[inline]
-        pub const fn software_position_limit_max_software_position_limit(&self) -> i32 {
-            self.software_position_limit_max_software_position_limit
+        pub const fn software_position_limit_max(&self) -> i32 {
+            self.software_position_limit_max
         }
-        /// Sets `0x607D` sub 2 Software position limit: Max software position limit (see [`Self::software_position_limit_max_software_position_limit`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x607D` sub 2 Software position limit: Max software position limit (see [`Self::software_position_limit_max`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_software_position_limit_max_software_position_limit(
+        pub fn set_software_position_limit_max(
             &mut self,
             v: i32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.software_position_limit_max_software_position_limit = v;
+            self.software_position_limit_max = v;
             Ok(())
         }
         /// Reads `0x607E` Polarity.
@@ -14930,36 +14902,36 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
         ///
-        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_fast_homing_speed`).
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_fast`).
         #[inline]
-        pub const fn homing_speeds_fast_homing_speed(&self) -> u32 {
-            self.homing_speeds_fast_homing_speed
+        pub const fn homing_speeds_fast(&self) -> u32 {
+            self.homing_speeds_fast
         }
-        /// Sets `0x6099` sub 1 Homing speeds: Fast homing speed (see [`Self::homing_speeds_fast_homing_speed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x6099` sub 1 Homing speeds: Fast homing speed (see [`Self::homing_speeds_fast`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_homing_speeds_fast_homing_speed(
+        pub fn set_homing_speeds_fast(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.homing_speeds_fast_homing_speed = v;
+            self.homing_speeds_fast = v;
             Ok(())
         }
         /// Reads `0x6099` sub 2 Homing speeds: Slow homing speed.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 0.
         ///
-        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_slow_homing_speed`).
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_slow`).
         #[inline]
-        pub const fn homing_speeds_slow_homing_speed(&self) -> u32 {
-            self.homing_speeds_slow_homing_speed
+        pub const fn homing_speeds_slow(&self) -> u32 {
+            self.homing_speeds_slow
         }
-        /// Sets `0x6099` sub 2 Homing speeds: Slow homing speed (see [`Self::homing_speeds_slow_homing_speed`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x6099` sub 2 Homing speeds: Slow homing speed (see [`Self::homing_speeds_slow`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_homing_speeds_slow_homing_speed(
+        pub fn set_homing_speeds_slow(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.homing_speeds_slow_homing_speed = v;
+            self.homing_speeds_slow = v;
             Ok(())
         }
         /// Reads `0x609A` Homing acceleration.
@@ -15637,25 +15609,24 @@ PDOMapping=0
                 Ratio::new(t, b).ok_or(UnitError::Overflow)
             }
             /// `0x2012` sub 2 Profile parameters: Profile check timeout as a Time quantity.
-            pub fn profile_parameters_profile_check_timeout(
+            pub fn profile_parameters_check_timeout(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Time,
-                    od.profile_parameters_profile_check_timeout() as i64,
+                    od.profile_parameters_check_timeout() as i64,
                 )
             }
             /// Sets `0x2012` sub 2 Profile parameters: Profile check timeout from a Time quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_profile_parameters_profile_check_timeout(
+            pub fn set_profile_parameters_check_timeout(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Time, q)?;
                 let v = u16::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_profile_parameters_profile_check_timeout(v)
-                    .map_err(UnitError::Rejected)
+                od.set_profile_parameters_check_timeout(v).map_err(UnitError::Rejected)
             }
             /// `0x6062` Position demand value as a Position quantity.
             pub fn position_demand_value(
@@ -15879,46 +15850,44 @@ PDOMapping=0
                 od.set_home_offset(v).map_err(UnitError::Rejected)
             }
             /// `0x607D` sub 1 Software position limit: Min software position limit as a Position quantity.
-            pub fn software_position_limit_min_software_position_limit(
+            pub fn software_position_limit_min(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.software_position_limit_min_software_position_limit() as i64,
+                    od.software_position_limit_min() as i64,
                 )
             }
             /// Sets `0x607D` sub 1 Software position limit: Min software position limit from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_software_position_limit_min_software_position_limit(
+            pub fn set_software_position_limit_min(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_software_position_limit_min_software_position_limit(v)
-                    .map_err(UnitError::Rejected)
+                od.set_software_position_limit_min(v).map_err(UnitError::Rejected)
             }
             /// `0x607D` sub 2 Software position limit: Max software position limit as a Position quantity.
-            pub fn software_position_limit_max_software_position_limit(
+            pub fn software_position_limit_max(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
                 self.to_physical(
                     Dimension::Position,
-                    od.software_position_limit_max_software_position_limit() as i64,
+                    od.software_position_limit_max() as i64,
                 )
             }
             /// Sets `0x607D` sub 2 Software position limit: Max software position limit from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_software_position_limit_max_software_position_limit(
+            pub fn set_software_position_limit_max(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Position, q)?;
                 let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_software_position_limit_max_software_position_limit(v)
-                    .map_err(UnitError::Rejected)
+                od.set_software_position_limit_max(v).map_err(UnitError::Rejected)
             }
             /// `0x607F` Max profile velocity as a Velocity quantity.
             pub fn max_profile_velocity(
@@ -16012,44 +15981,38 @@ PDOMapping=0
                 od.set_torque_slope(v).map_err(UnitError::Rejected)
             }
             /// `0x6099` sub 1 Homing speeds: Fast homing speed as a Velocity quantity.
-            pub fn homing_speeds_fast_homing_speed(
+            pub fn homing_speeds_fast(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
-                self.to_physical(
-                    Dimension::Velocity,
-                    od.homing_speeds_fast_homing_speed() as i64,
-                )
+                self.to_physical(Dimension::Velocity, od.homing_speeds_fast() as i64)
             }
             /// Sets `0x6099` sub 1 Homing speeds: Fast homing speed from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_homing_speeds_fast_homing_speed(
+            pub fn set_homing_speeds_fast(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Velocity, q)?;
                 let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_homing_speeds_fast_homing_speed(v).map_err(UnitError::Rejected)
+                od.set_homing_speeds_fast(v).map_err(UnitError::Rejected)
             }
             /// `0x6099` sub 2 Homing speeds: Slow homing speed as a Velocity quantity.
-            pub fn homing_speeds_slow_homing_speed(
+            pub fn homing_speeds_slow(
                 &self,
                 od: &super::Dictionary,
             ) -> Result<Quantity, UnitError> {
-                self.to_physical(
-                    Dimension::Velocity,
-                    od.homing_speeds_slow_homing_speed() as i64,
-                )
+                self.to_physical(Dimension::Velocity, od.homing_speeds_slow() as i64)
             }
             /// Sets `0x6099` sub 2 Homing speeds: Slow homing speed from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
-            pub fn set_homing_speeds_slow_homing_speed(
+            pub fn set_homing_speeds_slow(
                 &self,
                 od: &mut super::Dictionary,
                 q: Quantity,
             ) -> Result<(), UnitError> {
                 let raw = self.to_raw(Dimension::Velocity, q)?;
                 let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
-                od.set_homing_speeds_slow_homing_speed(v).map_err(UnitError::Rejected)
+                od.set_homing_speeds_slow(v).map_err(UnitError::Rejected)
             }
             /// `0x609A` Homing acceleration as a Acceleration quantity.
             pub fn homing_acceleration(

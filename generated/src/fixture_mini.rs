@@ -764,7 +764,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, rpdo_communication_parameter_1_cob_id_used_by_rpdo
+                    Dictionary, rpdo_communication_parameter_1_cob_id
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -884,7 +884,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, tpdo_communication_parameter_1_cob_id_used_by_tpdo
+                    Dictionary, tpdo_communication_parameter_1_cob_id
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -1158,7 +1158,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
-                ::core::mem::offset_of!(Dictionary, gains_gain_2_2),
+                ::core::mem::offset_of!(Dictionary, gains_2_2),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
@@ -1173,7 +1173,7 @@ PDOMapping=0
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
-                ::core::mem::offset_of!(Dictionary, gains_gain_2_3),
+                ::core::mem::offset_of!(Dictionary, gains_2_3),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
@@ -1324,7 +1324,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, homing_speeds_speed_during_search_for_switch
+                    Dictionary, homing_speeds_during_search_for_switch
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -1341,7 +1341,7 @@ PDOMapping=0
                 u32,
             >(
                 ::core::mem::offset_of!(
-                    Dictionary, homing_speeds_speed_during_search_for_zero
+                    Dictionary, homing_speeds_during_search_for_zero
                 ),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
@@ -1584,14 +1584,14 @@ PDOMapping=0
         identity_object_revision_number: u32,
         identity_object_serial_number: u32,
         rpdo_communication_parameter_1_highest_sub_index_supported: u8,
-        rpdo_communication_parameter_1_cob_id_used_by_rpdo: u32,
+        rpdo_communication_parameter_1_cob_id: u32,
         rpdo_communication_parameter_1_transmission_type: u8,
         rpdo_mapping_parameter_1_number_of_mapped_objects: u8,
         rpdo_mapping_parameter_1_mapped_object_1: u32,
         rpdo_mapping_parameter_1_mapped_object_2: u32,
         rpdo_mapping_parameter_1_mapped_object_3: u32,
         tpdo_communication_parameter_1_highest_sub_index_supported: u8,
-        tpdo_communication_parameter_1_cob_id_used_by_tpdo: u32,
+        tpdo_communication_parameter_1_cob_id: u32,
         tpdo_communication_parameter_1_transmission_type: u8,
         tpdo_mapping_parameter_1_number_of_mapped_objects: u8,
         tpdo_mapping_parameter_1_mapped_object_1: u32,
@@ -1608,8 +1608,8 @@ PDOMapping=0
         counter: u64,
         gains_number_of_entries: u8,
         gains_type: u16,
-        gains_gain_2_2: u16,
-        gains_gain_2_3: u16,
+        gains_2_2: u16,
+        gains_2_3: u16,
         position_window: u32,
         controlword: u16,
         statusword: u16,
@@ -1619,8 +1619,8 @@ PDOMapping=0
         velocity_actual_value: i32,
         target_position: i32,
         homing_speeds_number_of_entries: u8,
-        homing_speeds_speed_during_search_for_switch: u32,
-        homing_speeds_speed_during_search_for_zero: u32,
+        homing_speeds_during_search_for_switch: u32,
+        homing_speeds_during_search_for_zero: u32,
     }
     impl Dictionary {
         /// A dictionary holding every entry's default, with `$NODEID` resolved for `node_id`.
@@ -1638,16 +1638,14 @@ PDOMapping=0
                 identity_object_revision_number: 0x1,
                 identity_object_serial_number: 0,
                 rpdo_communication_parameter_1_highest_sub_index_supported: 2,
-                rpdo_communication_parameter_1_cob_id_used_by_rpdo: (0x200
-                    + node_id as i128) as u32,
+                rpdo_communication_parameter_1_cob_id: (0x200 + node_id as i128) as u32,
                 rpdo_communication_parameter_1_transmission_type: 255,
                 rpdo_mapping_parameter_1_number_of_mapped_objects: 3,
                 rpdo_mapping_parameter_1_mapped_object_1: 0x60400010,
                 rpdo_mapping_parameter_1_mapped_object_2: 0x50008,
                 rpdo_mapping_parameter_1_mapped_object_3: 0x60600008,
                 tpdo_communication_parameter_1_highest_sub_index_supported: 2,
-                tpdo_communication_parameter_1_cob_id_used_by_tpdo: (0x180
-                    + node_id as i128) as u32,
+                tpdo_communication_parameter_1_cob_id: (0x180 + node_id as i128) as u32,
                 tpdo_communication_parameter_1_transmission_type: 255,
                 tpdo_mapping_parameter_1_number_of_mapped_objects: 4,
                 tpdo_mapping_parameter_1_mapped_object_1: 0x60410010,
@@ -1664,8 +1662,8 @@ PDOMapping=0
                 counter: 0x123456789,
                 gains_number_of_entries: 3,
                 gains_type: 1,
-                gains_gain_2_2: 2,
-                gains_gain_2_3: 3,
+                gains_2_2: 2,
+                gains_2_3: 3,
                 position_window: (0x10 + node_id as i128) as u32,
                 controlword: 0,
                 statusword: 0,
@@ -1675,8 +1673,8 @@ PDOMapping=0
                 velocity_actual_value: 0,
                 target_position: 0,
                 homing_speeds_number_of_entries: 2,
-                homing_speeds_speed_during_search_for_switch: 1000,
-                homing_speeds_speed_during_search_for_zero: 100,
+                homing_speeds_during_search_for_switch: 1000,
+                homing_speeds_during_search_for_zero: 100,
             }
         }
         /// Every value zero, every buffer empty. A device's first poll (its reset node)
@@ -1696,14 +1694,14 @@ PDOMapping=0
                 identity_object_revision_number: 0,
                 identity_object_serial_number: 0,
                 rpdo_communication_parameter_1_highest_sub_index_supported: 0,
-                rpdo_communication_parameter_1_cob_id_used_by_rpdo: 0,
+                rpdo_communication_parameter_1_cob_id: 0,
                 rpdo_communication_parameter_1_transmission_type: 0,
                 rpdo_mapping_parameter_1_number_of_mapped_objects: 0,
                 rpdo_mapping_parameter_1_mapped_object_1: 0,
                 rpdo_mapping_parameter_1_mapped_object_2: 0,
                 rpdo_mapping_parameter_1_mapped_object_3: 0,
                 tpdo_communication_parameter_1_highest_sub_index_supported: 0,
-                tpdo_communication_parameter_1_cob_id_used_by_tpdo: 0,
+                tpdo_communication_parameter_1_cob_id: 0,
                 tpdo_communication_parameter_1_transmission_type: 0,
                 tpdo_mapping_parameter_1_number_of_mapped_objects: 0,
                 tpdo_mapping_parameter_1_mapped_object_1: 0,
@@ -1720,8 +1718,8 @@ PDOMapping=0
                 counter: 0,
                 gains_number_of_entries: 0,
                 gains_type: 0,
-                gains_gain_2_2: 0,
-                gains_gain_2_3: 0,
+                gains_2_2: 0,
+                gains_2_3: 0,
                 position_window: 0,
                 controlword: 0,
                 statusword: 0,
@@ -1731,8 +1729,8 @@ PDOMapping=0
                 velocity_actual_value: 0,
                 target_position: 0,
                 homing_speeds_number_of_entries: 0,
-                homing_speeds_speed_during_search_for_switch: 0,
-                homing_speeds_speed_during_search_for_zero: 0,
+                homing_speeds_during_search_for_switch: 0,
+                homing_speeds_during_search_for_zero: 0,
             }
         }
         /// Position of `(index, sub)` in [`ENTRIES`]: `Err(NO_OBJECT)` if the index is absent,
@@ -2005,16 +2003,16 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: $NODEID + 0x200.
         #[inline]
-        pub const fn rpdo_communication_parameter_1_cob_id_used_by_rpdo(&self) -> u32 {
-            self.rpdo_communication_parameter_1_cob_id_used_by_rpdo
+        pub const fn rpdo_communication_parameter_1_cob_id(&self) -> u32 {
+            self.rpdo_communication_parameter_1_cob_id
         }
-        /// Sets `0x1400` sub 1 RPDO communication parameter 1: COB-ID used by RPDO (see [`Self::rpdo_communication_parameter_1_cob_id_used_by_rpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1400` sub 1 RPDO communication parameter 1: COB-ID used by RPDO (see [`Self::rpdo_communication_parameter_1_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_rpdo_communication_parameter_1_cob_id_used_by_rpdo(
+        pub fn set_rpdo_communication_parameter_1_cob_id(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.rpdo_communication_parameter_1_cob_id_used_by_rpdo = v;
+            self.rpdo_communication_parameter_1_cob_id = v;
             Ok(())
         }
         /// Reads `0x1400` sub 2 RPDO communication parameter 1: Transmission type.
@@ -2119,16 +2117,16 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`. Default: $NODEID + 0x180.
         #[inline]
-        pub const fn tpdo_communication_parameter_1_cob_id_used_by_tpdo(&self) -> u32 {
-            self.tpdo_communication_parameter_1_cob_id_used_by_tpdo
+        pub const fn tpdo_communication_parameter_1_cob_id(&self) -> u32 {
+            self.tpdo_communication_parameter_1_cob_id
         }
-        /// Sets `0x1800` sub 1 TPDO communication parameter 1: COB-ID used by TPDO (see [`Self::tpdo_communication_parameter_1_cob_id_used_by_tpdo`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x1800` sub 1 TPDO communication parameter 1: COB-ID used by TPDO (see [`Self::tpdo_communication_parameter_1_cob_id`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_tpdo_communication_parameter_1_cob_id_used_by_tpdo(
+        pub fn set_tpdo_communication_parameter_1_cob_id(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.tpdo_communication_parameter_1_cob_id_used_by_tpdo = v;
+            self.tpdo_communication_parameter_1_cob_id = v;
             Ok(())
         }
         /// Reads `0x1800` sub 2 TPDO communication parameter 1: Transmission type.
@@ -2397,35 +2395,35 @@ PDOMapping=0
         ///
         /// UNSIGNED16, access `rw`. Default: 2. At most 500.
         #[inline]
-        pub const fn gains_gain_2_2(&self) -> u16 {
-            self.gains_gain_2_2
+        pub const fn gains_2_2(&self) -> u16 {
+            self.gains_2_2
         }
-        /// Sets `0x2006` sub 2 Gains: Gain 2 (see [`Self::gains_gain_2_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2006` sub 2 Gains: Gain 2 (see [`Self::gains_2_2`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_gains_gain_2_2(
+        pub fn set_gains_2_2(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             if v > 500 {
                 return Err(::od_runtime::od::AbortCode::VALUE_TOO_HIGH);
             }
-            self.gains_gain_2_2 = v;
+            self.gains_2_2 = v;
             Ok(())
         }
         /// Reads `0x2006` sub 3 Gains: Gain 2.
         ///
         /// UNSIGNED16, access `rw`. Default: 3.
         #[inline]
-        pub const fn gains_gain_2_3(&self) -> u16 {
-            self.gains_gain_2_3
+        pub const fn gains_2_3(&self) -> u16 {
+            self.gains_2_3
         }
-        /// Sets `0x2006` sub 3 Gains: Gain 2 (see [`Self::gains_gain_2_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x2006` sub 3 Gains: Gain 2 (see [`Self::gains_2_3`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_gains_gain_2_3(
+        pub fn set_gains_2_3(
             &mut self,
             v: u16,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.gains_gain_2_3 = v;
+            self.gains_2_3 = v;
             Ok(())
         }
         /// Reads `0x2007` Position window.
@@ -2588,32 +2586,32 @@ PDOMapping=0
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 1000 (0x3E8).
         #[inline]
-        pub const fn homing_speeds_speed_during_search_for_switch(&self) -> u32 {
-            self.homing_speeds_speed_during_search_for_switch
+        pub const fn homing_speeds_during_search_for_switch(&self) -> u32 {
+            self.homing_speeds_during_search_for_switch
         }
-        /// Sets `0x6099` sub 1 Homing speeds: Speed during search for switch (see [`Self::homing_speeds_speed_during_search_for_switch`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x6099` sub 1 Homing speeds: Speed during search for switch (see [`Self::homing_speeds_during_search_for_switch`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_homing_speeds_speed_during_search_for_switch(
+        pub fn set_homing_speeds_during_search_for_switch(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.homing_speeds_speed_during_search_for_switch = v;
+            self.homing_speeds_during_search_for_switch = v;
             Ok(())
         }
         /// Reads `0x6099` sub 2 Homing speeds: Speed during search for zero.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 100.
         #[inline]
-        pub const fn homing_speeds_speed_during_search_for_zero(&self) -> u32 {
-            self.homing_speeds_speed_during_search_for_zero
+        pub const fn homing_speeds_during_search_for_zero(&self) -> u32 {
+            self.homing_speeds_during_search_for_zero
         }
-        /// Sets `0x6099` sub 2 Homing speeds: Speed during search for zero (see [`Self::homing_speeds_speed_during_search_for_zero`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x6099` sub 2 Homing speeds: Speed during search for zero (see [`Self::homing_speeds_during_search_for_zero`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_homing_speeds_speed_during_search_for_zero(
+        pub fn set_homing_speeds_during_search_for_zero(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.homing_speeds_speed_during_search_for_zero = v;
+            self.homing_speeds_during_search_for_zero = v;
             Ok(())
         }
     }

@@ -16,7 +16,7 @@ fn read(od: &Dictionary, index: u16, sub: u8) -> Result<Vec<u8>, AbortCode> {
 fn defaults_and_node_id() {
     let od = Dictionary::new(5);
     assert_eq!(od.device_type(), 0x0002_0192);
-    assert_eq!(od.rpdo_communication_parameter_1_cob_id_used_by_rpdo(), 0x205);
+    assert_eq!(od.rpdo_communication_parameter_1_cob_id(), 0x205);
     assert_eq!(od.position_window(), 0x15);
     assert_eq!(od.signed_24(), -5);
     assert!(od.flag());
@@ -93,7 +93,7 @@ fn typed_setters_enforce_limits_and_type_ranges() {
     assert_eq!(od.set_signed_24(1001), Err(AbortCode::VALUE_TOO_HIGH));
     assert_eq!(od.set_counter(1 << 40), Err(AbortCode::VALUE_TOO_HIGH)); // UNSIGNED40 in a u64
     od.set_counter((1 << 40) - 1).unwrap();
-    assert_eq!(od.set_gains_gain_2_2(501), Err(AbortCode::VALUE_TOO_HIGH));
+    assert_eq!(od.set_gains_2_2(501), Err(AbortCode::VALUE_TOO_HIGH));
     assert_eq!(od.set_gain(f32::INFINITY), Err(AbortCode::VALUE_TOO_HIGH));
     assert_eq!(od.set_blob(&[0; 33]), Err(AbortCode::LENGTH_TOO_HIGH));
     od.set_blob(&[9; 32]).unwrap();
@@ -103,16 +103,16 @@ fn typed_setters_enforce_limits_and_type_ranges() {
 #[test]
 fn restore_defaults_by_area() {
     let mut od = Dictionary::new(7);
-    od.set_rpdo_communication_parameter_1_cob_id_used_by_rpdo(0x8000_0000).unwrap();
+    od.set_rpdo_communication_parameter_1_cob_id(0x8000_0000).unwrap();
     od.set_controlword(0xFF).unwrap();
     od.set_signed_24(100).unwrap();
     od.set_manufacturer_device_name(b"other").unwrap();
     od.restore_defaults(Area::Application, 9);
     assert_eq!(od.controlword(), 0);
     assert_eq!(od.signed_24(), 100, "manufacturer area untouched");
-    assert_eq!(od.rpdo_communication_parameter_1_cob_id_used_by_rpdo(), 0x8000_0000);
+    assert_eq!(od.rpdo_communication_parameter_1_cob_id(), 0x8000_0000);
     od.restore_defaults(Area::All, 9);
-    assert_eq!(od.rpdo_communication_parameter_1_cob_id_used_by_rpdo(), 0x209);
+    assert_eq!(od.rpdo_communication_parameter_1_cob_id(), 0x209);
     assert_eq!(od.signed_24(), -5);
     assert_eq!(od.manufacturer_device_name(), b"Mini drive");
     assert_eq!(od, Dictionary::new(9));

@@ -153,7 +153,7 @@ mod akd {
         assert_eq!(System::active(&od), System::WorkbenchUnits);
         od.set_fieldbus_configuration_bits(0x10).unwrap(); // FBUS.PARAM05 bit 4: DS402 factors
         assert_eq!(System::active(&od), System::Ds402Factors);
-        od.set_position_encoder_resolution_encoder_increments(1 << 20).unwrap();
+        od.set_position_encoder_resolution_increments(1 << 20).unwrap();
         od.set_position_encoder_resolution_motor_revolutions(1).unwrap();
         let u = Units::from_dictionary(&od).unwrap();
         assert_eq!(u.to_internal(Dimension::Position, 1), Ok(Ratio::int(1 << 20)));

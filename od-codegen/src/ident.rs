@@ -145,7 +145,8 @@ const ABBREVIATIONS: &[(&str, &str)] = &[
 ];
 
 /// Words that only link others; dropped (from inside a name, never its ends) to shorten it.
-const LINKING: &[&str] = &["of", "the", "for", "by", "used", "to", "and", "in", "a", "an", "on", "with", "from", "at"];
+pub(crate) const LINKING: &[&str] =
+    &["of", "the", "for", "by", "used", "to", "and", "in", "a", "an", "on", "with", "from", "at"];
 
 /// The longest name the generator gives (getters; setters add `set_`).
 pub const MAX_LEN: usize = 64;

@@ -240,26 +240,183 @@ fn strip_object_words(sub: &[String], obj: &[String]) -> Vec<String> {
     sub[k..].to_vec()
 }
 
-/// The words of each sub-entry's name within its object: the object's words, then the
-/// sub-entry's own; sub-entries whose own words are empty or shared with a sibling (array and
-/// record elements named alike) take their sub-index as a plain number at the end.
-fn sub_words(obj: &Object, obj_words: &[String]) -> std::collections::BTreeMap<u8, Vec<String>> {
-    use std::collections::BTreeMap;
-    let plain = ident::words(&obj.name);
-    let own: BTreeMap<u8, Vec<String>> =
-        obj.subs.values().map(|e| (e.sub.0, strip_object_words(&ident::words(&e.name), &plain))).collect();
-    let mut count: BTreeMap<&Vec<String>, usize> = BTreeMap::new();
-    for w in own.values() {
-        *count.entry(w).or_default() += 1;
+/// A word compared singular and plural alike: `widths` → `width`, `entries` → `entry`,
+/// `switches` → `switch`, `ids` → `id`.
+fn singular(w: &str) -> String {
+    if let Some(stem) = w.strip_suffix("ies").filter(|s| s.len() >= 2) {
+        return format!("{stem}y");
     }
-    own.iter()
-        .map(|(sub, w)| {
-            let mut full = obj_words.to_vec();
-            full.extend(w.iter().cloned());
-            if w.is_empty() || count.get(w).copied().unwrap_or(0) > 1 {
-                full.push(sub.to_string());
+    for end in ["sses", "ches", "shes", "xes"] {
+        if w.ends_with(end) {
+            return w[..w.len() - 2].to_owned();
+        }
+    }
+    match w.strip_suffix('s') {
+        Some(stem) if w.len() >= 3 && !stem.ends_with('s') => stem.to_owned(),
+        _ => w.to_owned(),
+    }
+}
+
+/// The sub-entry's own words: its name without every word its object's name already says, in
+/// any position, singular and plural alike (`Software position limit` / `Max software position
+/// limit` → `max`; `Programmable limit switch widths` / `Limit switch 3 width` → `3`; `Wake and
+/// shake parameters` / `Wake and shake maximum current` → `maximum current`). A word glued to a
+/// number (`parameter2`) counts as the word and the number. A linking word (`and`, `of`) goes
+/// only beside a word that went, and never stays at either end; a number goes only where the
+/// object says it beside the same word (`Touch probe 1 config` / `Touch probe 1 config mode`),
+/// else it stays in its place. Words in `keep` stay (they tell siblings apart).
+fn drop_object_words(sub: &[String], obj: &[String], keep: &std::collections::BTreeSet<String>) -> Vec<String> {
+    let said: std::collections::BTreeSet<String> = obj.iter().map(|w| singular(w)).collect();
+    let mut split = Vec::with_capacity(sub.len());
+    for w in sub {
+        let glued = obj.iter().filter(|o| !o.bytes().all(|b| b.is_ascii_digit())).find_map(|o| {
+            w.strip_prefix(o.as_str()).filter(|d| !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit()))
+        });
+        match glued {
+            Some(d) => {
+                split.push(w[..w.len() - d.len()].to_owned());
+                split.push(d.to_owned());
             }
-            (*sub, full)
+            None => split.push(w.clone()),
+        }
+    }
+    let linking = |w: &str| ident::LINKING.contains(&w);
+    let number = |w: &str| w.bytes().all(|b| b.is_ascii_digit());
+    let objs: Vec<String> = obj.iter().map(|w| singular(w)).collect();
+    let subs: Vec<String> = split.iter().map(|w| singular(w)).collect();
+    // The number at `i` beside the same word as one the object says.
+    let same_place = |i: usize| {
+        objs.iter().enumerate().any(|(j, o)| {
+            *o == subs[i]
+                && ((i > 0 && j > 0 && subs[i - 1] == objs[j - 1])
+                    || (i + 1 < subs.len() && j + 1 < objs.len() && subs[i + 1] == objs[j + 1]))
+        })
+    };
+    let mut gone: Vec<bool> = (0..split.len())
+        .map(|i| {
+            let w = &split[i];
+            !linking(w) && !keep.contains(&subs[i]) && said.contains(&subs[i]) && (!number(w) || same_place(i))
+        })
+        .collect();
+    for i in 0..split.len() {
+        if linking(&split[i])
+            && said.contains(&split[i])
+            && ((i > 0 && gone[i - 1]) || gone.get(i + 1).copied().unwrap_or(false))
+        {
+            gone[i] = true;
+        }
+    }
+    // A word a kept linking word ties to a kept word stays: `client to server`, `number of
+    // errors` keep their sense.
+    for i in 1..split.len().saturating_sub(1) {
+        if linking(&split[i]) && !gone[i] {
+            let (l, r) = (i - 1, i + 1);
+            if gone[l] && !gone[r] && !linking(&split[r]) {
+                gone[l] = false;
+            } else if gone[r] && !gone[l] && !linking(&split[l]) {
+                gone[r] = false;
+            }
+        }
+    }
+    // Linking words left at an end beside a dropped word go too (`COB-ID used by RPDO` →
+    // `cob id`); one that starts or ends the name itself stays (`Std in`, `Analog input used`).
+    let mut first = 0;
+    while first < split.len()
+        && (gone[first] || (linking(&split[first]) && first > 0 && first + 1 < split.len() && gone[first - 1]))
+    {
+        gone[first] = true;
+        first += 1;
+    }
+    let mut last = split.len();
+    while last > first && (gone[last - 1] || (linking(&split[last - 1]) && last < split.len() && gone[last])) {
+        gone[last - 1] = true;
+        last -= 1;
+    }
+    let mut rest: Vec<String> = split.into_iter().zip(gone).filter(|(_, g)| !g).map(|(w, _)| w).collect();
+    // Words a dropped one stood between (`PERSIST_APP_AUTO auto-store` → `auto auto`) are one.
+    rest.dedup_by(|a, b| a == b && !number(a));
+    rest
+}
+
+/// The words of each sub-entry's name within its object, as `(name, fuller name)`: the
+/// object's words, then the sub-entry's own.
+///
+/// The own words are the sub-entry's name without the words its object already says
+/// ([`drop_object_words`]). Siblings whose own words are alike keep the object's words that
+/// tell them apart. When the own words are empty, an entry whose name carries a number or is
+/// shared by a sibling takes its sub-index (`consumer_heartbeat_time_1`), another its name
+/// without just the object's leading words ([`strip_object_words`]: `Feed constant` / `Feed`
+/// → `feed`) if that is unique; own
+/// words still shared with a sibling take the fuller name if unique, else the sub-index as a
+/// plain number. The fuller name is
+/// the one without just the object's leading words, tried before the index suffix when the
+/// name is taken by another object's accessor.
+fn sub_words(obj: &Object, obj_words: &[String]) -> std::collections::BTreeMap<u8, (Vec<String>, Vec<String>)> {
+    use std::collections::{BTreeMap, BTreeSet};
+    let plain = ident::words(&obj.name);
+    let names: BTreeMap<u8, Vec<String>> = obj.subs.values().map(|e| (e.sub.0, ident::words(&e.name))).collect();
+    let fuller: BTreeMap<u8, Vec<String>> = names.iter().map(|(s, w)| (*s, strip_object_words(w, &plain))).collect();
+    let none = BTreeSet::new();
+    let mut own: BTreeMap<u8, Vec<String>> =
+        names.iter().map(|(s, w)| (*s, drop_object_words(w, &plain, &none))).collect();
+    // Siblings whose own words are empty or alike keep the object's words that tell them apart
+    // (`Vl velocity min max amount` / `Vl velocity min amount`, `… max amount` → `min`, `max`).
+    let groups: BTreeSet<Vec<String>> =
+        own.values().filter(|w| w.is_empty() || own.values().filter(|x| x == w).count() > 1).cloned().collect();
+    for g in groups {
+        let members: Vec<u8> = own.iter().filter(|(_, w)| **w == g).map(|(s, _)| *s).collect();
+        let sets: Vec<BTreeSet<String>> =
+            members.iter().map(|s| names[s].iter().map(|w| singular(w)).collect()).collect();
+        let apart: BTreeSet<String> =
+            sets.iter().flatten().filter(|w| !sets.iter().all(|set| set.contains(*w))).cloned().collect();
+        if apart.is_empty() {
+            continue;
+        }
+        let redone: Vec<Vec<String>> = members.iter().map(|s| drop_object_words(&names[s], &plain, &apart)).collect();
+        if redone.iter().all(|w| !w.is_empty() && redone.iter().filter(|x| x == &w).count() == 1) {
+            for (s, w) in members.iter().zip(redone) {
+                own.insert(*s, w);
+            }
+        }
+    }
+    let unique = |map: &BTreeMap<u8, Vec<String>>, w: &Vec<String>| map.values().filter(|x| *x == w).count() == 1;
+    let mut chosen: BTreeMap<u8, Vec<String>> = BTreeMap::new();
+    for (sub, w) in &own {
+        let f = &fuller[sub];
+        let number = vec![sub.to_string()];
+        let pick = if !w.is_empty() && unique(&own, w) {
+            w.clone()
+        } else if w.is_empty()
+            && (names[sub].iter().any(|x| x.bytes().any(|b| b.is_ascii_digit())) || !unique(&fuller, f))
+            && !own.values().any(|x| *x == number)
+        {
+            number
+        } else if !f.is_empty() && unique(&fuller, f) && !own.iter().any(|(s, x)| s != sub && x == f) {
+            f.clone()
+        } else {
+            let mut n = w.clone();
+            n.push(sub.to_string());
+            n
+        };
+        chosen.insert(*sub, pick);
+    }
+    // A fuller name that equals a sibling's own: both take their number.
+    let dup: BTreeSet<Vec<String>> =
+        chosen.values().filter(|w| chosen.values().filter(|x| x == w).count() > 1).cloned().collect();
+    chosen
+        .into_iter()
+        .map(|(sub, mut w)| {
+            if dup.contains(&w) {
+                w.push(sub.to_string());
+            }
+            let mut name = obj_words.to_vec();
+            name.extend(w);
+            let mut full = obj_words.to_vec();
+            full.extend(fuller[&sub].iter().cloned());
+            if full == name || fuller[&sub].is_empty() {
+                full = name.clone();
+            }
+            (sub, (name, full))
         })
         .collect()
 }
@@ -301,8 +458,8 @@ pub(crate) fn build<'m>(model: &'m Model, options: &Options, sink: &mut Sink) ->
         let mut kept_any = false;
         let mut renamed = Vec::new();
         for e in obj.subs.values() {
-            let w = subs.get(&e.sub.0).cloned().unwrap_or_else(|| obj_words.clone());
-            let Some((p, rename)) = plan_entry(obj, e, w, options, sink, &mut methods) else { continue };
+            let (w, fuller) = subs.get(&e.sub.0).cloned().unwrap_or_else(|| (obj_words.clone(), obj_words.clone()));
+            let Some((p, rename)) = plan_entry(obj, e, w, fuller, options, sink, &mut methods) else { continue };
             renamed.extend(rename);
             entries.push(p);
             kept_any = true;
@@ -342,12 +499,13 @@ pub(crate) fn build<'m>(model: &'m Model, options: &Options, sink: &mut Sink) ->
     Plan { entries, objects }
 }
 
-/// Plans one entry named by `words`; also gives `(wanted, given)` when the wanted name was
-/// taken.
+/// Plans one entry named by `words` (or `fuller` when that is taken); also gives `(wanted,
+/// given)` when the wanted name was taken.
 fn plan_entry<'m>(
     obj: &'m Object,
     e: &'m Entry,
     words: Vec<String>,
+    fuller: Vec<String>,
     options: &Options,
     sink: &mut Sink,
     methods: &mut Names,
@@ -366,21 +524,32 @@ fn plan_entry<'m>(
         return None;
     }
 
-    // Name: the planned words; when taken, the index (and sub-index) as a last resort.
+    // Name: the planned words; when taken, the fuller words; the index (and sub-index) as a
+    // last resort.
     let base = snake_name(words.clone(), 0);
+    let fuller = snake_name(fuller, 0);
     let fallback = if obj.object_type.has_subs() {
-        let mut w = ident::shorten(words, ident::MAX_LEN - 1 - 9);
+        let mut w = ident::shorten(words.clone(), ident::MAX_LEN - 1 - 9);
         w.push(format!("{:04x}", obj.index.0));
         w.push(e.sub.0.to_string());
         w.join("_")
     } else {
-        let mut w = ident::shorten(words, ident::MAX_LEN - 1 - 5);
+        let mut w = ident::shorten(words.clone(), ident::MAX_LEN - 1 - 5);
         w.push(format!("{:04x}", obj.index.0));
         w.join("_")
     };
     let fallback = ident::snake(&fallback).unwrap_or(fallback);
     let free = |m: &Names, c: &str| m.is_free(c) && m.is_free(&format!("set_{c}"));
-    let field = match [&base, &fallback].into_iter().find(|c| free(methods, c)) {
+    // A sub-entry whose name is taken first takes its sub-index (`…_used_1`): the fuller name
+    // would say its object's words again.
+    let numbered = if obj.object_type.has_subs() && !base.ends_with(&format!("_{}", e.sub.0)) {
+        let mut w = words.clone();
+        w.push(e.sub.0.to_string());
+        snake_name(w, 0)
+    } else {
+        base.clone()
+    };
+    let field = match [&base, &numbered, &fuller, &fallback].into_iter().find(|c| free(methods, c)) {
         Some(c) => c.clone(),
         None => (2u32..).map(|n| format!("{fallback}_{n}")).find(|c| free(methods, c)).unwrap_or(fallback.clone()),
     };
@@ -616,5 +785,88 @@ fn resolve_default(obj: &Object, e: &Entry, value: Option<&Value>, sink: &mut Si
                 _ => bad(format!("the default of a {} entry must be an integer", dt.name())),
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn w(s: &str) -> Vec<String> {
+        ident::words(s)
+    }
+
+    fn own(obj: &str, sub: &str) -> String {
+        drop_object_words(&w(sub), &w(obj), &Default::default()).join("_")
+    }
+
+    #[test]
+    fn sub_entries_drop_the_words_their_object_says() {
+        assert_eq!(own("Software position limit", "Max software position limit"), "max");
+        assert_eq!(own("Restore default parameters", "Restore all default parameters"), "all");
+        assert_eq!(own("Touch probe source", "Touch probe 1 source"), "1");
+        assert_eq!(own("Programmable limit switch widths", "Limit switch 3 width"), "3");
+        assert_eq!(own("Wake and shake parameters", "Wake and shake maximum current"), "maximum_current");
+        assert_eq!(own("Remote TPDO mapping parameter", "Remote TPDO mapping parameter2"), "2");
+        // Numbers the object says in the same place go; others stay.
+        assert_eq!(own("Touch probe 1 config", "Touch probe 1 config mode"), "mode");
+        assert_eq!(own("Analog input 8 bit", "Analog input 3"), "3");
+        // Linking words: dropped with the words they tied, kept where they tie kept words.
+        assert_eq!(own("RPDO communication parameter", "COB-ID used by RPDO"), "cob_id");
+        assert_eq!(own("Server SDO parameter", "COB-ID client to server"), "cob_id_client_to_server");
+        assert_eq!(own("Pre-defined error field", "Number of errors"), "number_of_errors");
+        assert_eq!(own("OS prompt", "Std in"), "std_in");
+        assert_eq!(own("Analog input feedback", "Analog input used"), "used");
+        assert_eq!(own("Error history", "Error history"), "");
+    }
+
+    fn model(text: &str) -> Model {
+        let parsed = eds::parse("t.eds", text.as_bytes(), &eds::Options::lenient());
+        assert!(!parsed.has_errors(), "{:#?}", parsed.diagnostics);
+        parsed.model
+    }
+
+    fn record(name: &str, object_type: u8, subs: &[&str]) -> String {
+        let mut t = format!(
+            "[FileInfo]\nFileName=t.eds\n[DeviceInfo]\nVendorName=x\n[MandatoryObjects]\nSupportedObjects=1\n1=0x1000\n\
+             [1000]\nParameterName=Device type\nObjectType=0x7\nDataType=0x0007\nAccessType=ro\nDefaultValue=0\n\
+             [ManufacturerObjects]\nSupportedObjects=1\n1=0x2000\n[2000]\nParameterName={name}\nObjectType=0x{object_type:X}\nSubNumber={}\n\
+             [2000sub0]\nParameterName=Number of entries\nObjectType=0x7\nDataType=0x0005\nAccessType=ro\nDefaultValue={}\n",
+            subs.len() + 1,
+            subs.len()
+        );
+        for (i, s) in subs.iter().enumerate() {
+            t.push_str(&format!(
+                "[2000sub{}]\nParameterName={s}\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\nDefaultValue=0\n",
+                i + 1
+            ));
+        }
+        t
+    }
+
+    fn names(text: &str) -> Vec<String> {
+        let m = model(text);
+        crate::accessor_names(&m).into_iter().filter(|(i, s, _)| *i == 0x2000 && *s > 0).map(|(_, _, n)| n).collect()
+    }
+
+    #[test]
+    fn siblings_stay_apart_and_empty_names_fall_back() {
+        // Siblings left alike keep the object's words that tell them apart.
+        assert_eq!(
+            names(&record("Vl velocity min max amount", 0x9, &["Vl velocity min amount", "Vl velocity max amount"])),
+            ["vl_velocity_min_max_amount_min", "vl_velocity_min_max_amount_max"]
+        );
+        // Elements named alike take their sub-index.
+        assert_eq!(
+            names(&record("Consumer heartbeat time", 0x8, &["Consumer heartbeat time", "Consumer heartbeat time"])),
+            ["consumer_heartbeat_time_1", "consumer_heartbeat_time_2"]
+        );
+        // A member left with nothing keeps its fuller name when that is unique.
+        assert_eq!(
+            names(&record("Feed constant", 0x8, &["Feed", "Shaft revolutions"])),
+            ["feed_constant_feed", "feed_constant_shaft_revolutions"]
+        );
+        // Own words shared by siblings that nothing else tells apart: the sub-index.
+        assert_eq!(names(&record("Motor", 0x9, &["Reserved", "Reserved"])), ["motor_reserved_1", "motor_reserved_2"]);
     }
 }

@@ -7,7 +7,10 @@
 //! * no accessor name is longer than 64 characters;
 //! * at most one name-collision warning (G0001) per object;
 //! * no name starts with an `x` before an ordinal (`x1st_…`), none splits a plural acronym
-//!   (`cob_i_ds`), none repeats a word right after itself (`error_history_error_history`).
+//!   (`cob_i_ds`), none repeats a word right after itself (`error_history_error_history`);
+//! * no sub-entry's accessor says a run of two or more of its object's words twice
+//!   (`software_position_limit_max_software_position_limit`, `touch_probe_source_touch_probe_1_source`),
+//!   over the corpus and the three bundled devices.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -47,7 +50,9 @@ fn getters(text: &str) -> Vec<(String, u16, Option<u8>)> {
             let sub = rest[5..].strip_prefix(" sub ").and_then(|r| r.split(' ').next()).and_then(|s| s.parse().ok());
             at = index.map(|i| (i, sub));
         } else if let Some(rest) = line.strip_prefix("pub const fn ").or_else(|| line.strip_prefix("pub fn ")) {
-            if let (Some((i, s)), Some(name)) = (at.take(), rest.split_once("(&self)").map(|(n, _)| n)) {
+            // A long signature is wrapped: `pub const fn name(` with `&self,` on the next line.
+            let name = rest.split_once("(&self)").map(|(n, _)| n).or_else(|| rest.strip_suffix('('));
+            if let (Some((i, s)), Some(name)) = (at.take(), name) {
                 out.push((name.to_owned(), i, s));
             }
         }
@@ -82,6 +87,7 @@ fn corpus_names_are_short_plain_and_rarely_suffixed() {
             }
         }
         let text = od_codegen::render(&g.tokens, &name).unwrap();
+        let objects: BTreeMap<u16, String> = od_codegen::object_names(&parsed.model).into_iter().collect();
         for (n, index, sub) in getters(&text) {
             total += 1;
             if has_index_suffix(&n, index, sub) {
@@ -91,8 +97,16 @@ fn corpus_names_are_short_plain_and_rarely_suffixed() {
                 longest = (n.len(), n.clone());
             }
             let words: Vec<&str> = n.split('_').collect();
-            let repeated =
-                words.windows(2).any(|w| w[0] == w[1] && !w[0].is_empty() && !w[0].bytes().all(|b| b.is_ascii_digit()));
+            // A word the object's name ends with may start a sub-entry's own words (`Vl velocity
+            // min max` / `Max pos` → `vl_velocity_min_max_max_pos`); a repeat of the object's
+            // name itself is caught by `sub_entries_do_not_repeat_their_objects_words`.
+            let last = objects.get(&index).and_then(|o| o.rsplit('_').next()).unwrap_or("");
+            let repeated = words.windows(2).any(|w| {
+                w[0] == w[1]
+                    && !w[0].is_empty()
+                    && !w[0].bytes().all(|b| b.is_ascii_digit())
+                    && (sub.is_none() || w[0] != last)
+            });
             if n.starts_with("x1st")
                 || n.starts_with("x2nd")
                 || n.contains("_i_ds")
@@ -113,4 +127,81 @@ fn corpus_names_are_short_plain_and_rarely_suffixed() {
     assert!(longest.0 <= od_codegen::ident::MAX_LEN, "longest name: {}", longest.1);
     assert!(worst_g0001.0 <= 1, "several G0001 for one object: {}", worst_g0001.1);
     assert!(bad.is_empty(), "{bad:#?}");
+}
+
+/// A word compared singular and plural alike (`widths` = `width`, `entries` = `entry`).
+fn singular(w: &str) -> String {
+    if let Some(stem) = w.strip_suffix("ies").filter(|s| s.len() >= 2) {
+        return format!("{stem}y");
+    }
+    for end in ["sses", "ches", "shes", "xes"] {
+        if w.ends_with(end) {
+            return w[..w.len() - 2].to_owned();
+        }
+    }
+    match w.strip_suffix('s') {
+        Some(stem) if w.len() >= 3 && !stem.ends_with('s') => stem.to_owned(),
+        _ => w.to_owned(),
+    }
+}
+
+/// Whether the accessor `name` of an entry of the object named `object` says a run of two or
+/// more of the object's words twice (any run of two or more contains a pair, so pairs suffice).
+fn repeats_object_words(name: &str, object: &str) -> bool {
+    let obj: Vec<String> = od_codegen::ident::words(object).iter().map(|w| singular(w)).collect();
+    let acc: Vec<String> = name.split('_').filter(|w| !w.is_empty()).map(singular).collect();
+    obj.windows(2).any(|pair| acc.windows(2).filter(|w| w == &pair).count() >= 2)
+}
+
+/// `(files, accessors, accessors repeating their object's words, examples)` over `files`.
+fn repeated_object_words(files: &[PathBuf]) -> (usize, usize, usize, Vec<String>) {
+    let (mut total, mut repeated, mut examples) = (0usize, 0usize, Vec::new());
+    for f in files {
+        let bytes = std::fs::read(f).unwrap();
+        let name = f.file_name().unwrap().to_string_lossy().into_owned();
+        let parsed = eds::parse(&name, &bytes, &eds::Options::lenient());
+        for (index, sub, acc) in od_codegen::accessor_names(&parsed.model) {
+            let Some(obj) = parsed.model.objects.values().find(|o| o.index.0 == index) else { continue };
+            if !obj.object_type.has_subs() {
+                continue;
+            }
+            total += 1;
+            if repeats_object_words(&acc, &obj.name) {
+                repeated += 1;
+                if examples.len() < 400 {
+                    let sub_name = obj.subs.values().find(|e| e.sub.0 == sub).map(|e| e.name.as_str()).unwrap_or("");
+                    examples.push(format!("{name}: {acc}  ({:?} / {sub_name:?})", obj.name));
+                }
+            }
+        }
+    }
+    (files.len(), total, repeated, examples)
+}
+
+#[test]
+fn sub_entries_do_not_repeat_their_objects_words() {
+    assert!(repeats_object_words("software_position_limit_max_software_position_limit", "Software position limit"));
+    assert!(repeats_object_words(
+        "programmable_limit_switch_widths_limit_switch_3_width",
+        "Programmable limit switch widths"
+    ));
+    assert!(!repeats_object_words("software_position_limit_max", "Software position limit"));
+    assert!(!repeats_object_words("error_history_1", "Error history"));
+
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
+    let devices: Vec<PathBuf> = ["camozzi-drvi.eds", "camozzi-drcs.eds", "kollmorgen-akd.eds"]
+        .iter()
+        .map(|f| root.join("devices").join(f))
+        .collect();
+    let corpus = files();
+    let mut bad = Vec::new();
+    for (what, list) in [("bundled devices", &devices), ("fixtures and corpus", &corpus)] {
+        let (n, total, repeated, examples) = repeated_object_words(list);
+        println!("{what}: {n} files, {total} sub-entry accessors, {repeated} repeat their object's words");
+        for e in &examples {
+            println!("  {e}");
+        }
+        bad.extend(examples);
+    }
+    assert!(bad.is_empty(), "accessors repeating their object's words: {bad:#?}");
 }

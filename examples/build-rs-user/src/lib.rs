@@ -21,7 +21,7 @@
 //! use od_runtime::od::ObjectDictionary;
 //!
 //! let od = Dictionary::new(5);
-//! assert_eq!(od.tpdo_communication_parameter_cob_id_used_by_tpdo(), 0x185);
+//! assert_eq!(od.tpdo_communication_parameter_cob_id(), 0x185);
 //! // The placeholder mapping is data a master can read and rewrite.
 //! let mut buf = [0u8; 4];
 //! assert_eq!(od.read(0x1A00, 0, &mut buf), Ok(1));

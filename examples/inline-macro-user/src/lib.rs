@@ -10,8 +10,8 @@
 //! use inline_macro_user::io;
 //!
 //! let mut od = io::Dictionary::new(5);
-//! assert_eq!(od.tpdo_communication_parameter_1_cob_id_used_by_tpdo(), 0x185); // NODEID + 0x180
-//! od.set_outputs_output_1(0xA5).unwrap();
+//! assert_eq!(od.tpdo_communication_parameter_1_cob_id(), 0x185); // NODEID + 0x180
+//! od.set_outputs_1(0xA5).unwrap();
 //! assert_eq!(io::pdo::Rpdo1::from_dictionary(&od).pack()[0], 0xA5);
 //! ```
 #![no_std]

@@ -30,11 +30,11 @@ fn main() {
         "node 5: SDO 0x{:03X}/0x{:03X}, TPDO 1 0x{:03X}, RPDO 1 0x{:03X}",
         od.sdo_server_parameter_cob_id_client_to_server(),
         od.sdo_server_parameter_cob_id_server_to_client(),
-        od.tpdo_communication_parameter_1_cob_id_used_by_tpdo(),
-        od.rpdo_communication_parameter_1_cob_id_used_by_rpdo()
+        od.tpdo_communication_parameter_1_cob_id(),
+        od.rpdo_communication_parameter_1_cob_id()
     );
     println!("temperature {} °C, location {:?}", od.temperature(), std::str::from_utf8(od.location()).unwrap_or("?"));
-    let tpdo = io::pdo::Tpdo1 { inputs_input_1: 0x81, inputs_input_2: 0x02, error_register: 0 };
+    let tpdo = io::pdo::Tpdo1 { inputs_1: 0x81, inputs_2: 0x02, error_register: 0 };
     println!("TPDO 1 {{ inputs 0x81, 0x02, error register 0 }} packs as {:02X?}", tpdo.pack());
 
     // The same dictionary behind the CiA 301 device core.
@@ -52,10 +52,10 @@ fn main() {
     };
     step(&mut dev, "power on", None);
     step(&mut dev, "NMT start node 5", Some(frame(0x000, &[0x01, 5])));
-    let outputs = io::pdo::Rpdo1 { outputs_output_1: 0xA5, outputs_output_2: 0x0F };
+    let outputs = io::pdo::Rpdo1 { outputs_1: 0xA5, outputs_2: 0x0F };
     step(&mut dev, "RPDO 1 sets both outputs", Some(frame(0x205, &outputs.pack())));
-    println!("  outputs now 0x{:02X} 0x{:02X}", dev.od().outputs_output_1(), dev.od().outputs_output_2());
-    dev.od_mut().set_inputs_input_1(0x81).expect("input 1");
+    println!("  outputs now 0x{:02X} 0x{:02X}", dev.od().outputs_1(), dev.od().outputs_2());
+    dev.od_mut().set_inputs_1(0x81).expect("input 1");
     step(&mut dev, "SYNC: TPDO 1 carries the inputs", Some(frame(0x080, &[])));
     step(&mut dev, "SDO upload 0x1018 sub 1 (vendor id)", Some(frame(0x605, &[0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0])));
     step(

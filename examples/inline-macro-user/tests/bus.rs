@@ -25,14 +25,14 @@ fn boots_maps_pdos_and_serves_sdo_from_the_inline_dictionary() {
     assert_eq!(dev.nmt_state(), NmtState::Operational);
 
     // RPDO 1 (COB-ID NODEID + 0x200 from the predefined connection set) writes both outputs.
-    let outputs = io::pdo::Rpdo1 { outputs_output_1: 0xA5, outputs_output_2: 0x0F };
+    let outputs = io::pdo::Rpdo1 { outputs_1: 0xA5, outputs_2: 0x0F };
     assert_eq!(outputs.pack(), [0xA5, 0x0F]);
     exchange(&mut dev, 2_000, Some(frame(0x205, &outputs.pack())));
-    assert_eq!((dev.od().outputs_output_1(), dev.od().outputs_output_2()), (0xA5, 0x0F));
+    assert_eq!((dev.od().outputs_1(), dev.od().outputs_2()), (0xA5, 0x0F));
 
     // TPDO 1 is synchronous (transmission type 1): inputs and error register on SYNC.
-    dev.od_mut().set_inputs_input_1(0x81).unwrap();
-    dev.od_mut().set_inputs_input_2(0x02).unwrap();
+    dev.od_mut().set_inputs_1(0x81).unwrap();
+    dev.od_mut().set_inputs_2(0x02).unwrap();
     assert_eq!(exchange(&mut dev, 3_000, Some(frame(0x080, &[]))), ["185 81 02 00"]);
 
     // SDO: identity from the declaration, limits from `max = 1000`.
@@ -59,7 +59,7 @@ fn node_id_relative_defaults_follow_the_node() {
         let od = io::Dictionary::new(node);
         assert_eq!(od.sdo_server_parameter_cob_id_client_to_server(), 0x600 + node as u32);
         assert_eq!(od.sdo_server_parameter_cob_id_server_to_client(), 0x580 + node as u32);
-        assert_eq!(od.tpdo_communication_parameter_1_cob_id_used_by_tpdo(), 0x180 + node as u32);
-        assert_eq!(od.rpdo_communication_parameter_1_cob_id_used_by_rpdo(), 0x200 + node as u32);
+        assert_eq!(od.tpdo_communication_parameter_1_cob_id(), 0x180 + node as u32);
+        assert_eq!(od.rpdo_communication_parameter_1_cob_id(), 0x200 + node as u32);
     }
 }

@@ -43,12 +43,12 @@ od_macros::object_dictionary! {
 fn main() {
     let mut od = demo::Dictionary::new(5);
     assert_eq!(od.sdo_server_parameter_cob_id_client_to_server(), 0x605);
-    assert_eq!(od.tpdo_communication_parameter_1_cob_id_used_by_tpdo(), 0x185);
+    assert_eq!(od.tpdo_communication_parameter_1_cob_id(), 0x185);
     assert_eq!(od.gain(), 1.5);
     assert_eq!(od.label(), b"demo");
     od.set_setpoint(-20).unwrap();
     assert!(od.set_setpoint(2000).is_err(), "max = 1000");
-    od.set_write_outputs_output_1(0x0F).unwrap();
+    od.set_write_outputs_1(0x0F).unwrap();
 
     let rpdo = demo::pdo::Rpdo1::from_dictionary(&od);
     assert_eq!(rpdo.pack(), [0x0F, 0xFF, 0xEC, 0xFF]);
