@@ -7,6 +7,8 @@
 //! devices/kollmorgen-akd.toml and asserted by devices/tests/akd.rs), the comment says what was
 //! fixed.
 
+mod manual_frames;
+
 use drive::drives::akd::{self, Akd, COUNTS_PER_TURN, FactorGroup, code};
 use drive::drives::master::{Master, SdoError};
 use drive::drives::{Cia402App, DeviceApps, sidecar};
@@ -15,6 +17,7 @@ use drive::node::{DeviceKind, Node, NodeConfig, NodeStorage, Sim};
 use drive::transport::CanFrame;
 use generated::akd::Dictionary;
 use generated::akd::units::{Dimension, Quantity, System, Unit, Units};
+use manual_frames::{frame, got, sdo, text};
 use od_runtime::NodeId;
 use od_runtime::cia402::State;
 
@@ -54,38 +57,6 @@ fn vendor_mut(m: &mut Master, i: usize) -> &mut Akd {
     node_mut(m, i).app_mut().unwrap().vendor_mut()
 }
 
-/// `"603 2B 40 60 00 06 00 00 00"` as a frame.
-fn frame(text: &str) -> CanFrame {
-    let mut words = text.split_whitespace();
-    let id = u32::from_str_radix(words.next().unwrap(), 16).unwrap();
-    let data: Vec<u8> = words.map(|w| u8::from_str_radix(w, 16).unwrap()).collect();
-    CanFrame::standard(id, &data).unwrap()
-}
-
-/// A frame as the manual prints it.
-fn text(f: &CanFrame) -> String {
-    let mut s = format!("{:03X}", f.id());
-    for b in f.data() {
-        s.push_str(&format!(" {b:02X}"));
-    }
-    s
-}
-
-/// Sends an SDO request and returns the answer (on 580h + node), as text.
-fn sdo(m: &mut Master, request: &str) -> String {
-    let f = frame(request);
-    let answer_id = f.id() - 0x600 + 0x580;
-    m.take_id(answer_id);
-    m.send(f);
-    for _ in 0..1000 {
-        if let Some(s) = m.take_id(answer_id).first() {
-            return text(&s.frame);
-        }
-        m.advance(100);
-    }
-    panic!("no answer to {request}");
-}
-
 /// One line of a listing: the request and the answer the manual prints.
 fn x(m: &mut Master, request: &str, answer: &str) {
     assert_eq!(sdo(m, request), answer, "request {request}");
@@ -95,11 +66,6 @@ fn x(m: &mut Master, request: &str, answer: &str) {
 fn put(m: &mut Master, f: &str) {
     m.send(frame(f));
     m.advance(1000);
-}
-
-/// The frames with COB-ID `id` received so far, as text (taken).
-fn got(m: &mut Master, id: u32) -> Vec<String> {
-    m.take_id(id).iter().map(|s| text(&s.frame)).collect()
 }
 
 /// Waits (virtual time) until a frame with `id` arrives; returns it as text.

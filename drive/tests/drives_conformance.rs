@@ -1,11 +1,14 @@
 //! The findings of an outside conformance run (issue 17): each test drives a simulated drive
 //! through real frames on the in-memory bus and the virtual clock, as a master would.
 
+mod manual_frames;
+
 use drive::drives::akd::{self, Akd};
 use drive::drives::master::{Master, SdoError};
 use drive::drives::{Cia402App, DeviceApps};
 use drive::node::{DeviceKind, Node, NodeConfig, NodeStorage, Sim};
 use drive::transport::CanFrame;
+use manual_frames::{got, sdo};
 use od_runtime::NodeId;
 
 type AkdNode = Node<generated::akd::Dictionary, Cia402App<generated::akd::Dictionary, Akd>>;
@@ -20,41 +23,6 @@ fn started(kind: DeviceKind, id: u8) -> Master {
     m.advance(1000);
     m.take_seen();
     m
-}
-
-/// `"603 2B 40 60 00 06 00 00 00"` as a frame.
-fn frame(text: &str) -> CanFrame {
-    let mut words = text.split_whitespace();
-    let id = u32::from_str_radix(words.next().unwrap(), 16).unwrap();
-    let data: Vec<u8> = words.map(|w| u8::from_str_radix(w, 16).unwrap()).collect();
-    CanFrame::standard(id, &data).unwrap()
-}
-
-fn text(f: &CanFrame) -> String {
-    let mut s = format!("{:03X}", f.id());
-    for b in f.data() {
-        s.push_str(&format!(" {b:02X}"));
-    }
-    s
-}
-
-/// Sends an SDO request and returns the answer as text.
-fn sdo(m: &mut Master, request: &str) -> String {
-    let f = frame(request);
-    let answer_id = f.id() - 0x600 + 0x580;
-    m.take_id(answer_id);
-    m.send(f);
-    for _ in 0..1000 {
-        if let Some(s) = m.take_id(answer_id).first() {
-            return text(&s.frame);
-        }
-        m.advance(100);
-    }
-    panic!("no answer to {request}");
-}
-
-fn got(m: &mut Master, id: u32) -> Vec<String> {
-    m.take_id(id).iter().map(|s| text(&s.frame)).collect()
 }
 
 /// An AKD with node id `id` built as [`akd::app`] builds it, started, reachable by `akd_node`.
