@@ -151,6 +151,23 @@ pub(crate) const LINKING: &[&str] =
 /// The longest name the generator gives (getters; setters add `set_`).
 pub const MAX_LEN: usize = 64;
 
+/// A word compared singular and plural alike: `widths` → `width`, `entries` → `entry`,
+/// `switches` → `switch`, `ids` → `id`.
+pub fn singular(w: &str) -> String {
+    if let Some(stem) = w.strip_suffix("ies").filter(|s| s.len() >= 2) {
+        return format!("{stem}y");
+    }
+    for end in ["sses", "ches", "shes", "xes"] {
+        if w.ends_with(end) {
+            return w[..w.len() - 2].to_owned();
+        }
+    }
+    match w.strip_suffix('s') {
+        Some(stem) if w.len() >= 3 && !stem.ends_with('s') => stem.to_owned(),
+        _ => w.to_owned(),
+    }
+}
+
 fn joined_len(w: &[String]) -> usize {
     w.iter().map(String::len).sum::<usize>() + w.len().saturating_sub(1)
 }

@@ -240,23 +240,6 @@ fn strip_object_words(sub: &[String], obj: &[String]) -> Vec<String> {
     sub[k..].to_vec()
 }
 
-/// A word compared singular and plural alike: `widths` → `width`, `entries` → `entry`,
-/// `switches` → `switch`, `ids` → `id`.
-fn singular(w: &str) -> String {
-    if let Some(stem) = w.strip_suffix("ies").filter(|s| s.len() >= 2) {
-        return format!("{stem}y");
-    }
-    for end in ["sses", "ches", "shes", "xes"] {
-        if w.ends_with(end) {
-            return w[..w.len() - 2].to_owned();
-        }
-    }
-    match w.strip_suffix('s') {
-        Some(stem) if w.len() >= 3 && !stem.ends_with('s') => stem.to_owned(),
-        _ => w.to_owned(),
-    }
-}
-
 /// The sub-entry's own words: its name without every word its object's name already says, in
 /// any position, singular and plural alike (`Software position limit` / `Max software position
 /// limit` → `max`; `Programmable limit switch widths` / `Limit switch 3 width` → `3`; `Wake and
@@ -266,7 +249,7 @@ fn singular(w: &str) -> String {
 /// object says it beside the same word (`Touch probe 1 config` / `Touch probe 1 config mode`),
 /// else it stays in its place. Words in `keep` stay (they tell siblings apart).
 fn drop_object_words(sub: &[String], obj: &[String], keep: &std::collections::BTreeSet<String>) -> Vec<String> {
-    let said: std::collections::BTreeSet<String> = obj.iter().map(|w| singular(w)).collect();
+    let said: std::collections::BTreeSet<String> = obj.iter().map(|w| ident::singular(w)).collect();
     let mut split = Vec::with_capacity(sub.len());
     for w in sub {
         let glued = obj.iter().filter(|o| !o.bytes().all(|b| b.is_ascii_digit())).find_map(|o| {
@@ -282,8 +265,8 @@ fn drop_object_words(sub: &[String], obj: &[String], keep: &std::collections::BT
     }
     let linking = |w: &str| ident::LINKING.contains(&w);
     let number = |w: &str| w.bytes().all(|b| b.is_ascii_digit());
-    let objs: Vec<String> = obj.iter().map(|w| singular(w)).collect();
-    let subs: Vec<String> = split.iter().map(|w| singular(w)).collect();
+    let objs: Vec<String> = obj.iter().map(|w| ident::singular(w)).collect();
+    let subs: Vec<String> = split.iter().map(|w| ident::singular(w)).collect();
     // The number at `i` beside the same word as one the object says.
     let same_place = |i: usize| {
         objs.iter().enumerate().any(|(j, o)| {
@@ -366,7 +349,7 @@ fn sub_words(obj: &Object, obj_words: &[String]) -> std::collections::BTreeMap<u
     for g in groups {
         let members: Vec<u8> = own.iter().filter(|(_, w)| **w == g).map(|(s, _)| *s).collect();
         let sets: Vec<BTreeSet<String>> =
-            members.iter().map(|s| names[s].iter().map(|w| singular(w)).collect()).collect();
+            members.iter().map(|s| names[s].iter().map(|w| ident::singular(w)).collect()).collect();
         let apart: BTreeSet<String> =
             sets.iter().flatten().filter(|w| !sets.iter().all(|set| set.contains(*w))).cloned().collect();
         if apart.is_empty() {

@@ -129,27 +129,11 @@ fn corpus_names_are_short_plain_and_rarely_suffixed() {
     assert!(bad.is_empty(), "{bad:#?}");
 }
 
-/// A word compared singular and plural alike (`widths` = `width`, `entries` = `entry`).
-fn singular(w: &str) -> String {
-    if let Some(stem) = w.strip_suffix("ies").filter(|s| s.len() >= 2) {
-        return format!("{stem}y");
-    }
-    for end in ["sses", "ches", "shes", "xes"] {
-        if w.ends_with(end) {
-            return w[..w.len() - 2].to_owned();
-        }
-    }
-    match w.strip_suffix('s') {
-        Some(stem) if w.len() >= 3 && !stem.ends_with('s') => stem.to_owned(),
-        _ => w.to_owned(),
-    }
-}
-
 /// Whether the accessor `name` of an entry of the object named `object` says a run of two or
 /// more of the object's words twice (any run of two or more contains a pair, so pairs suffice).
 fn repeats_object_words(name: &str, object: &str) -> bool {
-    let obj: Vec<String> = od_codegen::ident::words(object).iter().map(|w| singular(w)).collect();
-    let acc: Vec<String> = name.split('_').filter(|w| !w.is_empty()).map(singular).collect();
+    let obj: Vec<String> = od_codegen::ident::words(object).iter().map(|w| od_codegen::ident::singular(w)).collect();
+    let acc: Vec<String> = name.split('_').filter(|w| !w.is_empty()).map(od_codegen::ident::singular).collect();
     obj.windows(2).any(|pair| acc.windows(2).filter(|w| w == &pair).count() >= 2)
 }
 
