@@ -233,14 +233,7 @@ pub fn decode_set(bytes: &[u8], tag: &str) -> Result<Vec<(Area, Vec<Record>)>, I
     if stored != computed {
         return Err(ImageError::Checksum { stored, computed });
     }
-    let tag_len = r.u8("header")?;
-    let found_tag = r.take(usize::from(tag_len), "tag")?;
-    if found_tag != tag.as_bytes() {
-        return Err(ImageError::Tag {
-            expected: tag.to_owned(),
-            found: String::from_utf8_lossy(found_tag).into_owned(),
-        });
-    }
+    r.expect_tag(tag)?;
     let count = r.u8("header")?;
     let mut areas = Vec::with_capacity(usize::from(count));
     for _ in 0..count {
@@ -280,6 +273,20 @@ impl<'a> Reader<'a> {
 
     fn u8(&mut self, what: &'static str) -> Result<u8, ImageError> {
         Ok(self.take(1, what)?[0])
+    }
+
+    /// The device tag (a length byte, then the text): `tag`, or [`ImageError::Tag`] with what
+    /// the file holds (a file of another device is never loaded).
+    fn expect_tag(&mut self, tag: &str) -> Result<(), ImageError> {
+        let len = self.u8("header")?;
+        let found = self.take(usize::from(len), "tag")?;
+        if found != tag.as_bytes() {
+            return Err(ImageError::Tag {
+                expected: tag.to_owned(),
+                found: String::from_utf8_lossy(found).into_owned(),
+            });
+        }
+        Ok(())
     }
 
     fn u16(&mut self, what: &'static str) -> Result<u16, ImageError> {
@@ -322,14 +329,7 @@ pub fn decode_image(bytes: &[u8], area: Area, tag: &str) -> Result<Vec<Record>, 
     if found_area != expected {
         return Err(ImageError::Area { expected, found: found_area });
     }
-    let tag_len = r.u8("header")?;
-    let found_tag = r.take(usize::from(tag_len), "tag")?;
-    if found_tag != tag.as_bytes() {
-        return Err(ImageError::Tag {
-            expected: tag.to_owned(),
-            found: String::from_utf8_lossy(found_tag).into_owned(),
-        });
-    }
+    r.expect_tag(tag)?;
     let count = r.u32("header")?;
     // Each record takes at least 5 bytes: bound the allocation by what the file can hold.
     let mut records = Vec::with_capacity((count as usize).min(body.len() / 5));
