@@ -2,7 +2,8 @@
 # Runs every test of the project: the Rust workspace (unit, snapshot, compile, property,
 # corpus and interop tests), the generated-code freshness check, the SocketCAN build, and the
 # Python end-to-end tests in which python-canopen drives the simulated devices.
-# Installs what it needs (the Python venv in .venv). This is what .ci/run calls.
+# Installs what it needs (the Python venv in .venv, the thumbv7em-none-eabihf target). This is
+# what .ci/run calls.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
