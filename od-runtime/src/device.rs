@@ -1103,12 +1103,19 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
                     t.started = true;
                     t.sync_cnt = 0;
                 }
-                t.sync_cnt += 1;
-                if t.sync_cnt >= ttype {
-                    t.sync_cnt = 0;
+                // The counter is stored after the mapping is read, not before: a byte stored
+                // just before `t.mapped()` reads the mapping's length (a neighbouring byte,
+                // which the compiler may load as a wider word) stalls the load until the store
+                // retires (store-to-load forwarding fails on a partial overlap); that stall was
+                // most of this function's time in the SYNC benchmark.
+                let cnt = t.sync_cnt.saturating_add(1);
+                if cnt >= ttype {
                     t.sample = pack(&self.od, &mut self.app, t.mapped());
+                    t.sync_cnt = 0;
                     t.due = true;
                     due = true;
+                } else {
+                    t.sync_cnt = cnt;
                 }
             } else if ttype == 252 {
                 t.sample = pack(&self.od, &mut self.app, t.mapped());
