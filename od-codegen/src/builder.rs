@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use eds::diag::Severity;
 
-use crate::{Options, expand, render};
+use crate::{Options, expand_text};
 
 /// Which sidecar a device uses.
 #[derive(Clone, Debug)]
@@ -329,9 +329,9 @@ impl Builder {
             }
         }
 
-        let generated = expand(&parsed.model, &options);
+        let generated = expand_text(&parsed.model, &options);
+        let text = generated.render(&shown).map_err(|e| Error::Render(e.to_string()))?;
         diagnostics.extend(generated.diagnostics.into_iter().filter(|d| d.severity >= Severity::Warning));
-        let text = render(&generated.tokens, &shown).map_err(|e| Error::Render(e.to_string()))?;
         Ok(Output {
             module: d.module.clone(),
             file_name: format!("{}.rs", d.module),
