@@ -8,7 +8,7 @@ use quote::{format_ident, quote};
 use crate::lit;
 use crate::plan::{Def, PEntry, Plan, Ty};
 use crate::support::rt;
-use crate::text::{Nest, Parts, Text, fits, overflows, pretty};
+use crate::text::{Nest, Parts, Text, fits, pretty};
 
 pub(crate) fn rust_type(ty: Ty) -> TokenStream {
     match ty {
@@ -32,53 +32,55 @@ pub(crate) fn rust_type(ty: Ty) -> TokenStream {
 }
 
 fn data_type_variant(dt: DataType) -> proc_macro2::Ident {
+    format_ident!("{}", data_type_name(dt))
+}
+
+fn data_type_name(dt: DataType) -> &'static str {
     use DataType as D;
-    format_ident!(
-        "{}",
-        match dt {
-            D::Boolean => "Boolean",
-            D::Integer8 => "Integer8",
-            D::Integer16 => "Integer16",
-            D::Integer32 => "Integer32",
-            D::Unsigned8 => "Unsigned8",
-            D::Unsigned16 => "Unsigned16",
-            D::Unsigned32 => "Unsigned32",
-            D::Real32 => "Real32",
-            D::VisibleString => "VisibleString",
-            D::OctetString => "OctetString",
-            D::UnicodeString => "UnicodeString",
-            D::TimeOfDay => "TimeOfDay",
-            D::TimeDifference => "TimeDifference",
-            D::Domain => "Domain",
-            D::Integer24 => "Integer24",
-            D::Real64 => "Real64",
-            D::Integer40 => "Integer40",
-            D::Integer48 => "Integer48",
-            D::Integer56 => "Integer56",
-            D::Integer64 => "Integer64",
-            D::Unsigned24 => "Unsigned24",
-            D::Unsigned40 => "Unsigned40",
-            D::Unsigned48 => "Unsigned48",
-            D::Unsigned56 => "Unsigned56",
-            D::Unsigned64 => "Unsigned64",
-            // The planner drops `Other` types; this arm keeps the function total.
-            D::Other(_) => "Domain",
-        }
-    )
+    match dt {
+        D::Boolean => "Boolean",
+        D::Integer8 => "Integer8",
+        D::Integer16 => "Integer16",
+        D::Integer32 => "Integer32",
+        D::Unsigned8 => "Unsigned8",
+        D::Unsigned16 => "Unsigned16",
+        D::Unsigned32 => "Unsigned32",
+        D::Real32 => "Real32",
+        D::VisibleString => "VisibleString",
+        D::OctetString => "OctetString",
+        D::UnicodeString => "UnicodeString",
+        D::TimeOfDay => "TimeOfDay",
+        D::TimeDifference => "TimeDifference",
+        D::Domain => "Domain",
+        D::Integer24 => "Integer24",
+        D::Real64 => "Real64",
+        D::Integer40 => "Integer40",
+        D::Integer48 => "Integer48",
+        D::Integer56 => "Integer56",
+        D::Integer64 => "Integer64",
+        D::Unsigned24 => "Unsigned24",
+        D::Unsigned40 => "Unsigned40",
+        D::Unsigned48 => "Unsigned48",
+        D::Unsigned56 => "Unsigned56",
+        D::Unsigned64 => "Unsigned64",
+        // The planner drops `Other` types; this arm keeps the function total.
+        D::Other(_) => "Domain",
+    }
 }
 
 fn access_variant(a: Access) -> proc_macro2::Ident {
-    format_ident!(
-        "{}",
-        match a {
-            Access::Ro => "Ro",
-            Access::Wo => "Wo",
-            Access::Rw => "Rw",
-            Access::Rwr => "Rwr",
-            Access::Rww => "Rww",
-            Access::Const => "Const",
-        }
-    )
+    format_ident!("{}", access_name(a))
+}
+
+fn access_name(a: Access) -> &'static str {
+    match a {
+        Access::Ro => "Ro",
+        Access::Wo => "Wo",
+        Access::Rw => "Rw",
+        Access::Rwr => "Rwr",
+        Access::Rww => "Rww",
+        Access::Const => "Const",
+    }
 }
 
 /// `0x6040` or `0x1018 sub 2`.
@@ -423,38 +425,42 @@ fn entry_row_tokens(e: &PEntry<'_>, x: Option<usize>) -> TokenStream {
 
 /// One row of `ENTRIES` as text: the layout prettyplease gives a row (the struct literal
 /// broken field by field, the `offset` call broken at its turbofish and arguments, the
-/// `offset_of!` on one line or broken inside its parentheses); a row whose name is too long for
-/// that, or whose type is a buffer, is laid out by prettyplease.
+/// `offset_of!` on one line, broken inside its parentheses, or broken after each argument);
+/// a row whose name is too long for that is laid out by prettyplease.
 fn entry_row(t: &mut Text, e: &PEntry<'_>, x: Option<usize>) {
-    let n = e.field.len();
-    let one_line = 16 + "::core::mem::offset_of!(Dictionary, ".len() + n + "),".len();
-    let broken = 20 + "Dictionary, ".len() + n;
-    let offset_of_fits = fits(one_line);
-    if matches!(e.ty, Ty::Bytes(_)) || !(offset_of_fits || (overflows(one_line) && fits(broken))) {
+    let f = e.field.as_str();
+    let one_line = fits(16 + "::core::mem::offset_of!(Dictionary, ".len() + f.len() + "),".len());
+    let broken = fits(20 + "Dictionary, ".len() + f.len());
+    let ty = rust_type_text(e.ty);
+    if !fits(20 + f.len()) || !fits(16 + ty.len() + 1) {
         t.push(&pretty(entry_row_tokens(e, x), 2, Nest::Array));
         return;
     }
-    let dt = data_type_variant(e.dt).to_string();
-    let index = format!("0x{:04X}", e.index);
-    let sub = e.sub.to_string();
+    let dt = data_type_name(e.dt);
+    let cap = if let Ty::Bytes(_) = e.ty { e.bits } else { 0 };
     t.line(8, &["::od_runtime::od::EntryInfo {"]);
-    t.line(12, &["index: ", &index, ","]);
-    t.line(12, &["sub: ", &sub, ","]);
-    t.line(12, &["data_type: ::od_runtime::od::DataType::", &dt, ","]);
-    t.line(12, &["access: ::od_runtime::od::Access::", &access_variant(e.entry.access).to_string(), ","]);
+    t.line(12, &["index: ", &format!("0x{:04X}", e.index), ","]);
+    t.line(12, &["sub: ", &e.sub.to_string(), ","]);
+    t.line(12, &["data_type: ::od_runtime::od::DataType::", dt, ","]);
+    t.line(12, &["access: ::od_runtime::od::Access::", access_name(e.entry.access), ","]);
     t.line(12, &["pdo_mappable: ", if e.entry.pdo_mapping { "true" } else { "false" }, ","]);
     t.line(12, &["slot: ::od_runtime::", crate::support::RUNTIME_PRIVATE, "::offset::<"]);
-    t.line(16, &[&rust_type_text(e.ty), ","]);
+    t.line(16, &[&ty, ","]);
     t.line(12, &[">("]);
-    if offset_of_fits {
-        t.line(16, &["::core::mem::offset_of!(Dictionary, ", &e.field, "),"]);
+    if one_line {
+        t.line(16, &["::core::mem::offset_of!(Dictionary, ", f, "),"]);
     } else {
         t.line(16, &["::core::mem::offset_of!("]);
-        t.line(20, &["Dictionary, ", &e.field]);
+        if broken {
+            t.line(20, &["Dictionary, ", f]);
+        } else {
+            t.line(20, &["Dictionary,"]);
+            t.line(20, &[f]);
+        }
         t.line(16, &["),"]);
     }
-    t.line(16, &["::od_runtime::od::DataType::", &dt, ","]);
-    t.line(16, &["0,"]);
+    t.line(16, &["::od_runtime::od::DataType::", dt, ","]);
+    t.line(16, &[&cap.to_string(), ","]);
     t.line(12, &["),"]);
     match x {
         Some(i) => t.line(12, &["extras: Some(&EXTRAS[", &i.to_string(), "]),"]),
@@ -480,8 +486,9 @@ fn names_table(plan: &Plan<'_>, names: &crate::Names, parts: &mut Parts) -> Toke
         plan.entries.iter().map(|e| proc_macro2::Literal::string(&display_name(e)).to_string()).collect();
     let head = format!("pub static NAMES: [&str; {n}] = [");
     // On one line when it fits: then prettyplease lays it out.
-    let one_line = 4 + head.len() + all.iter().map(|s| s.len() + 2).sum::<usize>() + "];".len();
-    if !overflows(one_line) {
+    // `["a", "b"];`: each name and `, ` but the last.
+    let one_line = 4 + head.len() + all.iter().map(|s| s.len() + 2).sum::<usize>() - 2 + "];".len();
+    if fits(one_line) {
         let d = crate::text::doc_tokens(&doc);
         let cfg = cfg.map(|f| quote!(#[cfg(feature = #f)]));
         let n = proc_macro2::Literal::usize_unsuffixed(plan.entries.len());
@@ -681,9 +688,9 @@ fn zero_expr(e: &PEntry<'_>) -> (TokenStream, String) {
 /// (`new`, `zeroed`): as text when the literal is too long for one line and each field fits
 /// one, else through prettyplease.
 fn constructor(doc: &[String], sig: &str, inits: &[(&str, String)], tokens: impl FnOnce() -> TokenStream) -> String {
-    let one_line =
-        12 + "Dictionary { ".len() + inits.iter().map(|(f, v)| f.len() + 2 + v.len() + 2).sum::<usize>() + " }".len();
-    if !overflows(one_line) || !inits.iter().all(|(f, v)| fits(16 + f.len() + 2 + v.len() + 1)) {
+    let one_line = 12 + "Dictionary { ".len() + inits.iter().map(|(f, v)| f.len() + 2 + v.len() + 2).sum::<usize>() - 2
+        + " }".len();
+    if fits(one_line) || !inits.iter().all(|(f, v)| fits(16 + f.len() + 2 + v.len() + 1)) {
         return pretty(tokens(), 2, Nest::Impl);
     }
     let mut t = Text::with_capacity(one_line + inits.len() * 20 + 200);
@@ -759,7 +766,7 @@ fn setter_text(t: &mut Text, e: &PEntry<'_>) {
     let body_fits = fits(12 + "self.".len() + n + ".set(v)".len().max(" = v;".len()))
         && checks.iter().all(|(_, v, _)| fits(12 + "if v < ".len() + v.len() + " {".len()));
     let broken_fits = fits(8 + "pub fn set_".len() + n + 1) && fits(12 + "v: ".len() + ty.len() + 1);
-    if !body_fits || !(fits(one_line) || (overflows(one_line) && broken_fits)) {
+    if !body_fits || !(fits(one_line) || broken_fits) {
         t.push(&pretty(setter(e), 2, Nest::Impl));
         return;
     }

@@ -166,8 +166,18 @@ fn every_name_length_with_every_type() {
             same_file(&format!("{dt:?} names"), &model, &options);
         }
     }
-    // One entry, and none: tables short enough for one line.
-    let one = common::model(vec![common::var(0x2000, "A", D::Unsigned8, Access::Rw, None, false)]);
-    same_file("one entry", &one, &Options::new("one", "one.eds"));
+    // Few entries, and none: tables and constructors that fit one line, or just do not.
+    // (The first name's length steps through every column a line can end at.)
+    for k in 1..=16u16 {
+        for pad in 0..8 {
+            let objects = (0..k)
+                .map(|i| {
+                    let name = if i == 0 { format!("N{}", "x".repeat(pad)) } else { format!("N{i}") };
+                    common::var(0x2000 + i, &name, D::Unsigned8, Access::Rw, None, false)
+                })
+                .collect();
+            same_file(&format!("{k} entries, {pad}"), &common::model(objects), &Options::new("few", "few.eds"));
+        }
+    }
     same_file("no entries", &common::model(Vec::new()), &Options::new("none", "none.eds"));
 }
