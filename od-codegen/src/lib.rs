@@ -224,6 +224,8 @@ pub fn expand(model: &Model, options: &Options) -> Generated {
 pub struct GeneratedText {
     /// The module with a placeholder item for each part already written as text.
     skeleton: TokenStream,
+    /// The placeholders' name prefix.
+    prefix: String,
     parts: Vec<String>,
     /// Diagnostics located in the device description, in generation order.
     pub diagnostics: Vec<Diagnostic>,
@@ -241,16 +243,17 @@ impl GeneratedText {
     /// in the generator.
     pub fn render(&self, source_name: &str) -> Result<String, syn::Error> {
         let rest = render(&self.skeleton, source_name)?;
-        Ok(text::splice(&rest, &self.parts))
+        Ok(text::splice(&rest, &self.prefix, &self.parts))
     }
 }
 
 /// Generates the module for one device as text (the [`Builder`]'s path, much faster than
 /// [`render`] of [`expand`] in a debug build script), and reports what it found.
 pub fn expand_text(model: &Model, options: &Options) -> GeneratedText {
-    let mut parts = text::Parts::text();
+    let mut parts = text::Parts::text(options.eds_text.as_deref());
     let (skeleton, diagnostics) = expand_with(model, options, &mut parts);
-    GeneratedText { skeleton, parts: parts.into_texts(), diagnostics }
+    let (prefix, parts) = parts.into_texts();
+    GeneratedText { skeleton, prefix, parts, diagnostics }
 }
 
 fn expand_with(model: &Model, options: &Options, parts: &mut text::Parts) -> (TokenStream, Vec<Diagnostic>) {

@@ -9,8 +9,9 @@
 //! prettyplease as before:
 //!
 //! * for text ([`Parts::text`], what the `Builder` and `odgen gen` write), each part stands in
-//!   the tokens as a placeholder item (`const __ODGEN_PART_<n>: () = ();`), and [`splice`]
-//!   puts the part's text in place of the placeholder's line in prettyplease's output;
+//!   the tokens as a placeholder item (`const __ODGEN_PART_<n>: () = ();`, a prefix the
+//!   embedded description does not contain), and [`splice`] puts the part's text in place of
+//!   the placeholder's line in prettyplease's output;
 //! * for tokens ([`Parts::tokens`], the proc macros), each part's text is lexed into tokens,
 //!   so both paths hold one text and cannot say different things.
 //!
@@ -39,27 +40,33 @@ pub(crate) fn fits(len: usize) -> bool {
 pub(crate) struct Parts {
     text: bool,
     texts: Vec<String>,
+    /// The placeholder items' name prefix.
+    prefix: String,
 }
-
-/// The placeholder item's name prefix.
-const PLACEHOLDER: &str = "__ODGEN_PART_";
 
 impl Parts {
     /// Parts lexed into the tokens (the proc macros' path).
     pub(crate) fn tokens() -> Self {
-        Parts { text: false, texts: Vec::new() }
+        Parts { text: false, texts: Vec::new(), prefix: String::new() }
     }
 
-    /// Parts kept as text, placeholders in the tokens (the `Builder`'s path).
-    pub(crate) fn text() -> Self {
-        Parts { text: true, texts: Vec::new() }
+    /// Parts kept as text, placeholders in the tokens (the `Builder`'s path). `verbatim` is
+    /// text the rest of the module holds line by line (the embedded description, a raw
+    /// string): the placeholders' prefix is one it does not contain, so none of its lines
+    /// can pass for a placeholder.
+    pub(crate) fn text(verbatim: Option<&str>) -> Self {
+        let mut prefix = String::from("__ODGEN_PART_");
+        while verbatim.is_some_and(|v| v.contains(prefix.as_str())) {
+            prefix.push_str("X_");
+        }
+        Parts { text: true, texts: Vec::new(), prefix }
     }
 
     /// A part of the module: `text` is its lines at their final indentation, each ending in a
     /// line feed, laid out as prettyplease lays out items (or impl items) at that depth.
     pub(crate) fn put(&mut self, text: String) -> TokenStream {
         if self.text {
-            let id = format_ident!("{PLACEHOLDER}{}", self.texts.len());
+            let id = format_ident!("{}{}", self.prefix, self.texts.len());
             self.texts.push(text);
             quote!(const #id: () = ();)
         } else {
@@ -74,20 +81,21 @@ impl Parts {
         }
     }
 
-    /// The parts' texts, in placeholder order.
-    pub(crate) fn into_texts(self) -> Vec<String> {
-        self.texts
+    /// The placeholders' prefix and the parts' texts, in placeholder order.
+    pub(crate) fn into_texts(self) -> (String, Vec<String>) {
+        (self.prefix, self.texts)
     }
 }
 
-/// prettyplease's output with each placeholder's line replaced by its part.
-pub(crate) fn splice(rendered: &str, parts: &[String]) -> String {
+/// prettyplease's output with each placeholder's line (`prefix` and a number) replaced by its
+/// part.
+pub(crate) fn splice(rendered: &str, prefix: &str, parts: &[String]) -> String {
     let mut out = String::with_capacity(rendered.len() + parts.iter().map(String::len).sum::<usize>());
     for line in rendered.split_inclusive('\n') {
         let part = line
             .trim_start_matches(' ')
             .strip_prefix("const ")
-            .and_then(|l| l.strip_prefix(PLACEHOLDER))
+            .and_then(|l| l.strip_prefix(prefix))
             .and_then(|l| l.strip_suffix(": () = ();\n"))
             .and_then(|n| n.parse::<usize>().ok())
             .and_then(|n| parts.get(n));
@@ -99,17 +107,18 @@ pub(crate) fn splice(rendered: &str, parts: &[String]) -> String {
     out
 }
 
-/// prettyplease's layout of `item` standing `depth` levels deep: nested in `depth - 1` modules
-/// and, if `in_impl`, in an `impl` (so a method of a module's `impl` is depth 2, `in_impl`), or
-/// as the element of an array item's value (`in_array`, an element of a module's static is depth
-/// 2). The lines of the item alone, at their indentation there.
+/// prettyplease's layout of `item` standing `depth` levels deep, as `nest` says: an item of a
+/// module `depth` modules in (an index constant is 2: the device's module, then `index`), a
+/// method of an `impl` in `depth - 1` modules (a `Dictionary` method is 2), or an element of a
+/// static's array in `depth - 1` modules (a row of `ENTRIES` is 2). The lines of the item
+/// alone, at their indentation there.
 pub(crate) fn pretty(item: TokenStream, depth: usize, nest: Nest) -> String {
     let mut t = match nest {
         Nest::Item => item,
         Nest::Impl => quote!(impl D { #item }),
         Nest::Array => quote!(static X: [T; 1] = [#item];),
     };
-    let mods = if nest == Nest::Item { depth } else { depth - 1 };
+    let mods = if nest == Nest::Item { depth } else { depth.saturating_sub(1) };
     for _ in 0..mods {
         t = quote!(mod m { #t });
     }
@@ -121,7 +130,7 @@ pub(crate) fn pretty(item: TokenStream, depth: usize, nest: Nest) -> String {
             let end = lines.len().saturating_sub(skip);
             lines.get(skip.min(end)..end).map(|l| l.concat()).unwrap_or_default()
         }
-        // A writer's bug: the placeholder's line stays, and the file does not compile.
+        // A writer's bug: the file says so where the item would be, and does not compile.
         Err(e) => format!("compile_error!({:?});\n", format!("od-codegen: {e}")),
     }
 }

@@ -181,3 +181,17 @@ fn every_name_length_with_every_type() {
     }
     same_file("no entries", &common::model(Vec::new()), &Options::new("none", "none.eds"));
 }
+
+#[test]
+fn an_embedded_description_cannot_forge_a_placeholder() {
+    let f = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/mini.eds");
+    let parsed = eds::read_file(&f, &eds::Options::lenient()).unwrap();
+    let mut options = Options::new("mini", "mini.eds");
+    // Lines that look like the placeholder items standing for the large parts.
+    let forged: String =
+        (0..8).map(|n| format!("const __ODGEN_PART_{n}: () = ();\n    const __ODGEN_PART_X_{n}: () = ();\n")).collect();
+    options.eds_text = Some(format!("{}\n{forged}", String::from_utf8_lossy(&std::fs::read(&f).unwrap())));
+    same_file("forged placeholders", &parsed.model, &options);
+    let text = od_codegen::expand_text(&parsed.model, &options).render("mini.eds").unwrap();
+    assert!(text.contains(&forged), "the embedded description is kept as it was");
+}
