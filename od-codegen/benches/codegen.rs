@@ -1,4 +1,5 @@
-//! Generation costs: `cargo bench -p od-codegen`.
+//! Generation costs: `cargo bench -p od-codegen`. (A build script runs unoptimised: for that
+//! profile, `cargo run -p od-codegen --example gen_time -- FILE`.)
 
 use std::hint::black_box;
 use std::path::Path;
@@ -22,6 +23,10 @@ fn generation(c: &mut Criterion) {
         let tokens = od_codegen::generate(&parsed.model, &options);
         c.bench_function(&format!("generate: {module}, render with prettyplease"), |b| {
             b.iter(|| od_codegen::render(black_box(&tokens), file).map(|s| s.len()))
+        });
+        // What the Builder runs: the large parts as text, the rest through prettyplease.
+        c.bench_function(&format!("generate: {module}, text path (expand_text + render)"), |b| {
+            b.iter(|| od_codegen::expand_text(black_box(&parsed.model), &options).render(file).map(|s| s.len()))
         });
     }
 }

@@ -8,6 +8,7 @@ use quote::{format_ident, quote};
 use crate::lit;
 use crate::plan::{Def, PEntry, Plan, Ty};
 use crate::support::rt;
+use crate::text::{Nest, Parts, Text, fits, pretty};
 
 pub(crate) fn rust_type(ty: Ty) -> TokenStream {
     match ty {
@@ -31,53 +32,55 @@ pub(crate) fn rust_type(ty: Ty) -> TokenStream {
 }
 
 fn data_type_variant(dt: DataType) -> proc_macro2::Ident {
+    format_ident!("{}", data_type_name(dt))
+}
+
+fn data_type_name(dt: DataType) -> &'static str {
     use DataType as D;
-    format_ident!(
-        "{}",
-        match dt {
-            D::Boolean => "Boolean",
-            D::Integer8 => "Integer8",
-            D::Integer16 => "Integer16",
-            D::Integer32 => "Integer32",
-            D::Unsigned8 => "Unsigned8",
-            D::Unsigned16 => "Unsigned16",
-            D::Unsigned32 => "Unsigned32",
-            D::Real32 => "Real32",
-            D::VisibleString => "VisibleString",
-            D::OctetString => "OctetString",
-            D::UnicodeString => "UnicodeString",
-            D::TimeOfDay => "TimeOfDay",
-            D::TimeDifference => "TimeDifference",
-            D::Domain => "Domain",
-            D::Integer24 => "Integer24",
-            D::Real64 => "Real64",
-            D::Integer40 => "Integer40",
-            D::Integer48 => "Integer48",
-            D::Integer56 => "Integer56",
-            D::Integer64 => "Integer64",
-            D::Unsigned24 => "Unsigned24",
-            D::Unsigned40 => "Unsigned40",
-            D::Unsigned48 => "Unsigned48",
-            D::Unsigned56 => "Unsigned56",
-            D::Unsigned64 => "Unsigned64",
-            // The planner drops `Other` types; this arm keeps the function total.
-            D::Other(_) => "Domain",
-        }
-    )
+    match dt {
+        D::Boolean => "Boolean",
+        D::Integer8 => "Integer8",
+        D::Integer16 => "Integer16",
+        D::Integer32 => "Integer32",
+        D::Unsigned8 => "Unsigned8",
+        D::Unsigned16 => "Unsigned16",
+        D::Unsigned32 => "Unsigned32",
+        D::Real32 => "Real32",
+        D::VisibleString => "VisibleString",
+        D::OctetString => "OctetString",
+        D::UnicodeString => "UnicodeString",
+        D::TimeOfDay => "TimeOfDay",
+        D::TimeDifference => "TimeDifference",
+        D::Domain => "Domain",
+        D::Integer24 => "Integer24",
+        D::Real64 => "Real64",
+        D::Integer40 => "Integer40",
+        D::Integer48 => "Integer48",
+        D::Integer56 => "Integer56",
+        D::Integer64 => "Integer64",
+        D::Unsigned24 => "Unsigned24",
+        D::Unsigned40 => "Unsigned40",
+        D::Unsigned48 => "Unsigned48",
+        D::Unsigned56 => "Unsigned56",
+        D::Unsigned64 => "Unsigned64",
+        // The planner drops `Other` types; this arm keeps the function total.
+        D::Other(_) => "Domain",
+    }
 }
 
 fn access_variant(a: Access) -> proc_macro2::Ident {
-    format_ident!(
-        "{}",
-        match a {
-            Access::Ro => "Ro",
-            Access::Wo => "Wo",
-            Access::Rw => "Rw",
-            Access::Rwr => "Rwr",
-            Access::Rww => "Rww",
-            Access::Const => "Const",
-        }
-    )
+    format_ident!("{}", access_name(a))
+}
+
+fn access_name(a: Access) -> &'static str {
+    match a {
+        Access::Ro => "Ro",
+        Access::Wo => "Wo",
+        Access::Rw => "Rw",
+        Access::Rwr => "Rwr",
+        Access::Rww => "Rww",
+        Access::Const => "Const",
+    }
 }
 
 /// `0x6040` or `0x1018 sub 2`.
@@ -162,23 +165,22 @@ fn entry_doc(e: &PEntry<'_>, what: &str, sidecar: Option<&crate::sidecar::Sideca
     lines
 }
 
-/// `pub mod index { pub const CONTROLWORD: u16 = 0x6040; … }`.
-pub(crate) fn index_consts(plan: &Plan<'_>) -> TokenStream {
-    let consts = plan.objects.iter().map(|o| {
-        let name = format_ident!("{}", o.konst);
-        let v = lit::hex(o.obj.index.0 as u64, 4);
-        let doc = lit::doc(&[format!("`0x{:04X}` {}.", o.obj.index.0, lit::doc_escape(o.obj.name.trim()))]);
-        quote! {
-            #doc
-            pub const #name: u16 = #v;
-        }
-    });
-    quote! {
-        /// The index of every object, named after its `ParameterName`.
-        pub mod index {
-            #(#consts)*
-        }
+/// `pub mod index { pub const CONTROLWORD: u16 = 0x6040; … }`, as text (a constant's line
+/// has no place prettyplease could break it).
+pub(crate) fn index_consts(plan: &Plan<'_>, parts: &mut Parts) -> TokenStream {
+    let mut t = Text::with_capacity(plan.objects.len() * 100 + 100);
+    t.doc(4, &["The index of every object, named after its `ParameterName`.".to_owned()]);
+    if plan.objects.is_empty() {
+        t.line(4, &["pub mod index {}"]);
+        return parts.put(t.out);
     }
+    t.line(4, &["pub mod index {"]);
+    for o in &plan.objects {
+        t.doc(8, &[format!("`0x{:04X}` {}.", o.obj.index.0, lit::doc_escape(o.obj.name.trim()))]);
+        t.line(8, &["pub const ", &o.konst, ": u16 = ", &format!("0x{:04X}", o.obj.index.0), ";"]);
+    }
+    t.line(4, &["}"]);
+    parts.put(t.out)
 }
 
 /// An `i64` literal holding `v`'s low 64 bits (an UNSIGNED64 above `i64::MAX` as its bits:
@@ -312,8 +314,12 @@ fn dedup(items: impl Iterator<Item = Option<TokenStream>>) -> (Vec<TokenStream>,
 }
 
 /// `LOOKUP` and `ENTRIES`.
-pub(crate) fn tables(plan: &Plan<'_>, names: &crate::Names, sink: &mut crate::diag::Sink) -> TokenStream {
-    let n = proc_macro2::Literal::usize_unsuffixed(plan.entries.len());
+pub(crate) fn tables(
+    plan: &Plan<'_>,
+    names: &crate::Names,
+    sink: &mut crate::diag::Sink,
+    parts: &mut Parts,
+) -> TokenStream {
     let keys: Vec<(u16, u8)> = plan.entries.iter().map(|e| (e.index, e.sub)).collect();
     let lookup = crate::lookup::tokens(&keys).unwrap_or_else(|| {
         sink.general(
@@ -331,43 +337,31 @@ pub(crate) fn tables(plan: &Plan<'_>, names: &crate::Names, sink: &mut crate::di
     // Each distinct limits and extras value once; entries point at theirs.
     let (limits, limits_of) = dedup(plan.entries.iter().map(limits_tokens));
     let (extras, extras_of) = dedup(plan.entries.iter().zip(&limits_of).map(|(e, l)| extras_tokens(e, *l)));
-    let rt = rt();
-    let infos = plan.entries.iter().zip(&extras_of).map(|(e, x)| {
-        let index = lit::hex(e.index as u64, 4);
-        let sub = proc_macro2::Literal::u8_unsuffixed(e.sub);
-        let dt = data_type_variant(e.dt);
-        let access = access_variant(e.entry.access);
-        let pdo = e.entry.pdo_mapping;
-        let field = format_ident!("{}", e.field);
-        let ty = rust_type(e.ty);
-        let cap = proc_macro2::Literal::u32_unsuffixed(if let Ty::Bytes(_) = e.ty { e.bits } else { 0 });
-        let extras = match x {
-            Some(i) => {
-                let i = proc_macro2::Literal::usize_unsuffixed(*i);
-                quote!(Some(&EXTRAS[#i]))
+    let n_entries = plan.entries.len();
+    let entries = {
+        let doc =
+            vec!["Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.".to_owned()];
+        if plan.entries.is_empty() {
+            let d = crate::text::doc_tokens(&doc);
+            parts.put(pretty(quote!(#d pub static ENTRIES: [::od_runtime::od::EntryInfo; 0] = [];), 1, Nest::Item))
+        } else {
+            let mut t = Text::with_capacity(plan.entries.len() * 560 + 200);
+            t.doc(4, &doc);
+            t.line(4, &["pub static ENTRIES: [::od_runtime::od::EntryInfo; ", &n_entries.to_string(), "] = ["]);
+            for (e, x) in plan.entries.iter().zip(&extras_of) {
+                entry_row(&mut t, e, *x);
             }
-            None => quote!(None),
-        };
-        quote! {
-            ::od_runtime::od::EntryInfo {
-                index: #index,
-                sub: #sub,
-                data_type: ::od_runtime::od::DataType::#dt,
-                access: ::od_runtime::od::Access::#access,
-                pdo_mappable: #pdo,
-                slot: #rt::offset::<#ty>(::core::mem::offset_of!(Dictionary, #field), ::od_runtime::od::DataType::#dt, #cap),
-                extras: #extras,
-            }
+            t.line(4, &["];"]);
+            parts.put(t.out)
         }
-    });
+    };
     let nx = proc_macro2::Literal::usize_unsuffixed(extras.len());
     let nl = proc_macro2::Literal::usize_unsuffixed(limits.len());
-    let names = names_table(plan, names);
+    let names = names_table(plan, names, parts);
     quote! {
         #lookup
 
-        /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
-        pub static ENTRIES: [::od_runtime::od::EntryInfo; #n] = [#(#infos),*];
+        #entries
 
         /// Capacities, defaults other than zero and limits, each distinct one once
         /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
@@ -380,22 +374,138 @@ pub(crate) fn tables(plan: &Plan<'_>, names: &crate::Names, sink: &mut crate::di
     }
 }
 
+/// The type of an entry's field as text.
+fn rust_type_text(ty: Ty) -> String {
+    match ty {
+        Ty::Bool => "bool".into(),
+        Ty::U8 => "u8".into(),
+        Ty::U16 => "u16".into(),
+        Ty::U32 => "u32".into(),
+        Ty::U64 => "u64".into(),
+        Ty::I8 => "i8".into(),
+        Ty::I16 => "i16".into(),
+        Ty::I32 => "i32".into(),
+        Ty::I64 => "i64".into(),
+        Ty::F32 => "f32".into(),
+        Ty::F64 => "f64".into(),
+        Ty::Bytes(n) => format!("::od_runtime::{}::Bytes<{n}>", crate::support::RUNTIME_PRIVATE),
+    }
+}
+
+/// One row of `ENTRIES` (an element of the array, 8 columns in), as tokens.
+fn entry_row_tokens(e: &PEntry<'_>, x: Option<usize>) -> TokenStream {
+    let rt = rt();
+    let index = lit::hex(e.index as u64, 4);
+    let sub = proc_macro2::Literal::u8_unsuffixed(e.sub);
+    let dt = data_type_variant(e.dt);
+    let access = access_variant(e.entry.access);
+    let pdo = e.entry.pdo_mapping;
+    let field = format_ident!("{}", e.field);
+    let ty = rust_type(e.ty);
+    let cap = proc_macro2::Literal::u32_unsuffixed(if let Ty::Bytes(_) = e.ty { e.bits } else { 0 });
+    let extras = match x {
+        Some(i) => {
+            let i = proc_macro2::Literal::usize_unsuffixed(i);
+            quote!(Some(&EXTRAS[#i]))
+        }
+        None => quote!(None),
+    };
+    quote! {
+        ::od_runtime::od::EntryInfo {
+            index: #index,
+            sub: #sub,
+            data_type: ::od_runtime::od::DataType::#dt,
+            access: ::od_runtime::od::Access::#access,
+            pdo_mappable: #pdo,
+            slot: #rt::offset::<#ty>(::core::mem::offset_of!(Dictionary, #field), ::od_runtime::od::DataType::#dt, #cap),
+            extras: #extras,
+        }
+    }
+}
+
+/// One row of `ENTRIES` as text: the layout prettyplease gives a row (the struct literal
+/// broken field by field, the `offset` call broken at its turbofish and arguments, the
+/// `offset_of!` on one line, broken inside its parentheses, or broken after each argument);
+/// a row whose name is too long for that is laid out by prettyplease.
+fn entry_row(t: &mut Text, e: &PEntry<'_>, x: Option<usize>) {
+    let f = e.field.as_str();
+    let one_line = fits(16 + "::core::mem::offset_of!(Dictionary, ".len() + f.len() + "),".len());
+    let broken = fits(20 + "Dictionary, ".len() + f.len());
+    let ty = rust_type_text(e.ty);
+    if !fits(20 + f.len()) || !fits(16 + ty.len() + 1) {
+        t.push(&pretty(entry_row_tokens(e, x), 2, Nest::Array));
+        return;
+    }
+    let dt = data_type_name(e.dt);
+    let cap = if let Ty::Bytes(_) = e.ty { e.bits } else { 0 };
+    t.line(8, &["::od_runtime::od::EntryInfo {"]);
+    t.line(12, &["index: ", &format!("0x{:04X}", e.index), ","]);
+    t.line(12, &["sub: ", &e.sub.to_string(), ","]);
+    t.line(12, &["data_type: ::od_runtime::od::DataType::", dt, ","]);
+    t.line(12, &["access: ::od_runtime::od::Access::", access_name(e.entry.access), ","]);
+    t.line(12, &["pdo_mappable: ", if e.entry.pdo_mapping { "true" } else { "false" }, ","]);
+    t.line(12, &["slot: ::od_runtime::", crate::support::RUNTIME_PRIVATE, "::offset::<"]);
+    t.line(16, &[&ty, ","]);
+    t.line(12, &[">("]);
+    if one_line {
+        t.line(16, &["::core::mem::offset_of!(Dictionary, ", f, "),"]);
+    } else {
+        t.line(16, &["::core::mem::offset_of!("]);
+        if broken {
+            t.line(20, &["Dictionary, ", f]);
+        } else {
+            t.line(20, &["Dictionary,"]);
+            t.line(20, &[f]);
+        }
+        t.line(16, &["),"]);
+    }
+    t.line(16, &["::od_runtime::od::DataType::", dt, ","]);
+    t.line(16, &[&cap.to_string(), ","]);
+    t.line(12, &["),"]);
+    match x {
+        Some(i) => t.line(12, &["extras: Some(&EXTRAS[", &i.to_string(), "]),"]),
+        None => t.line(12, &["extras: None,"]),
+    }
+    t.line(8, &["},"]);
+}
+
 /// `NAMES`, the display name of every entry in `ENTRIES` order, as the options say: always,
 /// never, or behind a cargo feature of the crate the code is compiled in.
-fn names_table(plan: &Plan<'_>, names: &crate::Names) -> TokenStream {
+fn names_table(plan: &Plan<'_>, names: &crate::Names, parts: &mut Parts) -> TokenStream {
     let cfg = match names {
         crate::Names::Never => return TokenStream::new(),
-        crate::Names::Always => TokenStream::new(),
-        crate::Names::Feature(f) => quote!(#[cfg(feature = #f)]),
+        crate::Names::Always => None,
+        crate::Names::Feature(f) => Some(f),
     };
-    let n = proc_macro2::Literal::usize_unsuffixed(plan.entries.len());
-    let all = plan.entries.iter().map(display_name);
-    quote! {
-        /// The name of every entry (`ParameterName`, `Object: Sub-object` for sub-entries), in
-        /// [`ENTRIES`] order.
-        #cfg
-        pub static NAMES: [&str; #n] = [#(#all),*];
+    let doc = vec![
+        "The name of every entry (`ParameterName`, `Object: Sub-object` for sub-entries), in".to_owned(),
+        "[`ENTRIES`] order.".to_owned(),
+    ];
+    let n = plan.entries.len().to_string();
+    let all: Vec<String> =
+        plan.entries.iter().map(|e| proc_macro2::Literal::string(&display_name(e)).to_string()).collect();
+    let head = format!("pub static NAMES: [&str; {n}] = [");
+    // On one line when it fits: then prettyplease lays it out.
+    // `["a", "b"];`: each name and `, ` but the last.
+    let one_line = 4 + head.len() + all.iter().map(|s| s.len() + 2).sum::<usize>() - 2 + "];".len();
+    if fits(one_line) {
+        let d = crate::text::doc_tokens(&doc);
+        let cfg = cfg.map(|f| quote!(#[cfg(feature = #f)]));
+        let n = proc_macro2::Literal::usize_unsuffixed(plan.entries.len());
+        let all = plan.entries.iter().map(display_name);
+        return parts.put(pretty(quote!(#d #cfg pub static NAMES: [&str; #n] = [#(#all),*];), 1, Nest::Item));
     }
+    let mut t = Text::with_capacity(one_line + all.len() * 12 + 200);
+    t.doc(4, &doc);
+    if let Some(f) = cfg {
+        t.line(4, &["#[cfg(feature = ", &proc_macro2::Literal::string(f).to_string(), ")]"]);
+    }
+    t.line(4, &[&head]);
+    for s in &all {
+        t.line(8, &[s, ","]);
+    }
+    t.line(4, &["];"]);
+    parts.put(t.out)
 }
 
 fn init_expr(e: &PEntry<'_>) -> TokenStream {
@@ -423,16 +533,20 @@ fn init_expr(e: &PEntry<'_>) -> TokenStream {
     }
 }
 
-fn setter(e: &PEntry<'_>) -> TokenStream {
-    let field = format_ident!("{}", e.field);
-    let set = format_ident!("set_{}", e.field);
-    let doc = lit::doc(&[format!(
+fn setter_doc(e: &PEntry<'_>) -> Vec<String> {
+    vec![format!(
         "Sets {} {} (see [`Self::{}`]): limits are checked, the access type is not (the bus side, \
          `bus_write`, checks it).",
         location(e),
         lit::doc_escape(&display_name(e)),
         e.field
-    )]);
+    )]
+}
+
+fn setter(e: &PEntry<'_>) -> TokenStream {
+    let field = format_ident!("{}", e.field);
+    let set = format_ident!("set_{}", e.field);
+    let doc = crate::text::doc_tokens(&setter_doc(e));
     let ty = rust_type(e.ty);
     if let Ty::Bytes(_) = e.ty {
         return quote! {
@@ -476,7 +590,7 @@ fn setter(e: &PEntry<'_>) -> TokenStream {
 
 fn getter(e: &PEntry<'_>, sidecar: Option<&crate::sidecar::Sidecar>) -> TokenStream {
     let field = format_ident!("{}", e.field);
-    let doc = lit::doc(&entry_doc(e, "Reads", sidecar));
+    let doc = crate::text::doc_tokens(&entry_doc(e, "Reads", sidecar));
     match e.ty {
         Ty::Bytes(_) => quote! {
             #doc
@@ -498,16 +612,201 @@ fn getter(e: &PEntry<'_>, sidecar: Option<&crate::sidecar::Sidecar>) -> TokenStr
     }
 }
 
+/// An integer literal as text, as [`lit::int`] writes it and prettyplease prints it.
+fn int_text(v: i128) -> String {
+    if v < 0 { format!("-{}", v.unsigned_abs()) } else { v.to_string() }
+}
+
+/// [`lit::int_radix`] as text.
+fn int_radix_text(v: i128, hex: bool) -> String {
+    if hex && v >= 0 { format!("0x{v:X}") } else { int_text(v) }
+}
+
+/// [`lit::real`] as text.
+fn real_text(f: f64, is32: bool) -> String {
+    let t = if is32 { "f32" } else { "f64" };
+    let f = if is32 && !f.is_nan() { (f as f32) as f64 } else { f };
+    if f.is_nan() {
+        return format!("{t}::NAN");
+    }
+    if f.is_infinite() {
+        return if f > 0.0 { format!("{t}::INFINITY") } else { format!("{t}::NEG_INFINITY") };
+    }
+    let a = if is32 {
+        proc_macro2::Literal::f32_unsuffixed((f as f32).abs())
+    } else {
+        proc_macro2::Literal::f64_unsuffixed(f.abs())
+    };
+    if f.is_sign_negative() { format!("-{a}") } else { a.to_string() }
+}
+
+/// [`lit::int_of`] as text.
+fn int_of_text(v: i128, ty: Ty) -> String {
+    match ty {
+        Ty::Bool => (v != 0).to_string(),
+        Ty::F32 => real_text(v as f64, true),
+        Ty::F64 => real_text(v as f64, false),
+        _ => int_text(v),
+    }
+}
+
+/// [`init_expr`] as text.
+fn init_text(e: &PEntry<'_>) -> String {
+    let rt = crate::support::RUNTIME_PRIVATE;
+    match (&e.default, e.ty) {
+        (Def::Bytes(b), Ty::Bytes(_)) => {
+            format!("::od_runtime::{rt}::Bytes::from_slice({})", proc_macro2::Literal::byte_string(b))
+        }
+        (_, Ty::Bytes(_)) => format!("::od_runtime::{rt}::Bytes::from_slice(&[])"),
+        (Def::Int(v, hex), t) if t.is_int() => int_radix_text(*v, *hex),
+        (Def::Int(v, _), t) => int_of_text(*v, t),
+        (Def::Real(f), Ty::F32) => real_text(*f, true),
+        (Def::Real(f), Ty::F64) => real_text(*f, false),
+        (Def::NodeId(o, hex), Ty::Bool) => format!("({} + node_id as i128) != 0", int_radix_text(*o, *hex)),
+        (Def::NodeId(o, hex), t) => {
+            format!("({} + node_id as i128) as {}", int_radix_text(*o, *hex), rust_type_text(t))
+        }
+        (_, t) => int_of_text(0, t),
+    }
+}
+
+/// The zero of an entry's field, as tokens and as text (`zeroed`).
+fn zero_expr(e: &PEntry<'_>) -> (TokenStream, String) {
+    match e.ty {
+        Ty::Bytes(_) => {
+            let rt = rt();
+            (
+                quote!(#rt::Bytes::from_slice(&[])),
+                format!("::od_runtime::{}::Bytes::from_slice(&[])", crate::support::RUNTIME_PRIVATE),
+            )
+        }
+        t => (lit::int_of(0, t), int_of_text(0, t)),
+    }
+}
+
+/// A `const fn` of `Dictionary` (8 columns in) whose body is the struct literal of `inits`
+/// (`new`, `zeroed`): as text when the literal is too long for one line and each field fits
+/// one, else through prettyplease.
+fn constructor(doc: &[String], sig: &str, inits: &[(&str, String)], tokens: impl FnOnce() -> TokenStream) -> String {
+    let one_line = 12 + "Dictionary { ".len() + inits.iter().map(|(f, v)| f.len() + 2 + v.len() + 2).sum::<usize>() - 2
+        + " }".len();
+    if fits(one_line) || !inits.iter().all(|(f, v)| fits(16 + f.len() + 2 + v.len() + 1)) {
+        return pretty(tokens(), 2, Nest::Impl);
+    }
+    let mut t = Text::with_capacity(one_line + inits.len() * 20 + 200);
+    t.doc(8, doc);
+    t.line(8, &[sig]);
+    t.line(12, &["Dictionary {"]);
+    for (f, v) in inits {
+        t.line(16, &[f, ": ", v, ","]);
+    }
+    t.line(12, &["}"]);
+    t.line(8, &["}"]);
+    t.out
+}
+
+/// The getter of an entry as text (8 columns in), or through prettyplease when its signature
+/// comes near the margin.
+fn getter_text(t: &mut Text, e: &PEntry<'_>, sidecar: Option<&crate::sidecar::Sidecar>) {
+    let f = e.field.as_str();
+    let n = f.len();
+    let (sig, body) = match e.ty {
+        Ty::Bytes(_) => {
+            (8 + "pub fn ".len() + n + "(&self) -> &[u8] {".len(), 12 + "self.".len() + n + ".as_slice()".len())
+        }
+        ty => (8 + "pub const fn ".len() + n + "(&self) -> ".len() + rust_type_text(ty).len() + " {".len(), 12 + 5 + n),
+    };
+    if !fits(sig) || !fits(body) {
+        t.push(&pretty(getter(e, sidecar), 2, Nest::Impl));
+        return;
+    }
+    t.doc(8, &entry_doc(e, "Reads", sidecar));
+    t.line(8, &["#[inline]"]);
+    match e.ty {
+        Ty::Bytes(_) => {
+            t.line(8, &["pub fn ", f, "(&self) -> &[u8] {"]);
+            t.line(12, &["self.", f, ".as_slice()"]);
+        }
+        ty => {
+            t.line(8, &["pub const fn ", f, "(&self) -> ", &rust_type_text(ty), " {"]);
+            t.line(12, &["self.", f]);
+        }
+    }
+    t.line(8, &["}"]);
+}
+
+/// The setter of an entry as text (8 columns in): the signature on one line or broken after
+/// each parameter; through prettyplease when it comes near the margin.
+fn setter_text(t: &mut Text, e: &PEntry<'_>) {
+    const RESULT: &str = ") -> Result<(), ::od_runtime::od::AbortCode> {";
+    let f = e.field.as_str();
+    let n = f.len();
+    let ty = match e.ty {
+        Ty::Bytes(_) => "&[u8]".to_owned(),
+        ty => rust_type_text(ty),
+    };
+    let one_line = 8 + "pub fn set_".len() + n + "(&mut self, v: ".len() + ty.len() + RESULT.len();
+    let mut checks: Vec<(&str, String, &str)> = Vec::new();
+    if e.ty.is_real() {
+        let is32 = e.ty == Ty::F32;
+        if let Some(l) = e.real_low {
+            checks.push(("<", real_text(l, is32), "VALUE_TOO_LOW"));
+        }
+        if let Some(h) = e.real_high {
+            checks.push((">", real_text(h, is32), "VALUE_TOO_HIGH"));
+        }
+    } else if e.ty.is_int() {
+        if let Some(l) = e.set_low {
+            checks.push(("<", int_text(l), "VALUE_TOO_LOW"));
+        }
+        if let Some(h) = e.set_high {
+            checks.push((">", int_text(h), "VALUE_TOO_HIGH"));
+        }
+    }
+    let body_fits = fits(12 + "self.".len() + n + ".set(v)".len().max(" = v;".len()))
+        && checks.iter().all(|(_, v, _)| fits(12 + "if v < ".len() + v.len() + " {".len()));
+    let broken_fits = fits(8 + "pub fn set_".len() + n + 1) && fits(12 + "v: ".len() + ty.len() + 1);
+    if !body_fits || !(fits(one_line) || broken_fits) {
+        t.push(&pretty(setter(e), 2, Nest::Impl));
+        return;
+    }
+    t.doc(8, &setter_doc(e));
+    if !matches!(e.ty, Ty::Bytes(_)) {
+        t.line(8, &["#[inline]"]);
+    }
+    if fits(one_line) {
+        t.line(8, &["pub fn set_", f, "(&mut self, v: ", &ty, RESULT]);
+    } else {
+        t.line(8, &["pub fn set_", f, "("]);
+        t.line(12, &["&mut self,"]);
+        t.line(12, &["v: ", &ty, ","]);
+        t.line(8, &[RESULT]);
+    }
+    if let Ty::Bytes(_) = e.ty {
+        t.line(12, &["self.", f, ".set(v)"]);
+    } else {
+        for (op, v, code) in &checks {
+            t.line(12, &["if v ", op, " ", v, " {"]);
+            t.line(16, &["return Err(::od_runtime::od::AbortCode::", code, ");"]);
+            t.line(12, &["}"]);
+        }
+        t.line(12, &["self.", f, " = v;"]);
+        t.line(12, &["Ok(())"]);
+    }
+    t.line(8, &["}"]);
+}
+
 /// The storage struct, its inherent methods and the trait implementation.
 pub(crate) fn dictionary(
     model: &Model,
     plan: &Plan<'_>,
     names: &crate::Names,
     sidecar: Option<&crate::sidecar::Sidecar>,
+    parts: &mut Parts,
 ) -> TokenStream {
     let product = model.device_info.product_name.as_deref().unwrap_or("device");
     let vendor = model.device_info.vendor_name.as_deref().unwrap_or("unknown vendor");
-    let struct_doc = lit::doc(&[
+    let struct_doc = vec![
         format!(
             "The object dictionary of the {} ({}): the current value of every entry.",
             lit::doc_escape(product),
@@ -518,31 +817,82 @@ pub(crate) fn dictionary(
          application side) or through [`ObjectDictionary`](::od_runtime::od::ObjectDictionary) \
          (the bus side, as little-endian bytes)."
             .to_owned(),
-    ]);
+    ];
 
-    let fields = plan.entries.iter().map(|e| {
-        let f = format_ident!("{}", e.field);
-        let ty = rust_type(e.ty);
-        quote!(#f: #ty)
-    });
+    let types: Vec<String> = plan.entries.iter().map(|e| rust_type_text(e.ty)).collect();
+    let struct_item = if !plan.entries.is_empty()
+        && plan.entries.iter().zip(&types).all(|(e, ty)| fits(8 + e.field.len() + 2 + ty.len() + 1))
+    {
+        let mut t = Text::with_capacity(plan.entries.len() * 50 + 400);
+        t.doc(4, &struct_doc);
+        t.line(4, &["#[derive(Clone, Debug, PartialEq)]"]);
+        t.line(4, &["pub struct Dictionary {"]);
+        for (e, ty) in plan.entries.iter().zip(&types) {
+            t.line(8, &[&e.field, ": ", ty, ","]);
+        }
+        t.line(4, &["}"]);
+        t.out
+    } else {
+        let doc = crate::text::doc_tokens(&struct_doc);
+        let fields = plan.entries.iter().map(|e| {
+            let f = format_ident!("{}", e.field);
+            let ty = rust_type(e.ty);
+            quote!(#f: #ty)
+        });
+        pretty(
+            quote! {
+                #doc
+                #[derive(Clone, Debug, PartialEq)]
+                pub struct Dictionary {
+                    #(#fields,)*
+                }
+            },
+            1,
+            Nest::Item,
+        )
+    };
+    let struct_item = parts.put(struct_item);
+
     let uses_node_id = plan.entries.iter().any(|e| matches!(e.default, Def::NodeId(..)));
     let node_id = if uses_node_id { format_ident!("node_id") } else { format_ident!("_node_id") };
-    let inits = plan.entries.iter().map(|e| {
-        let f = format_ident!("{}", e.field);
-        let v = init_expr(e);
-        quote!(#f: #v)
-    });
-    let zeros = plan.entries.iter().map(|e| {
-        let f = format_ident!("{}", e.field);
-        let v = match e.ty {
-            Ty::Bytes(_) => {
-                let rt = rt();
-                quote!(#rt::Bytes::from_slice(&[]))
+    let new_doc = vec!["A dictionary holding every entry's default, with `$NODEID` resolved for `node_id`.".to_owned()];
+    let inits: Vec<(&str, String)> = plan.entries.iter().map(|e| (e.field.as_str(), init_text(e))).collect();
+    let new_fn = constructor(&new_doc, &format!("pub const fn new({node_id}: u8) -> Self {{"), &inits, || {
+        let doc = crate::text::doc_tokens(&new_doc);
+        let inits = plan.entries.iter().map(|e| {
+            let f = format_ident!("{}", e.field);
+            let v = init_expr(e);
+            quote!(#f: #v)
+        });
+        quote! {
+            #doc
+            pub const fn new(#node_id: u8) -> Self {
+                Dictionary { #(#inits,)* }
             }
-            t => lit::int_of(0, t),
-        };
-        quote!(#f: #v)
+        }
     });
+    let new_fn = parts.put(new_fn);
+    let zeroed_doc = vec![
+        "Every value zero, every buffer empty. A device's first poll (its reset node)".to_owned(),
+        "restores the defaults, so a firmware can start from this: its device then".to_owned(),
+        "needs no image of the defaults in flash besides the entry table's.".to_owned(),
+    ];
+    let zeros: Vec<(&str, String)> = plan.entries.iter().map(|e| (e.field.as_str(), zero_expr(e).1)).collect();
+    let zeroed_fn = constructor(&zeroed_doc, "pub const fn zeroed() -> Self {", &zeros, || {
+        let doc = crate::text::doc_tokens(&zeroed_doc);
+        let zeros = plan.entries.iter().map(|e| {
+            let f = format_ident!("{}", e.field);
+            let v = zero_expr(e).0;
+            quote!(#f: #v)
+        });
+        quote! {
+            #doc
+            pub const fn zeroed() -> Self {
+                Dictionary { #(#zeros,)* }
+            }
+        }
+    });
+    let zeroed_fn = parts.put(zeroed_fn);
     let rt = rt();
     let real_limited: Vec<&PEntry<'_>> =
         plan.entries.iter().filter(|e| e.real_low.is_some() || e.real_high.is_some()).collect();
@@ -577,31 +927,24 @@ pub(crate) fn dictionary(
             crate::Names::Feature(f) => quote!(#[cfg(feature = #f)] #body),
         }
     };
-    let accessors = plan.entries.iter().map(|e| {
-        let g = getter(e, sidecar);
-        let s = setter(e);
-        quote!(#g #s)
-    });
+    let accessors = if plan.entries.is_empty() {
+        TokenStream::new()
+    } else {
+        let mut t = Text::with_capacity(plan.entries.len() * 900);
+        for e in &plan.entries {
+            getter_text(&mut t, e, sidecar);
+            setter_text(&mut t, e);
+        }
+        parts.put(t.out)
+    };
 
     quote! {
-        #struct_doc
-        #[derive(Clone, Debug, PartialEq)]
-        pub struct Dictionary {
-            #(#fields,)*
-        }
+        #struct_item
 
         impl Dictionary {
-            /// A dictionary holding every entry's default, with `$NODEID` resolved for `node_id`.
-            pub const fn new(#node_id: u8) -> Self {
-                                Dictionary { #(#inits,)* }
-            }
+            #new_fn
 
-            /// Every value zero, every buffer empty. A device's first poll (its reset node)
-            /// restores the defaults, so a firmware can start from this: its device then
-            /// needs no image of the defaults in flash besides the entry table's.
-            pub const fn zeroed() -> Self {
-                Dictionary { #(#zeros,)* }
-            }
+            #zeroed_fn
 
             /// Position of `(index, sub)` in [`ENTRIES`]: `Err(NO_OBJECT)` if the index is absent,
             /// `Err(NO_SUB_INDEX)` if only the sub-index is.
@@ -668,7 +1011,7 @@ pub(crate) fn dictionary(
                 #rt::check_mapping(&ENTRIES, &LOOKUP, ::od_runtime::pdo::Direction::Transmit, mapping)
             }
 
-            #(#accessors)*
+            #accessors
         }
 
         // SAFETY: every slot in ENTRIES is `offset::<T>(offset_of!(Dictionary, field), …)` of

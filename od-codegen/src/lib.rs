@@ -24,7 +24,8 @@
 //! * **`cargo xtask gen`** regenerates the checked-in crate `generated/` (one feature per device)
 //!   through the same [`Builder`] with [`Builder::out_dir`]; `cargo xtask gen --check` fails when
 //!   it is stale.
-//! * **The library**: [`generate`] (pure: model in, tokens out) and [`render`] (tokens to text).
+//! * **The library**: [`generate`] (pure: model in, tokens out) and [`render`] (tokens to text),
+//!   or [`expand_text`] and [`GeneratedText::render`] (model to text, the `Builder`'s path).
 //!
 //! # What the generated module looks like
 //!
@@ -109,6 +110,7 @@ mod lookup;
 pub mod pdo;
 mod plan;
 mod support;
+mod text;
 pub mod units;
 
 use eds::model::Model;
@@ -206,6 +208,55 @@ pub fn generate(model: &Model, options: &Options) -> TokenStream {
 /// always compile, for every model); the diagnostics say what and why. Whether a deviation is a
 /// warning or an error is [`Options::strict`]'s choice.
 pub fn expand(model: &Model, options: &Options) -> Generated {
+    let mut parts = text::Parts::tokens();
+    let (tokens, diagnostics) = expand_with(model, options, &mut parts);
+    Generated { tokens, diagnostics }
+}
+
+/// A generated module on its way to text: what [`expand_text`] gives and the [`Builder`] (and
+/// so `odgen gen`) writes with [`GeneratedText::render`].
+///
+/// The large, repetitive parts of the module (the index constants, the entry and name tables,
+/// the `Dictionary` struct, its constructors and accessors) are already text, laid out as
+/// prettyplease lays them out; only the rest goes through syn and prettyplease. The file is the
+/// same as [`render`] makes of [`expand`]'s tokens (a test holds the two paths to each other).
+#[derive(Clone, Debug)]
+pub struct GeneratedText {
+    /// The module with a placeholder item for each part already written as text.
+    skeleton: TokenStream,
+    /// The placeholders' name prefix.
+    prefix: String,
+    parts: Vec<String>,
+    /// Diagnostics located in the device description, in generation order.
+    pub diagnostics: Vec<Diagnostic>,
+}
+
+impl GeneratedText {
+    /// Whether any diagnostic is an error (the [`Builder`] then fails).
+    pub fn has_errors(&self) -> bool {
+        self.diagnostics.iter().any(|d| d.severity == Severity::Error)
+    }
+
+    /// The formatted Rust file with the `@generated` [`header`] naming `source_name`.
+    ///
+    /// Returns an error (never panics) if the tokens are not a valid file, which would be a bug
+    /// in the generator.
+    pub fn render(&self, source_name: &str) -> Result<String, syn::Error> {
+        let rest = render(&self.skeleton, source_name)?;
+        Ok(text::splice(&rest, &self.prefix, &self.parts))
+    }
+}
+
+/// Generates the module for one device as text (the [`Builder`]'s path, much faster than
+/// [`render`] of [`expand`] in a debug build script), and reports what it found.
+pub fn expand_text(model: &Model, options: &Options) -> GeneratedText {
+    let mut parts = text::Parts::text(options.eds_text.as_deref());
+    let (skeleton, diagnostics) = expand_with(model, options, &mut parts);
+    let (prefix, parts) = parts.into_texts();
+    GeneratedText { skeleton, prefix, parts, diagnostics }
+}
+
+fn expand_with(model: &Model, options: &Options, parts: &mut text::Parts) -> (TokenStream, Vec<Diagnostic>) {
     let mut sink = diag::Sink::new(&options.source_name, options.strict);
     let module = match syn::parse_str::<syn::Ident>(&options.module) {
         Ok(_) => format_ident!("{}", options.module),
@@ -229,9 +280,9 @@ pub fn expand(model: &Model, options: &Options) -> Generated {
         }
         None => TokenStream::new(),
     };
-    let index = emit::index_consts(&plan);
-    let tables = emit::tables(&plan, &options.names, &mut sink);
-    let dictionary = emit::dictionary(model, &plan, &options.names, options.sidecar.as_ref());
+    let index = emit::index_consts(&plan, parts);
+    let tables = emit::tables(&plan, &options.names, &mut sink, parts);
+    let dictionary = emit::dictionary(model, &plan, &options.names, options.sidecar.as_ref(), parts);
     let device = emit::device_type(model, &plan);
     let pdo = pdo::module(model, &plan, &mut sink);
     let units = match &options.sidecar {
@@ -260,7 +311,7 @@ pub fn expand(model: &Model, options: &Options) -> Generated {
     };
     let mut diagnostics = sink.out;
     diagnostics.sort_by_key(|d| d.at.map(|a| (a.line, a.col)));
-    Generated { tokens, diagnostics }
+    (tokens, diagnostics)
 }
 
 /// The first line of a generated file: the generator and the description it was generated

@@ -344,8 +344,17 @@ fn sub_words(obj: &Object, obj_words: &[String]) -> std::collections::BTreeMap<u
         names.iter().map(|(s, w)| (*s, drop_object_words(w, &plain, &none))).collect();
     // Siblings whose own words are empty or alike keep the object's words that tell them apart
     // (`Vl velocity min max amount` / `Vl velocity min amount`, `… max amount` → `min`, `max`).
-    let groups: BTreeSet<Vec<String>> =
-        own.values().filter(|w| w.is_empty() || own.values().filter(|x| x == w).count() > 1).cloned().collect();
+    // (Counted once per map: an array has up to 255 entries, and comparing each with each
+    // was most of planning a large DCF in a debug build script.)
+    fn counts(words: impl IntoIterator<Item = Vec<String>>) -> BTreeMap<Vec<String>, usize> {
+        let mut c = BTreeMap::new();
+        for w in words {
+            *c.entry(w).or_insert(0) += 1;
+        }
+        c
+    }
+    let count = counts(own.values().cloned());
+    let groups: BTreeSet<Vec<String>> = own.values().filter(|w| w.is_empty() || count[*w] > 1).cloned().collect();
     for g in groups {
         let members: Vec<u8> = own.iter().filter(|(_, w)| **w == g).map(|(s, _)| *s).collect();
         let sets: Vec<BTreeSet<String>> =
@@ -356,25 +365,29 @@ fn sub_words(obj: &Object, obj_words: &[String]) -> std::collections::BTreeMap<u
             continue;
         }
         let redone: Vec<Vec<String>> = members.iter().map(|s| drop_object_words(&names[s], &plain, &apart)).collect();
-        if redone.iter().all(|w| !w.is_empty() && redone.iter().filter(|x| x == &w).count() == 1) {
+        let count = counts(redone.iter().cloned());
+        if redone.iter().all(|w| !w.is_empty() && count[w] == 1) {
             for (s, w) in members.iter().zip(redone) {
                 own.insert(*s, w);
             }
         }
     }
-    let unique = |map: &BTreeMap<u8, Vec<String>>, w: &Vec<String>| map.values().filter(|x| *x == w).count() == 1;
+    let (own_count, fuller_count) = (counts(own.values().cloned()), counts(fuller.values().cloned()));
+    let unique = |count: &BTreeMap<Vec<String>, usize>, w: &Vec<String>| count.get(w) == Some(&1);
     let mut chosen: BTreeMap<u8, Vec<String>> = BTreeMap::new();
     for (sub, w) in &own {
         let f = &fuller[sub];
         let number = vec![sub.to_string()];
-        let pick = if !w.is_empty() && unique(&own, w) {
+        // Another entry's own words are `f`.
+        let others_own = own_count.get(f).copied().unwrap_or(0) - usize::from(w == f);
+        let pick = if !w.is_empty() && unique(&own_count, w) {
             w.clone()
         } else if w.is_empty()
-            && (names[sub].iter().any(|x| x.bytes().any(|b| b.is_ascii_digit())) || !unique(&fuller, f))
-            && !own.values().any(|x| *x == number)
+            && (names[sub].iter().any(|x| x.bytes().any(|b| b.is_ascii_digit())) || !unique(&fuller_count, f))
+            && !own_count.contains_key(&number)
         {
             number
-        } else if !f.is_empty() && unique(&fuller, f) && !own.iter().any(|(s, x)| s != sub && x == f) {
+        } else if !f.is_empty() && unique(&fuller_count, f) && others_own == 0 {
             f.clone()
         } else {
             let mut n = w.clone();
@@ -385,7 +398,7 @@ fn sub_words(obj: &Object, obj_words: &[String]) -> std::collections::BTreeMap<u
     }
     // A fuller name that equals a sibling's own: both take their number.
     let dup: BTreeSet<Vec<String>> =
-        chosen.values().filter(|w| chosen.values().filter(|x| x == w).count() > 1).cloned().collect();
+        counts(chosen.values().cloned()).into_iter().filter(|(_, n)| *n > 1).map(|(w, _)| w).collect();
     chosen
         .into_iter()
         .map(|(sub, mut w)| {

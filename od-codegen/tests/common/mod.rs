@@ -70,3 +70,6 @@ pub fn model(objects: Vec<Object>) -> Model {
     m.objects = objects.into_iter().map(|o| (o.index, o)).collect();
     m
 }
+
+/// Models built at random from the parts real files get wrong (a fixed seed per model).
+pub mod random;
