@@ -950,7 +950,7 @@ pub(crate) fn dictionary(
             /// `Err(NO_SUB_INDEX)` if only the sub-index is.
             #[inline]
             pub fn position(index: u16, sub: u8) -> Result<usize, ::od_runtime::od::AbortCode> {
-                #rt::position(&LOOKUP, index, sub)
+                #rt::lookup(&LOOKUP, &DIRECT, index, sub)
             }
 
             /// The value of the entry at `pos` of [`ENTRIES`], through its slot.

@@ -113,13 +113,17 @@ pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
             extra: &[#(#extra),*],
             entries: &ENTRIES,
         };
+
+        /// Where a host finds each object's run of entries in one read (1 KB per page of
+        /// 256 indices); empty on a microcontroller, which looks entries up in `LOOKUP`.
+        static DIRECT: [u32; #rt::direct_len(#n_pages)] = #rt::direct(&ENTRIES);
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use od_runtime::__private_v2::{Lookup, position};
+    use od_runtime::__private_v2::{Lookup, direct, lookup as runtime_lookup, position as compact, position_direct};
     use od_runtime::od::{AbortCode, Access, DataType, EntryInfo};
     use proptest::prelude::*;
 
@@ -127,9 +131,38 @@ mod tests {
         Box::leak(v.into_boxed_slice())
     }
 
+    /// Both lookups of a dictionary: the compact tables and the host's direct table.
+    struct Both {
+        tables: Lookup,
+        direct: &'static [u32],
+    }
+
+    /// The position by every path there is: the compact lookup (a microcontroller's), the
+    /// direct one (a host's) and the runtime's choice between them, which must all agree.
+    fn position(b: &Both, index: u16, sub: u8) -> Result<usize, AbortCode> {
+        let found = compact(&b.tables, index, sub);
+        assert_eq!(
+            position_direct(&b.tables.pages, b.direct, b.tables.entries, index, sub),
+            found,
+            "direct {index:#06x} {sub}"
+        );
+        assert_eq!(runtime_lookup(&b.tables, b.direct, index, sub), found);
+        found
+    }
+
     /// The lookup as the generated code builds it: the runtime's `const fn`s compute the page
-    /// table from the object list, and must agree with [`build`].
-    fn lookup(keys: &[(u16, u8)]) -> Lookup {
+    /// table from the object list and the direct table from the entries, and must agree with
+    /// [`build`].
+    fn lookup(keys: &[(u16, u8)]) -> Both {
+        let tables = compact_tables(keys);
+        // The largest table there is, cut to the pages this one has (as `direct_len` sizes it).
+        let all = Box::new(direct::<{ MAX_PAGES * 256 }>(tables.entries));
+        let n = od_runtime::__private_v2::direct_len(tables.bits.len());
+        assert!(all[n..].iter().all(|d| *d == 0));
+        Both { tables, direct: leak(all[..n].to_vec()) }
+    }
+
+    fn compact_tables(keys: &[(u16, u8)]) -> Lookup {
         let t = build(keys).unwrap();
         let mut objects: Vec<u16> = keys.iter().map(|k| k.0).collect();
         objects.dedup();

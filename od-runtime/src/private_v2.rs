@@ -398,6 +398,97 @@ pub fn position(t: &Lookup, index: u16, sub: u8) -> Result<usize, AbortCode> {
     search(t, page, word, lo, index, sub)
 }
 
+/// The direct lookup table of a dictionary on a host (see [`position_direct`]): per page of
+/// 256 indices (the pages numbered as [`pages`] numbers them, from 1 in ascending order of
+/// the high byte) and per low byte, 0 where there is no object, else the object's run of
+/// entries in `entries`: the position of its first entry plus one (bits 0..16), its last
+/// sub-index (bits 16..24) and its number of entries minus one (bits 24..32). `N` is 256
+/// times the number of pages; `entries` is sorted by `(index, sub)` (the generator refuses
+/// more than 65535 entries, so every position plus one fits in 16 bits).
+///
+/// 1 KB per page: what a host spends to find an entry in a few instructions. A
+/// microcontroller keeps the compact [`Lookup`] instead (48 bytes per page and a byte per
+/// object), which the generated code uses there.
+pub const fn direct<const N: usize>(entries: &[EntryInfo]) -> [u32; N] {
+    let mut out = [0u32; N];
+    let (mut page, mut high) = (0usize, u32::MAX);
+    let mut i = 0;
+    while i < entries.len() {
+        let index = entries[i].index;
+        // The object's run: entries `i..j`.
+        let mut j = i + 1;
+        while j < entries.len() && entries[j].index == index {
+            j += 1;
+        }
+        if (index >> 8) as u32 != high {
+            high = (index >> 8) as u32;
+            page += 1;
+        }
+        let at = (page - 1) * 256 + (index & 0xFF) as usize;
+        if at < N && i < u16::MAX as usize && j - i <= 256 {
+            let last = entries[j - 1].sub as u32;
+            out[at] = (i as u32 + 1) | last << 16 | ((j - i - 1) as u32) << 24;
+        }
+        i = j;
+    }
+    out
+}
+
+/// The length of a dictionary's [`direct`] table for `pages` pages: 256 per page on a host,
+/// none on a microcontroller (`target_os = "none"`), which uses the compact [`Lookup`] alone.
+pub const fn direct_len(pages: usize) -> usize {
+    if cfg!(target_os = "none") { 0 } else { pages * 256 }
+}
+
+/// The generated dictionaries' lookup: [`position_direct`] where there is a [`direct`] table
+/// (a host), the compact [`position`] where there is none (a microcontroller).
+#[inline(always)]
+pub fn lookup(t: &Lookup, direct: &[u32], index: u16, sub: u8) -> Result<usize, AbortCode> {
+    if direct.is_empty() { position(t, index, sub) } else { position_direct(&t.pages, direct, t.entries, index, sub) }
+}
+
+/// Position of `(index, sub)` in `entries` through the [`direct`] table: one table read to
+/// the object's run of entries; a sub-index past its last is absent at once, the others are
+/// tried at the first entry `+ sub` (sub-indices are almost always `0, 1, 2, …`), and for an
+/// object whose sub-indices have gaps, found by a binary search of its run. The host's
+/// lookup; its results are those of [`position`] (both are tested against a binary search of
+/// the entries).
+#[inline(always)]
+pub fn position_direct(
+    pages: &[u8; 256],
+    direct: &[u32],
+    entries: &[EntryInfo],
+    index: u16,
+    sub: u8,
+) -> Result<usize, AbortCode> {
+    let page = usize::from(pages[usize::from(index >> 8)]);
+    // Past the table for page 0 (no object has this high byte).
+    let at = (page.wrapping_sub(1) << 8) | usize::from(index & 0xFF);
+    let run = match direct.get(at) {
+        Some(&d) if d != 0 => d,
+        _ => return Err(AbortCode::NO_OBJECT),
+    };
+    if u32::from(sub) > (run >> 16) & 0xFF {
+        return Err(AbortCode::NO_SUB_INDEX);
+    }
+    let first = (run & 0xFFFF) as usize - 1;
+    let guess = first + usize::from(sub);
+    if entries.get(guess).is_some_and(|e| e.index == index && e.sub == sub) {
+        return Ok(guess);
+    }
+    search_run(entries, first, (run >> 24) as usize + 1, sub)
+}
+
+/// [`position_direct`]'s way out: a binary search of an object's run of `len` entries from
+/// `first` by sub-index.
+#[inline(never)]
+fn search_run(entries: &[EntryInfo], first: usize, len: usize, sub: u8) -> Result<usize, AbortCode> {
+    match entries.get(first..first + len) {
+        Some(run) => run.binary_search_by(|e| e.sub.cmp(&sub)).map(|p| first + p).map_err(|_| AbortCode::NO_SUB_INDEX),
+        None => Err(AbortCode::NO_OBJECT),
+    }
+}
+
 /// The lookup's way out: a binary search of the entries of the key's word from `lo` on.
 #[inline(never)]
 fn search(t: &Lookup, page: usize, word: usize, lo: usize, index: u16, sub: u8) -> Result<usize, AbortCode> {

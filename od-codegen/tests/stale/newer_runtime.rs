@@ -36,6 +36,11 @@ pub mod tiny {
         extra: &[0],
         entries: &ENTRIES,
     };
+    /// Where a host finds each object's run of entries in one read (1 KB per page of
+    /// 256 indices); empty on a microcontroller, which looks entries up in `LOOKUP`.
+    static DIRECT: [u32; ::od_runtime::__private_v2::direct_len(1)] = ::od_runtime::__private_v2::direct(
+        &ENTRIES,
+    );
     /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
     pub static ENTRIES: [::od_runtime::od::EntryInfo; 1] = [
         ::od_runtime::od::EntryInfo {
@@ -93,7 +98,7 @@ pub mod tiny {
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::position(&LOOKUP, index, sub)
+            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
