@@ -144,6 +144,10 @@ pub(crate) struct Scratch {
     pub line_starts: Vec<u32>,
     /// The diagnostics of a file given back, emptied: the next file's are put there.
     pub diags: Vec<crate::Diagnostic>,
+    /// The buffers are made with room for a file of at least this many bytes: a buffer that
+    /// grows is replaced, and its replacement's pages are fresh again, while room that is never
+    /// written costs no memory (only address space).
+    pub room_for: usize,
 }
 
 impl Scratch {
@@ -165,6 +169,17 @@ impl Scratch {
 pub(crate) fn reuse<T, U>(mut v: Vec<T>) -> Vec<U> {
     v.clear();
     v.into_iter().filter_map(|_| None).collect()
+}
+
+/// `v` emptied, with room for at least `n` elements: a buffer too small is replaced, not grown
+/// (growing an empty vector would copy its whole old allocation: bytes that mean nothing, on
+/// fresh pages).
+pub(crate) fn with_room<T>(mut v: Vec<T>, n: usize) -> Vec<T> {
+    v.clear();
+    if v.capacity() < n {
+        v = Vec::with_capacity(n);
+    }
+    v
 }
 
 impl<'d> Collected<'d> {
@@ -385,8 +400,8 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     // almost every file (one that exceeds them grows once or twice).
     let text = &src.text;
     let sections = text.len() / 48 + 8;
-    let mut heads: Vec<Head<'a>> = reuse(std::mem::take(&mut scratch.heads));
-    heads.reserve(sections);
+    let room = text.len().max(scratch.room_for);
+    let mut heads: Vec<Head<'a>> = with_room(reuse(std::mem::take(&mut scratch.heads)), room / 48 + 8);
     let mut by_kind: FastMap<u32, usize> = std::mem::take(&mut scratch.by_kind);
     by_kind.clear();
     by_kind.reserve(sections);
@@ -395,8 +410,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     // and the names are the file's choice: the standard (keyed) hasher, not `FastMap`'s.
     let mut unknown: std::collections::HashMap<NameKey, usize> = std::collections::HashMap::new();
     let mut occurrences: Vec<u16> = Vec::with_capacity(sections);
-    let mut entries: Vec<Kv<'a>> = reuse(std::mem::take(&mut scratch.entries));
-    entries.reserve(text.len() / 10 + 8);
+    let mut entries: Vec<Kv<'a>> = with_room(reuse(std::mem::take(&mut scratch.entries)), room / 10 + 8);
     // Each section header starts a run of entries: (section, first entry). A run ends where the
     // next begins.
     let mut runs: Vec<(usize, usize)> = Vec::with_capacity(sections);
@@ -406,9 +420,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     // The start of every line (lines end at `\n`, `\r\n` or a lone `\r`, for positions as for
     // the lexer), handed to the source for its diagnostics; its length is the number of the
     // current line.
-    let mut line_starts: Vec<u32> = std::mem::take(&mut scratch.line_starts);
-    line_starts.clear();
-    line_starts.reserve(text.len() / 6 + 2);
+    let mut line_starts: Vec<u32> = with_room(std::mem::take(&mut scratch.line_starts), room / 6 + 2);
     line_starts.push(0);
     // The lines are taken from the lexer one at a time; none is kept. Most lines are plain
     // entries inside a section: the lexer reads those on a shorter path of their own.
