@@ -26,6 +26,7 @@ mod validate;
 pub use pdo::expand_compact_pdo;
 #[doc(hidden)]
 pub use sections::name_comparisons;
+pub(crate) use sections::{Scratch, with_room};
 
 use crate::ast::Document;
 use crate::diag::{Code, Diagnostic, Severity};
@@ -37,8 +38,17 @@ use crate::{Options, Strictness};
 /// far as the file allows; the diagnostics say what was wrong, in file order (problems that
 /// concern the whole file come last).
 pub fn lower(doc: &Document, options: &Options) -> (Model, Vec<Diagnostic>) {
+    lower_reusing(doc, options, &mut Scratch::default())
+}
+
+/// [`lower`] with the buffers an earlier file left in `scratch` (and leaving this file's there).
+pub(crate) fn lower_reusing(doc: &Document, options: &Options, scratch: &mut Scratch) -> (Model, Vec<Diagnostic>) {
     let mut cx = Ctx::new(&doc.source, options.strictness);
-    let collected = sections::collect(doc, &mut cx);
+    if scratch.diags.capacity() > cx.diags.capacity() {
+        cx.diags = std::mem::take(&mut scratch.diags);
+        cx.diags.clear();
+    }
+    let collected = sections::collect(doc, &mut cx, scratch);
     let secs = collected.sections();
     let mut model = Model::default();
     info::lower_info(&secs, &mut model, &mut cx);
@@ -48,6 +58,8 @@ pub fn lower(doc: &Document, options: &Options) -> (Model, Vec<Diagnostic>) {
     let lists = info::lower_object_lists(&secs, &mut cx);
     objects::lower_objects(&secs, &lists, &mut model, &mut cx);
     validate::validate(&secs, &lists, &model, &mut cx);
+    drop((secs, lists));
+    scratch.keep(collected);
     cx.report_left_out();
     let mut diags = cx.diags;
     // File order: by position, whole-file diagnostics last. The sort is stable, so diagnostics

@@ -185,6 +185,11 @@ impl SourceFile {
         let _ = self.line_starts.set(starts);
     }
 
+    /// The text and the line index (if it was built), for their memory to be reused.
+    pub(crate) fn into_buffers(self) -> (String, Option<Vec<u32>>) {
+        (self.text, self.line_starts.into_inner())
+    }
+
     /// The text a span covers (empty if the span is out of range).
     pub fn slice(&self, span: Span) -> &str {
         self.text.get(span.start as usize..span.end as usize).unwrap_or("")

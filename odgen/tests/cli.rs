@@ -238,6 +238,47 @@ fn check_on_several_threads_prints_what_one_thread_prints() {
     }
 }
 
+/// A file whose report is several times larger than the blocks output is rendered and written
+/// in (64 KiB), between two small ones: every format prints each file's report whole and in the
+/// files' order, with one thread or several.
+#[test]
+fn reports_larger_than_an_output_block_stay_whole_and_in_order() {
+    let dir = TempDir::new("blocks");
+    let small = GOOD.replace("DataType=0x0002\n", "");
+    // Each `#` comment is a warning of its own (about 250 bytes of human output, more in JSON).
+    let comments: String = (0..3000).map(|i| format!("# comment number {i} of many\n")).collect();
+    let big = GOOD.replacen("\n[", &format!("\n{comments}["), 1);
+    let files = [dir.file("a.eds", &small), dir.file("big.eds", &big), dir.file("c.eds", &small)];
+    let paths: Vec<&str> = files.iter().map(|p| s(p)).collect();
+    let without_summary = |o: &Output| {
+        let text = stdout(o);
+        let end = text.rfind("checked ").expect("summary");
+        text[..end].to_owned()
+    };
+    let alone: String = paths.iter().map(|p| without_summary(&odgen(&["check", p]))).collect();
+    assert!(alone.len() > 4 * 65536, "{} bytes", alone.len());
+    for jobs in ["1", "2"] {
+        let mut args = vec!["check", "--jobs", jobs];
+        args.extend(&paths);
+        assert_eq!(without_summary(&odgen(&args)), alone, "--jobs {jobs}");
+        for format in ["json", "sarif"] {
+            let mut args = vec!["check", "--jobs", jobs, "--format", format];
+            args.extend(&paths);
+            let o = odgen(&args);
+            let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON output");
+            if format == "json" {
+                let counts: Vec<usize> =
+                    (0..3).map(|i| v["files"][i]["diagnostics"].as_array().map_or(0, Vec::len)).collect();
+                assert!(counts[1] >= 3000 && counts[0] == counts[2] && counts[0] > 0, "{counts:?}");
+                let names: Vec<&str> = (0..3).map(|i| v["files"][i]["file"].as_str().unwrap_or("")).collect();
+                assert_eq!(names, paths, "--jobs {jobs}");
+            } else {
+                assert!(v["runs"][0]["results"].as_array().map_or(0, Vec::len) >= 3002, "--jobs {jobs}");
+            }
+        }
+    }
+}
+
 #[test]
 fn check_reports_unreadable_files() {
     let o = odgen(&["check", "/nonexistent/x.eds"]);

@@ -130,6 +130,58 @@ pub(crate) struct Collected<'a> {
     by_kind: FastMap<u32, usize>,
 }
 
+/// The buffers pass 1 fills, kept from one file to the next by a [`crate::Reader`]: a process
+/// reading many files then reuses their memory rather than touching fresh pages for each file
+/// (each a page fault, a good part of a short run's cost), and the vectors, already as large as
+/// an earlier file needed, seldom grow.
+#[derive(Default)]
+pub(crate) struct Scratch {
+    entries: Vec<Kv<'static>>,
+    heads: Vec<Head<'static>>,
+    by_kind: FastMap<u32, usize>,
+    /// The line index, which goes to the file's [`crate::source::SourceFile`]; given back
+    /// with the file ([`crate::Reader::recycle`]).
+    pub line_starts: Vec<u32>,
+    /// The diagnostics of a file given back, emptied: the next file's are put there.
+    pub diags: Vec<crate::Diagnostic>,
+    /// The buffers are made with room for a file of at least this many bytes: a buffer that
+    /// grows is replaced, and its replacement's pages are fresh again, while room that is never
+    /// written costs no memory (only address space).
+    pub room_for: usize,
+}
+
+impl Scratch {
+    /// Keeps the buffers of `collected` (emptied) for the next file.
+    pub fn keep(&mut self, collected: Collected<'_>) {
+        let Collected { entries, heads, mut by_kind } = collected;
+        self.entries = reuse(entries);
+        self.heads = reuse(heads);
+        by_kind.clear();
+        self.by_kind = by_kind;
+    }
+}
+
+/// An empty vector on the allocation of `v`, for elements of another type of the same size and
+/// alignment (the same type with another lifetime: how a buffer of items borrowed from one
+/// file's text is kept for the next file). The standard library collects a vector's iterator
+/// into its own allocation when the layouts agree (`reuse_keeps_the_allocation` holds that
+/// true); were it ever not to, this would only allocate anew.
+pub(crate) fn reuse<T, U>(mut v: Vec<T>) -> Vec<U> {
+    v.clear();
+    v.into_iter().filter_map(|_| None).collect()
+}
+
+/// `v` emptied, with room for at least `n` elements: a buffer too small is replaced, not grown
+/// (growing an empty vector would copy its whole old allocation: bytes that mean nothing, on
+/// fresh pages).
+pub(crate) fn with_room<T>(mut v: Vec<T>, n: usize) -> Vec<T> {
+    v.clear();
+    if v.capacity() < n {
+        v = Vec::with_capacity(n);
+    }
+    v
+}
+
 impl<'d> Collected<'d> {
     /// The sections, borrowing their entries.
     pub fn sections(&self) -> Sections<'_> {
@@ -315,7 +367,7 @@ pub fn name_comparisons() -> u64 {
 }
 
 /// Groups the document's lines into sections and reports line-level problems.
-pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> {
+pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scratch) -> Collected<'a> {
     let src = &doc.source;
     if matches!(src.encoding, Encoding::Utf16Le | Encoding::Utf16Be) {
         let order = if src.encoding == Encoding::Utf16Le { "little" } else { "big" };
@@ -348,14 +400,17 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
     // almost every file (one that exceeds them grows once or twice).
     let text = &src.text;
     let sections = text.len() / 48 + 8;
-    let mut heads: Vec<Head<'a>> = Vec::with_capacity(sections);
-    let mut by_kind: FastMap<u32, usize> = FastMap::with_capacity_and_hasher(sections, Default::default());
+    let room = text.len().max(scratch.room_for);
+    let mut heads: Vec<Head<'a>> = with_room(reuse(std::mem::take(&mut scratch.heads)), room / 48 + 8);
+    let mut by_kind: FastMap<u32, usize> = std::mem::take(&mut scratch.by_kind);
+    by_kind.clear();
+    by_kind.reserve(sections);
     // Sections of unknown kind, by name in ASCII lower case (names are matched ignoring ASCII
     // case). Real files have few; a file of many must not cost a scan of all the others each,
     // and the names are the file's choice: the standard (keyed) hasher, not `FastMap`'s.
     let mut unknown: std::collections::HashMap<NameKey, usize> = std::collections::HashMap::new();
     let mut occurrences: Vec<u16> = Vec::with_capacity(sections);
-    let mut entries: Vec<Kv<'a>> = Vec::with_capacity(text.len() / 10 + 8);
+    let mut entries: Vec<Kv<'a>> = with_room(reuse(std::mem::take(&mut scratch.entries)), room / 10 + 8);
     // Each section header starts a run of entries: (section, first entry). A run ends where the
     // next begins.
     let mut runs: Vec<(usize, usize)> = Vec::with_capacity(sections);
@@ -365,7 +420,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>) -> Collected<'a> 
     // The start of every line (lines end at `\n`, `\r\n` or a lone `\r`, for positions as for
     // the lexer), handed to the source for its diagnostics; its length is the number of the
     // current line.
-    let mut line_starts: Vec<u32> = Vec::with_capacity(text.len() / 6 + 2);
+    let mut line_starts: Vec<u32> = with_room(std::mem::take(&mut scratch.line_starts), room / 6 + 2);
     line_starts.push(0);
     // The lines are taken from the lexer one at a time; none is kept. Most lines are plain
     // entries inside a section: the lexer reads those on a shorter path of their own.
@@ -868,6 +923,20 @@ pub(crate) fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, con
 mod tests {
     use super::*;
 
+    /// A buffer of entries borrowed from one text is kept, memory and all, for the next text.
+    #[test]
+    fn reuse_keeps_the_allocation() {
+        let text = String::from("Key=Value");
+        let mut entries: Vec<Kv<'_>> = Vec::with_capacity(1000);
+        entries.push(Kv::new(&text, Span::new(0, 3), Span::new(4, 9), 0));
+        let (ptr, cap) = (entries.as_ptr() as usize, entries.capacity());
+        let kept: Vec<Kv<'static>> = reuse(entries);
+        drop(text);
+        assert_eq!((kept.as_ptr() as usize, kept.capacity(), kept.len()), (ptr, cap, 0));
+        let heads: Vec<Head<'static>> = reuse(Vec::<Head<'_>>::with_capacity(10));
+        assert!(heads.capacity() >= 10);
+    }
+
     #[test]
     fn kind_keys_are_distinct() {
         let mut kinds = vec![
@@ -938,7 +1007,7 @@ mod tests {
         let text = "[FileInfo]\r[DeviceInfo]\r\n  [1000]\nK=v\r\r \u{e4}\u{e4}\r [1001]\n\t[2000]\n[ä]\r\n [3000]";
         let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text));
         let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
-        let collected = collect(&doc, &mut cx);
+        let collected = collect(&doc, &mut cx, &mut Scratch::default());
         let secs = collected.sections();
         assert_eq!(secs.list.len(), 7);
         for sec in &secs.list {
@@ -957,7 +1026,7 @@ mod tests {
             text.push_str("xY=1\n2=0x2000\nXy=2\n");
             let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text));
             let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
-            let collected = collect(&doc, &mut cx);
+            let collected = collect(&doc, &mut cx, &mut Scratch::default());
             let secs = collected.sections();
             let keys = match_keys(&mut cx, &secs.list[0], &KeySet::new(["SupportedObjects"]), Crumbs::default(), false);
             // Each key once: `2` and `xY` keep their first place with their later values.

@@ -75,8 +75,54 @@ pub struct Args {
 /// read it, and its counts. The file's text, model and diagnostics are dropped there and then,
 /// so that the thread's next file reuses their memory, and rendering runs on every thread.
 struct Report {
-    text: String,
+    /// The text, in blocks of about [`BLOCK`] bytes.
+    blocks: Vec<String>,
     counts: Counts,
+}
+
+/// The size of the blocks a report is rendered into. A report grows by whole blocks, never by
+/// copying what it has into a larger buffer, and the writer hands each block back once written
+/// ([`Blocks`]), so that the next file's report is rendered into memory already in use: a file
+/// with many diagnostics has hundreds of kilobytes of report, which a string doubling its size
+/// as it grew made fresh pages and copies of, file after file.
+const BLOCK: usize = 1 << 16;
+
+/// The blocks a report is rendered into, taken from the ones written out before.
+struct Blocks<'a> {
+    done: Vec<String>,
+    current: String,
+    spare: &'a Spare,
+}
+
+/// Blocks written out, ready to be rendered into again.
+type Spare = std::sync::Mutex<Vec<String>>;
+
+impl<'a> Blocks<'a> {
+    fn new(spare: &'a Spare) -> Self {
+        let mut b = Blocks { done: Vec::new(), current: String::new(), spare };
+        b.current = b.take();
+        b
+    }
+
+    /// An empty block: a spare one, or a new one with room for a diagnostic beyond [`BLOCK`].
+    fn take(&self) -> String {
+        let spare = self.spare.lock().unwrap_or_else(|e| e.into_inner()).pop();
+        spare.unwrap_or_else(|| String::with_capacity(BLOCK + 4096))
+    }
+
+    /// The block to append the next piece to (a new one once the current one is full).
+    fn text(&mut self) -> &mut String {
+        if self.current.len() >= BLOCK {
+            let next = self.take();
+            self.done.push(std::mem::replace(&mut self.current, next));
+        }
+        &mut self.current
+    }
+
+    fn finish(mut self) -> Vec<String> {
+        self.done.push(self.current);
+        self.done
+    }
 }
 
 /// Counts by severity.
@@ -120,41 +166,17 @@ pub fn run(args: Args) -> ExitCode {
     }
     // Whether a JSON file object or a SARIF result was written (the next one needs a comma).
     let mut any = false;
+    // Blocks handed back by the writer, for the readers to render the next files into.
+    let spare: Spare = std::sync::Mutex::new(Vec::new());
     let read = |path: &PathBuf| {
-        let parsed = eds::read_file(path, &options)?;
-        let mut counts = Counts::default();
-        counts.add(&parsed.diagnostics);
-        let source = &parsed.document.source;
-        let shown = parsed.diagnostics.iter().filter(|d| level.shows(d.severity));
-        let mut text = String::new();
-        match format {
-            Format::Human => {
-                for d in shown {
-                    eds::diag::render_to(&mut text, d, source);
-                    text.push('\n');
-                }
-            }
-            Format::Json => {
-                text.push_str("{\"file\":");
-                eds::diag::push_json_str(&mut text, &path.display().to_string());
-                text.push_str(",\"diagnostics\":[");
-                for (i, d) in shown.enumerate() {
-                    text.push_str(if i == 0 { "\n" } else { ",\n" });
-                    eds::diag::push_json(&mut text, d);
-                }
-                text.push_str("]}");
-            }
-            Format::Sarif => {
-                for (i, d) in shown.enumerate() {
-                    if i > 0 {
-                        text.push_str(",\n");
-                    }
-                    super::sarif::push_result(&mut text, d, source);
-                }
-            }
-        }
-        Ok::<_, std::io::Error>(Report { text, counts })
+        READER.with_borrow_mut(|reader| {
+            let parsed = reader.read_file(path, &options)?;
+            let report = render(&parsed, path, format, level, &spare);
+            reader.recycle(parsed);
+            Ok::<_, std::io::Error>(report)
+        })
     };
+
     super::par_each(&args.files, super::jobs(args.jobs), read, |path, report| {
         let report = match report {
             Ok(r) => r,
@@ -170,11 +192,19 @@ pub fn run(args: Args) -> ExitCode {
         counts.errors += report.counts.errors;
         counts.warnings += report.counts.warnings;
         counts.notes += report.counts.notes;
-        if args.format != Format::Human && !report.text.is_empty() {
+        if args.format != Format::Human && report.blocks.iter().any(|b| !b.is_empty()) {
             out.push(if any { ",\n" } else { "\n" });
             any = true;
         }
-        out.push(&report.text);
+        let mut spare = spare.lock().unwrap_or_else(|e| e.into_inner());
+        for mut block in report.blocks {
+            out.push(&block);
+            block.clear();
+            // (As many as two files' worth in flight on each thread; the rest are freed.)
+            if spare.len() < 8 {
+                spare.push(block);
+            }
+        }
     });
     match args.format {
         Format::Human => {
@@ -216,6 +246,52 @@ pub fn run(args: Args) -> ExitCode {
     } else {
         ExitCode::SUCCESS
     }
+}
+
+thread_local! {
+    /// Each reading thread's [`eds::Reader`]: a file is read into the memory the thread's last
+    /// file used (given back as soon as its report is rendered).
+    static READER: std::cell::RefCell<eds::Reader> = std::cell::RefCell::new(eds::Reader::new());
+}
+
+/// A file's part of the output, and its counts, rendered into blocks from `spare`.
+fn render(parsed: &eds::Parsed, path: &std::path::Path, format: Format, level: Level, spare: &Spare) -> Report {
+    let mut counts = Counts::default();
+    counts.add(&parsed.diagnostics);
+    let source = &parsed.document.source;
+    let shown = parsed.diagnostics.iter().filter(|d| level.shows(d.severity));
+    let mut out = Blocks::new(spare);
+    match format {
+        Format::Human => {
+            for d in shown {
+                let text = out.text();
+                eds::diag::render_to(text, d, source);
+                text.push('\n');
+            }
+        }
+        Format::Json => {
+            let text = out.text();
+            text.push_str("{\"file\":");
+            eds::diag::push_json_str(text, &path.display().to_string());
+            text.push_str(",\"diagnostics\":[");
+            for (i, d) in shown.enumerate() {
+                let text = out.text();
+                text.push_str(if i == 0 { "\n" } else { ",\n" });
+                eds::diag::push_json(text, d);
+            }
+            out.text().push_str("]}");
+        }
+        Format::Sarif => {
+            for (i, d) in shown.enumerate() {
+                let text = out.text();
+                if i > 0 {
+                    text.push_str(",\n");
+                }
+                super::sarif::push_result(text, d, source);
+            }
+        }
+    }
+    Report { blocks: out.finish(), counts }
 }
 
 /// `2 errors, 1 warning, 3 notes` (`no problems` when there are none); what was counted but

@@ -145,8 +145,18 @@ impl Stream {
         Stream { buf: String::with_capacity(Self::BLOCK + 4096) }
     }
 
-    /// Appends text.
+    /// Appends text. Text that does not fit in the buffer's room is written out with what is
+    /// buffered rather than grow the buffer (a larger block would be fresh memory, and a copy).
     pub fn push(&mut self, text: &str) {
+        let large = text.len() >= Self::BLOCK;
+        if (large || self.buf.len() + text.len() > self.buf.capacity()) && !self.buf.is_empty() {
+            write_stdout(&self.buf);
+            self.buf.clear();
+        }
+        if large {
+            write_stdout(text);
+            return;
+        }
         self.buf.push_str(text);
         self.write_if_full();
     }
