@@ -14,14 +14,12 @@
 
 mod common;
 
+use common::{description_files, workspace_root};
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use od_codegen::{Builder, Severity};
-
-fn workspace_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("od-codegen/ has a parent").to_path_buf()
-}
 
 fn target_dir() -> PathBuf {
     match std::env::var_os("CARGO_TARGET_DIR") {
@@ -31,21 +29,6 @@ fn target_dir() -> PathBuf {
         }
         None => workspace_root().join("target"),
     }
-}
-
-fn description_files(dir: &Path) -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
-        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| {
-            p.extension()
-                .and_then(|e| e.to_str())
-                .is_some_and(|e| e.eq_ignore_ascii_case("eds") || e.eq_ignore_ascii_case("dcf"))
-        })
-        .collect();
-    v.sort();
-    v
 }
 
 /// The corpus files, or `None` (with a message) when `$EDS_CORPUS_DIR` is not set.

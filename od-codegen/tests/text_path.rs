@@ -15,29 +15,12 @@
 
 mod common;
 
+use common::{description_files, workspace_root};
+
 use std::path::{Path, PathBuf};
 
 use eds::model::{Access, DataType as D, Model, ObjectType, Radix, Value};
 use od_codegen::{Names, Options};
-
-fn workspace_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("od-codegen/ has a parent").to_path_buf()
-}
-
-fn description_files(dir: &Path) -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
-        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| {
-            p.extension()
-                .and_then(|e| e.to_str())
-                .is_some_and(|e| e.eq_ignore_ascii_case("eds") || e.eq_ignore_ascii_case("dcf"))
-        })
-        .collect();
-    v.sort();
-    v
-}
 
 /// Both paths' files for `model`; panics with the first line where they differ.
 fn same_file(what: &str, model: &Model, options: &Options) {

@@ -73,3 +73,24 @@ pub fn model(objects: Vec<Object>) -> Model {
 
 /// Models built at random from the parts real files get wrong (a fixed seed per model).
 pub mod random;
+
+/// The workspace's root directory.
+pub fn workspace_root() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("od-codegen/ has a parent").to_path_buf()
+}
+
+/// The `.eds` and `.dcf` files in `dir` (any case), sorted; panics if `dir` cannot be read.
+pub fn description_files(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+    let mut v: Vec<std::path::PathBuf> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| e.eq_ignore_ascii_case("eds") || e.eq_ignore_ascii_case("dcf"))
+        })
+        .collect();
+    v.sort();
+    v
+}
