@@ -6630,7 +6630,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6645,7 +6645,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6660,7 +6660,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6675,7 +6675,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6692,7 +6692,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6707,7 +6707,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6722,7 +6722,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6737,7 +6737,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6752,7 +6752,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6767,7 +6767,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6782,7 +6782,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6797,7 +6797,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6812,7 +6812,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 9,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6827,7 +6827,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 10,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6842,7 +6842,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6857,7 +6857,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6872,7 +6872,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -6887,7 +6887,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -6902,7 +6902,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -6917,7 +6917,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -6932,7 +6932,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6947,7 +6947,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6962,7 +6962,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6977,7 +6977,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6994,7 +6994,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7009,7 +7009,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7024,7 +7024,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7041,7 +7041,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7056,7 +7056,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7071,7 +7071,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7086,7 +7086,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7101,7 +7101,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7116,7 +7116,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7131,7 +7131,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7146,7 +7146,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7161,7 +7161,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Wo,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7176,7 +7176,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7191,7 +7191,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7208,7 +7208,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7225,7 +7225,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7242,7 +7242,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7259,7 +7259,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7276,7 +7276,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7293,7 +7293,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7310,7 +7310,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7327,7 +7327,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7344,7 +7344,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7361,7 +7361,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7378,7 +7378,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7395,7 +7395,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7412,7 +7412,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7429,7 +7429,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7446,7 +7446,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7463,7 +7463,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7480,7 +7480,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7497,7 +7497,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7514,7 +7514,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7531,7 +7531,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7548,7 +7548,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7565,7 +7565,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7582,7 +7582,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7599,7 +7599,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7616,7 +7616,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7633,7 +7633,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7650,7 +7650,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7667,7 +7667,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7684,7 +7684,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7701,7 +7701,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7718,7 +7718,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7735,7 +7735,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7752,7 +7752,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7769,7 +7769,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7786,7 +7786,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7803,7 +7803,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7820,7 +7820,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7837,7 +7837,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7854,7 +7854,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7871,7 +7871,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7888,7 +7888,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7905,7 +7905,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7922,7 +7922,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7939,7 +7939,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7956,7 +7956,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7973,7 +7973,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7990,7 +7990,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8007,7 +8007,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8024,7 +8024,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8041,7 +8041,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8058,7 +8058,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8075,7 +8075,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8092,7 +8092,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8109,7 +8109,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8126,7 +8126,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8143,7 +8143,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8160,7 +8160,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8177,7 +8177,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8194,7 +8194,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8211,7 +8211,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8228,7 +8228,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8245,7 +8245,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8262,7 +8262,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8279,7 +8279,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8296,7 +8296,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8313,7 +8313,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8330,7 +8330,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8347,7 +8347,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8364,7 +8364,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8381,7 +8381,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8398,7 +8398,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8415,7 +8415,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8432,7 +8432,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8449,7 +8449,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8466,7 +8466,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8483,7 +8483,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8500,7 +8500,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8517,7 +8517,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8534,7 +8534,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8551,7 +8551,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8568,7 +8568,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8585,7 +8585,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8602,7 +8602,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8619,7 +8619,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8636,7 +8636,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8653,7 +8653,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8670,7 +8670,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8687,7 +8687,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8704,7 +8704,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8721,7 +8721,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8738,7 +8738,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8755,7 +8755,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8772,7 +8772,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8789,7 +8789,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8806,7 +8806,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8823,7 +8823,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8840,7 +8840,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8857,7 +8857,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8874,7 +8874,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8891,7 +8891,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8908,7 +8908,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8925,7 +8925,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8942,7 +8942,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8959,7 +8959,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8976,7 +8976,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8993,7 +8993,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9010,7 +9010,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9027,7 +9027,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9044,7 +9044,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9059,7 +9059,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9074,7 +9074,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9091,7 +9091,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9106,7 +9106,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9121,7 +9121,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9138,7 +9138,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9153,7 +9153,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9168,7 +9168,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9185,7 +9185,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9200,7 +9200,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9215,7 +9215,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9230,7 +9230,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Const,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -9245,7 +9245,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Const,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -9260,7 +9260,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Const,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -9275,7 +9275,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Const,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -9290,7 +9290,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9305,7 +9305,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Wo,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -9320,7 +9320,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -9335,7 +9335,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9350,7 +9350,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9365,7 +9365,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9380,7 +9380,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9395,7 +9395,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9410,7 +9410,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9425,7 +9425,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9440,7 +9440,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9455,7 +9455,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9470,7 +9470,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9485,7 +9485,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rww,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -9500,7 +9500,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rwr,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -9515,7 +9515,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9532,7 +9532,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -9547,7 +9547,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9562,7 +9562,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9579,7 +9579,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9596,7 +9596,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9613,7 +9613,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9630,7 +9630,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9647,7 +9647,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9664,7 +9664,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9682,7 +9682,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9700,7 +9700,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9718,7 +9718,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9736,7 +9736,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9753,7 +9753,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9770,7 +9770,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9787,7 +9787,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9804,7 +9804,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 9,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9822,7 +9822,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 10,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9840,7 +9840,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 11,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9858,7 +9858,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 12,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9876,7 +9876,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 13,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9893,7 +9893,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 14,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9910,7 +9910,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 15,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9927,7 +9927,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 16,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9944,7 +9944,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9961,7 +9961,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9979,7 +9979,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9996,7 +9996,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10013,7 +10013,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10030,7 +10030,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -10045,7 +10045,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10060,7 +10060,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10077,7 +10077,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10092,7 +10092,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10107,7 +10107,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10122,7 +10122,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10137,7 +10137,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -10154,7 +10154,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10169,7 +10169,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10184,7 +10184,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10201,7 +10201,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10218,7 +10218,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10233,7 +10233,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10250,7 +10250,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10267,7 +10267,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10282,7 +10282,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10297,7 +10297,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10314,7 +10314,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10331,7 +10331,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10348,7 +10348,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10365,7 +10365,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10380,7 +10380,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10395,7 +10395,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10410,7 +10410,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10425,7 +10425,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Wo,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10440,7 +10440,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10457,7 +10457,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10472,7 +10472,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10487,7 +10487,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10502,7 +10502,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10519,7 +10519,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10536,7 +10536,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10553,7 +10553,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -10570,7 +10570,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10587,7 +10587,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10605,7 +10605,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10622,7 +10622,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10639,7 +10639,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10656,7 +10656,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10671,7 +10671,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10686,7 +10686,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10703,7 +10703,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10720,7 +10720,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10737,7 +10737,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10754,7 +10754,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 9,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10771,7 +10771,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 10,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10788,7 +10788,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10805,7 +10805,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -10822,7 +10822,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -10839,7 +10839,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -10856,7 +10856,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -10873,7 +10873,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10890,7 +10890,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10905,7 +10905,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10920,7 +10920,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10937,7 +10937,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10954,7 +10954,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10971,7 +10971,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10988,7 +10988,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11005,7 +11005,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11022,7 +11022,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11039,7 +11039,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11056,7 +11056,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11073,7 +11073,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 9,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11090,7 +11090,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 10,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11107,7 +11107,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 11,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11124,7 +11124,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 12,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11141,7 +11141,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 13,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11158,7 +11158,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 14,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11175,7 +11175,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11192,7 +11192,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11209,7 +11209,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11226,7 +11226,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11243,7 +11243,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11260,7 +11260,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11275,7 +11275,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11292,7 +11292,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11309,7 +11309,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11326,7 +11326,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11341,7 +11341,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11356,7 +11356,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11371,7 +11371,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11386,7 +11386,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11403,7 +11403,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11418,7 +11418,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11433,7 +11433,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11450,7 +11450,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -11467,7 +11467,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11484,7 +11484,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -11501,7 +11501,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11518,7 +11518,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11533,7 +11533,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11548,7 +11548,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11565,7 +11565,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11582,7 +11582,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11599,7 +11599,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11616,7 +11616,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11633,7 +11633,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11650,7 +11650,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11667,7 +11667,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11684,7 +11684,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11701,7 +11701,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11718,7 +11718,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11735,7 +11735,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11752,7 +11752,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 7,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11769,7 +11769,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 8,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11786,7 +11786,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11803,7 +11803,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11818,7 +11818,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11833,7 +11833,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11848,7 +11848,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11863,7 +11863,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11878,7 +11878,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11893,7 +11893,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 7,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11908,7 +11908,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 8,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11923,7 +11923,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11940,7 +11940,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -11955,7 +11955,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -11970,7 +11970,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -11985,7 +11985,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12000,7 +12000,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12015,7 +12015,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12030,7 +12030,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12045,7 +12045,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12060,7 +12060,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -12077,7 +12077,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12094,7 +12094,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12111,7 +12111,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12128,7 +12128,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12145,7 +12145,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -12160,7 +12160,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12175,7 +12175,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12190,7 +12190,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12205,7 +12205,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12220,7 +12220,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12235,7 +12235,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12250,7 +12250,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12265,7 +12265,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12280,7 +12280,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12295,7 +12295,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12310,7 +12310,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12325,7 +12325,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12340,7 +12340,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12355,7 +12355,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12370,7 +12370,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12387,7 +12387,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12402,7 +12402,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12417,7 +12417,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12432,7 +12432,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12447,7 +12447,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12462,7 +12462,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12477,7 +12477,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12492,7 +12492,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12507,7 +12507,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12524,7 +12524,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12541,7 +12541,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12556,7 +12556,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12571,7 +12571,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12586,7 +12586,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12601,7 +12601,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12616,7 +12616,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12631,7 +12631,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12646,7 +12646,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12661,7 +12661,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12676,7 +12676,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12691,7 +12691,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12706,7 +12706,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12721,7 +12721,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12736,7 +12736,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12751,7 +12751,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12766,7 +12766,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12781,7 +12781,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12796,7 +12796,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12811,7 +12811,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12826,7 +12826,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12841,7 +12841,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12856,7 +12856,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12871,7 +12871,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12886,7 +12886,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Wo,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12901,7 +12901,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Wo,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12916,7 +12916,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Wo,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12931,7 +12931,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12946,7 +12946,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12961,7 +12961,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12976,7 +12976,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12991,7 +12991,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13006,7 +13006,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13021,7 +13021,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13036,7 +13036,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13051,7 +13051,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13066,7 +13066,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13081,7 +13081,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13096,7 +13096,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13111,7 +13111,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned64,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(64, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u64,
             >(
@@ -13126,7 +13126,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13141,7 +13141,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13156,7 +13156,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13171,7 +13171,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13186,7 +13186,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13201,7 +13201,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13216,7 +13216,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -13231,7 +13231,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -13246,7 +13246,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -13261,7 +13261,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13276,7 +13276,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13291,7 +13291,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -13306,7 +13306,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13321,7 +13321,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13336,7 +13336,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13351,7 +13351,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13366,7 +13366,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13381,7 +13381,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13396,7 +13396,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13411,7 +13411,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13426,7 +13426,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13441,7 +13441,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13456,7 +13456,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13471,7 +13471,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13486,7 +13486,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13501,7 +13501,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13516,7 +13516,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13533,7 +13533,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13548,7 +13548,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13563,7 +13563,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13578,7 +13578,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13593,7 +13593,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13608,7 +13608,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13623,7 +13623,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13638,7 +13638,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13653,7 +13653,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13668,7 +13668,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13683,7 +13683,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13698,7 +13698,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13713,7 +13713,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13728,7 +13728,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13743,7 +13743,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13758,7 +13758,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13773,7 +13773,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13788,7 +13788,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13803,7 +13803,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13818,7 +13818,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13833,7 +13833,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13848,7 +13848,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13863,7 +13863,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13878,7 +13878,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13893,7 +13893,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13908,7 +13908,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13923,7 +13923,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13938,7 +13938,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13955,7 +13955,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13970,7 +13970,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13985,7 +13985,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14000,7 +14000,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14015,7 +14015,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14030,7 +14030,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14045,7 +14045,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14060,7 +14060,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14075,7 +14075,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14090,7 +14090,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14105,7 +14105,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14120,7 +14120,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14135,7 +14135,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14150,7 +14150,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14165,7 +14165,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14180,7 +14180,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14195,7 +14195,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14210,7 +14210,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14225,7 +14225,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14240,7 +14240,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14255,7 +14255,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14270,7 +14270,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14285,7 +14285,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14300,7 +14300,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14315,7 +14315,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14330,7 +14330,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14345,7 +14345,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14360,7 +14360,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14375,7 +14375,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14390,7 +14390,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14405,7 +14405,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14420,7 +14420,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14435,7 +14435,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14450,7 +14450,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14465,7 +14465,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14480,7 +14480,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14495,7 +14495,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14510,7 +14510,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14525,7 +14525,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14540,7 +14540,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14557,7 +14557,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14572,7 +14572,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14587,7 +14587,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14602,7 +14602,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14617,7 +14617,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14632,7 +14632,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14647,7 +14647,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14662,7 +14662,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14677,7 +14677,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14692,7 +14692,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14707,7 +14707,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14722,7 +14722,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14737,7 +14737,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14752,7 +14752,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14767,7 +14767,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14782,7 +14782,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14797,7 +14797,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14812,7 +14812,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14827,7 +14827,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14842,7 +14842,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14857,7 +14857,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14872,7 +14872,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14887,7 +14887,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14902,7 +14902,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14917,7 +14917,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -14932,7 +14932,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -14947,7 +14947,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -14962,7 +14962,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -14977,7 +14977,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -14992,7 +14992,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15007,7 +15007,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15022,7 +15022,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15037,7 +15037,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15052,7 +15052,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -15067,7 +15067,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -15082,7 +15082,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -15097,7 +15097,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -15112,7 +15112,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -15127,7 +15127,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -15142,7 +15142,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15157,7 +15157,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15172,7 +15172,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15189,7 +15189,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15204,7 +15204,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15219,7 +15219,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15234,7 +15234,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15249,7 +15249,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15264,7 +15264,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15281,7 +15281,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15298,7 +15298,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15315,7 +15315,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15330,7 +15330,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15345,7 +15345,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15362,7 +15362,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15377,7 +15377,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15392,7 +15392,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15407,7 +15407,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -15422,7 +15422,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15437,7 +15437,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15454,7 +15454,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15471,7 +15471,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15486,7 +15486,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15501,7 +15501,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -15516,7 +15516,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -15531,7 +15531,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -15546,7 +15546,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15561,7 +15561,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15576,7 +15576,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15591,7 +15591,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15606,7 +15606,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -15621,7 +15621,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15638,7 +15638,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15655,7 +15655,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15670,7 +15670,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15687,7 +15687,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15704,7 +15704,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15719,7 +15719,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -15734,7 +15734,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15751,7 +15751,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15768,7 +15768,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15785,7 +15785,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15802,7 +15802,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -15819,7 +15819,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Wo,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15836,7 +15836,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Wo,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15853,7 +15853,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15870,7 +15870,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -15885,7 +15885,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -15900,7 +15900,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15915,7 +15915,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15930,7 +15930,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15945,7 +15945,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15960,7 +15960,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15975,7 +15975,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15990,7 +15990,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -18728,7 +18728,7 @@ Denotation=MOTOR.BRAKEIMM
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, index, sub)
+            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, &ENTRIES, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]

@@ -609,7 +609,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -624,7 +624,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -639,7 +639,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
             access: ::od_runtime::od::Access::Const,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -654,7 +654,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -669,7 +669,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -686,7 +686,7 @@ PDOMapping=0
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -701,7 +701,7 @@ PDOMapping=0
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -716,7 +716,7 @@ PDOMapping=0
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -731,7 +731,7 @@ PDOMapping=0
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -746,7 +746,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -764,7 +764,7 @@ PDOMapping=0
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -781,7 +781,7 @@ PDOMapping=0
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -798,7 +798,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -815,7 +815,7 @@ PDOMapping=0
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -832,7 +832,7 @@ PDOMapping=0
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -849,7 +849,7 @@ PDOMapping=0
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -866,7 +866,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Const,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -884,7 +884,7 @@ PDOMapping=0
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -901,7 +901,7 @@ PDOMapping=0
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -918,7 +918,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -935,7 +935,7 @@ PDOMapping=0
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -952,7 +952,7 @@ PDOMapping=0
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -969,7 +969,7 @@ PDOMapping=0
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -986,7 +986,7 @@ PDOMapping=0
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -1003,7 +1003,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -1020,7 +1020,7 @@ PDOMapping=0
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -1037,7 +1037,7 @@ PDOMapping=0
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -1054,7 +1054,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer24,
             access: ::od_runtime::od::Access::Rwr,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(24, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -1069,7 +1069,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Boolean,
             access: ::od_runtime::od::Access::Rwr,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(1, true),
             slot: ::od_runtime::__private_v2::offset::<
                 bool,
             >(
@@ -1084,7 +1084,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Real32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 f32,
             >(
@@ -1099,7 +1099,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::OctetString,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -1114,7 +1114,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned40,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(40, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u64,
             >(
@@ -1129,7 +1129,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -1144,7 +1144,7 @@ PDOMapping=0
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -1159,7 +1159,7 @@ PDOMapping=0
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -1174,7 +1174,7 @@ PDOMapping=0
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -1189,7 +1189,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -1204,7 +1204,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Rww,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -1219,7 +1219,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -1234,7 +1234,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Rww,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -1249,7 +1249,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -1264,7 +1264,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -1279,7 +1279,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -1294,7 +1294,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
             access: ::od_runtime::od::Access::Rww,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -1309,7 +1309,7 @@ PDOMapping=0
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
             access: ::od_runtime::od::Access::Ro,
-            pdo_mappable: false,
+            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -1324,7 +1324,7 @@ PDOMapping=0
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -1341,7 +1341,7 @@ PDOMapping=0
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
             access: ::od_runtime::od::Access::Rw,
-            pdo_mappable: true,
+            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -1745,7 +1745,7 @@ PDOMapping=0
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, index, sub)
+            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, &ENTRIES, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]

@@ -41,11 +41,19 @@ macro_rules! device_tests {
                     if matches!(e.data_type, eds::model::DataType::Other(_)) || !matches!(obj.object_type, eds::model::ObjectType::Var | eds::model::ObjectType::Array | eds::model::ObjectType::Record | eds::model::ObjectType::Domain) {
                         continue;
                     }
-                    od.info(obj.index.0, e.sub.0).unwrap();
+                    let info = od.info(obj.index.0, e.sub.0).unwrap();
+                    assert_eq!(info.pdo_mappable(), e.pdo_mapping, "0x{:04X} sub {}", obj.index.0, e.sub.0);
                     let name = od.name(obj.index.0, e.sub.0).unwrap();
                     assert_eq!(name.rsplit(": ").next().unwrap(), e.name.trim());
                 }
                 assert!(ENTRIES.windows(2).all(|w| (w[0].index, w[0].sub) < (w[1].index, w[1].sub)));
+                // Each row's size byte is its data type's size (the capacity of a buffer is in
+                // its extras), so `bits()` is what it was before the byte held it.
+                for e in ENTRIES.iter() {
+                    assert_eq!(e.flags.bits(), e.data_type.bits(), "0x{:04X} sub {}", e.index, e.sub);
+                    let capacity = e.extras.map_or(0, |x| x.bits);
+                    assert_eq!(e.bits(), if capacity != 0 { capacity } else { e.data_type.bits() });
+                }
             }
 
             #[test]

@@ -392,6 +392,12 @@ fn rust_type_text(ty: Ty) -> String {
     }
 }
 
+/// The size in bits a row's flags give a fixed-size value (0 for a variable-length type): the
+/// runtime's own size of the entry's data type, so the two cannot differ.
+fn fixed_bits(e: &PEntry<'_>) -> u8 {
+    crate::pdo::to_runtime_type(e.dt).bits() as u8
+}
+
 /// One row of `ENTRIES` (an element of the array, 8 columns in), as tokens.
 fn entry_row_tokens(e: &PEntry<'_>, x: Option<usize>) -> TokenStream {
     let rt = rt();
@@ -400,6 +406,7 @@ fn entry_row_tokens(e: &PEntry<'_>, x: Option<usize>) -> TokenStream {
     let dt = data_type_variant(e.dt);
     let access = access_variant(e.entry.access);
     let pdo = e.entry.pdo_mapping;
+    let size = proc_macro2::Literal::u8_unsuffixed(fixed_bits(e));
     let field = format_ident!("{}", e.field);
     let ty = rust_type(e.ty);
     let cap = proc_macro2::Literal::u32_unsuffixed(if let Ty::Bytes(_) = e.ty { e.bits } else { 0 });
@@ -416,7 +423,7 @@ fn entry_row_tokens(e: &PEntry<'_>, x: Option<usize>) -> TokenStream {
             sub: #sub,
             data_type: ::od_runtime::od::DataType::#dt,
             access: ::od_runtime::od::Access::#access,
-            pdo_mappable: #pdo,
+            flags: ::od_runtime::od::EntryFlags::new(#size, #pdo),
             slot: #rt::offset::<#ty>(::core::mem::offset_of!(Dictionary, #field), ::od_runtime::od::DataType::#dt, #cap),
             extras: #extras,
         }
@@ -443,7 +450,16 @@ fn entry_row(t: &mut Text, e: &PEntry<'_>, x: Option<usize>) {
     t.line(12, &["sub: ", &e.sub.to_string(), ","]);
     t.line(12, &["data_type: ::od_runtime::od::DataType::", dt, ","]);
     t.line(12, &["access: ::od_runtime::od::Access::", access_name(e.entry.access), ","]);
-    t.line(12, &["pdo_mappable: ", if e.entry.pdo_mapping { "true" } else { "false" }, ","]);
+    t.line(
+        12,
+        &[
+            "flags: ::od_runtime::od::EntryFlags::new(",
+            &fixed_bits(e).to_string(),
+            ", ",
+            if e.entry.pdo_mapping { "true" } else { "false" },
+            "),",
+        ],
+    );
     t.line(12, &["slot: ::od_runtime::", crate::support::RUNTIME_PRIVATE, "::offset::<"]);
     t.line(16, &[&ty, ","]);
     t.line(12, &[">("]);
@@ -950,7 +966,7 @@ pub(crate) fn dictionary(
             /// `Err(NO_SUB_INDEX)` if only the sub-index is.
             #[inline]
             pub fn position(index: u16, sub: u8) -> Result<usize, ::od_runtime::od::AbortCode> {
-                #rt::lookup(&LOOKUP, &DIRECT, index, sub)
+                #rt::lookup(&LOOKUP, &DIRECT, &ENTRIES, index, sub)
             }
 
             /// The value of the entry at `pos` of [`ENTRIES`], through its slot.

@@ -146,7 +146,7 @@ mod tests {
             found,
             "direct {index:#06x} {sub}"
         );
-        assert_eq!(runtime_lookup(&b.tables, b.direct, index, sub), found);
+        assert_eq!(runtime_lookup(&b.tables, b.direct, b.tables.entries, index, sub), found);
         found
     }
 

@@ -47,7 +47,7 @@ pub fn dummy_usage(model: &Model) -> u8 {
     model.dummy_usage.iter().filter(|(k, v)| **v && (1..=7).contains(*k)).fold(0u8, |acc, (k, _)| acc | (1 << *k))
 }
 
-fn to_runtime_type(dt: DataType) -> od_runtime::od::DataType {
+pub(crate) fn to_runtime_type(dt: DataType) -> od_runtime::od::DataType {
     use od_runtime::od::DataType as R;
     match dt {
         DataType::Boolean => R::Boolean,

@@ -224,6 +224,33 @@ pub struct Limits {
     pub high: i64,
 }
 
+/// The byte of an [`EntryInfo`] that holds the size in bits of a fixed-size value (1 for
+/// BOOLEAN, 0 for the variable-length types, whose capacity is in the extras; bits 0..7) and
+/// `PDOMapping` (bit 7). Kept in the row, the size costs no look at the data type or the extras.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct EntryFlags(u8);
+
+impl EntryFlags {
+    /// The flags of an entry whose fixed-size values have `bits` bits (at most 64; 0 for a
+    /// variable-length type, as [`DataType::bits`] says) and that may or may not be mapped.
+    pub const fn new(bits: u8, pdo_mappable: bool) -> Self {
+        let bits = if bits > 64 { 0 } else { bits };
+        Self(bits | (pdo_mappable as u8) << 7)
+    }
+
+    /// The size in bits of a fixed-size value; 0 for a variable-length type.
+    #[inline]
+    pub const fn bits(self) -> u32 {
+        (self.0 & 0x7F) as u32
+    }
+
+    /// `PDOMapping=1`.
+    #[inline]
+    pub const fn pdo_mappable(self) -> bool {
+        self.0 & 0x80 != 0
+    }
+}
+
 /// Static metadata of one `(index, sub-index)` entry: 12 bytes on a 32-bit target.
 ///
 /// The rarely present data (capacity, limits, default) is behind [`EntryInfo::extras`] and
@@ -240,8 +267,9 @@ pub struct EntryInfo {
     pub data_type: DataType,
     /// Access type.
     pub access: Access,
-    /// `PDOMapping=1`.
-    pub pdo_mappable: bool,
+    /// The size of a fixed-size value and `PDOMapping` (read them through
+    /// [`bits`](Self::bits) and [`pdo_mappable`](Self::pdo_mappable)).
+    pub flags: EntryFlags,
     /// Where the dictionary stores the value, in a numbering of its own (generated
     /// dictionaries: the byte offset of the value in their storage struct). Hand-written
     /// dictionaries may leave it 0.
@@ -253,7 +281,14 @@ pub struct EntryInfo {
 impl EntryInfo {
     /// An entry without capacity, limits or default, at slot 0.
     pub const fn new(index: u16, sub: u8, data_type: DataType, access: Access, pdo_mappable: bool) -> Self {
-        Self { index, sub, data_type, access, pdo_mappable, slot: 0, extras: None }
+        let flags = EntryFlags::new(data_type.bits() as u8, pdo_mappable);
+        Self { index, sub, data_type, access, flags, slot: 0, extras: None }
+    }
+
+    /// `PDOMapping=1`: the entry may be mapped into a PDO.
+    #[inline]
+    pub const fn pdo_mappable(&self) -> bool {
+        self.flags.pdo_mappable()
     }
 
     /// This entry with `extras`.
@@ -272,9 +307,11 @@ impl EntryInfo {
     /// variable-length types.
     #[inline]
     pub const fn bits(&self) -> u32 {
-        match self.extras {
-            Some(x) if x.bits != 0 => x.bits,
-            _ => self.data_type.bits(),
+        // The row's own byte for a fixed-size value (most entries): no read of the extras and
+        // no work on the data type.
+        match (self.flags.bits(), self.extras) {
+            (0, Some(x)) => x.bits,
+            (b, _) => b,
         }
     }
 

@@ -37,7 +37,7 @@ pub struct Mappable {
 
 impl From<&EntryInfo> for Mappable {
     fn from(e: &EntryInfo) -> Self {
-        Self { data_type: e.data_type, access: e.access, pdo_mappable: e.pdo_mappable, bits: e.bits() }
+        Self { data_type: e.data_type, access: e.access, pdo_mappable: e.pdo_mappable(), bits: e.bits() }
     }
 }
 

@@ -443,8 +443,10 @@ pub const fn direct_len(pages: usize) -> usize {
 /// The generated dictionaries' lookup: [`position_direct`] where there is a [`direct`] table
 /// (a host), the compact [`position`] where there is none (a microcontroller).
 #[inline(always)]
-pub fn lookup(t: &Lookup, direct: &[u32], index: u16, sub: u8) -> Result<usize, AbortCode> {
-    if direct.is_empty() { position(t, index, sub) } else { position_direct(&t.pages, direct, t.entries, index, sub) }
+pub fn lookup(t: &Lookup, direct: &[u32], entries: &[EntryInfo], index: u16, sub: u8) -> Result<usize, AbortCode> {
+    // `entries` is `t.entries`, given by the caller as its `ENTRIES` array: inlined there, its
+    // length is a constant (no load of it from `t` per lookup).
+    if direct.is_empty() { position(t, index, sub) } else { position_direct(&t.pages, direct, entries, index, sub) }
 }
 
 /// Position of `(index, sub)` in `entries` through the [`direct`] table: one table read to

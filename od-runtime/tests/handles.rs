@@ -125,7 +125,7 @@ fn default_read_handle_of_a_long_value() {
 fn candidates(transmit: bool) -> Vec<(u16, u8, u8)> {
     let mut c = Vec::new();
     for e in ENTRIES.iter() {
-        if !e.pdo_mappable || !(if transmit { e.access.tpdo_ok() } else { e.access.rpdo_ok() }) {
+        if !e.pdo_mappable() || !(if transmit { e.access.tpdo_ok() } else { e.access.rpdo_ok() }) {
             continue;
         }
         if e.data_type.is_variable_length() {

@@ -131,3 +131,50 @@ proptest! {
         prop_assert!(f.data().len() <= 8);
     }
 }
+
+/// An entry's flags byte keeps what it is given: the size of every data type (BOOLEAN's one
+/// bit, 0 for the variable-length types) and `PDOMapping`, independently of each other.
+#[test]
+fn entry_flags_keep_the_size_and_the_mapping_flag() {
+    use od_runtime::od::{Access, DataType as D, EntryFlags, EntryInfo};
+    let all = [
+        D::Boolean,
+        D::Integer8,
+        D::Integer16,
+        D::Integer24,
+        D::Integer32,
+        D::Integer40,
+        D::Integer48,
+        D::Integer56,
+        D::Integer64,
+        D::Unsigned8,
+        D::Unsigned16,
+        D::Unsigned24,
+        D::Unsigned32,
+        D::Unsigned40,
+        D::Unsigned48,
+        D::Unsigned56,
+        D::Unsigned64,
+        D::Real32,
+        D::Real64,
+        D::TimeOfDay,
+        D::TimeDifference,
+        D::VisibleString,
+        D::OctetString,
+        D::UnicodeString,
+        D::Domain,
+    ];
+    for dt in all {
+        for pdo in [false, true] {
+            let e = EntryInfo::new(0x2000, 1, dt, Access::Rw, pdo);
+            assert_eq!((e.bits(), e.pdo_mappable()), (dt.bits(), pdo), "{dt:?}");
+        }
+    }
+    for bits in 0..=64u8 {
+        for pdo in [false, true] {
+            let f = EntryFlags::new(bits, pdo);
+            assert_eq!((f.bits(), f.pdo_mappable()), (u32::from(bits), pdo));
+        }
+    }
+    assert_eq!(EntryFlags::new(200, true).bits(), 0, "a size past 64 bits is none");
+}
