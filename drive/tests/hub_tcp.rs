@@ -377,25 +377,42 @@ fn a_client_that_stops_reading_loses_frames_counted_not_its_connection() {
 
     // The stuck client reads again: it gets what was queued, learns how much was dropped, and
     // then the bus as usual.
+    // Markers are sent until one arrives; while the backlog drains, some may be dropped too
+    // (and counted like any other frame).
     let marker = CanFrame::standard(0x7FF, &[]).unwrap();
-    let mut received = 0u64;
+    let (mut received, mut markers_sent) = (0u64, 0u64);
     let deadline = Instant::now() + Duration::from_secs(60);
-    loop {
+    'catch_up: loop {
         sender.send(marker).unwrap();
+        markers_sent += 1;
         assert!(Instant::now() < deadline, "the stuck client never caught up");
-        match stuck.recv_timeout(Duration::from_millis(20)).unwrap() {
-            Some(f) if f == frame => received += 1,
-            Some(f) if f == marker => break,
-            _ => {}
-        }
-        while let Some(f) = stuck.try_recv().unwrap() {
+        let first = stuck.recv_timeout(Duration::from_millis(20)).unwrap();
+        let mut next = first;
+        while let Some(f) = next {
             if f == frame {
                 received += 1;
+            } else if f == marker {
+                received += 1;
+                break 'catch_up;
             }
+            next = stuck.try_recv().unwrap();
+        }
+    }
+    // Whatever follows the first marker (the markers sent after it) is still on its way.
+    let deadline = Instant::now() + WAIT;
+    while received + stuck.lost() < sent + markers_sent && Instant::now() < deadline {
+        if let Some(f) = stuck.recv_timeout(Duration::from_millis(20)).unwrap()
+            && (f == frame || f == marker)
+        {
+            received += 1;
         }
     }
     assert!(stuck.lost() > 0);
-    assert_eq!(received + stuck.lost(), sent, "every frame was either delivered or counted as dropped");
+    assert_eq!(
+        received + stuck.lost(),
+        sent + markers_sent,
+        "every frame (and marker) was either delivered or counted as dropped"
+    );
     let ends: Vec<String> = events
         .lock()
         .unwrap()

@@ -533,6 +533,8 @@ impl HubInner {
             dropped: AtomicU64::new(0),
             drop_report: AtomicBool::new(false),
             drop_report_interval: self.config.drop_report_interval,
+            drops_reported: AtomicU64::new(0),
+            last_drop_event: Mutex::new(None),
         });
         connections.insert(id, ConnectionEntry { connection: Arc::clone(&connection), threads: Vec::new() });
         drop(connections);
@@ -794,6 +796,9 @@ struct Connection {
     /// It asked for `< dropped N >` reports.
     drop_report: AtomicBool,
     drop_report_interval: Duration,
+    /// `dropped` when [`HubEvent::FramesDropped`] last reported it, and when that was.
+    drops_reported: AtomicU64,
+    last_drop_event: Mutex<Option<Instant>>,
 }
 
 impl Connection {
@@ -825,6 +830,30 @@ impl Connection {
         let _ = self.stream.shutdown(Shutdown::Both);
     }
 
+    /// Counts `n` frames dropped for this client and raises [`HubEvent::FramesDropped`], at
+    /// most once per [`HubConfig::drop_report_interval`]. Raised here, where the frames are
+    /// dropped, and not by the client's writer: a writer blocked on a full socket whose reader
+    /// takes a little now and then (a receive buffer the kernel keeps growing) may not get back
+    /// to its loop for minutes, and the drops would go unreported all that time.
+    fn note_drops(&self, n: u64) {
+        let total = self.dropped.fetch_add(n, Ordering::Relaxed) + n;
+        // Another thread reporting at this moment covers these frames too (or the next report
+        // will): never wait for it on the senders' path.
+        let Ok(mut last) = self.last_drop_event.try_lock() else { return };
+        if last.is_some_and(|at| at.elapsed() < self.drop_report_interval) {
+            return;
+        }
+        // (A thread that counted earlier may get here later, with a smaller total.)
+        let before = self.drops_reported.load(Ordering::Relaxed);
+        if total <= before {
+            return;
+        }
+        self.drops_reported.store(total, Ordering::Relaxed);
+        *last = Some(Instant::now());
+        drop(last);
+        (self.observer)(&HubEvent::FramesDropped { client: self.id, peer: self.peer, dropped: total - before, total });
+    }
+
     fn reason(&self) -> String {
         lock(&self.reason).clone().unwrap_or_else(|| "closed".to_owned())
     }
@@ -839,14 +868,10 @@ impl Connection {
         while self.queue.drain_blocking(&mut batch, BATCH).is_ok() {
             text.clear();
             let mut result = Ok(());
+            // The client's own report (`< dropped N >`), if it asked for one; the hub's event is
+            // raised where frames are dropped (`note_drops`).
             let dropped = self.dropped.load(Ordering::Relaxed);
             if dropped > reported && last_report.is_none_or(|at| at.elapsed() >= self.drop_report_interval) {
-                (self.observer)(&HubEvent::FramesDropped {
-                    client: self.id,
-                    peer: self.peer,
-                    dropped: dropped - reported,
-                    total: dropped,
-                });
                 if self.drop_report.load(Ordering::SeqCst) {
                     Message::Dropped(dropped).write_to(&mut text);
                 }
@@ -893,8 +918,8 @@ impl Sink for Connection {
         match self.queue.push(Outgoing::Frame(frame, at)) {
             Ok(()) => Delivery::Accepted,
             Err(PushError::Full) => {
-                // A slow reader loses frames, not its connection (reported by its writer).
-                self.dropped.fetch_add(1, Ordering::Relaxed);
+                // A slow reader loses frames, not its connection.
+                self.note_drops(1);
                 Delivery::Dropped
             }
             Err(PushError::Closed) => Delivery::Gone,
@@ -910,8 +935,8 @@ impl Sink for Connection {
         match self.queue.push_all(frames) {
             Ok(0) => Delivery::Accepted,
             Ok(refused) => {
-                // A slow reader loses frames, not its connection (reported by its writer).
-                self.dropped.fetch_add(refused as u64, Ordering::Relaxed);
+                // A slow reader loses frames, not its connection.
+                self.note_drops(refused as u64);
                 Delivery::Dropped
             }
             Err(_) => Delivery::Gone,
