@@ -135,8 +135,13 @@ impl Reader {
 
     /// [`read_file`], reusing the buffers of the files given back.
     pub fn read_file(&mut self, path: impl AsRef<std::path::Path>, options: &Options) -> std::io::Result<Parsed> {
-        let path = path.as_ref();
-        let bytes = read_bytes_into(path, std::mem::take(&mut self.bytes), Self::ROOM)?;
+        self.read_probed(&probe(path.as_ref())?, options)
+    }
+
+    /// [`Reader::read_file`] of a file [`probe`] has accepted (it is not probed again).
+    pub fn read_probed(&mut self, probed: &Probed<'_>, options: &Options) -> std::io::Result<Parsed> {
+        let path = probed.path;
+        let bytes = read_bytes_into(probed, std::mem::take(&mut self.bytes), Self::ROOM)?;
         let source = source::SourceFile::decode_owned(path.display().to_string(), bytes);
         let document = ast::Document::new(source);
         let (model, diagnostics) = lower::lower_reusing(&document, options, &mut self.scratch);
@@ -168,43 +173,79 @@ impl Reader {
 /// read would wait for a writer), a device (`/dev/urandom` never ends) or a directory, is refused
 /// with an [`std::io::ErrorKind::InvalidInput`] error naming what it is, before it is opened.
 pub fn read_bytes(path: &std::path::Path) -> std::io::Result<Vec<u8>> {
-    read_bytes_into(path, Vec::new(), 0)
+    read_bytes_into(&probe(path)?, Vec::new(), 0)
 }
 
-/// [`read_bytes`] into `bytes` (emptied first), whose allocation is used if large enough; a
-/// new one has room for at least `room` bytes.
-fn read_bytes_into(path: &std::path::Path, bytes: Vec<u8>, room: usize) -> std::io::Result<Vec<u8>> {
-    use std::io::Read as _;
-    let not_regular = |m: &std::fs::Metadata| {
-        let what = if m.is_dir() { "a directory" } else { "not a regular file (a FIFO, device or socket)" };
-        std::io::Error::new(std::io::ErrorKind::InvalidInput, format!("it is {what}"))
-    };
+/// A path that [`probe`] found to be a regular file (through symbolic links), and its size then:
+/// what [`Reader::read_probed`] reads. A program that reads many files can probe them all
+/// first, to read the largest first or to spread them over threads by size, at no extra cost:
+/// the file is not probed again when it is read.
+#[derive(Clone, Debug)]
+pub struct Probed<'a> {
+    path: &'a std::path::Path,
+    len: u64,
+}
+
+impl<'a> Probed<'a> {
+    /// The path.
+    pub fn path(&self) -> &'a std::path::Path {
+        self.path
+    }
+
+    /// The file's size in bytes when it was probed.
+    pub fn len(&self) -> u64 {
+        self.len
+    }
+
+    /// Whether the file was empty when it was probed.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+}
+
+/// Checks, without opening it, that `path` is a regular file (through symbolic links), and
+/// gives its size. A FIFO (whose opening or reading would wait for a writer), a device
+/// (`/dev/urandom` never ends; opening some devices has effects of its own), a socket or a
+/// directory is refused with an [`std::io::ErrorKind::InvalidInput`] error naming what it is.
+pub fn probe(path: &std::path::Path) -> std::io::Result<Probed<'_>> {
     let m = std::fs::metadata(path)?;
     if !m.is_file() {
         return Err(not_regular(&m));
     }
-    let mut file = std::fs::File::open(path)?;
-    // (Checked again on the open file, in case the path changed in between.)
+    Ok(Probed { path, len: m.len() })
+}
+
+/// The error for a path that is not a regular file.
+fn not_regular(m: &std::fs::Metadata) -> std::io::Error {
+    let what = if m.is_dir() { "a directory" } else { "not a regular file (a FIFO, device or socket)" };
+    std::io::Error::new(std::io::ErrorKind::InvalidInput, format!("it is {what}"))
+}
+
+/// The bytes of a probed file, read into `bytes` (emptied first), whose allocation is used if
+/// large enough; a new one has room for at least `room` bytes.
+///
+/// A regular file is read with one `read` (the size is known from the open file), so that
+/// each file costs four system calls: the probe, `openat`, `statx` and `read` (and `close`).
+/// A file whose size is given as 0, as files of `/proc` are, is read to its end as it comes.
+fn read_bytes_into(probed: &Probed<'_>, bytes: Vec<u8>, room: usize) -> std::io::Result<Vec<u8>> {
+    use std::io::Read as _;
+    let mut file = std::fs::File::open(probed.path)?;
+    // (Checked again on the open file, in case the path changed since it was probed.)
     let m = file.metadata()?;
     if !m.is_file() {
         return Err(not_regular(&m));
     }
-    // Read into a buffer of the size the file has, with one `read` for the file and one that
-    // finds its end. (`File::read_to_end` would ask the size and position again, a statx and
-    // an lseek per file; a plain `Read::read_to_end` reads in steps of a few KiB; reading into a
-    // zeroed buffer would zero every byte first.)
+    // Read into a buffer of the size the file has, with one `read`: `take` stops at that size
+    // without asking the file again. (`File::read_to_end` would ask the size and position
+    // again, a statx and an lseek per file, and read once more to find the end; a plain
+    // `Read::read_to_end` reads in steps of a few KiB; reading into a zeroed buffer would zero
+    // every byte first.) A file that grows while it is read is read as it was when opened.
     let len = usize::try_from(m.len()).unwrap_or(0);
     let mut bytes = lower::with_room(bytes, len.max(room).saturating_add(1));
-    (&mut file).take(len as u64).read_to_end(&mut bytes)?;
-    // Whatever is beyond the size the file had (it grew since), as it comes.
-    let mut probe = [0u8; 64];
-    loop {
-        match file.read(&mut probe) {
-            Ok(0) => break,
-            Ok(n) => bytes.extend_from_slice(&probe[..n]),
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
+    if len > 0 {
+        (&mut file).take(len as u64).read_to_end(&mut bytes)?;
+    } else {
+        file.read_to_end(&mut bytes)?;
     }
     Ok(bytes)
 }

@@ -77,3 +77,48 @@ fn a_reader_reports_unreadable_files_and_goes_on() {
     let again = reader.read_file(&good, &Options::lenient()).expect("readable");
     assert!(seen(&again) == seen(&eds::read_file(&good, &Options::lenient()).expect("readable")));
 }
+
+/// `probe` gives a regular file's size and refuses anything else without opening it; a probed
+/// file reads as `read_file` reads it, whole, with its size known from the probe.
+#[test]
+fn probed_files_read_as_read_file_does() {
+    let files = inputs();
+    let mut reader = eds::Reader::new();
+    for path in &files {
+        let probed = eds::probe(path).expect("a regular file");
+        assert_eq!(probed.len(), std::fs::metadata(path).expect("metadata").len());
+        assert_eq!(probed.path(), path.as_path());
+        let parsed = reader.read_probed(&probed, &Options::lenient()).expect("readable");
+        assert!(seen(&parsed) == seen(&eds::read_file(path, &Options::lenient()).expect("readable")));
+        reader.recycle(parsed);
+    }
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let e = eds::probe(dir).expect_err("a directory");
+    assert_eq!(e.kind(), std::io::ErrorKind::InvalidInput);
+    assert!(e.to_string().contains("directory"), "{e}");
+    assert_eq!(eds::probe(Path::new("/nonexistent/x.eds")).expect_err("absent").kind(), std::io::ErrorKind::NotFound);
+    if Path::new("/dev/null").exists() {
+        let e = eds::probe(Path::new("/dev/null")).expect_err("a device");
+        assert_eq!(e.kind(), std::io::ErrorKind::InvalidInput);
+    }
+}
+
+/// A regular file whose size is given as 0 but that has text (as the files of `/proc` have) is
+/// read to its end, not as empty; an empty file is read as empty.
+#[test]
+fn files_of_size_zero_are_read_to_their_end() {
+    let proc_file = Path::new("/proc/self/status");
+    if std::fs::metadata(proc_file).is_ok_and(|m| m.is_file() && m.len() == 0) {
+        let bytes = eds::read_bytes(proc_file).expect("readable");
+        assert!(bytes.len() > 20, "{} bytes", bytes.len());
+    }
+    let dir = std::env::temp_dir().join(format!("eds-reader-empty-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let empty = dir.join("empty.eds");
+    std::fs::write(&empty, "").expect("write");
+    assert!(eds::read_bytes(&empty).expect("readable").is_empty());
+    let mut reader = eds::Reader::new();
+    let parsed = reader.read_file(&empty, &Options::lenient()).expect("readable");
+    assert!(parsed.document.source.text.is_empty());
+    let _ = std::fs::remove_dir_all(&dir);
+}
