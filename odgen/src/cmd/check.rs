@@ -168,16 +168,23 @@ pub fn run(args: Args) -> ExitCode {
     let mut any = false;
     // Blocks handed back by the writer, for the readers to render the next files into.
     let spare: Spare = std::sync::Mutex::new(Vec::new());
-    let read = |path: &PathBuf| {
+    // Every file is probed first (it is not probed again when read), for its size: the threads
+    // take the largest files first, so that the last ones taken are small and the threads
+    // finish together.
+    let files: Vec<(&PathBuf, std::io::Result<eds::Probed<'_>>)> =
+        args.files.iter().map(|path| (path, eds::probe(path))).collect();
+    let order = super::largest_first(files.iter().map(|(_, p)| p.as_ref().map_or(0, |p| p.len())));
+    let read = |(_, probed): &(&PathBuf, std::io::Result<eds::Probed<'_>>)| {
+        let probed = probed.as_ref().map_err(|e| std::io::Error::new(e.kind(), e.to_string()))?;
         READER.with_borrow_mut(|reader| {
-            let parsed = reader.read_file(path, &options)?;
-            let report = render(&parsed, path, format, level, &spare);
+            let parsed = reader.read_probed(probed, &options)?;
+            let report = render(&parsed, probed.path(), format, level, &spare);
             reader.recycle(parsed);
             Ok::<_, std::io::Error>(report)
         })
     };
 
-    super::par_each(&args.files, super::jobs(args.jobs), read, |path, report| {
+    super::par_each(&files, &order, super::jobs(args.jobs), read, |(path, _), report| {
         let report = match report {
             Ok(r) => r,
             Err(e) => {

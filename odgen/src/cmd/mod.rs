@@ -34,23 +34,34 @@ pub fn jobs(requested: Option<usize>) -> usize {
 }
 
 /// `f(&items[i])` for every item on up to `jobs` threads, each result handed to `emit` on the
-/// calling thread in the items' order as soon as it and those before it are ready. Each thread
-/// takes the next unclaimed item, so one large file does not hold up the rest; the calling
-/// thread is one of them (a thread fewer to start, and the one whose memory is already in use:
-/// each new thread's allocations start on fresh pages, each a page fault), and it hands out
-/// what is ready between its own items, so results are written and freed as the run goes
-/// rather than all held to the end.
-pub fn par_each<T: Sync, R: Send>(items: &[T], jobs: usize, f: impl Fn(&T) -> R + Sync, mut emit: impl FnMut(&T, R)) {
+/// calling thread in the items' order as soon as it and those before it are ready. The threads
+/// take the items in the order `order` gives (a permutation of the items' indices; the largest
+/// first, so that the last ones taken are small and the threads finish together), each the
+/// next unclaimed one. The calling thread is one of them (a thread fewer to start, and the one
+/// whose memory is already in use: each new thread's allocations start on fresh pages, each a
+/// page fault), and it hands out what is ready between its own items, so results are written
+/// and freed as the run goes rather than all held to the end.
+pub fn par_each<T: Sync, R: Send>(
+    items: &[T],
+    order: &[usize],
+    jobs: usize,
+    f: impl Fn(&T) -> R + Sync,
+    mut emit: impl FnMut(&T, R),
+) {
     use std::sync::atomic::{AtomicUsize, Ordering};
     use std::sync::{Condvar, Mutex};
+    debug_assert_eq!(order.len(), items.len());
     let jobs = jobs.clamp(1, items.len().max(1));
     if jobs == 1 {
+        // One thread: in the items' order, each emitted (and freed) as soon as it is done.
         for item in items {
             emit(item, f(item));
         }
         return;
     }
     let next = AtomicUsize::new(0);
+    // The next item to work on, in `order` (`None` when all are taken).
+    let claim = || order.get(next.fetch_add(1, Ordering::Relaxed)).and_then(|&i| Some((i, items.get(i)?)));
     let slots: Mutex<Vec<Option<R>>> = Mutex::new(items.iter().map(|_| None).collect());
     let filled = Condvar::new();
     let put = |i: usize, r: R| {
@@ -62,9 +73,7 @@ pub fn par_each<T: Sync, R: Send>(items: &[T], jobs: usize, f: impl Fn(&T) -> R 
         let workers: Vec<_> = (1..jobs)
             .map(|_| {
                 scope.spawn(|| {
-                    loop {
-                        let i = next.fetch_add(1, Ordering::Relaxed);
-                        let Some(item) = items.get(i) else { break };
+                    while let Some((i, item)) = claim() {
                         put(i, f(item));
                     }
                 })
@@ -88,9 +97,7 @@ pub fn par_each<T: Sync, R: Send>(items: &[T], jobs: usize, f: impl Fn(&T) -> R 
                 }
             }
         };
-        loop {
-            let i = next.fetch_add(1, Ordering::Relaxed);
-            let Some(item) = items.get(i) else { break };
+        while let Some((i, item)) = claim() {
             let r = f(item);
             put(i, r);
             take_ready(false, &mut done, &mut emit);
@@ -103,6 +110,14 @@ pub fn par_each<T: Sync, R: Send>(items: &[T], jobs: usize, f: impl Fn(&T) -> R 
             }
         }
     });
+}
+
+/// The order to work on items of these sizes in: the largest first (items of the same size in
+/// their own order).
+pub fn largest_first(sizes: impl ExactSizeIterator<Item = u64>) -> Vec<usize> {
+    let mut order: Vec<(u64, usize)> = sizes.enumerate().map(|(i, s)| (s, i)).collect();
+    order.sort_by_key(|&(s, i)| (std::cmp::Reverse(s), i));
+    order.into_iter().map(|(_, i)| i).collect()
 }
 
 /// Set once standard output's reader has gone away.
@@ -210,3 +225,101 @@ macro_rules! outln {
     }};
 }
 pub(crate) use outln;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The order is a permutation of the indices, by size from the largest, and items of one
+    /// size keep their order.
+    #[test]
+    fn largest_first_sorts_by_size_then_position() {
+        assert_eq!(largest_first([3u64, 9, 3, 0, 9, 1].into_iter()), vec![1, 4, 0, 2, 5, 3]);
+        assert!(largest_first(std::iter::empty()).is_empty());
+        // Every length up to 40 with sizes from a small range (many ties).
+        let mut seed = 0x2545_F491_4F6C_DD1Du64;
+        for n in 0..40usize {
+            let sizes: Vec<u64> = (0..n)
+                .map(|_| {
+                    seed ^= seed << 13;
+                    seed ^= seed >> 7;
+                    seed ^= seed << 17;
+                    seed % 5
+                })
+                .collect();
+            let order = largest_first(sizes.iter().copied());
+            let mut seen = order.clone();
+            seen.sort_unstable();
+            assert_eq!(seen, (0..n).collect::<Vec<_>>(), "{sizes:?}");
+            for w in order.windows(2) {
+                let (a, b) = (w[0], w[1]);
+                assert!(sizes[a] > sizes[b] || (sizes[a] == sizes[b] && a < b), "{sizes:?} {order:?}");
+            }
+        }
+    }
+
+    /// Whatever the order the threads take the items in and however many threads there are,
+    /// every item is worked on once and the results are emitted in the items' order.
+    #[test]
+    fn par_each_emits_in_item_order_whatever_the_claim_order() {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        for n in [0usize, 1, 2, 7, 64] {
+            let items: Vec<usize> = (0..n).collect();
+            let orders = [
+                (0..n).collect::<Vec<_>>(),
+                (0..n).rev().collect(),
+                largest_first(items.iter().map(|&i| (i * 7 % 5) as u64)),
+            ];
+            for order in &orders {
+                for jobs in [1usize, 2, 3, 8] {
+                    let calls = AtomicUsize::new(0);
+                    let mut emitted = Vec::new();
+                    par_each(
+                        &items,
+                        order,
+                        jobs,
+                        |&i| {
+                            calls.fetch_add(1, Ordering::Relaxed);
+                            // Uneven work, so that results come back out of order.
+                            std::thread::sleep(std::time::Duration::from_micros((i % 3) as u64 * 50));
+                            i * 2
+                        },
+                        |&i, r| emitted.push((i, r)),
+                    );
+                    assert_eq!(calls.load(Ordering::Relaxed), n, "n {n} jobs {jobs}");
+                    assert_eq!(emitted, items.iter().map(|&i| (i, i * 2)).collect::<Vec<_>>(), "n {n} jobs {jobs}");
+                }
+            }
+        }
+    }
+
+    /// The threads take the items in the order given: each thread's items come in that order
+    /// (one thread works in the items' own order, emitting each as it is done).
+    #[test]
+    fn par_each_takes_items_in_the_order_given() {
+        let items: Vec<usize> = (0..50).collect();
+        let order = largest_first(items.iter().map(|&i| (i * 37 % 11) as u64));
+        let place = |i: usize| order.iter().position(|&o| o == i).unwrap();
+        for jobs in [1usize, 2, 4] {
+            let started = std::sync::Mutex::new(Vec::new());
+            par_each(
+                &items,
+                &order,
+                jobs,
+                |&i| started.lock().unwrap().push((std::thread::current().id(), i)),
+                |_, ()| {},
+            );
+            let started = started.into_inner().unwrap();
+            assert_eq!(started.len(), items.len());
+            if jobs == 1 {
+                assert_eq!(started.iter().map(|&(_, i)| i).collect::<Vec<_>>(), items);
+                continue;
+            }
+            let threads: std::collections::HashSet<_> = started.iter().map(|&(t, _)| t).collect();
+            for t in threads {
+                let mine: Vec<usize> = started.iter().filter(|&&(u, _)| u == t).map(|&(_, i)| place(i)).collect();
+                assert!(mine.windows(2).all(|w| w[0] < w[1]), "jobs {jobs}: places {mine:?}");
+            }
+        }
+    }
+}
