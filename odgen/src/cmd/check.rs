@@ -170,12 +170,15 @@ pub fn run(args: Args) -> ExitCode {
     let spare: Spare = std::sync::Mutex::new(Vec::new());
     // Every file is probed first (it is not probed again when read), for its size: the threads
     // take the largest files first, so that the last ones taken are small and the threads
-    // finish together.
-    let files: Vec<(&PathBuf, std::io::Result<eds::Probed<'_>>)> =
-        args.files.iter().map(|path| (path, eds::probe(path))).collect();
-    let order = super::largest_first(files.iter().map(|(_, p)| p.as_ref().map_or(0, |p| p.len())));
-    let read = |(_, probed): &(&PathBuf, std::io::Result<eds::Probed<'_>>)| {
-        let probed = probed.as_ref().map_err(|e| std::io::Error::new(e.kind(), e.to_string()))?;
+    // finish together. (The probing overlaps the start of the other threads.)
+    let probes: std::sync::OnceLock<Vec<std::io::Result<eds::Probed<'_>>>> = std::sync::OnceLock::new();
+    let order = || {
+        let probed = probes.get_or_init(|| args.files.iter().map(|path| eds::probe(path)).collect());
+        super::largest_first(probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len())))
+    };
+    let read = |i: usize, _: &PathBuf| {
+        // (Set by `order`, which runs before any file is read.)
+        let probed = probes.wait()[i].as_ref().map_err(|e| std::io::Error::new(e.kind(), e.to_string()))?;
         READER.with_borrow_mut(|reader| {
             let parsed = reader.read_probed(probed, &options)?;
             let report = render(&parsed, probed.path(), format, level, &spare);
@@ -184,7 +187,7 @@ pub fn run(args: Args) -> ExitCode {
         })
     };
 
-    super::par_each(&files, &order, super::jobs(args.jobs), read, |(path, _), report| {
+    super::par_each(&args.files, super::jobs(args.jobs), order, read, |path, report| {
         let report = match report {
             Ok(r) => r,
             Err(e) => {

@@ -33,35 +33,44 @@ pub fn jobs(requested: Option<usize>) -> usize {
     requested.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from)).max(1)
 }
 
-/// `f(&items[i])` for every item on up to `jobs` threads, each result handed to `emit` on the
-/// calling thread in the items' order as soon as it and those before it are ready. The threads
-/// take the items in the order `order` gives (a permutation of the items' indices; the largest
-/// first, so that the last ones taken are small and the threads finish together), each the
-/// next unclaimed one. The calling thread is one of them (a thread fewer to start, and the one
-/// whose memory is already in use: each new thread's allocations start on fresh pages, each a
-/// page fault), and it hands out what is ready between its own items, so results are written
-/// and freed as the run goes rather than all held to the end.
+/// `f(i, &items[i])` for every item on up to `jobs` threads, each result handed to `emit` on
+/// the calling thread in the items' order as soon as it and those before it are ready.
+///
+/// `order` runs once, on the calling thread, after the other threads are started (their start
+/// takes as long as a few dozen system calls, which it overlaps) and before any item is worked
+/// on: it may prepare what `f` needs, and it gives the order the threads take the items in (a
+/// permutation of their indices, e.g. the largest first, so that the last ones taken are small
+/// and the threads finish together; anything else is taken as the items' own order). Each
+/// thread takes the next unclaimed item. The calling thread is one of them (a thread fewer to
+/// start, and the one whose memory is already in use: each new thread's allocations start on
+/// fresh pages, each a page fault), and it hands out what is ready between its own items, so
+/// results are written and freed as the run goes rather than all held to the end. With one
+/// thread, the items are taken in their own order, each emitted as soon as it is done.
 pub fn par_each<T: Sync, R: Send>(
     items: &[T],
-    order: &[usize],
     jobs: usize,
-    f: impl Fn(&T) -> R + Sync,
+    order: impl FnOnce() -> Vec<usize>,
+    f: impl Fn(usize, &T) -> R + Sync,
     mut emit: impl FnMut(&T, R),
 ) {
     use std::sync::atomic::{AtomicUsize, Ordering};
-    use std::sync::{Condvar, Mutex};
-    debug_assert_eq!(order.len(), items.len());
+    use std::sync::{Condvar, Mutex, OnceLock};
     let jobs = jobs.clamp(1, items.len().max(1));
     if jobs == 1 {
-        // One thread: in the items' order, each emitted (and freed) as soon as it is done.
-        for item in items {
-            emit(item, f(item));
+        let _ = order();
+        for (i, item) in items.iter().enumerate() {
+            emit(item, f(i, item));
         }
         return;
     }
+    // The order, once `order` has given it (the threads started before wait for it).
+    let taken: OnceLock<Vec<usize>> = OnceLock::new();
     let next = AtomicUsize::new(0);
-    // The next item to work on, in `order` (`None` when all are taken).
-    let claim = || order.get(next.fetch_add(1, Ordering::Relaxed)).and_then(|&i| Some((i, items.get(i)?)));
+    // The next item to work on (`None` when all are taken).
+    let claim = || {
+        let order = taken.wait();
+        order.get(next.fetch_add(1, Ordering::Relaxed)).and_then(|&i| Some((i, items.get(i)?)))
+    };
     let slots: Mutex<Vec<Option<R>>> = Mutex::new(items.iter().map(|_| None).collect());
     let filled = Condvar::new();
     let put = |i: usize, r: R| {
@@ -74,11 +83,12 @@ pub fn par_each<T: Sync, R: Send>(
             .map(|_| {
                 scope.spawn(|| {
                     while let Some((i, item)) = claim() {
-                        put(i, f(item));
+                        put(i, f(i, item));
                     }
                 })
             })
             .collect();
+        let _ = taken.set(permutation_or_identity(order(), items.len()));
         // The first result not yet handed to `emit`.
         let mut done = 0;
         let take_ready = |wait: bool, done: &mut usize, emit: &mut dyn FnMut(&T, R)| {
@@ -98,7 +108,7 @@ pub fn par_each<T: Sync, R: Send>(
             }
         };
         while let Some((i, item)) = claim() {
-            let r = f(item);
+            let r = f(i, item);
             put(i, r);
             take_ready(false, &mut done, &mut emit);
         }
@@ -110,6 +120,14 @@ pub fn par_each<T: Sync, R: Send>(
             }
         }
     });
+}
+
+/// `order` if it is a permutation of `0..n` (every index once), otherwise `0..n`: an order that
+/// missed an item would leave the calling thread waiting for it for ever.
+fn permutation_or_identity(order: Vec<usize>, n: usize) -> Vec<usize> {
+    let mut seen = vec![false; n];
+    let ok = order.len() == n && order.iter().all(|&i| i < n && !std::mem::replace(&mut seen[i], true));
+    if ok { order } else { (0..n).collect() }
 }
 
 /// The order to work on items of these sizes in: the largest first (items of the same size in
@@ -276,9 +294,10 @@ mod tests {
                     let mut emitted = Vec::new();
                     par_each(
                         &items,
-                        order,
                         jobs,
-                        |&i| {
+                        || order.clone(),
+                        |at, &i| {
+                            assert_eq!(at, i);
                             calls.fetch_add(1, Ordering::Relaxed);
                             // Uneven work, so that results come back out of order.
                             std::thread::sleep(std::time::Duration::from_micros((i % 3) as u64 * 50));
@@ -304,9 +323,9 @@ mod tests {
             let started = std::sync::Mutex::new(Vec::new());
             par_each(
                 &items,
-                &order,
                 jobs,
-                |&i| started.lock().unwrap().push((std::thread::current().id(), i)),
+                || order.clone(),
+                |_, &i| started.lock().unwrap().push((std::thread::current().id(), i)),
                 |_, ()| {},
             );
             let started = started.into_inner().unwrap();
@@ -321,5 +340,21 @@ mod tests {
                 assert!(mine.windows(2).all(|w| w[0] < w[1]), "jobs {jobs}: places {mine:?}");
             }
         }
+    }
+
+    /// An order that is no permutation of the items (an index missing, repeated or out of
+    /// range) is taken as the items' own order: every item is still worked on once.
+    #[test]
+    fn par_each_survives_an_order_that_is_no_permutation() {
+        let items: Vec<usize> = (0..9).collect();
+        for bad in [vec![], vec![0, 1, 2], vec![0; 9], vec![8, 7, 6, 5, 4, 3, 2, 1, 99], (0..10).collect()] {
+            for jobs in [1usize, 3] {
+                let mut emitted = Vec::new();
+                par_each(&items, jobs, || bad.clone(), |_, &i| i + 1, |&i, r| emitted.push((i, r)));
+                assert_eq!(emitted, items.iter().map(|&i| (i, i + 1)).collect::<Vec<_>>(), "{bad:?} jobs {jobs}");
+            }
+        }
+        assert_eq!(permutation_or_identity(vec![2, 0, 1], 3), vec![2, 0, 1]);
+        assert_eq!(permutation_or_identity(vec![2, 2, 1], 3), vec![0, 1, 2]);
     }
 }
