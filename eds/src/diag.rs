@@ -130,11 +130,26 @@ pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::Sourc
                 break;
             }
         }
-        // (ASCII digits are always UTF-8.)
-        out.push_str(std::str::from_utf8(&digits[i..]).unwrap_or("0"));
+        for &d in &digits[i..] {
+            out.push(char::from(d));
+        }
     }
     fn push_n(out: &mut String, c: char, n: usize) {
-        out.extend(std::iter::repeat_n(c, n));
+        // Spaces and carets, in runs of a few to a few dozen: pushed as slices of a run of them
+        // rather than a character at a time.
+        const SPACES: &str = "                                ";
+        const CARETS: &str = "^^^^^^^^^^^^^^^^^^^^^^^^^^^^^^^^";
+        let run = match c {
+            ' ' => SPACES,
+            '^' => CARETS,
+            _ => return out.extend(std::iter::repeat_n(c, n)),
+        };
+        let mut left = n;
+        while left > 0 {
+            let k = left.min(run.len());
+            out.push_str(&run[..k]);
+            left -= k;
+        }
     }
     out.push_str(match d.severity {
         Severity::Note => "note",
@@ -175,9 +190,19 @@ pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::Sourc
             if from > 0 {
                 out.push('…');
             }
-            out.extend(
-                line.chars().skip(from as usize).take((to - from) as usize).map(|c| if c == '\t' { ' ' } else { c }),
-            );
+            // (A tab is quoted as one space, so that the carets line up.)
+            let untab = |c: char| if c == '\t' { ' ' } else { c };
+            match line.get(from as usize..to as usize) {
+                // An ASCII line (most are): its characters are its bytes, pushed as a slice.
+                Some(part) if line.len() as u32 == line_chars => {
+                    if part.contains('\t') {
+                        out.extend(part.chars().map(untab));
+                    } else {
+                        out.push_str(part);
+                    }
+                }
+                _ => out.extend(line.chars().skip(from as usize).take((to - from) as usize).map(untab)),
+            }
             if to < line_chars {
                 out.push('…');
             } else {
@@ -432,5 +457,54 @@ mod tests {
         let start = src.text.find("K1100=").unwrap_or(0) as u32;
         let out = render(&diag(&src, start, start + 5), &src);
         assert!(out.contains("    --> a.eds:1101:1\n     |\n1101 | K1100=v\n     | ^^^^^\n"), "{out}");
+    }
+
+    /// The quoted line is the line's characters in the window, each tab as one space, and the
+    /// carets sit under the span's first column: on ASCII lines (quoted as slices) and others
+    /// alike, with tabs anywhere, short lines and lines long enough to be cut.
+    #[test]
+    fn quoted_lines_and_carets_on_ascii_and_other_lines() {
+        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = |n: u64| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed % n
+        };
+        let pieces = ["a", "Key", "=", "\t", " ", "0x1F", "é", "ß", "…", "Value"];
+        for _ in 0..300 {
+            let len = if next(4) == 0 { 60 + next(400) } else { 1 + next(30) };
+            let line: String = (0..len).map(|_| pieces[next(pieces.len() as u64) as usize]).collect();
+            let text = format!("[1000]\n{line}\nNext=1\n");
+            let src = SourceFile::from_str("a.eds", text.as_str());
+            let starts: Vec<usize> = line.char_indices().map(|(i, _)| i).collect();
+            for _ in 0..4 {
+                let at = starts[next(starts.len() as u64) as usize];
+                let start = 7 + at as u32;
+                let out = render(&diag(&src, start, start + 1), &src);
+                let quoted = out.lines().nth(3).and_then(|l| l.strip_prefix("2 | ")).unwrap_or_else(|| panic!("{out}"));
+                let chars = line.chars().count() as u32;
+                let col = line[..at].chars().count() as u32;
+                let (from, to) = quote_window(chars, col);
+                let mut expected: String = line
+                    .chars()
+                    .skip(from as usize)
+                    .take((to - from) as usize)
+                    .map(|c| if c == '\t' { ' ' } else { c })
+                    .collect();
+                if from > 0 {
+                    expected.insert(0, '…');
+                }
+                if to < chars {
+                    expected.push('…');
+                } else {
+                    expected.truncate(expected.trim_end().len());
+                }
+                assert_eq!(quoted, expected, "{line:?} at {at}");
+                let carets = out.lines().nth(4).unwrap_or("");
+                let lead = col - from + u32::from(from > 0);
+                assert_eq!(carets.find('^'), Some(4 + lead as usize), "{out}");
+            }
+        }
     }
 }
