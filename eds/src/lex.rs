@@ -29,13 +29,15 @@
 //! never uses ASCII bytes inside a multi-byte character, so byte positions are always char
 //! boundaries where the grammar cuts. The line's first byte picks the rule, so each byte is
 //! looked at once. The parsers that run over the bulk of the text (`take_till` up to `=` or a
-//! line end) compare sixteen bytes at a time (SSE2 on x86_64, the crate's only `unsafe`;
+//! line end) compare sixteen bytes at a time (SSE2 on x86_64, one of the crate's two `unsafe` uses;
 //! eight-byte words elsewhere), and the line end is one match on two bytes. The commonest line,
 //! `Key=Value` with nothing to trim, has a shorter path of its own
 //! ([`Lexer::next_plain_entry`], tested to agree with the general one): on x86_64 it reads the
 //! line in sixteen-byte blocks from its start, each compared once with `=` and the line ends, so
 //! the block that holds the `=` gives the end of a short value too (lines within sixteen bytes
-//! of the end of the text take the byte-wise scan).
+//! of the end of the text take the byte-wise scan), and cuts the key and the value out of the
+//! text without checking for char boundaries again (the crate's other `unsafe` use: the cuts are
+//! at ASCII bytes the scan found).
 //! Trimming looks at the bytes at either end and only falls back to [`str::trim`] when it meets
 //! a non-ASCII byte there (which may be Unicode white space). [`Lexer`] allocates nothing; [`lex`]
 //! allocates the `Vec` of lines and the line index.
@@ -242,9 +244,8 @@ impl<'a> Lexer<'a> {
     /// of the text; `None` if it is no plain entry. Both scans end here.
     #[inline(always)]
     fn plain_entry_at(&mut self, key_len: usize, line_len: usize) -> Option<PlainEntry<'a>> {
-        let rest = self.rest;
-        let input = rest.as_bytes();
-        if !is_graphic(*input.get(key_len.checked_sub(1)?)?) {
+        let input = self.rest.as_bytes();
+        if input.get(key_len) != Some(&b'=') || !is_graphic(*input.get(key_len.checked_sub(1)?)?) {
             return None;
         }
         let value_part = input.get(key_len + 1..line_len)?;
@@ -260,11 +261,22 @@ impl<'a> Lexer<'a> {
             // A lone `\r`: the general path keeps count of columns after it.
             _ => return None,
         };
-        // The text is cut at `=`, at the line end and after it: ASCII bytes, so char
-        // boundaries (the checks `split_at_checked` makes cannot fail).
-        let (key, tail) = rest.split_at_checked(key_len)?;
-        let (value, tail) = tail.get(1..)?.split_at_checked(line_len - key_len - 1)?;
-        let after = tail.get(ending..)?;
+        let key = input.get(..key_len)?;
+        let value = value_part;
+        let next = line_len + ending;
+        let after = input.get(next..)?;
+        // SAFETY: `input` is the bytes of the `str` `self.rest`, and each slice is cut where an
+        // ASCII byte starts (the `=` at `key_len`, checked above, the byte after it, the line end at `line_len`, the
+        // byte after the line end) or at an end of `input`: every cut is a char boundary, so
+        // each slice is UTF-8. (`str` slicing checked the boundaries again, byte by byte, on the
+        // commonest line of every file.)
+        let (key, value, after) = unsafe {
+            (
+                std::str::from_utf8_unchecked(key),
+                std::str::from_utf8_unchecked(value),
+                std::str::from_utf8_unchecked(after),
+            )
+        };
         let start = offset(self.text.as_bytes(), input) as u32;
         self.rest = after;
         Some(PlainEntry { key, value, start, end: offset(self.text.as_bytes(), after.as_bytes()) as u32, newline })
