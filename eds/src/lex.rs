@@ -146,6 +146,28 @@ impl PlainEntry<'_> {
     }
 }
 
+/// A line [`Lexer::next_plain_section`] read: a section header `[Name]` with nothing to trim
+/// and nothing after it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PlainSection<'a> {
+    /// The name, between the brackets.
+    pub name: &'a str,
+    /// Where the line (its `[`) starts in the text.
+    pub start: u32,
+    /// Where the next line starts.
+    pub end: u32,
+    /// Whether the line ended with `\n` or `\r\n` (otherwise it was the last line, with no
+    /// ending).
+    pub newline: bool,
+}
+
+impl PlainSection<'_> {
+    /// The span of the name.
+    pub fn name_span(&self) -> Span {
+        Span::new(self.start + 1, self.start + 1 + self.name.len() as u32)
+    }
+}
+
 impl<'a> Lexer<'a> {
     /// Reads the next line if it is the commonest kind: `Key=Value` with no blank around the key
     /// or the value, ended by `\n`, `\r\n` or the end of the text (the key starts with a byte
@@ -165,6 +187,40 @@ impl<'a> Lexer<'a> {
             return read;
         }
         self.plain_entry_bytes()
+    }
+
+    /// Reads the next line if it is the commonest section header: `[Name]` at the start of the
+    /// line, ended right after the `]` by `\n`, `\r\n` or the end of the text, with a name
+    /// that needs no trimming (its first and last bytes are printable ASCII other than the
+    /// space). Any other line is left for [`Iterator::next`]; the lexer does not move. A line
+    /// read here is what `next` would have made of it (`LineKind::Section` with the same name
+    /// and nothing trailing), with less work.
+    #[inline]
+    pub fn next_plain_section(&mut self) -> Option<PlainSection<'a>> {
+        let input = self.rest.as_bytes();
+        if input.first() != Some(&b'[') {
+            return None;
+        }
+        let name_len = prefix_without(&input[1..], [b']', b'[', b'\n', b'\r']);
+        let close = 1 + name_len;
+        if input.get(close) != Some(&b']') || name_len == 0 {
+            return None;
+        }
+        if !is_graphic(input[1]) || !is_graphic(input[name_len]) {
+            return None;
+        }
+        let (ending, newline) = match &input[close + 1..] {
+            [b'\n', ..] => (1, true),
+            [b'\r', b'\n', ..] => (2, true),
+            [] => (0, false),
+            _ => return None,
+        };
+        // (Cut at `[`, `]` and after the line end, all ASCII: char boundaries.)
+        let name = self.rest.get(1..close)?;
+        let after = self.rest.get(close + 1 + ending..)?;
+        let start = offset(self.text.as_bytes(), input) as u32;
+        self.rest = after;
+        Some(PlainSection { name, start, end: offset(self.text.as_bytes(), after.as_bytes()) as u32, newline })
     }
 
     /// Reads the next line if it is empty, ended by `\n` or `\r\n` (what [`Iterator::next`]
@@ -734,6 +790,44 @@ mod tests {
         plain
     }
 
+    /// Every line the section fast path reads is what the general path makes of it (as
+    /// [`check_plain_entries`] checks the entry fast path). Returns how many lines it read.
+    fn check_plain_sections(text: &str) -> usize {
+        let mut lexer = Lexer::new(text);
+        let mut plain = 0;
+        loop {
+            let mut general = lexer.clone();
+            let Some(line) = general.next() else {
+                assert_eq!(lexer.next_plain_section(), None);
+                break;
+            };
+            match lexer.next_plain_section() {
+                Some(sec) => {
+                    plain += 1;
+                    let trailing = Span::new(line.content.end, line.content.end);
+                    assert_eq!(line.kind, LineKind::Section { name: sec.name_span(), trailing }, "{text:?}");
+                    assert_eq!(sec.name, &text[sec.name_span().start as usize..sec.name_span().end as usize]);
+                    assert_eq!((line.raw.start, line.raw.end), (sec.start, sec.end));
+                    assert_eq!(matches!(line.ending, LineEnding::Lf | LineEnding::CrLf), sec.newline);
+                    assert!(sec.newline || line.ending == LineEnding::None);
+                    assert_eq!(lexer.rest.len(), general.rest.len());
+                }
+                None => assert_eq!(lexer.next(), Some(line)),
+            }
+        }
+        plain
+    }
+
+    #[test]
+    fn plain_sections_are_read_as_the_general_path_reads_them() {
+        let text = "[FileInfo]\n[1018]\r\n[1018sub0]\r[a b]\n[ a]\n[a ]\n[]\n[x]y\n[x][y]\n [z]\n[\u{e4}]\n[a\u{e4}b]\n\
+                    [a[b]\n[x]\r\r\n[last]";
+        assert_eq!(check_plain_sections(text), 5);
+        for text in ["[", "[]", "[a", "[a]", "[a]\r", "[a]\r\n", "[a] ", "[\u{3000}a]"] {
+            check_plain_sections(text);
+        }
+    }
+
     #[test]
     fn empty_lines_are_read_as_the_general_path_reads_them() {
         for text in ["\n", "\r\n", "\r", "\r\r\n", " \n", "\nK=v", "\r\n\n[a]", "", "x\n"] {
@@ -792,6 +886,7 @@ mod tests {
         #[test]
         fn plain_entries_agree_with_the_general_path(text in "([ \t\x0B\x0C\u{A0}\u{85}\u{3000}]|\\PC|\r|\n|\\[|\\]|=|;|#|[a-zA-Z]){0,200}") {
             check_plain_entries(&text);
+            check_plain_sections(&text);
         }
 
         /// The same, with every line at least sixteen bytes before the end of the text, where
@@ -813,6 +908,7 @@ mod tests {
             check_against_reference(&lines.join(&ending));
             check_plain_entries(&lines.join(&ending));
             check_plain_entries(&format!("{}{ending}{}", lines.join(&ending), "Pad=1\n".repeat(4)));
+            check_plain_sections(&lines.join(&ending));
         }
     }
 }

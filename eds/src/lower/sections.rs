@@ -264,7 +264,39 @@ fn hex4(s: &[u8]) -> Option<u16> {
 }
 
 /// Classifies a section name.
+#[inline]
 pub(crate) fn classify(name: &str) -> (Kind, Spelling) {
+    match exact_object(name.as_bytes()) {
+        Some(kind) => (kind, Spelling::Exact),
+        None => classify_general(name),
+    }
+}
+
+/// The kind of the commonest section names, object and sub-object sections spelled as CiA 306
+/// spells them: `IIII` or `IIIIsubS` with four upper-case hex digits and one or two for the
+/// sub-index (what [`classify_general`] finds for them, without its general rules). `None` for
+/// any other name.
+#[inline]
+fn exact_object(name: &[u8]) -> Option<Kind> {
+    let digit = |b: u8| match b {
+        b'0'..=b'9' => Some((b - b'0') as u16),
+        b'A'..=b'F' => Some((b - b'A' + 10) as u16),
+        _ => None,
+    };
+    let (index, rest) = match name {
+        [a, b, c, d, rest @ ..] => (digit(*a)? << 12 | digit(*b)? << 8 | digit(*c)? << 4 | digit(*d)?, rest),
+        _ => return None,
+    };
+    match rest {
+        [] => Some(Kind::Object(index)),
+        [b's', b'u', b'b', s] => Some(Kind::Sub(index, digit(*s)? as u8)),
+        [b's', b'u', b'b', s, t] => Some(Kind::Sub(index, (digit(*s)? << 4 | digit(*t)?) as u8)),
+        _ => None,
+    }
+}
+
+/// [`classify`] by the general rules.
+fn classify_general(name: &str) -> (Kind, Spelling) {
     if let Some(index) = hex4(name.as_bytes()) {
         return classify_object(name, index);
     }
@@ -422,6 +454,59 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     // current line.
     let mut line_starts: Vec<u32> = with_room(std::mem::take(&mut scratch.line_starts), room / 6 + 2);
     line_starts.push(0);
+    // Enters the section named `name` (a span; `name_str` its text), whose name starts in
+    // column `col` (evaluated only for a section not seen before): shared by the section fast
+    // path and the general one.
+    macro_rules! enter_section {
+        ($name:expr, $name_str:expr, $col:expr) => {{
+            let (name, name_str): (Span, &'a str) = ($name, $name_str);
+            let (kind, spelling) = classify(name_str);
+            if spelling != Spelling::Exact {
+                report_spelling(cx, name, name_str, &spelling);
+            }
+            // A new section of a known kind is entered under the number it is about to get
+            // (one hash and one probe, where a look-up and an insertion took two).
+            let existing = match kind {
+                Kind::Unknown => match unknown.entry(NameKey(name_str.to_ascii_lowercase())) {
+                    std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
+                    std::collections::hash_map::Entry::Vacant(e) => {
+                        e.insert(heads.len());
+                        None
+                    }
+                },
+                k => match by_kind.entry(k.key()) {
+                    std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
+                    std::collections::hash_map::Entry::Vacant(e) => {
+                        e.insert(heads.len());
+                        None
+                    }
+                },
+            };
+            let i = match existing {
+                Some(i) => {
+                    occurrences[i] += 1;
+                    repeated = true;
+                    let d = cx.emit(
+                        codes::E0006,
+                        Some(name),
+                        format!("section [{name_str}] appears again (first at line {})", heads[i].at.line),
+                    );
+                    d.hint =
+                        Some("merge the two sections; where both set a key, this reader uses the later value".into());
+                    i
+                }
+                None => {
+                    let i = heads.len();
+                    let at = LineCol { line: line_starts.len() as u32, col: $col };
+                    heads.push(Head { name: name_str, name_span: name, at, kind, entries: 0..0 });
+                    occurrences.push(0);
+                    i
+                }
+            };
+            current = Some((i, occurrences[i]));
+            runs.push((i, entries.len()));
+        }};
+    }
     // The lines are taken from the lexer one at a time; none is kept. Most lines are plain
     // entries inside a section: the lexer reads those on a shorter path of their own.
     let mut lexer = crate::lex::Lexer::new(text);
@@ -439,6 +524,15 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
         // their end.
         if let Some(end) = lexer.next_empty_line() {
             line_starts.push(end);
+            continue;
+        }
+        // Section headers `[Name]` with nothing to trim or after them, most of the others.
+        if let Some(sec) = lexer.next_plain_section() {
+            // (The name starts in column 2, after the `[` that starts the line.)
+            enter_section!(sec.name_span(), sec.name, 2);
+            if sec.newline {
+                line_starts.push(sec.end);
+            }
             continue;
         }
         let Some(line) = lexer.next() else { break };
@@ -472,52 +566,8 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
                             d.hint = Some("put comments on their own line, starting with `;`".into());
                         }
                     }
-                    let (kind, spelling) = classify(name_str);
-                    report_spelling(cx, name, name_str, &spelling);
-                    // A new section of a known kind is entered under the number it is about to get
-                    // (one hash and one probe, where a look-up and an insertion took two).
-                    let existing = match kind {
-                        Kind::Unknown => match unknown.entry(NameKey(name_str.to_ascii_lowercase())) {
-                            std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
-                            std::collections::hash_map::Entry::Vacant(e) => {
-                                e.insert(heads.len());
-                                None
-                            }
-                        },
-                        k => match by_kind.entry(k.key()) {
-                            std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
-                            std::collections::hash_map::Entry::Vacant(e) => {
-                                e.insert(heads.len());
-                                None
-                            }
-                        },
-                    };
-                    let i = match existing {
-                        Some(i) => {
-                            occurrences[i] += 1;
-                            repeated = true;
-                            let d = cx.emit(
-                                codes::E0006,
-                                Some(name),
-                                format!("section [{name_str}] appears again (first at line {})", heads[i].at.line),
-                            );
-                            d.hint = Some(
-                                "merge the two sections; where both set a key, this reader uses the later value".into(),
-                            );
-                            i
-                        }
-                        None => {
-                            let i = heads.len();
-                            let before = src.slice(Span::new(line.raw.start, name.start));
-                            let line_no = line_starts.len() as u32;
-                            let at = LineCol { line: line_no, col: char_count(before) + 1 };
-                            heads.push(Head { name: name_str, name_span: name, at, kind, entries: 0..0 });
-                            occurrences.push(0);
-                            i
-                        }
-                    };
-                    current = Some((i, occurrences[i]));
-                    runs.push((i, entries.len()));
+                    let col = || char_count(src.slice(Span::new(line.raw.start, name.start))) + 1;
+                    enter_section!(name, name_str, col());
                 }
                 LineKind::Comment { text } => {
                     if text.start > 0 && src.text.as_bytes().get(text.start as usize - 1) == Some(&b'#') {
@@ -1000,6 +1050,57 @@ mod tests {
         assert_eq!(classify("1A2BOBJECTLINKS"), (Kind::Links(0x1A2B), Spelling::Case("1A2BObjectLinks".into())));
         assert_eq!(classify("1A2"), (Kind::Unknown, Spelling::Exact));
         assert_eq!(classify("+1A2"), (Kind::Unknown, Spelling::Exact));
+    }
+
+    /// The fast path for exactly spelled object names classifies every name as the general
+    /// rules do (names built from the digits, letters and suffixes where the rules differ).
+    #[test]
+    fn exact_object_names_agree_with_the_general_rules() {
+        let chars = ["0", "1", "9", "A", "F", "a", "f", "G", "x", " "];
+        let suffixes = [
+            "",
+            "sub",
+            "sub0",
+            "sub9",
+            "subA",
+            "subF",
+            "suba",
+            "subG",
+            "sub00",
+            "sub1F",
+            "sub1f",
+            "subFF",
+            "sub100",
+            "sub001",
+            "SUB1",
+            "Sub1",
+            "sub 1",
+            "sub1 ",
+            "Name",
+            "name",
+            "Value",
+            "ObjectLinks",
+            "x",
+            "\u{e4}",
+        ];
+        let mut fast = 0;
+        for a in chars {
+            for b in ["0", "A", "f", "x"] {
+                for c in ["1", "B", "g"] {
+                    for d in chars {
+                        for suffix in suffixes {
+                            let name = format!("{a}{b}{c}{d}{suffix}");
+                            fast += exact_object(name.as_bytes()).is_some() as u32;
+                            assert_eq!(classify(&name), classify_general(&name), "{name:?}");
+                        }
+                    }
+                }
+            }
+        }
+        assert!(fast > 100);
+        for name in ["", "1", "101", "1018", "1018sub", "1018sub1", "\u{e4}018", "10\u{e4}"] {
+            assert_eq!(classify(name), classify_general(name), "{name:?}");
+        }
     }
 
     #[test]
