@@ -672,6 +672,9 @@ pub(crate) struct KeySet<const N: usize> {
     /// For each number of significant bytes ([`loose_eq`]), a bit per key with that many: a key
     /// that matches none exactly is compared loosely only with the keys it could equal.
     by_significant: [u32; 32],
+    /// The fewest significant bytes of any key: a key shorter than that (counting every byte)
+    /// equals none loosely, and is not looked at byte by byte.
+    min_significant: usize,
     /// For each first letter (ASCII case folded, [`first_slot`]), a bit per key starting with it:
     /// with the length, this leaves one candidate for almost every key.
     by_first: [u32; 32],
@@ -743,6 +746,7 @@ impl<const N: usize> KeySet<N> {
         let mut by_len = [0u32; 32];
         let mut by_first = [0u32; 32];
         let mut by_significant = [0u32; 32];
+        let mut min_significant = usize::MAX;
         let mut words_of = [(0u64, 0u64); N];
         let mut lower = [(0u64, 0u64); N];
         let mut i = 0;
@@ -753,6 +757,9 @@ impl<const N: usize> KeySet<N> {
             assert!(len > 0, "keys are not empty");
             by_first[first_slot(names[i].as_bytes()[0])] |= 1 << i;
             by_significant[significant_len(names[i].as_bytes())] |= 1 << i;
+            if significant_len(names[i].as_bytes()) < min_significant {
+                min_significant = significant_len(names[i].as_bytes());
+            }
             let w = words(names[i].as_bytes());
             words_of[i] = w;
             lower[i] = (ascii_lower(w.0), ascii_lower(w.1));
@@ -769,12 +776,16 @@ impl<const N: usize> KeySet<N> {
             }
             i += 1;
         }
-        KeySet { names, by_len, by_significant, by_first, words: words_of, lower }
+        KeySet { names, by_len, by_significant, min_significant, by_first, words: words_of, lower }
     }
 
     /// The number of the key that `key` equals by [`loose_eq`] (case, spaces, `_` and `-`
     /// ignored), for keys [`KeySet::find`] did not find.
     pub fn find_loose(&self, key: &str) -> Option<usize> {
+        // (Object lists hold hundreds of keys `1`, `2`, ... and no known key is that short.)
+        if key.len() < self.min_significant {
+            return None;
+        }
         let mut candidates = *self.by_significant.get(significant_len(key.as_bytes()))?;
         while candidates != 0 {
             let i = candidates.trailing_zeros() as usize;
