@@ -778,16 +778,6 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
     }
 }
 
-/// The value of a section's (last) `ParameterName` key, any case: the name its diagnostics
-/// carry, needed before its keys are matched. The key is compared as spelled first, which is
-/// how nearly every file spells it; lower-casing it byte by byte cost 1 M instructions per
-/// corpus pass.
-fn parameter_name<'a>(entries: &[Kv<'a>]) -> Option<&'a str> {
-    const KEY: &str = "ParameterName";
-    let is_name = |k: &str| k.len() == KEY.len() && (k == KEY || k.eq_ignore_ascii_case(KEY));
-    entries.iter().rev().find(|kv| is_name(kv.key)).map(|kv| kv.value)
-}
-
 fn build_object(
     cx: &mut Ctx<'_>,
     builder: &EntryBuilder<'_>,
@@ -797,8 +787,7 @@ fn build_object(
     names: Option<&Section<'_>>,
     values: Option<&Section<'_>>,
 ) -> Object {
-    let name = parameter_name(sec.entries);
-    let ctx = Crumbs::object(index, name.unwrap_or(sec.name));
+    let ctx = Crumbs::object_named_by(index, sec.entries, sec.name);
     let keys = match_keys(cx, sec, &OBJ_KEYS, ctx, true);
     let mut name = match keys.get(K_NAME) {
         Some(kv) => kv.value.to_owned(),
@@ -993,8 +982,7 @@ fn build_object(
     }
     obj.extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
     for &(sub, ssec) in subs {
-        let sub_name = parameter_name(ssec.entries);
-        let sctx = ctx.sub(sub, sub_name.unwrap_or(""));
+        let sctx = ctx.sub_named_by(sub, ssec.entries);
         let skeys = match_keys(cx, ssec, &OBJ_KEYS, sctx, true);
         if let Some(kv) = skeys.get(K_OTYPE)
             && uint_key(cx, kv, 0xFF, sctx) != Ok(0x7)
