@@ -263,8 +263,8 @@ fn hex4(s: &[u8]) -> Option<u16> {
     Some(v)
 }
 
-/// Classifies a section name.
-#[inline]
+/// Classifies a section name (what [`collect`] does, with [`exact_object`] first).
+#[cfg(test)]
 pub(crate) fn classify(name: &str) -> (Kind, Spelling) {
     match exact_object(name.as_bytes()) {
         Some(kind) => (kind, Spelling::Exact),
@@ -276,7 +276,7 @@ pub(crate) fn classify(name: &str) -> (Kind, Spelling) {
 /// spells them: `IIII` or `IIIIsubS` with four upper-case hex digits and one or two for the
 /// sub-index (what [`classify_general`] finds for them, without its general rules). `None` for
 /// any other name.
-#[inline]
+#[inline(always)]
 fn exact_object(name: &[u8]) -> Option<Kind> {
     let digit = |b: u8| match b {
         b'0'..=b'9' => Some((b - b'0') as u16),
@@ -460,10 +460,16 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     macro_rules! enter_section {
         ($name:expr, $name_str:expr, $col:expr) => {{
             let (name, name_str): (Span, &'a str) = ($name, $name_str);
-            let (kind, spelling) = classify(name_str);
-            if spelling != Spelling::Exact {
-                report_spelling(cx, name, name_str, &spelling);
-            }
+            // Object and sub-object names spelled as CiA 306 spells them need neither the
+            // general rules nor a spelling to report.
+            let kind = match exact_object(name_str.as_bytes()) {
+                Some(kind) => kind,
+                None => {
+                    let (kind, spelling) = classify_general(name_str);
+                    report_spelling(cx, name, name_str, &spelling);
+                    kind
+                }
+            };
             // A new section of a known kind is entered under the number it is about to get
             // (one hash and one probe, where a look-up and an insertion took two).
             let existing = match kind {
