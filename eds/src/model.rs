@@ -382,6 +382,14 @@ impl Access {
     /// an AccessType, so this allocates nothing and tells the six spellings apart by their
     /// letters rather than comparing them one after another.
     pub fn parse(s: &str) -> Option<Self> {
+        // The spellings of CiA 306 itself, which nearly every file uses, compared as they are.
+        match s.as_bytes() {
+            b"ro" => return Some(Access::Ro),
+            b"rw" => return Some(Access::Rw),
+            b"wo" => return Some(Access::Wo),
+            b"const" => return Some(Access::Const),
+            _ => {}
+        }
         let lower = |b: &u8| b.to_ascii_lowercase();
         match crate::lex::trim(s).as_bytes() {
             [a, b] => match (lower(a), lower(b)) {
