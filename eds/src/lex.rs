@@ -170,16 +170,18 @@ impl PlainSection<'_> {
 
 impl<'a> Lexer<'a> {
     /// Reads the next line if it is the commonest kind: `Key=Value` with no blank around the key
-    /// or the value, ended by `\n`, `\r\n` or the end of the text (the key starts with a byte
-    /// from `A` up, and no byte that starts or ends the key or the value is white space or non-ASCII).
+    /// or the value, ended by `\n`, `\r\n` or the end of the text (the key starts with a
+    /// printable ASCII byte that starts no other kind of line: not `[`, `;` or `#`; and no byte
+    /// that starts or ends the key or the value is white space or non-ASCII).
     /// Any other line is left for [`Iterator::next`]; the lexer does not move. A line read here is
     /// what `next` would have made of it (`LineKind::Entry` with the same spans), with less work:
     /// no line kind to dispatch on and no trimming to decide.
     #[inline(always)]
     pub fn next_plain_entry(&mut self) -> Option<PlainEntry<'a>> {
-        // A key starts with a byte from `A` up; no byte there but `[` starts anything else.
+        // Keys start with a letter (`A` and up, where no byte but `[` starts another kind of
+        // line) or, in the object lists, a digit: one look-up in a table of those bytes.
         let &first = self.rest.as_bytes().first()?;
-        if !(b'A'..=b'~').contains(&first) || first == b'[' {
+        if !PLAIN_FIRST[first as usize] {
             return None;
         }
         #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
@@ -351,6 +353,18 @@ impl<'a> Lexer<'a> {
         self.plain_entry_at(key_len, line_len)
     }
 }
+
+/// The bytes a line read by [`Lexer::next_plain_entry`] may start with: `0` to `9` and `A` to
+/// `~` except `[` (printable, and starting no comment, section header or blank line).
+static PLAIN_FIRST: [bool; 256] = {
+    let mut table = [false; 256];
+    let mut b = 0;
+    while b < 256 {
+        table[b] = matches!(b as u8, b'0'..=b'9' | b'A'..=b'~') && b as u8 != b'[';
+        b += 1;
+    }
+    table
+};
 
 /// A printable ASCII byte other than the space: no trimming removes it.
 #[inline(always)]
@@ -868,6 +882,17 @@ mod tests {
             let key = "K".repeat(n + 1);
             let value = "v".repeat(n);
             assert_eq!(check_plain_entries(&format!("{key}={value}\r\n{key}={value}\n{key}={value}")), 3);
+        }
+        // Numbered keys (object lists) are plain too; lines that start with any other byte
+        // below `A` are left to the general path.
+        let text = "1=0x1000\n12=0x1001\r\n0=x\n9 =x\n$=x\n!=x\n;c=x\n#c=x\n[=x\n\t1=x\n";
+        assert_eq!(check_plain_entries(text), 3);
+        for b in 0..=255u8 {
+            let line = [b, b'=', b'v'];
+            let expect = b.is_ascii_digit() || (b'A'..=b'~').contains(&b) && b != b'[';
+            if let Ok(text) = std::str::from_utf8(&line) {
+                assert_eq!(check_plain_entries(text), expect as usize, "{text:?}");
+            }
         }
     }
 
