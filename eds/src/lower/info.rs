@@ -17,6 +17,13 @@ fn owned(kv: &Kv<'_>) -> (String, String) {
 /// Reads an unsigned number for an information key; reports E0503 and returns `None` when it
 /// cannot be read or does not fit `max`.
 fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u64> {
+    // A plain number in range, as most are, needs neither the comment split nor the general
+    // reader (which reads it as the same number).
+    if let Some((n, _)) = crate::value::parse_plain_uint(kv.value)
+        && n <= max
+    {
+        return Some(n);
+    }
     let mut quirks = Vec::new();
     let v = kv.value.split(';').next().unwrap_or("").trim();
     if v.is_empty() {
@@ -47,6 +54,12 @@ fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u
 }
 
 fn info_bool(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
+    // (As nearly every file writes them: no comment to split off, nothing to trim.)
+    match kv.value {
+        "0" => return Some(false),
+        "1" => return Some(true),
+        _ => {}
+    }
     let v = kv.value.split(';').next().unwrap_or("").trim();
     match v {
         "0" => Some(false),
