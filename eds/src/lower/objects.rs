@@ -1224,7 +1224,10 @@ fn check_structure(
         }
         Some(_) => {}
     }
-    if obj.object_type == ObjectType::Array {
+    // The elements CompactSubObj makes share one type: only sub-object sections (other than
+    // sub-index 0's) can bring another, and without them the elements need no comparing.
+    let one_type = compact.is_some() && subs.iter().all(|&(s, _)| s == 0);
+    if obj.object_type == ObjectType::Array && !one_type {
         let mut types = obj.subs.values().filter(|e| e.sub.0 != 0).map(|e| (e.sub.0, e.data_type));
         if let Some((first_sub, first)) = types.next()
             && let Some((s, other)) = types.find(|&(_, t)| t != first)
