@@ -583,13 +583,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
                 Some(i) => {
                     occurrences[i] += 1;
                     repeated = true;
-                    let d = cx.emit(
-                        codes::E0006,
-                        Some(name),
-                        format!("section [{name_str}] appears again (first at line {})", heads[i].at.line),
-                    );
-                    d.hint =
-                        Some("merge the two sections; where both set a key, this reader uses the later value".into());
+                    section_again(cx, name, name_str, heads[i].at.line);
                     i
                 }
                 None => {
@@ -642,52 +636,21 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
         } else {
             match line.kind {
                 // (An entry here has no section.)
-                LineKind::Entry { key, .. } => {
-                    let d = cx.emit(
-                        codes::E0003,
-                        Some(line.content),
-                        format!("entry `{}` comes before any section header and is ignored", src.slice(key)),
-                    );
-                    d.hint = Some("move it into the section it belongs to".into());
-                }
+                LineKind::Entry { key, .. } => entry_outside(cx, line.content, src.slice(key)),
                 LineKind::Section { name, trailing } => {
                     let name_str = src.slice(name);
                     if !trailing.is_empty() {
-                        let trailing_str = src.slice(trailing).trim();
-                        if !trailing_str.is_empty() && !trailing_str.starts_with(';') {
-                            let d = cx.emit(
-                                codes::E0005,
-                                Some(trailing),
-                                format!("unexpected text `{trailing_str}` after section header [{name_str}]"),
-                            );
-                            d.hint = Some("put comments on their own line, starting with `;`".into());
-                        }
+                        text_after_header(cx, trailing, src.slice(trailing), name_str);
                     }
                     let col = || char_count(src.slice(Span::new(line.raw.start, name.start))) + 1;
                     enter_section!(name, name_str, col());
                 }
                 LineKind::Comment { text } => {
                     if text.start > 0 && src.text.as_bytes().get(text.start as usize - 1) == Some(&b'#') {
-                        let hash = Span::new(text.start - 1, text.start);
-                        cx.emit(codes::E0004, Some(hash), "comment starts with `#`").hint =
-                            Some("CiA 306 comments start with `;`".into());
+                        hash_comment(cx, Span::new(text.start - 1, text.start));
                     }
                 }
-                LineKind::Garbage => {
-                    let content = src.slice(line.content);
-                    let shown: String = content.trim().chars().take(60).collect();
-                    let hint = if content.trim_start().starts_with('[') {
-                        "close the section name with `]`"
-                    } else {
-                        "entries are written `Key=Value`; comments start with `;`"
-                    };
-                    let d = cx.emit(
-                        codes::E0002,
-                        Some(line.content),
-                        format!("`{shown}` is not a section header, a `key=value` entry or a comment (line ignored)"),
-                    );
-                    d.hint = Some(hint.into());
-                }
+                LineKind::Garbage => garbage_line(cx, line.content, src.slice(line.content)),
                 LineKind::Blank => {}
             }
         }
@@ -734,6 +697,65 @@ fn first_non_ascii(b: &[u8]) -> Option<usize> {
         at += block.len();
     }
     None
+}
+
+// The reports of pass 1 that few lines need, kept out of its loop over the lines (whose
+// common paths then keep more of their values in registers).
+
+/// E0003: an entry before any section header.
+#[cold]
+#[inline(never)]
+fn entry_outside(cx: &mut Ctx<'_>, line: Span, key: &str) {
+    let d = cx.emit(codes::E0003, Some(line), format!("entry `{key}` comes before any section header and is ignored"));
+    d.hint = Some("move it into the section it belongs to".into());
+}
+
+/// E0005: text after a section header (`trailing`, its text `text`), unless a comment.
+#[cold]
+#[inline(never)]
+fn text_after_header(cx: &mut Ctx<'_>, trailing: Span, text: &str, name: &str) {
+    let trailing_str = text.trim();
+    if !trailing_str.is_empty() && !trailing_str.starts_with(';') {
+        let d = cx.emit(
+            codes::E0005,
+            Some(trailing),
+            format!("unexpected text `{trailing_str}` after section header [{name}]"),
+        );
+        d.hint = Some("put comments on their own line, starting with `;`".into());
+    }
+}
+
+/// E0004: a comment that starts with `#` (at `hash`).
+#[cold]
+#[inline(never)]
+fn hash_comment(cx: &mut Ctx<'_>, hash: Span) {
+    cx.emit(codes::E0004, Some(hash), "comment starts with `#`").hint = Some("CiA 306 comments start with `;`".into());
+}
+
+/// E0002: a line that is nothing CiA 306 knows (`content`, its text `text`).
+#[cold]
+#[inline(never)]
+fn garbage_line(cx: &mut Ctx<'_>, content: Span, text: &str) {
+    let shown: String = text.trim().chars().take(60).collect();
+    let hint = if text.trim_start().starts_with('[') {
+        "close the section name with `]`"
+    } else {
+        "entries are written `Key=Value`; comments start with `;`"
+    };
+    let d = cx.emit(
+        codes::E0002,
+        Some(content),
+        format!("`{shown}` is not a section header, a `key=value` entry or a comment (line ignored)"),
+    );
+    d.hint = Some(hint.into());
+}
+
+/// E0006: a section that appeared before, at line `first`.
+#[cold]
+#[inline(never)]
+fn section_again(cx: &mut Ctx<'_>, name: Span, name_str: &str, first: u32) {
+    let d = cx.emit(codes::E0006, Some(name), format!("section [{name_str}] appears again (first at line {first})"));
+    d.hint = Some("merge the two sections; where both set a key, this reader uses the later value".into());
 }
 
 /// The number of characters in `s`.
