@@ -674,20 +674,25 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                 }
             };
             numbers.push(n);
-            if let Some(&(prev_cat, prev_span)) = lists.listed.get(&index) {
-                let first = cx.src.line_col(prev_span.start);
-                let d = cx.emit(
-                    codes::E0405,
-                    Some(kv.value_span()),
-                    format!(
-                        "object 0x{index:04X} is listed again (first in [{}] at line {})",
-                        list_name(prev_cat),
-                        first.line
-                    ),
-                );
-                d.hint = Some("list every object once".into());
-                continue;
-            }
+            // One look-up for the repeat check and the insertion.
+            let vacant = match lists.listed.entry(index) {
+                std::collections::hash_map::Entry::Vacant(e) => e,
+                std::collections::hash_map::Entry::Occupied(e) => {
+                    let (prev_cat, prev_span) = *e.get();
+                    let first = cx.src.line_col(prev_span.start);
+                    let d = cx.emit(
+                        codes::E0405,
+                        Some(kv.value_span()),
+                        format!(
+                            "object 0x{index:04X} is listed again (first in [{}] at line {})",
+                            list_name(prev_cat),
+                            first.line
+                        ),
+                    );
+                    d.hint = Some("list every object once".into());
+                    continue;
+                }
+            };
             let want = expected_category(index);
             if want != cat {
                 let d = cx.emit(
@@ -697,7 +702,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                 );
                 d.hint = Some(format!("move it to [{}]", list_name(want)).into());
             }
-            lists.listed.insert(index, (cat, kv.value_span()));
+            vacant.insert((cat, kv.value_span()));
         }
         numbers.sort_unstable();
         let consecutive = numbers.iter().enumerate().all(|(i, &n)| n == i as u32 + 1);
