@@ -1513,6 +1513,7 @@ mod tests {
     /// the upper area changes nothing).
     #[test]
     fn role_of_every_index() {
+        #[allow(clippy::match_overlapping_arm)]
         fn reference(i: u16) -> Role {
             match i {
                 0x0001..=0x0007 => Role::DataTypeDefinition(DataType::from_code(i)),
