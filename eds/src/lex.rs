@@ -29,13 +29,15 @@
 //! never uses ASCII bytes inside a multi-byte character, so byte positions are always char
 //! boundaries where the grammar cuts. The line's first byte picks the rule, so each byte is
 //! looked at once. The parsers that run over the bulk of the text (`take_till` up to `=` or a
-//! line end) compare sixteen bytes at a time (SSE2 on x86_64, the crate's only `unsafe`;
+//! line end) compare sixteen bytes at a time (SSE2 on x86_64, one of the crate's two `unsafe` uses;
 //! eight-byte words elsewhere), and the line end is one match on two bytes. The commonest line,
 //! `Key=Value` with nothing to trim, has a shorter path of its own
 //! ([`Lexer::next_plain_entry`], tested to agree with the general one): on x86_64 it reads the
 //! line in sixteen-byte blocks from its start, each compared once with `=` and the line ends, so
 //! the block that holds the `=` gives the end of a short value too (lines within sixteen bytes
-//! of the end of the text take the byte-wise scan).
+//! of the end of the text take the byte-wise scan), and cuts the key and the value out of the
+//! text without checking for char boundaries again (the crate's other `unsafe` use: the cuts are
+//! at ASCII bytes the scan found).
 //! Trimming looks at the bytes at either end and only falls back to [`str::trim`] when it meets
 //! a non-ASCII byte there (which may be Unicode white space). [`Lexer`] allocates nothing; [`lex`]
 //! allocates the `Vec` of lines and the line index.
@@ -144,18 +146,42 @@ impl PlainEntry<'_> {
     }
 }
 
+/// A line [`Lexer::next_plain_section`] read: a section header `[Name]` with nothing to trim
+/// and nothing after it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PlainSection<'a> {
+    /// The name, between the brackets.
+    pub name: &'a str,
+    /// Where the line (its `[`) starts in the text.
+    pub start: u32,
+    /// Where the next line starts.
+    pub end: u32,
+    /// Whether the line ended with `\n` or `\r\n` (otherwise it was the last line, with no
+    /// ending).
+    pub newline: bool,
+}
+
+impl PlainSection<'_> {
+    /// The span of the name.
+    pub fn name_span(&self) -> Span {
+        Span::new(self.start + 1, self.start + 1 + self.name.len() as u32)
+    }
+}
+
 impl<'a> Lexer<'a> {
     /// Reads the next line if it is the commonest kind: `Key=Value` with no blank around the key
-    /// or the value, ended by `\n`, `\r\n` or the end of the text (the key starts with a byte
-    /// from `A` up, and no byte that starts or ends the key or the value is white space or non-ASCII).
+    /// or the value, ended by `\n`, `\r\n` or the end of the text (the key starts with a
+    /// printable ASCII byte that starts no other kind of line: not `[`, `;` or `#`; and no byte
+    /// that starts or ends the key or the value is white space or non-ASCII).
     /// Any other line is left for [`Iterator::next`]; the lexer does not move. A line read here is
     /// what `next` would have made of it (`LineKind::Entry` with the same spans), with less work:
     /// no line kind to dispatch on and no trimming to decide.
     #[inline(always)]
     pub fn next_plain_entry(&mut self) -> Option<PlainEntry<'a>> {
-        // A key starts with a byte from `A` up; no byte there but `[` starts anything else.
+        // Keys start with a letter (`A` and up, where no byte but `[` starts another kind of
+        // line) or, in the object lists, a digit: one look-up in a table of those bytes.
         let &first = self.rest.as_bytes().first()?;
-        if !(b'A'..=b'~').contains(&first) || first == b'[' {
+        if !PLAIN_FIRST[first as usize] {
             return None;
         }
         #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
@@ -163,6 +189,40 @@ impl<'a> Lexer<'a> {
             return read;
         }
         self.plain_entry_bytes()
+    }
+
+    /// Reads the next line if it is the commonest section header: `[Name]` at the start of the
+    /// line, ended right after the `]` by `\n`, `\r\n` or the end of the text, with a name
+    /// that needs no trimming (its first and last bytes are printable ASCII other than the
+    /// space). Any other line is left for [`Iterator::next`]; the lexer does not move. A line
+    /// read here is what `next` would have made of it (`LineKind::Section` with the same name
+    /// and nothing trailing), with less work.
+    #[inline]
+    pub fn next_plain_section(&mut self) -> Option<PlainSection<'a>> {
+        let input = self.rest.as_bytes();
+        if input.first() != Some(&b'[') {
+            return None;
+        }
+        let name_len = prefix_without(&input[1..], [b']', b'[', b'\n', b'\r']);
+        let close = 1 + name_len;
+        if input.get(close) != Some(&b']') || name_len == 0 {
+            return None;
+        }
+        if !is_graphic(input[1]) || !is_graphic(input[name_len]) {
+            return None;
+        }
+        let (ending, newline) = match &input[close + 1..] {
+            [b'\n', ..] => (1, true),
+            [b'\r', b'\n', ..] => (2, true),
+            [] => (0, false),
+            _ => return None,
+        };
+        // (Cut at `[`, `]` and after the line end, all ASCII: char boundaries.)
+        let name = self.rest.get(1..close)?;
+        let after = self.rest.get(close + 1 + ending..)?;
+        let start = offset(self.text.as_bytes(), input) as u32;
+        self.rest = after;
+        Some(PlainSection { name, start, end: offset(self.text.as_bytes(), after.as_bytes()) as u32, newline })
     }
 
     /// Reads the next line if it is empty, ended by `\n` or `\r\n` (what [`Iterator::next`]
@@ -242,9 +302,8 @@ impl<'a> Lexer<'a> {
     /// of the text; `None` if it is no plain entry. Both scans end here.
     #[inline(always)]
     fn plain_entry_at(&mut self, key_len: usize, line_len: usize) -> Option<PlainEntry<'a>> {
-        let rest = self.rest;
-        let input = rest.as_bytes();
-        if !is_graphic(*input.get(key_len.checked_sub(1)?)?) {
+        let input = self.rest.as_bytes();
+        if input.get(key_len) != Some(&b'=') || !is_graphic(*input.get(key_len.checked_sub(1)?)?) {
             return None;
         }
         let value_part = input.get(key_len + 1..line_len)?;
@@ -260,11 +319,22 @@ impl<'a> Lexer<'a> {
             // A lone `\r`: the general path keeps count of columns after it.
             _ => return None,
         };
-        // The text is cut at `=`, at the line end and after it: ASCII bytes, so char
-        // boundaries (the checks `split_at_checked` makes cannot fail).
-        let (key, tail) = rest.split_at_checked(key_len)?;
-        let (value, tail) = tail.get(1..)?.split_at_checked(line_len - key_len - 1)?;
-        let after = tail.get(ending..)?;
+        let key = input.get(..key_len)?;
+        let value = value_part;
+        let next = line_len + ending;
+        let after = input.get(next..)?;
+        // SAFETY: `input` is the bytes of the `str` `self.rest`, and each slice is cut where an
+        // ASCII byte starts (the `=` at `key_len`, checked above, the byte after it, the line end at `line_len`, the
+        // byte after the line end) or at an end of `input`: every cut is a char boundary, so
+        // each slice is UTF-8. (`str` slicing checked the boundaries again, byte by byte, on the
+        // commonest line of every file.)
+        let (key, value, after) = unsafe {
+            (
+                std::str::from_utf8_unchecked(key),
+                std::str::from_utf8_unchecked(value),
+                std::str::from_utf8_unchecked(after),
+            )
+        };
         let start = offset(self.text.as_bytes(), input) as u32;
         self.rest = after;
         Some(PlainEntry { key, value, start, end: offset(self.text.as_bytes(), after.as_bytes()) as u32, newline })
@@ -283,6 +353,18 @@ impl<'a> Lexer<'a> {
         self.plain_entry_at(key_len, line_len)
     }
 }
+
+/// The bytes a line read by [`Lexer::next_plain_entry`] may start with: `0` to `9` and `A` to
+/// `~` except `[` (printable, and starting no comment, section header or blank line).
+static PLAIN_FIRST: [bool; 256] = {
+    let mut table = [false; 256];
+    let mut b = 0;
+    while b < 256 {
+        table[b] = matches!(b as u8, b'0'..=b'9' | b'A'..=b'~') && b as u8 != b'[';
+        b += 1;
+    }
+    table
+};
 
 /// A printable ASCII byte other than the space: no trimming removes it.
 #[inline(always)]
@@ -722,6 +804,44 @@ mod tests {
         plain
     }
 
+    /// Every line the section fast path reads is what the general path makes of it (as
+    /// [`check_plain_entries`] checks the entry fast path). Returns how many lines it read.
+    fn check_plain_sections(text: &str) -> usize {
+        let mut lexer = Lexer::new(text);
+        let mut plain = 0;
+        loop {
+            let mut general = lexer.clone();
+            let Some(line) = general.next() else {
+                assert_eq!(lexer.next_plain_section(), None);
+                break;
+            };
+            match lexer.next_plain_section() {
+                Some(sec) => {
+                    plain += 1;
+                    let trailing = Span::new(line.content.end, line.content.end);
+                    assert_eq!(line.kind, LineKind::Section { name: sec.name_span(), trailing }, "{text:?}");
+                    assert_eq!(sec.name, &text[sec.name_span().start as usize..sec.name_span().end as usize]);
+                    assert_eq!((line.raw.start, line.raw.end), (sec.start, sec.end));
+                    assert_eq!(matches!(line.ending, LineEnding::Lf | LineEnding::CrLf), sec.newline);
+                    assert!(sec.newline || line.ending == LineEnding::None);
+                    assert_eq!(lexer.rest.len(), general.rest.len());
+                }
+                None => assert_eq!(lexer.next(), Some(line)),
+            }
+        }
+        plain
+    }
+
+    #[test]
+    fn plain_sections_are_read_as_the_general_path_reads_them() {
+        let text = "[FileInfo]\n[1018]\r\n[1018sub0]\r[a b]\n[ a]\n[a ]\n[]\n[x]y\n[x][y]\n [z]\n[\u{e4}]\n[a\u{e4}b]\n\
+                    [a[b]\n[x]\r\r\n[last]";
+        assert_eq!(check_plain_sections(text), 5);
+        for text in ["[", "[]", "[a", "[a]", "[a]\r", "[a]\r\n", "[a] ", "[\u{3000}a]"] {
+            check_plain_sections(text);
+        }
+    }
+
     #[test]
     fn empty_lines_are_read_as_the_general_path_reads_them() {
         for text in ["\n", "\r\n", "\r", "\r\r\n", " \n", "\nK=v", "\r\n\n[a]", "", "x\n"] {
@@ -763,6 +883,17 @@ mod tests {
             let value = "v".repeat(n);
             assert_eq!(check_plain_entries(&format!("{key}={value}\r\n{key}={value}\n{key}={value}")), 3);
         }
+        // Numbered keys (object lists) are plain too; lines that start with any other byte
+        // below `A` are left to the general path.
+        let text = "1=0x1000\n12=0x1001\r\n0=x\n9 =x\n$=x\n!=x\n;c=x\n#c=x\n[=x\n\t1=x\n";
+        assert_eq!(check_plain_entries(text), 3);
+        for b in 0..=255u8 {
+            let line = [b, b'=', b'v'];
+            let expect = b.is_ascii_digit() || (b'A'..=b'~').contains(&b) && b != b'[';
+            if let Ok(text) = std::str::from_utf8(&line) {
+                assert_eq!(check_plain_entries(text), expect as usize, "{text:?}");
+            }
+        }
     }
 
     #[test]
@@ -780,6 +911,7 @@ mod tests {
         #[test]
         fn plain_entries_agree_with_the_general_path(text in "([ \t\x0B\x0C\u{A0}\u{85}\u{3000}]|\\PC|\r|\n|\\[|\\]|=|;|#|[a-zA-Z]){0,200}") {
             check_plain_entries(&text);
+            check_plain_sections(&text);
         }
 
         /// The same, with every line at least sixteen bytes before the end of the text, where
@@ -801,6 +933,7 @@ mod tests {
             check_against_reference(&lines.join(&ending));
             check_plain_entries(&lines.join(&ending));
             check_plain_entries(&format!("{}{ending}{}", lines.join(&ending), "Pad=1\n".repeat(4)));
+            check_plain_sections(&lines.join(&ending));
         }
     }
 }

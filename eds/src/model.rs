@@ -382,6 +382,14 @@ impl Access {
     /// an AccessType, so this allocates nothing and tells the six spellings apart by their
     /// letters rather than comparing them one after another.
     pub fn parse(s: &str) -> Option<Self> {
+        // The spellings of CiA 306 itself, which nearly every file uses, compared as they are.
+        match s.as_bytes() {
+            b"ro" => return Some(Access::Ro),
+            b"rw" => return Some(Access::Rw),
+            b"wo" => return Some(Access::Wo),
+            b"const" => return Some(Access::Const),
+            _ => {}
+        }
         let lower = |b: &u8| b.to_ascii_lowercase();
         match crate::lex::trim(s).as_bytes() {
             [a, b] => match (lower(a), lower(b)) {
@@ -1391,6 +1399,15 @@ impl Index {
     /// What this index is for.
     pub fn role(self) -> Role {
         let i = self.0;
+        // Most objects of most files are manufacturer-specific or profile objects: decided by
+        // one comparison before the communication area's many cases.
+        if i >= 0x2000 {
+            return match i {
+                0x2000..=0x5FFF => Role::ManufacturerSpecific,
+                0x6000..=0x9FFF => Role::StandardizedProfile,
+                _ => Role::Reserved,
+            };
+        }
         match i {
             0x0001..=0x0007 => Role::DataTypeDefinition(DataType::from_code(i)),
             0x0008..=0x0FFF => Role::OtherTypeDefinition,
@@ -1489,6 +1506,47 @@ mod tests {
             }
             assert!(collected == inserted);
             assert_eq!(serde_json::to_string(&collected).unwrap(), serde_json::to_string(&want).unwrap());
+        }
+    }
+
+    /// The role of every index is what one match over the whole range says (the shortcut for
+    /// the upper area changes nothing).
+    #[test]
+    fn role_of_every_index() {
+        #[allow(clippy::match_overlapping_arm)]
+        fn reference(i: u16) -> Role {
+            match i {
+                0x0001..=0x0007 => Role::DataTypeDefinition(DataType::from_code(i)),
+                0x0008..=0x0FFF => Role::OtherTypeDefinition,
+                0x1000 => Role::DeviceType,
+                0x1001 => Role::ErrorRegister,
+                0x1003 => Role::PreDefinedErrorField,
+                0x1005 => Role::SyncCobId,
+                0x1006 => Role::CommunicationCyclePeriod,
+                0x100C => Role::GuardTime,
+                0x100D => Role::LifeTimeFactor,
+                0x1010 => Role::StoreParameters,
+                0x1011 => Role::RestoreDefaultParameters,
+                0x1014 => Role::EmcyCobId,
+                0x1015 => Role::InhibitTimeEmcy,
+                0x1016 => Role::ConsumerHeartbeatTime,
+                0x1017 => Role::ProducerHeartbeatTime,
+                0x1018 => Role::Identity,
+                0x1019 => Role::SyncCounterOverflow,
+                0x1200..=0x127F => Role::SdoServer((i - 0x1200) as u8),
+                0x1280..=0x12FF => Role::SdoClient((i - 0x1280) as u8),
+                0x1400..=0x15FF => Role::RpdoCommunication(i - 0x1400),
+                0x1600..=0x17FF => Role::RpdoMapping(i - 0x1600),
+                0x1800..=0x19FF => Role::TpdoCommunication(i - 0x1800),
+                0x1A00..=0x1BFF => Role::TpdoMapping(i - 0x1A00),
+                0x1001..=0x1FFF => Role::OtherCommunication,
+                0x2000..=0x5FFF => Role::ManufacturerSpecific,
+                0x6000..=0x9FFF => Role::StandardizedProfile,
+                _ => Role::Reserved,
+            }
+        }
+        for i in 0..=u16::MAX {
+            assert_eq!(Index(i).role(), reference(i), "{i:#06X}");
         }
     }
 

@@ -17,6 +17,13 @@ fn owned(kv: &Kv<'_>) -> (String, String) {
 /// Reads an unsigned number for an information key; reports E0503 and returns `None` when it
 /// cannot be read or does not fit `max`.
 fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u64> {
+    // A plain number in range, as most are, needs neither the comment split nor the general
+    // reader (which reads it as the same number).
+    if let Some((n, _)) = crate::value::parse_plain_uint(kv.value)
+        && n <= max
+    {
+        return Some(n);
+    }
     let mut quirks = Vec::new();
     let v = kv.value.split(';').next().unwrap_or("").trim();
     if v.is_empty() {
@@ -47,6 +54,12 @@ fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u
 }
 
 fn info_bool(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
+    // (As nearly every file writes them: no comment to split off, nothing to trim.)
+    match kv.value {
+        "0" => return Some(false),
+        "1" => return Some(true),
+        _ => {}
+    }
     let v = kv.value.split(';').next().unwrap_or("").trim();
     match v {
         "0" => Some(false),
@@ -661,20 +674,25 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                 }
             };
             numbers.push(n);
-            if let Some(&(prev_cat, prev_span)) = lists.listed.get(&index) {
-                let first = cx.src.line_col(prev_span.start);
-                let d = cx.emit(
-                    codes::E0405,
-                    Some(kv.value_span()),
-                    format!(
-                        "object 0x{index:04X} is listed again (first in [{}] at line {})",
-                        list_name(prev_cat),
-                        first.line
-                    ),
-                );
-                d.hint = Some("list every object once".into());
-                continue;
-            }
+            // One look-up for the repeat check and the insertion.
+            let vacant = match lists.listed.entry(index) {
+                std::collections::hash_map::Entry::Vacant(e) => e,
+                std::collections::hash_map::Entry::Occupied(e) => {
+                    let (prev_cat, prev_span) = *e.get();
+                    let first = cx.src.line_col(prev_span.start);
+                    let d = cx.emit(
+                        codes::E0405,
+                        Some(kv.value_span()),
+                        format!(
+                            "object 0x{index:04X} is listed again (first in [{}] at line {})",
+                            list_name(prev_cat),
+                            first.line
+                        ),
+                    );
+                    d.hint = Some("list every object once".into());
+                    continue;
+                }
+            };
             let want = expected_category(index);
             if want != cat {
                 let d = cx.emit(
@@ -684,7 +702,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                 );
                 d.hint = Some(format!("move it to [{}]", list_name(want)).into());
             }
-            lists.listed.insert(index, (cat, kv.value_span()));
+            vacant.insert((cat, kv.value_span()));
         }
         numbers.sort_unstable();
         let consecutive = numbers.iter().enumerate().all(|(i, &n)| n == i as u32 + 1);

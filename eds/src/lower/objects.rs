@@ -210,9 +210,42 @@ fn value_error_hint(e: &ValueError, ty: DataType) -> String {
     }
 }
 
+/// The commonest value: a plain unsigned number ([`value::parse_plain_uint`]) of an integer
+/// type (or BOOLEAN) that is at most the type's largest positive value. [`value::parse_value`]
+/// reads it as this value with no remark and [`value::check_range`] accepts it, so it is taken
+/// as it is, without them; `None` for anything else (then they decide).
+#[inline]
+fn plain_int_value(text: &str, ty: DataType) -> Option<Value> {
+    let max: u64 = match ty {
+        DataType::Boolean => 1,
+        DataType::Integer8 => 0x7F,
+        DataType::Integer16 => 0x7FFF,
+        DataType::Integer24 => 0x7F_FFFF,
+        DataType::Integer32 => 0x7FFF_FFFF,
+        DataType::Integer40 => 0x7F_FFFF_FFFF,
+        DataType::Integer48 => 0x7FFF_FFFF_FFFF,
+        DataType::Integer56 => 0x7F_FFFF_FFFF_FFFF,
+        DataType::Integer64 => 0x7FFF_FFFF_FFFF_FFFF,
+        DataType::Unsigned8 => 0xFF,
+        DataType::Unsigned16 => 0xFFFF,
+        DataType::Unsigned24 => 0xFF_FFFF,
+        DataType::Unsigned32 => 0xFFFF_FFFF,
+        DataType::Unsigned40 => 0xFF_FFFF_FFFF,
+        DataType::Unsigned48 => 0xFFFF_FFFF_FFFF,
+        DataType::Unsigned56 => 0xFF_FFFF_FFFF_FFFF,
+        DataType::Unsigned64 => u64::MAX,
+        _ => return None,
+    };
+    let (v, radix) = value::parse_plain_uint(text)?;
+    (v <= max).then_some(Value::Int { value: v as i128, radix })
+}
+
 /// Reads a value key. `Ok(None)` means no value (empty); `Err(())` means the text could not be
 /// read (already reported; the caller keeps it as written).
 fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -> Result<Option<Value>, ()> {
+    if let Some(v) = plain_int_value(kv.value, ty) {
+        return Ok(Some(v));
+    }
     let mut parsed = value::parse_value(kv.value, ty);
     if let DataType::Other(_) = ty {
         // The type is not known here: keep what cannot be read as a number as text.
@@ -778,16 +811,6 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
     }
 }
 
-/// The value of a section's (last) `ParameterName` key, any case: the name its diagnostics
-/// carry, needed before its keys are matched. The key is compared as spelled first, which is
-/// how nearly every file spells it; lower-casing it byte by byte cost 1 M instructions per
-/// corpus pass.
-fn parameter_name<'a>(entries: &[Kv<'a>]) -> Option<&'a str> {
-    const KEY: &str = "ParameterName";
-    let is_name = |k: &str| k.len() == KEY.len() && (k == KEY || k.eq_ignore_ascii_case(KEY));
-    entries.iter().rev().find(|kv| is_name(kv.key)).map(|kv| kv.value)
-}
-
 fn build_object(
     cx: &mut Ctx<'_>,
     builder: &EntryBuilder<'_>,
@@ -797,8 +820,7 @@ fn build_object(
     names: Option<&Section<'_>>,
     values: Option<&Section<'_>>,
 ) -> Object {
-    let name = parameter_name(sec.entries);
-    let ctx = Crumbs::object(index, name.unwrap_or(sec.name));
+    let ctx = Crumbs::object_named_by(index, sec.entries, sec.name);
     let keys = match_keys(cx, sec, &OBJ_KEYS, ctx, true);
     let mut name = match keys.get(K_NAME) {
         Some(kv) => kv.value.to_owned(),
@@ -993,8 +1015,7 @@ fn build_object(
     }
     obj.extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
     for &(sub, ssec) in subs {
-        let sub_name = parameter_name(ssec.entries);
-        let sctx = ctx.sub(sub, sub_name.unwrap_or(""));
+        let sctx = ctx.sub_named_by(sub, ssec.entries);
         let skeys = match_keys(cx, ssec, &OBJ_KEYS, sctx, true);
         if let Some(kv) = skeys.get(K_OTYPE)
             && uint_key(cx, kv, 0xFF, sctx) != Ok(0x7)
@@ -1203,7 +1224,10 @@ fn check_structure(
         }
         Some(_) => {}
     }
-    if obj.object_type == ObjectType::Array {
+    // The elements CompactSubObj makes share one type: only sub-object sections (other than
+    // sub-index 0's) can bring another, and without them the elements need no comparing.
+    let one_type = compact.is_some() && subs.iter().all(|&(s, _)| s == 0);
+    if obj.object_type == ObjectType::Array && !one_type {
         let mut types = obj.subs.values().filter(|e| e.sub.0 != 0).map(|e| (e.sub.0, e.data_type));
         if let Some((first_sub, first)) = types.next()
             && let Some((s, other)) = types.find(|&(_, t)| t != first)
@@ -1224,5 +1248,91 @@ fn check_structure(
             d.hint = Some("an ARRAY holds elements of one type; use a RECORD (ObjectType=0x9) for mixed types".into());
             d.context = ctx.to_vec();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Where the shortcut for plain integers gives a value, it is the one the general rules
+    /// give, with no remark and within range; it gives one for the plain forms in range.
+    #[test]
+    fn plain_int_values_are_what_the_general_rules_read() {
+        let mut types: Vec<DataType> = DataType::BASIC.to_vec();
+        types.push(DataType::Other(0x40));
+        let mut texts: Vec<String> = [
+            "0",
+            "1",
+            "2",
+            "00",
+            "01",
+            "08",
+            "10",
+            "127",
+            "128",
+            "255",
+            "256",
+            "65535",
+            "65536",
+            "0x",
+            "0x0",
+            "0X1a",
+            "0x7F",
+            "0x80",
+            "0xFF",
+            "0x100",
+            "0x7FFF",
+            "0x8000",
+            "0xFFFF",
+            "0x10000",
+            "0x7FFFFFFF",
+            "0x80000000",
+            "0xFFFFFFFF",
+            "0x100000000",
+            "0x7FFFFFFFFFFFFFFF",
+            "0x8000000000000000",
+            "0xFFFFFFFFFFFFFFFF",
+            "0x10000000000000000",
+            "9223372036854775807",
+            "9223372036854775808",
+            "18446744073709551615",
+            "18446744073709551616",
+            " 1",
+            "1 ",
+            "-1",
+            "+1",
+            "1.5",
+            "1e3",
+            "$NODEID+1",
+            "true",
+            "",
+            "1U",
+            "0b1",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        for bits in [7, 8, 15, 16, 23, 24, 31, 32, 39, 40, 47, 48, 55, 56, 63] {
+            for v in [(1u64 << bits) - 1, 1u64 << bits] {
+                texts.push(v.to_string());
+                texts.push(format!("0x{v:X}"));
+            }
+        }
+        let mut fast = 0;
+        for ty in types {
+            for text in &texts {
+                let Some(v) = plain_int_value(text, ty) else { continue };
+                fast += 1;
+                let parsed = value::parse_value(text, ty).expect("readable");
+                assert_eq!(parsed.value.as_ref(), Some(&v), "{text:?} as {ty:?}");
+                assert!(parsed.quirks.is_empty(), "{text:?} as {ty:?}");
+                assert_eq!(value::check_range(&v, ty), Ok(()), "{text:?} as {ty:?}");
+            }
+        }
+        assert!(fast > 200, "{fast}");
+        assert_eq!(plain_int_value("0x80", DataType::Integer8), None);
+        assert_eq!(plain_int_value("256", DataType::Unsigned8), None);
+        assert_eq!(plain_int_value("2", DataType::Boolean), None);
     }
 }

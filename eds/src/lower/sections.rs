@@ -64,9 +64,11 @@ pub(crate) enum Kind {
 }
 
 impl Kind {
-    /// The kind as one number (its variant, index and sub-index packed together), by which the
-    /// sections are found: one word to hash and compare, where the derived `Hash` and `Eq` of
-    /// the enum took its fields one by one (corpus pass: 0.25 M instructions fewer).
+    /// The kind as one number (its index, variant and sub-index packed together, in this
+    /// order), by which the sections are found: one word to compare, where the derived `Hash`
+    /// and `Eq` of the enum took its fields one by one. The index comes first so that the
+    /// sections of a file that lists its objects in ascending order come in ascending order of
+    /// key (an object, its sub-objects, then its name, value and link sections).
     #[inline]
     pub fn key(self) -> u32 {
         let (tag, index, sub): (u32, u16, u8) = match self {
@@ -83,7 +85,106 @@ impl Kind {
             Kind::Links(i) => (10, i, 0),
             Kind::Unknown => (11, 0, 0),
         };
-        tag << 24 | (index as u32) << 8 | sub as u32
+        (index as u32) << 16 | tag << 8 | sub as u32
+    }
+
+    /// The slot of a section kind that a file has at most one of (the information sections
+    /// and the object lists) in [`KindIndex`]'s table.
+    #[inline]
+    fn fixed_slot(self) -> Option<usize> {
+        Some(match self {
+            Kind::FileInfo => 0,
+            Kind::DeviceInfo => 1,
+            Kind::DummyUsage => 2,
+            Kind::Comments => 3,
+            Kind::List(Category::Mandatory) => 4,
+            Kind::List(Category::Optional) => 5,
+            Kind::List(Category::Manufacturer) => 6,
+            Kind::Commissioning => 7,
+            _ => return None,
+        })
+    }
+}
+
+/// The sections of a file by kind ([`Kind::Unknown`] excepted): the information sections and
+/// object lists in a table of their own, the object sections (objects, sub-objects, name,
+/// value and link sections) by [`Kind::key`] in a vector that stays sorted while the file
+/// gives them in ascending order, as nearly every file does (then a section is entered at the
+/// end, or found again, without hashing), and in a hash map from the first that comes out of
+/// order on.
+#[derive(Default)]
+pub(crate) struct KindIndex {
+    fixed: [Option<u32>; 8],
+    sorted: Vec<(u32, u32)>,
+    hashed: FastMap<u32, u32>,
+    /// Whether the object sections are in `hashed` (else in `sorted`).
+    is_hashed: bool,
+}
+
+impl KindIndex {
+    /// Empties the index (keeping its memory) with room for `n` sections.
+    fn reset(&mut self, n: usize) {
+        self.fixed = [None; 8];
+        self.sorted.clear();
+        self.sorted.reserve(n);
+        self.hashed.clear();
+        self.is_hashed = false;
+    }
+
+    /// The number of the section of `kind`; if there is none yet, `next` becomes its number
+    /// (and `None` is returned).
+    #[inline]
+    fn enter(&mut self, kind: Kind, next: usize) -> Option<usize> {
+        let next = next as u32;
+        if let Some(slot) = kind.fixed_slot() {
+            return match self.fixed[slot] {
+                Some(i) => Some(i as usize),
+                None => {
+                    self.fixed[slot] = Some(next);
+                    None
+                }
+            };
+        }
+        let key = kind.key();
+        if !self.is_hashed {
+            match self.sorted.last() {
+                Some(&(last, _)) if last >= key => match self.sorted.binary_search_by_key(&key, |&(k, _)| k) {
+                    Ok(at) => return Some(self.sorted[at].1 as usize),
+                    Err(_) => {
+                        // Out of order: hashed from now on (a sorted insertion would move the
+                        // later sections each time).
+                        self.hashed.reserve(self.sorted.capacity());
+                        self.hashed.extend(self.sorted.drain(..));
+                        self.is_hashed = true;
+                    }
+                },
+                _ => {
+                    self.sorted.push((key, next));
+                    return None;
+                }
+            }
+        }
+        match self.hashed.entry(key) {
+            std::collections::hash_map::Entry::Occupied(e) => Some(*e.get() as usize),
+            std::collections::hash_map::Entry::Vacant(e) => {
+                e.insert(next);
+                None
+            }
+        }
+    }
+
+    /// The number of the section of `kind`.
+    fn get(&self, kind: Kind) -> Option<usize> {
+        if let Some(slot) = kind.fixed_slot() {
+            return self.fixed[slot].map(|i| i as usize);
+        }
+        let key = kind.key();
+        let i = if self.is_hashed {
+            *self.hashed.get(&key)?
+        } else {
+            self.sorted[self.sorted.binary_search_by_key(&key, |&(k, _)| k).ok()?].1
+        };
+        Some(i as usize)
     }
 }
 
@@ -102,13 +203,13 @@ pub(crate) struct Section<'a> {
 /// All sections in file order (of first occurrence), with a lookup by kind.
 pub(crate) struct Sections<'a> {
     pub list: Vec<Section<'a>>,
-    by_kind: &'a FastMap<u32, usize>,
+    by_kind: &'a KindIndex,
 }
 
 impl<'a> Sections<'a> {
     /// The section of a kind (not for [`Kind::Unknown`]).
     pub fn get(&self, kind: Kind) -> Option<&Section<'a>> {
-        self.by_kind.get(&kind.key()).map(|&i| &self.list[i])
+        self.by_kind.get(kind).map(|i| &self.list[i])
     }
 }
 
@@ -126,8 +227,8 @@ struct Head<'a> {
 pub(crate) struct Collected<'a> {
     entries: Vec<Kv<'a>>,
     heads: Vec<Head<'a>>,
-    /// The sections by [`Kind::key`].
-    by_kind: FastMap<u32, usize>,
+    /// The sections by kind.
+    by_kind: KindIndex,
 }
 
 /// The buffers pass 1 fills, kept from one file to the next by a [`crate::Reader`]: a process
@@ -138,7 +239,7 @@ pub(crate) struct Collected<'a> {
 pub(crate) struct Scratch {
     entries: Vec<Kv<'static>>,
     heads: Vec<Head<'static>>,
-    by_kind: FastMap<u32, usize>,
+    by_kind: KindIndex,
     /// The line index, which goes to the file's [`crate::source::SourceFile`]; given back
     /// with the file ([`crate::Reader::recycle`]).
     pub line_starts: Vec<u32>,
@@ -153,10 +254,9 @@ pub(crate) struct Scratch {
 impl Scratch {
     /// Keeps the buffers of `collected` (emptied) for the next file.
     pub fn keep(&mut self, collected: Collected<'_>) {
-        let Collected { entries, heads, mut by_kind } = collected;
+        let Collected { entries, heads, by_kind } = collected;
         self.entries = reuse(entries);
         self.heads = reuse(heads);
-        by_kind.clear();
         self.by_kind = by_kind;
     }
 }
@@ -263,8 +363,40 @@ fn hex4(s: &[u8]) -> Option<u16> {
     Some(v)
 }
 
-/// Classifies a section name.
+/// Classifies a section name (what [`collect`] does, with [`exact_object`] first).
+#[cfg(test)]
 pub(crate) fn classify(name: &str) -> (Kind, Spelling) {
+    match exact_object(name.as_bytes()) {
+        Some(kind) => (kind, Spelling::Exact),
+        None => classify_general(name),
+    }
+}
+
+/// The kind of the commonest section names, object and sub-object sections spelled as CiA 306
+/// spells them: `IIII` or `IIIIsubS` with four upper-case hex digits and one or two for the
+/// sub-index (what [`classify_general`] finds for them, without its general rules). `None` for
+/// any other name.
+#[inline(always)]
+fn exact_object(name: &[u8]) -> Option<Kind> {
+    let digit = |b: u8| match b {
+        b'0'..=b'9' => Some((b - b'0') as u16),
+        b'A'..=b'F' => Some((b - b'A' + 10) as u16),
+        _ => None,
+    };
+    let (index, rest) = match name {
+        [a, b, c, d, rest @ ..] => (digit(*a)? << 12 | digit(*b)? << 8 | digit(*c)? << 4 | digit(*d)?, rest),
+        _ => return None,
+    };
+    match rest {
+        [] => Some(Kind::Object(index)),
+        [b's', b'u', b'b', s] => Some(Kind::Sub(index, digit(*s)? as u8)),
+        [b's', b'u', b'b', s, t] => Some(Kind::Sub(index, (digit(*s)? << 4 | digit(*t)?) as u8)),
+        _ => None,
+    }
+}
+
+/// [`classify`] by the general rules.
+fn classify_general(name: &str) -> (Kind, Spelling) {
     if let Some(index) = hex4(name.as_bytes()) {
         return classify_object(name, index);
     }
@@ -388,9 +520,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     } else if src.encoding == Encoding::Windows1252 {
         cx.emit(codes::E0001, None, "file is not valid UTF-8; it was decoded as Windows-1252").hint =
             Some("save the file as UTF-8 (or plain ASCII, as CiA 306 asks)".into());
-    } else if !src.text.is_ascii()
-        && let Some(pos) = src.text.bytes().position(|b| b >= 0x80)
-    {
+    } else if let Some(pos) = first_non_ascii(src.text.as_bytes()) {
         let ch_len = src.text[pos..].chars().next().map(char::len_utf8).unwrap_or(1);
         cx.emit(codes::E0009, Some(Span::new(pos as u32, (pos + ch_len) as u32)), "the file contains non-ASCII text")
             .hint = Some("CiA 306 files are ASCII; tools that expect it may misread this text".into());
@@ -402,9 +532,8 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     let sections = text.len() / 48 + 8;
     let room = text.len().max(scratch.room_for);
     let mut heads: Vec<Head<'a>> = with_room(reuse(std::mem::take(&mut scratch.heads)), room / 48 + 8);
-    let mut by_kind: FastMap<u32, usize> = std::mem::take(&mut scratch.by_kind);
-    by_kind.clear();
-    by_kind.reserve(sections);
+    let mut by_kind = std::mem::take(&mut scratch.by_kind);
+    by_kind.reset(sections);
     // Sections of unknown kind, by name in ASCII lower case (names are matched ignoring ASCII
     // case). Real files have few; a file of many must not cost a scan of all the others each,
     // and the names are the file's choice: the standard (keyed) hasher, not `FastMap`'s.
@@ -422,6 +551,53 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     // current line.
     let mut line_starts: Vec<u32> = with_room(std::mem::take(&mut scratch.line_starts), room / 6 + 2);
     line_starts.push(0);
+    // Enters the section named `name` (a span; `name_str` its text), whose name starts in
+    // column `col` (evaluated only for a section not seen before): shared by the section fast
+    // path and the general one.
+    macro_rules! enter_section {
+        ($name:expr, $name_str:expr, $col:expr) => {{
+            let (name, name_str): (Span, &'a str) = ($name, $name_str);
+            // Object and sub-object names spelled as CiA 306 spells them need neither the
+            // general rules nor a spelling to report.
+            let kind = match exact_object(name_str.as_bytes()) {
+                Some(kind) => kind,
+                None => {
+                    let (kind, spelling) = classify_general(name_str);
+                    report_spelling(cx, name, name_str, &spelling);
+                    kind
+                }
+            };
+            // A new section of a known kind is entered under the number it is about to get
+            // (one hash and one probe, where a look-up and an insertion took two).
+            let existing = match kind {
+                Kind::Unknown => match unknown.entry(NameKey(name_str.to_ascii_lowercase())) {
+                    std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
+                    std::collections::hash_map::Entry::Vacant(e) => {
+                        e.insert(heads.len());
+                        None
+                    }
+                },
+                k => by_kind.enter(k, heads.len()),
+            };
+            let i = match existing {
+                Some(i) => {
+                    occurrences[i] += 1;
+                    repeated = true;
+                    section_again(cx, name, name_str, heads[i].at.line);
+                    i
+                }
+                None => {
+                    let i = heads.len();
+                    let at = LineCol { line: line_starts.len() as u32, col: $col };
+                    heads.push(Head { name: name_str, name_span: name, at, kind, entries: 0..0 });
+                    occurrences.push(0);
+                    i
+                }
+            };
+            current = Some((i, occurrences[i]));
+            runs.push((i, entries.len()));
+        }};
+    }
     // The lines are taken from the lexer one at a time; none is kept. Most lines are plain
     // entries inside a section: the lexer reads those on a shorter path of their own.
     let mut lexer = crate::lex::Lexer::new(text);
@@ -441,6 +617,15 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
             line_starts.push(end);
             continue;
         }
+        // Section headers `[Name]` with nothing to trim or after them, most of the others.
+        if let Some(sec) = lexer.next_plain_section() {
+            // (The name starts in column 2, after the `[` that starts the line.)
+            enter_section!(sec.name_span(), sec.name, 2);
+            if sec.newline {
+                line_starts.push(sec.end);
+            }
+            continue;
+        }
         let Some(line) = lexer.next() else { break };
         // Entries in a section are most lines: tested first, on their own, before a jump on
         // the kind of the others.
@@ -451,96 +636,21 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
         } else {
             match line.kind {
                 // (An entry here has no section.)
-                LineKind::Entry { key, .. } => {
-                    let d = cx.emit(
-                        codes::E0003,
-                        Some(line.content),
-                        format!("entry `{}` comes before any section header and is ignored", src.slice(key)),
-                    );
-                    d.hint = Some("move it into the section it belongs to".into());
-                }
+                LineKind::Entry { key, .. } => entry_outside(cx, line.content, src.slice(key)),
                 LineKind::Section { name, trailing } => {
                     let name_str = src.slice(name);
                     if !trailing.is_empty() {
-                        let trailing_str = src.slice(trailing).trim();
-                        if !trailing_str.is_empty() && !trailing_str.starts_with(';') {
-                            let d = cx.emit(
-                                codes::E0005,
-                                Some(trailing),
-                                format!("unexpected text `{trailing_str}` after section header [{name_str}]"),
-                            );
-                            d.hint = Some("put comments on their own line, starting with `;`".into());
-                        }
+                        text_after_header(cx, trailing, src.slice(trailing), name_str);
                     }
-                    let (kind, spelling) = classify(name_str);
-                    report_spelling(cx, name, name_str, &spelling);
-                    // A new section of a known kind is entered under the number it is about to get
-                    // (one hash and one probe, where a look-up and an insertion took two).
-                    let existing = match kind {
-                        Kind::Unknown => match unknown.entry(NameKey(name_str.to_ascii_lowercase())) {
-                            std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
-                            std::collections::hash_map::Entry::Vacant(e) => {
-                                e.insert(heads.len());
-                                None
-                            }
-                        },
-                        k => match by_kind.entry(k.key()) {
-                            std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
-                            std::collections::hash_map::Entry::Vacant(e) => {
-                                e.insert(heads.len());
-                                None
-                            }
-                        },
-                    };
-                    let i = match existing {
-                        Some(i) => {
-                            occurrences[i] += 1;
-                            repeated = true;
-                            let d = cx.emit(
-                                codes::E0006,
-                                Some(name),
-                                format!("section [{name_str}] appears again (first at line {})", heads[i].at.line),
-                            );
-                            d.hint = Some(
-                                "merge the two sections; where both set a key, this reader uses the later value".into(),
-                            );
-                            i
-                        }
-                        None => {
-                            let i = heads.len();
-                            let before = src.slice(Span::new(line.raw.start, name.start));
-                            let line_no = line_starts.len() as u32;
-                            let at = LineCol { line: line_no, col: char_count(before) + 1 };
-                            heads.push(Head { name: name_str, name_span: name, at, kind, entries: 0..0 });
-                            occurrences.push(0);
-                            i
-                        }
-                    };
-                    current = Some((i, occurrences[i]));
-                    runs.push((i, entries.len()));
+                    let col = || char_count(src.slice(Span::new(line.raw.start, name.start))) + 1;
+                    enter_section!(name, name_str, col());
                 }
                 LineKind::Comment { text } => {
                     if text.start > 0 && src.text.as_bytes().get(text.start as usize - 1) == Some(&b'#') {
-                        let hash = Span::new(text.start - 1, text.start);
-                        cx.emit(codes::E0004, Some(hash), "comment starts with `#`").hint =
-                            Some("CiA 306 comments start with `;`".into());
+                        hash_comment(cx, Span::new(text.start - 1, text.start));
                     }
                 }
-                LineKind::Garbage => {
-                    let content = src.slice(line.content);
-                    let shown: String = content.trim().chars().take(60).collect();
-                    let hint = if content.trim_start().starts_with('[') {
-                        "close the section name with `]`"
-                    } else {
-                        "entries are written `Key=Value`; comments start with `;`"
-                    };
-                    let d = cx.emit(
-                        codes::E0002,
-                        Some(line.content),
-                        format!("`{shown}` is not a section header, a `key=value` entry or a comment (line ignored)"),
-                    );
-                    d.hint = Some(hint.into());
-                }
+                LineKind::Garbage => garbage_line(cx, line.content, src.slice(line.content)),
                 LineKind::Blank => {}
             }
         }
@@ -574,6 +684,78 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
         entries = grouped;
     }
     Collected { entries, heads, by_kind }
+}
+
+/// The position of the first byte of `b` that is not ASCII: sixty-four bytes at a time
+/// ([`slice::is_ascii`]), then byte by byte in the block that holds it.
+fn first_non_ascii(b: &[u8]) -> Option<usize> {
+    let mut at = 0;
+    for block in b.chunks(64) {
+        if !block.is_ascii() {
+            return block.iter().position(|&c| c >= 0x80).map(|i| at + i);
+        }
+        at += block.len();
+    }
+    None
+}
+
+// The reports of pass 1 that few lines need, kept out of its loop over the lines (whose
+// common paths then keep more of their values in registers).
+
+/// E0003: an entry before any section header.
+#[cold]
+#[inline(never)]
+fn entry_outside(cx: &mut Ctx<'_>, line: Span, key: &str) {
+    let d = cx.emit(codes::E0003, Some(line), format!("entry `{key}` comes before any section header and is ignored"));
+    d.hint = Some("move it into the section it belongs to".into());
+}
+
+/// E0005: text after a section header (`trailing`, its text `text`), unless a comment.
+#[cold]
+#[inline(never)]
+fn text_after_header(cx: &mut Ctx<'_>, trailing: Span, text: &str, name: &str) {
+    let trailing_str = text.trim();
+    if !trailing_str.is_empty() && !trailing_str.starts_with(';') {
+        let d = cx.emit(
+            codes::E0005,
+            Some(trailing),
+            format!("unexpected text `{trailing_str}` after section header [{name}]"),
+        );
+        d.hint = Some("put comments on their own line, starting with `;`".into());
+    }
+}
+
+/// E0004: a comment that starts with `#` (at `hash`).
+#[cold]
+#[inline(never)]
+fn hash_comment(cx: &mut Ctx<'_>, hash: Span) {
+    cx.emit(codes::E0004, Some(hash), "comment starts with `#`").hint = Some("CiA 306 comments start with `;`".into());
+}
+
+/// E0002: a line that is nothing CiA 306 knows (`content`, its text `text`).
+#[cold]
+#[inline(never)]
+fn garbage_line(cx: &mut Ctx<'_>, content: Span, text: &str) {
+    let shown: String = text.trim().chars().take(60).collect();
+    let hint = if text.trim_start().starts_with('[') {
+        "close the section name with `]`"
+    } else {
+        "entries are written `Key=Value`; comments start with `;`"
+    };
+    let d = cx.emit(
+        codes::E0002,
+        Some(content),
+        format!("`{shown}` is not a section header, a `key=value` entry or a comment (line ignored)"),
+    );
+    d.hint = Some(hint.into());
+}
+
+/// E0006: a section that appeared before, at line `first`.
+#[cold]
+#[inline(never)]
+fn section_again(cx: &mut Ctx<'_>, name: Span, name_str: &str, first: u32) {
+    let d = cx.emit(codes::E0006, Some(name), format!("section [{name_str}] appears again (first at line {first})"));
+    d.hint = Some("merge the two sections; where both set a key, this reader uses the later value".into());
 }
 
 /// The number of characters in `s`.
@@ -622,6 +804,9 @@ pub(crate) struct KeySet<const N: usize> {
     /// For each number of significant bytes ([`loose_eq`]), a bit per key with that many: a key
     /// that matches none exactly is compared loosely only with the keys it could equal.
     by_significant: [u32; 32],
+    /// The fewest significant bytes of any key: a key shorter than that (counting every byte)
+    /// equals none loosely, and is not looked at byte by byte.
+    min_significant: usize,
     /// For each first letter (ASCII case folded, [`first_slot`]), a bit per key starting with it:
     /// with the length, this leaves one candidate for almost every key.
     by_first: [u32; 32],
@@ -693,6 +878,7 @@ impl<const N: usize> KeySet<N> {
         let mut by_len = [0u32; 32];
         let mut by_first = [0u32; 32];
         let mut by_significant = [0u32; 32];
+        let mut min_significant = usize::MAX;
         let mut words_of = [(0u64, 0u64); N];
         let mut lower = [(0u64, 0u64); N];
         let mut i = 0;
@@ -703,6 +889,9 @@ impl<const N: usize> KeySet<N> {
             assert!(len > 0, "keys are not empty");
             by_first[first_slot(names[i].as_bytes()[0])] |= 1 << i;
             by_significant[significant_len(names[i].as_bytes())] |= 1 << i;
+            if significant_len(names[i].as_bytes()) < min_significant {
+                min_significant = significant_len(names[i].as_bytes());
+            }
             let w = words(names[i].as_bytes());
             words_of[i] = w;
             lower[i] = (ascii_lower(w.0), ascii_lower(w.1));
@@ -719,12 +908,16 @@ impl<const N: usize> KeySet<N> {
             }
             i += 1;
         }
-        KeySet { names, by_len, by_significant, by_first, words: words_of, lower }
+        KeySet { names, by_len, by_significant, min_significant, by_first, words: words_of, lower }
     }
 
     /// The number of the key that `key` equals by [`loose_eq`] (case, spaces, `_` and `-`
     /// ignored), for keys [`KeySet::find`] did not find.
     pub fn find_loose(&self, key: &str) -> Option<usize> {
+        // (Object lists hold hundreds of keys `1`, `2`, ... and no known key is that short.)
+        if key.len() < self.min_significant {
+            return None;
+        }
         let mut candidates = *self.by_significant.get(significant_len(key.as_bytes()))?;
         while candidates != 0 {
             let i = candidates.trailing_zeros() as usize;
@@ -792,6 +985,17 @@ impl<'a, const N: usize> Keys<'a, N> {
     pub fn get(&self, i: usize) -> Option<&'a Kv<'a>> {
         self.found.get(i).copied().flatten()
     }
+}
+
+/// The value of a section's (last) `ParameterName` key, any case: the name its diagnostics
+/// carry ([`Crumbs::object_named_by`]), looked for when a diagnostic is made (which may be
+/// before the section's keys are matched). The key is compared as spelled first, which is how
+/// nearly every file spells it; lower-casing it byte by byte cost 1 M instructions per corpus
+/// pass.
+pub(crate) fn parameter_name<'a>(entries: &[Kv<'a>]) -> Option<&'a str> {
+    const KEY: &str = "ParameterName";
+    let is_name = |k: &str| k.len() == KEY.len() && (k == KEY || k.eq_ignore_ascii_case(KEY));
+    entries.iter().rev().find(|kv| is_name(kv.key)).map(|kv| kv.value)
 }
 
 /// Matches a section's entries against `known` key names (case-insensitively), reporting case
@@ -937,6 +1141,68 @@ mod tests {
         assert!(heads.capacity() >= 10);
     }
 
+    /// The kind index finds what a hash map finds, for kinds in ascending order, with repeats,
+    /// and out of order.
+    #[test]
+    fn kind_index_agrees_with_a_map() {
+        let mut pool = vec![Kind::FileInfo, Kind::DeviceInfo, Kind::Commissioning, Kind::List(Category::Optional)];
+        for i in [0u16, 1, 0x1000, 0x1001, 0x1018, 0x1A00, 0xFFFF] {
+            pool.extend([Kind::Object(i), Kind::Names(i), Kind::Values(i), Kind::Links(i)]);
+            pool.extend([0u8, 1, 0xFF].map(|s| Kind::Sub(i, s)));
+        }
+        let mut ascending = pool.clone();
+        ascending.sort_by_key(|k| k.key());
+        let mut orders = vec![ascending.clone(), pool.clone()];
+        let mut repeated = ascending.clone();
+        repeated.extend(ascending.iter().step_by(3));
+        orders.push(repeated);
+        let mut late = ascending.clone();
+        late.rotate_left(5);
+        orders.push(late);
+        let mut seed = 7u32;
+        for _ in 0..20 {
+            let mut o = ascending.clone();
+            for i in (1..o.len()).rev() {
+                seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                o.swap(i, (seed >> 8) as usize % (i + 1));
+            }
+            o.extend(o.clone().iter().take(9));
+            orders.push(o);
+        }
+        for order in orders {
+            let mut index = KindIndex::default();
+            index.reset(4);
+            let mut map = std::collections::HashMap::new();
+            for (n, &k) in order.iter().enumerate() {
+                let want = map.get(&k).copied();
+                assert_eq!(index.enter(k, n), want, "{k:?}");
+                map.entry(k).or_insert(n);
+            }
+            for &k in &pool {
+                assert_eq!(index.get(k), map.get(&k).copied(), "{k:?}");
+            }
+            assert_eq!(index.get(Kind::Unknown), None);
+            assert_eq!(index.get(Kind::Object(0x2000)), None);
+        }
+    }
+
+    #[test]
+    fn first_non_ascii_is_what_a_byte_scan_finds() {
+        for len in [0usize, 1, 63, 64, 65, 127, 128, 200] {
+            for at in (0..len).step_by(7).chain([len.saturating_sub(1)]) {
+                let mut b = vec![b'a'; len];
+                assert_eq!(first_non_ascii(&b), None);
+                if len > 0 {
+                    b[at] = 0x80;
+                    if at + 1 < len {
+                        b[len - 1] = 0xFF;
+                    }
+                    assert_eq!(first_non_ascii(&b), b.iter().position(|&c| c >= 0x80), "{len} {at}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn kind_keys_are_distinct() {
         let mut kinds = vec![
@@ -1000,6 +1266,57 @@ mod tests {
         assert_eq!(classify("1A2BOBJECTLINKS"), (Kind::Links(0x1A2B), Spelling::Case("1A2BObjectLinks".into())));
         assert_eq!(classify("1A2"), (Kind::Unknown, Spelling::Exact));
         assert_eq!(classify("+1A2"), (Kind::Unknown, Spelling::Exact));
+    }
+
+    /// The fast path for exactly spelled object names classifies every name as the general
+    /// rules do (names built from the digits, letters and suffixes where the rules differ).
+    #[test]
+    fn exact_object_names_agree_with_the_general_rules() {
+        let chars = ["0", "1", "9", "A", "F", "a", "f", "G", "x", " "];
+        let suffixes = [
+            "",
+            "sub",
+            "sub0",
+            "sub9",
+            "subA",
+            "subF",
+            "suba",
+            "subG",
+            "sub00",
+            "sub1F",
+            "sub1f",
+            "subFF",
+            "sub100",
+            "sub001",
+            "SUB1",
+            "Sub1",
+            "sub 1",
+            "sub1 ",
+            "Name",
+            "name",
+            "Value",
+            "ObjectLinks",
+            "x",
+            "\u{e4}",
+        ];
+        let mut fast = 0;
+        for a in chars {
+            for b in ["0", "A", "f", "x"] {
+                for c in ["1", "B", "g"] {
+                    for d in chars {
+                        for suffix in suffixes {
+                            let name = format!("{a}{b}{c}{d}{suffix}");
+                            fast += exact_object(name.as_bytes()).is_some() as u32;
+                            assert_eq!(classify(&name), classify_general(&name), "{name:?}");
+                        }
+                    }
+                }
+            }
+        }
+        assert!(fast > 100);
+        for name in ["", "1", "101", "1018", "1018sub", "1018sub1", "\u{e4}018", "10\u{e4}"] {
+            assert_eq!(classify(name), classify_general(name), "{name:?}");
+        }
     }
 
     #[test]
