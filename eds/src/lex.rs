@@ -29,8 +29,8 @@
 //! never uses ASCII bytes inside a multi-byte character, so byte positions are always char
 //! boundaries where the grammar cuts. The line's first byte picks the rule, so each byte is
 //! looked at once. The parsers that run over the bulk of the text (`take_till` up to `=` or a
-//! line end) compare sixteen bytes at a time (SSE2 on x86_64, one of the crate's two `unsafe` uses;
-//! eight-byte words elsewhere), and the line end is one match on two bytes. The commonest line,
+//! line end) compare sixteen bytes at a time (SSE2 on x86_64, one of the crate's two `unsafe`
+//! uses; eight-byte words elsewhere), and the line end is one match on two bytes. The commonest line,
 //! `Key=Value` with nothing to trim, has a shorter path of its own
 //! ([`Lexer::next_plain_entry`], tested to agree with the general one): on x86_64 it reads the
 //! line in sixteen-byte blocks from its start, each compared once with `=` and the line ends, so
@@ -170,9 +170,9 @@ impl PlainSection<'_> {
 
 impl<'a> Lexer<'a> {
     /// Reads the next line if it is the commonest kind: `Key=Value` with no blank around the key
-    /// or the value, ended by `\n`, `\r\n` or the end of the text (the key starts with a
-    /// printable ASCII byte that starts no other kind of line: not `[`, `;` or `#`; and no byte
-    /// that starts or ends the key or the value is white space or non-ASCII).
+    /// or the value, ended by `\n`, `\r\n` or the end of the text (the key starts with a digit
+    /// or a byte from `A` to `~` other than `[`, none of which starts another kind of line; and
+    /// no byte that starts or ends the key or the value is white space or non-ASCII).
     /// Any other line is left for [`Iterator::next`]; the lexer does not move. A line read here is
     /// what `next` would have made of it (`LineKind::Entry` with the same spans), with less work:
     /// no line kind to dispatch on and no trimming to decide.

@@ -133,7 +133,7 @@ impl KindIndex {
 
     /// The number of the section of `kind`; if there is none yet, `next` becomes its number
     /// (and `None` is returned).
-    #[inline]
+    #[inline(always)]
     fn enter(&mut self, kind: Kind, next: usize) -> Option<usize> {
         let next = next as u32;
         if let Some(slot) = kind.fixed_slot() {
