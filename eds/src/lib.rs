@@ -30,22 +30,57 @@ pub enum Strictness {
 }
 
 /// Options for [`parse`].
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Options {
     /// Lenient or strict.
     pub strictness: Strictness,
+    /// The least severe diagnostics kept (see [`Options::keep_from`]).
+    least_kept: Severity,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options { strictness: Strictness::default(), least_kept: Severity::Note }
+    }
 }
 
 impl Options {
     /// Lenient options.
     pub fn lenient() -> Self {
-        Options { strictness: Strictness::Lenient }
+        Options { strictness: Strictness::Lenient, ..Options::default() }
     }
 
     /// Strict options.
     pub fn strict() -> Self {
-        Options { strictness: Strictness::Strict }
+        Options { strictness: Strictness::Strict, ..Options::default() }
     }
+
+    /// Keeps only diagnostics at least as severe as `least` (at the options' strictness); the
+    /// others are counted in [`Parsed::not_kept`] and not made, which saves their text and
+    /// memory: a tool that shows errors and warnings (`odgen check` does by default) need not
+    /// build the notes it only counts. By default every diagnostic is kept. (The diagnostics
+    /// not kept do not count against the bounds on how many a file keeps, `lower::MAX_KEPT`
+    /// and `lower::MAX_PER_CODE`, so a file with more than that keeps the severe ones it
+    /// would otherwise have kept, or more.)
+    pub fn keep_from(mut self, least: Severity) -> Self {
+        self.least_kept = least;
+        self
+    }
+
+    /// The least severe diagnostics kept ([`Options::keep_from`]; [`Severity::Note`] unless set).
+    pub fn least_kept(&self) -> Severity {
+        self.least_kept
+    }
+}
+
+/// How many diagnostics were found but not kept because [`Options::keep_from`] asked for more
+/// severe ones only (errors are always kept).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NotKept {
+    /// Warnings not kept.
+    pub warnings: usize,
+    /// Notes not kept.
+    pub notes: usize,
 }
 
 /// The result of reading one file: the lossless document, the typed model (always built, as far
@@ -56,8 +91,11 @@ pub struct Parsed {
     pub document: ast::Document,
     /// The typed model.
     pub model: Model,
-    /// Every diagnostic, in file order.
+    /// Every diagnostic kept ([`Options::keep_from`]; by default all of them), in file order.
     pub diagnostics: Vec<Diagnostic>,
+    /// The diagnostics found but not kept, by severity (none unless [`Options::keep_from`] was
+    /// set).
+    pub not_kept: NotKept,
 }
 
 impl Parsed {
@@ -77,8 +115,8 @@ pub fn parse(name: &str, bytes: &[u8], options: &Options) -> Parsed {
     let source = source::SourceFile::decode(name, bytes);
     // Lowering lexes the lines as it reads them; the document lexes them again only if asked.
     let document = ast::Document::new(source);
-    let (model, diagnostics) = lower::lower(&document, options);
-    Parsed { document, model, diagnostics }
+    let (model, diagnostics, not_kept) = lower::lower_counting(&document, options);
+    Parsed { document, model, diagnostics, not_kept }
 }
 
 /// Reads an EDS or DCF file from disk (see [`read_bytes`] for what is refused).
@@ -92,8 +130,8 @@ pub fn read_file(path: impl AsRef<std::path::Path>, options: &Options) -> std::i
 pub fn parse_owned(name: &str, bytes: Vec<u8>, options: &Options) -> Parsed {
     let source = source::SourceFile::decode_owned(name, bytes);
     let document = ast::Document::new(source);
-    let (model, diagnostics) = lower::lower(&document, options);
-    Parsed { document, model, diagnostics }
+    let (model, diagnostics, not_kept) = lower::lower_counting(&document, options);
+    Parsed { document, model, diagnostics, not_kept }
 }
 
 /// Reads files one after another, each into the memory the one before it used.
@@ -144,14 +182,14 @@ impl Reader {
         let bytes = read_bytes_into(probed, std::mem::take(&mut self.bytes), Self::ROOM)?;
         let source = source::SourceFile::decode_owned(path.display().to_string(), bytes);
         let document = ast::Document::new(source);
-        let (model, diagnostics) = lower::lower_reusing(&document, options, &mut self.scratch);
-        Ok(Parsed { document, model, diagnostics })
+        let (model, diagnostics, not_kept) = lower::lower_reusing(&document, options, &mut self.scratch);
+        Ok(Parsed { document, model, diagnostics, not_kept })
     }
 
     /// Takes a file back, for its memory to serve the next one (the model and diagnostics are
     /// dropped; the text and line index are kept).
     pub fn recycle(&mut self, parsed: Parsed) {
-        let Parsed { document, model, mut diagnostics } = parsed;
+        let Parsed { document, model, mut diagnostics, .. } = parsed;
         drop(model);
         diagnostics.clear();
         if diagnostics.capacity() > self.scratch.diags.capacity() {

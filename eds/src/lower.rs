@@ -38,12 +38,23 @@ use crate::{Options, Strictness};
 /// far as the file allows; the diagnostics say what was wrong, in file order (problems that
 /// concern the whole file come last).
 pub fn lower(doc: &Document, options: &Options) -> (Model, Vec<Diagnostic>) {
+    let (model, diagnostics, _) = lower_reusing(doc, options, &mut Scratch::default());
+    (model, diagnostics)
+}
+
+/// [`lower`], with the count of the diagnostics not kept ([`Options::keep_from`]).
+pub fn lower_counting(doc: &Document, options: &Options) -> (Model, Vec<Diagnostic>, crate::NotKept) {
     lower_reusing(doc, options, &mut Scratch::default())
 }
 
 /// [`lower`] with the buffers an earlier file left in `scratch` (and leaving this file's there).
-pub(crate) fn lower_reusing(doc: &Document, options: &Options, scratch: &mut Scratch) -> (Model, Vec<Diagnostic>) {
+pub(crate) fn lower_reusing(
+    doc: &Document,
+    options: &Options,
+    scratch: &mut Scratch,
+) -> (Model, Vec<Diagnostic>, crate::NotKept) {
     let mut cx = Ctx::new(&doc.source, options.strictness);
+    cx.least_kept = options.least_kept();
     if scratch.diags.capacity() > cx.diags.capacity() {
         cx.diags = std::mem::take(&mut scratch.diags);
         cx.diags.clear();
@@ -61,6 +72,7 @@ pub(crate) fn lower_reusing(doc: &Document, options: &Options, scratch: &mut Scr
     drop((secs, lists));
     scratch.keep(collected);
     cx.report_left_out();
+    let not_kept = cx.not_kept;
     let mut diags = cx.diags;
     // File order: by position, whole-file diagnostics last. The sort is stable, so diagnostics
     // at the same place keep the order in which they were found.
@@ -78,7 +90,7 @@ pub(crate) fn lower_reusing(doc: &Document, options: &Options, scratch: &mut Scr
     for d in &mut diags {
         d.at = d.span.map(|s| doc.source.line_col_from(s.start, &mut cursor));
     }
-    (model, diags)
+    (model, diags, not_kept)
 }
 
 /// A hash map for the small keys lowering looks things up by (indices, section kinds). The
@@ -155,6 +167,10 @@ pub(crate) struct Ctx<'a> {
     pub implicit_left: usize,
     /// Whether the file has gone over [`implicit_budget`] (E0222 is reported once).
     pub implicit_exceeded: bool,
+    /// The least severe diagnostics kept ([`Options::keep_from`]).
+    pub least_kept: crate::diag::Severity,
+    /// The diagnostics less severe than that, counted.
+    pub not_kept: crate::NotKept,
 }
 
 /// Implicit CompactSubObj elements a file of `len` bytes may declare: 65,536 (256 full arrays;
@@ -194,6 +210,8 @@ impl<'a> Ctx<'a> {
             scratch: Diagnostic::new(crate::codes::E0002, strictness, "", ""),
             implicit_left: implicit_budget(src.text.len()),
             implicit_exceeded: false,
+            least_kept: crate::diag::Severity::Note,
+            not_kept: crate::NotKept::default(),
         }
     }
 
@@ -213,12 +231,13 @@ impl<'a> Ctx<'a> {
     /// and a hint.
     pub fn emit(&mut self, code: Code, span: Option<Span>, message: impl Into<String>) -> &mut Diagnostic {
         let severity = self.severity(code);
+        if severity < self.least_kept {
+            self.count_not_kept(severity);
+            return self.scratch();
+        }
         // Counting starts when a file has as many diagnostics as one code may keep.
         if self.diags.len() >= MAX_PER_CODE as usize && !self.keep(code) {
-            self.scratch.message.clear();
-            self.scratch.context.clear();
-            self.scratch.hint = None;
-            return &mut self.scratch;
+            return self.scratch();
         }
         self.diags.push(Diagnostic {
             severity,
@@ -233,6 +252,40 @@ impl<'a> Ctx<'a> {
         });
         let last = self.diags.len() - 1;
         &mut self.diags[last]
+    }
+}
+
+impl Ctx<'_> {
+    /// What [`Ctx::emit`] hands out for a diagnostic that is not kept, emptied.
+    fn scratch(&mut self) -> &mut Diagnostic {
+        self.scratch.message.clear();
+        self.scratch.context.clear();
+        self.scratch.hint = None;
+        &mut self.scratch
+    }
+
+    fn count_not_kept(&mut self, severity: crate::diag::Severity) {
+        match severity {
+            crate::diag::Severity::Note => self.not_kept.notes += 1,
+            crate::diag::Severity::Warning => self.not_kept.warnings += 1,
+            // (Errors are always kept: no severity is above them.)
+            crate::diag::Severity::Error => {}
+        }
+    }
+
+    /// Whether diagnostics of `code` are kept at all ([`Options::keep_from`]); when they are
+    /// not, one is counted, as [`Ctx::emit`] would count it. For the reports made most often,
+    /// so that what they would say is not put together only to be dropped:
+    /// `if cx.skips(code) { .. } else { cx.emit(code, ..) .. }`.
+    #[inline]
+    pub fn skips(&mut self, code: Code) -> bool {
+        let severity = self.severity(code);
+        if severity < self.least_kept {
+            self.count_not_kept(severity);
+            true
+        } else {
+            false
+        }
     }
 }
 

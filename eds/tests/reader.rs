@@ -122,3 +122,48 @@ fn files_of_size_zero_are_read_to_their_end() {
     assert!(parsed.document.source.text.is_empty());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `Options::keep_from` keeps exactly the diagnostics at least that severe, in the same order
+/// and with the same text, and counts the others by severity: on every fixture and corpus file,
+/// lenient and strict, read alone and through a `Reader`.
+#[test]
+fn keep_from_keeps_the_severe_diagnostics_and_counts_the_rest() {
+    use eds::Severity;
+    let files = inputs();
+    let mut dropped_somewhere = [0usize; 2];
+    for base in [Options::lenient(), Options::strict()] {
+        let mut reader = eds::Reader::new();
+        for path in &files {
+            let all = eds::read_file(path, &base).expect("readable");
+            assert_eq!(all.not_kept, eds::NotKept::default(), "{}", path.display());
+            for least in [Severity::Warning, Severity::Error] {
+                let options = base.clone().keep_from(least);
+                assert_eq!(options.least_kept(), least);
+                let expected: Vec<_> = all.diagnostics.iter().filter(|d| d.severity >= least).cloned().collect();
+                let count = |s: Severity| all.diagnostics.iter().filter(|d| d.severity == s).count();
+                let not_kept = eds::NotKept {
+                    warnings: if least > Severity::Warning { count(Severity::Warning) } else { 0 },
+                    notes: count(Severity::Note),
+                };
+                for some in [eds::read_file(path, &options).expect("readable"), {
+                    let p = reader.read_file(path, &options).expect("readable");
+                    let copy = eds::Parsed {
+                        document: p.document.clone(),
+                        model: p.model.clone(),
+                        diagnostics: p.diagnostics.clone(),
+                        not_kept: p.not_kept,
+                    };
+                    reader.recycle(p);
+                    copy
+                }] {
+                    assert!(some.diagnostics == expected, "{} keeping from {least:?}", path.display());
+                    assert_eq!(some.not_kept, not_kept, "{} keeping from {least:?}", path.display());
+                    assert!(some.model == all.model, "{}: the model does not depend on what is kept", path.display());
+                }
+                dropped_somewhere[0] += not_kept.warnings;
+                dropped_somewhere[1] += not_kept.notes;
+            }
+        }
+    }
+    assert!(dropped_somewhere[0] > 0 && dropped_somewhere[1] > 0, "{dropped_somewhere:?}");
+}

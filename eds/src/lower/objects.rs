@@ -480,6 +480,7 @@ impl EntryBuilder<'_> {
         for i in [K_DEFAULT, K_PVALUE] {
             if empty_numeric(keys.get(i))
                 && let Some(kv) = keys.get(i)
+                && !cx.skips(codes::E0308)
             {
                 let d = cx.emit(
                     codes::E0308,
@@ -862,12 +863,14 @@ fn build_object(
             assumed
         }
         None => {
-            cx.emit(
-                codes::E0202,
-                Some(sec.name_span),
-                super::cat(["[", sec.name, "] lacks ObjectType; VAR assumed"]),
-            )
-            .context = ctx.to_vec();
+            if !cx.skips(codes::E0202) {
+                cx.emit(
+                    codes::E0202,
+                    Some(sec.name_span),
+                    super::cat(["[", sec.name, "] lacks ObjectType; VAR assumed"]),
+                )
+                .context = ctx.to_vec();
+            }
             ObjectType::Var
         }
     };

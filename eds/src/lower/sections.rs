@@ -767,7 +767,11 @@ fn report_spelling(cx: &mut Ctx<'_>, span: Span, name: &str, spelling: &Spelling
     match spelling {
         Spelling::Exact => {}
         Spelling::Case(canon) => {
-            // (Case differences are common: the messages are put together without the formatter.)
+            // (Case differences are common: the messages are put together without the formatter,
+            // and not at all when notes are not kept.)
+            if cx.skips(codes::E0104) {
+                return;
+            }
             cx.emit(
                 codes::E0104,
                 Some(span),
@@ -1017,7 +1021,7 @@ pub(crate) fn match_keys<'a, const N: usize>(
         let found_key = known.find(kv.key);
         let mut hit = found_key.map(|(i, _)| i);
         if let Some((i, exact)) = found_key {
-            if !exact {
+            if !exact && !cx.skips(codes::E0104) {
                 let d = cx.emit(
                     codes::E0104,
                     Some(kv.key_span()),

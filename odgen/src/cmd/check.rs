@@ -37,6 +37,15 @@ pub enum Level {
 }
 
 impl Level {
+    /// The least severe diagnostics shown.
+    fn least(self) -> Severity {
+        match self {
+            Level::Error => Severity::Error,
+            Level::Warning => Severity::Warning,
+            Level::Note => Severity::Note,
+        }
+    }
+
     fn shows(self, s: Severity) -> bool {
         match self {
             Level::Error => s == Severity::Error,
@@ -155,6 +164,8 @@ pub fn run(args: Args) -> ExitCode {
         (None, false, Format::Human) => Level::Warning,
         (None, false, _) => Level::Note,
     };
+    // Diagnostics below the level are counted, not made (the reader builds no text for them).
+    let options = options.keep_from(level.least());
     let format = args.format;
     let mut out = Stream::stdout();
     let mut counts = Counts::default();
@@ -268,6 +279,8 @@ thread_local! {
 fn render(parsed: &eds::Parsed, path: &std::path::Path, format: Format, level: Level, spare: &Spare) -> Report {
     let mut counts = Counts::default();
     counts.add(&parsed.diagnostics);
+    counts.warnings += parsed.not_kept.warnings;
+    counts.notes += parsed.not_kept.notes;
     let source = &parsed.document.source;
     let shown = parsed.diagnostics.iter().filter(|d| level.shows(d.severity));
     let mut out = Blocks::new(spare);
