@@ -1433,8 +1433,7 @@ impl Index {
             0x1800..=0x19FF => Role::TpdoCommunication(i - 0x1800),
             0x1A00..=0x1BFF => Role::TpdoMapping(i - 0x1A00),
             0x1000..=0x1FFF => Role::OtherCommunication,
-            0x2000..=0x5FFF => Role::ManufacturerSpecific,
-            0x6000..=0x9FFF => Role::StandardizedProfile,
+            // (0x0000; every index from 0x2000 up was decided above.)
             _ => Role::Reserved,
         }
     }
@@ -1509,44 +1508,44 @@ mod tests {
         }
     }
 
-    /// The role of every index is what one match over the whole range says (the shortcut for
-    /// the upper area changes nothing).
+    /// Every index has the role of its area (CiA 301's object dictionary layout), the areas
+    /// meet where they should, and the communication objects with roles of their own have them.
     #[test]
     fn role_of_every_index() {
-        #[allow(clippy::match_overlapping_arm)]
-        fn reference(i: u16) -> Role {
-            match i {
-                0x0001..=0x0007 => Role::DataTypeDefinition(DataType::from_code(i)),
-                0x0008..=0x0FFF => Role::OtherTypeDefinition,
-                0x1000 => Role::DeviceType,
-                0x1001 => Role::ErrorRegister,
-                0x1003 => Role::PreDefinedErrorField,
-                0x1005 => Role::SyncCobId,
-                0x1006 => Role::CommunicationCyclePeriod,
-                0x100C => Role::GuardTime,
-                0x100D => Role::LifeTimeFactor,
-                0x1010 => Role::StoreParameters,
-                0x1011 => Role::RestoreDefaultParameters,
-                0x1014 => Role::EmcyCobId,
-                0x1015 => Role::InhibitTimeEmcy,
-                0x1016 => Role::ConsumerHeartbeatTime,
-                0x1017 => Role::ProducerHeartbeatTime,
-                0x1018 => Role::Identity,
-                0x1019 => Role::SyncCounterOverflow,
-                0x1200..=0x127F => Role::SdoServer((i - 0x1200) as u8),
-                0x1280..=0x12FF => Role::SdoClient((i - 0x1280) as u8),
-                0x1400..=0x15FF => Role::RpdoCommunication(i - 0x1400),
-                0x1600..=0x17FF => Role::RpdoMapping(i - 0x1600),
-                0x1800..=0x19FF => Role::TpdoCommunication(i - 0x1800),
-                0x1A00..=0x1BFF => Role::TpdoMapping(i - 0x1A00),
-                0x1001..=0x1FFF => Role::OtherCommunication,
-                0x2000..=0x5FFF => Role::ManufacturerSpecific,
-                0x6000..=0x9FFF => Role::StandardizedProfile,
-                _ => Role::Reserved,
-            }
-        }
         for i in 0..=u16::MAX {
-            assert_eq!(Index(i).role(), reference(i), "{i:#06X}");
+            let role = Index(i).role();
+            let area_ok = match i {
+                0x0000 => role == Role::Reserved,
+                0x0001..=0x0007 => role == Role::DataTypeDefinition(DataType::from_code(i)),
+                0x0008..=0x0FFF => role == Role::OtherTypeDefinition,
+                0x1000..=0x1FFF => !matches!(
+                    role,
+                    Role::Reserved
+                        | Role::ManufacturerSpecific
+                        | Role::StandardizedProfile
+                        | Role::OtherTypeDefinition
+                        | Role::DataTypeDefinition(_)
+                ),
+                0x2000..=0x5FFF => role == Role::ManufacturerSpecific,
+                0x6000..=0x9FFF => role == Role::StandardizedProfile,
+                _ => role == Role::Reserved,
+            };
+            assert!(area_ok, "{i:#06X}: {role:?}");
+        }
+        let cases = [
+            (0x1000, Role::DeviceType),
+            (0x1002, Role::OtherCommunication),
+            (0x1018, Role::Identity),
+            (0x1200, Role::SdoServer(0)),
+            (0x12FF, Role::SdoClient(0x7F)),
+            (0x1400, Role::RpdoCommunication(0)),
+            (0x17FF, Role::RpdoMapping(0x1FF)),
+            (0x1A03, Role::TpdoMapping(3)),
+            (0x1C00, Role::OtherCommunication),
+            (0x1FFF, Role::OtherCommunication),
+        ];
+        for (i, want) in cases {
+            assert_eq!(Index(i).role(), want, "{i:#06X}");
         }
     }
 
