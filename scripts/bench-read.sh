@@ -94,6 +94,15 @@ print(f"end to end: `odgen check` on the {e2e_runs[0]['files']} files (process s
       f"({e2e_runs[0]['notes_out_bytes']} bytes): {notes_ms:.3f} ms")
 print(f"end-to-end ratio: odgen check is {e2e_ratio:.1f}x faster than python-canopen's import_od in process "
       f"(rounds: {min(e2e_rounds):.1f}x to {max(e2e_rounds):.1f}x; target >= 100x: {'met' if e2e_ratio >= 100 else 'NOT met'})")
+# The mean above is what the target is judged on; the median and the one-thread figures show
+# how much of it is the second core (on a VM it is often slow to start working).
+import statistics
+each = [t for r in e2e_runs for t in r["run_ms"]]
+one = [t for r in e2e_runs for t in r["one_thread_run_ms"]]
+print(f"end to end, per run: median {statistics.median(each):.3f} ms ({theirs['ms_per_pass'] / statistics.median(each):.1f}x), "
+      f"best {min(each):.3f} ms ({theirs['ms_per_pass'] / min(each):.1f}x); with --jobs 1: mean "
+      f"{statistics.mean(one):.3f} ms ({theirs['ms_per_pass'] / statistics.mean(one):.1f}x), median "
+      f"{statistics.median(one):.3f} ms")
 e2e_cpu = sum(r["cpu_ms_per_run"] * r["runs"] for r in e2e_runs) / e2e_runs_total
 if theirs.get("cpu_ms_per_pass"):
     cpu_ratio = theirs["cpu_ms_per_pass"] / e2e_cpu

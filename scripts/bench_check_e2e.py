@@ -4,7 +4,8 @@ process started, the files read and checked, the report written to a file. Also 
 
 Usage: bench_check_e2e.py ODGEN RUNS PATH...   (files, or directories of *.eds/*.dcf)
 Prints one JSON line: files, bytes, runs, seconds, ms_per_run, cpu_ms_per_run (the children's
-user + system time), out_bytes, notes_ms_per_run, notes_out_bytes.
+user + system time), out_bytes, notes_ms_per_run, notes_out_bytes, run_ms (each run's wall time,
+for medians), one_thread_run_ms (each run of `odgen check --jobs 1`).
 """
 
 import json
@@ -28,23 +29,26 @@ def main():
     figures = {}
     with tempfile.TemporaryDirectory() as d:
         report = os.path.join(d, "report.txt")
-        for name, extra in (("default", []), ("notes", ["--notes"])):
+        for name, extra in (("default", []), ("notes", ["--notes"]), ("one_thread", ["--jobs", "1"])):
             with open(report, "wb") as out:
                 subprocess.run([odgen, "check", *extra, *paths], stdout=out, stderr=subprocess.DEVNULL)  # warm-up
             before = resource.getrusage(resource.RUSAGE_CHILDREN)
-            start = time.perf_counter()
+            each = []
             for _ in range(runs):
                 with open(report, "wb") as out:
+                    start = time.perf_counter()
                     subprocess.run([odgen, "check", *extra, *paths], stdout=out, stderr=subprocess.DEVNULL)
-            seconds = time.perf_counter() - start
+                    each.append(time.perf_counter() - start)
+            seconds = sum(each)
             after = resource.getrusage(resource.RUSAGE_CHILDREN)
             cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-            figures[name] = (seconds, os.path.getsize(report), cpu)
-    seconds, out_bytes, cpu = figures["default"]
+            figures[name] = (seconds, os.path.getsize(report), cpu, [t * 1e3 for t in each])
+    seconds, out_bytes, cpu, each = figures["default"]
     print(json.dumps({
         "files": len(paths), "bytes": size, "runs": runs, "seconds": seconds,
         "ms_per_run": seconds * 1e3 / runs, "out_bytes": out_bytes, "cpu_ms_per_run": cpu * 1e3 / runs,
         "notes_ms_per_run": figures["notes"][0] * 1e3 / runs, "notes_out_bytes": figures["notes"][1],
+        "run_ms": each, "one_thread_run_ms": figures["one_thread"][3],
     }))
 
 
