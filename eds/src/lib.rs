@@ -259,6 +259,61 @@ fn not_regular(m: &std::fs::Metadata) -> std::io::Error {
     std::io::Error::new(std::io::ErrorKind::InvalidInput, format!("it is {what}"))
 }
 
+/// Opens `path` for reading without waiting: had the path become a FIFO since it was probed,
+/// a plain open would wait for a writer, for ever. With `O_NONBLOCK` (on Linux, where its value
+/// is known for each architecture) the open returns at once, and the check on the open file
+/// refuses it; a regular file reads the same either way.
+fn open_without_waiting(path: &std::path::Path) -> std::io::Result<std::fs::File> {
+    #[cfg(all(target_os = "linux", any(target_arch = "mips", target_arch = "mips64")))]
+    const O_NONBLOCK: Option<i32> = Some(0x80);
+    #[cfg(all(target_os = "linux", any(target_arch = "sparc", target_arch = "sparc64")))]
+    const O_NONBLOCK: Option<i32> = Some(0x4000);
+    #[cfg(all(
+        target_os = "linux",
+        any(
+            target_arch = "x86",
+            target_arch = "x86_64",
+            target_arch = "arm",
+            target_arch = "aarch64",
+            target_arch = "riscv32",
+            target_arch = "riscv64",
+            target_arch = "powerpc",
+            target_arch = "powerpc64",
+            target_arch = "s390x",
+            target_arch = "loongarch64"
+        )
+    ))]
+    const O_NONBLOCK: Option<i32> = Some(0o4000);
+    #[cfg(not(all(
+        target_os = "linux",
+        any(
+            target_arch = "mips",
+            target_arch = "mips64",
+            target_arch = "sparc",
+            target_arch = "sparc64",
+            target_arch = "x86",
+            target_arch = "x86_64",
+            target_arch = "arm",
+            target_arch = "aarch64",
+            target_arch = "riscv32",
+            target_arch = "riscv64",
+            target_arch = "powerpc",
+            target_arch = "powerpc64",
+            target_arch = "s390x",
+            target_arch = "loongarch64"
+        )
+    )))]
+    const O_NONBLOCK: Option<i32> = None;
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    if let Some(flag) = O_NONBLOCK {
+        use std::os::unix::fs::OpenOptionsExt as _;
+        options.custom_flags(flag);
+    }
+    options.open(path)
+}
+
 /// The bytes of a probed file, read into `bytes` (emptied first), whose allocation is used if
 /// large enough; a new one has room for at least `room` bytes.
 ///
@@ -267,7 +322,7 @@ fn not_regular(m: &std::fs::Metadata) -> std::io::Error {
 /// A file whose size is given as 0, as files of `/proc` are, is read to its end as it comes.
 fn read_bytes_into(probed: &Probed<'_>, bytes: Vec<u8>, room: usize) -> std::io::Result<Vec<u8>> {
     use std::io::Read as _;
-    let mut file = std::fs::File::open(probed.path)?;
+    let mut file = open_without_waiting(probed.path)?;
     // (Checked again on the open file, in case the path changed since it was probed.)
     let m = file.metadata()?;
     if !m.is_file() {

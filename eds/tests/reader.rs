@@ -167,3 +167,35 @@ fn keep_from_keeps_the_severe_diagnostics_and_counts_the_rest() {
     }
     assert!(dropped_somewhere[0] > 0 && dropped_somewhere[1] > 0, "{dropped_somewhere:?}");
 }
+
+/// A path that was a regular file when probed and is a FIFO when read (it was replaced in
+/// between) is refused at once: the open does not wait for a writer that never comes.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_file_replaced_by_a_fifo_after_its_probe_is_refused_without_waiting() {
+    let dir = std::env::temp_dir().join(format!("eds-reader-fifo-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    // (Leaked so that the probe, which borrows it, can go to a thread that may never end.)
+    let path: &'static Path = Box::leak(dir.join("swapped.eds").into_boxed_path());
+    std::fs::write(path, "[FileInfo]\nFileName=x.eds\n").expect("write");
+    let probed = eds::probe(path).expect("a regular file");
+    std::fs::remove_file(path).expect("remove");
+    let made = std::process::Command::new("mkfifo").arg(path).status().is_ok_and(|s| s.success());
+    if !made {
+        eprintln!("no mkfifo here: skipped");
+        return;
+    }
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(eds::Reader::new().read_probed(&probed, &Options::lenient()).map(|_| ()));
+    });
+    let result = rx.recv_timeout(std::time::Duration::from_secs(20));
+    if result.is_err() {
+        // Release the waiting reader before failing.
+        let _ = std::fs::OpenOptions::new().write(true).open(path);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    let result = result.expect("the read should return at once, not wait for a writer");
+    let e = result.expect_err("a FIFO is refused");
+    assert_eq!(e.kind(), std::io::ErrorKind::InvalidInput, "{e}");
+}
