@@ -759,7 +759,7 @@ mod tests {
         let naive = |b: &[u8], set: &[u8]| b.iter().position(|c| set.contains(c)).unwrap_or(b.len());
         for len in 0..40 {
             for pos in 0..=len {
-                for &t in &[b'=', b'\n', b'\r', b']', b'['] {
+                for &t in b"=\n\r][" {
                     let mut b: Vec<u8> = (0..len).map(|i| [b'a', t ^ 1, t ^ 0x80, 0, 0xFF][i % 5]).collect();
                     if pos < len {
                         b[pos] = t;
