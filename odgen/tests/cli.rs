@@ -491,3 +491,35 @@ fn bad_paths_and_arguments_get_clear_errors() {
         assert!(!err.contains("panicked"), "odgen {args:?}: {err}");
     }
 }
+
+/// A folder stands for the `.eds` and `.dcf` files in it and its subfolders (any case of the
+/// extension), in the order of their paths; other files are left out, a link to a folder is
+/// not followed (a loop ends), and the output is what naming the files gives.
+#[test]
+fn check_takes_folders_for_their_description_files() {
+    let dir = TempDir::new("folders");
+    std::fs::create_dir_all(dir.0.join("b/inner")).unwrap();
+    let files = [
+        dir.file("a.eds", GOOD),
+        dir.file("b/c.DCF", GOOD),
+        dir.file("b/inner/d.Eds", &GOOD.replace("DataType=0x0002\n", "")),
+        dir.file("z.eds", GOOD),
+    ];
+    dir.file("notes.txt", "not a description");
+    dir.file("b/readme.md", "# not one either");
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(&dir.0, dir.0.join("b/loop")).unwrap();
+    let named: Vec<&str> = files.iter().map(|p| s(p)).collect();
+    let mut by_name = vec!["check", "--jobs", "2"];
+    by_name.extend(&named);
+    let expected = odgen(&by_name);
+    let folder = odgen(&["check", "--jobs", "2", s(&dir.0)]);
+    assert_eq!(folder.status.code(), expected.status.code());
+    assert_eq!(stdout(&folder), stdout(&expected));
+    assert!(stdout(&folder).contains("checked 4 files"), "{}", stdout(&folder));
+    // JSON names the files in path order.
+    let o = odgen(&["check", "--format", "json", s(&dir.0)]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON output");
+    let listed: Vec<&str> = v["files"].as_array().unwrap().iter().map(|f| f["file"].as_str().unwrap()).collect();
+    assert_eq!(listed, named);
+}
