@@ -264,46 +264,29 @@ fn not_regular(m: &std::fs::Metadata) -> std::io::Error {
 /// is known for each architecture) the open returns at once, and the check on the open file
 /// refuses it; a regular file reads the same either way.
 fn open_without_waiting(path: &std::path::Path) -> std::io::Result<std::fs::File> {
-    #[cfg(all(target_os = "linux", any(target_arch = "mips", target_arch = "mips64")))]
-    const O_NONBLOCK: Option<i32> = Some(0x80);
-    #[cfg(all(target_os = "linux", any(target_arch = "sparc", target_arch = "sparc64")))]
-    const O_NONBLOCK: Option<i32> = Some(0x4000);
-    #[cfg(all(
-        target_os = "linux",
-        any(
-            target_arch = "x86",
-            target_arch = "x86_64",
-            target_arch = "arm",
-            target_arch = "aarch64",
-            target_arch = "riscv32",
-            target_arch = "riscv64",
-            target_arch = "powerpc",
-            target_arch = "powerpc64",
-            target_arch = "s390x",
-            target_arch = "loongarch64"
-        )
-    ))]
-    const O_NONBLOCK: Option<i32> = Some(0o4000);
-    #[cfg(not(all(
-        target_os = "linux",
-        any(
-            target_arch = "mips",
-            target_arch = "mips64",
-            target_arch = "sparc",
-            target_arch = "sparc64",
-            target_arch = "x86",
-            target_arch = "x86_64",
-            target_arch = "arm",
-            target_arch = "aarch64",
-            target_arch = "riscv32",
-            target_arch = "riscv64",
-            target_arch = "powerpc",
-            target_arch = "powerpc64",
-            target_arch = "s390x",
-            target_arch = "loongarch64"
-        )
-    )))]
-    const O_NONBLOCK: Option<i32> = None;
+    // (`libc::O_NONBLOCK`, by architecture; where it is not known here, opened as before.)
+    const O_NONBLOCK: Option<i32> = if !cfg!(target_os = "linux") {
+        None
+    } else if cfg!(any(target_arch = "mips", target_arch = "mips64")) {
+        Some(0x80)
+    } else if cfg!(any(target_arch = "sparc", target_arch = "sparc64")) {
+        Some(0x4000)
+    } else if cfg!(any(
+        target_arch = "x86",
+        target_arch = "x86_64",
+        target_arch = "arm",
+        target_arch = "aarch64",
+        target_arch = "riscv32",
+        target_arch = "riscv64",
+        target_arch = "powerpc",
+        target_arch = "powerpc64",
+        target_arch = "s390x",
+        target_arch = "loongarch64"
+    )) {
+        Some(0o4000)
+    } else {
+        None
+    };
     let mut options = std::fs::OpenOptions::new();
     options.read(true);
     #[cfg(unix)]

@@ -59,6 +59,20 @@ fn inputs(dir: &Path) -> Vec<PathBuf> {
         .collect()
 }
 
+/// `odgen ARGS` with `limit_kib` KiB of address space (`ulimit -v`), output dropped.
+fn odgen_within<'a>(limit_kib: u64, args: impl IntoIterator<Item = &'a str>) -> std::process::ExitStatus {
+    Command::new("sh")
+        .arg("-c")
+        .arg(format!("ulimit -v {limit_kib} && exec \"$0\" \"$@\""))
+        .arg(env!("CARGO_BIN_EXE_odgen"))
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .unwrap()
+}
+
 #[test]
 fn every_command_within_ten_times_the_input() {
     let dir = std::env::temp_dir().join(format!("odgen-memory-{}", std::process::id()));
@@ -89,17 +103,7 @@ fn every_command_within_ten_times_the_input() {
             } else {
                 input.clone()
             };
-            let status = Command::new("sh")
-                .arg("-c")
-                .arg(format!("ulimit -v {limit_kib} && exec \"$0\" \"$@\""))
-                .arg(env!("CARGO_BIN_EXE_odgen"))
-                .args(&cmd)
-                .arg(&target)
-                .stdin(Stdio::null())
-                .stdout(Stdio::null())
-                .stderr(Stdio::null())
-                .status()
-                .unwrap();
+            let status = odgen_within(limit_kib, cmd.iter().map(String::as_str).chain([target.to_str().unwrap()]));
             if !matches!(status.code(), Some(0..=2)) {
                 failures.push(format!(
                     "odgen {} {}: {status} under a {} MiB limit",
@@ -128,16 +132,7 @@ fn dump_under_a_limit_never_aborts() {
     let limit_kib = (10 * size + (64 << 20)) / 1024;
     let mut aborted = 0;
     for _ in 0..20 {
-        let status = Command::new("sh")
-            .arg("-c")
-            .arg(format!("ulimit -v {limit_kib} && exec \"$0\" \"$@\""))
-            .arg(env!("CARGO_BIN_EXE_odgen"))
-            .args(["dump", input.to_str().unwrap()])
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .status()
-            .unwrap();
+        let status = odgen_within(limit_kib, ["dump", input.to_str().unwrap()]);
         if !matches!(status.code(), Some(0..=2)) {
             aborted += 1;
         }
