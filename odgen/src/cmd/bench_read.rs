@@ -43,35 +43,18 @@ pub struct Args {
 /// Runs the subcommand.
 pub fn run(args: Args) -> ExitCode {
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();
-    for path in &args.paths {
-        let mut paths = Vec::new();
-        if path.is_dir() {
-            match std::fs::read_dir(path) {
-                Ok(rd) => {
-                    for e in rd.flatten() {
-                        let p = e.path();
-                        let ext = p.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
-                        if matches!(ext.as_deref(), Some("eds" | "dcf")) {
-                            paths.push(p);
-                        }
-                    }
-                }
-                Err(e) => {
-                    eprintln!("error: cannot list {}: {e}", path.display());
-                    return ExitCode::from(EXIT_TROUBLE);
-                }
-            }
-            paths.sort();
-        } else {
-            paths.push(path.clone());
-        }
-        for p in paths {
-            match std::fs::read(&p) {
-                Ok(b) => files.push((p.display().to_string(), b)),
-                Err(e) => {
-                    eprintln!("error: cannot read {}: {e}", p.display());
-                    return ExitCode::from(EXIT_TROUBLE);
-                }
+    // Folders as `odgen check` takes them (their `.eds`/`.dcf` files and their subfolders').
+    let (paths, unlisted) = super::expand_folders(&args.paths);
+    if let Some((path, Some(e))) = paths.iter().zip(&unlisted).find(|(_, u)| u.is_some()) {
+        eprintln!("error: cannot list {}: {e}", path.display());
+        return ExitCode::from(EXIT_TROUBLE);
+    }
+    for p in paths {
+        match std::fs::read(&p) {
+            Ok(b) => files.push((p.display().to_string(), b)),
+            Err(e) => {
+                eprintln!("error: cannot read {}: {e}", p.display());
+                return ExitCode::from(EXIT_TROUBLE);
             }
         }
     }

@@ -47,11 +47,7 @@ impl Level {
     }
 
     fn shows(self, s: Severity) -> bool {
-        match self {
-            Level::Error => s == Severity::Error,
-            Level::Warning => s >= Severity::Warning,
-            Level::Note => true,
-        }
+        s >= self.least()
     }
 }
 
@@ -183,7 +179,7 @@ pub fn run(args: Args) -> ExitCode {
     // Every file is probed first (it is not probed again when read), for its size: the threads
     // take the largest files first, so that the last ones taken are small and the threads
     // finish together. (The probing overlaps the start of the other threads.)
-    let (files, unlisted) = expand(&args.files);
+    let (files, unlisted) = super::expand_folders(&args.files);
     let probes: std::sync::OnceLock<Vec<std::io::Result<eds::Probed<'_>>>> = std::sync::OnceLock::new();
     let order = || {
         let probed = probes.get_or_init(|| {
@@ -277,53 +273,6 @@ pub fn run(args: Args) -> ExitCode {
         ExitCode::from(EXIT_FAILURE)
     } else {
         ExitCode::SUCCESS
-    }
-}
-
-/// The files to check: each path given that is not a folder, and for each folder, the files
-/// in it and in its subfolders whose names end in `.eds` or `.dcf` (in any case), in the order
-/// of their paths. Symbolic links to files are taken; links to folders are not followed, so a
-/// link that loops ends the walk there. With each file, why its folder could not be listed,
-/// if it could not (the folder then stands in the list for its files, reported unreadable).
-fn expand(paths: &[PathBuf]) -> (Vec<PathBuf>, Vec<Option<std::io::Error>>) {
-    let mut files = Vec::new();
-    let mut unlisted = Vec::new();
-    for path in paths {
-        if std::fs::metadata(path).is_ok_and(|m| m.is_dir()) {
-            walk(path, &mut files, &mut unlisted);
-        } else {
-            files.push(path.clone());
-            unlisted.push(None);
-        }
-    }
-    (files, unlisted)
-}
-
-/// [`expand`] of one folder.
-fn walk(dir: &std::path::Path, files: &mut Vec<PathBuf>, unlisted: &mut Vec<Option<std::io::Error>>) {
-    let listed = std::fs::read_dir(dir).and_then(|entries| entries.collect::<std::io::Result<Vec<_>>>());
-    let mut entries = match listed {
-        Ok(entries) => entries,
-        Err(e) => {
-            files.push(dir.to_path_buf());
-            unlisted.push(Some(e));
-            return;
-        }
-    };
-    entries.sort_by_key(|e| e.file_name());
-    for entry in entries {
-        let path = entry.path();
-        // (The entry's own type: a link to a folder is a link, not a folder.)
-        let Ok(kind) = entry.file_type() else { continue };
-        if kind.is_dir() {
-            walk(&path, files, unlisted);
-        } else {
-            let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-            if ext.eq_ignore_ascii_case("eds") || ext.eq_ignore_ascii_case("dcf") {
-                files.push(path);
-                unlisted.push(None);
-            }
-        }
     }
 }
 

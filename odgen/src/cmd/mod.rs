@@ -9,7 +9,7 @@ pub mod fmt;
 pub mod generate;
 pub mod sarif;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Exit code for "ran, found errors" (diagnostics with errors, files not canonical).
 pub const EXIT_FAILURE: u8 = 1;
@@ -128,6 +128,53 @@ fn permutation_or_identity(order: Vec<usize>, n: usize) -> Vec<usize> {
     let mut seen = vec![false; n];
     let ok = order.len() == n && order.iter().all(|&i| i < n && !std::mem::replace(&mut seen[i], true));
     if ok { order } else { (0..n).collect() }
+}
+
+/// The files a command is given: each path that is not a folder, and for each folder, the files
+/// in it and in its subfolders whose names end in `.eds` or `.dcf` (in any case), in the order
+/// of their paths. Symbolic links to files are taken; links to folders are not followed, so a
+/// link that loops ends the walk there. With each file, why its folder could not be listed,
+/// if it could not (the folder then stands in the list for its files, reported unreadable).
+pub fn expand_folders(paths: &[PathBuf]) -> (Vec<PathBuf>, Vec<Option<std::io::Error>>) {
+    let mut files = Vec::new();
+    let mut unlisted = Vec::new();
+    for path in paths {
+        if std::fs::metadata(path).is_ok_and(|m| m.is_dir()) {
+            walk(path, &mut files, &mut unlisted);
+        } else {
+            files.push(path.clone());
+            unlisted.push(None);
+        }
+    }
+    (files, unlisted)
+}
+
+/// [`expand_folders`] of one folder.
+fn walk(dir: &std::path::Path, files: &mut Vec<PathBuf>, unlisted: &mut Vec<Option<std::io::Error>>) {
+    let listed = std::fs::read_dir(dir).and_then(|entries| entries.collect::<std::io::Result<Vec<_>>>());
+    let mut entries = match listed {
+        Ok(entries) => entries,
+        Err(e) => {
+            files.push(dir.to_path_buf());
+            unlisted.push(Some(e));
+            return;
+        }
+    };
+    entries.sort_by_key(|e| e.file_name());
+    for entry in entries {
+        let path = entry.path();
+        // (The entry's own type: a link to a folder is a link, not a folder.)
+        let Ok(kind) = entry.file_type() else { continue };
+        if kind.is_dir() {
+            walk(&path, files, unlisted);
+        } else {
+            let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+            if ext.eq_ignore_ascii_case("eds") || ext.eq_ignore_ascii_case("dcf") {
+                files.push(path);
+                unlisted.push(None);
+            }
+        }
+    }
 }
 
 /// The order to work on items of these sizes in: the largest first (items of the same size in
