@@ -9,7 +9,9 @@
 //! E0222).
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Stdio;
+
+mod common;
 
 fn base() -> String {
     std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../eds/tests/fixtures/base.eds")).unwrap()
@@ -61,10 +63,7 @@ fn inputs(dir: &Path) -> Vec<PathBuf> {
 
 /// `odgen ARGS` with `limit_kib` KiB of address space (`ulimit -v`), output dropped.
 fn odgen_within<'a>(limit_kib: u64, args: impl IntoIterator<Item = &'a str>) -> std::process::ExitStatus {
-    Command::new("sh")
-        .arg("-c")
-        .arg(format!("ulimit -v {limit_kib} && exec \"$0\" \"$@\""))
-        .arg(env!("CARGO_BIN_EXE_odgen"))
+    common::odgen_under_limit(limit_kib)
         .args(args)
         .stdin(Stdio::null())
         .stdout(Stdio::null())

@@ -12,7 +12,9 @@
 //! names the mutant's seed, input and mutation, so it can be made again.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Stdio;
+
+mod common;
 use std::time::{Duration, Instant};
 
 use eds::{Options, Severity};
@@ -226,10 +228,7 @@ fn check_in_process(name: &str, bytes: &[u8]) -> Result<(), String> {
 
 /// Runs odgen under a 1 GiB address-space limit (`ulimit -v`) and a 60 s bound.
 fn odgen_limited(args: &[&str]) -> std::process::Output {
-    let mut child = Command::new("sh")
-        .arg("-c")
-        .arg("ulimit -v 1048576 && exec \"$0\" \"$@\"")
-        .arg(env!("CARGO_BIN_EXE_odgen"))
+    let mut child = common::odgen_under_limit(1 << 20)
         .args(args)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
