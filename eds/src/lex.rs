@@ -771,65 +771,58 @@ mod tests {
         }
     }
 
-    /// Every line the entry fast path reads is what the general path makes of it; walks `text`
-    /// line by line, trying the fast path first as the reader does. Returns how many lines it
-    /// read.
-    fn check_plain_entries(text: &str) -> usize {
+    /// Walks `text` line by line as the reader does, trying the fast path `fast` first: every
+    /// line it reads is what the general path makes of it (`agree` checks the two), both lexers
+    /// then stand at the next line, and a line it leaves is left where it was. Returns how many
+    /// lines the fast path read.
+    fn check_fast_path<'t, T>(
+        text: &'t str,
+        fast: impl Fn(&mut Lexer<'t>) -> Option<T>,
+        agree: impl Fn(&Line, &T),
+    ) -> usize {
         let mut lexer = Lexer::new(text);
-        let mut plain = 0;
+        let mut read = 0;
         loop {
             let mut general = lexer.clone();
             let Some(line) = general.next() else {
-                assert_eq!(lexer.next_plain_entry(), None);
+                assert!(fast(&mut lexer).is_none(), "{text:?}");
                 break;
             };
-            match lexer.next_plain_entry() {
-                Some(e) => {
-                    plain += 1;
-                    assert_eq!(line.kind, LineKind::Entry { key: e.key_span(), value: e.value_span() }, "{text:?}");
-                    let slice = |sp: Span| &text[sp.start as usize..sp.end as usize];
-                    assert_eq!((e.key, e.value), (slice(e.key_span()), slice(e.value_span())));
-                    assert_eq!(line.raw.end, e.end);
-                    assert_eq!(matches!(line.ending, LineEnding::Lf | LineEnding::CrLf), e.newline);
-                    assert!(e.newline || line.ending == LineEnding::None);
-                    // Both lexers stand at the next line.
-                    assert_eq!(lexer.rest.len(), general.rest.len());
+            match fast(&mut lexer) {
+                Some(t) => {
+                    read += 1;
+                    agree(&line, &t);
+                    assert_eq!(lexer.rest.len(), general.rest.len(), "{text:?}");
                 }
-                None => {
-                    // The fast path did not move; the general path reads the line.
-                    assert_eq!(lexer.next(), Some(line));
-                }
-            }
-        }
-        plain
-    }
-
-    /// Every line the section fast path reads is what the general path makes of it (as
-    /// [`check_plain_entries`] checks the entry fast path). Returns how many lines it read.
-    fn check_plain_sections(text: &str) -> usize {
-        let mut lexer = Lexer::new(text);
-        let mut plain = 0;
-        loop {
-            let mut general = lexer.clone();
-            let Some(line) = general.next() else {
-                assert_eq!(lexer.next_plain_section(), None);
-                break;
-            };
-            match lexer.next_plain_section() {
-                Some(sec) => {
-                    plain += 1;
-                    let trailing = Span::new(line.content.end, line.content.end);
-                    assert_eq!(line.kind, LineKind::Section { name: sec.name_span(), trailing }, "{text:?}");
-                    assert_eq!(sec.name, &text[sec.name_span().start as usize..sec.name_span().end as usize]);
-                    assert_eq!((line.raw.start, line.raw.end), (sec.start, sec.end));
-                    assert_eq!(matches!(line.ending, LineEnding::Lf | LineEnding::CrLf), sec.newline);
-                    assert!(sec.newline || line.ending == LineEnding::None);
-                    assert_eq!(lexer.rest.len(), general.rest.len());
-                }
+                // The fast path did not move; the general path reads the line.
                 None => assert_eq!(lexer.next(), Some(line)),
             }
         }
-        plain
+        read
+    }
+
+    /// [`check_fast_path`] for the entry fast path.
+    fn check_plain_entries(text: &str) -> usize {
+        check_fast_path(text, Lexer::next_plain_entry, |line, e| {
+            assert_eq!(line.kind, LineKind::Entry { key: e.key_span(), value: e.value_span() }, "{text:?}");
+            let slice = |sp: Span| &text[sp.start as usize..sp.end as usize];
+            assert_eq!((e.key, e.value), (slice(e.key_span()), slice(e.value_span())));
+            assert_eq!(line.raw.end, e.end);
+            assert_eq!(matches!(line.ending, LineEnding::Lf | LineEnding::CrLf), e.newline);
+            assert!(e.newline || line.ending == LineEnding::None);
+        })
+    }
+
+    /// [`check_fast_path`] for the section fast path.
+    fn check_plain_sections(text: &str) -> usize {
+        check_fast_path(text, Lexer::next_plain_section, |line, sec| {
+            let trailing = Span::new(line.content.end, line.content.end);
+            assert_eq!(line.kind, LineKind::Section { name: sec.name_span(), trailing }, "{text:?}");
+            assert_eq!(sec.name, &text[sec.name_span().start as usize..sec.name_span().end as usize]);
+            assert_eq!((line.raw.start, line.raw.end), (sec.start, sec.end));
+            assert_eq!(matches!(line.ending, LineEnding::Lf | LineEnding::CrLf), sec.newline);
+            assert!(sec.newline || line.ending == LineEnding::None);
+        })
     }
 
     #[test]
