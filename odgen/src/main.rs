@@ -47,7 +47,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    alloc::tune();
+    alloc::tune_in_main();
     let cli = Cli::parse();
     match cli.command {
         Command::Check(args) => cmd::check::run(args),
