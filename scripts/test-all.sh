@@ -23,6 +23,10 @@ export ODGEN_PYTHON="$PYTHON"
 step "cargo fmt --check"
 cargo fmt --all -- --check
 
+# Lints with warnings denied, every crate and target (clippy is in rust-toolchain.toml).
+step "cargo clippy (workspace, all targets, warnings denied)"
+cargo clippy --workspace --all-targets --locked -- -D warnings
+
 # One build profile only: `cargo test --all-targets` also compiles the benchmarks (in the test
 # profile) and runs each of them once as a smoke test.
 step "cargo test (workspace, all targets)"

@@ -696,13 +696,11 @@ fn chapter_7_2_sdo_downloads_fit_the_dictionary() {
             None => assert_eq!(e.data_type, DataType::VisibleString),
         }
         // mapping entries must name mappable objects of the right size
-        if (0x1600..=0x1603).contains(&index) || (0x1A00..=0x1A03).contains(&index) {
-            if f[3] > 0 {
-                let p = PdoMappingEntry::from_u32(raw);
-                let t = m.entry(p.index.0, p.sub.0).unwrap_or_else(|| panic!("maps missing {p:?}"));
-                assert!(t.pdo_mapping, "{p:?}");
-                assert_eq!(t.data_type.bits(), Some(p.bits as u32), "{p:?}");
-            }
+        if ((0x1600..=0x1603).contains(&index) || (0x1A00..=0x1A03).contains(&index)) && f[3] > 0 {
+            let p = PdoMappingEntry::from_u32(raw);
+            let t = m.entry(p.index.0, p.sub.0).unwrap_or_else(|| panic!("maps missing {p:?}"));
+            assert!(t.pdo_mapping, "{p:?}");
+            assert_eq!(t.data_type.bits(), Some(p.bits as u32), "{p:?}");
         }
         // a COB-ID written to disable a PDO is its default with bit 31 (and bit 30) set
         if f[3] == 1 && ((0x1400..=0x1403).contains(&index) || (0x1800..=0x1803).contains(&index)) {

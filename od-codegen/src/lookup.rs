@@ -63,7 +63,7 @@ pub(crate) fn build(keys: &[(u16, u8)]) -> Option<Tables> {
     for (k, h) in highs.iter().enumerate() {
         t.pages[usize::from(*h)] = u8::try_from(k + 1).ok()?;
         for w in 0..4u16 {
-            let start = u16::from(*h) << 8 | w * 64;
+            let start = (u16::from(*h) << 8) | (w * 64);
             t.ranks[k][usize::from(w)] = u16::try_from(keys.partition_point(|key| key.0 < start)).ok()?;
             t.objects[k][usize::from(w)] = u16::try_from(objects.partition_point(|o| o.0 < start)).ok()?;
         }

@@ -144,7 +144,9 @@ fn vendor_quirks_are_warnings_when_lenient_and_errors_when_strict() {
     let (shown, lenient, _) = generate_with("vendor-quirks.eds", false);
     let (_, strict, _) = generate_with("vendor-quirks.eds", true);
     assert!(!lenient.has_errors(), "{}", od_codegen::diag::render_plain(&lenient.diagnostics));
-    let deviations = |g: &od_codegen::Generated| -> Vec<(String, Option<(u32, u32)>, String)> {
+    // (code, line and column, message) of each deviation.
+    type Deviation = (String, Option<(u32, u32)>, String);
+    let deviations = |g: &od_codegen::Generated| -> Vec<Deviation> {
         g.diagnostics
             .iter()
             .filter(|d| od_codegen::diag::DEVIATIONS.contains(&d.code))

@@ -755,7 +755,7 @@ impl Sidecar {
             }
         }
         for s in &self.scaling {
-            for (role, _) in &s.subs {
+            for role in s.subs.keys() {
                 if role.is_empty() {
                     return Err(format!("scaling object {}: empty sub-index role name", s.object));
                 }

@@ -60,6 +60,8 @@ struct Cli {
     command: Command,
 }
 
+// (One value of this is made per run: the sizes of its variants do not matter.)
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Subcommand)]
 enum Command {
     /// Simulate devices on a hub of their own (--listen) or on a bus (--bus).

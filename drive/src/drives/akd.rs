@@ -932,7 +932,7 @@ fn write_parameter(ctx: &mut Ctx<'_, Dictionary>, p: Parameter, text: &str) -> S
         },
     };
     // The value must fit the entry's type and limits: nothing wraps into the dictionary.
-    let Some((raw, len)) = raw.and_then(|raw| fits(&info, raw).then_some((raw, info.byte_len()))) else {
+    let Some((raw, len)) = raw.and_then(|raw| fits(info, raw).then_some((raw, info.byte_len()))) else {
         return OUT_OF_RANGE.into();
     };
     let Ok(raw) = i64::try_from(raw) else { return OUT_OF_RANGE.into() };
@@ -992,25 +992,6 @@ fn parse_milli(text: &str) -> Result<i128, NumberError> {
         scale /= 10;
     }
     Ok(if neg { -v } else { v })
-}
-
-#[cfg(test)]
-mod ascii_tests {
-    use super::*;
-
-    #[test]
-    fn numbers_parse_with_checked_arithmetic() {
-        assert_eq!(parse_milli("-12.5"), Ok(-12_500));
-        assert_eq!(parse_milli("0.0019"), Ok(1));
-        assert_eq!(parse_milli("42"), Ok(42_000));
-        assert_eq!(parse_milli("x1"), Err(NumberError::NotANumber));
-        assert_eq!(parse_milli("-"), Err(NumberError::NotANumber));
-        assert_eq!(parse_milli("1.2.3"), Err(NumberError::NotANumber));
-        // i128::MAX / 1000 has 36 digits: 37 are out of range, whatever they are.
-        assert_eq!(parse_milli(&"9".repeat(37)), Err(NumberError::OutOfRange));
-        assert_eq!(parse_milli(&"1".repeat(80)), Err(NumberError::OutOfRange));
-        assert!(parse_milli("170141183460469231731687303715884105").is_ok());
-    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1403,5 +1384,24 @@ impl Vendor<Dictionary> for Akd {
         self.following_fault = false;
         self.homing_failed = false;
         self.sync_lost = false;
+    }
+}
+
+#[cfg(test)]
+mod ascii_tests {
+    use super::*;
+
+    #[test]
+    fn numbers_parse_with_checked_arithmetic() {
+        assert_eq!(parse_milli("-12.5"), Ok(-12_500));
+        assert_eq!(parse_milli("0.0019"), Ok(1));
+        assert_eq!(parse_milli("42"), Ok(42_000));
+        assert_eq!(parse_milli("x1"), Err(NumberError::NotANumber));
+        assert_eq!(parse_milli("-"), Err(NumberError::NotANumber));
+        assert_eq!(parse_milli("1.2.3"), Err(NumberError::NotANumber));
+        // i128::MAX / 1000 has 36 digits: 37 are out of range, whatever they are.
+        assert_eq!(parse_milli(&"9".repeat(37)), Err(NumberError::OutOfRange));
+        assert_eq!(parse_milli(&"1".repeat(80)), Err(NumberError::OutOfRange));
+        assert!(parse_milli("170141183460469231731687303715884105").is_ok());
     }
 }

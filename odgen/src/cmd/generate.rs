@@ -84,11 +84,9 @@ pub fn run(args: Args) -> ExitCode {
             odgen::safe_write::Destination::File(path) => {
                 let unchanged = std::fs::metadata(&path).is_ok_and(|m| m.is_file())
                     && std::fs::read(&path).is_ok_and(|old| old == output.text.as_bytes());
-                if !unchanged {
-                    if let Err(e) = odgen::safe_write::write(&path, output.text.as_bytes()) {
-                        eprintln!("error: {e}");
-                        return ExitCode::from(EXIT_TROUBLE);
-                    }
+                if !unchanged && let Err(e) = odgen::safe_write::write(&path, output.text.as_bytes()) {
+                    eprintln!("error: {e}");
+                    return ExitCode::from(EXIT_TROUBLE);
                 }
             }
         },
