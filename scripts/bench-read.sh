@@ -103,6 +103,10 @@ print(f"end to end, per run: median {statistics.median(each):.3f} ms ({theirs['m
       f"best {min(each):.3f} ms ({theirs['ms_per_pass'] / min(each):.1f}x); with --jobs 1: mean "
       f"{statistics.mean(one):.3f} ms ({theirs['ms_per_pass'] / statistics.mean(one):.1f}x), median "
       f"{statistics.median(one):.3f} ms")
+start_ms = sum(r["start_ms_per_run"] * r["runs"] for r in e2e_runs) / e2e_runs_total
+spawn_ms = sum(r["spawn_ms_per_run"] * r["runs"] for r in e2e_runs) / e2e_runs_total
+print(f"end to end, process start: `odgen --version` {start_ms:.3f} ms per run, `true` {spawn_ms:.3f} ms "
+      f"(starting any program from the measuring script; python-canopen's figure has no process start)")
 e2e_cpu = sum(r["cpu_ms_per_run"] * r["runs"] for r in e2e_runs) / e2e_runs_total
 if theirs.get("cpu_ms_per_pass"):
     cpu_ratio = theirs["cpu_ms_per_pass"] / e2e_cpu

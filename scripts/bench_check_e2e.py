@@ -5,12 +5,15 @@ process started, the files read and checked, the report written to a file. Also 
 Usage: bench_check_e2e.py ODGEN RUNS PATH...   (files, or directories of *.eds/*.dcf)
 Prints one JSON line: files, bytes, runs, seconds, ms_per_run, cpu_ms_per_run (the children's
 user + system time), out_bytes, notes_ms_per_run, notes_out_bytes, run_ms (each run's wall time,
-for medians), one_thread_run_ms (each run of `odgen check --jobs 1`).
+for medians), one_thread_run_ms (each run of `odgen check --jobs 1`), start_ms_per_run (`odgen
+--version`: starting the process and nothing else) and spawn_ms_per_run (`true`: what starting
+any program from here costs).
 """
 
 import json
 import resource
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -29,15 +32,23 @@ def main():
     figures = {}
     with tempfile.TemporaryDirectory() as d:
         report = os.path.join(d, "report.txt")
-        for name, extra in (("default", []), ("notes", ["--notes"]), ("one_thread", ["--jobs", "1"])):
+        check = [odgen, "check"]
+        variants = (
+            ("default", [*check, *paths]),
+            ("notes", [*check, "--notes", *paths]),
+            ("one_thread", [*check, "--jobs", "1", *paths]),
+            ("start", [odgen, "--version"]),
+            ("spawn", [shutil.which("true") or "/bin/true"]),
+        )
+        for name, command in variants:
             with open(report, "wb") as out:
-                subprocess.run([odgen, "check", *extra, *paths], stdout=out, stderr=subprocess.DEVNULL)  # warm-up
+                subprocess.run(command, stdout=out, stderr=subprocess.DEVNULL)  # warm-up
             before = resource.getrusage(resource.RUSAGE_CHILDREN)
             each = []
             for _ in range(runs):
                 with open(report, "wb") as out:
                     start = time.perf_counter()
-                    subprocess.run([odgen, "check", *extra, *paths], stdout=out, stderr=subprocess.DEVNULL)
+                    subprocess.run(command, stdout=out, stderr=subprocess.DEVNULL)
                     each.append(time.perf_counter() - start)
             seconds = sum(each)
             after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -49,6 +60,7 @@ def main():
         "ms_per_run": seconds * 1e3 / runs, "out_bytes": out_bytes, "cpu_ms_per_run": cpu * 1e3 / runs,
         "notes_ms_per_run": figures["notes"][0] * 1e3 / runs, "notes_out_bytes": figures["notes"][1],
         "run_ms": each, "one_thread_run_ms": figures["one_thread"][3],
+        "start_ms_per_run": figures["start"][0] * 1e3 / runs, "spawn_ms_per_run": figures["spawn"][0] * 1e3 / runs,
     }))
 
 
