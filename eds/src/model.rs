@@ -16,6 +16,7 @@ use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
+pub use crate::name::Name;
 use crate::source::Span;
 
 /// An object index (0x0000..=0xFFFF).
@@ -581,7 +582,7 @@ pub struct Entry {
     /// Sub-index (0 for a VAR object).
     pub sub: SubIndex,
     /// `ParameterName`.
-    pub name: String,
+    pub name: Name,
     /// `DataType`.
     pub data_type: DataType,
     /// `AccessType`.
@@ -639,7 +640,7 @@ impl EntryExtras {
 
 impl Entry {
     /// An entry with these fields, no default value, no extras and no source position.
-    pub fn new(sub: u8, name: impl Into<String>, data_type: DataType, access: Access) -> Self {
+    pub fn new(sub: u8, name: impl Into<Name>, data_type: DataType, access: Access) -> Self {
         Entry {
             sub: SubIndex(sub),
             name: name.into(),
@@ -737,7 +738,7 @@ impl PartialEq for Entry {
 #[derive(Clone, Serialize, Deserialize)]
 struct EntryRepr {
     sub: SubIndex,
-    name: String,
+    name: Name,
     data_type: DataType,
     access: Access,
     pdo_mapping: bool,
@@ -814,7 +815,7 @@ impl From<Entry> for EntryRepr {
 ///
 /// ```
 /// use eds::model::*;
-/// let entry = |sub: u8| Entry { sub: SubIndex(sub), name: format!("Entry {sub}"),
+/// let entry = |sub: u8| Entry { sub: SubIndex(sub), name: format!("Entry {sub}").into(),
 ///     data_type: DataType::Unsigned8, access: Access::Ro, pdo_mapping: false, default: None,
 ///     extras: None, at: SourceRef::default() };
 /// let mut subs = SubMap::new();
@@ -1152,7 +1153,7 @@ pub struct Object {
     /// The index.
     pub index: Index,
     /// `ParameterName` of the object.
-    pub name: String,
+    pub name: Name,
     /// `ObjectType`.
     pub object_type: ObjectType,
     /// The object list that names it.

@@ -5,8 +5,8 @@ use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys};
 use super::{Crumbs, Ctx, otype};
 use crate::codes;
 use crate::model::{
-    Access, DataType, Entry, EntryExtras, FileKind, Index, Model, Object, ObjectMap, ObjectType, SourceRef, SubIndex,
-    SubMap, Value,
+    Access, DataType, Entry, EntryExtras, FileKind, Index, Model, Name, Object, ObjectMap, ObjectType, SourceRef,
+    SubIndex, SubMap, Value,
 };
 use crate::value::{self, Quirk, ValueError};
 
@@ -366,18 +366,18 @@ impl EntryBuilder<'_> {
         sec: &Section<'_>,
         keys: &ObjKeys<'_>,
         sub: u8,
-        name: Option<String>,
+        name: Option<Name>,
         defaults: EntryDefaults,
         context: Crumbs<'_>,
     ) -> Option<Entry> {
         let mut extra: Vec<(String, String)> = Vec::new();
-        let name = match name.or_else(|| keys.get(K_NAME).map(|kv| kv.value.to_owned())) {
+        let name = match name.or_else(|| keys.get(K_NAME).map(|kv| Name::from(kv.value))) {
             Some(n) => n,
             None => {
                 let d = cx.emit(codes::E0201, Some(sec.name_span), format!("[{}] lacks ParameterName", sec.name));
                 d.hint = Some("add `ParameterName=...`".into());
                 d.context = context.to_vec();
-                sec.name.to_owned()
+                Name::from(sec.name)
             }
         };
         let data_type = match keys.get(K_DTYPE) {
@@ -824,12 +824,12 @@ fn build_object(
     let ctx = Crumbs::object_named_by(index, sec.entries, sec.name);
     let keys = match_keys(cx, sec, &OBJ_KEYS, ctx, true);
     let mut name = match keys.get(K_NAME) {
-        Some(kv) => kv.value.to_owned(),
+        Some(kv) => Name::from(kv.value),
         None => {
             let d = cx.emit(codes::E0201, Some(sec.name_span), format!("[{}] lacks ParameterName", sec.name));
             d.hint = Some("add `ParameterName=...`".into());
             d.context = ctx.to_vec();
-            String::new()
+            Name::new()
         }
     };
     let has_compact = keys.get(K_COMPACT).is_some();
@@ -1067,7 +1067,7 @@ fn expand_compact(
         SubIndex(0),
         Entry {
             sub: SubIndex(0),
-            name: "NrOfObjects".to_owned(),
+            name: Name::from("NrOfObjects"),
             data_type: DataType::Unsigned8,
             access: Access::Ro,
             pdo_mapping: false,
@@ -1116,9 +1116,7 @@ fn expand_compact(
     let base = &obj.name;
     obj.subs.extend_with(1..=n, |s| {
         let digits = super::decimal_u8(s);
-        let mut name = String::with_capacity(base.len() + digits.len());
-        name.push_str(base);
-        name.push_str(digits);
+        let name = base.with_suffix(digits);
         Entry {
             sub: SubIndex(s),
             name,
@@ -1133,7 +1131,7 @@ fn expand_compact(
     if let Some(ns) = names {
         for (k, kv) in numbered(cx, ns, &NR_OF_ENTRIES, ctx) {
             match obj.subs.get_mut(&SubIndex(k.min(256) as u8)).filter(|_| (1..=n as u32).contains(&k)) {
-                Some(e) => e.name = kv.value.to_owned(),
+                Some(e) => e.name = Name::from(kv.value),
                 None => {
                     let d = cx.emit(
                         codes::E0214,
