@@ -59,7 +59,7 @@ pub(crate) fn lower_reusing(
         cx.diags = std::mem::take(&mut scratch.diags);
         cx.diags.clear();
     }
-    let collected = sections::collect(doc, &mut cx, scratch);
+    let mut collected = sections::collect(doc, &mut cx, scratch);
     let secs = collected.sections();
     let mut model = Model::default();
     info::lower_info(&secs, &mut model, &mut cx);
@@ -69,8 +69,9 @@ pub(crate) fn lower_reusing(
     let lists = info::lower_object_lists(&secs, &mut cx);
     objects::lower_objects(&secs, &lists, &mut model, &mut cx);
     validate::validate(&secs, &lists, &model, &mut cx);
-    drop((secs, lists));
-    scratch.keep(collected);
+    drop(lists);
+    let list = sections::reuse(secs.list);
+    scratch.keep(collected, list);
     cx.report_left_out();
     let not_kept = cx.not_kept;
     let mut diags = cx.diags;

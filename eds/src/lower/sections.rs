@@ -214,7 +214,7 @@ impl<'a> Sections<'a> {
 }
 
 /// A section as [`collect`] finds it: its entries are a range of [`Collected::entries`].
-struct Head<'a> {
+pub(crate) struct Head<'a> {
     name: &'a str,
     name_span: Span,
     at: LineCol,
@@ -252,11 +252,12 @@ pub(crate) struct Scratch {
 }
 
 impl Scratch {
-    /// Keeps the buffers of `collected` (emptied) for the next file.
-    pub fn keep(&mut self, collected: Collected<'_>) {
+    /// Keeps the buffers of `collected` (emptied) for the next file, and the allocation of
+    /// its list of sections (made from its heads' by [`Collected::sections`]) for the heads.
+    pub fn keep(&mut self, collected: Collected<'_>, sections: Vec<Head<'static>>) {
         let Collected { entries, heads, by_kind } = collected;
         self.entries = reuse(entries);
-        self.heads = reuse(heads);
+        self.heads = if sections.capacity() >= heads.capacity() { sections } else { reuse(heads) };
         self.by_kind = by_kind;
     }
 }
@@ -283,20 +284,23 @@ pub(crate) fn with_room<T>(mut v: Vec<T>, n: usize) -> Vec<T> {
 }
 
 impl<'d> Collected<'d> {
-    /// The sections, borrowing their entries.
-    pub fn sections(&self) -> Sections<'_> {
-        let list = self
-            .heads
-            .iter()
+    /// The sections, borrowing their entries. The list is made on the heads' own allocation (a
+    /// head and a section have one layout: the range of entries becomes the slice), so it
+    /// touches no fresh memory; [`Scratch::keep`] takes it back.
+    pub fn sections(&mut self) -> Sections<'_> {
+        let heads = std::mem::take(&mut self.heads);
+        let this: &Self = self;
+        let list = heads
+            .into_iter()
             .map(|h| Section {
                 name: h.name,
                 name_span: h.name_span,
                 at: h.at,
                 kind: h.kind,
-                entries: &self.entries[h.entries.clone()],
+                entries: &this.entries[h.entries],
             })
             .collect();
-        Sections { list, by_kind: &self.by_kind }
+        Sections { list, by_kind: &this.by_kind }
     }
 }
 
@@ -1328,12 +1332,18 @@ mod tests {
         let text = "[FileInfo]\r[DeviceInfo]\r\n  [1000]\nK=v\r\r \u{e4}\u{e4}\r [1001]\n\t[2000]\n[ä]\r\n [3000]";
         let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text));
         let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
-        let collected = collect(&doc, &mut cx, &mut Scratch::default());
+        let mut collected = collect(&doc, &mut cx, &mut Scratch::default());
+        let heads = collected.heads.as_ptr() as usize;
         let secs = collected.sections();
+        // The list is the heads' allocation, not a new one.
+        assert_eq!(secs.list.as_ptr() as usize, heads);
         assert_eq!(secs.list.len(), 7);
         for sec in &secs.list {
             assert_eq!(sec.at, doc.source.line_col(sec.name_span.start), "[{}]", sec.name);
         }
+        // And it goes back to being the heads' buffer for the next file.
+        let back: Vec<Head<'static>> = reuse(secs.list);
+        assert_eq!(back.as_ptr() as usize, heads);
     }
 
     /// Repeated unknown keys are found the same way with few and with many unknown keys.
@@ -1347,7 +1357,7 @@ mod tests {
             text.push_str("xY=1\n2=0x2000\nXy=2\n");
             let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text));
             let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
-            let collected = collect(&doc, &mut cx, &mut Scratch::default());
+            let mut collected = collect(&doc, &mut cx, &mut Scratch::default());
             let secs = collected.sections();
             let keys = match_keys(&mut cx, &secs.list[0], &KeySet::new(["SupportedObjects"]), Crumbs::default(), false);
             // Each key once: `2` and `xY` keep their first place with their later values.
