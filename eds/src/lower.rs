@@ -53,12 +53,8 @@ pub(crate) fn lower_reusing(
     options: &Options,
     scratch: &mut Scratch,
 ) -> (Model, Vec<Diagnostic>, crate::NotKept) {
-    let mut cx = Ctx::new(&doc.source, options.strictness);
+    let mut cx = Ctx::reusing(&doc.source, options.strictness, std::mem::take(&mut scratch.diags), scratch.room_for);
     cx.least_kept = options.least_kept();
-    if scratch.diags.capacity() > cx.diags.capacity() {
-        cx.diags = std::mem::take(&mut scratch.diags);
-        cx.diags.clear();
-    }
     let mut collected = sections::collect(doc, &mut cx, scratch);
     let secs = collected.sections();
     let mut model = Model::default();
@@ -197,14 +193,23 @@ pub const MAX_KEPT: usize = 100_000;
 
 impl<'a> Ctx<'a> {
     /// A context for lowering `src` at `strictness`.
+    #[cfg(test)]
     pub fn new(src: &'a SourceFile, strictness: Strictness) -> Self {
+        Self::reusing(src, strictness, Vec::new(), 0)
+    }
+
+    /// [`Ctx::new`], its diagnostics put in `diags` (emptied), with room for those of a file of
+    /// `room_for` bytes if `src` is smaller.
+    pub fn reusing(src: &'a SourceFile, strictness: Strictness, diags: Vec<Diagnostic>, room_for: usize) -> Self {
         Ctx {
             src,
             strictness,
             // The real files we test with have a diagnostic per 435 bytes on average: room for
             // one per 256 bytes means few files grow the vector (each growth copies every
-            // diagnostic so far, onto fresh memory). Room never written costs no memory.
-            diags: Vec::with_capacity(src.text.len() / 256 + 32),
+            // diagnostic so far, onto fresh memory). Room never written costs no memory, and a
+            // reader gives room for the size it expects (files read one after another, largest
+            // or not, then share one vector that does not grow).
+            diags: sections::with_room(diags, src.text.len().max(room_for) / 256 + 32),
             severities: [(0, Severity::Note); 16],
             file: None,
             counts: Vec::new(),
