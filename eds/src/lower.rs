@@ -168,6 +168,8 @@ pub(crate) struct Ctx<'a> {
     pub least_kept: crate::diag::Severity,
     /// The diagnostics less severe than that, counted.
     pub not_kept: crate::NotKept,
+    /// A buffer for the quirks of one value at a time (taken and put back around each use).
+    pub quirks: Vec<crate::value::Quirk>,
 }
 
 /// Implicit CompactSubObj elements a file of `len` bytes may declare: 65,536 (256 full arrays;
@@ -218,6 +220,7 @@ impl<'a> Ctx<'a> {
             implicit_exceeded: false,
             least_kept: crate::diag::Severity::Note,
             not_kept: crate::NotKept::default(),
+            quirks: Vec::new(),
         }
     }
 

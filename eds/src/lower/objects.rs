@@ -106,18 +106,33 @@ fn uint_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u32, context: Crumbs<'_>) -> Res
 /// [`uint_key`] for the forms that are not plain (kept out of line: most values are plain).
 #[inline(never)]
 fn uint_key_general(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u32, context: Crumbs<'_>) -> Result<u32, ()> {
-    let mut quirks = Vec::new();
-    let mut parsed = value::parse_int(kv.value, &mut quirks);
+    // (The context's buffer of quirks, taken out while they are reported.)
+    let mut quirks = std::mem::take(&mut cx.quirks);
+    quirks.clear();
+    let read = uint_key_quirks(cx, kv, max, context, &mut quirks);
+    cx.quirks = quirks;
+    read
+}
+
+/// [`uint_key_general`], its quirks found in `quirks` (empty).
+fn uint_key_quirks(
+    cx: &mut Ctx<'_>,
+    kv: &Kv<'_>,
+    max: u32,
+    context: Crumbs<'_>,
+    quirks: &mut Vec<value::Quirk>,
+) -> Result<u32, ()> {
+    let mut parsed = value::parse_int(kv.value, quirks);
     if parsed.is_err()
         && let Some(head) = before_comment(kv.value)
-        && let Ok(p) = value::parse_int(head, &mut quirks)
+        && let Ok(p) = value::parse_int(head, quirks)
     {
         inline_comment(cx, kv, head, context);
         parsed = Ok(p);
     }
     match parsed {
         Ok(p) if p.value >= 0 && p.value <= max as i128 => {
-            report_quirks(cx, kv, &quirks, context);
+            report_quirks(cx, kv, quirks, context);
             Ok(p.value as u32)
         }
         _ => Err(()),
@@ -246,11 +261,28 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -
     if let Some(v) = plain_int_value(kv.value, ty) {
         return Ok(Some(v));
     }
-    let mut parsed = value::parse_value(kv.value, ty);
+    // The quirks go to the context's buffer (reused from value to value), taken out while the
+    // value is reported.
+    let mut quirks = std::mem::take(&mut cx.quirks);
+    quirks.clear();
+    let read = value_key_general(cx, kv, ty, context, &mut quirks);
+    cx.quirks = quirks;
+    read
+}
+
+/// [`value_key`] for a value that is not a plain number, its quirks found in `quirks` (empty).
+fn value_key_general(
+    cx: &mut Ctx<'_>,
+    kv: &Kv<'_>,
+    ty: DataType,
+    context: Crumbs<'_>,
+    quirks: &mut Vec<value::Quirk>,
+) -> Result<Option<Value>, ()> {
+    let mut parsed = value::parse_value_into(kv.value, ty, quirks);
     if let DataType::Other(_) = ty {
         // The type is not known here: keep what cannot be read as a number as text.
         return Ok(match parsed {
-            Ok(p) => p.value,
+            Ok(v) => v,
             Err(_) => Some(Value::Text(kv.value.to_owned())),
         });
     }
@@ -258,17 +290,20 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -
     if parsed.is_err()
         && !string_type
         && let Some(head) = before_comment(kv.value)
-        && let Ok(p) = value::parse_value(head, ty)
     {
-        inline_comment(cx, kv, head, context);
-        parsed = Ok(p);
+        // (Only the quirks of the reading that counts are reported.)
+        quirks.clear();
+        if let Ok(p) = value::parse_value_into(head, ty, quirks) {
+            inline_comment(cx, kv, head, context);
+            parsed = Ok(p);
+        }
     }
     match parsed {
         Ok(p) => {
-            if !p.quirks.is_empty() {
-                report_quirks(cx, kv, &p.quirks, context);
+            if !quirks.is_empty() {
+                report_quirks(cx, kv, quirks, context);
             }
-            if let Some(v) = &p.value
+            if let Some(v) = &p
                 && let Err(why) = value::check_range(v, ty)
             {
                 let d = cx.emit(codes::E0302, Some(kv.value_span()), format!("{} `{}`: {why}", kv.key, kv.value));
@@ -283,7 +318,7 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -
                     );
                 }
             }
-            Ok(p.value)
+            Ok(p)
         }
         Err(e) => {
             let d = cx.emit(
