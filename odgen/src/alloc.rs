@@ -43,56 +43,45 @@ const MI_OPTION_PURGE_DELAY: i32 = 15;
 /// purging only cost system time (18 `madvise` calls and the faults after them on the corpus);
 /// with it off, the pages stay and are reused. A process's peak memory is unchanged (memory
 /// is given back at exit).
+///
+/// Arenas are mimalloc's least, 32 MiB, rather than its default 1 GiB. Setting up an arena
+/// writes its bitmaps, in proportion to its size: for 1 GiB, 40 fresh pages before the first
+/// allocation (a fifth of `odgen --version`'s faults, and 5% of `odgen check`'s on the corpus).
+/// A process that needs more reserves more arenas, mimalloc doubling their size every eight.
+/// Small arenas also fit an address-space limit (`ulimit -v`): 1 GiB reservations failed there
+/// and were retried smaller on every thread that needed memory, and when two threads did so at
+/// once a large allocation could find no room left and abort the process (`odgen dump` of a
+/// 4 MB file under "10 x the input + 64 MB" aborted in 3 to 5 runs out of 150,
+/// `tests/memory.rs`).
 pub(crate) fn tune() {
     // SAFETY: mi_option_set only stores the value of a known option (it may be called at any
     // time; mimalloc reads the option when it next considers purging).
     unsafe { mi_option_set(MI_OPTION_PURGE_DELAY, -1) }
-    if let Some(limit) = address_space_limit() {
-        // SAFETY: as above; mimalloc reads this option each time it reserves an arena.
-        unsafe { mi_option_set(MI_OPTION_ARENA_RESERVE, arena_reserve_kib(limit)) }
-    }
+    // SAFETY: as above; mimalloc reads this option each time it reserves an arena (the first
+    // time at the first allocation, after this).
+    unsafe { mi_option_set(MI_OPTION_ARENA_RESERVE, ARENA_RESERVE_KIB) }
 }
+
+/// [`tune`], run by the C runtime before `main` (an ELF constructor): the Rust runtime
+/// allocates before `main` runs (the main thread's name and stack guard), and mimalloc reserves
+/// its first arena at the first allocation, with the options it has then. (`main` calls `tune`
+/// too, for targets without `.init_array`; setting the options again changes nothing.)
+#[cfg(target_os = "linux")]
+#[used]
+#[unsafe(link_section = ".init_array")]
+static TUNE_BEFORE_MAIN: extern "C" fn() = {
+    extern "C" fn before_main() {
+        tune()
+    }
+    before_main
+};
 
 /// `mi_option_arena_reserve` in mimalloc v3's `mi_option_t`: the address space an arena
 /// reserves, in KiB (1 GiB by default).
 const MI_OPTION_ARENA_RESERVE: i32 = 23;
 
-/// The arena size for a process whose address space is limited to `limit` bytes
-/// (`ulimit -v`): an eighth of it, at least mimalloc's least arena (32 MiB) and at most its
-/// default (1 GiB).
-///
-/// By default every arena reserves 1 GiB. Under a limit of, say, 100 MB each reservation
-/// fails, and mimalloc falls back to smaller ones (128 MiB, then less) on every thread that
-/// needs memory, until one fits; when two threads did so at once, each holding address space
-/// for its attempt, a large allocation could find no room left and abort the process: `odgen
-/// dump` of a 4 MB file under "10 x the input + 64 MB" aborted in 3 to 5 runs out of 150
-/// (`tests/memory.rs`). Arenas sized to the limit are reserved at the first attempt.
-fn arena_reserve_kib(limit: u64) -> std::ffi::c_long {
-    let kib = (limit / 8 / 1024).clamp(32 * 1024, 1024 * 1024);
-    std::ffi::c_long::try_from(kib).unwrap_or(32 * 1024)
-}
-
-/// The process's address-space limit (`RLIMIT_AS`) in bytes, when it has one.
-#[cfg(all(target_os = "linux", any(target_arch = "x86_64", target_arch = "aarch64", target_arch = "riscv64")))]
-fn address_space_limit() -> Option<u64> {
-    /// `RLIMIT_AS` on these architectures (the generic Linux numbering).
-    const RLIMIT_AS: i32 = 9;
-    unsafe extern "C" {
-        fn getrlimit(resource: i32, rlim: *mut [u64; 2]) -> i32;
-    }
-    let mut rlim = [0u64; 2];
-    // SAFETY: getrlimit writes the two 64-bit fields of `struct rlimit` (current and maximum
-    // limit; `rlim_t` is 64 bits on these 64-bit targets) into `rlim`, which has room for them.
-    let ok = unsafe { getrlimit(RLIMIT_AS, &mut rlim) } == 0;
-    // (RLIM_INFINITY is all ones.)
-    (ok && rlim[0] != u64::MAX).then_some(rlim[0])
-}
-
-/// Elsewhere no limit is looked for: mimalloc keeps its default arenas.
-#[cfg(not(all(target_os = "linux", any(target_arch = "x86_64", target_arch = "aarch64", target_arch = "riscv64"))))]
-fn address_space_limit() -> Option<u64> {
-    None
-}
+/// The arena size: mimalloc's least (`MI_ARENA_MIN_SIZE`, 32 MiB on 64-bit targets).
+const ARENA_RESERVE_KIB: std::ffi::c_long = 32 * 1024;
 
 // SAFETY: each method forwards to the mimalloc function with the same contract as the
 // `GlobalAlloc` method (a block of at least `size` bytes, or null on failure; `mi_free` and
@@ -147,14 +136,20 @@ unsafe impl GlobalAlloc for Mimalloc {
 mod tests {
     use super::*;
 
-    /// Arenas are an eighth of the limit, between mimalloc's least (32 MiB) and its default.
+    /// mimalloc reserves arenas of 32 MiB and never purges: on Linux from before `main` (this
+    /// test does not call `tune` first there), elsewhere once `tune` has run.
     #[test]
-    fn arenas_fit_the_address_space_limit() {
-        assert_eq!(arena_reserve_kib(100 << 20), 32 * 1024);
-        assert_eq!(arena_reserve_kib(1 << 30), 128 * 1024);
-        assert_eq!(arena_reserve_kib(64 << 30), 1024 * 1024);
-        assert_eq!(arena_reserve_kib(u64::MAX - 1), 1024 * 1024);
-        assert_eq!(arena_reserve_kib(0), 32 * 1024);
+    fn tune_sets_the_options() {
+        unsafe extern "C" {
+            fn mi_option_get(option: i32) -> std::ffi::c_long;
+        }
+        if !cfg!(target_os = "linux") {
+            tune();
+        }
+        // SAFETY: mi_option_get reads the value of a known option.
+        let (reserve, purge) =
+            unsafe { (mi_option_get(MI_OPTION_ARENA_RESERVE), mi_option_get(MI_OPTION_PURGE_DELAY)) };
+        assert_eq!((reserve, purge), (32 * 1024, -1));
     }
 
     /// Every size and alignment gets a block that is aligned, writable over its whole size, and
