@@ -774,7 +774,7 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
     let mut next = 0;
     // The objects in file order: sorted once at the end if the file did not list them in
     // ascending order (inserting each into the sorted map would move the later ones every time).
-    let mut built: Vec<(Index, Object)> = Vec::with_capacity(objects.len());
+    let mut built: Vec<Object> = Vec::with_capacity(objects.len());
     for &(index, sec) in &objects {
         let mut from = next;
         if from > 0 && sub_indices[from - 1] >= index {
@@ -817,12 +817,12 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
             }
         }
         obj.category = lists.listed.get(&index).map(|&(c, _)| c).unwrap_or_else(|| expected_category(index));
-        built.push((Index(index), obj));
+        built.push(obj);
     }
     if model.objects.is_empty() {
-        model.objects = ObjectMap::from_vec(built);
+        model.objects = ObjectMap::from_values(built);
     } else {
-        model.objects.extend(built);
+        model.objects.extend(built.into_iter().map(|o| (o.index, o)));
     }
     // Sub-objects and side sections without an object section.
     // Both index lists are sorted: one walk along them finds the sub-objects of no object.
