@@ -116,17 +116,21 @@ impl Kind {
 pub(crate) struct KindIndex {
     fixed: [Option<u32>; 8],
     sorted: Vec<(u32, u32)>,
+    /// The number of sections the file is expected to have at most (the hash map's room).
+    expected: usize,
     hashed: FastMap<u32, u32>,
     /// Whether the object sections are in `hashed` (else in `sorted`).
     is_hashed: bool,
 }
 
 impl KindIndex {
-    /// Empties the index (keeping its memory) with room for `n` sections.
-    fn reset(&mut self, n: usize) {
+    /// Empties the index (keeping its memory) for a file of about `n` sections, with room in
+    /// the sorted vector for `room` (an emptied vector too small is replaced, not grown: growing
+    /// would copy its old block onto fresh pages).
+    fn reset(&mut self, n: usize, room: usize) {
         self.fixed = [None; 8];
-        self.sorted.clear();
-        self.sorted.reserve(n);
+        self.sorted = with_room(std::mem::take(&mut self.sorted), n.max(room));
+        self.expected = n;
         self.hashed.clear();
         self.is_hashed = false;
     }
@@ -153,7 +157,7 @@ impl KindIndex {
                     Err(_) => {
                         // Out of order: hashed from now on (a sorted insertion would move the
                         // later sections each time).
-                        self.hashed.reserve(self.sorted.capacity());
+                        self.hashed.reserve(self.expected.max(self.sorted.len()));
                         self.hashed.extend(self.sorted.drain(..));
                         self.is_hashed = true;
                     }
@@ -537,7 +541,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     let room = text.len().max(scratch.room_for);
     let mut heads: Vec<Head<'a>> = with_room(reuse(std::mem::take(&mut scratch.heads)), room / 48 + 8);
     let mut by_kind = std::mem::take(&mut scratch.by_kind);
-    by_kind.reset(sections);
+    by_kind.reset(sections, room / 48 + 8);
     // Sections of unknown kind, by name in ASCII lower case (names are matched ignoring ASCII
     // case). Real files have few; a file of many must not cost a scan of all the others each,
     // and the names are the file's choice: the standard (keyed) hasher, not `FastMap`'s.
@@ -1179,7 +1183,7 @@ mod tests {
         }
         for order in orders {
             let mut index = KindIndex::default();
-            index.reset(4);
+            index.reset(4, 4);
             let mut map = std::collections::HashMap::new();
             for (n, &k) in order.iter().enumerate() {
                 let want = map.get(&k).copied();
