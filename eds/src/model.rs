@@ -908,16 +908,18 @@ impl<K: Ord + Copy, V: Keyed<K>> VecMap<K, V> {
         if values.is_sorted_by(|a, b| a.key() < b.key()) {
             return VecMap { entries: values, key: std::marker::PhantomData };
         }
-        // Stable: equal keys keep their order, so that the last of them can be kept.
+        // Stable: equal keys keep their order, so that the last of them can be kept. Repeats
+        // are dropped in place (no second vector): of a run of equal keys, each later value
+        // takes the place of the one kept so far.
         values.sort_by_key(|v| *v.key());
-        let mut out: Vec<V> = Vec::with_capacity(values.len());
-        for v in values {
-            match out.last_mut() {
-                Some(last) if last.key() == v.key() => *last = v,
-                _ => out.push(v),
+        values.dedup_by(|later, kept| {
+            let same = later.key() == kept.key();
+            if same {
+                std::mem::swap(later, kept);
             }
-        }
-        VecMap { entries: out, key: std::marker::PhantomData }
+            same
+        });
+        VecMap { entries: values, key: std::marker::PhantomData }
     }
 
     /// The number of entries.
