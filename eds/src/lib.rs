@@ -12,12 +12,14 @@ pub mod encoding;
 pub mod lex;
 pub mod lower;
 pub mod model;
+pub mod name;
 pub mod source;
 pub mod value;
 pub mod write;
 
 pub use diag::{Code, Diagnostic, Severity};
 pub use model::*;
+pub use name::Name;
 
 /// How strictly a file is judged.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]

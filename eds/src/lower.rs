@@ -53,13 +53,9 @@ pub(crate) fn lower_reusing(
     options: &Options,
     scratch: &mut Scratch,
 ) -> (Model, Vec<Diagnostic>, crate::NotKept) {
-    let mut cx = Ctx::new(&doc.source, options.strictness);
+    let mut cx = Ctx::reusing(&doc.source, options.strictness, std::mem::take(&mut scratch.diags), scratch.room_for);
     cx.least_kept = options.least_kept();
-    if scratch.diags.capacity() > cx.diags.capacity() {
-        cx.diags = std::mem::take(&mut scratch.diags);
-        cx.diags.clear();
-    }
-    let collected = sections::collect(doc, &mut cx, scratch);
+    let mut collected = sections::collect(doc, &mut cx, scratch);
     let secs = collected.sections();
     let mut model = Model::default();
     info::lower_info(&secs, &mut model, &mut cx);
@@ -69,8 +65,9 @@ pub(crate) fn lower_reusing(
     let lists = info::lower_object_lists(&secs, &mut cx);
     objects::lower_objects(&secs, &lists, &mut model, &mut cx);
     validate::validate(&secs, &lists, &model, &mut cx);
-    drop((secs, lists));
-    scratch.keep(collected);
+    drop(lists);
+    let list = sections::reuse(secs.list);
+    scratch.keep(collected, list);
     cx.report_left_out();
     let not_kept = cx.not_kept;
     let mut diags = cx.diags;
@@ -171,6 +168,8 @@ pub(crate) struct Ctx<'a> {
     pub least_kept: crate::diag::Severity,
     /// The diagnostics less severe than that, counted.
     pub not_kept: crate::NotKept,
+    /// A buffer for the quirks of one value at a time (taken and put back around each use).
+    pub quirks: Vec<crate::value::Quirk>,
 }
 
 /// Implicit CompactSubObj elements a file of `len` bytes may declare: 65,536 (256 full arrays;
@@ -196,14 +195,23 @@ pub const MAX_KEPT: usize = 100_000;
 
 impl<'a> Ctx<'a> {
     /// A context for lowering `src` at `strictness`.
+    #[cfg(test)]
     pub fn new(src: &'a SourceFile, strictness: Strictness) -> Self {
+        Self::reusing(src, strictness, Vec::new(), 0)
+    }
+
+    /// [`Ctx::new`], its diagnostics put in `diags` (emptied), with room for those of a file of
+    /// `room_for` bytes if `src` is smaller.
+    pub fn reusing(src: &'a SourceFile, strictness: Strictness, diags: Vec<Diagnostic>, room_for: usize) -> Self {
         Ctx {
             src,
             strictness,
             // The real files we test with have a diagnostic per 435 bytes on average: room for
             // one per 256 bytes means few files grow the vector (each growth copies every
-            // diagnostic so far, onto fresh memory). Room never written costs no memory.
-            diags: Vec::with_capacity(src.text.len() / 256 + 32),
+            // diagnostic so far, onto fresh memory). Room never written costs no memory, and a
+            // reader gives room for the size it expects (files read one after another, largest
+            // or not, then share one vector that does not grow).
+            diags: sections::with_room(diags, src.text.len().max(room_for) / 256 + 32),
             severities: [(0, Severity::Note); 16],
             file: None,
             counts: Vec::new(),
@@ -212,6 +220,7 @@ impl<'a> Ctx<'a> {
             implicit_exceeded: false,
             least_kept: crate::diag::Severity::Note,
             not_kept: crate::NotKept::default(),
+            quirks: Vec::new(),
         }
     }
 

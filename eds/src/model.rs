@@ -16,6 +16,7 @@ use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
+pub use crate::name::Name;
 use crate::source::Span;
 
 /// An object index (0x0000..=0xFFFF).
@@ -581,7 +582,7 @@ pub struct Entry {
     /// Sub-index (0 for a VAR object).
     pub sub: SubIndex,
     /// `ParameterName`.
-    pub name: String,
+    pub name: Name,
     /// `DataType`.
     pub data_type: DataType,
     /// `AccessType`.
@@ -639,7 +640,7 @@ impl EntryExtras {
 
 impl Entry {
     /// An entry with these fields, no default value, no extras and no source position.
-    pub fn new(sub: u8, name: impl Into<String>, data_type: DataType, access: Access) -> Self {
+    pub fn new(sub: u8, name: impl Into<Name>, data_type: DataType, access: Access) -> Self {
         Entry {
             sub: SubIndex(sub),
             name: name.into(),
@@ -737,7 +738,7 @@ impl PartialEq for Entry {
 #[derive(Clone, Serialize, Deserialize)]
 struct EntryRepr {
     sub: SubIndex,
-    name: String,
+    name: Name,
     data_type: DataType,
     access: Access,
     pdo_mapping: bool,
@@ -814,7 +815,7 @@ impl From<Entry> for EntryRepr {
 ///
 /// ```
 /// use eds::model::*;
-/// let entry = |sub: u8| Entry { sub: SubIndex(sub), name: format!("Entry {sub}"),
+/// let entry = |sub: u8| Entry { sub: SubIndex(sub), name: format!("Entry {sub}").into(),
 ///     data_type: DataType::Unsigned8, access: Access::Ro, pdo_mapping: false, default: None,
 ///     extras: None, at: SourceRef::default() };
 /// let mut subs = SubMap::new();
@@ -826,8 +827,44 @@ impl From<Entry> for EntryRepr {
 /// ```
 #[derive(Clone, PartialEq)]
 pub struct VecMap<K, V> {
-    /// Sorted by key, no key twice.
-    entries: Vec<(K, V)>,
+    /// Sorted by key, no key twice. Each value holds its key ([`Keyed`]), so it is stored
+    /// once: a `(SubIndex, Entry)` pair took 112 bytes (the entry's alignment padded the key to
+    /// 16), an entry alone 96.
+    entries: Vec<V>,
+    key: std::marker::PhantomData<fn() -> K>,
+}
+
+/// A value that holds its own key (an [`Entry`] its sub-index, an [`Object`] its index), so
+/// that a [`VecMap`] stores the key once. A map sets the key of each value it is given to the
+/// key it is given with; changing a value's key in place (through `get_mut` or `values_mut`)
+/// leaves the map out of order.
+pub trait Keyed<K> {
+    /// The key.
+    fn key(&self) -> &K;
+    /// Sets the key.
+    fn set_key(&mut self, key: K);
+}
+
+impl Keyed<SubIndex> for Entry {
+    #[inline]
+    fn key(&self) -> &SubIndex {
+        &self.sub
+    }
+    #[inline]
+    fn set_key(&mut self, key: SubIndex) {
+        self.sub = key;
+    }
+}
+
+impl Keyed<Index> for Object {
+    #[inline]
+    fn key(&self) -> &Index {
+        &self.index
+    }
+    #[inline]
+    fn set_key(&mut self, key: Index) {
+        self.index = key;
+    }
 }
 
 /// The entries of an object by sub-index (see [`VecMap`]).
@@ -841,38 +878,48 @@ pub type SubIter<'a> = MapIter<'a, SubIndex, Entry>;
 
 impl<K, V> Default for VecMap<K, V> {
     fn default() -> Self {
-        VecMap { entries: Vec::new() }
+        VecMap { entries: Vec::new(), key: std::marker::PhantomData }
     }
 }
 
-impl<K: Ord + Copy, V> VecMap<K, V> {
+/// `value` with its key set to `key`.
+#[inline]
+fn keyed<K, V: Keyed<K>>(key: K, mut value: V) -> V {
+    value.set_key(key);
+    value
+}
+
+impl<K: Ord + Copy, V: Keyed<K>> VecMap<K, V> {
     /// An empty map (allocates nothing).
     pub const fn new() -> Self {
-        VecMap { entries: Vec::new() }
+        VecMap { entries: Vec::new(), key: std::marker::PhantomData }
     }
 
     /// An empty map with room for `n` entries.
     pub fn with_capacity(n: usize) -> Self {
-        VecMap { entries: Vec::with_capacity(n) }
+        VecMap { entries: Vec::with_capacity(n), key: std::marker::PhantomData }
     }
 
-    /// A map of `entries`, which may come in any order; of entries with the same key the last
-    /// one is kept, as collecting into a `BTreeMap` does. Entries that come sorted (as lowering
-    /// makes them, most of the time) are taken as they are, without moving them.
-    pub(crate) fn from_vec(mut entries: Vec<(K, V)>) -> Self {
-        if entries.is_sorted_by(|a, b| a.0 < b.0) {
-            return VecMap { entries };
+    /// A map of `values`, which may come in any order, each holding its key; of values with
+    /// the same key the last one is kept, as collecting into a `BTreeMap` does. Values that
+    /// come sorted (as lowering makes them, most of the time) are taken as they are, without
+    /// moving them.
+    pub(crate) fn from_values(mut values: Vec<V>) -> Self {
+        if values.is_sorted_by(|a, b| a.key() < b.key()) {
+            return VecMap { entries: values, key: std::marker::PhantomData };
         }
-        // Stable: equal keys keep their order, so that the last of them can be kept.
-        entries.sort_by_key(|e| e.0);
-        let mut out: Vec<(K, V)> = Vec::with_capacity(entries.len());
-        for e in entries {
-            match out.last_mut() {
-                Some(last) if last.0 == e.0 => *last = e,
-                _ => out.push(e),
+        // Stable: equal keys keep their order, so that the last of them can be kept. Repeats
+        // are dropped in place (no second vector): of a run of equal keys, each later value
+        // takes the place of the one kept so far.
+        values.sort_by_key(|v| *v.key());
+        values.dedup_by(|later, kept| {
+            let same = later.key() == kept.key();
+            if same {
+                std::mem::swap(later, kept);
             }
-        }
-        VecMap { entries: out }
+            same
+        });
+        VecMap { entries: values, key: std::marker::PhantomData }
     }
 
     /// The number of entries.
@@ -888,24 +935,24 @@ impl<K: Ord + Copy, V> VecMap<K, V> {
     /// Where `key` is, or where it would go.
     #[inline]
     fn find(&self, key: K) -> Result<usize, usize> {
-        self.entries.binary_search_by_key(&key, |(k, _)| *k)
+        self.entries.binary_search_by_key(&key, |v| *v.key())
     }
 
     /// The value at `key`.
     #[inline]
     pub fn get(&self, key: &K) -> Option<&V> {
-        self.find(*key).ok().map(|i| &self.entries[i].1)
+        self.find(*key).ok().map(|i| &self.entries[i])
     }
 
     /// The value at `key`, to change it.
     #[inline]
     pub fn get_mut(&mut self, key: &K) -> Option<&mut V> {
-        self.find(*key).ok().map(|i| &mut self.entries[i].1)
+        self.find(*key).ok().map(|i| &mut self.entries[i])
     }
 
     /// The key and value at `key`.
     pub fn get_key_value(&self, key: &K) -> Option<(&K, &V)> {
-        self.find(*key).ok().map(|i| (&self.entries[i].0, &self.entries[i].1))
+        self.find(*key).ok().map(|i| (self.entries[i].key(), &self.entries[i]))
     }
 
     /// Whether there is a value at `key`.
@@ -914,18 +961,18 @@ impl<K: Ord + Copy, V> VecMap<K, V> {
         self.find(*key).is_ok()
     }
 
-    /// Puts `value` at `key` and returns the value that was there. Adding in key order costs
-    /// no search.
+    /// Puts `value` at `key` (setting its key to `key`) and returns the value that was there.
+    /// Adding in key order costs no search.
     #[inline]
     pub fn insert(&mut self, key: K, value: V) -> Option<V> {
-        if self.entries.last().is_none_or(|(last, _)| *last < key) {
-            self.entries.push((key, value));
+        if self.entries.last().is_none_or(|last| *last.key() < key) {
+            self.entries.push(keyed(key, value));
             return None;
         }
         match self.find(key) {
-            Ok(i) => Some(std::mem::replace(&mut self.entries[i].1, value)),
+            Ok(i) => Some(std::mem::replace(&mut self.entries[i], keyed(key, value))),
             Err(i) => {
-                self.entries.insert(i, (key, value));
+                self.entries.insert(i, keyed(key, value));
                 None
             }
         }
@@ -937,21 +984,24 @@ impl<K: Ord + Copy, V> VecMap<K, V> {
         let i = match self.find(key) {
             Ok(i) => i,
             Err(i) => {
-                self.entries.insert(i, (key, make()));
+                self.entries.insert(i, keyed(key, make()));
                 i
             }
         };
-        &mut self.entries[i].1
+        &mut self.entries[i]
     }
 
     /// Takes out the value at `key`.
     pub fn remove(&mut self, key: &K) -> Option<V> {
-        self.find(*key).ok().map(|i| self.entries.remove(i).1)
+        self.find(*key).ok().map(|i| self.entries.remove(i))
     }
 
     /// Keeps the entries for which `keep` says so.
     pub fn retain(&mut self, mut keep: impl FnMut(&K, &mut V) -> bool) {
-        self.entries.retain_mut(|(k, v)| keep(k, v));
+        self.entries.retain_mut(|v| {
+            let k = *v.key();
+            keep(&k, v)
+        });
     }
 
     /// Removes every entry.
@@ -961,53 +1011,53 @@ impl<K: Ord + Copy, V> VecMap<K, V> {
 
     /// The entry with the lowest key.
     pub fn first_key_value(&self) -> Option<(&K, &V)> {
-        self.entries.first().map(|(k, v)| (k, v))
+        self.entries.first().map(|v| (v.key(), v))
     }
 
     /// The entry with the highest key.
     pub fn last_key_value(&self) -> Option<(&K, &V)> {
-        self.entries.last().map(|(k, v)| (k, v))
+        self.entries.last().map(|v| (v.key(), v))
     }
 
     /// The entries in key order.
     pub fn iter(&self) -> MapIter<'_, K, V> {
-        MapIter(self.entries.iter())
+        MapIter(self.entries.iter(), std::marker::PhantomData)
     }
 
-    /// The entries in key order, to change them.
-    pub fn iter_mut(&mut self) -> impl DoubleEndedIterator<Item = (&K, &mut V)> + ExactSizeIterator {
-        self.entries.iter_mut().map(|(k, v)| (&*k, v))
+    /// The entries in key order, to change them (each key a copy: the value holds it).
+    pub fn iter_mut(&mut self) -> impl DoubleEndedIterator<Item = (K, &mut V)> + ExactSizeIterator {
+        self.entries.iter_mut().map(|v| (*v.key(), v))
     }
 
     /// The keys in order.
     pub fn keys(&self) -> impl DoubleEndedIterator<Item = &K> + ExactSizeIterator + Clone {
-        self.entries.iter().map(|(k, _)| k)
+        self.entries.iter().map(|v| v.key())
     }
 
     /// The values in key order.
     pub fn values(&self) -> impl DoubleEndedIterator<Item = &V> + ExactSizeIterator + Clone {
-        self.entries.iter().map(|(_, v)| v)
+        self.entries.iter()
     }
 
     /// The values in key order, to change them.
     pub fn values_mut(&mut self) -> impl DoubleEndedIterator<Item = &mut V> + ExactSizeIterator {
-        self.entries.iter_mut().map(|(_, v)| v)
+        self.entries.iter_mut()
     }
 
     /// The entries whose key lies in `range`, in order.
     pub fn range(&self, range: impl std::ops::RangeBounds<K>) -> MapIter<'_, K, V> {
         use std::ops::Bound;
         let from = match range.start_bound() {
-            Bound::Included(k) => self.entries.partition_point(|(x, _)| x < k),
-            Bound::Excluded(k) => self.entries.partition_point(|(x, _)| x <= k),
+            Bound::Included(k) => self.entries.partition_point(|v| v.key() < k),
+            Bound::Excluded(k) => self.entries.partition_point(|v| v.key() <= k),
             Bound::Unbounded => 0,
         };
         let to = match range.end_bound() {
-            Bound::Included(k) => self.entries.partition_point(|(x, _)| x <= k),
-            Bound::Excluded(k) => self.entries.partition_point(|(x, _)| x < k),
+            Bound::Included(k) => self.entries.partition_point(|v| v.key() <= k),
+            Bound::Excluded(k) => self.entries.partition_point(|v| v.key() < k),
             Bound::Unbounded => self.entries.len(),
         };
-        MapIter(self.entries[from..to.max(from)].iter())
+        MapIter(self.entries[from..to.max(from)].iter(), std::marker::PhantomData)
     }
 }
 
@@ -1016,8 +1066,8 @@ impl VecMap<SubIndex, Entry> {
     /// a `CompactSubObj` array this way). When all of `keys` lie above the map's last key, the
     /// entries are made straight into the map's storage; otherwise each is inserted.
     pub(crate) fn extend_with(&mut self, keys: std::ops::RangeInclusive<u8>, mut make: impl FnMut(u8) -> Entry) {
-        if self.entries.last().is_none_or(|(last, _)| last.0 < *keys.start()) {
-            self.entries.extend(keys.map(|k| (SubIndex(k), make(k))));
+        if self.entries.last().is_none_or(|last| last.sub.0 < *keys.start()) {
+            self.entries.extend(keys.map(|k| keyed(SubIndex(k), make(k))));
         } else {
             for k in keys {
                 self.insert(SubIndex(k), make(k));
@@ -1028,20 +1078,20 @@ impl VecMap<SubIndex, Entry> {
 
 /// The iterator of [`VecMap::iter`]: `(&K, &V)` in key order.
 #[derive(Debug)]
-pub struct MapIter<'a, K, V>(std::slice::Iter<'a, (K, V)>);
+pub struct MapIter<'a, K, V>(std::slice::Iter<'a, V>, std::marker::PhantomData<fn() -> K>);
 
 impl<K, V> Clone for MapIter<'_, K, V> {
     fn clone(&self) -> Self {
-        MapIter(self.0.clone())
+        MapIter(self.0.clone(), std::marker::PhantomData)
     }
 }
 
-impl<'a, K, V> Iterator for MapIter<'a, K, V> {
+impl<'a, K: 'a, V: Keyed<K>> Iterator for MapIter<'a, K, V> {
     type Item = (&'a K, &'a V);
 
     #[inline]
     fn next(&mut self) -> Option<Self::Item> {
-        self.0.next().map(|(k, v)| (k, v))
+        self.0.next().map(|v| (v.key(), v))
     }
 
     fn size_hint(&self) -> (usize, Option<usize>) {
@@ -1049,17 +1099,17 @@ impl<'a, K, V> Iterator for MapIter<'a, K, V> {
     }
 }
 
-impl<K, V> DoubleEndedIterator for MapIter<'_, K, V> {
+impl<'a, K: 'a, V: Keyed<K>> DoubleEndedIterator for MapIter<'a, K, V> {
     fn next_back(&mut self) -> Option<Self::Item> {
-        self.0.next_back().map(|(k, v)| (k, v))
+        self.0.next_back().map(|v| (v.key(), v))
     }
 }
 
-impl<K, V> ExactSizeIterator for MapIter<'_, K, V> {}
+impl<'a, K: 'a, V: Keyed<K>> ExactSizeIterator for MapIter<'a, K, V> {}
 
-impl<K, V> std::iter::FusedIterator for MapIter<'_, K, V> {}
+impl<'a, K: 'a, V: Keyed<K>> std::iter::FusedIterator for MapIter<'a, K, V> {}
 
-impl<K: Ord + Copy + fmt::Debug, V> std::ops::Index<&K> for VecMap<K, V> {
+impl<K: Ord + Copy + fmt::Debug, V: Keyed<K>> std::ops::Index<&K> for VecMap<K, V> {
     type Output = V;
 
     /// The value at `key`. Panics if there is none, as indexing a `BTreeMap` does; use
@@ -1072,15 +1122,15 @@ impl<K: Ord + Copy + fmt::Debug, V> std::ops::Index<&K> for VecMap<K, V> {
     }
 }
 
-impl<K: Ord + Copy, V> FromIterator<(K, V)> for VecMap<K, V> {
+impl<K: Ord + Copy, V: Keyed<K>> FromIterator<(K, V)> for VecMap<K, V> {
     /// Collects entries in any order; of entries with the same key the last one is kept, as
     /// collecting into a `BTreeMap` does.
     fn from_iter<I: IntoIterator<Item = (K, V)>>(iter: I) -> Self {
-        VecMap::from_vec(iter.into_iter().collect())
+        VecMap::from_values(iter.into_iter().map(|(k, v)| keyed(k, v)).collect())
     }
 }
 
-impl<K: Ord + Copy, V> Extend<(K, V)> for VecMap<K, V> {
+impl<K: Ord + Copy, V: Keyed<K>> Extend<(K, V)> for VecMap<K, V> {
     fn extend<I: IntoIterator<Item = (K, V)>>(&mut self, iter: I) {
         let iter = iter.into_iter();
         self.entries.reserve(iter.size_hint().0);
@@ -1090,57 +1140,57 @@ impl<K: Ord + Copy, V> Extend<(K, V)> for VecMap<K, V> {
     }
 }
 
-impl<K: Ord + Copy, V, const N: usize> From<[(K, V); N]> for VecMap<K, V> {
+impl<K: Ord + Copy, V: Keyed<K>, const N: usize> From<[(K, V); N]> for VecMap<K, V> {
     fn from(entries: [(K, V); N]) -> Self {
         entries.into_iter().collect()
     }
 }
 
-impl<K: Ord + Copy, V> From<BTreeMap<K, V>> for VecMap<K, V> {
+impl<K: Ord + Copy, V: Keyed<K>> From<BTreeMap<K, V>> for VecMap<K, V> {
     fn from(map: BTreeMap<K, V>) -> Self {
-        VecMap { entries: map.into_iter().collect() }
+        VecMap { entries: map.into_iter().map(|(k, v)| keyed(k, v)).collect(), key: std::marker::PhantomData }
     }
 }
 
-impl<K: Ord + Copy, V> From<VecMap<K, V>> for BTreeMap<K, V> {
+impl<K: Ord + Copy, V: Keyed<K>> From<VecMap<K, V>> for BTreeMap<K, V> {
     fn from(map: VecMap<K, V>) -> Self {
-        map.entries.into_iter().collect()
+        map.into_iter().collect()
     }
 }
 
-impl<K, V> IntoIterator for VecMap<K, V> {
+impl<K: Copy, V: Keyed<K>> IntoIterator for VecMap<K, V> {
     type Item = (K, V);
-    type IntoIter = std::vec::IntoIter<(K, V)>;
+    type IntoIter = std::iter::Map<std::vec::IntoIter<V>, fn(V) -> (K, V)>;
 
     fn into_iter(self) -> Self::IntoIter {
-        self.entries.into_iter()
+        self.entries.into_iter().map(|v| (*v.key(), v))
     }
 }
 
-impl<'a, K, V> IntoIterator for &'a VecMap<K, V> {
+impl<'a, K: 'a, V: Keyed<K>> IntoIterator for &'a VecMap<K, V> {
     type Item = (&'a K, &'a V);
     type IntoIter = MapIter<'a, K, V>;
 
     fn into_iter(self) -> MapIter<'a, K, V> {
-        MapIter(self.entries.iter())
+        MapIter(self.entries.iter(), std::marker::PhantomData)
     }
 }
 
-impl<K: fmt::Debug, V: fmt::Debug> fmt::Debug for VecMap<K, V> {
+impl<K: fmt::Debug, V: fmt::Debug + Keyed<K>> fmt::Debug for VecMap<K, V> {
     /// As a `BTreeMap` prints: `{SubIndex(0): Entry { .. }, ..}`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_map().entries(self.entries.iter().map(|(k, v)| (k, v))).finish()
+        f.debug_map().entries(self.entries.iter().map(|v| (v.key(), v))).finish()
     }
 }
 
-impl<K: Serialize, V: Serialize> Serialize for VecMap<K, V> {
+impl<K: Serialize, V: Serialize + Keyed<K>> Serialize for VecMap<K, V> {
     /// As a map from key to value, in order, as a `BTreeMap` is serialised.
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        serializer.collect_map(self.entries.iter().map(|(k, v)| (k, v)))
+        serializer.collect_map(self.entries.iter().map(|v| (v.key(), v)))
     }
 }
 
-impl<'de, K: Deserialize<'de> + Ord + Copy, V: Deserialize<'de>> Deserialize<'de> for VecMap<K, V> {
+impl<'de, K: Deserialize<'de> + Ord + Copy, V: Deserialize<'de> + Keyed<K>> Deserialize<'de> for VecMap<K, V> {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         BTreeMap::<K, V>::deserialize(deserializer).map(VecMap::from)
     }
@@ -1152,7 +1202,7 @@ pub struct Object {
     /// The index.
     pub index: Index,
     /// `ParameterName` of the object.
-    pub name: String,
+    pub name: Name,
     /// `ObjectType`.
     pub object_type: ObjectType,
     /// The object list that names it.
@@ -1474,8 +1524,29 @@ impl PdoMappingEntry {
 mod tests {
     use super::*;
 
+    /// A value that holds its key, for testing [`VecMap`] apart from the model's types
+    /// (serialised as its number alone, as a `BTreeMap<u16, u32>`'s values are).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    struct Held(u16, u32);
+
+    impl Keyed<u16> for Held {
+        fn key(&self) -> &u16 {
+            &self.0
+        }
+        fn set_key(&mut self, key: u16) {
+            self.0 = key;
+        }
+    }
+
+    impl Serialize for Held {
+        fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+            self.1.serialize(serializer)
+        }
+    }
+
     /// A `VecMap` made from entries in any order, with repeated keys, or by inserting them one by
-    /// one, is the `BTreeMap` the same entries make.
+    /// one, is the `BTreeMap` the same entries make; every value it holds has the key it was
+    /// given with (whatever key the value held before).
     #[test]
     fn vec_map_agrees_with_btree_map() {
         let orders: [&[(u16, u32)]; 5] = [
@@ -1485,30 +1556,58 @@ mod tests {
             &[(5, 1), (2, 2), (5, 3), (0, 4), (2, 5), (9, 6), (5, 7)],
             &[(4, 0), (3, 0), (2, 0), (1, 0), (0, 0)],
         ];
+        // (Each value starts with a key of its own, which the map replaces.)
+        let held = |&(k, v): &(u16, u32)| (k, Held(k.wrapping_mul(7).wrapping_add(1), v));
         for pairs in orders {
             let want: BTreeMap<u16, u32> = pairs.iter().copied().collect();
-            let collected: VecMap<u16, u32> = pairs.iter().copied().collect();
+            let want_held: Vec<(u16, Held)> = want.iter().map(|(&k, &v)| (k, Held(k, v))).collect();
+            let collected: VecMap<u16, Held> = pairs.iter().map(held).collect();
             let mut inserted = VecMap::new();
-            for &(k, v) in pairs {
+            for p in pairs {
+                let (k, v) = held(p);
                 inserted.insert(k, v);
             }
-            for map in [&collected, &inserted] {
-                assert_eq!(
-                    map.iter().map(|(k, v)| (*k, *v)).collect::<Vec<_>>(),
-                    want.clone().into_iter().collect::<Vec<_>>()
-                );
+            let from_btree = VecMap::from(pairs.iter().map(held).collect::<BTreeMap<u16, Held>>());
+            for map in [&collected, &inserted, &from_btree] {
+                assert_eq!(map.iter().map(|(k, v)| (*k, *v)).collect::<Vec<_>>(), want_held);
+                assert_eq!(map.clone().into_iter().collect::<Vec<_>>(), want_held);
+                assert_eq!(BTreeMap::from(map.clone()).into_iter().collect::<Vec<_>>(), want_held);
+                assert_eq!(map.keys().copied().collect::<Vec<_>>(), want.keys().copied().collect::<Vec<_>>());
                 assert_eq!(map.len(), want.len());
                 for k in 0..12 {
-                    assert_eq!(map.get(&k), want.get(&k), "{pairs:?} {k}");
+                    assert_eq!(map.get(&k).map(|h| h.1), want.get(&k).copied(), "{pairs:?} {k}");
+                    assert_eq!(map.get(&k).map(|h| h.0), want.get(&k).map(|_| k), "{pairs:?} {k}");
                 }
                 assert_eq!(
                     map.range(2..=5).map(|(k, _)| *k).collect::<Vec<_>>(),
                     want.range(2..=5).map(|(k, _)| *k).collect::<Vec<_>>()
                 );
             }
-            assert!(collected == inserted);
+            assert!(collected == inserted && inserted == from_btree);
             assert_eq!(serde_json::to_string(&collected).unwrap(), serde_json::to_string(&want).unwrap());
+            let mut changed = collected.clone();
+            for (k, v) in changed.iter_mut() {
+                v.1 += k as u32;
+            }
+            changed.retain(|k, v| k % 2 == 0 && v.0 == *k);
+            let want_changed: Vec<(u16, u32)> =
+                want.iter().filter(|(k, _)| *k % 2 == 0).map(|(&k, &v)| (k, v + k as u32)).collect();
+            assert_eq!(changed.values().map(|h| (h.0, h.1)).collect::<Vec<_>>(), want_changed);
         }
+    }
+
+    /// A sub-map's entries have the sub-indices they are stored at, and a model's objects their
+    /// indices, however they were put there (the key is kept once, in the value).
+    #[test]
+    fn the_map_key_is_the_value_key() {
+        let mut subs = SubMap::new();
+        subs.insert(SubIndex(3), Entry::new(9, "a", DataType::Unsigned8, Access::Ro));
+        subs.extend([(SubIndex(1), Entry::new(0, "b", DataType::Unsigned8, Access::Ro))]);
+        assert_eq!(subs.iter().map(|(k, e)| (k.0, e.sub.0)).collect::<Vec<_>>(), [(1, 1), (3, 3)]);
+        assert_eq!(std::mem::size_of::<Entry>(), 96, "a sub-map stores 96 bytes per entry");
+        let json = serde_json::to_string(&subs).unwrap();
+        let back: SubMap = serde_json::from_str(&json).unwrap();
+        assert!(back == subs);
     }
 
     /// Every index has the role of its area (CiA 301's object dictionary layout), the areas

@@ -151,6 +151,13 @@ pub struct ParsedInt {
 /// ```
 pub fn parse_value(text: &str, ty: DataType) -> Result<ParsedValue, ValueError> {
     let mut quirks = Vec::new();
+    let value = parse_value_into(text, ty, &mut quirks)?;
+    Ok(ParsedValue { value, quirks })
+}
+
+/// [`parse_value`], its quirks appended to `quirks` (a buffer the caller reuses: most values
+/// have none, but a file may have hundreds that do, each a vector of its own otherwise).
+pub(crate) fn parse_value_into(text: &str, ty: DataType, quirks: &mut Vec<Quirk>) -> Result<Option<Value>, ValueError> {
     let t = crate::lex::trim(text);
     let value = match ty {
         DataType::VisibleString | DataType::UnicodeString => Some(Value::Text(t.to_owned())),
@@ -172,8 +179,8 @@ pub fn parse_value(text: &str, ty: DataType) -> Result<ParsedValue, ValueError> 
             // `days ms`, as lely writes it: days since 1984-01-01 (or a difference in days) and
             // milliseconds after midnight. Stored as the 48-bit wire value `ms | days << 32`.
             let mut parts = t.split_ascii_whitespace();
-            let days = parse_int(parts.next().unwrap_or(""), &mut quirks)?;
-            let ms = parse_int(parts.next().unwrap_or(""), &mut quirks)?;
+            let days = parse_int(parts.next().unwrap_or(""), quirks)?;
+            let ms = parse_int(parts.next().unwrap_or(""), quirks)?;
             if !(0..=0xFFFF).contains(&days.value) || !(0..(1 << 28)).contains(&ms.value) {
                 return Err(ValueError::TooLarge(t.to_owned()));
             }
@@ -187,18 +194,18 @@ pub fn parse_value(text: &str, ty: DataType) -> Result<ParsedValue, ValueError> 
             } else if contains_node_id(t) {
                 return Err(ValueError::NodeIdNotAllowed(ty.name()));
             } else {
-                Some(Value::Real(parse_real(t, ty == DataType::Real32, &mut quirks)?))
+                Some(Value::Real(parse_real(t, ty == DataType::Real32, quirks)?))
             }
         }
         _ => {
             if let Some((v, radix)) = parse_plain_uint(t) {
                 // The common case (`0x1A`, `100`), read without the general rules.
-                Some(Value::Int { value: twos_complement(v as i128, radix, false, ty, &mut quirks), radix })
+                Some(Value::Int { value: twos_complement(v as i128, radix, false, ty, quirks), radix })
             } else if t.is_empty() {
                 quirks.push(Quirk::EmptyNumeric);
                 None
             } else if contains_node_id(t) {
-                let (offset, radix) = parse_node_id_expr(t, &mut quirks)?;
+                let (offset, radix) = parse_node_id_expr(t, quirks)?;
                 Some(Value::NodeIdPlus { offset, radix })
             } else if ty == DataType::Boolean && t.eq_ignore_ascii_case("true") {
                 quirks.push(Quirk::BooleanWord);
@@ -207,15 +214,12 @@ pub fn parse_value(text: &str, ty: DataType) -> Result<ParsedValue, ValueError> 
                 quirks.push(Quirk::BooleanWord);
                 Some(Value::Int { value: 0, radix: Radix::Dec })
             } else {
-                let p = parse_int(t, &mut quirks)?;
-                Some(Value::Int {
-                    value: twos_complement(p.value, p.radix, p.negative, ty, &mut quirks),
-                    radix: p.radix,
-                })
+                let p = parse_int(t, quirks)?;
+                Some(Value::Int { value: twos_complement(p.value, p.radix, p.negative, ty, quirks), radix: p.radix })
             }
         }
     };
-    Ok(ParsedValue { value, quirks })
+    Ok(value)
 }
 
 /// For a signed type, an unsigned hexadecimal value that does not fit the positive range but

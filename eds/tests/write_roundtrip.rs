@@ -94,7 +94,7 @@ fn entry(sub: u8, with_parameter_value: bool) -> impl Strategy<Value = Entry> {
                 let is_domain = ty == DataType::Domain;
                 Entry {
                     sub: SubIndex(sub),
-                    name: name.clone(),
+                    name: name.clone().into(),
                     data_type: ty,
                     access,
                     pdo_mapping: pdo,
@@ -141,7 +141,7 @@ fn object(index: u16, dcf: bool) -> impl Strategy<Value = Object> {
                 let name = name.clone();
                 entry(0, dcf)
                     .prop_map(move |mut e| {
-                        e.name = name.clone();
+                        e.name = name.clone().into();
                         if object_type == ObjectType::Domain {
                             e.data_type = DataType::Domain;
                             e.default = None;
@@ -156,7 +156,7 @@ fn object(index: u16, dcf: bool) -> impl Strategy<Value = Object> {
             let (name, links, extra) = (name.clone(), links.clone(), extra.clone());
             subs.prop_map(move |subs| Object {
                 index: Index(index),
-                name: name.clone(),
+                name: name.clone().into(),
                 object_type,
                 category,
                 subs,
@@ -186,7 +186,7 @@ fn compact_object(index: u16, dcf: bool) -> impl Strategy<Value = Object> {
                 for s in 1..=n {
                     let mut e = proto.clone();
                     e.sub = SubIndex(s);
-                    e.name = names[s as usize - 1].clone().unwrap_or_else(|| format!("{obj_name}{s}"));
+                    e.name = names[s as usize - 1].clone().unwrap_or_else(|| format!("{obj_name}{s}")).into();
                     e.set_parameter_value(pvs[s as usize - 1].clone());
                     let x = e.extras_mut();
                     x.obj_flags = obj_flags;
@@ -195,7 +195,7 @@ fn compact_object(index: u16, dcf: bool) -> impl Strategy<Value = Object> {
                 }
                 Object {
                     index: Index(index),
-                    name: obj_name.clone(),
+                    name: obj_name.clone().into(),
                     object_type: ObjectType::Array,
                     category: Category::Manufacturer,
                     subs,

@@ -192,7 +192,7 @@ fn radix(hex: bool) -> Radix {
 fn plain_entry(sub: u8, name: &str, data_type: DataType, access: Access, default: Option<Value>) -> Entry {
     Entry {
         sub: SubIndex(sub),
-        name: name.to_owned(),
+        name: name.into(),
         data_type,
         access,
         pdo_mapping: false,
@@ -205,7 +205,7 @@ fn plain_entry(sub: u8, name: &str, data_type: DataType, access: Access, default
 fn plain_object(index: u16, name: &str, object_type: ObjectType, subs: BTreeMap<SubIndex, Entry>) -> Object {
     Object {
         index: Index(index),
-        name: name.to_owned(),
+        name: name.into(),
         object_type,
         category: category(index),
         subs: subs.into(),

@@ -214,10 +214,10 @@ pub(crate) fn check(l: &Lowered, cx: &mut Ctxt) -> Checked {
     // Give the model the positions of its text, for the generator's diagnostics.
     let mut model = l.model.clone();
     for (index, obj) in model.objects.iter_mut() {
-        let Some(read) = parsed.model.objects.get(index) else { continue };
+        let Some(read) = parsed.model.objects.get(&index) else { continue };
         obj.at = read.at;
         for (sub, e) in obj.subs.iter_mut() {
-            if let Some(r) = read.subs.get(sub) {
+            if let Some(r) = read.subs.get(&sub) {
                 e.at = r.at;
             }
         }

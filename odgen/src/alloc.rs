@@ -30,24 +30,13 @@ pub(crate) struct Mimalloc;
 // dependency for one function; the symbol is in the library either way.)
 unsafe extern "C" {
     fn mi_option_set(option: i32, value: std::ffi::c_long);
-    #[cfg(test)]
-    fn mi_option_get(option: i32) -> std::ffi::c_long;
 }
 
 /// `mi_option_purge_delay` in mimalloc v3's `mi_option_t` (what `libmimalloc-sys` builds).
 const MI_OPTION_PURGE_DELAY: i32 = 15;
 
-/// The address space each arena reserves when the process has no address-space limit, in KiB:
-/// 64 MiB, not mimalloc's 1 GiB.
-///
-/// An arena's bookkeeping (a bitmap per size class, over the arena's 64 KiB slices) is written
-/// when the arena is made, and grows with the arena: for 1 GiB it is about 40 pages, each a
-/// page fault in a process that runs for a few milliseconds (`odgen --version`: 195 -> 157
-/// faults; `odgen check` on the 61 corpus files: 830 -> 790). A process that needs more gets
-/// more arenas, which mimalloc makes larger as their number grows.
-const DEFAULT_ARENA_RESERVE_KIB: std::ffi::c_long = 64 * 1024;
-
-/// Tunes the allocator for a short-lived process, before its first allocation.
+/// Tunes the allocator for a short-lived process: before `main` on Linux ([`TUNE_BEFORE_MAIN`]),
+/// and first thing in `main`.
 ///
 /// By default mimalloc gives freed pages back to the kernel (`madvise`) 10 ms after they empty;
 /// a thread that then allocates again takes a fresh page fault for each. `odgen check` frees a
@@ -56,81 +45,44 @@ const DEFAULT_ARENA_RESERVE_KIB: std::ffi::c_long = 64 * 1024;
 /// with it off, the pages stay and are reused. A process's peak memory is unchanged (memory
 /// is given back at exit).
 ///
-/// Arenas are sized by [`DEFAULT_ARENA_RESERVE_KIB`], or to fit the address-space limit
-/// ([`arena_reserve_kib`]). The first arena is made at the first allocation, which the Rust
-/// runtime makes before `main`: on Linux this runs from the executable's `.init_array`
-/// ([`TUNE_BEFORE_MAIN`]), before that; elsewhere `main` calls it first thing
-/// ([`tune_in_main`]), and only the later arenas follow it.
-fn tune() {
+/// Arenas are mimalloc's least, 32 MiB, rather than its default 1 GiB. Setting up an arena
+/// writes its bitmaps, in proportion to its size: for 1 GiB, 40 fresh pages before the first
+/// allocation (a fifth of `odgen --version`'s faults, and 5% of `odgen check`'s on the corpus).
+/// A process that needs more reserves more arenas, mimalloc doubling their size every eight.
+/// Small arenas also fit an address-space limit (`ulimit -v`): 1 GiB reservations failed there
+/// and were retried smaller on every thread that needed memory, and when two threads did so at
+/// once a large allocation could find no room left and abort the process (`odgen dump` of a
+/// 4 MB file under "10 x the input + 64 MB" aborted in 3 to 5 runs out of 150,
+/// `tests/memory.rs`).
+pub(crate) fn tune() {
     // SAFETY: mi_option_set only stores the value of a known option (it may be called at any
-    // time, before mimalloc's own initialisation too: options it finds set are not read from
-    // the environment; mimalloc reads them when it next considers purging or reserving).
+    // time; mimalloc reads the option when it next considers purging).
     unsafe { mi_option_set(MI_OPTION_PURGE_DELAY, -1) }
-    let reserve = address_space_limit().map_or(DEFAULT_ARENA_RESERVE_KIB, arena_reserve_kib);
-    // SAFETY: as above; mimalloc reads this option each time it reserves an arena.
-    unsafe { mi_option_set(MI_OPTION_ARENA_RESERVE, reserve) }
+    // SAFETY: as above; mimalloc reads this option each time it reserves an arena (the first
+    // time at the first allocation, after this).
+    unsafe { mi_option_set(MI_OPTION_ARENA_RESERVE, ARENA_RESERVE_KIB) }
 }
 
-/// [`tune`], run by the dynamic loader before `main` (and so before the Rust runtime's first
-/// allocation), from the executable's `.init_array` (ELF; the loader passes `argc`, `argv` and
-/// `envp`, which a function of no arguments ignores under the C calling convention).
+/// [`tune`], run by the C runtime before `main` (an ELF constructor): the Rust runtime
+/// allocates before `main` runs (the main thread's name and stack guard), and mimalloc reserves
+/// its first arena at the first allocation, with the options it has then. (`main` calls `tune`
+/// too, for targets without `.init_array`; setting the options again changes nothing.)
 #[cfg(target_os = "linux")]
 #[used]
 #[unsafe(link_section = ".init_array")]
 static TUNE_BEFORE_MAIN: extern "C" fn() = {
-    extern "C" fn tune_before_main() {
-        tune();
+    extern "C" fn before_main() {
+        tune()
     }
-    tune_before_main
+    before_main
 };
-
-/// Called first thing in `main`: [`tune`] where it did not run before `main`.
-pub(crate) fn tune_in_main() {
-    if !cfg!(target_os = "linux") {
-        tune();
-    }
-}
 
 /// `mi_option_arena_reserve` in mimalloc v3's `mi_option_t`: the address space an arena
 /// reserves, in KiB (1 GiB by default).
 const MI_OPTION_ARENA_RESERVE: i32 = 23;
 
-/// The arena size for a process whose address space is limited to `limit` bytes
-/// (`ulimit -v`): an eighth of it, at least mimalloc's least arena (32 MiB) and at most its
-/// default (1 GiB).
-///
-/// By default every arena reserves 1 GiB. Under a limit of, say, 100 MB each reservation
-/// fails, and mimalloc falls back to smaller ones (128 MiB, then less) on every thread that
-/// needs memory, until one fits; when two threads did so at once, each holding address space
-/// for its attempt, a large allocation could find no room left and abort the process: `odgen
-/// dump` of a 4 MB file under "10 x the input + 64 MB" aborted in 3 to 5 runs out of 150
-/// (`tests/memory.rs`). Arenas sized to the limit are reserved at the first attempt.
-fn arena_reserve_kib(limit: u64) -> std::ffi::c_long {
-    let kib = (limit / 8 / 1024).clamp(32 * 1024, 1024 * 1024);
-    std::ffi::c_long::try_from(kib).unwrap_or(32 * 1024)
-}
-
-/// The process's address-space limit (`RLIMIT_AS`) in bytes, when it has one.
-#[cfg(all(target_os = "linux", any(target_arch = "x86_64", target_arch = "aarch64", target_arch = "riscv64")))]
-fn address_space_limit() -> Option<u64> {
-    /// `RLIMIT_AS` on these architectures (the generic Linux numbering).
-    const RLIMIT_AS: i32 = 9;
-    unsafe extern "C" {
-        fn getrlimit(resource: i32, rlim: *mut [u64; 2]) -> i32;
-    }
-    let mut rlim = [0u64; 2];
-    // SAFETY: getrlimit writes the two 64-bit fields of `struct rlimit` (current and maximum
-    // limit; `rlim_t` is 64 bits on these 64-bit targets) into `rlim`, which has room for them.
-    let ok = unsafe { getrlimit(RLIMIT_AS, &mut rlim) } == 0;
-    // (RLIM_INFINITY is all ones.)
-    (ok && rlim[0] != u64::MAX).then_some(rlim[0])
-}
-
-/// Elsewhere no limit is looked for: mimalloc keeps its default arenas.
-#[cfg(not(all(target_os = "linux", any(target_arch = "x86_64", target_arch = "aarch64", target_arch = "riscv64"))))]
-fn address_space_limit() -> Option<u64> {
-    None
-}
+/// The arena size: mimalloc's least (`MI_ARENA_MIN_SIZE`, 32 MiB on 64-bit targets).
+const ARENA_RESERVE_KIB: std::ffi::c_long = 32 * 1024;
 
 // SAFETY: each method forwards to the mimalloc function with the same contract as the
 // `GlobalAlloc` method (a block of at least `size` bytes, or null on failure; `mi_free` and
@@ -185,26 +137,20 @@ unsafe impl GlobalAlloc for Mimalloc {
 mod tests {
     use super::*;
 
-    /// Arenas are an eighth of the limit, between mimalloc's least (32 MiB) and its default.
+    /// mimalloc reserves arenas of 32 MiB and never purges: on Linux from before `main` (this
+    /// test does not call `tune` first there), elsewhere once `tune` has run.
     #[test]
-    fn arenas_fit_the_address_space_limit() {
-        assert_eq!(arena_reserve_kib(100 << 20), 32 * 1024);
-        assert_eq!(arena_reserve_kib(1 << 30), 128 * 1024);
-        assert_eq!(arena_reserve_kib(64 << 30), 1024 * 1024);
-        assert_eq!(arena_reserve_kib(u64::MAX - 1), 1024 * 1024);
-        assert_eq!(arena_reserve_kib(0), 32 * 1024);
-    }
-
-    /// The options are set before `main`: this test binary's `main` (the test harness) never
-    /// calls `tune_in_main`, so on Linux only the `.init_array` entry can have set them.
-    #[test]
-    #[cfg(target_os = "linux")]
-    fn the_allocator_is_tuned_before_main() {
-        let want = address_space_limit().map_or(DEFAULT_ARENA_RESERVE_KIB, arena_reserve_kib);
-        // SAFETY: mi_option_get only reads the value of a known option.
+    fn tune_sets_the_options() {
+        unsafe extern "C" {
+            fn mi_option_get(option: i32) -> std::ffi::c_long;
+        }
+        if !cfg!(target_os = "linux") {
+            tune();
+        }
+        // SAFETY: mi_option_get reads the value of a known option.
         let (reserve, purge) =
             unsafe { (mi_option_get(MI_OPTION_ARENA_RESERVE), mi_option_get(MI_OPTION_PURGE_DELAY)) };
-        assert_eq!((reserve, purge), (want, -1));
+        assert_eq!((reserve, purge), (32 * 1024, -1));
     }
 
     /// Every size and alignment gets a block that is aligned, writable over its whole size, and

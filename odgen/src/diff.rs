@@ -213,7 +213,7 @@ fn object_summary(o: &Object) -> String {
 }
 
 fn entry_name(o: &Object, e: &Entry) -> String {
-    if o.object_type.has_subs() { format!("{} / {}", o.name, e.name) } else { o.name.clone() }
+    if o.object_type.has_subs() { format!("{} / {}", o.name, e.name) } else { o.name.as_str().to_owned() }
 }
 
 /// Compares two descriptions.
@@ -229,7 +229,7 @@ pub fn diff(old: &Model, new: &Model) -> Diff {
             (Some(o), None) => changes.push(Change {
                 index: Some(i),
                 sub: None,
-                name: o.name.clone(),
+                name: o.name.as_str().to_owned(),
                 kind: Kind::Removed,
                 field: None,
                 old: Some(object_summary(o)),
@@ -238,7 +238,7 @@ pub fn diff(old: &Model, new: &Model) -> Diff {
             (None, Some(n)) => changes.push(Change {
                 index: Some(i),
                 sub: None,
-                name: n.name.clone(),
+                name: n.name.as_str().to_owned(),
                 kind: Kind::Added,
                 field: None,
                 old: None,
@@ -275,7 +275,15 @@ fn object(o: &Object, n: &Object, changes: &mut Vec<Change>) {
     let i = Some(o.index.0);
     let var = !o.object_type.has_subs() && !n.object_type.has_subs();
     if o.name != n.name {
-        field(changes, i, None, &n.name, "ParameterName", Some(o.name.clone()), Some(n.name.clone()));
+        field(
+            changes,
+            i,
+            None,
+            &n.name,
+            "ParameterName",
+            Some(o.name.as_str().to_owned()),
+            Some(n.name.as_str().to_owned()),
+        );
     }
     if o.object_type != n.object_type {
         let t = |x: &Object| Some(object_type_text(x.object_type).to_owned());
@@ -314,7 +322,15 @@ fn object(o: &Object, n: &Object, changes: &mut Vec<Change>) {
             (Some(a), Some(b)) => {
                 let name = entry_name(n, b);
                 if a.name != b.name && at.is_some() {
-                    field(changes, i, at, &name, "ParameterName", Some(a.name.clone()), Some(b.name.clone()));
+                    field(
+                        changes,
+                        i,
+                        at,
+                        &name,
+                        "ParameterName",
+                        Some(a.name.as_str().to_owned()),
+                        Some(b.name.as_str().to_owned()),
+                    );
                 }
                 if a.data_type != b.data_type {
                     field(

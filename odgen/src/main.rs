@@ -47,7 +47,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    alloc::tune_in_main();
+    alloc::tune();
     let cli = Cli::parse();
     match cli.command {
         Command::Check(args) => cmd::check::run(args),

@@ -24,14 +24,18 @@ fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u
     {
         return Some(n);
     }
-    let mut quirks = Vec::new();
     let v = kv.value.split(';').next().unwrap_or("").trim();
     if v.is_empty() {
         let d = cx.emit(codes::E0503, Some(kv.value_span()), super::cat(["[", section, "] ", kv.key, " is empty"]));
         d.hint = Some(super::cat(["write a number or remove the `", kv.key, "=` line"]).into());
         return None;
     }
-    match parse_int(v, &mut quirks) {
+    // (Quirks go unreported here; the context's buffer takes them.)
+    let mut quirks = std::mem::take(&mut cx.quirks);
+    quirks.clear();
+    let parsed = parse_int(v, &mut quirks);
+    cx.quirks = quirks;
+    match parsed {
         Ok(p) if p.value >= 0 && p.value as u128 <= max as u128 => Some(p.value as u64),
         Ok(p) => {
             cx.emit(

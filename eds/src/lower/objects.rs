@@ -5,8 +5,8 @@ use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys};
 use super::{Crumbs, Ctx, otype};
 use crate::codes;
 use crate::model::{
-    Access, DataType, Entry, EntryExtras, FileKind, Index, Model, Object, ObjectMap, ObjectType, SourceRef, SubIndex,
-    SubMap, Value,
+    Access, DataType, Entry, EntryExtras, FileKind, Index, Model, Name, Object, ObjectMap, ObjectType, SourceRef,
+    SubIndex, SubMap, Value,
 };
 use crate::value::{self, Quirk, ValueError};
 
@@ -106,18 +106,33 @@ fn uint_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u32, context: Crumbs<'_>) -> Res
 /// [`uint_key`] for the forms that are not plain (kept out of line: most values are plain).
 #[inline(never)]
 fn uint_key_general(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u32, context: Crumbs<'_>) -> Result<u32, ()> {
-    let mut quirks = Vec::new();
-    let mut parsed = value::parse_int(kv.value, &mut quirks);
+    // (The context's buffer of quirks, taken out while they are reported.)
+    let mut quirks = std::mem::take(&mut cx.quirks);
+    quirks.clear();
+    let read = uint_key_quirks(cx, kv, max, context, &mut quirks);
+    cx.quirks = quirks;
+    read
+}
+
+/// [`uint_key_general`], its quirks found in `quirks` (empty).
+fn uint_key_quirks(
+    cx: &mut Ctx<'_>,
+    kv: &Kv<'_>,
+    max: u32,
+    context: Crumbs<'_>,
+    quirks: &mut Vec<value::Quirk>,
+) -> Result<u32, ()> {
+    let mut parsed = value::parse_int(kv.value, quirks);
     if parsed.is_err()
         && let Some(head) = before_comment(kv.value)
-        && let Ok(p) = value::parse_int(head, &mut quirks)
+        && let Ok(p) = value::parse_int(head, quirks)
     {
         inline_comment(cx, kv, head, context);
         parsed = Ok(p);
     }
     match parsed {
         Ok(p) if p.value >= 0 && p.value <= max as i128 => {
-            report_quirks(cx, kv, &quirks, context);
+            report_quirks(cx, kv, quirks, context);
             Ok(p.value as u32)
         }
         _ => Err(()),
@@ -246,11 +261,28 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -
     if let Some(v) = plain_int_value(kv.value, ty) {
         return Ok(Some(v));
     }
-    let mut parsed = value::parse_value(kv.value, ty);
+    // The quirks go to the context's buffer (reused from value to value), taken out while the
+    // value is reported.
+    let mut quirks = std::mem::take(&mut cx.quirks);
+    quirks.clear();
+    let read = value_key_general(cx, kv, ty, context, &mut quirks);
+    cx.quirks = quirks;
+    read
+}
+
+/// [`value_key`] for a value that is not a plain number, its quirks found in `quirks` (empty).
+fn value_key_general(
+    cx: &mut Ctx<'_>,
+    kv: &Kv<'_>,
+    ty: DataType,
+    context: Crumbs<'_>,
+    quirks: &mut Vec<value::Quirk>,
+) -> Result<Option<Value>, ()> {
+    let mut parsed = value::parse_value_into(kv.value, ty, quirks);
     if let DataType::Other(_) = ty {
         // The type is not known here: keep what cannot be read as a number as text.
         return Ok(match parsed {
-            Ok(p) => p.value,
+            Ok(v) => v,
             Err(_) => Some(Value::Text(kv.value.to_owned())),
         });
     }
@@ -258,17 +290,20 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -
     if parsed.is_err()
         && !string_type
         && let Some(head) = before_comment(kv.value)
-        && let Ok(p) = value::parse_value(head, ty)
     {
-        inline_comment(cx, kv, head, context);
-        parsed = Ok(p);
+        // (Only the quirks of the reading that counts are reported.)
+        quirks.clear();
+        if let Ok(p) = value::parse_value_into(head, ty, quirks) {
+            inline_comment(cx, kv, head, context);
+            parsed = Ok(p);
+        }
     }
     match parsed {
         Ok(p) => {
-            if !p.quirks.is_empty() {
-                report_quirks(cx, kv, &p.quirks, context);
+            if !quirks.is_empty() {
+                report_quirks(cx, kv, quirks, context);
             }
-            if let Some(v) = &p.value
+            if let Some(v) = &p
                 && let Err(why) = value::check_range(v, ty)
             {
                 let d = cx.emit(codes::E0302, Some(kv.value_span()), format!("{} `{}`: {why}", kv.key, kv.value));
@@ -283,7 +318,7 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -
                     );
                 }
             }
-            Ok(p.value)
+            Ok(p)
         }
         Err(e) => {
             let d = cx.emit(
@@ -366,18 +401,18 @@ impl EntryBuilder<'_> {
         sec: &Section<'_>,
         keys: &ObjKeys<'_>,
         sub: u8,
-        name: Option<String>,
+        name: Option<Name>,
         defaults: EntryDefaults,
         context: Crumbs<'_>,
     ) -> Option<Entry> {
         let mut extra: Vec<(String, String)> = Vec::new();
-        let name = match name.or_else(|| keys.get(K_NAME).map(|kv| kv.value.to_owned())) {
+        let name = match name.or_else(|| keys.get(K_NAME).map(|kv| Name::from(kv.value))) {
             Some(n) => n,
             None => {
                 let d = cx.emit(codes::E0201, Some(sec.name_span), format!("[{}] lacks ParameterName", sec.name));
                 d.hint = Some("add `ParameterName=...`".into());
                 d.context = context.to_vec();
-                sec.name.to_owned()
+                Name::from(sec.name)
             }
         };
         let data_type = match keys.get(K_DTYPE) {
@@ -739,7 +774,7 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
     let mut next = 0;
     // The objects in file order: sorted once at the end if the file did not list them in
     // ascending order (inserting each into the sorted map would move the later ones every time).
-    let mut built: Vec<(Index, Object)> = Vec::with_capacity(objects.len());
+    let mut built: Vec<Object> = Vec::with_capacity(objects.len());
     for &(index, sec) in &objects {
         let mut from = next;
         if from > 0 && sub_indices[from - 1] >= index {
@@ -782,12 +817,12 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
             }
         }
         obj.category = lists.listed.get(&index).map(|&(c, _)| c).unwrap_or_else(|| expected_category(index));
-        built.push((Index(index), obj));
+        built.push(obj);
     }
     if model.objects.is_empty() {
-        model.objects = ObjectMap::from_vec(built);
+        model.objects = ObjectMap::from_values(built);
     } else {
-        model.objects.extend(built);
+        model.objects.extend(built.into_iter().map(|o| (o.index, o)));
     }
     // Sub-objects and side sections without an object section.
     // Both index lists are sorted: one walk along them finds the sub-objects of no object.
@@ -824,12 +859,12 @@ fn build_object(
     let ctx = Crumbs::object_named_by(index, sec.entries, sec.name);
     let keys = match_keys(cx, sec, &OBJ_KEYS, ctx, true);
     let mut name = match keys.get(K_NAME) {
-        Some(kv) => kv.value.to_owned(),
+        Some(kv) => Name::from(kv.value),
         None => {
             let d = cx.emit(codes::E0201, Some(sec.name_span), format!("[{}] lacks ParameterName", sec.name));
             d.hint = Some("add `ParameterName=...`".into());
             d.context = ctx.to_vec();
-            String::new()
+            Name::new()
         }
     };
     let has_compact = keys.get(K_COMPACT).is_some();
@@ -1067,7 +1102,7 @@ fn expand_compact(
         SubIndex(0),
         Entry {
             sub: SubIndex(0),
-            name: "NrOfObjects".to_owned(),
+            name: Name::from("NrOfObjects"),
             data_type: DataType::Unsigned8,
             access: Access::Ro,
             pdo_mapping: false,
@@ -1116,9 +1151,7 @@ fn expand_compact(
     let base = &obj.name;
     obj.subs.extend_with(1..=n, |s| {
         let digits = super::decimal_u8(s);
-        let mut name = String::with_capacity(base.len() + digits.len());
-        name.push_str(base);
-        name.push_str(digits);
+        let name = base.with_suffix(digits);
         Entry {
             sub: SubIndex(s),
             name,
@@ -1133,7 +1166,7 @@ fn expand_compact(
     if let Some(ns) = names {
         for (k, kv) in numbered(cx, ns, &NR_OF_ENTRIES, ctx) {
             match obj.subs.get_mut(&SubIndex(k.min(256) as u8)).filter(|_| (1..=n as u32).contains(&k)) {
-                Some(e) => e.name = kv.value.to_owned(),
+                Some(e) => e.name = Name::from(kv.value),
                 None => {
                     let d = cx.emit(
                         codes::E0214,

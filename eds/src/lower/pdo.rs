@@ -30,10 +30,10 @@ fn entry(sub: u8, name: &str, data_type: DataType, access: Access, default: Valu
     Entry { default: Some(default), ..Entry::new(sub, name, data_type, access) }
 }
 
-fn record(index: u16, name: String) -> Object {
+fn record(index: u16, name: impl Into<crate::model::Name>) -> Object {
     Object {
         index: Index(index),
-        name,
+        name: name.into(),
         object_type: ObjectType::Record,
         category: Category::Optional,
         subs: SubMap::new(),

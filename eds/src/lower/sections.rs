@@ -116,17 +116,21 @@ impl Kind {
 pub(crate) struct KindIndex {
     fixed: [Option<u32>; 8],
     sorted: Vec<(u32, u32)>,
+    /// The number of sections the file is expected to have at most (the hash map's room).
+    expected: usize,
     hashed: FastMap<u32, u32>,
     /// Whether the object sections are in `hashed` (else in `sorted`).
     is_hashed: bool,
 }
 
 impl KindIndex {
-    /// Empties the index (keeping its memory) with room for `n` sections.
-    fn reset(&mut self, n: usize) {
+    /// Empties the index (keeping its memory) for a file of about `n` sections, with room in
+    /// the sorted vector for `room` (an emptied vector too small is replaced, not grown: growing
+    /// would copy its old block onto fresh pages).
+    fn reset(&mut self, n: usize, room: usize) {
         self.fixed = [None; 8];
-        self.sorted.clear();
-        self.sorted.reserve(n);
+        self.sorted = with_room(std::mem::take(&mut self.sorted), n.max(room));
+        self.expected = n;
         self.hashed.clear();
         self.is_hashed = false;
     }
@@ -153,7 +157,7 @@ impl KindIndex {
                     Err(_) => {
                         // Out of order: hashed from now on (a sorted insertion would move the
                         // later sections each time).
-                        self.hashed.reserve(self.sorted.capacity());
+                        self.hashed.reserve(self.expected.max(self.sorted.len()));
                         self.hashed.extend(self.sorted.drain(..));
                         self.is_hashed = true;
                     }
@@ -214,7 +218,7 @@ impl<'a> Sections<'a> {
 }
 
 /// A section as [`collect`] finds it: its entries are a range of [`Collected::entries`].
-struct Head<'a> {
+pub(crate) struct Head<'a> {
     name: &'a str,
     name_span: Span,
     at: LineCol,
@@ -252,11 +256,12 @@ pub(crate) struct Scratch {
 }
 
 impl Scratch {
-    /// Keeps the buffers of `collected` (emptied) for the next file.
-    pub fn keep(&mut self, collected: Collected<'_>) {
+    /// Keeps the buffers of `collected` (emptied) for the next file, and the allocation of
+    /// its list of sections (made from its heads' by [`Collected::sections`]) for the heads.
+    pub fn keep(&mut self, collected: Collected<'_>, sections: Vec<Head<'static>>) {
         let Collected { entries, heads, by_kind } = collected;
         self.entries = reuse(entries);
-        self.heads = reuse(heads);
+        self.heads = if sections.capacity() >= heads.capacity() { sections } else { reuse(heads) };
         self.by_kind = by_kind;
     }
 }
@@ -283,20 +288,23 @@ pub(crate) fn with_room<T>(mut v: Vec<T>, n: usize) -> Vec<T> {
 }
 
 impl<'d> Collected<'d> {
-    /// The sections, borrowing their entries.
-    pub fn sections(&self) -> Sections<'_> {
-        let list = self
-            .heads
-            .iter()
+    /// The sections, borrowing their entries. The list is made on the heads' own allocation (a
+    /// head and a section have one layout: the range of entries becomes the slice), so it
+    /// touches no fresh memory; [`Scratch::keep`] takes it back.
+    pub fn sections(&mut self) -> Sections<'_> {
+        let heads = std::mem::take(&mut self.heads);
+        let this: &Self = self;
+        let list = heads
+            .into_iter()
             .map(|h| Section {
                 name: h.name,
                 name_span: h.name_span,
                 at: h.at,
                 kind: h.kind,
-                entries: &self.entries[h.entries.clone()],
+                entries: &this.entries[h.entries],
             })
             .collect();
-        Sections { list, by_kind: &self.by_kind }
+        Sections { list, by_kind: &this.by_kind }
     }
 }
 
@@ -533,7 +541,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     let room = text.len().max(scratch.room_for);
     let mut heads: Vec<Head<'a>> = with_room(reuse(std::mem::take(&mut scratch.heads)), room / 48 + 8);
     let mut by_kind = std::mem::take(&mut scratch.by_kind);
-    by_kind.reset(sections);
+    by_kind.reset(sections, room / 48 + 8);
     // Sections of unknown kind, by name in ASCII lower case (names are matched ignoring ASCII
     // case). Real files have few; a file of many must not cost a scan of all the others each,
     // and the names are the file's choice: the standard (keyed) hasher, not `FastMap`'s.
@@ -1175,7 +1183,7 @@ mod tests {
         }
         for order in orders {
             let mut index = KindIndex::default();
-            index.reset(4);
+            index.reset(4, 4);
             let mut map = std::collections::HashMap::new();
             for (n, &k) in order.iter().enumerate() {
                 let want = map.get(&k).copied();
@@ -1328,12 +1336,18 @@ mod tests {
         let text = "[FileInfo]\r[DeviceInfo]\r\n  [1000]\nK=v\r\r \u{e4}\u{e4}\r [1001]\n\t[2000]\n[ä]\r\n [3000]";
         let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text));
         let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
-        let collected = collect(&doc, &mut cx, &mut Scratch::default());
+        let mut collected = collect(&doc, &mut cx, &mut Scratch::default());
+        let heads = collected.heads.as_ptr() as usize;
         let secs = collected.sections();
+        // The list is the heads' allocation, not a new one.
+        assert_eq!(secs.list.as_ptr() as usize, heads);
         assert_eq!(secs.list.len(), 7);
         for sec in &secs.list {
             assert_eq!(sec.at, doc.source.line_col(sec.name_span.start), "[{}]", sec.name);
         }
+        // And it goes back to being the heads' buffer for the next file.
+        let back: Vec<Head<'static>> = reuse(secs.list);
+        assert_eq!(back.as_ptr() as usize, heads);
     }
 
     /// Repeated unknown keys are found the same way with few and with many unknown keys.
@@ -1347,7 +1361,7 @@ mod tests {
             text.push_str("xY=1\n2=0x2000\nXy=2\n");
             let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text));
             let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
-            let collected = collect(&doc, &mut cx, &mut Scratch::default());
+            let mut collected = collect(&doc, &mut cx, &mut Scratch::default());
             let secs = collected.sections();
             let keys = match_keys(&mut cx, &secs.list[0], &KeySet::new(["SupportedObjects"]), Crumbs::default(), false);
             // Each key once: `2` and `xY` keep their first place with their later values.

@@ -10,7 +10,7 @@ use eds::model::*;
 pub fn entry(sub: u8, name: &str, data_type: DataType, access: Access, default: Option<Value>) -> Entry {
     Entry {
         sub: SubIndex(sub),
-        name: name.to_owned(),
+        name: name.into(),
         data_type,
         access,
         pdo_mapping: false,
@@ -43,7 +43,7 @@ pub fn var(index: u16, category: Category, e: Entry) -> Object {
 pub fn multi(index: u16, name: &str, object_type: ObjectType, category: Category, entries: Vec<Entry>) -> Object {
     Object {
         index: Index(index),
-        name: name.to_owned(),
+        name: name.into(),
         object_type,
         category,
         subs: entries.into_iter().map(|e| (e.sub, e)).collect(),

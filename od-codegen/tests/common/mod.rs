@@ -7,7 +7,7 @@ use eds::model::*;
 pub fn entry(sub: u8, name: &str, dt: DataType, access: Access, default: Option<Value>, pdo: bool) -> Entry {
     Entry {
         sub: SubIndex(sub),
-        name: name.to_owned(),
+        name: name.into(),
         data_type: dt,
         access,
         pdo_mapping: pdo,
@@ -26,7 +26,7 @@ pub fn var(index: u16, name: &str, dt: DataType, access: Access, default: Option
 pub fn object(index: u16, name: &str, ot: ObjectType, entries: Vec<Entry>) -> Object {
     Object {
         index: Index(index),
-        name: name.to_owned(),
+        name: name.into(),
         object_type: ot,
         category: if index < 0x2000 { Category::Optional } else { Category::Manufacturer },
         subs: entries.into_iter().map(|e| (e.sub, e)).collect(),

@@ -144,7 +144,7 @@ pub fn model(seed: u64) -> Model {
         let obj = match r.below(3) {
             0 => {
                 let mut o = object(index, name, ObjectType::Var, vec![entry_at(&mut r, 0, name)]);
-                o.subs.values_mut().for_each(|e| e.name = name.to_owned());
+                o.subs.values_mut().for_each(|e| e.name = name.into());
                 o
             }
             kind => {

@@ -98,14 +98,18 @@ struct Blocks<'a> {
     done: Vec<String>,
     current: String,
     spare: &'a Spare,
+    /// The output, when the file is in turn (every file before it written): a full block is
+    /// then written out at once and rendered into again, so that a report of hundreds of
+    /// kilobytes needs one block rather than as many as it fills.
+    direct: Option<&'a std::sync::Mutex<Stream>>,
 }
 
 /// Blocks written out, ready to be rendered into again.
 type Spare = std::sync::Mutex<Vec<String>>;
 
 impl<'a> Blocks<'a> {
-    fn new(spare: &'a Spare) -> Self {
-        let mut b = Blocks { done: Vec::new(), current: String::new(), spare };
+    fn new(spare: &'a Spare, direct: Option<&'a std::sync::Mutex<Stream>>) -> Self {
+        let mut b = Blocks { done: Vec::new(), current: String::new(), spare, direct };
         b.current = b.take();
         b
     }
@@ -116,11 +120,20 @@ impl<'a> Blocks<'a> {
         spare.unwrap_or_else(|| String::with_capacity(BLOCK + 4096))
     }
 
-    /// The block to append the next piece to (a new one once the current one is full).
+    /// The block to append the next piece to (a new one once the current one is full, or the
+    /// same one written out and emptied when the file is in turn).
     fn text(&mut self) -> &mut String {
         if self.current.len() >= BLOCK {
-            let next = self.take();
-            self.done.push(std::mem::replace(&mut self.current, next));
+            match self.direct {
+                Some(out) => {
+                    out.lock().unwrap_or_else(|e| e.into_inner()).push(&self.current);
+                    self.current.clear();
+                }
+                None => {
+                    let next = self.take();
+                    self.done.push(std::mem::replace(&mut self.current, next));
+                }
+            }
         }
         &mut self.current
     }
@@ -194,18 +207,24 @@ pub fn run(args: Args) -> ExitCode {
         });
         super::largest_first(probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len())))
     };
-    let read = |i: usize, _: &PathBuf| {
+    // The output, shared with the readers: a file in turn writes its report's full blocks
+    // itself (human output only: the other formats put a separator before a file's report,
+    // which the writer decides).
+    let shared = std::sync::Mutex::new(out);
+    let read = |i: usize, _: &PathBuf, in_turn: bool| {
         // (Set by `order`, which runs before any file is read.)
         let probed = probes.wait()[i].as_ref().map_err(|e| std::io::Error::new(e.kind(), e.to_string()))?;
+        let direct = (in_turn && format == Format::Human).then_some(&shared);
         READER.with_borrow_mut(|reader| {
             let parsed = reader.read_probed(probed, &options)?;
-            let report = render(&parsed, probed.path(), format, level, &spare);
+            let report = render(&parsed, probed.path(), format, level, &spare, direct);
             reader.recycle(parsed);
             Ok::<_, std::io::Error>(report)
         })
     };
 
     super::par_each(&files, super::jobs(args.jobs), order, read, |path, report| {
+        let mut out = shared.lock().unwrap_or_else(|e| e.into_inner());
         let report = match report {
             Ok(r) => r,
             Err(e) => {
@@ -234,6 +253,7 @@ pub fn run(args: Args) -> ExitCode {
             }
         }
     });
+    let mut out = shared.into_inner().unwrap_or_else(|e| e.into_inner());
     match args.format {
         Format::Human => {
             let files = files.len();
@@ -282,15 +302,23 @@ thread_local! {
     static READER: std::cell::RefCell<eds::Reader> = std::cell::RefCell::new(eds::Reader::new());
 }
 
-/// A file's part of the output, and its counts, rendered into blocks from `spare`.
-fn render(parsed: &eds::Parsed, path: &std::path::Path, format: Format, level: Level, spare: &Spare) -> Report {
+/// A file's part of the output, and its counts, rendered into blocks from `spare` (its full
+/// blocks written to `direct` at once, when given).
+fn render(
+    parsed: &eds::Parsed,
+    path: &std::path::Path,
+    format: Format,
+    level: Level,
+    spare: &Spare,
+    direct: Option<&std::sync::Mutex<Stream>>,
+) -> Report {
     let mut counts = Counts::default();
     counts.add(&parsed.diagnostics);
     counts.warnings += parsed.not_kept.warnings;
     counts.notes += parsed.not_kept.notes;
     let source = &parsed.document.source;
     let shown = parsed.diagnostics.iter().filter(|d| level.shows(d.severity));
-    let mut out = Blocks::new(spare);
+    let mut out = Blocks::new(spare, direct);
     match format {
         Format::Human => {
             for d in shown {

@@ -46,11 +46,16 @@ pub fn jobs(requested: Option<usize>) -> usize {
 /// fresh pages, each a page fault), and it hands out what is ready between its own items, so
 /// results are written and freed as the run goes rather than all held to the end. With one
 /// thread, the items are taken in their own order, each emitted as soon as it is done.
+///
+/// `f`'s third argument says whether the item is in turn: every item before it has been handed
+/// to `emit`, and `emit` is not called again until `f` returns (always so with one thread; on
+/// the calling thread when the items before it are done). An item in turn may write its output
+/// itself, ahead of what it returns, rather than hold all of it.
 pub fn par_each<T: Sync, R: Send>(
     items: &[T],
     jobs: usize,
     order: impl FnOnce() -> Vec<usize>,
-    f: impl Fn(usize, &T) -> R + Sync,
+    f: impl Fn(usize, &T, bool) -> R + Sync,
     mut emit: impl FnMut(&T, R),
 ) {
     use std::sync::atomic::{AtomicUsize, Ordering};
@@ -59,7 +64,7 @@ pub fn par_each<T: Sync, R: Send>(
     if jobs == 1 {
         let _ = order();
         for (i, item) in items.iter().enumerate() {
-            emit(item, f(i, item));
+            emit(item, f(i, item, true));
         }
         return;
     }
@@ -83,7 +88,7 @@ pub fn par_each<T: Sync, R: Send>(
             .map(|_| {
                 scope.spawn(|| {
                     while let Some((i, item)) = claim() {
-                        put(i, f(i, item));
+                        put(i, f(i, item, false));
                     }
                 })
             })
@@ -108,7 +113,7 @@ pub fn par_each<T: Sync, R: Send>(
             }
         };
         while let Some((i, item)) = claim() {
-            let r = f(i, item);
+            let r = f(i, item, done == i);
             put(i, r);
             take_ready(false, &mut done, &mut emit);
         }
@@ -338,19 +343,28 @@ mod tests {
             for order in &orders {
                 for jobs in [1usize, 2, 3, 8] {
                     let calls = AtomicUsize::new(0);
+                    let emitted_count = AtomicUsize::new(0);
                     let mut emitted = Vec::new();
                     par_each(
                         &items,
                         jobs,
                         || order.clone(),
-                        |at, &i| {
+                        |at, &i, in_turn| {
                             assert_eq!(at, i);
+                            assert!(
+                                !in_turn || emitted_count.load(Ordering::SeqCst) == at,
+                                "n {n} jobs {jobs} at {at}"
+                            );
+                            assert!(in_turn || jobs > 1);
                             calls.fetch_add(1, Ordering::Relaxed);
                             // Uneven work, so that results come back out of order.
                             std::thread::sleep(std::time::Duration::from_micros((i % 3) as u64 * 50));
                             i * 2
                         },
-                        |&i, r| emitted.push((i, r)),
+                        |&i, r| {
+                            emitted.push((i, r));
+                            emitted_count.fetch_add(1, Ordering::SeqCst);
+                        },
                     );
                     assert_eq!(calls.load(Ordering::Relaxed), n, "n {n} jobs {jobs}");
                     assert_eq!(emitted, items.iter().map(|&i| (i, i * 2)).collect::<Vec<_>>(), "n {n} jobs {jobs}");
@@ -372,7 +386,7 @@ mod tests {
                 &items,
                 jobs,
                 || order.clone(),
-                |_, &i| started.lock().unwrap().push((std::thread::current().id(), i)),
+                |_, &i, _| started.lock().unwrap().push((std::thread::current().id(), i)),
                 |_, ()| {},
             );
             let started = started.into_inner().unwrap();
@@ -397,7 +411,7 @@ mod tests {
         for bad in [vec![], vec![0, 1, 2], vec![0; 9], vec![8, 7, 6, 5, 4, 3, 2, 1, 99], (0..10).collect()] {
             for jobs in [1usize, 3] {
                 let mut emitted = Vec::new();
-                par_each(&items, jobs, || bad.clone(), |_, &i| i + 1, |&i, r| emitted.push((i, r)));
+                par_each(&items, jobs, || bad.clone(), |_, &i, _| i + 1, |&i, r| emitted.push((i, r)));
                 assert_eq!(emitted, items.iter().map(|&i| (i, i + 1)).collect::<Vec<_>>(), "{bad:?} jobs {jobs}");
             }
         }
