@@ -179,19 +179,12 @@ pub fn run(args: Args) -> ExitCode {
     // Every file is probed first (it is not probed again when read), for its size: the threads
     // take the largest files first, so that the last ones taken are small and the threads
     // finish together. (The probing overlaps the start of the other threads.)
-    let (files, unlisted) = super::expand_folders(&args.files);
+    // (A path given as a file is probed with the metadata asked for to see whether it is a
+    // folder: one system call a path.)
+    let (files, found) = super::expand_folders(&args.files);
     let probes: std::sync::OnceLock<Vec<std::io::Result<eds::Probed<'_>>>> = std::sync::OnceLock::new();
     let order = || {
-        let probed = probes.get_or_init(|| {
-            files
-                .iter()
-                .zip(&unlisted)
-                .map(|(path, unlisted)| match unlisted {
-                    Some(e) => Err(std::io::Error::new(e.kind(), format!("cannot list the folder: {e}"))),
-                    None => eds::probe(path),
-                })
-                .collect()
-        });
+        let probed = probes.get_or_init(|| files.iter().zip(&found).map(|(path, found)| found.probe(path)).collect());
         super::largest_first(probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len())))
     };
     let read = |i: usize, _: &PathBuf| {

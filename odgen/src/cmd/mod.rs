@@ -130,33 +130,61 @@ fn permutation_or_identity(order: Vec<usize>, n: usize) -> Vec<usize> {
     if ok { order } else { (0..n).collect() }
 }
 
+/// How a file of [`expand_folders`] was found.
+#[derive(Debug)]
+pub enum Found {
+    /// Given as such: what `std::fs::metadata` said of it (through symbolic links) when it was
+    /// asked whether it is a folder; [`eds::probe_with`] probes it with that answer, without
+    /// asking again.
+    Given(std::io::Result<std::fs::Metadata>),
+    /// Listed in a folder (not yet probed).
+    Listed,
+    /// A folder that could not be listed, standing for its files: why.
+    Unlisted(std::io::Error),
+}
+
+impl Found {
+    /// [`eds::probe`] of the file found at `path`, from the metadata already known when it was
+    /// given as such (a folder that could not be listed is refused with why).
+    pub fn probe<'a>(&self, path: &'a Path) -> std::io::Result<eds::Probed<'a>> {
+        match self {
+            Found::Given(Ok(m)) => eds::probe_with(path, m),
+            Found::Given(Err(e)) => Err(std::io::Error::new(e.kind(), e.to_string())),
+            Found::Listed => eds::probe(path),
+            Found::Unlisted(e) => Err(std::io::Error::new(e.kind(), format!("cannot list the folder: {e}"))),
+        }
+    }
+}
+
 /// The files a command is given: each path that is not a folder, and for each folder, the files
 /// in it and in its subfolders whose names end in `.eds` or `.dcf` (in any case), in the order
 /// of their paths. Symbolic links to files are taken; links to folders are not followed, so a
-/// link that loops ends the walk there. With each file, why its folder could not be listed,
-/// if it could not (the folder then stands in the list for its files, reported unreadable).
-pub fn expand_folders(paths: &[PathBuf]) -> (Vec<PathBuf>, Vec<Option<std::io::Error>>) {
-    let mut files = Vec::new();
-    let mut unlisted = Vec::new();
+/// link that loops ends the walk there. With each file, how it was found ([`Found`]: a path
+/// given keeps the metadata asked for it, which probes it; a folder that could not be listed
+/// stands in the list for its files, with why).
+pub fn expand_folders(paths: &[PathBuf]) -> (Vec<PathBuf>, Vec<Found>) {
+    let mut files = Vec::with_capacity(paths.len());
+    let mut found = Vec::with_capacity(paths.len());
     for path in paths {
-        if std::fs::metadata(path).is_ok_and(|m| m.is_dir()) {
-            walk(path, &mut files, &mut unlisted);
-        } else {
-            files.push(path.clone());
-            unlisted.push(None);
+        match std::fs::metadata(path) {
+            Ok(m) if m.is_dir() => walk(path, &mut files, &mut found),
+            m => {
+                files.push(path.clone());
+                found.push(Found::Given(m));
+            }
         }
     }
-    (files, unlisted)
+    (files, found)
 }
 
 /// [`expand_folders`] of one folder.
-fn walk(dir: &std::path::Path, files: &mut Vec<PathBuf>, unlisted: &mut Vec<Option<std::io::Error>>) {
+fn walk(dir: &std::path::Path, files: &mut Vec<PathBuf>, found: &mut Vec<Found>) {
     let listed = std::fs::read_dir(dir).and_then(|entries| entries.collect::<std::io::Result<Vec<_>>>());
     let mut entries = match listed {
         Ok(entries) => entries,
         Err(e) => {
             files.push(dir.to_path_buf());
-            unlisted.push(Some(e));
+            found.push(Found::Unlisted(e));
             return;
         }
     };
@@ -166,12 +194,12 @@ fn walk(dir: &std::path::Path, files: &mut Vec<PathBuf>, unlisted: &mut Vec<Opti
         // (The entry's own type: a link to a folder is a link, not a folder.)
         let Ok(kind) = entry.file_type() else { continue };
         if kind.is_dir() {
-            walk(&path, files, unlisted);
+            walk(&path, files, found);
         } else {
             let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
             if ext.eq_ignore_ascii_case("eds") || ext.eq_ignore_ascii_case("dcf") {
                 files.push(path);
-                unlisted.push(None);
+                found.push(Found::Listed);
             }
         }
     }
@@ -403,5 +431,32 @@ mod tests {
         }
         assert_eq!(permutation_or_identity(vec![2, 0, 1], 3), vec![2, 0, 1]);
         assert_eq!(permutation_or_identity(vec![2, 2, 1], 3), vec![0, 1, 2]);
+    }
+
+    /// A path given as a file keeps the metadata asked for it, which probes it as `eds::probe`
+    /// does (its size; a missing file's error); a folder's files are listed, probed when read.
+    #[test]
+    fn expanded_paths_probe_as_eds_probe_does() {
+        let dir = std::env::temp_dir().join(format!("odgen-expand-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("sub")).expect("temp dir");
+        std::fs::write(dir.join("a.eds"), "[FileInfo]\n").expect("write");
+        std::fs::write(dir.join("sub/b.DCF"), "[DeviceInfo]\nX=1\n").expect("write");
+        std::fs::write(dir.join("sub/c.txt"), "not listed").expect("write");
+        let given = [dir.join("a.eds"), dir.join("missing.eds"), dir.clone()];
+        let (files, found) = expand_folders(&given);
+        assert_eq!(files, vec![dir.join("a.eds"), dir.join("missing.eds"), dir.join("a.eds"), dir.join("sub/b.DCF")]);
+        assert!(matches!(found[0], Found::Given(Ok(_))), "{found:?}");
+        assert!(matches!(found[1], Found::Given(Err(_))), "{found:?}");
+        assert!(matches!(found[2..], [Found::Listed, Found::Listed]), "{found:?}");
+        for (path, found) in files.iter().zip(&found) {
+            let direct = eds::probe(path).map(|p| p.len()).map_err(|e| (e.kind(), e.to_string()));
+            let known = found.probe(path).map(|p| p.len()).map_err(|e| (e.kind(), e.to_string()));
+            assert_eq!(direct, known, "{}", path.display());
+        }
+        let unlisted = Found::Unlisted(std::io::Error::from(std::io::ErrorKind::PermissionDenied));
+        let e = unlisted.probe(&dir).expect_err("unlisted");
+        assert_eq!(e.kind(), std::io::ErrorKind::PermissionDenied);
+        assert!(e.to_string().starts_with("cannot list the folder: "), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
