@@ -71,12 +71,17 @@ pub fn par_each<T: Sync, R: Send>(
         let order = taken.wait();
         order.get(next.fetch_add(1, Ordering::Relaxed)).and_then(|&i| Some((i, items.get(i)?)))
     };
-    let slots: Mutex<Vec<Option<R>>> = Mutex::new(items.iter().map(|_| None).collect());
+    // The results not yet emitted, and whether the calling thread waits for one (a worker
+    // wakes it only then: a wake is a system call, and the calling thread only waits once it
+    // has no item left to work on).
+    let slots: Mutex<(Vec<Option<R>>, bool)> = Mutex::new((items.iter().map(|_| None).collect(), false));
     let filled = Condvar::new();
     let put = |i: usize, r: R| {
         let mut s = slots.lock().unwrap_or_else(|e| e.into_inner());
-        s[i] = Some(r);
-        filled.notify_one();
+        s.0[i] = Some(r);
+        if s.1 {
+            filled.notify_one();
+        }
     };
     std::thread::scope(|scope| {
         let workers: Vec<_> = (1..jobs)
@@ -94,7 +99,7 @@ pub fn par_each<T: Sync, R: Send>(
         let take_ready = |wait: bool, done: &mut usize, emit: &mut dyn FnMut(&T, R)| {
             let mut s = slots.lock().unwrap_or_else(|e| e.into_inner());
             while *done < items.len() {
-                match s[*done].take() {
+                match s.0[*done].take() {
                     Some(r) => {
                         // (Emitted without the lock: writing may take a while.)
                         drop(s);
@@ -102,7 +107,11 @@ pub fn par_each<T: Sync, R: Send>(
                         *done += 1;
                         s = slots.lock().unwrap_or_else(|e| e.into_inner());
                     }
-                    None if wait => s = filled.wait(s).unwrap_or_else(|e| e.into_inner()),
+                    None if wait => {
+                        // (Set under the lock a worker takes to put a result: none is missed.)
+                        s.1 = true;
+                        s = filled.wait(s).unwrap_or_else(|e| e.into_inner());
+                    }
                     None => break,
                 }
             }
@@ -415,6 +424,39 @@ mod tests {
                 assert!(mine.windows(2).all(|w| w[0] < w[1]), "jobs {jobs}: places {mine:?}");
             }
         }
+    }
+
+    /// The calling thread, once it has no item left, waits for the workers' results and is
+    /// woken for each (the workers wake it only when it waits): the workers are made slow, so
+    /// that it waits, in many rounds. A missed wake would leave it waiting: the run is timed.
+    #[test]
+    fn par_each_waits_for_slow_workers_and_is_woken() {
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for round in 0..40usize {
+                let items: Vec<usize> = (0..(2 + round % 8)).collect();
+                let caller = std::thread::current().id();
+                for jobs in [2usize, 3] {
+                    let mut emitted = Vec::new();
+                    par_each(
+                        &items,
+                        jobs,
+                        || (0..items.len()).collect(),
+                        |_, &i| {
+                            // (The calling thread slow enough for the workers to start and
+                            // take items, the workers slower still.)
+                            let slow = if std::thread::current().id() == caller { 300 } else { 1500 };
+                            std::thread::sleep(std::time::Duration::from_micros(slow + (i % 3) as u64 * 100));
+                            i * 3
+                        },
+                        |&i, r| emitted.push((i, r)),
+                    );
+                    assert_eq!(emitted, items.iter().map(|&i| (i, i * 3)).collect::<Vec<_>>());
+                }
+            }
+            let _ = tx.send(());
+        });
+        rx.recv_timeout(std::time::Duration::from_secs(60)).expect("par_each should not wait for ever");
     }
 
     /// An order that is no permutation of the items (an index missing, repeated or out of
