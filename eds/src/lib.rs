@@ -321,8 +321,10 @@ fn read_bytes_into(probed: &Probed<'_>, bytes: Vec<u8>, room: usize) -> std::io:
     }
     let len = usize::try_from(m.len()).unwrap_or(0);
     let need = len.max(room).saturating_add(1);
-    // (A buffer too small is replaced, not grown: growing would copy bytes that mean nothing.)
-    let bytes = if bytes.capacity() < need { Vec::with_capacity(need) } else { bytes };
+    // (A buffer too small is replaced, not grown: growing would copy bytes that mean nothing.
+    // A new one is asked for zeroed, and is all initialised for `read_up_to`: memory fresh from
+    // the system is zero already, and the allocator need not write it.)
+    let bytes = if bytes.capacity() < need { vec![0; need] } else { bytes };
     read_up_to(&mut file, bytes, len)
 }
 
