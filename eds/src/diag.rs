@@ -133,14 +133,12 @@ pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::Sourc
     let gutter = at.map(|(_, lc)| lc.line.checked_ilog10().unwrap_or(0) as usize + 1).unwrap_or(1);
     match at {
         Some((span, lc)) => {
-            let mut digits = Digits::default();
-            let line_number = digits.of(lc.line);
             push_lead(out, gutter, ARROW);
             out.push_str(&d.file);
             out.push(':');
-            out.push_str(line_number);
+            push_u32(out, lc.line);
             out.push(':');
-            out.push_str(Digits::default().of(lc.col));
+            push_u32(out, lc.col);
             out.push('\n');
             let line = source.line_text(lc.line);
             let ascii = line.is_ascii();
@@ -155,7 +153,7 @@ pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::Sourc
             // A long line is cut to a window around the span's start, marked with `…`.
             let (from, to) = quote_window(line_chars, start_col);
             push_lead(out, gutter, BAR);
-            out.push_str(line_number);
+            push_u32(out, lc.line);
             out.push_str(" | ");
             if from > 0 {
                 out.push('…');
@@ -249,24 +247,20 @@ fn push_n(out: &mut String, run: &str, n: usize) {
     }
 }
 
-/// The decimal digits of a number, written from the end of a small buffer.
-#[derive(Default)]
-struct Digits([u8; 10]);
-
-impl Digits {
-    /// The digits of `n` (no sign, no leading zero).
-    fn of(&mut self, n: u32) -> &str {
-        let mut i = self.0.len();
-        let mut n = n;
-        loop {
-            i -= 1;
-            self.0[i] = b'0' + (n % 10) as u8;
-            n /= 10;
-            if n == 0 {
-                break;
-            }
+/// Appends the decimal digits of `n`, from the highest power of ten down: each digit is known
+/// to be below ten where it is pushed, so it is stored as one byte with no check of its width
+/// (digits written into a buffer and pushed from it were a `from_utf8` check and a copy each).
+fn push_u32(out: &mut String, n: u32) {
+    let mut p = 1u32;
+    while p <= n / 10 {
+        p *= 10;
+    }
+    loop {
+        out.push(char::from(b'0' + (n / p % 10) as u8));
+        if p == 1 {
+            break;
         }
-        std::str::from_utf8(&self.0[i..]).unwrap_or("")
+        p /= 10;
     }
 }
 
