@@ -278,6 +278,13 @@ impl Stream {
         self.write_if_full();
     }
 
+    /// The buffer, to append a piece of at most a few KiB to (what it holds is written out
+    /// first once it reaches the block size, so that it does not grow).
+    pub fn room(&mut self) -> &mut String {
+        self.write_if_full();
+        &mut self.buf
+    }
+
     /// Lets `f` append to the buffer.
     pub fn with(&mut self, f: impl FnOnce(&mut String)) {
         f(&mut self.buf);
