@@ -117,46 +117,14 @@ pub fn render(d: &Diagnostic, source: &crate::source::SourceFile) -> String {
 pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::SourceFile) {
     // Written piece by piece into `out`, without a `format!` or temporary string per line: a
     // folder's check renders thousands of these, and the allocations and formatting machinery
-    // were most of the cost of rendering one.
-    fn push_u32(out: &mut String, n: u32) {
-        let mut digits = [0u8; 10];
-        let mut i = digits.len();
-        let mut n = n;
-        loop {
-            i -= 1;
-            digits[i] = b'0' + (n % 10) as u8;
-            n /= 10;
-            if n == 0 {
-                break;
-            }
-        }
-        for &d in &digits[i..] {
-            out.push(char::from(d));
-        }
-    }
-    fn push_n(out: &mut String, c: char, n: usize) {
-        // Spaces and carets, in runs of a few to a few dozen: pushed as slices of a run of them
-        // rather than a character at a time.
-        const SPACES: &str = "                                ";
-        const CARETS: &str = "^^^^^^^^^^^^^^^^^^^^^^^^^^^^^^^^";
-        let run = match c {
-            ' ' => SPACES,
-            '^' => CARETS,
-            _ => return out.extend(std::iter::repeat_n(c, n)),
-        };
-        let mut left = n;
-        while left > 0 {
-            let k = left.min(run.len());
-            out.push_str(&run[..k]);
-            left -= k;
-        }
-    }
+    // were most of the cost of rendering one. Each line's lead (the gutter's spaces and what
+    // follows them) is one slice of a padded constant, and a number is one slice of digits:
+    // every push costs a capacity check and a copy, whatever its length.
     out.push_str(match d.severity {
-        Severity::Note => "note",
-        Severity::Warning => "warning",
-        Severity::Error => "error",
+        Severity::Note => "note[",
+        Severity::Warning => "warning[",
+        Severity::Error => "error[",
     });
-    out.push('[');
     out.push_str(d.code.0);
     out.push_str("]: ");
     out.push_str(&d.message);
@@ -165,8 +133,7 @@ pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::Sourc
     let gutter = at.map(|(_, lc)| lc.line.checked_ilog10().unwrap_or(0) as usize + 1).unwrap_or(1);
     match at {
         Some((span, lc)) => {
-            push_n(out, ' ', gutter);
-            out.push_str("--> ");
+            push_lead(out, gutter, ARROW);
             out.push_str(&d.file);
             out.push(':');
             push_u32(out, lc.line);
@@ -174,63 +141,63 @@ pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::Sourc
             push_u32(out, lc.col);
             out.push('\n');
             let line = source.line_text(lc.line);
-            let line_chars = if line.is_ascii() { line.len() as u32 } else { line.chars().count() as u32 };
+            let ascii = line.is_ascii();
+            let line_chars = if ascii { line.len() as u32 } else { line.chars().count() as u32 };
             let start_col = lc.col.saturating_sub(1).min(line_chars);
             let span_text = source.slice(span);
-            let first = span_text.split(['\n', '\r']).next().unwrap_or("");
+            // (The span's first line: up to its first line end.)
+            let first = span_text.as_bytes().iter().position(|&b| b == b'\n' || b == b'\r');
+            let first = first.map_or(span_text, |end| &span_text[..end]);
             let span_chars = if first.is_ascii() { first.len() as u32 } else { first.chars().count() as u32 };
             let width = span_chars.min(line_chars.saturating_sub(start_col)).max(1);
             // A long line is cut to a window around the span's start, marked with `…`.
             let (from, to) = quote_window(line_chars, start_col);
-            push_n(out, ' ', gutter);
-            out.push_str(" |\n");
+            push_lead(out, gutter, BAR);
             push_u32(out, lc.line);
             out.push_str(" | ");
-            let quoted_at = out.len();
             if from > 0 {
                 out.push('…');
             }
-            // (A tab is quoted as one space, so that the carets line up.)
+            // (A tab is quoted as one space, so that the carets line up; an uncut line is
+            // quoted without its trailing white space, which tabs are too.)
             let untab = |c: char| if c == '\t' { ' ' } else { c };
             match line.get(from as usize..to as usize) {
                 // An ASCII line (most are): its characters are its bytes, pushed as a slice.
-                Some(part) if line.len() as u32 == line_chars => {
-                    if part.contains('\t') {
+                Some(part) if ascii => {
+                    let part = if to < line_chars { part } else { part.trim_end() };
+                    if part.as_bytes().contains(&b'\t') {
                         out.extend(part.chars().map(untab));
                     } else {
                         out.push_str(part);
                     }
                 }
-                _ => out.extend(line.chars().skip(from as usize).take((to - from) as usize).map(untab)),
+                _ => {
+                    let quoted_at = out.len();
+                    out.extend(line.chars().skip(from as usize).take((to - from) as usize).map(untab));
+                    if to >= line_chars {
+                        let kept = out[quoted_at..].trim_end().len();
+                        out.truncate(quoted_at + kept);
+                    }
+                }
             }
-            if to < line_chars {
-                out.push('…');
-            } else {
-                // (An uncut line is quoted without its trailing white space.)
-                let kept = out[quoted_at..].trim_end().len();
-                out.truncate(quoted_at + kept);
-            }
-            out.push('\n');
+            out.push_str(if to < line_chars { "…\n" } else { "\n" });
             // Underline the part of the span that lies on this line and in the window (at
             // least one caret).
             let lead = start_col - from + u32::from(from > 0);
             let width = width.min(to.saturating_sub(start_col)).max(1);
-            push_n(out, ' ', gutter);
-            out.push_str(" | ");
-            push_n(out, ' ', lead as usize);
-            push_n(out, '^', width as usize);
+            push_lead(out, gutter, BAR_OPEN);
+            push_n(out, SPACES, lead as usize);
+            push_n(out, CARETS, width as usize);
             out.push('\n');
         }
         None => {
-            push_n(out, ' ', gutter);
-            out.push_str("--> ");
+            push_lead(out, gutter, ARROW);
             out.push_str(&d.file);
             out.push('\n');
         }
     }
     if !d.context.is_empty() {
-        push_n(out, ' ', gutter);
-        out.push_str(" = note: in ");
+        push_lead(out, gutter, NOTE_IN);
         for (i, c) in d.context.iter().enumerate() {
             if i > 0 {
                 out.push_str(", ");
@@ -240,10 +207,60 @@ pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::Sourc
         out.push('\n');
     }
     if let Some(h) = &d.hint {
-        push_n(out, ' ', gutter);
-        out.push_str(" = help: ");
+        push_lead(out, gutter, HELP);
         out.push_str(h);
         out.push('\n');
+    }
+}
+
+/// Runs of spaces and carets, pushed as slices of these rather than a character at a time.
+const SPACES: &str = "                                ";
+const CARETS: &str = "^^^^^^^^^^^^^^^^^^^^^^^^^^^^^^^^";
+
+/// The leads of a rendered diagnostic's lines after the gutter, each after [`LEAD_ROOM`] spaces
+/// (see [`push_lead`]).
+const LEAD_ROOM: usize = 16;
+const ARROW: &str = "                --> ";
+const BAR: &str = "                 |\n";
+const BAR_OPEN: &str = "                 | ";
+const NOTE_IN: &str = "                 = note: in ";
+const HELP: &str = "                 = help: ";
+
+/// `gutter` spaces and then `lead` (one of the padded leads, [`ARROW`] and the others).
+fn push_lead(out: &mut String, gutter: usize, lead: &str) {
+    match lead.get(LEAD_ROOM.saturating_sub(gutter)..) {
+        Some(part) if gutter <= LEAD_ROOM => out.push_str(part),
+        _ => {
+            push_n(out, SPACES, gutter);
+            out.push_str(&lead[LEAD_ROOM..]);
+        }
+    }
+}
+
+/// `n` times the character `run` (one of [`SPACES`], [`CARETS`]) is made of.
+fn push_n(out: &mut String, run: &str, n: usize) {
+    let mut left = n;
+    while left > 0 {
+        let k = left.min(run.len());
+        out.push_str(&run[..k]);
+        left -= k;
+    }
+}
+
+/// Appends the decimal digits of `n`, from the highest power of ten down: each digit is known
+/// to be below ten where it is pushed, so it is stored as one byte with no check of its width
+/// (digits written into a buffer and pushed from it were a `from_utf8` check and a copy each).
+fn push_u32(out: &mut String, n: u32) {
+    let mut p = 1u32;
+    while p <= n / 10 {
+        p *= 10;
+    }
+    loop {
+        out.push(char::from(b'0' + (n / p % 10) as u8));
+        if p == 1 {
+            break;
+        }
+        p /= 10;
     }
 }
 
@@ -506,5 +523,118 @@ mod tests {
                 assert_eq!(carets.find('^'), Some(4 + lead as usize), "{out}");
             }
         }
+    }
+
+    /// What [`render`] must give, written as plainly as it can be (a `format!` per line, the
+    /// line's characters collected): the reference the optimised renderer is held to.
+    fn reference(d: &Diagnostic, source: &SourceFile) -> String {
+        let mut out = format!("{}[{}]: {}\n", d.severity, d.code, d.message);
+        let at = d.span.map(|s| (s, d.at.unwrap_or_else(|| source.line_col(s.start))));
+        let pad = " ".repeat(at.map_or(1, |(_, lc)| lc.line.to_string().len()));
+        match at {
+            None => out += &format!("{pad}--> {}\n", d.file),
+            Some((span, lc)) => {
+                out += &format!("{pad}--> {}:{}:{}\n", d.file, lc.line, lc.col);
+                let chars: Vec<char> = source.line_text(lc.line).chars().collect();
+                let n = chars.len() as u32;
+                let start_col = lc.col.saturating_sub(1).min(n);
+                let first = source.slice(span).split(['\n', '\r']).next().unwrap_or("");
+                let width = (first.chars().count() as u32).min(n - start_col).max(1);
+                let (from, to) = quote_window(n, start_col);
+                let mut quoted: String =
+                    chars[from as usize..to as usize].iter().map(|&c| if c == '\t' { ' ' } else { c }).collect();
+                if from > 0 {
+                    quoted.insert(0, '…');
+                }
+                if to < n {
+                    quoted.push('…');
+                } else {
+                    quoted = quoted.trim_end().to_owned();
+                }
+                out += &format!("{pad} |\n{} | {quoted}\n", lc.line);
+                let lead = start_col - from + u32::from(from > 0);
+                let width = width.min(to.saturating_sub(start_col)).max(1);
+                out += &format!("{pad} | {}{}\n", " ".repeat(lead as usize), "^".repeat(width as usize));
+            }
+        }
+        if !d.context.is_empty() {
+            out += &format!("{pad} = note: in {}\n", d.context.join(", "));
+        }
+        if let Some(h) = &d.hint {
+            out += &format!("{pad} = help: {h}\n");
+        }
+        out
+    }
+
+    /// `render_to` gives what the plain reference gives, appended to what the buffer held, for
+    /// random files (tabs, non-ASCII and Unicode spaces, trailing white space, `\r\n` and lone
+    /// `\r` line ends, lines long enough to be cut, files long enough for wide gutters) and
+    /// random diagnostics (spans anywhere, across line ends or past the end, positions given or
+    /// computed or out of range, with and without span, context and hint, every severity).
+    #[test]
+    fn render_to_gives_what_the_plain_reference_gives() {
+        let mut seed = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = |n: u64| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed % n.max(1)
+        };
+        let pieces = ["a", "Key", "=", "\t", " ", "0x1F", "é", "ß", "…", "Value", "\u{a0}", "\u{3000}", "漢"];
+        let ends = ["\n", "\r\n", "\r"];
+        let codes = [crate::codes::E0301, crate::codes::E0502];
+        let mut out = String::from("kept: ");
+        for _ in 0..300 {
+            let lines = match next(5) {
+                0 => 1,
+                1 => 9 + next(200),
+                2 => 1000 + next(12_000),
+                _ => 1 + next(12),
+            };
+            let mut text = String::new();
+            for _ in 0..lines {
+                let len = match next(6) {
+                    0 => 0,
+                    1 => 150 + next(400),
+                    _ => 1 + next(25),
+                };
+                text.extend((0..len).map(|_| pieces[next(pieces.len() as u64) as usize]));
+                text.push_str(ends[next(3) as usize]);
+            }
+            if next(3) == 0 {
+                text.push_str("Last=line\t ");
+            }
+            let src = SourceFile::from_str(if next(2) == 0 { "dir/a.eds" } else { "b ü.dcf" }, text.as_str());
+            let bounds: Vec<u32> = (0..=text.len()).filter(|&i| text.is_char_boundary(i)).map(|i| i as u32).collect();
+            for _ in 0..8 {
+                let severity = [Severity::Note, Severity::Warning, Severity::Error][next(3) as usize];
+                let mut d = Diagnostic::new(codes[next(2) as usize], crate::Strictness::Lenient, &src.name, "msg `x`");
+                d.severity = severity;
+                if next(6) > 0 {
+                    let start = bounds[next(bounds.len() as u64) as usize];
+                    let end = match next(4) {
+                        0 => start,
+                        1 => start + 1 + next(300) as u32,
+                        _ => bounds[next(bounds.len() as u64) as usize].max(start),
+                    };
+                    d.span = Some(Span::new(start, end));
+                    d.at = match next(5) {
+                        0 => None,
+                        1 => Some(LineCol { line: [0, 99_999, u32::MAX][next(3) as usize], col: next(500) as u32 }),
+                        _ => Some(src.line_col(start)),
+                    };
+                }
+                d.context = (0..next(4)).map(|i| format!("object {i} \"n\u{e9}\"")).collect();
+                if next(2) == 0 {
+                    d.hint = Some(if next(2) == 0 { "fix it".into() } else { format!("use {}", next(100)).into() });
+                }
+                let before = out.len();
+                render_to(&mut out, &d, &src);
+                assert_eq!(out[before..], reference(&d, &src), "{d:?} in {text:?}");
+            }
+            // (The buffer keeps what it held; a long run starts again.)
+            out.truncate(6);
+        }
+        assert_eq!(out, "kept: ");
     }
 }

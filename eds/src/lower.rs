@@ -24,9 +24,9 @@ mod sections;
 mod validate;
 
 pub use pdo::expand_compact_pdo;
+pub(crate) use sections::Scratch;
 #[doc(hidden)]
 pub use sections::name_comparisons;
-pub(crate) use sections::{Scratch, with_room};
 
 use crate::ast::Document;
 use crate::diag::{Code, Diagnostic, Severity};

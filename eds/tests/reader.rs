@@ -199,3 +199,69 @@ fn a_file_replaced_by_a_fifo_after_its_probe_is_refused_without_waiting() {
     let e = result.expect_err("a FIFO is refused");
     assert_eq!(e.kind(), std::io::ErrorKind::InvalidInput, "{e}");
 }
+
+/// A reader reads each file's bytes exactly, whatever the sizes before it: larger (the buffer
+/// it reads into still holds their bytes, which must not show through), smaller, of size 0,
+/// larger than `Reader::ROOM` (a new buffer), and of one byte.
+#[test]
+fn a_reader_reads_every_byte_whatever_the_sizes_before() {
+    let dir = std::env::temp_dir().join(format!("eds-reader-sizes-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let sizes = [0usize, 1, 100_000, 5, eds::Reader::ROOM + 30_000, 17, 270_000, 0, 8191, 8192, 8193, 64, 44_000];
+    let files: Vec<(PathBuf, String)> = sizes
+        .iter()
+        .enumerate()
+        .map(|(i, &n)| {
+            // Each file's own bytes (printable ASCII, a line end now and then).
+            let text: String = (0..n)
+                .map(|k| if k % 61 == 60 { '\n' } else { char::from(b'!' + ((k * 7 + i * 13) % 90) as u8) })
+                .collect();
+            let path = dir.join(format!("f{i}.eds"));
+            std::fs::write(&path, &text).expect("write");
+            (path, text)
+        })
+        .collect();
+    let orders: [Vec<usize>; 3] =
+        [(0..files.len()).collect(), (0..files.len()).rev().collect(), vec![4, 3, 6, 1, 2, 7, 0, 5, 12, 8, 11, 10, 9]];
+    for order in &orders {
+        let mut reader = eds::Reader::new();
+        for &i in order {
+            let (path, text) = &files[i];
+            let parsed = reader.read_file(path, &Options::lenient()).expect("readable");
+            assert!(parsed.document.source.text == *text, "{} ({} bytes) read wrong", path.display(), text.len());
+            reader.recycle(parsed);
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `probe_with` judges a path by metadata the caller has already asked for, as `probe` does
+/// by asking: a file's size, a directory and a device refused with the same errors, and the
+/// metadata of a symbolic link itself refused (`probe` follows links).
+#[test]
+fn probe_with_metadata_judges_as_probe_does() {
+    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut paths = vec![here.join("tests/fixtures/base.eds"), here.to_path_buf()];
+    if Path::new("/dev/null").exists() {
+        paths.push(PathBuf::from("/dev/null"));
+    }
+    for path in &paths {
+        let by_asking = eds::probe(path).map(|p| p.len()).map_err(|e| (e.kind(), e.to_string()));
+        let m = std::fs::metadata(path).expect("metadata");
+        let with = eds::probe_with(path, &m).map(|p| p.len()).map_err(|e| (e.kind(), e.to_string()));
+        assert_eq!(by_asking, with, "{}", path.display());
+    }
+    #[cfg(unix)]
+    {
+        let dir = std::env::temp_dir().join(format!("eds-reader-link-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let link = dir.join("link.eds");
+        let _ = std::fs::remove_file(&link);
+        std::os::unix::fs::symlink(here.join("tests/fixtures/base.eds"), &link).expect("symlink");
+        let own = std::fs::symlink_metadata(&link).expect("metadata");
+        assert_eq!(eds::probe_with(&link, &own).expect_err("a link").kind(), std::io::ErrorKind::InvalidInput);
+        let followed = std::fs::metadata(&link).expect("metadata");
+        assert!(eds::probe_with(&link, &followed).is_ok());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

@@ -220,21 +220,35 @@ fn check_on_several_threads_prints_what_one_thread_prints() {
         })
         .collect();
     files.insert(5, dir.0.join("missing.eds"));
-    let run = |jobs: &str| {
+    // (One thread renders each report straight into the output, several into blocks handed
+    // to the writer: every format and level must come out the same.)
+    let run = |jobs: &str, more: &[&str]| {
         let mut args = vec!["check", "--jobs", jobs];
+        args.extend(more);
         args.extend(files.iter().map(|p| s(p)));
         odgen(&args)
     };
-    let one = run("1");
+    let one = run("1", &[]);
     assert_eq!(one.status.code(), Some(2), "{}", stdout(&one));
     assert!(stdout(&one).contains("checked 13 files: 4 errors"), "{}", stdout(&one));
-    for jobs in ["2", "8"] {
-        let many = run(jobs);
-        assert_eq!(
-            (many.status.code(), stdout(&many), stderr(&many)),
-            (one.status.code(), stdout(&one), stderr(&one)),
-            "--jobs {jobs}"
-        );
+    let variants: [&[&str]; 6] = [
+        &[],
+        &["--notes"],
+        &["--format", "json"],
+        &["--format", "sarif"],
+        &["--format", "sarif", "--level", "error"],
+        &["--format", "json", "--level", "error", "--strict"],
+    ];
+    for more in variants {
+        let one = run("1", more);
+        for jobs in ["2", "8"] {
+            let many = run(jobs, more);
+            assert_eq!(
+                (many.status.code(), stdout(&many), stderr(&many)),
+                (one.status.code(), stdout(&one), stderr(&one)),
+                "--jobs {jobs} {more:?}"
+            );
+        }
     }
 }
 

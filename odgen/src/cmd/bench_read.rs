@@ -44,8 +44,10 @@ pub struct Args {
 pub fn run(args: Args) -> ExitCode {
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();
     // Folders as `odgen check` takes them (their `.eds`/`.dcf` files and their subfolders').
-    let (paths, unlisted) = super::expand_folders(&args.paths);
-    if let Some((path, Some(e))) = paths.iter().zip(&unlisted).find(|(_, u)| u.is_some()) {
+    let (paths, found) = super::expand_folders(&args.paths);
+    if let Some((path, super::Found::Unlisted(e))) =
+        paths.iter().zip(&found).find(|(_, f)| matches!(f, super::Found::Unlisted(_)))
+    {
         eprintln!("error: cannot list {}: {e}", path.display());
         return ExitCode::from(EXIT_TROUBLE);
     }

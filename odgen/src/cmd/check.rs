@@ -2,8 +2,9 @@
 //!
 //! Each file's part of the output is rendered by the thread that read it (which then drops the
 //! file's text and model, so its memory serves the next file), and the parts go out in the
-//! order of the files through one buffer ([`super::Stream`]). JSON and SARIF are written
-//! directly, not through a value tree per diagnostic.
+//! order of the files through one buffer ([`super::Stream`]): with one thread, straight into
+//! that buffer; with several, into blocks the writer takes in order. JSON and SARIF are
+//! written directly, not through a value tree per diagnostic.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -98,18 +99,14 @@ struct Blocks<'a> {
     done: Vec<String>,
     current: String,
     spare: &'a Spare,
-    /// The output, when the file is in turn (every file before it written): a full block is
-    /// then written out at once and rendered into again, so that a report of hundreds of
-    /// kilobytes needs one block rather than as many as it fills.
-    direct: Option<&'a std::sync::Mutex<Stream>>,
 }
 
 /// Blocks written out, ready to be rendered into again.
 type Spare = std::sync::Mutex<Vec<String>>;
 
 impl<'a> Blocks<'a> {
-    fn new(spare: &'a Spare, direct: Option<&'a std::sync::Mutex<Stream>>) -> Self {
-        let mut b = Blocks { done: Vec::new(), current: String::new(), spare, direct };
+    fn new(spare: &'a Spare) -> Self {
+        let mut b = Blocks { done: Vec::new(), current: String::new(), spare };
         b.current = b.take();
         b
     }
@@ -120,20 +117,11 @@ impl<'a> Blocks<'a> {
         spare.unwrap_or_else(|| String::with_capacity(BLOCK + 4096))
     }
 
-    /// The block to append the next piece to (a new one once the current one is full, or the
-    /// same one written out and emptied when the file is in turn).
+    /// The block to append the next piece to (a new one once the current one is full).
     fn text(&mut self) -> &mut String {
         if self.current.len() >= BLOCK {
-            match self.direct {
-                Some(out) => {
-                    out.lock().unwrap_or_else(|e| e.into_inner()).push(&self.current);
-                    self.current.clear();
-                }
-                None => {
-                    let next = self.take();
-                    self.done.push(std::mem::replace(&mut self.current, next));
-                }
-            }
+            let next = self.take();
+            self.done.push(std::mem::replace(&mut self.current, next));
         }
         &mut self.current
     }
@@ -141,6 +129,24 @@ impl<'a> Blocks<'a> {
     fn finish(mut self) -> Vec<String> {
         self.done.push(self.current);
         self.done
+    }
+}
+
+/// Where a report is rendered: the blocks handed to the writer, or the output itself.
+trait Sink {
+    /// The buffer to append the next piece (a diagnostic, at most a few KiB) to.
+    fn text(&mut self) -> &mut String;
+}
+
+impl Sink for Blocks<'_> {
+    fn text(&mut self) -> &mut String {
+        Blocks::text(self)
+    }
+}
+
+impl Sink for Stream {
+    fn text(&mut self) -> &mut String {
+        self.room()
     }
 }
 
@@ -153,6 +159,12 @@ struct Counts {
 }
 
 impl Counts {
+    fn add_counts(&mut self, other: &Counts) {
+        self.errors += other.errors;
+        self.warnings += other.warnings;
+        self.notes += other.notes;
+    }
+
     fn add(&mut self, diagnostics: &[Diagnostic]) {
         for d in diagnostics {
             match d.severity {
@@ -192,68 +204,78 @@ pub fn run(args: Args) -> ExitCode {
     // Every file is probed first (it is not probed again when read), for its size: the threads
     // take the largest files first, so that the last ones taken are small and the threads
     // finish together. (The probing overlaps the start of the other threads.)
-    let (files, unlisted) = super::expand_folders(&args.files);
+    // (A path given as a file is probed with the metadata asked for to see whether it is a
+    // folder: one system call a path.)
+    let (files, found) = super::expand_folders(&args.files);
     let probes: std::sync::OnceLock<Vec<std::io::Result<eds::Probed<'_>>>> = std::sync::OnceLock::new();
     let order = || {
-        let probed = probes.get_or_init(|| {
-            files
-                .iter()
-                .zip(&unlisted)
-                .map(|(path, unlisted)| match unlisted {
-                    Some(e) => Err(std::io::Error::new(e.kind(), format!("cannot list the folder: {e}"))),
-                    None => eds::probe(path),
-                })
-                .collect()
-        });
+        let probed = probes.get_or_init(|| files.iter().zip(&found).map(|(path, found)| found.probe(path)).collect());
         super::largest_first(probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len())))
     };
-    // The output, shared with the readers: a file in turn writes its report's full blocks
-    // itself (human output only: the other formats put a separator before a file's report,
-    // which the writer decides).
-    let shared = std::sync::Mutex::new(out);
-    let read = |i: usize, _: &PathBuf, in_turn: bool| {
+    let read = |i: usize, _: &PathBuf| {
         // (Set by `order`, which runs before any file is read.)
         let probed = probes.wait()[i].as_ref().map_err(|e| std::io::Error::new(e.kind(), e.to_string()))?;
-        let direct = (in_turn && format == Format::Human).then_some(&shared);
         READER.with_borrow_mut(|reader| {
             let parsed = reader.read_probed(probed, &options)?;
-            let report = render(&parsed, probed.path(), format, level, &spare, direct);
+            let mut blocks = Blocks::new(&spare);
+            let counts = render(&parsed, probed.path(), format, level, &mut blocks);
             reader.recycle(parsed);
-            Ok::<_, std::io::Error>(report)
+            Ok::<_, std::io::Error>(Report { blocks: blocks.finish(), counts })
         })
     };
 
-    super::par_each(&files, super::jobs(args.jobs), order, read, |path, report| {
-        let mut out = shared.lock().unwrap_or_else(|e| e.into_inner());
-        let report = match report {
-            Ok(r) => r,
-            Err(e) => {
-                let name = path.display().to_string();
-                if args.format == Format::Human {
-                    eprintln!("error: cannot read {name}: {e}");
+    let cannot_read = |path: &std::path::Path, e: std::io::Error, unreadable: &mut Vec<(String, String)>| {
+        let name = path.display().to_string();
+        if format == Format::Human {
+            eprintln!("error: cannot read {name}: {e}");
+        }
+        unreadable.push((name, e.to_string()));
+    };
+    let jobs = super::jobs(args.jobs).min(files.len().max(1));
+    if jobs == 1 {
+        // One thread: each file's report is rendered straight into the output, which writes it
+        // as it fills, rather than into blocks handed over (a 200 KB report was four fresh
+        // 64 KiB blocks, then copied in part), in the files' order as it comes.
+        for (path, found) in files.iter().zip(&found) {
+            let read = found.probe(path).and_then(|probed| {
+                READER.with_borrow_mut(|reader| {
+                    let parsed = reader.read_probed(&probed, &options)?;
+                    if writes_anything(&parsed, format, level) {
+                        out.push(if any { ",\n" } else { "\n" });
+                        any = true;
+                    }
+                    let file_counts = render(&parsed, path, format, level, &mut out);
+                    reader.recycle(parsed);
+                    Ok::<_, std::io::Error>(file_counts)
+                })
+            });
+            match read {
+                Ok(c) => counts.add_counts(&c),
+                Err(e) => cannot_read(path, e, &mut unreadable),
+            }
+        }
+    } else {
+        super::par_each(&files, jobs, order, read, |path, report| {
+            let report = match report {
+                Ok(r) => r,
+                Err(e) => return cannot_read(path, e, &mut unreadable),
+            };
+            counts.add_counts(&report.counts);
+            if args.format != Format::Human && report.blocks.iter().any(|b| !b.is_empty()) {
+                out.push(if any { ",\n" } else { "\n" });
+                any = true;
+            }
+            let mut spare = spare.lock().unwrap_or_else(|e| e.into_inner());
+            for mut block in report.blocks {
+                out.push(&block);
+                block.clear();
+                // (As many as two files' worth in flight on each thread; the rest are freed.)
+                if spare.len() < 8 {
+                    spare.push(block);
                 }
-                unreadable.push((name, e.to_string()));
-                return;
             }
-        };
-        counts.errors += report.counts.errors;
-        counts.warnings += report.counts.warnings;
-        counts.notes += report.counts.notes;
-        if args.format != Format::Human && report.blocks.iter().any(|b| !b.is_empty()) {
-            out.push(if any { ",\n" } else { "\n" });
-            any = true;
-        }
-        let mut spare = spare.lock().unwrap_or_else(|e| e.into_inner());
-        for mut block in report.blocks {
-            out.push(&block);
-            block.clear();
-            // (As many as two files' worth in flight on each thread; the rest are freed.)
-            if spare.len() < 8 {
-                spare.push(block);
-            }
-        }
-    });
-    let mut out = shared.into_inner().unwrap_or_else(|e| e.into_inner());
+        });
+    }
     match args.format {
         Format::Human => {
             let files = files.len();
@@ -302,23 +324,24 @@ thread_local! {
     static READER: std::cell::RefCell<eds::Reader> = std::cell::RefCell::new(eds::Reader::new());
 }
 
-/// A file's part of the output, and its counts, rendered into blocks from `spare` (its full
-/// blocks written to `direct` at once, when given).
-fn render(
-    parsed: &eds::Parsed,
-    path: &std::path::Path,
-    format: Format,
-    level: Level,
-    spare: &Spare,
-    direct: Option<&std::sync::Mutex<Stream>>,
-) -> Report {
+/// Whether a file's part of the output has anything in it (JSON and SARIF put a separator
+/// before each part that has; a JSON part always has the file's name).
+fn writes_anything(parsed: &eds::Parsed, format: Format, level: Level) -> bool {
+    match format {
+        Format::Human => false,
+        Format::Json => true,
+        Format::Sarif => parsed.diagnostics.iter().any(|d| level.shows(d.severity)),
+    }
+}
+
+/// Renders a file's part of the output into `out`, and gives its counts.
+fn render(parsed: &eds::Parsed, path: &std::path::Path, format: Format, level: Level, out: &mut impl Sink) -> Counts {
     let mut counts = Counts::default();
     counts.add(&parsed.diagnostics);
     counts.warnings += parsed.not_kept.warnings;
     counts.notes += parsed.not_kept.notes;
     let source = &parsed.document.source;
     let shown = parsed.diagnostics.iter().filter(|d| level.shows(d.severity));
-    let mut out = Blocks::new(spare, direct);
     match format {
         Format::Human => {
             for d in shown {
@@ -349,7 +372,7 @@ fn render(
             }
         }
     }
-    Report { blocks: out.finish(), counts }
+    counts
 }
 
 /// `2 errors, 1 warning, 3 notes` (`no problems` when there are none); what was counted but

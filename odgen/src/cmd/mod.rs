@@ -46,16 +46,11 @@ pub fn jobs(requested: Option<usize>) -> usize {
 /// fresh pages, each a page fault), and it hands out what is ready between its own items, so
 /// results are written and freed as the run goes rather than all held to the end. With one
 /// thread, the items are taken in their own order, each emitted as soon as it is done.
-///
-/// `f`'s third argument says whether the item is in turn: every item before it has been handed
-/// to `emit`, and `emit` is not called again until `f` returns (always so with one thread; on
-/// the calling thread when the items before it are done). An item in turn may write its output
-/// itself, ahead of what it returns, rather than hold all of it.
 pub fn par_each<T: Sync, R: Send>(
     items: &[T],
     jobs: usize,
     order: impl FnOnce() -> Vec<usize>,
-    f: impl Fn(usize, &T, bool) -> R + Sync,
+    f: impl Fn(usize, &T) -> R + Sync,
     mut emit: impl FnMut(&T, R),
 ) {
     use std::sync::atomic::{AtomicUsize, Ordering};
@@ -64,7 +59,7 @@ pub fn par_each<T: Sync, R: Send>(
     if jobs == 1 {
         let _ = order();
         for (i, item) in items.iter().enumerate() {
-            emit(item, f(i, item, true));
+            emit(item, f(i, item));
         }
         return;
     }
@@ -76,19 +71,24 @@ pub fn par_each<T: Sync, R: Send>(
         let order = taken.wait();
         order.get(next.fetch_add(1, Ordering::Relaxed)).and_then(|&i| Some((i, items.get(i)?)))
     };
-    let slots: Mutex<Vec<Option<R>>> = Mutex::new(items.iter().map(|_| None).collect());
+    // The results not yet emitted, and whether the calling thread waits for one (a worker
+    // wakes it only then: a wake is a system call, and the calling thread only waits once it
+    // has no item left to work on).
+    let slots: Mutex<(Vec<Option<R>>, bool)> = Mutex::new((items.iter().map(|_| None).collect(), false));
     let filled = Condvar::new();
     let put = |i: usize, r: R| {
         let mut s = slots.lock().unwrap_or_else(|e| e.into_inner());
-        s[i] = Some(r);
-        filled.notify_one();
+        s.0[i] = Some(r);
+        if s.1 {
+            filled.notify_one();
+        }
     };
     std::thread::scope(|scope| {
         let workers: Vec<_> = (1..jobs)
             .map(|_| {
                 scope.spawn(|| {
                     while let Some((i, item)) = claim() {
-                        put(i, f(i, item, false));
+                        put(i, f(i, item));
                     }
                 })
             })
@@ -99,7 +99,7 @@ pub fn par_each<T: Sync, R: Send>(
         let take_ready = |wait: bool, done: &mut usize, emit: &mut dyn FnMut(&T, R)| {
             let mut s = slots.lock().unwrap_or_else(|e| e.into_inner());
             while *done < items.len() {
-                match s[*done].take() {
+                match s.0[*done].take() {
                     Some(r) => {
                         // (Emitted without the lock: writing may take a while.)
                         drop(s);
@@ -107,13 +107,17 @@ pub fn par_each<T: Sync, R: Send>(
                         *done += 1;
                         s = slots.lock().unwrap_or_else(|e| e.into_inner());
                     }
-                    None if wait => s = filled.wait(s).unwrap_or_else(|e| e.into_inner()),
+                    None if wait => {
+                        // (Set under the lock a worker takes to put a result: none is missed.)
+                        s.1 = true;
+                        s = filled.wait(s).unwrap_or_else(|e| e.into_inner());
+                    }
                     None => break,
                 }
             }
         };
         while let Some((i, item)) = claim() {
-            let r = f(i, item, done == i);
+            let r = f(i, item);
             put(i, r);
             take_ready(false, &mut done, &mut emit);
         }
@@ -135,33 +139,61 @@ fn permutation_or_identity(order: Vec<usize>, n: usize) -> Vec<usize> {
     if ok { order } else { (0..n).collect() }
 }
 
+/// How a file of [`expand_folders`] was found.
+#[derive(Debug)]
+pub enum Found {
+    /// Given as such: what `std::fs::metadata` said of it (through symbolic links) when it was
+    /// asked whether it is a folder; [`eds::probe_with`] probes it with that answer, without
+    /// asking again.
+    Given(std::io::Result<std::fs::Metadata>),
+    /// Listed in a folder (not yet probed).
+    Listed,
+    /// A folder that could not be listed, standing for its files: why.
+    Unlisted(std::io::Error),
+}
+
+impl Found {
+    /// [`eds::probe`] of the file found at `path`, from the metadata already known when it was
+    /// given as such (a folder that could not be listed is refused with why).
+    pub fn probe<'a>(&self, path: &'a Path) -> std::io::Result<eds::Probed<'a>> {
+        match self {
+            Found::Given(Ok(m)) => eds::probe_with(path, m),
+            Found::Given(Err(e)) => Err(std::io::Error::new(e.kind(), e.to_string())),
+            Found::Listed => eds::probe(path),
+            Found::Unlisted(e) => Err(std::io::Error::new(e.kind(), format!("cannot list the folder: {e}"))),
+        }
+    }
+}
+
 /// The files a command is given: each path that is not a folder, and for each folder, the files
 /// in it and in its subfolders whose names end in `.eds` or `.dcf` (in any case), in the order
 /// of their paths. Symbolic links to files are taken; links to folders are not followed, so a
-/// link that loops ends the walk there. With each file, why its folder could not be listed,
-/// if it could not (the folder then stands in the list for its files, reported unreadable).
-pub fn expand_folders(paths: &[PathBuf]) -> (Vec<PathBuf>, Vec<Option<std::io::Error>>) {
-    let mut files = Vec::new();
-    let mut unlisted = Vec::new();
+/// link that loops ends the walk there. With each file, how it was found ([`Found`]: a path
+/// given keeps the metadata asked for it, which probes it; a folder that could not be listed
+/// stands in the list for its files, with why).
+pub fn expand_folders(paths: &[PathBuf]) -> (Vec<PathBuf>, Vec<Found>) {
+    let mut files = Vec::with_capacity(paths.len());
+    let mut found = Vec::with_capacity(paths.len());
     for path in paths {
-        if std::fs::metadata(path).is_ok_and(|m| m.is_dir()) {
-            walk(path, &mut files, &mut unlisted);
-        } else {
-            files.push(path.clone());
-            unlisted.push(None);
+        match std::fs::metadata(path) {
+            Ok(m) if m.is_dir() => walk(path, &mut files, &mut found),
+            m => {
+                files.push(path.clone());
+                found.push(Found::Given(m));
+            }
         }
     }
-    (files, unlisted)
+    (files, found)
 }
 
 /// [`expand_folders`] of one folder.
-fn walk(dir: &std::path::Path, files: &mut Vec<PathBuf>, unlisted: &mut Vec<Option<std::io::Error>>) {
+fn walk(dir: &std::path::Path, files: &mut Vec<PathBuf>, found: &mut Vec<Found>) {
     let listed = std::fs::read_dir(dir).and_then(|entries| entries.collect::<std::io::Result<Vec<_>>>());
     let mut entries = match listed {
         Ok(entries) => entries,
         Err(e) => {
             files.push(dir.to_path_buf());
-            unlisted.push(Some(e));
+            found.push(Found::Unlisted(e));
             return;
         }
     };
@@ -171,12 +203,12 @@ fn walk(dir: &std::path::Path, files: &mut Vec<PathBuf>, unlisted: &mut Vec<Opti
         // (The entry's own type: a link to a folder is a link, not a folder.)
         let Ok(kind) = entry.file_type() else { continue };
         if kind.is_dir() {
-            walk(&path, files, unlisted);
+            walk(&path, files, found);
         } else {
             let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
             if ext.eq_ignore_ascii_case("eds") || ext.eq_ignore_ascii_case("dcf") {
                 files.push(path);
-                unlisted.push(None);
+                found.push(Found::Listed);
             }
         }
     }
@@ -244,6 +276,13 @@ impl Stream {
         }
         self.buf.push_str(text);
         self.write_if_full();
+    }
+
+    /// The buffer, to append a piece of at most a few KiB to (what it holds is written out
+    /// first once it reaches the block size, so that it does not grow).
+    pub fn room(&mut self) -> &mut String {
+        self.write_if_full();
+        &mut self.buf
     }
 
     /// Lets `f` append to the buffer.
@@ -343,28 +382,19 @@ mod tests {
             for order in &orders {
                 for jobs in [1usize, 2, 3, 8] {
                     let calls = AtomicUsize::new(0);
-                    let emitted_count = AtomicUsize::new(0);
                     let mut emitted = Vec::new();
                     par_each(
                         &items,
                         jobs,
                         || order.clone(),
-                        |at, &i, in_turn| {
+                        |at, &i| {
                             assert_eq!(at, i);
-                            assert!(
-                                !in_turn || emitted_count.load(Ordering::SeqCst) == at,
-                                "n {n} jobs {jobs} at {at}"
-                            );
-                            assert!(in_turn || jobs > 1);
                             calls.fetch_add(1, Ordering::Relaxed);
                             // Uneven work, so that results come back out of order.
                             std::thread::sleep(std::time::Duration::from_micros((i % 3) as u64 * 50));
                             i * 2
                         },
-                        |&i, r| {
-                            emitted.push((i, r));
-                            emitted_count.fetch_add(1, Ordering::SeqCst);
-                        },
+                        |&i, r| emitted.push((i, r)),
                     );
                     assert_eq!(calls.load(Ordering::Relaxed), n, "n {n} jobs {jobs}");
                     assert_eq!(emitted, items.iter().map(|&i| (i, i * 2)).collect::<Vec<_>>(), "n {n} jobs {jobs}");
@@ -386,7 +416,7 @@ mod tests {
                 &items,
                 jobs,
                 || order.clone(),
-                |_, &i, _| started.lock().unwrap().push((std::thread::current().id(), i)),
+                |_, &i| started.lock().unwrap().push((std::thread::current().id(), i)),
                 |_, ()| {},
             );
             let started = started.into_inner().unwrap();
@@ -403,6 +433,39 @@ mod tests {
         }
     }
 
+    /// The calling thread, once it has no item left, waits for the workers' results and is
+    /// woken for each (the workers wake it only when it waits): the workers are made slow, so
+    /// that it waits, in many rounds. A missed wake would leave it waiting: the run is timed.
+    #[test]
+    fn par_each_waits_for_slow_workers_and_is_woken() {
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for round in 0..40usize {
+                let items: Vec<usize> = (0..(2 + round % 8)).collect();
+                let caller = std::thread::current().id();
+                for jobs in [2usize, 3] {
+                    let mut emitted = Vec::new();
+                    par_each(
+                        &items,
+                        jobs,
+                        || (0..items.len()).collect(),
+                        |_, &i| {
+                            // (The calling thread slow enough for the workers to start and
+                            // take items, the workers slower still.)
+                            let slow = if std::thread::current().id() == caller { 300 } else { 1500 };
+                            std::thread::sleep(std::time::Duration::from_micros(slow + (i % 3) as u64 * 100));
+                            i * 3
+                        },
+                        |&i, r| emitted.push((i, r)),
+                    );
+                    assert_eq!(emitted, items.iter().map(|&i| (i, i * 3)).collect::<Vec<_>>());
+                }
+            }
+            let _ = tx.send(());
+        });
+        rx.recv_timeout(std::time::Duration::from_secs(60)).expect("par_each should not wait for ever");
+    }
+
     /// An order that is no permutation of the items (an index missing, repeated or out of
     /// range) is taken as the items' own order: every item is still worked on once.
     #[test]
@@ -411,11 +474,38 @@ mod tests {
         for bad in [vec![], vec![0, 1, 2], vec![0; 9], vec![8, 7, 6, 5, 4, 3, 2, 1, 99], (0..10).collect()] {
             for jobs in [1usize, 3] {
                 let mut emitted = Vec::new();
-                par_each(&items, jobs, || bad.clone(), |_, &i, _| i + 1, |&i, r| emitted.push((i, r)));
+                par_each(&items, jobs, || bad.clone(), |_, &i| i + 1, |&i, r| emitted.push((i, r)));
                 assert_eq!(emitted, items.iter().map(|&i| (i, i + 1)).collect::<Vec<_>>(), "{bad:?} jobs {jobs}");
             }
         }
         assert_eq!(permutation_or_identity(vec![2, 0, 1], 3), vec![2, 0, 1]);
         assert_eq!(permutation_or_identity(vec![2, 2, 1], 3), vec![0, 1, 2]);
+    }
+
+    /// A path given as a file keeps the metadata asked for it, which probes it as `eds::probe`
+    /// does (its size; a missing file's error); a folder's files are listed, probed when read.
+    #[test]
+    fn expanded_paths_probe_as_eds_probe_does() {
+        let dir = std::env::temp_dir().join(format!("odgen-expand-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("sub")).expect("temp dir");
+        std::fs::write(dir.join("a.eds"), "[FileInfo]\n").expect("write");
+        std::fs::write(dir.join("sub/b.DCF"), "[DeviceInfo]\nX=1\n").expect("write");
+        std::fs::write(dir.join("sub/c.txt"), "not listed").expect("write");
+        let given = [dir.join("a.eds"), dir.join("missing.eds"), dir.clone()];
+        let (files, found) = expand_folders(&given);
+        assert_eq!(files, vec![dir.join("a.eds"), dir.join("missing.eds"), dir.join("a.eds"), dir.join("sub/b.DCF")]);
+        assert!(matches!(found[0], Found::Given(Ok(_))), "{found:?}");
+        assert!(matches!(found[1], Found::Given(Err(_))), "{found:?}");
+        assert!(matches!(found[2..], [Found::Listed, Found::Listed]), "{found:?}");
+        for (path, found) in files.iter().zip(&found) {
+            let direct = eds::probe(path).map(|p| p.len()).map_err(|e| (e.kind(), e.to_string()));
+            let known = found.probe(path).map(|p| p.len()).map_err(|e| (e.kind(), e.to_string()));
+            assert_eq!(direct, known, "{}", path.display());
+        }
+        let unlisted = Found::Unlisted(std::io::Error::from(std::io::ErrorKind::PermissionDenied));
+        let e = unlisted.probe(&dir).expect_err("unlisted");
+        assert_eq!(e.kind(), std::io::ErrorKind::PermissionDenied);
+        assert!(e.to_string().starts_with("cannot list the folder: "), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
