@@ -78,6 +78,30 @@ impl Name {
         Name::concat(&[self, suffix])
     }
 
+    /// This name followed by `n` in decimal (a compact array's element: the array's name and
+    /// the sub-index), as [`Name::with_suffix`] with the digits of `n`. Short enough, it writes
+    /// the digits straight after this name's bytes, without a table of digits or a loop.
+    #[inline]
+    pub fn with_number(&self, n: u8) -> Self {
+        if let Repr::Inline { len, bytes } = &self.0 {
+            let at = *len as usize;
+            if at <= Self::INLINE - 3 {
+                let (hundreds, tens, ones) = (b'0' + n / 100, b'0' + n / 10 % 10, b'0' + n % 10);
+                let (digits, count) = if n >= 100 {
+                    ([hundreds, tens, ones], 3)
+                } else if n >= 10 {
+                    ([tens, ones, 0], 2)
+                } else {
+                    ([ones, 0, 0], 1)
+                };
+                let mut bytes = *bytes;
+                bytes[at..at + 3].copy_from_slice(&digits);
+                return Name(Repr::Inline { len: (at + count) as u8, bytes });
+            }
+        }
+        self.with_suffix(crate::lower::decimal_u8(n))
+    }
+
     /// The text.
     #[inline]
     pub fn as_str(&self) -> &str {
@@ -287,6 +311,25 @@ mod tests {
         assert!(!n.is_inline());
         assert_eq!(n, s);
         assert_eq!(Name::new(), "");
+    }
+
+    /// `with_number` is `with_suffix` with the number's decimal digits, for every number and
+    /// every length of name around the bound of names kept in place (ASCII, and names ending
+    /// in a multi-byte character).
+    #[test]
+    fn with_number_is_with_suffix_of_the_digits() {
+        for len in 0..=Name::INLINE + 2 {
+            for base in ["x".repeat(len), format!("{}é", "x".repeat(len.saturating_sub(2)))] {
+                let name = Name::from(base.as_str());
+                for n in 0..=u8::MAX {
+                    let got = name.with_number(n);
+                    let want = name.with_suffix(&n.to_string());
+                    assert_eq!(got.as_str(), format!("{base}{n}"));
+                    assert_eq!(got, want);
+                    assert_eq!(got.is_inline(), want.is_inline());
+                }
+            }
+        }
     }
 
     proptest! {

@@ -1150,8 +1150,7 @@ fn expand_compact(
     let extras = extras.filter(|x| !x.is_empty()).map(Box::new);
     let base = &obj.name;
     obj.subs.extend_with(1..=n, |s| {
-        let digits = super::decimal_u8(s);
-        let name = base.with_suffix(digits);
+        let name = base.with_number(s);
         Entry {
             sub: SubIndex(s),
             name,
