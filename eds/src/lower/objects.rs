@@ -256,11 +256,19 @@ fn plain_int_value(text: &str, ty: DataType) -> Option<Value> {
 }
 
 /// Reads a value key. `Ok(None)` means no value (empty); `Err(())` means the text could not be
-/// read (already reported; the caller keeps it as written).
+/// read (already reported; the caller keeps it as written). The commonest value, a plain
+/// number, is read where the value is wanted, without a call.
+#[inline]
 fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -> Result<Option<Value>, ()> {
     if let Some(v) = plain_int_value(kv.value, ty) {
         return Ok(Some(v));
     }
+    value_key_other(cx, kv, ty, context)
+}
+
+/// [`value_key`] for a value that is not a plain number (kept out of line).
+#[inline(never)]
+fn value_key_other(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -> Result<Option<Value>, ()> {
     // The quirks go to the context's buffer (reused from value to value), taken out while the
     // value is reported.
     let mut quirks = std::mem::take(&mut cx.quirks);
@@ -746,15 +754,21 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
     // Sub-object sections by object index, in file order for each index (the sort is stable).
     let mut subs: Vec<(u16, (u8, &Section<'_>))> = Vec::with_capacity(secs.list.len());
     let mut orphans: Vec<&Section<'_>> = Vec::new();
-    // Most files have no [xxxxName]/[xxxxValue]/[xxxxObjectLinks] sections: then nothing is
-    // looked up for them.
-    let mut side = false;
+    // The [xxxxName], [xxxxValue] and [xxxxObjectLinks] sections (0, 1, 2) by object index: few,
+    // and most files have none. Each kind of section is in the list once, so an object finds its
+    // own by one search of these, not by three look-ups in the index of all sections.
+    let mut side: Vec<(u16, u8, &Section<'_>)> = Vec::new();
     for sec in &secs.list {
         match sec.kind {
             Kind::Object(i) => objects.push((i, sec)),
             Kind::Sub(i, s) => subs.push((i, (s, sec))),
             Kind::Names(i) | Kind::Values(i) | Kind::Links(i) => {
-                side = true;
+                let which = match sec.kind {
+                    Kind::Names(_) => 0,
+                    Kind::Values(_) => 1,
+                    _ => 2,
+                };
+                side.push((i, which, sec));
                 if secs.get(Kind::Object(i)).is_none() {
                     orphans.push(sec)
                 }
@@ -762,6 +776,7 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
             _ => {}
         }
     }
+    side.sort_unstable_by_key(|&(i, which, _)| (i, which));
     let mut object_indices: Vec<u16> = objects.iter().map(|&(i, _)| i).collect();
     object_indices.sort_unstable();
     subs.sort_by_key(|&(i, _)| i);
@@ -793,10 +808,25 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
             to += 1;
         }
         next = to;
-        let side_section = |kind| if side { secs.get(kind) } else { None };
-        let names = side_section(Kind::Names(index));
-        let values = side_section(Kind::Values(index));
-        let links = side_section(Kind::Links(index));
+        let (mut names, mut values, mut links) = (None, None, None);
+        if !side.is_empty() {
+            let at = side.partition_point(|&(i, _, _)| i < index);
+            for &(_, which, s) in side[at..].iter().take_while(|&&(i, _, _)| i == index) {
+                match which {
+                    0 => names = Some(s),
+                    1 => values = Some(s),
+                    _ => links = Some(s),
+                }
+            }
+        }
+        // (Held to the index of all sections in every debug build: the corpus and fixture tests.)
+        #[cfg(debug_assertions)]
+        for (found, kind) in [(names, Kind::Names(index)), (values, Kind::Values(index)), (links, Kind::Links(index))] {
+            debug_assert!(
+                found.map(|s| s as *const Section<'_>) == secs.get(kind).map(|s| s as *const Section<'_>),
+                "{kind:?}"
+            );
+        }
         let mut obj = build_object(cx, &builder, index, sec, &subs[from..to], names, values);
         if let Some(l) = links {
             let oname = obj.name.clone();
