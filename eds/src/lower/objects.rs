@@ -258,7 +258,7 @@ fn plain_int_value(text: &str, ty: DataType) -> Option<Value> {
 /// Reads a value key. `Ok(None)` means no value (empty); `Err(())` means the text could not be
 /// read (already reported; the caller keeps it as written). The commonest value, a plain
 /// number, is read where the value is wanted, without a call.
-#[inline]
+#[inline(always)]
 fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -> Result<Option<Value>, ()> {
     if let Some(v) = plain_int_value(kv.value, ty) {
         return Ok(Some(v));
