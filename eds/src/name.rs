@@ -80,23 +80,17 @@ impl Name {
 
     /// This name followed by `n` in decimal (a compact array's element: the array's name and
     /// the sub-index), as [`Name::with_suffix`] with the digits of `n`. Short enough, it writes
-    /// the digits straight after this name's bytes, without a table of digits or a loop.
+    /// the digits, from a table of three bytes per number, straight after this name's bytes:
+    /// no division, no slice of digits and no loop.
     #[inline]
     pub fn with_number(&self, n: u8) -> Self {
         if let Repr::Inline { len, bytes } = &self.0 {
             let at = *len as usize;
             if at <= Self::INLINE - 3 {
-                let (hundreds, tens, ones) = (b'0' + n / 100, b'0' + n / 10 % 10, b'0' + n % 10);
-                let (digits, count) = if n >= 100 {
-                    ([hundreds, tens, ones], 3)
-                } else if n >= 10 {
-                    ([tens, ones, 0], 2)
-                } else {
-                    ([ones, 0, 0], 1)
-                };
+                let (digits, count) = DECIMAL_U8[n as usize];
                 let mut bytes = *bytes;
                 bytes[at..at + 3].copy_from_slice(&digits);
-                return Name(Repr::Inline { len: (at + count) as u8, bytes });
+                return Name(Repr::Inline { len: at as u8 + count, bytes });
             }
         }
         self.with_suffix(crate::lower::decimal_u8(n))
@@ -125,6 +119,25 @@ impl Name {
         matches!(self.0, Repr::Inline { .. })
     }
 }
+
+/// The decimal digits of each `u8` (the first ones of three bytes, zeros after them) and how
+/// many there are: what [`Name::with_number`] writes.
+const DECIMAL_U8: [([u8; 3], u8); 256] = {
+    let mut table = [([0; 3], 0); 256];
+    let mut n = 0;
+    while n < 256 {
+        let (hundreds, tens, ones) = (b'0' + (n / 100) as u8, b'0' + (n / 10 % 10) as u8, b'0' + (n % 10) as u8);
+        table[n] = if n >= 100 {
+            ([hundreds, tens, ones], 3)
+        } else if n >= 10 {
+            ([tens, ones, 0], 2)
+        } else {
+            ([ones, 0, 0], 1)
+        };
+        n += 1;
+    }
+    table
+};
 
 impl Default for Name {
     fn default() -> Self {
