@@ -560,7 +560,10 @@ impl EntryBuilder<'_> {
             }
         });
         for i in [K_SUBNUM, K_COMPACT] {
-            if let Some(kv) = keys.get(i).filter(|_| !self.compact_template) {
+            if self.compact_template {
+                break;
+            }
+            if let Some(kv) = keys.get(i) {
                 let d = cx.emit(
                     codes::E0217,
                     Some(kv.key_span()),
@@ -570,7 +573,9 @@ impl EntryBuilder<'_> {
                 extra.push(owned(kv));
             }
         }
-        extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
+        if !keys.unknown.is_empty() {
+            extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
+        }
         let (denotation, upload, download) = (keys.get(K_DENOT), keys.get(K_UPLOAD), keys.get(K_DOWNLOAD));
         // Most entries have none of these: then nothing is built for them.
         let any = parameter_value.is_some()
@@ -633,48 +638,52 @@ fn cmp_mixed(a: &Value, b: &Value) -> Option<std::cmp::Ordering> {
 fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &ObjKeys<'_>, context: Crumbs<'_>) {
     let span_of = |i: usize| keys.get(i).map(|kv| kv.value_span());
     let (low_limit, high_limit) = (e.low_limit(), e.high_limit());
-    if (low_limit.is_some() || high_limit.is_some()) && !is_numeric(e.data_type) {
-        if let DataType::Other(_) = e.data_type {
-        } else {
-            let span = span_of(K_LOW).or(span_of(K_HIGH));
-            let d = cx.emit(codes::E0313, span, format!("limits on a {} entry have no meaning", e.data_type.name()));
-            d.context = context.to_vec();
+    // (Most entries have no limits: then none of the checks of limits can fire.)
+    if low_limit.is_some() || high_limit.is_some() {
+        if !is_numeric(e.data_type) {
+            if let DataType::Other(_) = e.data_type {
+            } else {
+                let span = span_of(K_LOW).or(span_of(K_HIGH));
+                let d =
+                    cx.emit(codes::E0313, span, format!("limits on a {} entry have no meaning", e.data_type.name()));
+                d.context = context.to_vec();
+            }
         }
-    }
-    if let (Some(lo), Some(hi)) = (low_limit, high_limit)
-        && cmp_values(lo, hi) == Some(std::cmp::Ordering::Greater)
-    {
-        let d = cx.emit(
-            codes::E0307,
-            span_of(K_LOW),
-            format!(
-                "LowLimit {} is greater than HighLimit {}",
-                value::format_value(lo, e.data_type),
-                value::format_value(hi, e.data_type)
-            ),
-        );
-        d.hint = Some("swap the limits".into());
-        d.context = context.to_vec();
-        return;
-    }
-    for (i, v) in [(K_DEFAULT, e.default.as_ref()), (K_PVALUE, e.parameter_value())] {
-        let Some(v) = v else { continue };
-        let low = low_limit.filter(|lo| cmp_values(v, lo) == Some(std::cmp::Ordering::Less));
-        let high = high_limit.filter(|hi| cmp_values(v, hi) == Some(std::cmp::Ordering::Greater));
-        if let Some(bound) = low.or(high) {
-            let key = OBJ_KEYS.names[i];
+        if let (Some(lo), Some(hi)) = (low_limit, high_limit)
+            && cmp_values(lo, hi) == Some(std::cmp::Ordering::Greater)
+        {
             let d = cx.emit(
-                codes::E0306,
-                span_of(i),
+                codes::E0307,
+                span_of(K_LOW),
                 format!(
-                    "{key} {} is {} the {} {}",
-                    value::format_value(v, e.data_type),
-                    if low.is_some() { "below" } else { "above" },
-                    if low.is_some() { "LowLimit" } else { "HighLimit" },
-                    value::format_value(bound, e.data_type)
+                    "LowLimit {} is greater than HighLimit {}",
+                    value::format_value(lo, e.data_type),
+                    value::format_value(hi, e.data_type)
                 ),
             );
+            d.hint = Some("swap the limits".into());
             d.context = context.to_vec();
+            return;
+        }
+        for (i, v) in [(K_DEFAULT, e.default.as_ref()), (K_PVALUE, e.parameter_value())] {
+            let Some(v) = v else { continue };
+            let low = low_limit.filter(|lo| cmp_values(v, lo) == Some(std::cmp::Ordering::Less));
+            let high = high_limit.filter(|hi| cmp_values(v, hi) == Some(std::cmp::Ordering::Greater));
+            if let Some(bound) = low.or(high) {
+                let key = OBJ_KEYS.names[i];
+                let d = cx.emit(
+                    codes::E0306,
+                    span_of(i),
+                    format!(
+                        "{key} {} is {} the {} {}",
+                        value::format_value(v, e.data_type),
+                        if low.is_some() { "below" } else { "above" },
+                        if low.is_some() { "LowLimit" } else { "HighLimit" },
+                        value::format_value(bound, e.data_type)
+                    ),
+                );
+                d.context = context.to_vec();
+            }
         }
     }
     let span = span_of(K_PDO).or(span_of(K_ACCESS));
