@@ -120,6 +120,31 @@ impl Name {
     }
 }
 
+/// `b` (at most [`Name::INLINE`] bytes) at the start of the inline storage, zeros after it.
+/// Copied as two overlapping blocks of a fixed size (16, 8, 4 or 2 bytes, by the length): a
+/// few moves, where a copy of `b.len()` bytes calls `memcpy`.
+#[inline(always)]
+fn inline_bytes(b: &[u8]) -> [u8; Name::INLINE] {
+    let mut bytes = [0; Name::INLINE];
+    let n = b.len();
+    if n >= 16 {
+        bytes[..16].copy_from_slice(&b[..16]);
+        bytes[n - 16..n].copy_from_slice(&b[n - 16..]);
+    } else if n >= 8 {
+        bytes[..8].copy_from_slice(&b[..8]);
+        bytes[n - 8..n].copy_from_slice(&b[n - 8..]);
+    } else if n >= 4 {
+        bytes[..4].copy_from_slice(&b[..4]);
+        bytes[n - 4..n].copy_from_slice(&b[n - 4..]);
+    } else if n >= 2 {
+        bytes[..2].copy_from_slice(&b[..2]);
+        bytes[n - 2..n].copy_from_slice(&b[n - 2..]);
+    } else if n == 1 {
+        bytes[0] = b[0];
+    }
+    bytes
+}
+
 /// The decimal digits of each `u8` (the first ones of three bytes, zeros after them) and how
 /// many there are: what [`Name::with_number`] writes.
 const DECIMAL_U8: [([u8; 3], u8); 256] = {
@@ -169,9 +194,7 @@ impl From<&str> for Name {
     #[inline]
     fn from(s: &str) -> Self {
         if s.len() <= Self::INLINE {
-            let mut bytes = [0; Name::INLINE];
-            bytes[..s.len()].copy_from_slice(s.as_bytes());
-            Name(Repr::Inline { len: s.len() as u8, bytes })
+            Name(Repr::Inline { len: s.len() as u8, bytes: inline_bytes(s.as_bytes()) })
         } else {
             Name(Repr::Heap(s.into()))
         }
@@ -324,6 +347,19 @@ mod tests {
         assert!(!n.is_inline());
         assert_eq!(n, s);
         assert_eq!(Name::new(), "");
+    }
+
+    /// The fixed-size copies put every text of every length that fits at the start of the
+    /// storage, zeros after it.
+    #[test]
+    fn inline_bytes_copy_every_length() {
+        let text: Vec<u8> = (1..=Name::INLINE as u8).collect();
+        for n in 0..=Name::INLINE {
+            let bytes = inline_bytes(&text[..n]);
+            assert_eq!(&bytes[..n], &text[..n]);
+            assert!(bytes[n..].iter().all(|&b| b == 0), "{n}");
+            assert_eq!(Name::from(std::str::from_utf8(&text[..n]).unwrap()).len(), n);
+        }
     }
 
     /// `with_number` is `with_suffix` with the number's decimal digits, for every number and
