@@ -263,6 +263,11 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -
     if let Some(v) = plain_int_value(kv.value, ty) {
         return Ok(Some(v));
     }
+    // An empty value of any type but the strings is no value, with no remark (the general
+    // rules' one quirk for it, EmptyNumeric, is not reported here; E0308 is the caller's).
+    if kv.value.is_empty() && !matches!(ty, DataType::VisibleString | DataType::UnicodeString | DataType::OctetString) {
+        return Ok(None);
+    }
     value_key_other(cx, kv, ty, context)
 }
 
@@ -1328,6 +1333,24 @@ fn check_structure(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An empty value reads as the general rules read it, for every type code, with no
+    /// diagnostic either way.
+    #[test]
+    fn empty_values_are_what_the_general_rules_read() {
+        let src = crate::source::SourceFile::decode("t.eds", b"DefaultValue=\n");
+        let text = src.text.clone();
+        let kv = Kv::new(&text, crate::source::Span::new(0, 12), crate::source::Span::new(13, 13), 0);
+        assert_eq!(kv.value, "");
+        let mut cx = Ctx::new(&src, crate::Strictness::default());
+        for code in 0..=u16::MAX {
+            let ty = DataType::from_code(code);
+            let fast = value_key(&mut cx, &kv, ty, Crumbs::default());
+            let general = value_key_other(&mut cx, &kv, ty, Crumbs::default());
+            assert_eq!(fast, general, "{ty:?}");
+        }
+        assert!(cx.diags.is_empty(), "{:?}", cx.diags.first().map(|d| &d.message));
+    }
 
     /// Where the shortcut for plain integers gives a value, it is the one the general rules
     /// give, with no remark and within range; it gives one for the plain forms in range.
