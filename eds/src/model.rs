@@ -1450,6 +1450,7 @@ impl Index {
     // (The arms of the communication area overlap on purpose: the named indices and ranges
     // come first, and the rest of 0x1000..=0x1FFF falls to `OtherCommunication`.)
     #[allow(clippy::match_overlapping_arm)]
+    #[inline]
     pub fn role(self) -> Role {
         let i = self.0;
         // Most objects of most files are manufacturer-specific or profile objects: decided by

@@ -78,6 +78,24 @@ impl Name {
         Name::concat(&[self, suffix])
     }
 
+    /// This name followed by `n` in decimal (a compact array's element: the array's name and
+    /// the sub-index), as [`Name::with_suffix`] with the digits of `n`. Short enough, it writes
+    /// the digits, from a table of three bytes per number, straight after this name's bytes:
+    /// no division, no slice of digits and no loop.
+    #[inline]
+    pub fn with_number(&self, n: u8) -> Self {
+        if let Repr::Inline { len, bytes } = &self.0 {
+            let at = *len as usize;
+            if at <= Self::INLINE - 3 {
+                let (digits, count) = DECIMAL_U8[n as usize];
+                let mut bytes = *bytes;
+                bytes[at..at + 3].copy_from_slice(&digits);
+                return Name(Repr::Inline { len: at as u8 + count, bytes });
+            }
+        }
+        self.with_suffix(crate::lower::decimal_u8(n))
+    }
+
     /// The text.
     #[inline]
     pub fn as_str(&self) -> &str {
@@ -101,6 +119,50 @@ impl Name {
         matches!(self.0, Repr::Inline { .. })
     }
 }
+
+/// `b` (at most [`Name::INLINE`] bytes) at the start of the inline storage, zeros after it.
+/// Copied as two overlapping blocks of a fixed size (16, 8, 4 or 2 bytes, by the length): a
+/// few moves, where a copy of `b.len()` bytes calls `memcpy`.
+#[inline(always)]
+fn inline_bytes(b: &[u8]) -> [u8; Name::INLINE] {
+    let mut bytes = [0; Name::INLINE];
+    let n = b.len();
+    if n >= 16 {
+        bytes[..16].copy_from_slice(&b[..16]);
+        bytes[n - 16..n].copy_from_slice(&b[n - 16..]);
+    } else if n >= 8 {
+        bytes[..8].copy_from_slice(&b[..8]);
+        bytes[n - 8..n].copy_from_slice(&b[n - 8..]);
+    } else if n >= 4 {
+        bytes[..4].copy_from_slice(&b[..4]);
+        bytes[n - 4..n].copy_from_slice(&b[n - 4..]);
+    } else if n >= 2 {
+        bytes[..2].copy_from_slice(&b[..2]);
+        bytes[n - 2..n].copy_from_slice(&b[n - 2..]);
+    } else if n == 1 {
+        bytes[0] = b[0];
+    }
+    bytes
+}
+
+/// The decimal digits of each `u8` (the first ones of three bytes, zeros after them) and how
+/// many there are: what [`Name::with_number`] writes.
+const DECIMAL_U8: [([u8; 3], u8); 256] = {
+    let mut table = [([0; 3], 0); 256];
+    let mut n = 0;
+    while n < 256 {
+        let (hundreds, tens, ones) = (b'0' + (n / 100) as u8, b'0' + (n / 10 % 10) as u8, b'0' + (n % 10) as u8);
+        table[n] = if n >= 100 {
+            ([hundreds, tens, ones], 3)
+        } else if n >= 10 {
+            ([tens, ones, 0], 2)
+        } else {
+            ([ones, 0, 0], 1)
+        };
+        n += 1;
+    }
+    table
+};
 
 impl Default for Name {
     fn default() -> Self {
@@ -132,9 +194,7 @@ impl From<&str> for Name {
     #[inline]
     fn from(s: &str) -> Self {
         if s.len() <= Self::INLINE {
-            let mut bytes = [0; Name::INLINE];
-            bytes[..s.len()].copy_from_slice(s.as_bytes());
-            Name(Repr::Inline { len: s.len() as u8, bytes })
+            Name(Repr::Inline { len: s.len() as u8, bytes: inline_bytes(s.as_bytes()) })
         } else {
             Name(Repr::Heap(s.into()))
         }
@@ -287,6 +347,38 @@ mod tests {
         assert!(!n.is_inline());
         assert_eq!(n, s);
         assert_eq!(Name::new(), "");
+    }
+
+    /// The fixed-size copies put every text of every length that fits at the start of the
+    /// storage, zeros after it.
+    #[test]
+    fn inline_bytes_copy_every_length() {
+        let text: Vec<u8> = (1..=Name::INLINE as u8).collect();
+        for n in 0..=Name::INLINE {
+            let bytes = inline_bytes(&text[..n]);
+            assert_eq!(&bytes[..n], &text[..n]);
+            assert!(bytes[n..].iter().all(|&b| b == 0), "{n}");
+            assert_eq!(Name::from(std::str::from_utf8(&text[..n]).unwrap()).len(), n);
+        }
+    }
+
+    /// `with_number` is `with_suffix` with the number's decimal digits, for every number and
+    /// every length of name around the bound of names kept in place (ASCII, and names ending
+    /// in a multi-byte character).
+    #[test]
+    fn with_number_is_with_suffix_of_the_digits() {
+        for len in 0..=Name::INLINE + 2 {
+            for base in ["x".repeat(len), format!("{}é", "x".repeat(len.saturating_sub(2)))] {
+                let name = Name::from(base.as_str());
+                for n in 0..=u8::MAX {
+                    let got = name.with_number(n);
+                    let want = name.with_suffix(&n.to_string());
+                    assert_eq!(got.as_str(), format!("{base}{n}"));
+                    assert_eq!(got, want);
+                    assert_eq!(got.is_inline(), want.is_inline());
+                }
+            }
+        }
     }
 
     proptest! {

@@ -245,7 +245,11 @@ pub(crate) fn parse_plain_uint(s: &str) -> Option<(u64, Radix)> {
         [b'0', b'x' | b'X', digits @ ..] if !digits.is_empty() && digits.len() <= 16 => {
             let mut v = 0u64;
             for &b in digits {
-                v = v << 4 | digit(b)? as u64;
+                let d = HEX_VALUE[b as usize];
+                if d > 0xF {
+                    return None;
+                }
+                v = v << 4 | d as u64;
             }
             Some((v, Radix::Hex))
         }
@@ -263,6 +267,24 @@ pub(crate) fn parse_plain_uint(s: &str) -> Option<(u64, Radix)> {
         _ => None,
     }
 }
+
+/// Each byte's value as a hex digit (either case), `0xFF` for a byte that is none: one look-up
+/// per digit of the plain hex numbers that most values and types are, where [`digit`] takes a
+/// comparison per range.
+const HEX_VALUE: [u8; 256] = {
+    let mut table = [0xFF; 256];
+    let mut b = 0;
+    while b < 256 {
+        table[b] = match b as u8 {
+            c @ b'0'..=b'9' => c - b'0',
+            c @ b'a'..=b'f' => c - b'a' + 10,
+            c @ b'A'..=b'F' => c - b'A' + 10,
+            _ => 0xFF,
+        };
+        b += 1;
+    }
+    table
+};
 
 /// Whether `text` mentions `$NODEID` (any case).
 pub fn contains_node_id(text: &str) -> bool {
@@ -678,6 +700,58 @@ mod tests {
         assert_eq!(int("12", DataType::TimeDifference), (Some(12), vec![]));
         assert!(parse_value("1 2 3", DataType::TimeOfDay).is_err());
         assert!(parse_value("70000 1", DataType::TimeOfDay).is_err());
+    }
+
+    /// The table of hex digits gives each byte the value [`digit`] gives it.
+    #[test]
+    fn hex_table_is_digit() {
+        for b in 0..=u8::MAX {
+            assert_eq!(digit(b), Some(HEX_VALUE[b as usize] as u32).filter(|&d| d <= 0xF), "{b:#04X}");
+        }
+    }
+
+    /// [`parse_plain_uint`] as it read hex digits before their table: [`digit`] per byte.
+    fn plain_uint_by_digit(s: &str) -> Option<(u64, Radix)> {
+        match s.as_bytes() {
+            [b'0', b'x' | b'X', digits @ ..] if !digits.is_empty() && digits.len() <= 16 => {
+                let mut v = 0u64;
+                for &b in digits {
+                    v = v << 4 | digit(b)? as u64;
+                }
+                Some((v, Radix::Hex))
+            }
+            _ => parse_plain_uint(s),
+        }
+    }
+
+    /// Every ASCII byte (and a multi-byte character) at every place of every length of hex
+    /// digits reads as it did with [`digit`].
+    #[test]
+    fn plain_hex_reads_as_by_digit() {
+        let others: Vec<String> = (0u8..0x80).map(|b| (b as char).to_string()).chain(["é".into()]).collect();
+        for prefix in ["0x", "0X"] {
+            for len in 1..=17 {
+                for at in 0..len {
+                    for other in &others {
+                        for fill in ["9", "f", "A"] {
+                            let t = format!("{prefix}{}{other}{}", fill.repeat(at), fill.repeat(len - at - 1));
+                            assert_eq!(parse_plain_uint(&t), plain_uint_by_digit(&t), "{t:?}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    proptest::proptest! {
+        /// Plain numbers read as with [`digit`], and as the numbers they were written from.
+        #[test]
+        fn plain_hex_agrees(t in "(0[xX])?[0-9a-fA-FgG:@`/ ]{0,20}", n in proptest::num::u64::ANY) {
+            proptest::prop_assert_eq!(parse_plain_uint(&t), plain_uint_by_digit(&t));
+            for t in [format!("0x{n:X}"), format!("0x{n:x}"), format!("0X{n:016X}")] {
+                proptest::prop_assert_eq!(parse_plain_uint(&t), Some((n, Radix::Hex)));
+            }
+        }
     }
 
     #[test]

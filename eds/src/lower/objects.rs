@@ -256,11 +256,24 @@ fn plain_int_value(text: &str, ty: DataType) -> Option<Value> {
 }
 
 /// Reads a value key. `Ok(None)` means no value (empty); `Err(())` means the text could not be
-/// read (already reported; the caller keeps it as written).
+/// read (already reported; the caller keeps it as written). The commonest value, a plain
+/// number, is read where the value is wanted, without a call.
+#[inline(always)]
 fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -> Result<Option<Value>, ()> {
     if let Some(v) = plain_int_value(kv.value, ty) {
         return Ok(Some(v));
     }
+    // An empty value of any type but the strings is no value, with no remark (the general
+    // rules' one quirk for it, EmptyNumeric, is not reported here; E0308 is the caller's).
+    if kv.value.is_empty() && !matches!(ty, DataType::VisibleString | DataType::UnicodeString | DataType::OctetString) {
+        return Ok(None);
+    }
+    value_key_other(cx, kv, ty, context)
+}
+
+/// [`value_key`] for a value that is not a plain number (kept out of line).
+#[inline(never)]
+fn value_key_other(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -> Result<Option<Value>, ()> {
     // The quirks go to the context's buffer (reused from value to value), taken out while the
     // value is reported.
     let mut quirks = std::mem::take(&mut cx.quirks);
@@ -552,7 +565,10 @@ impl EntryBuilder<'_> {
             }
         });
         for i in [K_SUBNUM, K_COMPACT] {
-            if let Some(kv) = keys.get(i).filter(|_| !self.compact_template) {
+            if self.compact_template {
+                break;
+            }
+            if let Some(kv) = keys.get(i) {
                 let d = cx.emit(
                     codes::E0217,
                     Some(kv.key_span()),
@@ -562,7 +578,9 @@ impl EntryBuilder<'_> {
                 extra.push(owned(kv));
             }
         }
-        extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
+        if !keys.unknown.is_empty() {
+            extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
+        }
         let (denotation, upload, download) = (keys.get(K_DENOT), keys.get(K_UPLOAD), keys.get(K_DOWNLOAD));
         // Most entries have none of these: then nothing is built for them.
         let any = parameter_value.is_some()
@@ -625,48 +643,52 @@ fn cmp_mixed(a: &Value, b: &Value) -> Option<std::cmp::Ordering> {
 fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &ObjKeys<'_>, context: Crumbs<'_>) {
     let span_of = |i: usize| keys.get(i).map(|kv| kv.value_span());
     let (low_limit, high_limit) = (e.low_limit(), e.high_limit());
-    if (low_limit.is_some() || high_limit.is_some()) && !is_numeric(e.data_type) {
-        if let DataType::Other(_) = e.data_type {
-        } else {
-            let span = span_of(K_LOW).or(span_of(K_HIGH));
-            let d = cx.emit(codes::E0313, span, format!("limits on a {} entry have no meaning", e.data_type.name()));
-            d.context = context.to_vec();
+    // (Most entries have no limits: then none of the checks of limits can fire.)
+    if low_limit.is_some() || high_limit.is_some() {
+        if !is_numeric(e.data_type) {
+            if let DataType::Other(_) = e.data_type {
+            } else {
+                let span = span_of(K_LOW).or(span_of(K_HIGH));
+                let d =
+                    cx.emit(codes::E0313, span, format!("limits on a {} entry have no meaning", e.data_type.name()));
+                d.context = context.to_vec();
+            }
         }
-    }
-    if let (Some(lo), Some(hi)) = (low_limit, high_limit)
-        && cmp_values(lo, hi) == Some(std::cmp::Ordering::Greater)
-    {
-        let d = cx.emit(
-            codes::E0307,
-            span_of(K_LOW),
-            format!(
-                "LowLimit {} is greater than HighLimit {}",
-                value::format_value(lo, e.data_type),
-                value::format_value(hi, e.data_type)
-            ),
-        );
-        d.hint = Some("swap the limits".into());
-        d.context = context.to_vec();
-        return;
-    }
-    for (i, v) in [(K_DEFAULT, e.default.as_ref()), (K_PVALUE, e.parameter_value())] {
-        let Some(v) = v else { continue };
-        let low = low_limit.filter(|lo| cmp_values(v, lo) == Some(std::cmp::Ordering::Less));
-        let high = high_limit.filter(|hi| cmp_values(v, hi) == Some(std::cmp::Ordering::Greater));
-        if let Some(bound) = low.or(high) {
-            let key = OBJ_KEYS.names[i];
+        if let (Some(lo), Some(hi)) = (low_limit, high_limit)
+            && cmp_values(lo, hi) == Some(std::cmp::Ordering::Greater)
+        {
             let d = cx.emit(
-                codes::E0306,
-                span_of(i),
+                codes::E0307,
+                span_of(K_LOW),
                 format!(
-                    "{key} {} is {} the {} {}",
-                    value::format_value(v, e.data_type),
-                    if low.is_some() { "below" } else { "above" },
-                    if low.is_some() { "LowLimit" } else { "HighLimit" },
-                    value::format_value(bound, e.data_type)
+                    "LowLimit {} is greater than HighLimit {}",
+                    value::format_value(lo, e.data_type),
+                    value::format_value(hi, e.data_type)
                 ),
             );
+            d.hint = Some("swap the limits".into());
             d.context = context.to_vec();
+            return;
+        }
+        for (i, v) in [(K_DEFAULT, e.default.as_ref()), (K_PVALUE, e.parameter_value())] {
+            let Some(v) = v else { continue };
+            let low = low_limit.filter(|lo| cmp_values(v, lo) == Some(std::cmp::Ordering::Less));
+            let high = high_limit.filter(|hi| cmp_values(v, hi) == Some(std::cmp::Ordering::Greater));
+            if let Some(bound) = low.or(high) {
+                let key = OBJ_KEYS.names[i];
+                let d = cx.emit(
+                    codes::E0306,
+                    span_of(i),
+                    format!(
+                        "{key} {} is {} the {} {}",
+                        value::format_value(v, e.data_type),
+                        if low.is_some() { "below" } else { "above" },
+                        if low.is_some() { "LowLimit" } else { "HighLimit" },
+                        value::format_value(bound, e.data_type)
+                    ),
+                );
+                d.context = context.to_vec();
+            }
         }
     }
     let span = span_of(K_PDO).or(span_of(K_ACCESS));
@@ -746,15 +768,21 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
     // Sub-object sections by object index, in file order for each index (the sort is stable).
     let mut subs: Vec<(u16, (u8, &Section<'_>))> = Vec::with_capacity(secs.list.len());
     let mut orphans: Vec<&Section<'_>> = Vec::new();
-    // Most files have no [xxxxName]/[xxxxValue]/[xxxxObjectLinks] sections: then nothing is
-    // looked up for them.
-    let mut side = false;
+    // The [xxxxName], [xxxxValue] and [xxxxObjectLinks] sections (0, 1, 2) by object index: few,
+    // and most files have none. Each kind of section is in the list once, so an object finds its
+    // own by one search of these, not by three look-ups in the index of all sections.
+    let mut side: Vec<(u16, u8, &Section<'_>)> = Vec::new();
     for sec in &secs.list {
         match sec.kind {
             Kind::Object(i) => objects.push((i, sec)),
             Kind::Sub(i, s) => subs.push((i, (s, sec))),
             Kind::Names(i) | Kind::Values(i) | Kind::Links(i) => {
-                side = true;
+                let which = match sec.kind {
+                    Kind::Names(_) => 0,
+                    Kind::Values(_) => 1,
+                    _ => 2,
+                };
+                side.push((i, which, sec));
                 if secs.get(Kind::Object(i)).is_none() {
                     orphans.push(sec)
                 }
@@ -762,6 +790,7 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
             _ => {}
         }
     }
+    side.sort_unstable_by_key(|&(i, which, _)| (i, which));
     let mut object_indices: Vec<u16> = objects.iter().map(|&(i, _)| i).collect();
     object_indices.sort_unstable();
     subs.sort_by_key(|&(i, _)| i);
@@ -793,10 +822,25 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
             to += 1;
         }
         next = to;
-        let side_section = |kind| if side { secs.get(kind) } else { None };
-        let names = side_section(Kind::Names(index));
-        let values = side_section(Kind::Values(index));
-        let links = side_section(Kind::Links(index));
+        let (mut names, mut values, mut links) = (None, None, None);
+        if !side.is_empty() {
+            let at = side.partition_point(|&(i, _, _)| i < index);
+            for &(_, which, s) in side[at..].iter().take_while(|&&(i, _, _)| i == index) {
+                match which {
+                    0 => names = Some(s),
+                    1 => values = Some(s),
+                    _ => links = Some(s),
+                }
+            }
+        }
+        // (Held to the index of all sections in every debug build: the corpus and fixture tests.)
+        #[cfg(debug_assertions)]
+        for (found, kind) in [(names, Kind::Names(index)), (values, Kind::Values(index)), (links, Kind::Links(index))] {
+            debug_assert!(
+                found.map(|s| s as *const Section<'_>) == secs.get(kind).map(|s| s as *const Section<'_>),
+                "{kind:?}"
+            );
+        }
         let mut obj = build_object(cx, &builder, index, sec, &subs[from..to], names, values);
         if let Some(l) = links {
             let oname = obj.name.clone();
@@ -1150,8 +1194,7 @@ fn expand_compact(
     let extras = extras.filter(|x| !x.is_empty()).map(Box::new);
     let base = &obj.name;
     obj.subs.extend_with(1..=n, |s| {
-        let digits = super::decimal_u8(s);
-        let name = base.with_suffix(digits);
+        let name = base.with_number(s);
         Entry {
             sub: SubIndex(s),
             name,
@@ -1290,6 +1333,24 @@ fn check_structure(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An empty value reads as the general rules read it, for every type code, with no
+    /// diagnostic either way.
+    #[test]
+    fn empty_values_are_what_the_general_rules_read() {
+        let src = crate::source::SourceFile::decode("t.eds", b"DefaultValue=\n");
+        let text = src.text.clone();
+        let kv = Kv::new(&text, crate::source::Span::new(0, 12), crate::source::Span::new(13, 13), 0);
+        assert_eq!(kv.value, "");
+        let mut cx = Ctx::new(&src, crate::Strictness::default());
+        for code in 0..=u16::MAX {
+            let ty = DataType::from_code(code);
+            let fast = value_key(&mut cx, &kv, ty, Crumbs::default());
+            let general = value_key_other(&mut cx, &kv, ty, Crumbs::default());
+            assert_eq!(fast, general, "{ty:?}");
+        }
+        assert!(cx.diags.is_empty(), "{:?}", cx.diags.first().map(|d| &d.message));
+    }
 
     /// Where the shortcut for plain integers gives a value, it is the one the general rules
     /// give, with no remark and within range; it gives one for the plain forms in range.

@@ -1024,6 +1024,10 @@ pub(crate) fn match_keys<'a, const N: usize>(
     // The last unknown entry of each key, once there are enough of them (object lists have
     // hundreds) that searching the earlier ones for a repeat would cost more than hashing.
     let mut last_unknown: Option<FastMap<Caseless<'a>, usize>> = None;
+    // Whether the unknown keys so far are `1`, `2`, `3`, ... in order, as object lists and
+    // numbered sections write them: then the next number, written plainly, repeats none of
+    // them and is kept without a search.
+    let mut numbered = true;
     let names = &known.names;
     for kv in sec.entries {
         let found_key = known.find(kv.key);
@@ -1057,7 +1061,15 @@ pub(crate) fn match_keys<'a, const N: usize>(
                 }
                 found[i] = Some(kv);
             }
+            None if numbered && is_number(kv.key, unknown.len() + 1) => {
+                debug_assert!(!unknown.iter().any(|u| u.key.eq_ignore_ascii_case(kv.key)), "{}", kv.key);
+                unknown.push(kv);
+                if report_unknown {
+                    report_unknown_key(cx, kv, sec, context);
+                }
+            }
             None => {
+                numbered = false;
                 if last_unknown.is_none() && unknown.len() >= 8 {
                     // Sized for every entry of the section, so that neither grows again.
                     unknown.reserve(sec.entries.len());
@@ -1085,17 +1097,39 @@ pub(crate) fn match_keys<'a, const N: usize>(
                     None => unknown.push(kv),
                 }
                 if report_unknown {
-                    let d = cx.emit(
-                        codes::E0102,
-                        Some(kv.key_span()),
-                        format!("key `{}` is not a CiA 306 key of [{}]; it is kept as written", kv.key, sec.name),
-                    );
-                    d.context = context.to_vec();
+                    report_unknown_key(cx, kv, sec, context);
                 }
             }
         }
     }
     Keys { found, unknown }
+}
+
+/// Reports a key that is not one of its section's (E0102).
+fn report_unknown_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, sec: &Section<'_>, context: Crumbs<'_>) {
+    let d = cx.emit(
+        codes::E0102,
+        Some(kv.key_span()),
+        format!("key `{}` is not a CiA 306 key of [{}]; it is kept as written", kv.key, sec.name),
+    );
+    d.context = context.to_vec();
+}
+
+/// Whether `key` is `n` in decimal as written plainly (no sign, no leading zero).
+#[inline]
+fn is_number(key: &str, n: usize) -> bool {
+    let b = key.as_bytes();
+    if b.is_empty() || b.len() > 19 || b[0] == b'0' {
+        return false;
+    }
+    let mut v = 0u64;
+    for &c in b {
+        if !c.is_ascii_digit() {
+            return false;
+        }
+        v = v * 10 + (c - b'0') as u64;
+    }
+    v == n as u64
 }
 
 /// A key compared and hashed ignoring ASCII case.
@@ -1151,6 +1185,39 @@ mod tests {
         assert_eq!((kept.as_ptr() as usize, kept.capacity(), kept.len()), (ptr, cap, 0));
         let heads: Vec<Head<'static>> = reuse(Vec::<Head<'_>>::with_capacity(10));
         assert!(heads.capacity() >= 10);
+    }
+
+    proptest::proptest! {
+        /// Numbered keys (`1`, `2`, ... in order, which skip the search for repeats) are kept and
+        /// reported as any unknown keys are: the same keys with a letter in front, which never
+        /// look numbered, give the same kept keys, repeats and reports.
+        #[test]
+        fn numbered_keys_are_kept_as_other_unknown_keys(
+            keys in proptest::collection::vec(
+                proptest::sample::select(vec!["1", "2", "3", "4", "5", "6", "7", "8", "9", "10", "11", "01", "0", "x", "X"]),
+                0..24,
+            )
+        ) {
+            let file = |prefix: &str| {
+                let mut t = String::from("[2000]\nParameterName=A\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\n");
+                for (i, k) in keys.iter().enumerate() {
+                    t.push_str(&format!("{prefix}{k}={i}\n"));
+                }
+                t
+            };
+            let read = |prefix: &str| {
+                let p = crate::parse("t.eds", file(prefix).as_bytes(), &crate::Options::default());
+                let extra: Vec<(String, String)> = p.model.objects[&crate::model::Index(0x2000)].subs[&crate::model::SubIndex(0)]
+                    .extra()
+                    .iter()
+                    .map(|(k, v)| (k[prefix.len()..].to_owned(), v.clone()))
+                    .collect();
+                let reports: Vec<String> =
+                    p.diagnostics.iter().map(|d| format!("{:?} {:?}", d.code, d.at.map(|at| at.line))).collect();
+                (extra, reports)
+            };
+            proptest::prop_assert_eq!(read(""), read("k"));
+        }
     }
 
     /// The kind index finds what a hash map finds, for kinds in ascending order, with repeats,
