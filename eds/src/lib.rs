@@ -369,6 +369,18 @@ fn read_up_to(r: &mut impl std::io::Read, mut bytes: Vec<u8>, len: usize) -> std
     Ok(bytes)
 }
 
+/// A small pseudo-random sequence for the tests of this crate (xorshift64): each call gives a
+/// number below its argument (0 for an argument of 0), the same sequence for the same seed.
+#[cfg(test)]
+pub(crate) fn test_rng(mut seed: u64) -> impl FnMut(u64) -> u64 {
+    move |n| {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        seed % n.max(1)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::read_up_to;
@@ -426,13 +438,8 @@ mod tests {
     /// file of size 0; and no stale byte of the buffer's last contents is left in them.
     #[test]
     fn every_way_of_delivering_gives_the_same_bytes() {
-        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
-        let mut next = move |m: usize| {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed % m as u64) as usize
-        };
+        let mut rng = crate::test_rng(0x9E37_79B9_7F4A_7C15);
+        let mut next = move |m: usize| rng(m as u64) as usize;
         for _ in 0..400 {
             let actual = next(40_000);
             let len = match next(4) {

@@ -105,15 +105,9 @@ unsafe impl GlobalAlloc for Mimalloc {
         unsafe {
             match Path::of(layout.size(), layout.align()) {
                 Path::Plain => mi::mi_malloc(layout.size()) as *mut u8,
-                Path::Checked => {
-                    let p = mi::mi_malloc(layout.size()) as *mut u8;
-                    if aligned(p, layout.align()) {
-                        p
-                    } else {
-                        mi::mi_free(p as *mut c_void);
-                        mi::mi_malloc_aligned(layout.size(), layout.align()) as *mut u8
-                    }
-                }
+                Path::Checked => or_aligned(mi::mi_malloc(layout.size()), layout.align(), || {
+                    mi::mi_malloc_aligned(layout.size(), layout.align())
+                }),
                 Path::Aligned => mi::mi_malloc_aligned(layout.size(), layout.align()) as *mut u8,
             }
         }
@@ -125,15 +119,9 @@ unsafe impl GlobalAlloc for Mimalloc {
         unsafe {
             match Path::of(layout.size(), layout.align()) {
                 Path::Plain => mi::mi_zalloc(layout.size()) as *mut u8,
-                Path::Checked => {
-                    let p = mi::mi_zalloc(layout.size()) as *mut u8;
-                    if aligned(p, layout.align()) {
-                        p
-                    } else {
-                        mi::mi_free(p as *mut c_void);
-                        mi::mi_zalloc_aligned(layout.size(), layout.align()) as *mut u8
-                    }
-                }
+                Path::Checked => or_aligned(mi::mi_zalloc(layout.size()), layout.align(), || {
+                    mi::mi_zalloc_aligned(layout.size(), layout.align())
+                }),
                 Path::Aligned => mi::mi_zalloc_aligned(layout.size(), layout.align()) as *mut u8,
             }
         }
@@ -192,6 +180,22 @@ impl Path {
             Path::Aligned
         }
     }
+}
+
+/// `p` (a new block, or null) when it is null or aligned to `align`; otherwise `p` is freed and
+/// `aligned_alloc`'s block given instead.
+///
+/// # Safety
+/// `p` is null or a block from mimalloc that nothing else refers to.
+#[inline]
+unsafe fn or_aligned(p: *mut c_void, align: usize, aligned_alloc: impl FnOnce() -> *mut c_void) -> *mut u8 {
+    let p = p as *mut u8;
+    if aligned(p, align) {
+        return p;
+    }
+    // SAFETY: `p` is a block from mimalloc that nothing refers to (the caller's contract).
+    unsafe { mi::mi_free(p as *mut c_void) };
+    aligned_alloc() as *mut u8
 }
 
 /// Whether `p` is null (a failure, passed on as such) or aligned to `align`.
