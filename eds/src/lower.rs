@@ -160,6 +160,10 @@ pub(crate) struct Ctx<'a> {
     counts: Vec<(Code, u32, u32)>,
     /// What [`Ctx::emit`] hands out for a diagnostic that is not kept.
     scratch: Diagnostic,
+    /// Where each section header of the file starts, in file order, when a section is
+    /// repeated (else empty): entries of a section with no header between them come from the
+    /// same occurrence of it ([`sections::report_duplicate`]).
+    pub header_starts: Vec<u32>,
     /// How many more implicit CompactSubObj elements the model may hold ([`implicit_budget`]).
     pub implicit_left: usize,
     /// Whether the file has gone over [`implicit_budget`] (E0222 is reported once).
@@ -216,6 +220,7 @@ impl<'a> Ctx<'a> {
             file: None,
             counts: Vec::new(),
             scratch: Diagnostic::new(crate::codes::E0002, strictness, "", ""),
+            header_starts: Vec::new(),
             implicit_left: implicit_budget(src.text.len()),
             implicit_exceeded: false,
             least_kept: crate::diag::Severity::Note,

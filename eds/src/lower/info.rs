@@ -26,7 +26,11 @@ fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u
     }
     let v = kv.value.split(';').next().unwrap_or("").trim();
     if v.is_empty() {
-        let d = cx.emit(codes::E0503, Some(kv.value_span()), super::cat(["[", section, "] ", kv.key, " is empty"]));
+        let d = cx.emit(
+            codes::E0503,
+            Some(kv.value_span(&cx.src.text)),
+            super::cat(["[", section, "] ", kv.key, " is empty"]),
+        );
         d.hint = Some(super::cat(["write a number or remove the `", kv.key, "=` line"]).into());
         return None;
     }
@@ -40,7 +44,7 @@ fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u
         Ok(p) => {
             cx.emit(
                 codes::E0503,
-                Some(kv.value_span()),
+                Some(kv.value_span(&cx.src.text)),
                 format!("[{section}] {}={} is out of range 0..={max}", kv.key, p.value),
             );
             None
@@ -48,7 +52,7 @@ fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u
         Err(_) => {
             let d = cx.emit(
                 codes::E0503,
-                Some(kv.value_span()),
+                Some(kv.value_span(&cx.src.text)),
                 format!("[{section}] {}: `{}` is not a number (kept as text)", kv.key, kv.value),
             );
             d.hint = Some("write a decimal number or a 0x-prefixed hexadecimal number".into());
@@ -70,14 +74,15 @@ fn info_bool(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
         "1" => Some(true),
         _ if v.eq_ignore_ascii_case("true") || v.eq_ignore_ascii_case("false") => {
             let b = v.eq_ignore_ascii_case("true");
-            let d = cx.emit(codes::E0503, Some(kv.value_span()), format!("[{section}] {} is `{v}`", kv.key));
+            let d =
+                cx.emit(codes::E0503, Some(kv.value_span(&cx.src.text)), format!("[{section}] {} is `{v}`", kv.key));
             d.hint = Some(format!("CiA 306 writes booleans as 0 or 1: write `{}`", b as u8).into());
             Some(b)
         }
         _ => {
             let d = cx.emit(
                 codes::E0503,
-                Some(kv.value_span()),
+                Some(kv.value_span(&cx.src.text)),
                 format!("[{section}] {}: `{}` is not 0 or 1 (kept as text)", kv.key, kv.value),
             );
             d.hint = Some("write 0 (not supported) or 1 (supported)".into());
@@ -184,7 +189,7 @@ fn lower_file_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> FileInfo {
         {
             let d = cx.emit(
                 codes::E0503,
-                Some(kv.value_span()),
+                Some(kv.value_span(&cx.src.text)),
                 format!("[FileInfo] {}=`{}` is not in the CiA 306 form {form}", kv.key, kv.value),
             );
             d.hint = Some(format!("write it as {form}").into());
@@ -200,7 +205,7 @@ fn lower_file_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> FileInfo {
         if !ok {
             let d = cx.emit(
                 codes::E0503,
-                Some(kv.value_span()),
+                Some(kv.value_span(&cx.src.text)),
                 format!("[FileInfo] EDSVersion=`{}` is not `major.minor`", kv.value),
             );
             d.hint = Some("CiA 306 files are EDSVersion=4.0".into());
@@ -284,7 +289,7 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
     if let (Some(bits), Some(kv)) = (di.compact_pdo.filter(|&b| b != 0), keys.get(14)) {
         let d = cx.emit(
             codes::E0612,
-            Some(kv.value_span()),
+            Some(kv.value_span(&cx.src.text)),
             format!(
                 "CompactPDO=0x{bits:02X}: the file leaves PDO objects implied; the model holds only those written out"
             ),
@@ -315,13 +320,17 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
                     let canon = format!("BaudRate_{r}");
                     let d = cx.emit(
                         codes::E0104,
-                        Some(kv.key_span()),
+                        Some(kv.key_span(&cx.src.text)),
                         format!("key `{}` is written `{canon}` in CiA 306", kv.key),
                     );
                     d.hint = Some(format!("write `{canon}`").into());
                 }
                 if !BAUD_RATES.contains(&r) {
-                    let d = cx.emit(codes::E0503, Some(kv.key_span()), format!("{r} kbit/s is not a CiA 301 bit rate"));
+                    let d = cx.emit(
+                        codes::E0503,
+                        Some(kv.key_span(&cx.src.text)),
+                        format!("{r} kbit/s is not a CiA 301 bit rate"),
+                    );
                     d.hint = Some("CiA 306 knows BaudRate_10, _20, _50, _125, _250, _500, _800 and _1000".into());
                 }
                 if let Some(b) = info_bool(cx, kv, S) {
@@ -333,7 +342,7 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
             None => {
                 cx.emit(
                     codes::E0102,
-                    Some(kv.key_span()),
+                    Some(kv.key_span(&cx.src.text)),
                     format!("key `{}` is not a CiA 306 key of [DeviceInfo]; it is kept as written", kv.key),
                 );
                 keep.push(owned(kv));
@@ -376,7 +385,11 @@ fn lower_commissioning(cx: &mut Ctx<'_>, sec: &Section<'_>) -> Commissioning {
         match info_uint(cx, kv, 0xFF, S) {
             Some(n) => {
                 if !(1..=127).contains(&n) {
-                    let d = cx.emit(codes::E0506, Some(kv.value_span()), format!("node id {n} is outside 1..=127"));
+                    let d = cx.emit(
+                        codes::E0506,
+                        Some(kv.value_span(&cx.src.text)),
+                        format!("node id {n} is outside 1..=127"),
+                    );
                     d.hint = Some("CANopen node ids are 1..=127".into());
                 }
                 c.node_id = Some(n as u8);
@@ -389,7 +402,7 @@ fn lower_commissioning(cx: &mut Ctx<'_>, sec: &Section<'_>) -> Commissioning {
         if let Some(b) = c.baudrate
             && !BAUD_RATES.contains(&b)
         {
-            cx.emit(codes::E0503, Some(kv.value_span()), format!("{b} kbit/s is not a CiA 301 bit rate"));
+            cx.emit(codes::E0503, Some(kv.value_span(&cx.src.text)), format!("{b} kbit/s is not a CiA 301 bit rate"));
         }
         if c.baudrate.is_none() {
             keep.push(owned(kv));
@@ -433,7 +446,7 @@ fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
                 if !(1..=7).contains(&t) {
                     let d = cx.emit(
                         codes::E0503,
-                        Some(kv.key_span()),
+                        Some(kv.key_span(&cx.src.text)),
                         format!("`{}` names no basic data type (0001..0007)", kv.key),
                     );
                     d.hint = Some("dummy mapping exists for the data types 0x0001..=0x0007".into());
@@ -441,7 +454,7 @@ fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
                 if !kv.key.starts_with("Dummy") {
                     cx.emit(
                         codes::E0104,
-                        Some(kv.key_span()),
+                        Some(kv.key_span(&cx.src.text)),
                         format!("key `{}` is written `Dummy{t:04X}` in CiA 306", kv.key),
                     );
                 }
@@ -452,7 +465,7 @@ fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
             None => {
                 let d = cx.emit(
                     codes::E0503,
-                    Some(kv.key_span()),
+                    Some(kv.key_span(&cx.src.text)),
                     format!("`{}` is not a `DummyNNNN` key (ignored)", kv.key),
                 );
                 d.hint = Some("[DummyUsage] entries are `Dummy0001=1` ... `Dummy0007=1`".into());
@@ -473,7 +486,7 @@ fn lower_comments(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
                 if !kv.key.starts_with("Line") {
                     let d = cx.emit(
                         codes::E0104,
-                        Some(kv.key_span()),
+                        Some(kv.key_span(&cx.src.text)),
                         format!("key `{}` is written `Line{n}` in CiA 306", kv.key),
                     );
                     d.hint = Some(
@@ -486,7 +499,7 @@ fn lower_comments(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
             None => {
                 cx.emit(
                     codes::E0102,
-                    Some(kv.key_span()),
+                    Some(kv.key_span(&cx.src.text)),
                     format!("key `{}` is not a CiA 306 key of [Comments] (ignored)", kv.key),
                 )
                 .hint = Some("comment lines are `Line1=...`, `Line2=...`".into());
@@ -502,7 +515,7 @@ fn lower_comments(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
                 if n as usize != lines.len() || !numbered_ok {
                     let d = cx.emit(
                         codes::E0503,
-                        Some(kv.value_span()),
+                        Some(kv.value_span(&cx.src.text)),
                         format!(
                             "[Comments] says Lines={n} but has {} lines numbered {}",
                             lines.len(),
@@ -640,7 +653,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
             let Ok(n) = kv.key.parse::<u32>() else {
                 let d = cx.emit(
                     codes::E0404,
-                    Some(kv.key_span()),
+                    Some(kv.key_span(&cx.src.text)),
                     format!("[{name}] entry `{}` is not numbered (ignored)", kv.key),
                 );
                 d.hint = Some("list entries are `1=0x1000`, `2=0x1001`, ...".into());
@@ -657,7 +670,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                     if p.radix != crate::model::Radix::Hex {
                         let d = cx.emit(
                             codes::E0404,
-                            Some(kv.value_span()),
+                            Some(kv.value_span(&cx.src.text)),
                             format!(
                                 "[{name}] entry {n}=`{}` is not a 0x-prefixed index; read as 0x{:04X}",
                                 kv.value, p.value
@@ -670,7 +683,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                 _ => {
                     let d = cx.emit(
                         codes::E0404,
-                        Some(kv.value_span()),
+                        Some(kv.value_span(&cx.src.text)),
                         format!("[{name}] entry {n}=`{}` is not an object index (ignored)", kv.value),
                     );
                     d.hint = Some("write the index as 0x1234".into());
@@ -686,7 +699,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                     let first = cx.src.line_col(prev_span.start);
                     let d = cx.emit(
                         codes::E0405,
-                        Some(kv.value_span()),
+                        Some(kv.value_span(&cx.src.text)),
                         format!(
                             "object 0x{index:04X} is listed again (first in [{}] at line {})",
                             list_name(prev_cat),
@@ -701,12 +714,12 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
             if want != cat {
                 let d = cx.emit(
                     codes::E0406,
-                    Some(kv.value_span()),
+                    Some(kv.value_span(&cx.src.text)),
                     format!("object 0x{index:04X} is listed in [{name}] but belongs in [{}]", list_name(want)),
                 );
                 d.hint = Some(format!("move it to [{}]", list_name(want)).into());
             }
-            vacant.insert((cat, kv.value_span()));
+            vacant.insert((cat, kv.value_span(&cx.src.text)));
         }
         numbers.sort_unstable();
         let consecutive = numbers.iter().enumerate().all(|(i, &n)| n == i as u32 + 1);
@@ -718,7 +731,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                     Ok(p) => {
                         let d = cx.emit(
                             codes::E0403,
-                            Some(kv.value_span()),
+                            Some(kv.value_span(&cx.src.text)),
                             format!(
                                 "[{name}] says SupportedObjects={} but lists {} objects{}",
                                 p.value,
@@ -737,7 +750,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                     Err(_) => {
                         cx.emit(
                             codes::E0403,
-                            Some(kv.value_span()),
+                            Some(kv.value_span(&cx.src.text)),
                             format!("[{name}] SupportedObjects=`{}` is not a number", kv.value),
                         );
                     }

@@ -65,7 +65,7 @@ fn keep_entry_keys(
             let what = if t == ObjectType::Null { "" } else { " without CompactSubObj" };
             let d = cx.emit(
                 codes::E0217,
-                Some(kv.key_span()),
+                Some(kv.key_span(&cx.src.text)),
                 format!("{} has no meaning for object type {}{what} (kept)", kv.key, otype(t)),
             );
             d.context = ctx.to_vec();
@@ -142,7 +142,7 @@ fn uint_key_quirks(
 fn inline_comment(cx: &mut Ctx<'_>, kv: &Kv<'_>, head: &str, context: Crumbs<'_>) {
     let d = cx.emit(
         codes::E0008,
-        Some(kv.value_span()),
+        Some(kv.value_span(&cx.src.text)),
         super::cat([kv.key, " `", kv.value, "` carries an inline comment; read as `", head, "`"]),
     );
     d.hint = Some("CiA 306 has no inline comments: put the comment on its own line, starting with `;`".into());
@@ -151,7 +151,7 @@ fn inline_comment(cx: &mut Ctx<'_>, kv: &Kv<'_>, head: &str, context: Crumbs<'_>
 
 fn report_quirks(cx: &mut Ctx<'_>, kv: &Kv<'_>, quirks: &[Quirk], context: Crumbs<'_>) {
     for q in quirks {
-        let span = Some(kv.value_span());
+        let span = Some(kv.value_span(&cx.src.text));
         let text = kv.value;
         let (code, msg, hint) = match *q {
             Quirk::AmbiguousOctal { octal, decimal } => (
@@ -319,7 +319,11 @@ fn value_key_general(
             if let Some(v) = &p
                 && let Err(why) = value::check_range(v, ty)
             {
-                let d = cx.emit(codes::E0302, Some(kv.value_span()), format!("{} `{}`: {why}", kv.key, kv.value));
+                let d = cx.emit(
+                    codes::E0302,
+                    Some(kv.value_span(&cx.src.text)),
+                    format!("{} `{}`: {why}", kv.key, kv.value),
+                );
                 d.context = context.to_vec();
                 if let (Some(bits), Some(x)) = (ty.bits(), v.as_int())
                     && ty.is_unsigned()
@@ -336,7 +340,7 @@ fn value_key_general(
         Err(e) => {
             let d = cx.emit(
                 codes::E0301,
-                Some(kv.value_span()),
+                Some(kv.value_span(&cx.src.text)),
                 format!("{} `{}` cannot be read as {}: {e}", kv.key, kv.value, ty.name()),
             );
             d.hint = Some(value_error_hint(&e, ty).into());
@@ -369,7 +373,7 @@ fn access_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, context: Crumbs<'_>) -> Access {
     };
     let d = cx.emit(
         codes::E0207,
-        Some(kv.value_span()),
+        Some(kv.value_span(&cx.src.text)),
         match guess {
             Some(a) => {
                 super::cat(["AccessType `", kv.value, "` is not a CiA 306 access type; read as `", a.as_str(), "`"])
@@ -434,7 +438,7 @@ impl EntryBuilder<'_> {
                 Err(()) => {
                     let d = cx.emit(
                         codes::E0205,
-                        Some(kv.value_span()),
+                        Some(kv.value_span(&cx.src.text)),
                         format!("DataType `{}` is not a type index; the entry is skipped", kv.value),
                     );
                     d.hint = Some("write the index of the type, e.g. `0x0007` for UNSIGNED32".into());
@@ -463,7 +467,7 @@ impl EntryBuilder<'_> {
         {
             let d = cx.emit(
                 codes::E0215,
-                Some(kv.value_span()),
+                Some(kv.value_span(&cx.src.text)),
                 format!("DataType 0x{code:04X} is not a basic CiA 301 type and the file does not define it"),
             );
             d.hint = Some("values of this entry are kept as written".into());
@@ -501,7 +505,7 @@ impl EntryBuilder<'_> {
                     };
                     let d = cx.emit(
                         codes::E0208,
-                        Some(kv.value_span()),
+                        Some(kv.value_span(&cx.src.text)),
                         format!("PDOMapping `{v}` is not 0 or 1; read as {}", guess as u8),
                     );
                     d.hint = Some("write 0 (not mappable) or 1 (mappable)".into());
@@ -532,7 +536,7 @@ impl EntryBuilder<'_> {
             {
                 let d = cx.emit(
                     codes::E0308,
-                    Some(kv.value_span()),
+                    Some(kv.value_span(&cx.src.text)),
                     super::cat([kv.key, " of a ", data_type.name(), " is empty"]),
                 );
                 d.hint = Some(match kv.key {
@@ -547,7 +551,11 @@ impl EntryBuilder<'_> {
         if !self.is_dcf
             && let Some(kv) = keys.get(K_PVALUE)
         {
-            let d = cx.emit(codes::E0315, Some(kv.key_span()), "ParameterValue in an EDS (it belongs in a DCF)");
+            let d = cx.emit(
+                codes::E0315,
+                Some(kv.key_span(&cx.src.text)),
+                "ParameterValue in an EDS (it belongs in a DCF)",
+            );
             d.hint = Some("a device's defaults go in DefaultValue".into());
             d.context = context.to_vec();
         }
@@ -556,7 +564,7 @@ impl EntryBuilder<'_> {
             Err(()) => {
                 let d = cx.emit(
                     codes::E0216,
-                    Some(kv.value_span()),
+                    Some(kv.value_span(&cx.src.text)),
                     format!("ObjFlags `{}` is not a number (kept as text)", kv.value),
                 );
                 d.context = context.to_vec();
@@ -571,7 +579,7 @@ impl EntryBuilder<'_> {
             if let Some(kv) = keys.get(i) {
                 let d = cx.emit(
                     codes::E0217,
-                    Some(kv.key_span()),
+                    Some(kv.key_span(&cx.src.text)),
                     format!("{} has no meaning on a single value (kept)", kv.key),
                 );
                 d.context = context.to_vec();
@@ -641,7 +649,7 @@ fn cmp_mixed(a: &Value, b: &Value) -> Option<std::cmp::Ordering> {
 /// Checks within one entry: limits against each other and the values, PDOMapping against the
 /// access type and the data type.
 fn check_entry(cx: &mut Ctx<'_>, e: &Entry, keys: &ObjKeys<'_>, context: Crumbs<'_>) {
-    let span_of = |i: usize| keys.get(i).map(|kv| kv.value_span());
+    let span_of = |i: usize| keys.get(i).map(|kv| kv.value_span(&cx.src.text));
     let (low_limit, high_limit) = (e.low_limit(), e.high_limit());
     // (Most entries have no limits: then none of the checks of limits can fire.)
     if low_limit.is_some() || high_limit.is_some() {
@@ -728,7 +736,7 @@ fn numbered<'s, 'a>(
             Err(_) => {
                 let d = cx.emit(
                     codes::E0214,
-                    Some(kv.key_span()),
+                    Some(kv.key_span(&cx.src.text)),
                     format!("[{}] entry `{}` is not numbered (ignored)", sec.name, kv.key),
                 );
                 d.context = context.to_vec();
@@ -741,15 +749,18 @@ fn numbered<'s, 'a>(
                 if n as usize != out.len() {
                     let d = cx.emit(
                         codes::E0214,
-                        Some(kv.value_span()),
+                        Some(kv.value_span(&cx.src.text)),
                         format!("[{}] says {count_key}={n} but has {} entries", sec.name, out.len()),
                     );
                     d.hint = Some(format!("set {count_key}={}", out.len()).into());
                     d.context = context.to_vec();
                 }
             } else {
-                let d =
-                    cx.emit(codes::E0214, Some(kv.value_span()), format!("{count_key} `{}` is not a number", kv.value));
+                let d = cx.emit(
+                    codes::E0214,
+                    Some(kv.value_span(&cx.src.text)),
+                    format!("{count_key} `{}` is not a number", kv.value),
+                );
                 d.context = context.to_vec();
             }
         }
@@ -852,7 +863,7 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
                     _ => {
                         let d = cx.emit(
                             codes::E0214,
-                            Some(kv.value_span()),
+                            Some(kv.value_span(&cx.src.text)),
                             format!("object link `{}` is not an index (ignored)", kv.value),
                         );
                         d.context = ctx.to_vec();
@@ -921,7 +932,7 @@ fn build_object(
                     let assumed = if looks_structured { ObjectType::Record } else { ObjectType::Var };
                     let d = cx.emit(
                         codes::E0203,
-                        Some(kv.value_span()),
+                        Some(kv.value_span(&cx.src.text)),
                         format!("ObjectType `{}` is not an object code; {} assumed", kv.value, otype(assumed)),
                     );
                     d.hint = Some("object codes are 0x0 NULL, 0x2 DOMAIN, 0x5 DEFTYPE, 0x6 DEFSTRUCT, 0x7 VAR, 0x8 ARRAY, 0x9 RECORD".into());
@@ -1021,7 +1032,7 @@ fn build_object(
         Err(()) => {
             let d = cx.emit(
                 codes::E0216,
-                Some(kv.value_span()),
+                Some(kv.value_span(&cx.src.text)),
                 format!("ObjFlags `{}` is not a number (kept as text)", kv.value),
             );
             d.context = ctx.to_vec();
@@ -1034,7 +1045,7 @@ fn build_object(
         Err(()) => {
             let d = cx.emit(
                 codes::E0209,
-                Some(kv.value_span()),
+                Some(kv.value_span(&cx.src.text)),
                 format!("SubNumber `{}` is not a number 0..=256", kv.value),
             );
             d.context = ctx.to_vec();
@@ -1045,7 +1056,11 @@ fn build_object(
     let compact = keys.get(K_COMPACT).and_then(|kv| match uint_key(cx, kv, 0xFF, ctx) {
         Ok(n) => {
             if n == 0xFF {
-                let d = cx.emit(codes::E0213, Some(kv.value_span()), "CompactSubObj=255 defines sub-index 0xFF");
+                let d = cx.emit(
+                    codes::E0213,
+                    Some(kv.value_span(&cx.src.text)),
+                    "CompactSubObj=255 defines sub-index 0xFF",
+                );
                 d.hint =
                     Some("CiA 301 reserves sub-index 0xFF for the structure of the object; 254 is the most".into());
                 d.context = ctx.to_vec();
@@ -1055,7 +1070,7 @@ fn build_object(
         Err(()) => {
             let d = cx.emit(
                 codes::E0213,
-                Some(kv.value_span()),
+                Some(kv.value_span(&cx.src.text)),
                 format!("CompactSubObj `{}` is not a number 0..=255", kv.value),
             );
             d.context = ctx.to_vec();
@@ -1072,13 +1087,14 @@ fn build_object(
         {
             let d = cx.emit(
                 codes::E0213,
-                Some(kv.key_span()),
+                Some(kv.key_span(&cx.src.text)),
                 format!("CompactSubObj on object type {} (CiA 306 allows it on ARRAY only)", otype(object_type)),
             );
             d.context = ctx.to_vec();
         }
         if let (Some(_), Some(kv)) = (sub_number, keys.get(K_SUBNUM)) {
-            let d = cx.emit(codes::E0213, Some(kv.key_span()), "both SubNumber and CompactSubObj are given");
+            let d =
+                cx.emit(codes::E0213, Some(kv.key_span(&cx.src.text)), "both SubNumber and CompactSubObj are given");
             d.hint = Some("use CompactSubObj alone for the compact form, or SubNumber with sub-object sections".into());
             d.context = ctx.to_vec();
         }
@@ -1104,7 +1120,7 @@ fn build_object(
         {
             let d = cx.emit(
                 codes::E0218,
-                Some(kv.value_span()),
+                Some(kv.value_span(&cx.src.text)),
                 format!("sub-object ObjectType `{}` is not 0x7 (VAR)", kv.value),
             );
             d.context = sctx.to_vec();
@@ -1167,7 +1183,7 @@ fn expand_compact(
         if !cx.implicit_exceeded {
             cx.implicit_exceeded = true;
             let declared = super::implicit_budget(cx.src.text.len()) - cx.implicit_left + n as usize;
-            let span = keys.get(K_COMPACT).map(|kv| kv.value_span());
+            let span = keys.get(K_COMPACT).map(|kv| kv.value_span(&cx.src.text));
             let d = cx.emit(
                 codes::E0222,
                 span,
@@ -1213,7 +1229,7 @@ fn expand_compact(
                 None => {
                     let d = cx.emit(
                         codes::E0214,
-                        Some(kv.key_span()),
+                        Some(kv.key_span(&cx.src.text)),
                         format!("[{}] names sub-index {k}, but CompactSubObj={n}", ns.name),
                     );
                     d.context = ctx.to_vec();
@@ -1226,7 +1242,7 @@ fn expand_compact(
             let Some(e) = obj.subs.get_mut(&SubIndex(k.min(256) as u8)).filter(|_| (1..=n as u32).contains(&k)) else {
                 let d = cx.emit(
                     codes::E0214,
-                    Some(kv.key_span()),
+                    Some(kv.key_span(&cx.src.text)),
                     format!("[{}] sets sub-index {k}, but CompactSubObj={n}", vs.name),
                 );
                 d.context = ctx.to_vec();
@@ -1264,7 +1280,7 @@ fn check_structure(
             (Some(n), Some(kv)) if n as usize != subs.len() => {
                 let d = cx.emit(
                     codes::E0209,
-                    Some(kv.value_span()),
+                    Some(kv.value_span(&cx.src.text)),
                     format!("SubNumber={n} but the file has {} sub-object sections", subs.len()),
                 );
                 d.hint = Some(format!("set SubNumber={}", subs.len()).into());
@@ -1317,7 +1333,7 @@ fn check_structure(
             let section_of = |sub: u8| subs.iter().find(|(x, _)| *x == sub).map(|(_, sec)| sec.name_span);
             let span = section_of(s)
                 .or_else(|| section_of(first_sub))
-                .or_else(|| keys.get(K_COMPACT).map(|kv| kv.key_span()))
+                .or_else(|| keys.get(K_COMPACT).map(|kv| kv.key_span(&cx.src.text)))
                 .or(Some(sec.name_span));
             let d = cx.emit(
                 codes::E0219,
@@ -1340,7 +1356,7 @@ mod tests {
     fn empty_values_are_what_the_general_rules_read() {
         let src = crate::source::SourceFile::decode("t.eds", b"DefaultValue=\n");
         let text = src.text.clone();
-        let kv = Kv::new(&text, crate::source::Span::new(0, 12), crate::source::Span::new(13, 13), 0);
+        let kv = Kv::new(&text, crate::source::Span::new(0, 12), crate::source::Span::new(13, 13));
         assert_eq!(kv.value, "");
         let mut cx = Ctx::new(&src, crate::Strictness::default());
         for code in 0..=u16::MAX {

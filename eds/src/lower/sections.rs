@@ -10,40 +10,50 @@ use crate::codes;
 use crate::model::Category;
 use crate::source::{Encoding, LineCol, Span};
 
-/// One `key=value` entry. Its spans are kept as the start of the key (the value's start
-/// follows from where the value lies in the same text), so that the entries of a file, which
-/// every later pass reads, take 40 bytes each rather than 56.
+/// One `key=value` entry: its key and value, slices of the source text, 32 bytes. Their
+/// spans follow from where they lie in the text ([`Kv::key_span`]), and the occurrence of a
+/// repeated section an entry came from from where the section's headers lie
+/// ([`report_duplicate`]): the entries of a file, which pass 1 writes and every later pass
+/// reads, took 40 bytes each with those stored, about twice the size of the file, all of it
+/// fresh memory for the first (largest) file a process reads.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Kv<'a> {
     pub key: &'a str,
     pub value: &'a str,
-    /// Where `key` starts in the source text.
-    key_start: u32,
-    /// Which occurrence of a duplicated section the entry came from (0 = the first).
-    pub occurrence: u16,
 }
 
+const _: () = assert!(std::mem::size_of::<Kv<'_>>() <= 32);
+
 impl<'a> Kv<'a> {
-    /// An entry whose key and value are `key` and `value` of `text` (spans of the same text).
-    pub fn new(text: &'a str, key: Span, value: Span, occurrence: u16) -> Self {
-        let slice = |s: Span| text.get(s.start as usize..s.end as usize).unwrap_or("");
-        Kv { key: slice(key), value: slice(value), key_start: key.start, occurrence }
+    /// An entry whose key and value are `key` and `value` of `text` (spans of the same text;
+    /// a span that does not fit it gives an empty slice of it).
+    pub fn new(text: &'a str, key: Span, value: Span) -> Self {
+        let slice = |s: Span| {
+            let (start, end) = (s.start as usize, s.end as usize);
+            text.get(start..end).or_else(|| text.get(start..start)).unwrap_or(&text[text.len()..])
+        };
+        Kv { key: slice(key), value: slice(value) }
     }
 
-    /// The span of the key.
+    /// The span of the key in `text`, the text it is a slice of.
     #[inline]
-    pub fn key_span(&self) -> Span {
-        Span::new(self.key_start, self.key_start + self.key.len() as u32)
+    pub fn key_span(&self, text: &str) -> Span {
+        span_in(text, self.key)
     }
 
-    /// The span of the value (both lie in one text, so the distance of their addresses is the
-    /// distance of their offsets).
+    /// The span of the value in `text`, the text it is a slice of.
     #[inline]
-    pub fn value_span(&self) -> Span {
-        let gap = (self.value.as_ptr() as usize).wrapping_sub(self.key.as_ptr() as usize) as u32;
-        let start = self.key_start.wrapping_add(gap);
-        Span::new(start, start.wrapping_add(self.value.len() as u32))
+    pub fn value_span(&self, text: &str) -> Span {
+        span_in(text, self.value)
     }
+}
+
+/// The span of `part`, a slice of `text`, in `text` (the distance of their addresses is its
+/// start).
+#[inline]
+fn span_in(text: &str, part: &str) -> Span {
+    let start = (part.as_ptr() as usize).wrapping_sub(text.as_ptr() as usize) as u32;
+    Span::new(start, start.wrapping_add(part.len() as u32))
 }
 
 /// What a section name means.
@@ -207,6 +217,8 @@ pub(crate) struct Section<'a> {
 /// All sections in file order (of first occurrence), with a lookup by kind.
 pub(crate) struct Sections<'a> {
     pub list: Vec<Section<'a>>,
+    /// The source text the sections' names and entries are slices of.
+    pub text: &'a str,
     by_kind: &'a KindIndex,
 }
 
@@ -229,6 +241,7 @@ pub(crate) struct Head<'a> {
 /// What pass 1 found: the entries of all sections (each section's contiguous) and the sections.
 /// [`Collected::sections`] gives the view the other passes use.
 pub(crate) struct Collected<'a> {
+    text: &'a str,
     entries: Vec<Kv<'a>>,
     heads: Vec<Head<'a>>,
     /// The sections by kind.
@@ -259,7 +272,7 @@ impl Scratch {
     /// Keeps the buffers of `collected` (emptied) for the next file, and the allocation of
     /// its list of sections (made from its heads' by [`Collected::sections`]) for the heads.
     pub fn keep(&mut self, collected: Collected<'_>, sections: Vec<Head<'static>>) {
-        let Collected { entries, heads, by_kind } = collected;
+        let Collected { entries, heads, by_kind, .. } = collected;
         self.entries = reuse(entries);
         self.heads = if sections.capacity() >= heads.capacity() { sections } else { reuse(heads) };
         self.by_kind = by_kind;
@@ -304,7 +317,7 @@ impl<'d> Collected<'d> {
                 entries: &this.entries[h.entries],
             })
             .collect();
-        Sections { list, by_kind: &this.by_kind }
+        Sections { list, text: this.text, by_kind: &this.by_kind }
     }
 }
 
@@ -546,14 +559,13 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     // case). Real files have few; a file of many must not cost a scan of all the others each,
     // and the names are the file's choice: the standard (keyed) hasher, not `FastMap`'s.
     let mut unknown: std::collections::HashMap<NameKey, usize> = std::collections::HashMap::new();
-    let mut occurrences: Vec<u16> = Vec::with_capacity(sections);
     let mut entries: Vec<Kv<'a>> = with_room(reuse(std::mem::take(&mut scratch.entries)), room / 10 + 8);
-    // Each section header starts a run of entries: (section, first entry). A run ends where the
-    // next begins.
-    let mut runs: Vec<(usize, usize)> = Vec::with_capacity(sections);
+    // Each section header starts a run of entries: (section, first entry, where the header's
+    // name starts). A run ends where the next begins.
+    let mut runs: Vec<(u32, u32, u32)> = Vec::with_capacity(sections);
     let mut repeated = false;
-    // The section the following entries belong to, and its occurrence.
-    let mut current: Option<(usize, u16)> = None;
+    // Whether the following entries belong to a section.
+    let mut current = false;
     // The start of every line (lines end at `\n`, `\r\n` or a lone `\r`, for positions as for
     // the lexer), handed to the source for its diagnostics; its length is the number of the
     // current line.
@@ -589,7 +601,6 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
             };
             let i = match existing {
                 Some(i) => {
-                    occurrences[i] += 1;
                     repeated = true;
                     section_again(cx, name, name_str, heads[i].at.line);
                     i
@@ -598,22 +609,19 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
                     let i = heads.len();
                     let at = LineCol { line: line_starts.len() as u32, col: $col };
                     heads.push(Head { name: name_str, name_span: name, at, kind, entries: 0..0 });
-                    occurrences.push(0);
                     i
                 }
             };
-            current = Some((i, occurrences[i]));
-            runs.push((i, entries.len()));
+            current = true;
+            runs.push((i as u32, entries.len() as u32, name.start));
         }};
     }
     // The lines are taken from the lexer one at a time; none is kept. Most lines are plain
     // entries inside a section: the lexer reads those on a shorter path of their own.
     let mut lexer = crate::lex::Lexer::new(text);
     loop {
-        if let Some((_, occurrence)) = current
-            && let Some(e) = lexer.next_plain_entry()
-        {
-            entries.push(Kv { key: e.key, value: e.value, key_start: e.start, occurrence });
+        if current && let Some(e) = lexer.next_plain_entry() {
+            entries.push(Kv { key: e.key, value: e.value });
             if e.newline {
                 line_starts.push(e.end);
             }
@@ -638,9 +646,9 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
         // Entries in a section are most lines: tested first, on their own, before a jump on
         // the kind of the others.
         if let LineKind::Entry { key, value } = line.kind
-            && let Some((_, occurrence)) = current
+            && current
         {
-            entries.push(Kv::new(&src.text, key, value, occurrence));
+            entries.push(Kv::new(&src.text, key, value));
         } else {
             match line.kind {
                 // (An entry here has no section.)
@@ -668,30 +676,31 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
         }
     }
     src.set_line_starts(line_starts);
-    let run_end = |r: usize| runs.get(r + 1).map_or(entries.len(), |&(_, start)| start);
+    let run_end = |r: usize| runs.get(r + 1).map_or(entries.len(), |&(_, start, _)| start as usize);
     if !repeated {
         // Every section has exactly one run, in order.
         for r in 0..runs.len() {
-            heads[runs[r].0].entries = runs[r].1..run_end(r);
+            heads[runs[r].0 as usize].entries = runs[r].1 as usize..run_end(r);
         }
     } else {
         // Move the entries of each section's runs together, sections in order of first
         // occurrence, runs (and entries) in file order.
         let mut runs_of: Vec<Vec<usize>> = vec![Vec::new(); heads.len()];
-        for (r, &(i, _)) in runs.iter().enumerate() {
-            runs_of[i].push(r);
+        for (r, &(i, _, _)) in runs.iter().enumerate() {
+            runs_of[i as usize].push(r);
         }
         let mut grouped = Vec::with_capacity(entries.len());
         for (i, rs) in runs_of.iter().enumerate() {
             let start = grouped.len();
             for &r in rs {
-                grouped.extend_from_slice(&entries[runs[r].1..run_end(r)]);
+                grouped.extend_from_slice(&entries[runs[r].1 as usize..run_end(r)]);
             }
             heads[i].entries = start..grouped.len();
         }
         entries = grouped;
+        cx.header_starts = runs.iter().map(|&(_, _, at)| at).collect();
     }
-    Collected { entries, heads, by_kind }
+    Collected { text, entries, heads, by_kind }
 }
 
 /// The position of the first byte of `b` that is not ASCII: sixty-four bytes at a time
@@ -1036,7 +1045,7 @@ pub(crate) fn match_keys<'a, const N: usize>(
             if !exact && !cx.skips(codes::E0104) {
                 let d = cx.emit(
                     codes::E0104,
-                    Some(kv.key_span()),
+                    Some(kv.key_span(&cx.src.text)),
                     super::cat(["key `", kv.key, "` is written `", names[i], "` in CiA 306"]),
                 );
                 d.hint = Some(super::cat(["write `", names[i], "`"]).into());
@@ -1047,7 +1056,7 @@ pub(crate) fn match_keys<'a, const N: usize>(
             if let Some(i) = hit {
                 let d = cx.emit(
                     codes::E0103,
-                    Some(kv.key_span()),
+                    Some(kv.key_span(&cx.src.text)),
                     format!("key `{}` is spelled `{}` in CiA 306", kv.key, names[i]),
                 );
                 d.hint = Some(format!("write `{}`", names[i]).into());
@@ -1109,7 +1118,7 @@ pub(crate) fn match_keys<'a, const N: usize>(
 fn report_unknown_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, sec: &Section<'_>, context: Crumbs<'_>) {
     let d = cx.emit(
         codes::E0102,
-        Some(kv.key_span()),
+        Some(kv.key_span(&cx.src.text)),
         format!("key `{}` is not a CiA 306 key of [{}]; it is kept as written", kv.key, sec.name),
     );
     d.context = context.to_vec();
@@ -1155,14 +1164,17 @@ impl std::hash::Hash for Caseless<'_> {
 
 /// Reports `kv` as a repeat of `prev` (E0007), unless the repeat comes from a repeated section.
 pub(crate) fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, context: Crumbs<'_>) {
-    // Repeats that come from a repeated section were already reported with the section.
-    if prev.occurrence != kv.occurrence {
+    // Repeats that come from a repeated section were already reported with the section: the
+    // two entries came from one occurrence of it if no section header lies between them.
+    let (at, prev_at) = (kv.key_span(&cx.src.text).start, prev.key_span(&cx.src.text).start);
+    let headers_before = |at: u32| cx.header_starts.partition_point(|&h| h < at);
+    if headers_before(prev_at) != headers_before(at) {
         return;
     }
-    let first = cx.src.line_col(prev.key_span().start);
+    let first = cx.src.line_col(prev_at);
     let d = cx.emit(
         codes::E0007,
-        Some(kv.key_span()),
+        Some(kv.key_span(&cx.src.text)),
         format!("key `{}` is set again (first at line {}); the later value `{}` is used", kv.key, first.line, kv.value),
     );
     d.hint = Some("remove one of the two entries".into());
@@ -1178,7 +1190,7 @@ mod tests {
     fn reuse_keeps_the_allocation() {
         let text = String::from("Key=Value");
         let mut entries: Vec<Kv<'_>> = Vec::with_capacity(1000);
-        entries.push(Kv::new(&text, Span::new(0, 3), Span::new(4, 9), 0));
+        entries.push(Kv::new(&text, Span::new(0, 3), Span::new(4, 9)));
         let (ptr, cap) = (entries.as_ptr() as usize, entries.capacity());
         let kept: Vec<Kv<'static>> = reuse(entries);
         drop(text);
@@ -1187,7 +1199,102 @@ mod tests {
         assert!(heads.capacity() >= 10);
     }
 
+    /// Holds pass 1's entries to the text they came from: for every entry line in a section,
+    /// the entry's key and value, and the spans found from where they lie in the text, are
+    /// what the lexer's general path gives for that line, whichever path of the lexer read it.
+    fn check_entries_against_the_general_path(text: &str) {
+        let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text));
+        let src_text: &str = &doc.source.text;
+        let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
+        let mut collected = collect(&doc, &mut cx, &mut Scratch::default());
+        // The general path's entries in sections, by where their key starts.
+        let mut general = std::collections::BTreeMap::new();
+        let mut in_section = false;
+        for line in doc.lines() {
+            match line.kind {
+                LineKind::Section { .. } => in_section = true,
+                LineKind::Entry { key, value } if in_section => {
+                    general.insert(key.start, (key, value));
+                }
+                _ => {}
+            }
+        }
+        let mut seen = std::collections::BTreeSet::new();
+        let secs = collected.sections();
+        for sec in &secs.list {
+            for kv in sec.entries {
+                let (key, value) = (kv.key_span(src_text), kv.value_span(src_text));
+                assert_eq!(general.get(&key.start), Some(&(key, value)), "{text:?}");
+                assert_eq!((kv.key, kv.value), (doc.source.slice(key), doc.source.slice(value)), "{text:?}");
+                assert!(seen.insert(key.start), "{text:?}");
+            }
+        }
+        assert_eq!(seen.len(), general.len(), "{text:?}");
+    }
+
+    #[test]
+    fn entries_hold_to_the_text_on_examples() {
+        for text in [
+            "[S]\nKey=Value\n",
+            "[S]\r\n Key = Value \r\n\u{e4}=\u{e4}\rK=\n=v\n[S]\nKey=again",
+            "K=outside\n[1000]\nParameterName=x;c\nDefaultValue=\n[1000]\nk\t=\t1\u{A0}",
+        ] {
+            check_entries_against_the_general_path(text);
+        }
+    }
+
+    /// The lines of repeated key reports (E0007) of a file of extra sections, by the rule that
+    /// numbered each entry with the occurrence of its section: a key set again in the same
+    /// occurrence of a section as its first entry is reported, one set again by a repeat of the
+    /// section is not.
+    fn reference_repeats(lines: &[(usize, usize)]) -> Vec<u32> {
+        let mut occurrences: std::collections::HashMap<usize, u32> = Default::default();
+        let mut first: std::collections::HashMap<(usize, usize), u32> = Default::default();
+        let (mut section, mut out) = (None, Vec::new());
+        for (n, &(s, k)) in lines.iter().enumerate() {
+            if k == 0 {
+                occurrences.entry(s).and_modify(|o| *o += 1).or_insert(0);
+                section = Some(s);
+            } else if let Some(s) = section {
+                let occurrence = occurrences[&s];
+                match first.entry((s, k)) {
+                    std::collections::hash_map::Entry::Occupied(e) if *e.get() == occurrence => out.push(n as u32 + 1),
+                    std::collections::hash_map::Entry::Occupied(_) => {}
+                    std::collections::hash_map::Entry::Vacant(e) => {
+                        e.insert(occurrence);
+                    }
+                }
+            }
+        }
+        out.sort();
+        out
+    }
+
     proptest::proptest! {
+        #[test]
+        fn entries_hold_to_the_text(
+            lines in proptest::collection::vec("[ \t\u{A0}]{0,2}(\\[[0-9A-Fa-fsub ]{0,10}\\]|[A-Za-z\u{e4}]{0,14}[ \t]?=[ \t]?[0-9a-zA-Z$+ ;#=\u{e4}]{0,12}|;.{0,5}|\\PC{0,8})[ \t\u{A0}]{0,2}", 0..40),
+            ending in "\r\n|\n|\r",
+        ) {
+            check_entries_against_the_general_path(&lines.join(&ending));
+            check_entries_against_the_general_path(&format!("{}{ending}{}", lines.join(&ending), "Pad=1\n".repeat(4)));
+        }
+
+        /// A key set again is reported when its section was not repeated in between, whatever
+        /// the order of sections and keys (extra sections `[Xn]`, keys `Kn`; 0 is a header).
+        #[test]
+        fn repeated_keys_are_reported_by_occurrence(
+            lines in proptest::collection::vec((0..3usize, 0..4usize), 0..40),
+        ) {
+            let text: String =
+                lines.iter().map(|&(s, k)| if k == 0 { format!("[X{s}]\n") } else { format!("K{k}=v\n") }).collect();
+            let p = crate::parse("x.eds", text.as_bytes(), &crate::Options::lenient());
+            let mut repeats: Vec<u32> =
+                p.diagnostics.iter().filter(|d| d.code == codes::E0007).filter_map(|d| d.at.map(|a| a.line)).collect();
+            repeats.sort();
+            let orphans = lines.iter().take_while(|&&(_, k)| k != 0).count();
+            proptest::prop_assert_eq!(repeats, reference_repeats(&lines[orphans..]).iter().map(|n| n + orphans as u32).collect::<Vec<_>>(), "{:?}", text);
+        }
         /// Numbered keys (`1`, `2`, ... in order, which skip the search for repeats) are kept and
         /// reported as any unknown keys are: the same keys with a letter in front, which never
         /// look numbered, give the same kept keys, repeats and reports.
