@@ -270,6 +270,18 @@ impl<'a> Ctx<'a> {
 }
 
 impl Ctx<'_> {
+    /// `f` with the context and its buffer of quirks (emptied), taken out of the context while
+    /// `f` runs (so that `f` may report them) and put back after: one buffer for every value.
+    pub fn with_quirks<R>(&mut self, f: impl FnOnce(&mut Self, &mut Vec<crate::value::Quirk>) -> R) -> R {
+        let mut quirks = std::mem::take(&mut self.quirks);
+        quirks.clear();
+        let r = f(self, &mut quirks);
+        self.quirks = quirks;
+        r
+    }
+}
+
+impl Ctx<'_> {
     /// What [`Ctx::emit`] hands out for a diagnostic that is not kept, emptied.
     fn scratch(&mut self) -> &mut Diagnostic {
         self.scratch.message.clear();

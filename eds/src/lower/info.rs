@@ -35,10 +35,7 @@ fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u
         return None;
     }
     // (Quirks go unreported here; the context's buffer takes them.)
-    let mut quirks = std::mem::take(&mut cx.quirks);
-    quirks.clear();
-    let parsed = parse_int(v, &mut quirks);
-    cx.quirks = quirks;
+    let parsed = cx.with_quirks(|_, quirks| parse_int(v, quirks));
     match parsed {
         Ok(p) if p.value >= 0 && p.value as u128 <= max as u128 => Some(p.value as u64),
         Ok(p) => {

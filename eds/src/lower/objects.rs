@@ -106,12 +106,7 @@ fn uint_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u32, context: Crumbs<'_>) -> Res
 /// [`uint_key`] for the forms that are not plain (kept out of line: most values are plain).
 #[inline(never)]
 fn uint_key_general(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u32, context: Crumbs<'_>) -> Result<u32, ()> {
-    // (The context's buffer of quirks, taken out while they are reported.)
-    let mut quirks = std::mem::take(&mut cx.quirks);
-    quirks.clear();
-    let read = uint_key_quirks(cx, kv, max, context, &mut quirks);
-    cx.quirks = quirks;
-    read
+    cx.with_quirks(|cx, quirks| uint_key_quirks(cx, kv, max, context, quirks))
 }
 
 /// [`uint_key_general`], its quirks found in `quirks` (empty).
@@ -274,13 +269,7 @@ fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -
 /// [`value_key`] for a value that is not a plain number (kept out of line).
 #[inline(never)]
 fn value_key_other(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -> Result<Option<Value>, ()> {
-    // The quirks go to the context's buffer (reused from value to value), taken out while the
-    // value is reported.
-    let mut quirks = std::mem::take(&mut cx.quirks);
-    quirks.clear();
-    let read = value_key_general(cx, kv, ty, context, &mut quirks);
-    cx.quirks = quirks;
-    read
+    cx.with_quirks(|cx, quirks| value_key_general(cx, kv, ty, context, quirks))
 }
 
 /// [`value_key`] for a value that is not a plain number, its quirks found in `quirks` (empty).
