@@ -368,3 +368,33 @@ fn baud_rate_keys_in_canonical_and_other_spellings() {
         assert_eq!(parsed.model.device_info.baud_rates.get(&rate), Some(&true), "{key}");
     }
 }
+
+/// A value that reads once its inline comment is cut off gets E0008 and nothing else about
+/// its number: the remarks of the failed first reading (the comment taken for a C literal
+/// suffix, say) are not reported. The same rule for every key read this way.
+#[test]
+fn an_inline_comment_is_reported_once_and_only_as_such() {
+    let number_codes = [
+        codes::E0008,
+        codes::E0301,
+        codes::E0302,
+        codes::E0303,
+        codes::E0304,
+        codes::E0305,
+        codes::E0309,
+        codes::E0314,
+        codes::E0317,
+    ];
+    for (old, new) in [
+        ("PDOMapping=0", "PDOMapping=0 # Optional"),
+        ("PDOMapping=0", "PDOMapping=0 ; never mapped"),
+        ("ObjectType=0x7", "ObjectType=0x7 # VAR"),
+        ("DataType=0x0005", "DataType=0x0005 ; UNSIGNED8"),
+        ("DefaultValue=2", "DefaultValue=2 # two entries"),
+        ("AccessType=ro", "AccessType=ro # read only"),
+    ] {
+        let found = codes_of(&base_with(&[("1018sub0", old, new)]), &number_codes);
+        assert_eq!(found.len(), 1, "{new}: {found:?}");
+        assert_eq!(found[0].0, codes::E0008, "{new}: {found:?}");
+    }
+}

@@ -82,9 +82,44 @@ fn source_ref(sec: &Section<'_>) -> SourceRef {
     SourceRef { line: sec.at.line, col: sec.at.col, span: sec.name_span }
 }
 
-/// The text before an inline `;` comment, if there is one.
+/// The text before an inline `;` or `#` comment, if there is one.
 fn before_comment(v: &str) -> Option<&str> {
     v.find([';', '#']).map(|i| v[..i].trim_end())
+}
+
+/// `read` of a value's text; when that fails, [`retry_before_comment`]. The one rule for every
+/// key read this way: a value that cannot be read as written, but can once an inline comment is
+/// cut off, is read so, with a warning (E0008).
+fn read_before_comment<T, E>(
+    cx: &mut Ctx<'_>,
+    kv: &Kv<'_>,
+    context: Crumbs<'_>,
+    quirks: &mut Vec<Quirk>,
+    mut read: impl FnMut(&str, &mut Vec<Quirk>) -> Result<T, E>,
+) -> Result<T, E> {
+    read(kv.value, quirks).or_else(|e| retry_before_comment(cx, kv, context, quirks, e, read))
+}
+
+/// After `read` of a value's text failed with `first`: `read` of the text before its inline
+/// comment, if it has one and that reads (reported as E0008), otherwise `first`. `quirks` are
+/// then those of the reading that counts.
+fn retry_before_comment<T, E>(
+    cx: &mut Ctx<'_>,
+    kv: &Kv<'_>,
+    context: Crumbs<'_>,
+    quirks: &mut Vec<Quirk>,
+    first: E,
+    mut read: impl FnMut(&str, &mut Vec<Quirk>) -> Result<T, E>,
+) -> Result<T, E> {
+    let Some(head) = before_comment(kv.value) else { return Err(first) };
+    quirks.clear();
+    match read(head, quirks) {
+        Ok(v) => {
+            inline_comment(cx, kv, head, context);
+            Ok(v)
+        }
+        Err(_) => Err(first),
+    }
 }
 
 /// Reads a plain unsigned integer key (ObjectType, DataType, SubNumber, ...). An inline comment
@@ -117,15 +152,7 @@ fn uint_key_quirks(
     context: Crumbs<'_>,
     quirks: &mut Vec<value::Quirk>,
 ) -> Result<u32, ()> {
-    let mut parsed = value::parse_int(kv.value, quirks);
-    if parsed.is_err()
-        && let Some(head) = before_comment(kv.value)
-        && let Ok(p) = value::parse_int(head, quirks)
-    {
-        inline_comment(cx, kv, head, context);
-        parsed = Ok(p);
-    }
-    match parsed {
+    match read_before_comment(cx, kv, context, quirks, value::parse_int) {
         Ok(p) if p.value >= 0 && p.value <= max as i128 => {
             report_quirks(cx, kv, quirks, context);
             Ok(p.value as u32)
@@ -288,17 +315,11 @@ fn value_key_general(
             Err(_) => Some(Value::Text(kv.value.to_owned())),
         });
     }
+    // (A string's text is its value, comment characters included.)
     let string_type = matches!(ty, DataType::VisibleString | DataType::UnicodeString | DataType::OctetString);
-    if parsed.is_err()
-        && !string_type
-        && let Some(head) = before_comment(kv.value)
-    {
-        // (Only the quirks of the reading that counts are reported.)
-        quirks.clear();
-        if let Ok(p) = value::parse_value_into(head, ty, quirks) {
-            inline_comment(cx, kv, head, context);
-            parsed = Ok(p);
-        }
+    if !string_type {
+        parsed = parsed
+            .or_else(|e| retry_before_comment(cx, kv, context, quirks, e, |t, q| value::parse_value_into(t, ty, q)));
     }
     match parsed {
         Ok(p) => {
@@ -343,13 +364,7 @@ fn value_key_general(
 fn access_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, context: Crumbs<'_>) -> Access {
     let text = kv.value;
     // Upper or mixed case is common and harmless; CiA 306 is silent on case here.
-    if let Some(a) = Access::parse(text) {
-        return a;
-    }
-    if let Some(head) = before_comment(text).or_else(|| text.find('#').map(|i| text[..i].trim_end()))
-        && let Some(a) = Access::parse(head)
-    {
-        inline_comment(cx, kv, head, context);
+    if let Ok(a) = read_before_comment(cx, kv, context, &mut Vec::new(), |t, _| Access::parse(t).ok_or(())) {
         return a;
     }
     let lower = text.trim().to_ascii_lowercase();
