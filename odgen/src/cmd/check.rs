@@ -84,6 +84,8 @@ pub struct Args {
 struct Report {
     /// The text, in blocks of about [`BLOCK`] bytes.
     blocks: Vec<String>,
+    /// Whether the part has anything in it ([`writes_anything`]).
+    writes: bool,
     counts: Counts,
 }
 
@@ -215,13 +217,10 @@ pub fn run(args: Args) -> ExitCode {
     let read = |i: usize, _: &PathBuf| {
         // (Set by `order`, which runs before any file is read.)
         let probed = probes.wait()[i].as_ref().map_err(|e| std::io::Error::new(e.kind(), e.to_string()))?;
-        READER.with_borrow_mut(|reader| {
-            let parsed = reader.read_probed(probed, &options)?;
-            let mut blocks = Blocks::new(&spare);
-            let counts = render(&parsed, probed.path(), format, level, &mut blocks);
-            reader.recycle(parsed);
-            Ok::<_, std::io::Error>(Report { blocks: blocks.finish(), counts })
-        })
+        let mut blocks = Blocks::new(&spare);
+        let mut writes = false;
+        let counts = check_file(probed, &options, format, level, &mut blocks, |w, _| writes = w)?;
+        Ok::<_, std::io::Error>(Report { blocks: blocks.finish(), writes, counts })
     };
 
     let cannot_read = |path: &std::path::Path, e: std::io::Error, unreadable: &mut Vec<(String, String)>| {
@@ -238,16 +237,7 @@ pub fn run(args: Args) -> ExitCode {
         // 64 KiB blocks, then copied in part), in the files' order as it comes.
         for (path, found) in files.iter().zip(&found) {
             let read = found.probe(path).and_then(|probed| {
-                READER.with_borrow_mut(|reader| {
-                    let parsed = reader.read_probed(&probed, &options)?;
-                    if writes_anything(&parsed, format, level) {
-                        out.push(if any { ",\n" } else { "\n" });
-                        any = true;
-                    }
-                    let file_counts = render(&parsed, path, format, level, &mut out);
-                    reader.recycle(parsed);
-                    Ok::<_, std::io::Error>(file_counts)
-                })
+                check_file(&probed, &options, format, level, &mut out, |writes, out| separate(writes, &mut any, out))
             });
             match read {
                 Ok(c) => counts.add_counts(&c),
@@ -261,10 +251,7 @@ pub fn run(args: Args) -> ExitCode {
                 Err(e) => return cannot_read(path, e, &mut unreadable),
             };
             counts.add_counts(&report.counts);
-            if args.format != Format::Human && report.blocks.iter().any(|b| !b.is_empty()) {
-                out.push(if any { ",\n" } else { "\n" });
-                any = true;
-            }
+            separate(report.writes, &mut any, &mut out);
             let mut spare = spare.lock().unwrap_or_else(|e| e.into_inner());
             for mut block in report.blocks {
                 out.push(&block);
@@ -322,6 +309,35 @@ thread_local! {
     /// Each reading thread's [`eds::Reader`]: a file is read into the memory the thread's last
     /// file used (given back as soon as its report is rendered).
     static READER: std::cell::RefCell<eds::Reader> = std::cell::RefCell::new(eds::Reader::new());
+}
+
+/// Reads a probed file with this thread's `Reader` and renders its part of the output into
+/// `out`, after `lead` (told whether the part has anything in it); gives the file's counts.
+/// One thread and several check a file through this alike.
+fn check_file<S: Sink>(
+    probed: &eds::Probed<'_>,
+    options: &eds::Options,
+    format: Format,
+    level: Level,
+    out: &mut S,
+    lead: impl FnOnce(bool, &mut S),
+) -> std::io::Result<Counts> {
+    READER.with_borrow_mut(|reader| {
+        let parsed = reader.read_probed(probed, options)?;
+        lead(writes_anything(&parsed, format, level), out);
+        let counts = render(&parsed, probed.path(), format, level, out);
+        reader.recycle(parsed);
+        Ok(counts)
+    })
+}
+
+/// The separator before a file's part of the output, when it has anything in it (`any`: a
+/// part was written before, which the next one follows after a comma).
+fn separate(writes: bool, any: &mut bool, out: &mut Stream) {
+    if writes {
+        out.push(if *any { ",\n" } else { "\n" });
+        *any = true;
+    }
 }
 
 /// Whether a file's part of the output has anything in it (JSON and SARIF put a separator
