@@ -52,7 +52,8 @@ pub fn run(args: Args) -> ExitCode {
         return ExitCode::from(EXIT_TROUBLE);
     }
     for p in paths {
-        match std::fs::read(&p) {
+        // (Read as the reader reads files: FIFOs and devices refused, not waited on.)
+        match eds::read_bytes(&p) {
             Ok(b) => files.push((p.display().to_string(), b)),
             Err(e) => {
                 eprintln!("error: cannot read {}: {e}", p.display());
