@@ -7,6 +7,7 @@ pub mod diff;
 pub mod dump;
 pub mod fmt;
 pub mod generate;
+mod place;
 pub mod sarif;
 
 use std::path::{Path, PathBuf};
@@ -74,7 +75,9 @@ pub fn par_each<T: Sync, R: Send>(
     // The results not yet emitted, and whether the calling thread waits for one (a worker
     // wakes it only then: a wake is a system call, and the calling thread only waits once it
     // has no item left to work on).
-    let slots: Mutex<(Vec<Option<R>>, bool)> = Mutex::new((items.iter().map(|_| None).collect(), false));
+    // Also whether a worker stopped on a panic (its item never comes: the calling thread
+    // stops waiting, and passes the panic on).
+    let slots: Mutex<(Vec<Option<R>>, bool, bool)> = Mutex::new((items.iter().map(|_| None).collect(), false, false));
     let filled = Condvar::new();
     let put = |i: usize, r: R| {
         let mut s = slots.lock().unwrap_or_else(|e| e.into_inner());
@@ -83,52 +86,100 @@ pub fn par_each<T: Sync, R: Send>(
             filled.notify_one();
         }
     };
-    std::thread::scope(|scope| {
-        let workers: Vec<_> = (1..jobs)
-            .map(|_| {
-                scope.spawn(|| {
-                    while let Some((i, item)) = claim() {
-                        put(i, f(i, item));
-                    }
-                })
-            })
-            .collect();
-        let _ = taken.set(permutation_or_identity(order(), items.len()));
-        // The first result not yet handed to `emit`.
-        let mut done = 0;
-        let take_ready = |wait: bool, done: &mut usize, emit: &mut dyn FnMut(&T, R)| {
-            let mut s = slots.lock().unwrap_or_else(|e| e.into_inner());
-            while *done < items.len() {
-                match s.0[*done].take() {
-                    Some(r) => {
-                        // (Emitted without the lock: writing may take a while.)
-                        drop(s);
-                        emit(&items[*done], r);
-                        *done += 1;
-                        s = slots.lock().unwrap_or_else(|e| e.into_inner());
-                    }
-                    None if wait => {
-                        // (Set under the lock a worker takes to put a result: none is missed.)
-                        s.1 = true;
-                        s = filled.wait(s).unwrap_or_else(|e| e.into_inner());
-                    }
-                    None => break,
-                }
+    // Tells the calling thread, when a worker unwinds, that it is to wait no more.
+    struct Stopped<'a, R>(&'a Mutex<(Vec<Option<R>>, bool, bool)>, &'a Condvar);
+    impl<R> Drop for Stopped<'_, R> {
+        fn drop(&mut self) {
+            if std::thread::panicking() {
+                self.0.lock().unwrap_or_else(|e| e.into_inner()).2 = true;
+                self.1.notify_one();
             }
-        };
+        }
+    }
+    // Each worker first runs on another CPU than this thread's (see `place`), then anywhere.
+    // (Steering needs the thread's handle before it runs, which only an unscoped handle gives:
+    // the workers are joined by `Workers`, before anything they borrow goes, on every path.)
+    let steer = place::Steer::others();
+    let steered: Vec<place::Steered> = (1..jobs).map(|_| place::Steered::default()).collect();
+    let work = || {
+        let _stopped = Stopped(&slots, &filled);
         while let Some((i, item)) = claim() {
-            let r = f(i, item);
-            put(i, r);
-            take_ready(false, &mut done, &mut emit);
+            put(i, f(i, item));
         }
-        take_ready(true, &mut done, &mut emit);
-        // A worker only panics if `f` does, which is a bug to surface, not an input error.
-        for w in workers {
-            if let Err(e) = w.join() {
-                std::panic::resume_unwind(e);
+    };
+    let mut workers = Workers { threads: Vec::with_capacity(jobs - 1), taken: &taken };
+    for state in &steered {
+        let run = || {
+            steer.release(state);
+            work();
+        };
+        // SAFETY: `run` borrows only what this function owns or borrows (`steer`, `state`,
+        // `work` and what it borrows), all declared before `workers`, which joins the thread
+        // when it is dropped (before them) if it was not joined below.
+        match unsafe { std::thread::Builder::new().spawn_unchecked(run) } {
+            Ok(thread) => {
+                steer.steer(&thread, state);
+                workers.threads.push(thread);
+            }
+            // (The calling thread and the workers started take every item all the same.)
+            Err(_) => break,
+        }
+    }
+    let _ = taken.set(permutation_or_identity(order(), items.len()));
+    // The first result not yet handed to `emit`.
+    let mut done = 0;
+    let take_ready = |wait: bool, done: &mut usize, emit: &mut dyn FnMut(&T, R)| {
+        let mut s = slots.lock().unwrap_or_else(|e| e.into_inner());
+        while *done < items.len() {
+            match s.0[*done].take() {
+                Some(r) => {
+                    // (Emitted without the lock: writing may take a while.)
+                    drop(s);
+                    emit(&items[*done], r);
+                    *done += 1;
+                    s = slots.lock().unwrap_or_else(|e| e.into_inner());
+                }
+                // (A worker stopped on a panic: it is passed on once the workers are joined.)
+                None if s.2 => break,
+                None if wait => {
+                    // (Set under the lock a worker takes to put a result: none is missed.)
+                    s.1 = true;
+                    s = filled.wait(s).unwrap_or_else(|e| e.into_inner());
+                }
+                None => break,
             }
         }
-    });
+    };
+    while let Some((i, item)) = claim() {
+        let r = f(i, item);
+        put(i, r);
+        take_ready(false, &mut done, &mut emit);
+    }
+    take_ready(true, &mut done, &mut emit);
+    // A worker only panics if `f` does, which is a bug to surface, not an input error.
+    while let Some(w) = workers.threads.pop() {
+        if let Err(e) = w.join() {
+            std::panic::resume_unwind(e);
+        }
+    }
+}
+
+/// The worker threads of [`par_each`], joined when dropped: if the calling thread unwinds
+/// before it joins them, they are told there is nothing (more) to take and are waited for, so
+/// that none outlives what it borrows.
+struct Workers<'a> {
+    threads: Vec<std::thread::JoinHandle<()>>,
+    taken: &'a std::sync::OnceLock<Vec<usize>>,
+}
+
+impl Drop for Workers<'_> {
+    fn drop(&mut self) {
+        // (A no-op when the order was given: the workers then run out of items by themselves.)
+        let _ = self.taken.set(Vec::new());
+        for w in self.threads.drain(..) {
+            let _ = w.join();
+        }
+    }
 }
 
 /// `order` if it is a permutation of `0..n` (every index once), otherwise `0..n`: an order that
@@ -480,6 +531,36 @@ mod tests {
         }
         assert_eq!(permutation_or_identity(vec![2, 0, 1], 3), vec![2, 0, 1]);
         assert_eq!(permutation_or_identity(vec![2, 2, 1], 3), vec![0, 1, 2]);
+    }
+
+    /// A panic in `order`, in `f` (on any thread) or in `emit` reaches the caller once every
+    /// worker has stopped (none outlives what it borrows, none waits for ever for an order
+    /// that never comes).
+    #[test]
+    fn par_each_panics_only_once_its_workers_have_stopped() {
+        let items: Vec<usize> = (0..40).collect();
+        let running = std::sync::atomic::AtomicUsize::new(0);
+        for case in ["order", "f", "emit"] {
+            for jobs in [2usize, 4] {
+                let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    par_each(
+                        &items,
+                        jobs,
+                        || if case == "order" { panic!("order") } else { (0..40).collect() },
+                        |_, &i| {
+                            running.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+                            std::thread::sleep(std::time::Duration::from_micros(200));
+                            running.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+                            assert!(!(case == "f" && i == 7), "f");
+                            i
+                        },
+                        |&i, _| assert!(!(case == "emit" && i == 3), "emit"),
+                    )
+                }));
+                assert!(outcome.is_err(), "{case} jobs {jobs}");
+                assert_eq!(running.load(std::sync::atomic::Ordering::SeqCst), 0, "{case} jobs {jobs}");
+            }
+        }
     }
 
     /// A path given as a file keeps the metadata asked for it, which probes it as `eds::probe`
