@@ -203,16 +203,22 @@ pub fn run(args: Args) -> ExitCode {
     let mut any = false;
     // Blocks handed back by the writer, for the readers to render the next files into.
     let spare: Spare = std::sync::Mutex::new(Vec::new());
-    // Every file is probed first (it is not probed again when read), for its size: the threads
-    // take the largest files first, so that the last ones taken are small and the threads
-    // finish together. (The probing overlaps the start of the other threads.)
-    // (A path given as a file is probed with the metadata asked for to see whether it is a
-    // folder: one system call a path.)
-    let (files, found) = super::expand_folders(&args.files);
+    // Every path is asked about (a folder or a file: one system call a path), folders are
+    // listed, and every file is probed for its size (it is not probed again when read: a path
+    // given as a file is probed with what was asked about it): the threads take the largest
+    // files first, so that the last ones taken are small and the threads finish together. With
+    // at least as many paths as threads, the other threads are started first and all this
+    // overlaps their start; with fewer, the paths are looked at first, so as to start no more
+    // threads than there are files.
+    let jobs = super::jobs(args.jobs);
+    let expanded: std::sync::OnceLock<(Vec<PathBuf>, Vec<super::Found>)> = std::sync::OnceLock::new();
+    let expand = || expanded.get_or_init(|| super::expand_folders(&args.files));
+    let jobs = if jobs > 1 && args.files.len() >= jobs { jobs } else { jobs.min(expand().0.len().max(1)) };
     let probes: std::sync::OnceLock<Vec<std::io::Result<eds::Probed<'_>>>> = std::sync::OnceLock::new();
-    let order = || {
-        let probed = probes.get_or_init(|| files.iter().zip(&found).map(|(path, found)| found.probe(path)).collect());
-        super::largest_first(probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len())))
+    let find = || {
+        let (files, found) = expand();
+        let probed = probes.get_or_init(|| files.iter().zip(found).map(|(path, found)| found.probe(path)).collect());
+        (files.as_slice(), super::largest_first(probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len()))))
     };
     let read = |i: usize, _: &PathBuf| {
         // (Set by `order`, which runs before any file is read.)
@@ -230,12 +236,12 @@ pub fn run(args: Args) -> ExitCode {
         }
         unreadable.push((name, e.to_string()));
     };
-    let jobs = super::jobs(args.jobs).min(files.len().max(1));
     if jobs == 1 {
+        let (files, found) = expand();
         // One thread: each file's report is rendered straight into the output, which writes it
         // as it fills, rather than into blocks handed over (a 200 KB report was four fresh
         // 64 KiB blocks, then copied in part), in the files' order as it comes.
-        for (path, found) in files.iter().zip(&found) {
+        for (path, found) in files.iter().zip(found) {
             let read = found.probe(path).and_then(|probed| {
                 check_file(&probed, &options, format, level, &mut out, |writes, out| separate(writes, &mut any, out))
             });
@@ -245,7 +251,7 @@ pub fn run(args: Args) -> ExitCode {
             }
         }
     } else {
-        super::par_each(&files, jobs, order, read, |path, report| {
+        super::par_each(jobs, find, read, |path, report| {
             let report = match report {
                 Ok(r) => r,
                 Err(e) => return cannot_read(path, e, &mut unreadable),
@@ -265,7 +271,7 @@ pub fn run(args: Args) -> ExitCode {
     }
     match args.format {
         Format::Human => {
-            let files = files.len();
+            let files = expand().0.len();
             let mut line =
                 format!("checked {files} file{}: {}", if files == 1 { "" } else { "s" }, summary(&counts, level));
             if !unreadable.is_empty() {

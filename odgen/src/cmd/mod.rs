@@ -34,42 +34,41 @@ pub fn jobs(requested: Option<usize>) -> usize {
     requested.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from)).max(1)
 }
 
-/// `f(i, &items[i])` for every item on up to `jobs` threads, each result handed to `emit` on
-/// the calling thread in the items' order as soon as it and those before it are ready.
+/// `f(i, &items[i])` for every item on `jobs` threads, each result handed to `emit` on the
+/// calling thread in the items' order as soon as it and those before it are ready.
 ///
-/// `order` runs once, on the calling thread, after the other threads are started (their start
-/// takes as long as a few dozen system calls, which it overlaps) and before any item is worked
-/// on: it may prepare what `f` needs, and it gives the order the threads take the items in (a
-/// permutation of their indices, e.g. the largest first, so that the last ones taken are small
-/// and the threads finish together; anything else is taken as the items' own order). Each
-/// thread takes the next unclaimed item. The calling thread is one of them (a thread fewer to
-/// start, and the one whose memory is already in use: each new thread's allocations start on
-/// fresh pages, each a page fault), and it hands out what is ready between its own items, so
-/// results are written and freed as the run goes rather than all held to the end. With one
-/// thread, the items are taken in their own order, each emitted as soon as it is done.
-pub fn par_each<T: Sync, R: Send>(
-    items: &[T],
+/// The items need not be known when the threads are started: `find` runs once, on the calling
+/// thread, after the other `jobs - 1` threads are started and before any item is worked on, and
+/// gives the items and the order the threads take them in. What it takes to find them (asking
+/// the file system about every path given, listing folders, probing files) thus overlaps the
+/// start of the other threads, which on some machines takes longer than reading a file. The
+/// order is a permutation of the items' indices, e.g. the largest first, so that the last ones
+/// taken are small and the threads finish together (anything else is taken as the items' own
+/// order). Each thread takes the next unclaimed item; threads that find none left stop at once
+/// (the caller chooses `jobs` without knowing how many items there will be).
+///
+/// The calling thread is one of the threads (a thread fewer to start, and the one whose memory
+/// is already in use: each new thread's allocations start on fresh pages, each a page fault),
+/// and it hands out what is ready between its own items, so results are written and freed as
+/// the run goes rather than all held to the end.
+pub fn par_each<'a, T: Sync + 'a, R: Send>(
     jobs: usize,
-    order: impl FnOnce() -> Vec<usize>,
+    find: impl FnOnce() -> (&'a [T], Vec<usize>),
     f: impl Fn(usize, &T) -> R + Sync,
     mut emit: impl FnMut(&T, R),
 ) {
     use std::sync::atomic::{AtomicUsize, Ordering};
     use std::sync::{Condvar, Mutex, OnceLock};
-    let jobs = jobs.clamp(1, items.len().max(1));
-    if jobs == 1 {
-        let _ = order();
-        for (i, item) in items.iter().enumerate() {
-            emit(item, f(i, item));
-        }
-        return;
-    }
-    // The order, once `order` has given it (the threads started before wait for it).
+    let jobs = jobs.max(1);
+    // The items and their order, once `find` has given them (the threads started before wait
+    // for them).
+    let found: OnceLock<&'a [T]> = OnceLock::new();
     let taken: OnceLock<Vec<usize>> = OnceLock::new();
     let next = AtomicUsize::new(0);
-    // The next item to work on (`None` when all are taken).
+    // The next item to work on (`None` when all are taken). (`taken` is set after `found`.)
     let claim = || {
         let order = taken.wait();
+        let items = found.get().copied().unwrap_or_default();
         order.get(next.fetch_add(1, Ordering::Relaxed)).and_then(|&i| Some((i, items.get(i)?)))
     };
     // The results not yet emitted, and whether the calling thread waits for one (a worker
@@ -77,7 +76,8 @@ pub fn par_each<T: Sync, R: Send>(
     // has no item left to work on).
     // Also whether a worker stopped on a panic (its item never comes: the calling thread
     // stops waiting, and passes the panic on).
-    let slots: Mutex<(Vec<Option<R>>, bool, bool)> = Mutex::new((items.iter().map(|_| None).collect(), false, false));
+    // (Made once the items are found.)
+    let slots: Mutex<(Vec<Option<R>>, bool, bool)> = Mutex::new((Vec::new(), false, false));
     let filled = Condvar::new();
     let put = |i: usize, r: R| {
         let mut s = slots.lock().unwrap_or_else(|e| e.into_inner());
@@ -125,7 +125,10 @@ pub fn par_each<T: Sync, R: Send>(
             Err(_) => break,
         }
     }
-    let _ = taken.set(permutation_or_identity(order(), items.len()));
+    let (items, order) = find();
+    let _ = found.set(items);
+    slots.lock().unwrap_or_else(|e| e.into_inner()).0 = items.iter().map(|_| None).collect();
+    let _ = taken.set(permutation_or_identity(order, items.len()));
     // The first result not yet handed to `emit`.
     let mut done = 0;
     let take_ready = |wait: bool, done: &mut usize, emit: &mut dyn FnMut(&T, R)| {
@@ -435,9 +438,8 @@ mod tests {
                     let calls = AtomicUsize::new(0);
                     let mut emitted = Vec::new();
                     par_each(
-                        &items,
                         jobs,
-                        || order.clone(),
+                        || (&items[..], order.clone()),
                         |at, &i| {
                             assert_eq!(at, i);
                             calls.fetch_add(1, Ordering::Relaxed);
@@ -455,7 +457,7 @@ mod tests {
     }
 
     /// The threads take the items in the order given: each thread's items come in that order
-    /// (one thread works in the items' own order, emitting each as it is done).
+    /// (one thread takes them all in it).
     #[test]
     fn par_each_takes_items_in_the_order_given() {
         let items: Vec<usize> = (0..50).collect();
@@ -464,16 +466,15 @@ mod tests {
         for jobs in [1usize, 2, 4] {
             let started = std::sync::Mutex::new(Vec::new());
             par_each(
-                &items,
                 jobs,
-                || order.clone(),
+                || (&items[..], order.clone()),
                 |_, &i| started.lock().unwrap().push((std::thread::current().id(), i)),
                 |_, ()| {},
             );
             let started = started.into_inner().unwrap();
             assert_eq!(started.len(), items.len());
             if jobs == 1 {
-                assert_eq!(started.iter().map(|&(_, i)| i).collect::<Vec<_>>(), items);
+                assert_eq!(started.iter().map(|&(_, i)| i).collect::<Vec<_>>(), order);
                 continue;
             }
             let threads: std::collections::HashSet<_> = started.iter().map(|&(t, _)| t).collect();
@@ -497,9 +498,8 @@ mod tests {
                 for jobs in [2usize, 3] {
                     let mut emitted = Vec::new();
                     par_each(
-                        &items,
                         jobs,
-                        || (0..items.len()).collect(),
+                        || (&items[..], (0..items.len()).collect()),
                         |_, &i| {
                             // (The calling thread slow enough for the workers to start and
                             // take items, the workers slower still.)
@@ -517,6 +517,34 @@ mod tests {
         rx.recv_timeout(std::time::Duration::from_secs(60)).expect("par_each should not wait for ever");
     }
 
+    /// The items may be found once the threads are started (the threads wait for them), and
+    /// there may be fewer of them than threads, or none: each is worked on once, in any case.
+    #[test]
+    fn par_each_finds_its_items_once_its_threads_are_started() {
+        for n in [0usize, 1, 3, 20] {
+            let items: Vec<usize> = (0..n).collect();
+            for jobs in [1usize, 2, 8] {
+                let calls = std::sync::atomic::AtomicUsize::new(0);
+                let mut emitted = Vec::new();
+                par_each(
+                    jobs,
+                    || {
+                        // (Long enough for the other threads to be waiting for the items.)
+                        std::thread::sleep(std::time::Duration::from_millis(2));
+                        (&items[..], (0..n).rev().collect())
+                    },
+                    |_, &i| {
+                        calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        i + 10
+                    },
+                    |&i, r| emitted.push((i, r)),
+                );
+                assert_eq!(calls.into_inner(), n, "n {n} jobs {jobs}");
+                assert_eq!(emitted, items.iter().map(|&i| (i, i + 10)).collect::<Vec<_>>(), "n {n} jobs {jobs}");
+            }
+        }
+    }
+
     /// An order that is no permutation of the items (an index missing, repeated or out of
     /// range) is taken as the items' own order: every item is still worked on once.
     #[test]
@@ -525,7 +553,7 @@ mod tests {
         for bad in [vec![], vec![0, 1, 2], vec![0; 9], vec![8, 7, 6, 5, 4, 3, 2, 1, 99], (0..10).collect()] {
             for jobs in [1usize, 3] {
                 let mut emitted = Vec::new();
-                par_each(&items, jobs, || bad.clone(), |_, &i| i + 1, |&i, r| emitted.push((i, r)));
+                par_each(jobs, || (&items[..], bad.clone()), |_, &i| i + 1, |&i, r| emitted.push((i, r)));
                 assert_eq!(emitted, items.iter().map(|&i| (i, i + 1)).collect::<Vec<_>>(), "{bad:?} jobs {jobs}");
             }
         }
@@ -544,9 +572,8 @@ mod tests {
             for jobs in [2usize, 4] {
                 let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
                     par_each(
-                        &items,
                         jobs,
-                        || if case == "order" { panic!("order") } else { (0..40).collect() },
+                        || (&items[..], if case == "order" { panic!("order") } else { (0..40).collect() }),
                         |_, &i| {
                             running.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
                             std::thread::sleep(std::time::Duration::from_micros(200));
