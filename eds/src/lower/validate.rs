@@ -81,7 +81,8 @@ fn mandatory(model: &Model, cx: &mut Ctx<'_>) {
             d.hint = Some("CiA 301 requires 0x1000, 0x1001 and 0x1018 in every device".into());
             continue;
         };
-        let ctx = vec![object_context(index, &obj.name)];
+        // (Made only for a diagnostic: most files have all three objects as CiA 301 says.)
+        let ctx = || vec![object_context(index, &obj.name)];
         if !types.contains(&obj.object_type) {
             let d = cx.emit(
                 codes::E0507,
@@ -92,13 +93,13 @@ fn mandatory(model: &Model, cx: &mut Ctx<'_>) {
                     otype(types[0])
                 ),
             );
-            d.context = ctx.clone();
+            d.context = ctx();
             continue;
         }
         if let Some(e) = obj.sub(sub)
             && e.data_type != dt
         {
-            let mut c = ctx.clone();
+            let mut c = ctx();
             if sub != 0 {
                 c.push(sub_context(sub, &e.name));
             }
@@ -141,7 +142,8 @@ fn effective(e: &Entry) -> Option<&Value> {
 fn pdos(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
     let mut rx_comm = 0u32;
     let mut tx_comm = 0u32;
-    for obj in model.objects.values() {
+    // The PDO objects (communication and mapping) are 0x1400..=0x1BFF: only those are looked at.
+    for (_, obj) in model.objects.range(PDO_OBJECTS) {
         let (is_rpdo, n) = match obj.index.role() {
             Role::RpdoCommunication(_) => {
                 rx_comm += 1;
@@ -200,8 +202,9 @@ fn pair(model: &Model, obj: &Object, other: u16, other_kind: &str, cx: &mut Ctx<
 fn fixed_mapping(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
     let writable: Vec<(&Object, &Entry)> = model
         .objects
-        .values()
-        .filter(|o| matches!(o.index.role(), Role::RpdoMapping(_) | Role::TpdoMapping(_)))
+        .range(PDO_OBJECTS)
+        .map(|(_, o)| o)
+        .filter(|o| is_pdo_mapping(o.index.0))
         .filter_map(|o| Some((o, o.subs.values().find(|e| e.access.writable())?)))
         .collect();
     let Some(&(obj, e)) = writable.first() else { return };
@@ -227,6 +230,21 @@ fn fixed_mapping(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
     d.hint = Some(
         "make the mapping parameters ro (or const), or set Granularity to the mapping unit in bits (usually 8)".into(),
     );
+}
+
+/// The indices of the PDO communication and mapping objects (RPDO communication 0x1400.. to
+/// TPDO mapping ..0x1BFF).
+const PDO_OBJECTS: std::ops::RangeInclusive<Index> = Index(0x1400)..=Index(0x1BFF);
+
+/// The indices of the objects with a COB-ID [`cob_ids`] checks: 0x1005 (SYNC), 0x1014 (EMCY)
+/// and the PDO communication objects, with the PDO mapping objects between them.
+const COB_ID_OBJECTS: std::ops::RangeInclusive<Index> = Index(0x1005)..=Index(0x19FF);
+
+/// Whether `index` is a PDO mapping object's (`Role::RpdoMapping` or `Role::TpdoMapping`),
+/// decided on the number without [`Index::role`]'s cases.
+#[inline]
+fn is_pdo_mapping(index: u16) -> bool {
+    matches!(index, 0x1600..=0x17FF | 0x1A00..=0x1BFF)
 }
 
 /// `RPDO 1`, `TPDO 3` (PDO numbers count from 1).
@@ -432,9 +450,7 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
 /// in the cache: a pass of its own over the whole model and the section list, which has run
 /// long by then, took 3 % of the reading time for this one comparison per object.
 pub(crate) fn sub_index_zero(secs: &Sections<'_>, obj: &Object, highest_section: Option<u8>, cx: &mut Ctx<'_>) {
-    if !matches!(obj.object_type, ObjectType::Array | ObjectType::Record)
-        || matches!(obj.index.role(), Role::RpdoMapping(_) | Role::TpdoMapping(_))
-    {
+    if !matches!(obj.object_type, ObjectType::Array | ObjectType::Record) || is_pdo_mapping(obj.index.0) {
         return;
     }
     let Some(e0) = obj.sub(0) else { return };
@@ -489,11 +505,30 @@ const RESTRICTED_CAN_IDS: [(u32, u32); 8] = [
 struct CobId<'m> {
     obj: &'m Object,
     entry: &'m Entry,
-    /// `TPDO 1`, `SYNC`, `EMCY`.
-    what: String,
+    /// `TPDO 1`, `SYNC`, `EMCY` (written only into a diagnostic).
+    what: CobOwner,
     value: &'m Value,
     /// Bit 31 says "not valid" (PDO, EMCY); SYNC has no such bit.
     has_valid_bit: bool,
+}
+
+/// Whose COB-ID a [`CobId`] is; shown as `TPDO 1`, `SYNC`, `EMCY`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum CobOwner {
+    /// A PDO: whether it is an RPDO, and its number counted from 0.
+    Pdo(bool, u16),
+    Sync,
+    Emcy,
+}
+
+impl std::fmt::Display for CobOwner {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            CobOwner::Pdo(is_rpdo, n) => f.write_str(&pdo_name(is_rpdo, n)),
+            CobOwner::Sync => f.write_str("SYNC"),
+            CobOwner::Emcy => f.write_str("EMCY"),
+        }
+    }
 }
 
 impl CobId<'_> {
@@ -589,12 +624,12 @@ fn show_cob(v: &Value) -> String {
 /// bits used, and two of the device's own objects on the same CAN-ID.
 fn cob_ids(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
     let mut cobs: Vec<CobId<'_>> = Vec::new();
-    for obj in model.objects.values() {
+    for (_, obj) in model.objects.range(COB_ID_OBJECTS) {
         let (sub, what, has_valid_bit) = match obj.index.role() {
-            Role::RpdoCommunication(n) => (1, pdo_name(true, n), true),
-            Role::TpdoCommunication(n) => (1, pdo_name(false, n), true),
-            Role::SyncCobId => (0, "SYNC".to_owned(), false),
-            Role::EmcyCobId => (0, "EMCY".to_owned(), true),
+            Role::RpdoCommunication(n) => (1, CobOwner::Pdo(true, n), true),
+            Role::TpdoCommunication(n) => (1, CobOwner::Pdo(false, n), true),
+            Role::SyncCobId => (0, CobOwner::Sync, false),
+            Role::EmcyCobId => (0, CobOwner::Emcy, true),
             _ => continue,
         };
         let Some(entry) = obj.sub(sub) else { continue };
@@ -702,6 +737,36 @@ fn cob_ids(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// The index ranges the checks look in hold every object of the roles they look for, and
+    /// `is_pdo_mapping` is the roles' own test: for every index.
+    #[test]
+    fn index_ranges_hold_the_roles() {
+        for i in 0..=u16::MAX {
+            let role = Index(i).role();
+            let mapping = matches!(role, Role::RpdoMapping(_) | Role::TpdoMapping(_));
+            assert_eq!(is_pdo_mapping(i), mapping, "{i:#06x}");
+            let pdo = mapping || matches!(role, Role::RpdoCommunication(_) | Role::TpdoCommunication(_));
+            if pdo {
+                assert!(PDO_OBJECTS.contains(&Index(i)), "{i:#06x}");
+            }
+            let cob = matches!(
+                role,
+                Role::RpdoCommunication(_) | Role::TpdoCommunication(_) | Role::SyncCobId | Role::EmcyCobId
+            );
+            if cob {
+                assert!(COB_ID_OBJECTS.contains(&Index(i)), "{i:#06x}");
+            }
+        }
+    }
+
+    #[test]
+    fn cob_owners_are_shown_as_before() {
+        assert_eq!(CobOwner::Pdo(true, 0).to_string(), "RPDO 1");
+        assert_eq!(CobOwner::Pdo(false, 511).to_string(), "TPDO 512");
+        assert_eq!(CobOwner::Sync.to_string(), "SYNC");
+        assert_eq!(CobOwner::Emcy.to_string(), "EMCY");
+    }
 
     /// The shortcut says "nothing to report" only where every node's check says so.
     fn agrees(value: Value, has_valid_bit: bool, nodes: std::ops::RangeInclusive<u8>) {
