@@ -3,7 +3,7 @@
 use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys, report_duplicate};
 use super::{Crumbs, Ctx, FastMap};
 use crate::codes;
-use crate::model::{Category, Commissioning, DeviceInfo, ExtraSection, FileInfo, Index, Model, Role};
+use crate::model::{Category, Commissioning, DeviceInfo, ExtraSection, FileInfo, Model, Radix};
 use crate::source::Span;
 use crate::value::parse_int;
 
@@ -620,11 +620,14 @@ pub(crate) fn list_name(c: Category) -> &'static str {
     }
 }
 
-/// The list an index belongs in by CiA 306.
+/// The list an index belongs in by CiA 306: the mandatory objects (device type, error
+/// register, identity), the manufacturer-specific area, the rest optional. (Decided on the
+/// number, as `Index::role` places these; `expected_category_follows_the_roles` holds the two
+/// together for every index.)
 pub(crate) fn expected_category(index: u16) -> Category {
-    match Index(index).role() {
-        Role::DeviceType | Role::ErrorRegister | Role::Identity => Category::Mandatory,
-        Role::ManufacturerSpecific => Category::Manufacturer,
+    match index {
+        0x1000 | 0x1001 | 0x1018 => Category::Mandatory,
+        0x2000..=0x5FFF => Category::Manufacturer,
         _ => Category::Optional,
     }
 }
@@ -645,9 +648,12 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
         // A constant, so that the key set is built when compiling, not on every call.
         const SUPPORTED_OBJECTS: KeySet<1> = KeySet::new(["SupportedObjects"]);
         let keys = match_keys(cx, sec, &SUPPORTED_OBJECTS, Crumbs::default(), false);
-        let mut numbers: Vec<u32> = Vec::new();
+        // The entries' numbers, as long as they are 1, 2, 3, ... in order (as lists write
+        // them) only counted; from the first out of order on, collected.
+        let mut count = 0u32;
+        let mut numbers: Option<Vec<u32>> = None;
         for kv in &keys.unknown {
-            let Ok(n) = kv.key.parse::<u32>() else {
+            let Some(n) = list_number(kv.key) else {
                 let d = cx.emit(
                     codes::E0404,
                     Some(kv.key_span(&cx.src.text)),
@@ -658,7 +664,14 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
             };
             // The plain forms (`0x1000`) need neither the general number reader nor its list of
             // remarks (which this list does not report).
-            let parsed = match crate::value::parse_plain_uint(kv.value) {
+            // `0x1000`, four hex digits, above all.
+            let plain = match kv.value.as_bytes() {
+                &[b'0', b'x' | b'X', a, b, c, d] => {
+                    crate::value::hex4_value([a, b, c, d]).map(|v| (v as u64, Radix::Hex))
+                }
+                _ => None,
+            };
+            let parsed = match plain.or_else(|| crate::value::parse_plain_uint(kv.value)) {
                 Some((v, radix)) => Ok(crate::value::ParsedInt { value: v as i128, radix, negative: false }),
                 None => parse_int(kv.value, &mut Vec::new()),
             };
@@ -687,7 +700,12 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                     continue;
                 }
             };
-            numbers.push(n);
+            count += 1;
+            match &mut numbers {
+                None if n == count => {}
+                None => numbers = Some((1..count).chain([n]).collect()),
+                Some(numbers) => numbers.push(n),
+            }
             // One look-up for the repeat check and the insertion.
             let vacant = match lists.listed.entry(index) {
                 std::collections::hash_map::Entry::Vacant(e) => e,
@@ -718,13 +736,21 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
             }
             vacant.insert((cat, kv.value_span(&cx.src.text)));
         }
-        numbers.sort_unstable();
-        let consecutive = numbers.iter().enumerate().all(|(i, &n)| n == i as u32 + 1);
+        let numbers = match numbers {
+            Some(mut numbers) => {
+                numbers.sort_unstable();
+                numbers
+            }
+            None => Vec::new(),
+        };
+        // (Counted in order: 1..=count.)
+        let consecutive = numbers.is_empty() || numbers.iter().enumerate().all(|(i, &n)| n == i as u32 + 1);
+        let listed_count = count as usize;
         match keys.get(0) {
             Some(kv) => {
                 let mut q = Vec::new();
                 match parse_int(kv.value, &mut q) {
-                    Ok(p) if p.value == numbers.len() as i128 && consecutive => {}
+                    Ok(p) if p.value == listed_count as i128 && consecutive => {}
                     Ok(p) => {
                         let d = cx.emit(
                             codes::E0403,
@@ -732,7 +758,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                             format!(
                                 "[{name}] says SupportedObjects={} but lists {} objects{}",
                                 p.value,
-                                numbers.len(),
+                                listed_count,
                                 if consecutive {
                                     String::new()
                                 } else {
@@ -741,7 +767,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                             ),
                         );
                         d.hint = Some(
-                            format!("number the entries 1..{n} and set SupportedObjects={n}", n = numbers.len()).into(),
+                            format!("number the entries 1..{n} and set SupportedObjects={n}", n = listed_count).into(),
                         );
                     }
                     Err(_) => {
@@ -755,11 +781,30 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
             }
             None => {
                 let d = cx.emit(codes::E0403, Some(sec.name_span), format!("[{name}] lacks `SupportedObjects`"));
-                d.hint = Some(format!("add `SupportedObjects={}`", numbers.len()).into());
+                d.hint = Some(format!("add `SupportedObjects={}`", listed_count).into());
             }
         }
     }
     lists
+}
+
+/// The number of an object list's entry key, as `str::parse::<u32>` reads it (digits, with an
+/// optional `+`); the commonest keys, up to nine digits, without the general parser.
+#[inline]
+fn list_number(key: &str) -> Option<u32> {
+    let b = key.as_bytes();
+    if b.is_empty() || b.len() > 9 {
+        return key.parse().ok();
+    }
+    let mut v = 0u32;
+    for &c in b {
+        let d = c.wrapping_sub(b'0');
+        if d > 9 {
+            return key.parse().ok();
+        }
+        v = v * 10 + d as u32;
+    }
+    Some(v)
 }
 
 fn number_ranges(ns: &[u32]) -> String {
@@ -779,6 +824,7 @@ fn number_ranges(ns: &[u32]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::{Index, Role};
 
     #[test]
     fn dates_and_times() {
@@ -788,6 +834,58 @@ mod tests {
         assert!(is_time("12:59pm"));
         assert!(!is_time("20:31PM"));
         assert!(!is_time("10:3AM"));
+    }
+
+    #[test]
+    fn expected_category_follows_the_roles() {
+        for i in 0..=u16::MAX {
+            let by_role = match Index(i).role() {
+                Role::DeviceType | Role::ErrorRegister | Role::Identity => Category::Mandatory,
+                Role::ManufacturerSpecific => Category::Manufacturer,
+                _ => Category::Optional,
+            };
+            assert_eq!(expected_category(i), by_role, "{i:#06x}");
+        }
+    }
+
+    #[test]
+    fn list_numbers_read_as_parse_does() {
+        for key in [
+            "",
+            "0",
+            "1",
+            "01",
+            "+1",
+            "-1",
+            "+",
+            "1+",
+            " 1",
+            "1 ",
+            "a",
+            "123456789",
+            "999999999",
+            "1000000000",
+            "4294967295",
+            "4294967296",
+            "04294967295",
+            "+4294967295",
+            "0000000000001",
+            "1\u{e9}",
+            "\u{661}",
+        ] {
+            assert_eq!(list_number(key), key.parse::<u32>().ok(), "{key:?}");
+        }
+        for n in (0..100_000u32).chain([u32::MAX - 1, u32::MAX, 999_999_999, 1_000_000_000]) {
+            assert_eq!(list_number(&n.to_string()), Some(n));
+            assert_eq!(list_number(&format!("{n:012}")), Some(n));
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn list_numbers_agree_with_parse(key in "[+-]?[0-9a ]{0,12}") {
+            proptest::prop_assert_eq!(list_number(&key), key.parse::<u32>().ok());
+        }
     }
 
     #[test]
