@@ -101,11 +101,16 @@ fn missing_keys<const N: usize>(
         .filter(|r| known.names.iter().position(|k| k == r).is_none_or(|i| keys.get(i).is_none()))
         .collect();
     if !missing.is_empty() {
-        let d = cx.emit(
-            codes::E0505,
-            Some(sec.name_span),
-            format!("[{}] lacks {}", sec.name, missing.iter().map(|m| format!("`{m}`")).collect::<Vec<_>>().join(", ")),
-        );
+        let d = cx.emit(codes::E0505, Some(sec.name_span), {
+            // "[DeviceInfo] lacks `A`, `B`", without a formatter.
+            let mut message = super::cat(["[", sec.name, "] lacks "]);
+            for (i, m) in missing.iter().enumerate() {
+                message.push_str(if i == 0 { "`" } else { ", `" });
+                message.push_str(m);
+                message.push('`');
+            }
+            message
+        });
         d.hint = Some("CiA 306 requires these keys".into());
     }
 }
@@ -187,9 +192,9 @@ fn lower_file_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> FileInfo {
             let d = cx.emit(
                 codes::E0503,
                 Some(kv.value_span(&cx.src.text)),
-                format!("[FileInfo] {}=`{}` is not in the CiA 306 form {form}", kv.key, kv.value),
+                super::cat(["[FileInfo] ", kv.key, "=`", kv.value, "` is not in the CiA 306 form ", form]),
             );
-            d.hint = Some(format!("write it as {form}").into());
+            d.hint = Some(super::cat(["write it as ", form]).into());
         }
     }
     if let Some(kv) = keys.get(3) {
@@ -444,7 +449,7 @@ fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
                     let d = cx.emit(
                         codes::E0503,
                         Some(kv.key_span(&cx.src.text)),
-                        format!("`{}` names no basic data type (0001..0007)", kv.key),
+                        super::cat(["`", kv.key, "` names no basic data type (0001..0007)"]),
                     );
                     d.hint = Some("dummy mapping exists for the data types 0x0001..=0x0007".into());
                 }

@@ -35,12 +35,13 @@ fn object_lists(secs: &Sections<'_>, lists: &Lists, model: &Model, cx: &mut Ctx<
         .collect();
     missing.sort_by_key(|&(_, _, span)| span.start);
     for (index, cat, span) in missing {
+        let hex = super::hex4(index);
         let d = cx.emit(
             codes::E0401,
             Some(span),
-            format!("[{}] lists 0x{index:04X}, but there is no section [{index:04X}]", list_name(cat)),
+            super::cat(["[", list_name(cat), "] lists 0x", &hex, ", but there is no section [", &hex, "]"]),
         );
-        d.hint = Some(format!("add the section [{index:04X}] or remove the list entry").into());
+        d.hint = Some(super::cat(["add the section [", &hex, "] or remove the list entry"]).into());
     }
     for obj in model.objects.values() {
         if !lists.listed.contains_key(&obj.index.0) {
@@ -240,6 +241,16 @@ const PDO_OBJECTS: std::ops::RangeInclusive<Index> = Index(0x1400)..=Index(0x1BF
 /// and the PDO communication objects, with the PDO mapping objects between them.
 const COB_ID_OBJECTS: std::ops::RangeInclusive<Index> = Index(0x1005)..=Index(0x19FF);
 
+/// `v` in decimal, as `format!("{v}")` writes it: numbers from 0 to 255 (sub-indices and
+/// counts of them, most numbers a diagnostic here shows) as a slice of a table.
+fn decimal(v: impl Into<i128>) -> std::borrow::Cow<'static, str> {
+    let v = v.into();
+    match u8::try_from(v) {
+        Ok(b) => super::decimal_u8(b).into(),
+        Err(_) => v.to_string().into(),
+    }
+}
+
 /// Whether `index` is a PDO mapping object's (`Role::RpdoMapping` or `Role::TpdoMapping`),
 /// decided on the number without [`Index::role`]'s cases.
 #[inline]
@@ -249,7 +260,7 @@ fn is_pdo_mapping(index: u16) -> bool {
 
 /// `RPDO 1`, `TPDO 3` (PDO numbers count from 1).
 fn pdo_name(is_rpdo: bool, n: u16) -> String {
-    format!("{} {}", if is_rpdo { "RPDO" } else { "TPDO" }, n + 1)
+    super::cat([if is_rpdo { "RPDO " } else { "TPDO " }, &decimal(n + 1)])
 }
 
 fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u16, cx: &mut Ctx<'_>) {
@@ -299,7 +310,7 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
         }
         let m = PdoMappingEntry::from_u32(raw);
         total_bits += m.bits as u32;
-        let target_text = || format!("0x{:04X} sub {}", m.index.0, m.sub.0);
+        let target_text = || super::cat(["0x", &super::hex4(m.index.0), " sub ", super::decimal_u8(m.sub.0)]);
         if let Some(g) = granularity.filter(|&g| g != 0)
             && !m.bits.is_multiple_of(g)
         {
@@ -365,14 +376,16 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
             continue;
         };
         let target_text = || match model.object(m.index.0) {
-            Some(o) if o.object_type.has_subs() => format!("{} \"{}\" of \"{}\"", target_text(), target.name, o.name),
-            _ => format!("0x{:04X} \"{}\"", m.index.0, target.name),
+            Some(o) if o.object_type.has_subs() => {
+                super::cat([&target_text(), " \"", &target.name, "\" of \"", &o.name, "\""])
+            }
+            _ => super::cat(["0x", &super::hex4(m.index.0), " \"", &target.name, "\""]),
         };
         if !target.pdo_mapping {
             let d = cx.emit(
                 codes::E0602,
                 Some(span()),
-                format!("{} maps {}, which has PDOMapping=0", pdo(), target_text()),
+                super::cat([&pdo(), " maps ", &target_text(), ", which has PDOMapping=0"]),
             );
             d.hint = Some("set PDOMapping=1 on the mapped entry, or remove the mapping".into());
             d.context = c.to_vec();
@@ -467,21 +480,31 @@ pub(crate) fn sub_index_zero(secs: &Sections<'_>, obj: &Object, highest_section:
     if ok {
         return;
     }
-    let elements = if is_array && count != highest { format!(" and it has {count} elements") } else { String::new() };
+    let show_count = is_array && count != highest;
+    let (value, highest, count) = (decimal(value), decimal(highest), decimal(count));
+    let (elements, count, tail) = if show_count { (" and it has ", &*count, " elements") } else { ("", "", "") };
     let d = cx.emit(
         codes::E0221,
         Some(value_span(secs, obj, e0)),
-        format!(
-            "sub-index 0 of {} 0x{:04X} is {value}, but the highest sub-index present is {highest}{elements}",
+        super::cat([
+            "sub-index 0 of ",
             otype(obj.object_type),
-            obj.index.0
-        ),
+            " 0x",
+            &super::hex4(obj.index.0),
+            " is ",
+            &value,
+            ", but the highest sub-index present is ",
+            &highest,
+            elements,
+            count,
+            tail,
+        ]),
     );
     d.hint = Some(
         if e0.access.writable() {
-            format!("sub-index 0 counts the entries in use: at most {highest}")
+            super::cat(["sub-index 0 counts the entries in use: at most ", &highest])
         } else {
-            format!("set sub-index 0 to {highest}, the highest sub-index the object supports")
+            super::cat(["set sub-index 0 to ", &highest, ", the highest sub-index the object supports"])
         }
         .into(),
     );
@@ -757,6 +780,20 @@ mod tests {
             if cob {
                 assert!(COB_ID_OBJECTS.contains(&Index(i)), "{i:#06x}");
             }
+        }
+    }
+
+    #[test]
+    fn decimals_are_written_as_format_writes_them() {
+        for v in (-300i128..300).chain([i128::MIN, i128::MAX, 65_535, 1 << 40]) {
+            assert_eq!(decimal(v), format!("{v}"));
+        }
+        for n in 0..=u16::MAX {
+            assert_eq!(decimal(n), format!("{n}"));
+        }
+        for n in [0, 1, 254, 255, 511, u16::MAX - 1] {
+            assert_eq!(pdo_name(true, n), format!("RPDO {}", n + 1));
+            assert_eq!(pdo_name(false, n), format!("TPDO {}", n + 1));
         }
     }
 
