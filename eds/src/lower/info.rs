@@ -88,6 +88,37 @@ fn info_bool(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
     }
 }
 
+/// The data type a `DummyNNNN` key names: `Dummy` in any case and four hex digits.
+#[inline]
+fn dummy_type(key: &str) -> Option<u16> {
+    match *key.as_bytes() {
+        [d, u, m1, m2, y, a, b, c, e] if [d, u, m1, m2, y].eq_ignore_ascii_case(b"Dummy") => {
+            crate::value::hex4_value([a, b, c, e])
+        }
+        _ => None,
+    }
+}
+
+/// The rate of a `BaudRate_<kbit/s>` key as CiA 306 writes it (`BaudRate_` and one to four
+/// digits without a leading zero, or `0`), read without the general number parser; `None` for
+/// any other key (which the general rules then look at).
+#[inline]
+fn canonical_baud_rate(key: &str) -> Option<u16> {
+    let digits = key.strip_prefix("BaudRate_")?.as_bytes();
+    if digits.is_empty() || digits.len() > 4 || (digits[0] == b'0' && digits.len() > 1) {
+        return None;
+    }
+    let mut v = 0u16;
+    for &c in digits {
+        let d = c.wrapping_sub(b'0');
+        if d > 9 {
+            return None;
+        }
+        v = v * 10 + d as u16;
+    }
+    Some(v)
+}
+
 fn missing_keys<const N: usize>(
     cx: &mut Ctx<'_>,
     sec: &Section<'_>,
@@ -305,11 +336,14 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
     }
     for kv in &keys.unknown {
         // BaudRate_<kbit/s>: any rate is read; the CiA 306 ones are not reported.
-        let rate = kv
-            .key
-            .get(..9)
-            .filter(|p| p.eq_ignore_ascii_case("BaudRate_"))
-            .and_then(|_| kv.key[9..].parse::<u16>().ok());
+        let rate = match canonical_baud_rate(kv.key) {
+            Some(r) => Some(r),
+            None => kv
+                .key
+                .get(..9)
+                .filter(|p| p.eq_ignore_ascii_case("BaudRate_"))
+                .and_then(|_| kv.key[9..].parse::<u16>().ok()),
+        };
         match rate {
             Some(r) => {
                 // As CiA 306 writes it: `BaudRate_` and the number without a sign or leading
@@ -437,12 +471,7 @@ fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
     const NO_KEYS: KeySet<0> = KeySet::new([]);
     let keys = match_keys(cx, sec, &NO_KEYS, Crumbs::default(), false);
     for kv in &keys.unknown {
-        let ty = kv.key.get(..5).filter(|p| p.eq_ignore_ascii_case("Dummy")).and_then(|_| {
-            let digits = &kv.key[5..];
-            (digits.len() == 4 && digits.bytes().all(|b| b.is_ascii_hexdigit()))
-                .then(|| u16::from_str_radix(digits, 16).ok())
-                .flatten()
-        });
+        let ty = dummy_type(kv.key);
         match ty {
             Some(t) => {
                 if !(1..=7).contains(&t) {
@@ -890,6 +919,59 @@ mod tests {
         #[test]
         fn list_numbers_agree_with_parse(key in "[+-]?[0-9a ]{0,12}") {
             proptest::prop_assert_eq!(list_number(&key), key.parse::<u32>().ok());
+        }
+    }
+
+    /// The canonical form is read as the general rules read it, and only it.
+    #[test]
+    fn baud_rates_read_as_the_general_rules_read_them() {
+        let general = |key: &str| {
+            key.get(..9).filter(|p| p.eq_ignore_ascii_case("BaudRate_")).and_then(|_| key[9..].parse::<u16>().ok())
+        };
+        let mut keys: Vec<String> = (0..=10_000u32).map(|n| format!("BaudRate_{n}")).collect();
+        keys.extend(
+            ["BaudRate_", "BaudRate_01", "BaudRate_+5", "BaudRate_-5", "baudrate_10", "BaudRate_1 ", "BaudRate_65535"]
+                .map(String::from),
+        );
+        keys.extend(
+            ["BaudRate_65536", "BaudRate_1a", "BaudRate_\u{661}", "Baudrate_10", "BaudRate10", "BaudRate_0000"]
+                .map(String::from),
+        );
+        for key in &keys {
+            if let Some(r) = canonical_baud_rate(key) {
+                assert_eq!(Some(r), general(key), "{key:?}");
+                assert_eq!(format!("BaudRate_{r}"), *key, "{key:?}");
+            }
+        }
+        // Every rate up to 9999 kbit/s written as CiA 306 writes it takes the short way.
+        for n in 0..=9999u16 {
+            assert_eq!(canonical_baud_rate(&format!("BaudRate_{n}")), Some(n));
+        }
+    }
+
+    /// `dummy_type` reads what `str` slicing and `u16::from_str_radix` read.
+    #[test]
+    fn dummy_types_read_as_the_general_rules_read_them() {
+        let general = |key: &str| {
+            key.get(..5).filter(|p| p.eq_ignore_ascii_case("Dummy")).and_then(|_| {
+                let digits = &key[5..];
+                (digits.len() == 4 && digits.bytes().all(|b| b.is_ascii_hexdigit()))
+                    .then(|| u16::from_str_radix(digits, 16).ok())
+                    .flatten()
+            })
+        };
+        let mut keys: Vec<String> = (0..=0xFFFFu32).map(|n| format!("Dummy{n:04X}")).collect();
+        keys.extend((0..0x100u32).map(|n| format!("dUMMY{n:04x}")));
+        for b in (0..0x80u8).map(|b| (b as char).to_string()).chain(["\u{e9}".into(), "\u{661}".into()]) {
+            for at in 0..9 {
+                let mut key: Vec<String> = "Dummy0007".chars().map(String::from).collect();
+                key[at] = b.clone();
+                keys.push(key.concat());
+            }
+        }
+        keys.extend(["", "Dummy", "Dummy007", "Dummy00007", "Dummy+007", "Dummy\u{e9}07"].map(String::from));
+        for key in &keys {
+            assert_eq!(dummy_type(key), general(key), "{key:?}");
         }
     }
 
