@@ -143,24 +143,29 @@ fn effective(e: &Entry) -> Option<&Value> {
 fn pdos(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
     let mut rx_comm = 0u32;
     let mut tx_comm = 0u32;
-    // The PDO objects (communication and mapping) are 0x1400..=0x1BFF: only those are looked at.
+    // The PDO objects (communication and mapping) are 0x1400..=0x1BFF: only those are looked at,
+    // and which of them the file has is a bit each (on the stack), for `pair`'s look-ups.
+    let mut present = PdoSet::default();
+    for (index, _) in model.objects.range(PDO_OBJECTS) {
+        present.insert(index.0);
+    }
     for (_, obj) in model.objects.range(PDO_OBJECTS) {
         let (is_rpdo, n) = match obj.index.role() {
             Role::RpdoCommunication(_) => {
                 rx_comm += 1;
-                pair(model, obj, obj.index.0 + 0x200, "mapping", cx);
+                pair(&present, obj, obj.index.0 + 0x200, "mapping", cx);
                 continue;
             }
             Role::TpdoCommunication(_) => {
                 tx_comm += 1;
-                pair(model, obj, obj.index.0 + 0x200, "mapping", cx);
+                pair(&present, obj, obj.index.0 + 0x200, "mapping", cx);
                 continue;
             }
             Role::RpdoMapping(n) => (true, n),
             Role::TpdoMapping(n) => (false, n),
             _ => continue,
         };
-        pair(model, obj, obj.index.0 - 0x200, "communication", cx);
+        pair(&present, obj, obj.index.0 - 0x200, "communication", cx);
         mapping(secs, model, obj, is_rpdo, n, cx);
     }
     let di = &model.device_info;
@@ -185,8 +190,27 @@ fn pdos(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
     }
 }
 
-fn pair(model: &Model, obj: &Object, other: u16, other_kind: &str, cx: &mut Ctx<'_>) {
-    if !model.objects.contains_key(&Index(other)) {
+/// Which indices of [`PDO_OBJECTS`] a file has: a bit each (256 bytes).
+#[derive(Default)]
+struct PdoSet([u64; 32]);
+
+impl PdoSet {
+    /// Adds `index` (one of [`PDO_OBJECTS`]; others are not kept).
+    fn insert(&mut self, index: u16) {
+        let Some(bit) = index.checked_sub(0x1400).filter(|&b| b < 0x800) else { return };
+        self.0[bit as usize / 64] |= 1 << (bit % 64);
+    }
+
+    /// Whether `index` was added.
+    fn contains(&self, index: u16) -> bool {
+        index.checked_sub(0x1400).filter(|&b| b < 0x800).is_some_and(|b| self.0[b as usize / 64] >> (b % 64) & 1 != 0)
+    }
+}
+
+/// Reports a PDO communication object without its mapping object or the other way round
+/// (`other`, which `present` says whether the file has).
+fn pair(present: &PdoSet, obj: &Object, other: u16, other_kind: &str, cx: &mut Ctx<'_>) {
+    if !present.contains(other) {
         let d = cx.emit(
             codes::E0609,
             Some(obj.at.span),
@@ -794,6 +818,20 @@ mod tests {
         for n in [0, 1, 254, 255, 511, u16::MAX - 1] {
             assert_eq!(pdo_name(true, n), format!("RPDO {}", n + 1));
             assert_eq!(pdo_name(false, n), format!("TPDO {}", n + 1));
+        }
+    }
+
+    #[test]
+    fn pdo_sets_hold_the_pdo_indices_added() {
+        let mut set = PdoSet::default();
+        let added = |i: u16| PDO_OBJECTS.contains(&Index(i)) && i % 3 != 1;
+        for i in 0..=u16::MAX {
+            if i % 3 != 1 {
+                set.insert(i);
+            }
+        }
+        for i in 0..=u16::MAX {
+            assert_eq!(set.contains(i), added(i), "{i:#06x}");
         }
     }
 
