@@ -146,8 +146,7 @@ pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::Sourc
             let start_col = lc.col.saturating_sub(1).min(line_chars);
             let span_text = source.slice(span);
             // (The span's first line: up to its first line end.)
-            let first = span_text.as_bytes().iter().position(|&b| b == b'\n' || b == b'\r');
-            let first = first.map_or(span_text, |end| &span_text[..end]);
+            let first = &span_text[..crate::lex::prefix_without(span_text.as_bytes(), [b'\n', b'\r'])];
             let span_chars = if first.is_ascii() { first.len() as u32 } else { first.chars().count() as u32 };
             let width = span_chars.min(line_chars.saturating_sub(start_col)).max(1);
             // A long line is cut to a window around the span's start, marked with `…`.
@@ -165,7 +164,7 @@ pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::Sourc
                 // An ASCII line (most are): its characters are its bytes, pushed as a slice.
                 Some(part) if ascii => {
                     let part = if to < line_chars { part } else { part.trim_end() };
-                    if part.as_bytes().contains(&b'\t') {
+                    if crate::lex::prefix_without(part.as_bytes(), [b'\t']) < part.len() {
                         out.extend(part.chars().map(untab));
                     } else {
                         out.push_str(part);
