@@ -16,14 +16,20 @@ fn owned(kv: &Kv<'_>) -> (String, String) {
 
 /// Reads an unsigned number for an information key; reports E0503 and returns `None` when it
 /// cannot be read or does not fit `max`.
+#[inline]
 fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u64> {
     // A plain number in range, as most are, needs neither the comment split nor the general
-    // reader (which reads it as the same number).
+    // reader (which reads it as the same number), nor a call.
     if let Some((n, _)) = crate::value::parse_plain_uint(kv.value)
         && n <= max
     {
         return Some(n);
     }
+    info_uint_general(cx, kv, max, section)
+}
+
+/// [`info_uint`] for a value that is not a plain number in range.
+fn info_uint_general(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u64> {
     let v = kv.value.split(';').next().unwrap_or("").trim();
     if v.is_empty() {
         let d = cx.emit(
@@ -58,13 +64,18 @@ fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u
     }
 }
 
+#[inline]
 fn info_bool(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
-    // (As nearly every file writes them: no comment to split off, nothing to trim.)
-    match kv.value {
-        "0" => return Some(false),
-        "1" => return Some(true),
-        _ => {}
+    // (As nearly every file writes them: no comment to split off, nothing to trim, no call.)
+    match kv.value.as_bytes() {
+        b"0" => Some(false),
+        b"1" => Some(true),
+        _ => info_bool_general(cx, kv, section),
     }
+}
+
+/// [`info_bool`] for a value other than a plain `0` or `1`.
+fn info_bool_general(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
     let v = kv.value.split(';').next().unwrap_or("").trim();
     match v {
         "0" => Some(false),
