@@ -184,7 +184,11 @@ pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::Sourc
                     }
                 }
             }
-            out.push_str(if to < line_chars { "…\n" } else { "\n" });
+            if to < line_chars {
+                out.push_str("…\n");
+            } else {
+                out.push('\n');
+            }
             // Underline the part of the span that lies on this line and in the window (at
             // least one caret).
             let lead = start_col - from + u32::from(from > 0);
